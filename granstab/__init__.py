@@ -1,0 +1,17 @@
+"""granstab: stability, bifurcation and softening of granular clusters after Kuhn & Chang.
+
+Public API::
+
+    scene = granstab.load_scene("presets/two_particle.toml")   # or scene_from_dict / build_scene
+    K = granstab.stiffness(scene, mask=None, sparse=False)     # H, Hm, Hg1, Hg2, Hg3, dofs
+    result = granstab.analyze(scene)                           # branches, verdicts, errors, timings
+    result.to_dict()                                           # the `granstab analyze --json` object
+"""
+from .analysis import Analysis, analyze
+from .scene import Scene, SceneError, build_scene, load_scene, scene_from_dict
+from .stiffness import Stiffness, stiffness
+from .tolerances import Tolerances
+from .verdicts import load_response, second_order_work
+
+__all__ = ["Analysis", "Scene", "SceneError", "Stiffness", "Tolerances", "analyze", "build_scene", "load_response",
+           "load_scene", "scene_from_dict", "second_order_work", "stiffness"]

@@ -1,0 +1,131 @@
+"""`granstab` command line: parse, call the core, print; exit 0 on success, 2 on invalid input (one line)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .analysis import analyze
+from .branches import BOTH, MINUS, PLUS, RIGID
+from .scene import SceneError, load_scene
+from .stiffness import MaskError, stiffness
+
+
+class InputError(Exception):
+    """Invalid command-line input; printed as one line, exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line instead of usage + message
+        raise InputError(f"{self.prog}: {message}")
+
+
+def parse_mask(text: str, n_contacts: int) -> np.ndarray:
+    try:
+        mask = np.array([int(v) for v in text.split(",")])
+    except ValueError:
+        raise InputError(f"--mask: expected comma-separated +1, -1, 0, got {text!r}") from None
+    if mask.shape != (n_contacts,) or not np.all(np.isin(mask, (-1, 0, 1))):
+        raise InputError(f"--mask: needs {n_contacts} entries (one per contact, file order), each +1, -1 or 0")
+    return mask
+
+
+def cmd_stiffness(args) -> int:
+    scene = load_scene(args.scene)
+    mask = parse_mask(args.mask, scene.n_contacts) if args.mask else None
+    try:
+        K = stiffness(scene, mask)
+    except MaskError as exc:
+        raise InputError(f"--mask: {exc}") from None
+    np.savez(args.out, H=K.H, Hm=K.Hm, Hg1=K.Hg1, Hg2=K.Hg2, Hg3=K.Hg3, dofs=np.array(K.dofs))
+    print(f"wrote {args.out}: H {K.H.shape[0]}x{K.H.shape[1]} ({scene.n_particles} particles, "
+          f"{scene.n_contacts} contacts)")
+    return 0
+
+
+MARK = {PLUS: "+v", MINUS: "-v", BOTH: "±v", RIGID: "rigid"}
+
+
+def format_table(result) -> str:
+    """A readable report of an Analysis: per branch the spectrum with consistency marks, then the verdict."""
+    s = result.scene
+    d = result.to_dict()
+    lines = [f"{s.title or s.source}: {s.dim}D, {s.n_particles} particles, {s.n_contacts} contacts, "
+             f"{d['n_sliding']} potentially sliding, {len(result.branches)} branch(es), L = {result.length:.4g}"]
+    for b in result.branches:
+        mask = " ".join(f"{int(v):+d}" for v in b.mask[result.problem.sliding]) or "(all elastic)"
+        lines.append(f"branch [{mask}]  zeros: {b.n_zero} (tol {b.zero_tol:.1e})  ℍ nullity: {b.uniqueness_n_zero}")
+        cells = [f"{lam: .6g}{'(' + MARK[c] + ')' if c in MARK else ''}"
+                 for lam, c in zip(b.stability_eigenvalues, b.codes)]
+        lines.append("  sym(𝓗) eigenvalues: " + ", ".join(cells))
+    sm = d["summary"]
+    lines.append(f"verdict: {sm['verdict'].upper()} — {sm['reason']}")
+    lines.append(f"consistent eigenvalues: {sm['consistent_positive']} positive, {sm['consistent_negative']} "
+                 f"negative, {sm['consistent_zero']} zero; Type-2 non-uniqueness: "
+                 f"{'yes' if sm['type2_nonuniqueness'] else 'no'}"
+                 + ("; verdict hinges on an S within tolerance" if sm["hinges_on_tolerance"] else ""))
+    lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in d["errors"].items()))
+    lines.append("timings: " + ", ".join(f"{k} {1e3 * v:.2f} ms" for k, v in d["timings"].items()))
+    lines += [f"warning: {w}" for w in d["warnings"]]
+    return "\n".join(lines)
+
+
+def cmd_analyze(args) -> int:
+    scene = load_scene(args.scene)
+    result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding)
+    print(json.dumps(result.to_dict()) if args.json else format_table(result))
+    return 0
+
+
+def cmd_reproduce(args) -> int:
+    from .report import reproduce
+    reproduce(args.name, Path(args.out))
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import run
+    run(quick=args.quick, out=Path(args.out))
+    return 0
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="granstab", description="Stability of granular clusters (Kuhn & Chang).")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    p = sub.add_parser("stiffness", help="write H, Hm, Hg1, Hg2, Hg3 and dof labels to an .npz file")
+    p.add_argument("scene")
+    p.add_argument("--out", required=True)
+    p.add_argument("--mask", help="one of +1,-1,0 per contact in file order (default: all elastic)")
+    p.set_defaults(run=cmd_stiffness)
+    p = sub.add_parser("analyze", help="branches, consistent eigenmodes and verdicts")
+    p.add_argument("scene")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument("--rotation-length", type=float, default=None,
+                   help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
+    p.add_argument("--max-sliding", type=int, default=16, help="refuse more potentially sliding contacts")
+    p.set_defaults(run=cmd_analyze)
+    p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
+    p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])
+    p.add_argument("--out", required=True)
+    p.set_defaults(run=cmd_reproduce)
+    p = sub.add_parser("bench", help="error against run time; writes BENCHMARKS.md and plots")
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--out", default=".")
+    p.set_defaults(run=cmd_bench)
+    return parser
+
+
+def main(argv=None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        return args.run(args)
+    except (SceneError, InputError) as exc:
+        print(" ".join(str(exc).split()), file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,63 @@
+"""Cross products as matrices, for 2D (rotations are scalars about e3) and 3D, batched.
+
+In 2D a vector has d = 2 components and a rotation r = 1 (about e3); in 3D d = r = 3.
+`cross_matrix(a)` is the (…, r, d) matrix X(a) with X(a)·b = a × b (the e3 component in 2D);
+its transpose is the (…, d, r) map dθ ↦ dθ × a, used for every corotational term of the paper
+(eq:dr–eq:dw). `spin_matrix(τ)` is the (…, r, r) map dθ ↦ dθ × τ for a moment τ (zero in 2D).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def rot_dim(dim: int) -> int:
+    """Number of rotational dof of a particle: 1 in 2D, 3 in 3D."""
+    return 1 if dim == 2 else 3
+
+
+def cross_matrix(a: np.ndarray) -> np.ndarray:
+    """X(a): (…, r, d) with X(a) b = a × b."""
+    a = np.asarray(a, dtype=float)
+    if a.shape[-1] == 2:
+        return np.stack([-a[..., 1], a[..., 0]], axis=-1)[..., None, :]
+    z = np.zeros(a.shape[:-1])
+    return np.stack(
+        [
+            np.stack([z, -a[..., 2], a[..., 1]], axis=-1),
+            np.stack([a[..., 2], z, -a[..., 0]], axis=-1),
+            np.stack([-a[..., 1], a[..., 0], z], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+def rotate_matrix(a: np.ndarray) -> np.ndarray:
+    """(…, d, r) map dθ ↦ dθ × a (the corotational increment of a vector a, eq:dr)."""
+    return np.swapaxes(cross_matrix(a), -1, -2)
+
+
+def spin_matrix(tau: np.ndarray, dim: int) -> np.ndarray:
+    """(…, r, r) map dθ ↦ dθ × τ for a moment τ; identically zero in 2D (both along e3)."""
+    tau = np.asarray(tau, dtype=float)
+    if dim == 2:
+        return np.zeros(tau.shape[:-1] + (1, 1))
+    return rotate_matrix(tau)
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b for (…, d) vectors: (…, r) — the e3 component in 2D."""
+    return np.einsum("...ij,...j->...i", cross_matrix(a), b)
+
+
+def tangent_basis(n: np.ndarray) -> np.ndarray:
+    """(…, d, d-1) orthonormal basis of the plane normal to unit n (2D: t = e3 × n)."""
+    n = np.asarray(n, dtype=float)
+    if n.shape[-1] == 2:
+        return np.stack([-n[..., 1], n[..., 0]], axis=-1)[..., None]
+    pick = np.argmin(np.abs(n), axis=-1)
+    a = np.zeros_like(n)
+    np.put_along_axis(a, pick[..., None], 1.0, axis=-1)
+    t1 = a - np.sum(a * n, axis=-1, keepdims=True) * n
+    t1 /= np.linalg.norm(t1, axis=-1, keepdims=True)
+    t2 = np.cross(n, t1)
+    return np.stack([t1, t2], axis=-1)
