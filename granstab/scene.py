@@ -228,7 +228,7 @@ class _Reader:
             arr = np.array(value, dtype=float)
         except (TypeError, ValueError):
             bad()
-        if arr.shape != shape or _has_bool(value):
+        if arr.shape != shape or not _all_numbers(value):
             bad()
         if not np.all(np.isfinite(arr)):
             self.fail(key, "must be finite (no nan or inf)")
@@ -243,12 +243,11 @@ def _jsonable(value) -> bool:
         return False
 
 
-def _has_bool(value) -> bool:
-    if isinstance(value, bool):
-        return True
+def _all_numbers(value) -> bool:
+    """True if every leaf is an int or float (not a bool, not a string that numpy would convert)."""
     if isinstance(value, (list, tuple)):
-        return any(_has_bool(v) for v in value)
-    return False
+        return all(_all_numbers(v) for v in value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
