@@ -14,10 +14,10 @@ import numpy as np
 
 from .branches import Problem, enumerate_masks, solve_branches
 from .rigid import Projection, dof_scale, rotation_length, rotations, translations
-from .scene import Scene, SceneError, equilibrium_loads
+from .checks import equilibrium_residual, identity_errors
+from .scene import Scene, SceneError
 from .stiffness import ContactBlocks, assemble, contact_blocks
 from .verdicts import summarize
-from .vec import cross_matrix, rot_dim
 
 
 class Timer:
@@ -110,39 +110,11 @@ def build_problem(scene: Scene, blocks: ContactBlocks, length: float):
     return problem, parts
 
 
-def identity_errors(scene: Scene, parts: dict, problem: Problem) -> dict:
-    """Relative residuals of exact identities of H (they hold for every motion, Sec. 2.3):
-    Σ_p db^p = 0, Σ_p (x^p × db^p + dw^p + du^p × b^p) = 0, Hg1, Hg2, Hm vanish on rigid motions,
-    H on translations, ℍ on all rigid motions; plus the projection's own checks."""
-    d, r = scene.dim, rot_dim(scene.dim)
-    H = (parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]).toarray()
-    norm = max(np.linalg.norm(H, 2), 1e-300)
-    T = translations(scene)
-    C = rotations(scene, 1.0)
-    rigid = np.concatenate([T, C], axis=1)
-    # moment balance about the centroid: C^T H + L with L dU = Σ du^p × b^p (eq:equil1 differentiated)
-    L = np.zeros((r, scene.n_dof))
-    per = d + r
-    for i in range(scene.n_particles):
-        L[:, i * per:i * per + d] = -cross_matrix(scene.load[i])
-    length = max(np.abs(scene.x - scene.x.mean(axis=0)).max(), rotation_length(scene))
-    HH = problem.projection.right(problem.H_el)
-    errs = {
-        "force_balance": float(np.abs(T.T @ H).max() / norm),
-        "moment_balance": float(np.abs(C.T @ H + L).max() / (norm * length)),
-        "rigid_leakage_parts": float(max(np.abs(parts[k] @ rigid).max() for k in ("Hg1", "Hg2", "Hm")) / norm),
-        "rigid_leakage_H_translations": float(np.abs(H @ T).max() / norm),
-        "rigid_leakage_modified": float(np.abs(HH @ problem.rigid).max() / max(np.linalg.norm(HH, 2), 1e-300)),
-    }
-    errs.update(problem.projection.errors())
-    return errs
-
-
-def equilibrium_residual(scene: Scene) -> float:
-    """max_p |b^p + Σ f^pq| / Σ|f| (0 when the loads were derived from the forces, eq:equil1)."""
-    b, _ = equilibrium_loads(scene)
-    scale = max(np.linalg.norm(scene.force, axis=1).sum(), 1e-300)
-    return float(np.linalg.norm(scene.load - b, axis=1).max() / scale) if scene.n_particles else 0.0
+def modified_leakage(problem: Problem) -> float:
+    """‖ℍ R‖ / ‖H‖ for all rigid motions R: ℍ = H - (H C) C⁺ applied without forming it (eq:newstiffnesses)."""
+    H, R, proj = problem.H_el, problem.rigid, problem.projection
+    HR = H @ R - (H @ proj.C) @ (proj.Cplus @ R)
+    return float(np.abs(HR).max() / max(np.linalg.norm(H), 1e-300))
 
 
 def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding: int = 16,
@@ -174,7 +146,10 @@ def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding:
         with timer("branches"):
             branches = solve_branches(problem, masks, on_branch=on_branch)
         with timer("errors"):
-            errors = identity_errors(scene, parts, problem)
+            parts["H"] = parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]
+            errors = identity_errors(scene, parts)
+            errors["rigid_leakage_modified"] = modified_leakage(problem)
+            errors.update(problem.projection.errors())
             errors["equilibrium_residual"] = equilibrium_residual(scene)
             errors["eigen_residual_stability"] = max(b.residual_stability for b in branches)
             errors["eigen_residual_uniqueness"] = max(b.residual_uniqueness for b in branches)

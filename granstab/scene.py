@@ -251,7 +251,14 @@ def _all_numbers(value) -> bool:
 
 
 def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
-    """Build and validate a Scene from the parsed file format (a dict)."""
+    """Build and validate a Scene from the parsed file format (a dict).
+
+    A scene whose particles all carry a `shape` and that has no `contacts` is shape-based: its contacts are
+    derived from the geometry (shapes.py)."""
+    from .shapes import is_shape_scene, shape_scene_from_dict
+
+    if is_shape_scene(data):
+        return shape_scene_from_dict(data, source=source, tol=tol)
     top = _Reader(source, "scene", data, TOP_KEYS)
     if "dim" not in data:
         top.fail("dim", "missing (2 or 3)")

@@ -19,11 +19,13 @@ contact moments, no rolling-stiffness blocks without rolling stiffness.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
+from .checks import identity_errors
 from .law import elastic_stiffness, sliding_direction, yield_normal
 from .scene import Scene
 from .vec import cross, cross_matrix, rot_dim, rotate_matrix, spin_matrix, tangent_basis
@@ -51,7 +53,8 @@ class ContactBlocks:
 
 @dataclass(frozen=True, eq=False)
 class Stiffness:
-    """H and its parts (dense arrays, or CSR matrices with sparse=True) with dof labels (eq:final1)."""
+    """H and its parts (dense arrays, or CSR matrices with sparse=True) with dof labels (eq:final1),
+    the residuals of H's exact identities (checks.py) and the wall time in seconds."""
 
     H: object
     Hm: object
@@ -59,6 +62,8 @@ class Stiffness:
     Hg2: object
     Hg3: object
     dofs: list
+    errors: dict
+    seconds: float
 
 
 def kinematics(scene: Scene):
@@ -207,6 +212,7 @@ def stiffness(scene: Scene, mask=None, sparse: bool = False, blocks: ContactBloc
 
     Dense numpy arrays by default, scipy.sparse CSR with sparse=True; both come from the same assembly.
     """
+    start = time.perf_counter()
     sliding = sliding_mask(scene, mask)
     cb = blocks if blocks is not None else contact_blocks(scene)
     hm_blocks = cb.blocks["Hm"]
@@ -214,6 +220,7 @@ def stiffness(scene: Scene, mask=None, sparse: bool = False, blocks: ContactBloc
         hm_blocks = hm_blocks + sliding[:, None, None] * (cb.slide_left[:, :, None] * cb.slide_right[:, None, :])
     parts = {name: assemble(cb.blocks[name] if name != "Hm" else hm_blocks, cb.index, cb.n_dof) for name in PARTS}
     parts["H"] = (parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]).tocsr()
+    errors = identity_errors(scene, parts)
     if not sparse:
         parts = {name: m.toarray() for name, m in parts.items()}
-    return Stiffness(dofs=scene.dofs(), **parts)
+    return Stiffness(dofs=scene.dofs(), errors=errors, seconds=time.perf_counter() - start, **parts)
