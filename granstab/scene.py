@@ -253,7 +253,7 @@ def _all_numbers(value) -> bool:
 def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
     """Build and validate a Scene from the parsed file format (a dict).
 
-    A scene whose particles all carry a `shape` and that has no `contacts` is shape-based: its contacts are
+    A scene with no `contacts` whose particles carry a `shape` is shape-based: its contacts are
     derived from the geometry (shapes.py)."""
     from .shapes import is_shape_scene, shape_scene_from_dict
 
