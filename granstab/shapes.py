@@ -479,8 +479,20 @@ def _read_orientation(rd: _Reader, dim: int, tol: Tolerances):
     return R
 
 
-def shape_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT):
-    """Read the shape format (a parsed TOML/JSON dict) into a Scene via `scene_from_shapes`.
+@dataclass(frozen=True, eq=False)
+class ShapeFile:
+    """A parsed shape-format scene: particles [(name, shape, (x, orientation))] and the contact law."""
+
+    dim: int
+    title: str
+    particles: list
+    law: dict
+    mobilised: float
+    shear: np.ndarray | None
+
+
+def read_shape_file(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> ShapeFile:
+    """Read the shape format (a parsed TOML/JSON dict) into its particles and contact law.
 
     Format: dim, title, [defaults] with k, alpha, mu, rolling_stiffness, mobilised (0..1, default 0) and
     shear (3D tangential-force direction, default [1, 0, 0]); [[particles]] with name, x, shape = {kind = "disk",
@@ -520,6 +532,14 @@ def shape_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAU
             rd.fail("name", f"duplicate particle name (also particles[{index[name]}])")
         index[name] = i
         entries.append((name, _read_shape(rd, dim), (rd.array("x", (dim,)), _read_orientation(rd, dim, tol))))
+    return ShapeFile(dim=dim, title=title, particles=entries, law=law, mobilised=mobilised, shear=shear)
+
+
+def shape_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT):
+    """Read the shape format into a Scene via `scene_from_shapes` (see `read_shape_file` for the format)."""
+    spec = read_shape_file(data, source, tol)
+    dim, entries, law, mobilised, shear, title = (spec.dim, spec.particles, spec.law, spec.mobilised, spec.shear,
+                                                  spec.title)
     try:
         return scene_from_shapes(dim, entries, k=law["k"], alpha=law["alpha"], mu=law["mu"], mobilised=mobilised,
                                  rolling_stiffness=law["rolling_stiffness"], shear=shear, title=title,

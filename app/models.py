@@ -1,0 +1,287 @@
+"""Scene models: what the sliders and drags act on, and how a Scene is made from them (no viser).
+
+Three kinds, each with `params_used`, `initial_params()`, `build(params) -> Scene` and `bodies(params)` (what to draw):
+- TwoParticleModel: the symmetric pair of Sec. 4.1, driven by ρ/r and f/(kr) directly. The contact-level data are
+  the paper's (radii along e1, normal e1, curvature -1/ρ on both sides, force f^pq = [-f, ±m μ f]), so the numbers
+  are exactly those of eq:exampleH; the drawn particles are ellipses of semi-axis r along e1 and tip radius of
+  curvature ρ (ρ = b²/a, so b = √(ρ r)): the shape follows the ρ/r slider.
+- ShapeModel: disks/ellipses/spheres/ellipsoids at poses; contacts, normals, curvatures and forces come from the
+  geometry (granstab.shapes); dragging changes the poses.
+- ContactModel: a contact-level scene file; the law parameters (μ, α, k, rolling) can be overridden, the geometry
+  is fixed (particles are drawn as disks/spheres through their contact points).
+"""
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import granstab
+from granstab import shapes
+
+from .params import defaults
+
+
+@dataclass(frozen=True)
+class Body:
+    """A particle to draw: kind "ellipse"|"disk" (2D) or "ellipsoid"|"sphere" (3D), semi-axes, pose x (d,), R (d, d)."""
+
+    name: str
+    kind: str
+    axes: tuple
+    x: np.ndarray
+    R: np.ndarray
+
+
+# ------------------------------------------------------------------------------------------------ the pair
+
+@dataclass
+class TwoParticleModel:
+    """The symmetric two-particle example (Sec. 4.1, Appendix C), driven by ρ/r and f/(kr)."""
+
+    r: float = 1.0
+    start: dict = field(default_factory=dict)
+    title: str = "two particles"
+
+    kind = "two_particle"
+    params_used = ("rho_r", "f_kr", "mu", "mobilised", "alpha", "k", "rolling")
+    draggable = True   # a drag turns the pair into a ShapeModel of the same ellipses (see Session.move)
+
+    def initial_params(self) -> dict:
+        return {**defaults(), **self.start}
+
+    def scene_dict(self, P: dict) -> dict:
+        r, k = self.r, P["k"]
+        f = P["f_kr"] * k * r
+        rho = P["rho_r"] * r
+        ft = P["mobilised"] * P["mu"] * f if f > 0 else 0.0
+        contact = {"p": "p", "q": "q", "point": [r, 0.0], "normal": [1.0, 0.0],
+                   "curvature_p": -1.0 / rho, "curvature_q": -1.0 / rho, "force": [-f, -ft],
+                   "k": k, "alpha": P["alpha"], "mu": P["mu"], "rolling_stiffness": P["rolling"] * k * r * r,
+                   # a tensile (cohesive) force lies outside the friction cone: the contact is elastic then
+                   "state": "auto" if f >= 0 else "elastic"}
+        return {"dim": 2, "title": f"{self.title} (ρ/r = {P['rho_r']:g}, f/(kr) = {P['f_kr']:g})",
+                "particles": [{"name": "p", "x": [0.0, 0.0]}, {"name": "q", "x": [2 * r, 0.0]}],
+                "contacts": [contact]}
+
+    def build(self, P: dict) -> granstab.Scene:
+        return granstab.scene_from_dict(self.scene_dict(P), source="two-particle pair")
+
+    def bodies(self, P: dict) -> list[Body]:
+        r = self.r
+        axes = (r, float(np.sqrt(P["rho_r"]) * r))
+        return [Body("p", "ellipse", axes, np.array([0.0, 0.0]), np.eye(2)),
+                Body("q", "ellipse", axes, np.array([2 * r, 0.0]), np.eye(2))]
+
+    def to_shapes(self, P: dict) -> "ShapeModel":
+        """The same two ellipses as a shape model (what a drag turns the pair into): q sits at 2r - δ with the
+        penalty overlap δ = f/k, so the pair keeps its force (a tensile force cannot be kept: δ = 0 then)."""
+        a, b = self.bodies(P)[0].axes
+        delta = max(P["f_kr"], 0.0) * self.r
+        ellipse = shapes.Ellipse(a, b)
+        particles = [("p", ellipse, (np.array([0.0, 0.0]), 0.0)), ("q", ellipse, (np.array([2 * self.r - delta, 0.0]), 0.0))]
+        start = {key: P[key] for key in ShapeModel.params_used}
+        return ShapeModel(dim=2, particles=particles, start=start, title=f"{self.title} (dragged)", length=self.r)
+
+    @classmethod
+    def from_scene(cls, scene: granstab.Scene) -> "TwoParticleModel | None":
+        """The pair if `scene` is the symmetric collinear two-particle example (else None), with its parameters."""
+        if scene.dim != 2 or scene.n_particles != 2 or scene.n_contacts != 1:
+            return None
+        xp, xq = scene.x[scene.p[0]], scene.x[scene.q[0]]
+        L = float(np.linalg.norm(xq - xp))
+        n, c = scene.normal[0], scene.point[0]
+        tol = 1e-9 * max(L, 1e-300)
+        if L == 0 or np.linalg.norm(n - (xq - xp) / L) > 1e-9 or np.linalg.norm(c - 0.5 * (xp + xq)) > tol:
+            return None
+        t = np.array([-n[1], n[0]])
+        kp, kq = float(t @ scene.curvature_p[0] @ t), float(t @ scene.curvature_q[0] @ t)
+        if kp >= 0 or abs(kp - kq) > 1e-9 * abs(kp) or scene.has_moments:
+            return None
+        r = L / 2
+        k = float(scene.k[0])
+        fn = -float(scene.force[0] @ n)
+        ft = float(np.linalg.norm(scene.tangential_force()[0]))
+        mu = float(scene.mu[0])
+        start = {"rho_r": -1.0 / kp / r, "f_kr": fn / (k * r), "mu": mu, "alpha": float(scene.alpha[0]), "k": k,
+                 "mobilised": ft / (mu * fn) if fn > 0 and mu > 0 else 0.0,
+                 "rolling": float(scene.rolling[0, 0, 0]) / (k * r * r)}
+        return cls(r=r, start=start, title=scene.title.split("(")[0].strip() or "two particles")
+
+
+# ------------------------------------------------------------------------------------------------ shapes
+
+@dataclass
+class ShapeModel:
+    """Particles with shapes at poses; every contact quantity is derived from the geometry (granstab.shapes)."""
+
+    dim: int
+    particles: list            # [(name, shape, (x, orientation))] as granstab.shapes.scene_from_shapes takes them
+    start: dict = field(default_factory=dict)
+    title: str = "shapes"
+    length: float = 0.0        # the r of rolling stiffness/(kr²); default: mean bounding radius
+    shear: object = None       # 3D tangential-force direction (granstab.shapes.tangent_directions)
+    poses0: list = field(default_factory=list)
+
+    kind = "shapes"
+    params_used = ("mu", "mobilised", "alpha", "k", "rolling")
+    draggable = True
+
+    def __post_init__(self):
+        self.poses0 = self.poses0 or [pose for _, _, pose in self.particles]
+        self.length = self.length or float(np.mean([shapes.bounding_radius(s) for _, s, _ in self.particles]))
+
+    def initial_params(self) -> dict:
+        return {**defaults(), **self.start}
+
+    def _law(self, P: dict) -> dict:
+        return dict(k=P["k"], alpha=P["alpha"], mu=P["mu"], mobilised=P["mobilised"],
+                    rolling_stiffness=P["rolling"] * P["k"] * self.length ** 2, shear=self.shear, title=self.title)
+
+    def build(self, P: dict) -> granstab.Scene:
+        try:
+            return shapes.scene_from_shapes(self.dim, self.particles, source="shapes", **self._law(P))
+        except granstab.SceneError:
+            raise
+        except (ValueError, RuntimeError) as exc:
+            raise granstab.SceneError(" ".join(str(exc).split())) from None
+
+    def to_dict(self, P: dict) -> dict:
+        """The shape scene file (granstab.shapes format) of the current poses and parameters."""
+        return shapes.shape_scene_to_dict(self.dim, self.particles, **self._law(P))
+
+    def bodies(self, P: dict) -> list[Body]:
+        out = []
+        for name, shape, (x, orientation) in self.particles:
+            kind = ({2: "disk", 3: "sphere"} if shapes.is_round(shape) else {2: "ellipse", 3: "ellipsoid"})[self.dim]
+            out.append(Body(name, kind, tuple(map(float, shape.semi_axes)), np.asarray(x, float).copy(),
+                            shapes.rotation_matrix(self.dim, orientation)))
+        return out
+
+    def set_pose(self, name: str, x, R) -> None:
+        """Move particle `name` to position x (d,) and orientation R (d, d)."""
+        R = np.asarray(R, float)
+        orientation = float(np.arctan2(R[1, 0], R[0, 0])) if self.dim == 2 else R
+        for i, (n, shape, _) in enumerate(self.particles):
+            if n == name:
+                self.particles[i] = (n, shape, (np.asarray(x, float)[:self.dim].copy(), orientation))
+                return
+        raise KeyError(name)
+
+    def reset_poses(self) -> None:
+        self.particles = [(n, s, p) for (n, s, _), p in zip(self.particles, self.poses0)]
+
+    @classmethod
+    def from_dict(cls, data: dict, source: str) -> "ShapeModel":
+        """Read the shape format; validation (one-line SceneError) is granstab.shapes.shape_scene_from_dict's."""
+        spec = shapes.read_shape_file(data, source=source)
+        law = {**spec.law, "mobilised": spec.mobilised}
+        start = {key: float(law[key]) for key in ("mu", "alpha", "k", "mobilised")}
+        model = cls(dim=spec.dim, particles=spec.particles, title=spec.title, shear=spec.shear)
+        rolling = spec.law["rolling_stiffness"]
+        if np.allclose(rolling, rolling.flat[0] * np.eye(len(rolling))):
+            start["rolling"] = float(rolling.flat[0]) / (start["k"] * model.length ** 2)
+        model.start = start
+        return model
+
+
+# ------------------------------------------------------------------------------------------------ contact level
+
+LAW_PARAMS = {"mu": "mu", "alpha": "alpha", "k": "k", "rolling": "rolling_stiffness"}
+
+
+@dataclass
+class ContactModel:
+    """A contact-level scene (file); uniform law parameters may be overridden, the geometry is fixed."""
+
+    scene: granstab.Scene
+    kind = "contacts"
+    draggable = False
+
+    @property
+    def params_used(self) -> tuple:
+        """The law parameters that are uniform over the contacts (only those can be set by one slider)."""
+        s = self.scene
+        if s.n_contacts == 0:
+            return ()
+        used = []
+        for key, arr in (("mu", s.mu), ("alpha", s.alpha), ("k", s.k)):
+            if np.ptp(arr) == 0:
+                used.append(key)
+        if s.dim == 2 and np.ptp(s.rolling.reshape(-1)) == 0:
+            used.append("rolling")
+        return tuple(used)
+
+    @property
+    def length(self) -> float:
+        s = self.scene
+        return float(np.linalg.norm(s.r_pq, axis=1).mean()) if s.n_contacts else 1.0
+
+    def initial_params(self) -> dict:
+        s = self.scene
+        P = defaults()
+        if s.n_contacts:
+            P.update(mu=float(s.mu[0]), alpha=float(s.alpha[0]), k=float(s.k[0]),
+                     rolling=float(s.rolling.reshape(s.n_contacts, -1)[0, 0]) / (float(s.k[0]) * self.length ** 2))
+        return P
+
+    def build(self, P: dict) -> granstab.Scene:
+        start = self.initial_params()
+        changed = [key for key in self.params_used if P[key] != start[key]]
+        if not changed:
+            return self.scene
+        data = self.scene.to_dict()
+        for c in data["contacts"]:
+            for key in changed:
+                c[LAW_PARAMS[key]] = P[key] if key != "rolling" else P[key] * P["k"] * self.length ** 2
+        return granstab.scene_from_dict(data, source=self.scene.source)
+
+    def bodies(self, P: dict) -> list[Body]:
+        """Disks (spheres) of radius the smallest distance from the centre to one of the particle's contact points."""
+        s = self.scene
+        radius = np.full(s.n_particles, np.inf)
+        if s.n_contacts:
+            np.minimum.at(radius, s.p, np.linalg.norm(s.r_pq, axis=1))
+            np.minimum.at(radius, s.q, np.linalg.norm(s.r_qp, axis=1))
+        fallback = np.median(radius[np.isfinite(radius)]) if np.isfinite(radius).any() else 1.0
+        radius = np.where(np.isfinite(radius) & (radius > 0), radius, fallback)
+        kind = "disk" if s.dim == 2 else "sphere"
+        return [Body(name, kind, (float(radius[i]),) * s.dim, s.x[i].copy(), np.eye(s.dim))
+                for i, name in enumerate(s.names)]
+
+
+def model_for_scene(scene: granstab.Scene):
+    """The two-particle model if the scene is the symmetric pair, else a contact-level model."""
+    return TwoParticleModel.from_scene(scene) or ContactModel(scene)
+
+
+def read_scene_file(path) -> dict:
+    """Parse a TOML or JSON scene file into a dict (one-line SceneError naming the file on failure)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise granstab.SceneError(f"{path}: cannot read file ({getattr(exc, 'strerror', None) or exc})") from None
+    try:
+        return json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
+    except (json.JSONDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise granstab.SceneError(f"{path}: malformed {path.suffix.lstrip('.').upper() or 'TOML'}: "
+                                  + " ".join(str(exc).split())) from None
+
+
+def model_from_dict(data, source: str):
+    """The model of a parsed scene file: shape format → ShapeModel, contact level → pair or ContactModel."""
+    if shapes.is_shape_scene(data):
+        return ShapeModel.from_dict(data, source)
+    return model_for_scene(granstab.scene_from_dict(data, source=source))
+
+
+def load_model(path):
+    """The model of a scene file (TOML/JSON, shape or contact format); raises SceneError with one line."""
+    return model_from_dict(read_scene_file(path), str(path))
+
+
+__all__ = ["Body", "TwoParticleModel", "ShapeModel", "ContactModel", "model_for_scene", "model_from_dict", "load_model", "read_scene_file"]

@@ -1,0 +1,107 @@
+"""Eigenmodes for people: what each motion does at the contacts, and poses to animate it (no viser).
+
+A motion U = [du^p, dθ^p]_p (physical dofs, `Analysis.motion`) deforms contact c by δu_def (eq:dudef) and
+δθ_def (eq:dtdef), taken from the core's kinematic rows (granstab.stiffness.kinematics). Split
+δu_def into its normal part (indentation) and tangential part (shearing, or sliding where the branch has the
+contact sliding), and weigh δθ_def by the rotation length L (rolling). The label is the largest of the three
+summed squares; a rolling motion whose particle centres stay put (after the rigid part is removed) and that turns
+three or more particles is a gear mode (Fig. gears). Motions in the rigid span are "rigid"; non-rigid motions
+that deform no contact (a particle with no contacts) are "free".
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from granstab.rigid import rotations, translations
+from granstab.stiffness import kinematics
+from granstab.vec import rot_dim
+
+# Relative thresholds, all dimensionless: shares of the summed squares of one unit motion.
+NO_DEFORMATION = 1e-10   # summed contact deformation below this × |U|² counts as none
+GEAR_TRANSLATION = 0.05  # non-rigid centre motion below this share of the rotation (in L units) counts as still
+
+
+@dataclass(frozen=True)
+class ModeLabel:
+    label: str
+    shares: dict           # {"indentation", "tangential", "rolling"}: fractions of the contact deformation
+
+
+def contact_deformation(scene, U: np.ndarray):
+    """δu_def (M, d) and δθ_def (M, r) of every contact for a motion U (n_dof,) (eq:dudef, eq:dtdef)."""
+    d, r = scene.dim, rot_dim(scene.dim)
+    per = d + r
+    local = np.arange(per)
+    index = np.concatenate([scene.p[:, None] * per + local, scene.q[:, None] * per + local], axis=1)
+    Bu, Bt = kinematics(scene)
+    Ul = U[index]                                                   # (M, n_loc)
+    return np.einsum("mdn,mn->md", Bu, Ul), np.einsum("mrn,mn->mr", Bt, Ul)
+
+
+def non_rigid(scene, U: np.ndarray, length: float) -> np.ndarray:
+    """U minus its least-squares rigid part (translations and rotations about the centroid, metric [du, L dθ])."""
+    D = np.tile(np.r_[np.ones(scene.dim), np.full(rot_dim(scene.dim), length)], scene.n_particles)
+    R = np.concatenate([translations(scene), rotations(scene, length)], axis=1)   # scaled dofs
+    Q, _ = np.linalg.qr(R)
+    Us = U * D
+    return (Us - Q @ (Q.T @ Us)) / D
+
+
+def label_mode(scene, U: np.ndarray, mask, length: float, rigid: bool = False) -> ModeLabel:
+    """Label a physical motion U of branch `mask` (+1 = sliding contact): see module docstring."""
+    if rigid:
+        return ModeLabel("rigid", {})
+    U = np.asarray(U, float)
+    size = float(U @ U)
+    if scene.n_contacts == 0:
+        return ModeLabel("free", {})
+    du, dth = contact_deformation(scene, U)
+    un = np.sum(du * scene.normal, axis=1)
+    ut = du - un[:, None] * scene.normal
+    parts = np.array([np.sum(un ** 2), np.sum(ut ** 2), length ** 2 * np.sum(dth ** 2)])
+    total = parts.sum()
+    if total <= NO_DEFORMATION * size:
+        moving = non_rigid(scene, U, length)
+        return ModeLabel("rigid" if moving @ moving <= NO_DEFORMATION * size else "free", {})
+    shares = dict(zip(("indentation", "tangential", "rolling"), (parts / total).round(3).tolist()))
+    which = int(np.argmax(parts))
+    if which == 0:
+        return ModeLabel("indentation", shares)
+    if which == 1:
+        c = int(np.argmax(np.sum(ut ** 2, axis=1)))
+        sliding = mask is not None and np.asarray(mask)[c] == 1
+        return ModeLabel("sliding" if sliding else "shearing", shares)
+    d = scene.dim
+    moving = non_rigid(scene, U, length).reshape(scene.n_particles, -1)
+    trans = float(np.sum(moving[:, :d] ** 2))
+    rot = moving[:, d:]
+    turning = int(np.sum(np.linalg.norm(rot, axis=1) * length > 0.1 * np.sqrt(size)))
+    if trans <= GEAR_TRANSLATION * length ** 2 * float(np.sum(rot ** 2)) and turning >= 3:
+        return ModeLabel("gear", shares)
+    return ModeLabel("rolling", shares)
+
+
+def mode_offsets(scene, U: np.ndarray, size: float):
+    """Per-particle (du (N, d), dθ (N, r)) of U scaled so the largest particle motion (|du| or |dθ|·size) is 1·size."""
+    d = scene.dim
+    per = U.reshape(scene.n_particles, -1)
+    du, dth = per[:, :d], per[:, d:]
+    biggest = max(float(np.linalg.norm(du, axis=1).max()), float(np.linalg.norm(dth, axis=1).max()) * size, 1e-300)
+    scale = size / biggest
+    return du * scale, dth * scale
+
+
+def rotation_matrix(dim: int, dth: np.ndarray) -> np.ndarray:
+    """Rotation by the small-rotation vector dθ (2D: scalar about e3), exactly (Rodrigues)."""
+    if dim == 2:
+        a = float(np.asarray(dth).reshape(-1)[0])
+        return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    v = np.asarray(dth, float)
+    a = float(np.linalg.norm(v))
+    if a == 0:
+        return np.eye(3)
+    k = v / a
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K

@@ -1,0 +1,471 @@
+"""One browser tab's GUI: panels, their callbacks, and the loop that plays an eigenmode.
+
+Callbacks only read handles, call the session (app/state.py) and write handles and views. They run on viser's
+thread pool, concurrently and possibly out of order, so each takes `lock` and RE-READS the current handle values
+inside it: when several slider events queue up, whichever runs last computes the latest values and the others
+find nothing changed (last value wins). Every callback goes through `run`, which turns any exception into a
+message in the page; nothing a user does reaches the server as an exception.
+"""
+from __future__ import annotations
+
+import html
+import tempfile
+import threading
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from .params import PARAMS
+from .views import SceneView
+
+VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b", None: "#555555"}
+DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
+FRAME = 1 / 20            # s per animation frame
+MODES_PER_BRANCH = 24     # the mode picker lists the lowest non-rigid modes of each branch
+
+
+class ClientUI:
+    """GUI, views and callbacks of one client; `session` is its state (app.state.Session)."""
+
+    def __init__(self, client, session):
+        self.client = client
+        self.session = session
+        self.lock = threading.RLock()
+        self.view = SceneView(client.scene)
+        self.view.on_drag = self._on_drag
+        self.view.on_pick = lambda rho_r, f_kr: self.run(self._pick_field, rho_r, f_kr)
+        self._quiet_thread: int | None = None   # the thread writing handles: its own echo callbacks are ignored
+        self._last_drag = 0.0
+        self._closed = False
+        self._player: threading.Thread | None = None
+        self._mode_keys: dict[str, tuple] = {}
+        self.selected: tuple | None = None
+        self.errors_shown = 0
+        self._build()
+        self.run(self.refresh, camera=True)
+
+    # --------------------------------------------------------------------------------------- layout
+    def _build(self) -> None:
+        # no HDR environment map (seconds of main-thread work in a software-rendered browser); the default lights
+        # without shadows are enough for flat shapes seen from above and for translucent 3D bodies
+        self.client.scene.configure_environment_map(hdri=None)
+        self.client.scene.configure_default_lights(enabled=True, cast_shadow=False)
+        gui = self.client.gui
+        gui.configure_theme(control_width="large", show_share_button=False)
+        self.headline = gui.add_html("")
+        self.message = gui.add_html("", visible=False)
+        tabs = gui.add_tab_group()
+        with tabs.add_tab("Scene"):
+            self.preset = gui.add_dropdown("Preset", options=self.session.presets() or ["(none)"],
+                                           initial_value=self._preset_option())
+            self.preset.on_update(lambda _: self.run(self._load_preset))
+            self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
+            self.upload.on_upload(lambda _: self.run(self._upload))
+            self.sliders = {}
+            for key, p in PARAMS.items():
+                h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default, hint=p.hint)
+                h.on_update(lambda _: self.run(self._apply_sliders))
+                self.sliders[key] = h
+            self.reset = gui.add_button("Reset particle positions", visible=False)
+            self.reset.on_click(lambda _: self.run(self._reset_poses))
+            self.info = gui.add_markdown("")
+        with tabs.add_tab("Verdict"):
+            self.details = gui.add_markdown("")
+        with tabs.add_tab("Display"):
+            self.show = {key: gui.add_checkbox(label, initial_value=True) for key, label in (
+                ("forces", "Force arrows"), ("normals", "Contact normals"), ("osculating", "Osculating circles"),
+                ("surface", "λ⁽⁶⁾ height surface (pair)"))}
+            self.force_scale = gui.add_slider("Arrow length ×", min=0.2, max=3.0, step=0.1, initial_value=1.0)
+            for h in (*self.show.values(), self.force_scale):
+                h.on_update(lambda _: self.run(self._display))
+        with tabs.add_tab("Export"):
+            gui.add_markdown("Download the current scene (reloads to the same analysis), the analysis, the contour.")
+            for label, fn in (("Scene file (.json)", self.session.export_scene),
+                              ("Analysis (.json)", self.session.export_analysis),
+                              ("λ⁽⁶⁾ contour (.png)", self.session.export_contour)):
+                b = gui.add_button(label)
+                b.on_click(self._download(fn))
+        self.legend = gui.add_markdown("")
+
+        self.side = gui.add_panel()
+        with self.side.add_tab("λ⁽⁶⁾ field"):
+            self.field_note = gui.add_markdown("")
+            self.contour = gui.add_plotly(_empty_figure(), aspect=1.15)
+        with self.side.add_tab("Eigenmodes"):
+            self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3)
+            self.mode_pick = gui.add_dropdown("Mode", options=["(none)"], initial_value="(none)")
+            self.mode_pick.on_update(lambda _: self.run(self._pick_mode))
+            self.play = gui.add_checkbox("Play", initial_value=False)
+            self.play.on_update(lambda _: self.run(self._toggle_play))
+            self.amplitude = gui.add_slider("Amplitude", min=0.0, max=0.6, step=0.01, initial_value=0.2,
+                                            hint="largest particle motion, in particle sizes")
+            self.speed = gui.add_slider("Speed (cycles/s)", min=0.1, max=2.0, step=0.1, initial_value=0.5)
+            self.mode_info = gui.add_markdown("")
+        self.side.dock_left()
+        self.side.set_width(430)
+        gui.main_panel.dock_right()
+        gui.main_panel.set_width(400)
+
+    def _preset_option(self) -> str:
+        options = self.session.presets()
+        return self.session.preset if self.session.preset in options else (options[0] if options else "(none)")
+
+    # --------------------------------------------------------------------------------------- plumbing
+    @contextmanager
+    def _quiet(self):
+        """Write handles without reacting to them: setting a value from Python runs its callbacks synchronously in
+        this thread, and those echoes must not recompute. Other threads' (users') events wait for the lock."""
+        self._quiet_thread = threading.get_ident()
+        try:
+            yield
+        finally:
+            self._quiet_thread = None
+
+    def _echo(self) -> bool:
+        return self._quiet_thread == threading.get_ident()
+
+    def run(self, fn, *args, **kwargs):
+        """Call fn under the lock; an exception becomes a message in the page (and never reaches viser)."""
+        if self._closed or self._echo():
+            return None
+        with self.lock:
+            try:
+                return fn(*args, **kwargs)
+            except Exception as exc:  # noqa: BLE001
+                self.errors_shown += 1
+                self._show_message(f"{type(exc).__name__}: {' '.join(str(exc).split())}")
+                return None
+
+    def _show_message(self, text: str | None) -> None:
+        self.message.content = (f'<div class="granstab-error" style="color:#b03a2e;font-weight:600;padding:2px 8px">'
+                                f"{html.escape(text)}</div>") if text else ""
+        self.message.visible = bool(text)
+
+    def close(self) -> None:
+        self._closed = True
+
+    # --------------------------------------------------------------------------------------- callbacks
+    def _apply_sliders(self) -> None:
+        values = {key: self.sliders[key].value for key in self.session.used_params}
+        if self.session.set_params(**values):
+            self.refresh()
+
+    def _load_preset(self) -> None:
+        name = self.preset.value
+        if name == self.session.preset:
+            return
+        ok = self.session.load_preset(name)
+        self.view.key = None
+        self.refresh(camera=ok)
+
+    def _upload(self) -> None:
+        up = self.upload.value
+        suffix = Path(up.name).suffix.lower() if Path(up.name).suffix.lower() in (".toml", ".json") else ".toml"
+        folder = Path(tempfile.mkdtemp(prefix="granstab-upload-"))
+        path = folder / (Path(up.name).stem + suffix)
+        path.write_bytes(up.content)
+        ok = self.session.load_preset(str(path))
+        self.view.key = None
+        self.refresh(camera=ok)
+
+    def _pick_field(self, rho_r: float, f_kr: float) -> None:
+        """A click on the λ⁽⁶⁾ surface sets ρ/r and f/(kr) (rounded to the slider steps)."""
+        if self.session.kind == "two_particle" and self.session.set_params(rho_r=rho_r, f_kr=f_kr):
+            self.refresh()
+
+    def _reset_poses(self) -> None:
+        self.session.reset_poses()
+        self.refresh()
+
+    def _display(self) -> None:
+        self.view.options.update({key: h.value for key, h in self.show.items()})
+        self.view.options["force_scale"] = self.force_scale.value
+        if not self.view.options["surface"]:
+            self.view.clear_field()
+        self.refresh(particles=False)
+
+    def _on_drag(self, name: str, event) -> None:
+        """Gizmo events: analyse at most every DRAG_INTERVAL while dragging (skipping if busy), always on release."""
+        if self._closed or self._echo():
+            return
+        phase = getattr(event, "phase", "end")
+        now = time.monotonic()
+        if phase == "start":
+            self.run(self._stop_play)
+            return
+        if phase == "update":
+            if now - self._last_drag < DRAG_INTERVAL or not self.lock.acquire(blocking=False):
+                return
+            try:
+                self._last_drag = now
+                self.run(self._moved, name, dragging=True)
+            finally:
+                self.lock.release()
+            return
+        self.run(self._moved, name, dragging=False)
+
+    def _moved(self, name: str, dragging: bool) -> None:
+        x, R = self.view.pose_of(name)
+        self.session.move(name, x, R)
+        self.refresh(skip=name if dragging else None)
+
+    def _download(self, fn):
+        def _(event):
+            def send():
+                filename, content = fn()
+                (event.client or self.client).send_file_download(filename, content)
+            self.run(send)
+        return _
+
+    def _pick_mode(self) -> None:
+        self.selected = self._mode_keys.get(self.mode_pick.value)
+        self._describe_mode()
+
+    def _toggle_play(self) -> None:
+        if self.play.value and (self._player is None or not self._player.is_alive()):
+            self._player = threading.Thread(target=self._play_loop, daemon=True)
+            self._player.start()
+
+    def _stop_play(self) -> None:
+        if self.play.value:
+            with self._quiet():
+                self.play.value = False
+
+    def _play_loop(self) -> None:
+        """Animate the selected mode while Play is on (no work at all when paused)."""
+        start = time.monotonic()
+        while not self._closed and self.play.value:
+            with self.lock:
+                try:
+                    mode = self._current_mode()
+                    if mode is not None:
+                        phase = 2 * np.pi * self.speed.value * (time.monotonic() - start)
+                        bodies = self.session.mode_bodies(mode, self.amplitude.value, phase)
+                        with self.client.atomic():
+                            self.view.animate(bodies)
+                except Exception as exc:  # noqa: BLE001
+                    self._show_message(f"animation: {' '.join(str(exc).split())}")
+                    break
+            time.sleep(FRAME)
+        if not self._closed:
+            with self.lock:
+                self.view.stop_animation()
+
+    def _current_mode(self):
+        if self.selected is None:
+            return None
+        return next((m for m in self.session.modes() if (m.branch, m.index) == self.selected), None)
+
+    # --------------------------------------------------------------------------------------- refresh
+    def refresh(self, camera: bool = False, particles: bool = True, skip: str | None = None) -> None:
+        """Write every handle from the session (sliders, verdict, plots, scene)."""
+        s = self.session
+        self._sync_controls()
+        with self.client.atomic():
+            if particles:
+                with self._quiet():                      # gizmo poses written here are not drags
+                    self.view.draw_particles(s, skip=skip)
+            legend = self.view.draw_contacts(s)
+            field = s.field() if self.view.options["surface"] else None
+            current = (s.params.get("rho_r"), s.params.get("f_kr"), s.rolling_eigenvalue())
+            if field is None:
+                self.view.clear_field()
+            else:
+                self.view.draw_field(s, field, current)
+        self._write_verdict(legend)
+        self._write_field()
+        self._write_modes()
+        if camera:
+            self._set_camera()
+
+    def _sync_controls(self) -> None:
+        """Slider visibility/values and the preset list follow the session without firing callbacks."""
+        s = self.session
+        with self._quiet():
+            options = s.presets()
+            if s.preset not in options:
+                options = [*options, s.preset]
+            if tuple(self.preset.options) != tuple(options):
+                self.preset.options = options
+            if self.preset.value != s.preset:
+                self.preset.value = s.preset
+            used = set(s.used_params)
+            for key, h in self.sliders.items():
+                h.visible = key in used
+                if key in used and h.value != s.params[key]:
+                    h.value = s.params[key]
+            self.reset.visible = s.kind == "shapes"
+
+    def _write_verdict(self, legend: dict) -> None:
+        s = self.session
+        r = s.report()
+        verdict = r["verdict"]
+        title = s.scene.title if s.scene is not None else str(s.preset)
+        title = title if len(title) <= 90 else title[:87] + "…"
+        reason = "" if verdict is None else r["reason"] + ("" if r["sufficient"] else " — not proven")
+        self.headline.content = (
+            f'<div class="granstab-verdict" data-verdict="{verdict or "none"}" style="background:'
+            f'{VERDICT_COLOR.get(verdict, "#555")};color:white;font-weight:700;font-size:1.35em;padding:4px 10px;'
+            f'border-radius:6px;letter-spacing:0.05em">{(verdict or "no verdict").upper()}</div>'
+            f'<div style="font-style:italic;margin:4px 2px 0 2px">{html.escape(title)}</div>'
+            f'<div style="margin:2px 2px 4px 2px;font-size:0.92em">{html.escape(reason)}</div>')
+        self._show_message(s.error)
+        note = r.get("notice")
+        params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g}" for k in s.used_params)
+        self.info.content = (f"{note}\n\n" if note else "") + (
+            f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene")
+        if r["verdict"] is None:
+            self.details.content = f"**Analysis failed:** {s.error}\n\n(last attempt {r['elapsed'] * 1e3:.1f} ms)"
+        else:
+            pos, zero, neg = r["counts"]
+            name, worst = r["worst_error"]
+            rows = [
+                "| | |", "|---|---|",
+                f"| verdict | **{r['verdict']}** ({'sufficient condition met' if r['sufficient'] else 'not proven'}) |",
+                f"| consistent eigenvalues | {neg} negative · {zero} zero · {pos} positive |",
+                f"| Type-1 non-uniqueness | {r['type1']} |",
+                f"| Type-2 non-uniqueness | {'yes' if r['type2'] else 'no'} |",
+                f"| verdict hinges on S tolerance | {'yes' if r['hinges'] else 'no'} |",
+                f"| particles · contacts · at yield | {r['n_particles']} · {r['n_contacts']} · {r['n_sliding']} |",
+                f"| branches (2^Ms) | {r['n_branches']} |",
+                f"| largest error estimate | {worst:.1e} ({name}) |",
+                f"| analysis time | {r['analysis_time'] * 1e3:.1f} ms (with scene: {r['elapsed'] * 1e3:.1f} ms) |",
+            ]
+            warn = "".join(f"\n\n**Warning:** {w}" for w in r["warnings"])
+            self.details.content = f"**Why:** {r['reason']}\n\n" + "\n".join(rows) + warn
+        if legend["max_force"] > 0:
+            self.legend.content = (
+                f"**Legend** — arrows: the contact force on each particle (pointing into it when compressive; "
+                f"red compressive, blue tensile, orange at the Coulomb limit); length {legend['arrow']:.2g}·size "
+                f"= largest |f| = {legend['max_force']:.3g}. Blue lines: normals n^pq. Purple arcs: osculating "
+                "circles (radius ρ at each contact). Dark stripe: a body axis (turns with the particle).")
+        else:
+            self.legend.content = "**Legend** — no contact force. Dark stripe: a body axis (turns with the particle)."
+
+    def _write_field(self) -> None:
+        s = self.session
+        field = s.field()
+        self.contour.visible = field is not None
+        if field is None:
+            self.field_note.content = "The λ⁽⁶⁾ field belongs to the two-particle pair: pick *two_particle*."
+            return
+        lam = s.rolling_eigenvalue()
+        self.field_note.content = (
+            f"Rolling eigenvalue λ⁽⁶⁾/k over (ρ/r, f/(kr)) at α = {field.alpha:g}; ★ = now "
+            f"(λ⁽⁶⁾/k = {lam:.4g})" if lam is not None else "Rolling eigenvalue λ⁽⁶⁾/k; ★ = now")
+        self.contour.figure = contour_figure(field, (s.params["rho_r"], s.params["f_kr"]))
+
+    def _write_modes(self) -> None:
+        s = self.session
+        modes = s.modes()
+        self.spectrum.figure = spectrum_figure(modes)
+        keys: dict[str, tuple] = {}
+        by_branch: dict[int, int] = {}
+        for m in sorted((m for m in modes if m.label != "rigid"), key=lambda m: (m.branch, m.eigenvalue)):
+            if by_branch.get(m.branch, 0) < MODES_PER_BRANCH or (m.consistent and m.eigenvalue <= 0):
+                keys[m.key] = (m.branch, m.index)
+                by_branch[m.branch] = by_branch.get(m.branch, 0) + 1
+        self._mode_keys = keys
+        if self.selected not in keys.values():
+            pick = next((m for m in sorted(modes, key=lambda m: m.eigenvalue) if m.consistent), None)
+            self.selected = (pick.branch, pick.index) if pick else next(iter(keys.values()), None)
+        current = next((k for k, v in keys.items() if v == self.selected), "(none)")
+        with self._quiet():
+            self.mode_pick.options = list(keys) or ["(none)"]
+            self.mode_pick.value = current
+        self._describe_mode()
+
+    def _describe_mode(self) -> None:
+        m = self._current_mode()
+        if m is None:
+            self.mode_info.content = "No mode to show." if self.session.analysis is not None else ""
+            return
+        shares = ", ".join(f"{k} {v:.0%}" for k, v in m.shares.items() if v >= 0.005)
+        way = {1: "consistent in +v only", -1: "consistent in -v only", 0: "consistent both ways",
+               2: "not consistent with its branch", 3: "rigid"}[m.code]
+        mask = self.session.analysis.branches[m.branch].mask
+        sliding, unloading = int(np.sum(mask == 1)), int(np.sum(mask == -1))
+        where = f"{sliding} sliding, {unloading} unloading contact(s)" if sliding + unloading else "no contact at yield"
+        self.mode_info.content = (f"**{m.label}** mode, λ = {m.eigenvalue:.5g} (branch {m.branch}: {where}), "
+                                  f"{way}{' (hinges on the S tolerance)' if m.hinges else ''}. "
+                                  f"Contact deformation: {shares or '—'}. Tick *Play* to animate it.")
+
+    def _set_camera(self) -> None:
+        s = self.session
+        bodies = s.bodies()
+        x = np.array([b.x for b in bodies])
+        size = s.size
+        lo, hi = x.min(axis=0) - 1.2 * size, x.max(axis=0) + 1.2 * size
+        if s.scene_dim == 2:
+            if s.field() is not None and self.view.options["surface"]:
+                lo[1] = min(lo[1], -4.9 * size)
+            c = 0.5 * (lo + hi)
+            extent = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * 1.3))
+            self.client.camera.up_direction = (0.0, 1.0, 0.0)
+            self.client.camera.position = (float(c[0]), float(c[1]), 0.8 * extent + 0.5 * size)
+            self.client.camera.look_at = (float(c[0]), float(c[1]), 0.0)
+        else:
+            c = 0.5 * (lo + hi)
+            extent = float(np.max(hi - lo))
+            self.client.camera.up_direction = (0.0, 0.0, 1.0)
+            view = np.array([0.55, -0.65, 0.5])
+            self.client.camera.position = tuple((c + 1.3 * extent * view / np.linalg.norm(view)).tolist())
+            self.client.camera.look_at = tuple(c.tolist())
+
+
+# ------------------------------------------------------------------------------------------ figures
+
+def _empty_figure():
+    import plotly.graph_objects as go
+    return go.Figure(layout=dict(margin=dict(l=10, r=10, t=10, b=10)))
+
+
+def contour_figure(field, mark):
+    """Plotly contour of λ⁽⁶⁾/k with the zero line and the current state (★)."""
+    import plotly.graph_objects as go
+    lim = float(np.abs(field.lam).max()) or 1.0
+    fig = go.Figure()
+    fig.add_trace(go.Contour(x=field.rho_r, y=field.f_kr, z=field.lam, colorscale="RdBu", zmin=-lim, zmax=lim,
+                             ncontours=20, line=dict(width=0.3), colorbar=dict(title="λ⁽⁶⁾/k", thickness=12),
+                             hovertemplate="ρ/r %{x:.2f}<br>f/(kr) %{y:.4f}<br>λ⁽⁶⁾/k %{z:.3g}<extra></extra>"))
+    fig.add_trace(go.Contour(x=field.rho_r, y=field.f_kr, z=field.lam, showscale=False, hoverinfo="skip",
+                             contours=dict(coloring="none", start=0, end=0, size=1), line=dict(color="black", width=2)))
+    fig.add_trace(go.Scatter(x=[mark[0]], y=[mark[1]], mode="markers", hoverinfo="skip",
+                             marker=dict(symbol="star", size=16, color="gold", line=dict(color="black", width=1))))
+    fig.update_layout(margin=dict(l=55, r=10, t=10, b=45), showlegend=False,
+                      xaxis_title="ρ/r", yaxis_title="f/(kr)")
+    return fig
+
+
+def spectrum_figure(modes):
+    """Eigenvalues of sym(𝓗^i) per branch on a signed log scale: ● consistent, ○ not consistent, × rigid."""
+    import plotly.graph_objects as go
+    fig = go.Figure()
+    lam = np.array([m.eigenvalue for m in modes]) if modes else np.zeros(0)
+    eps = 1e-4 * (float(np.abs(lam).max()) if lam.size and np.abs(lam).max() > 0 else 1.0)
+
+    def slog(v):
+        return np.sign(v) * np.log10(1.0 + np.abs(v) / eps)
+
+    for kind, symbol, pick in (("consistent", "circle", lambda m: m.consistent),
+                               ("not consistent", "circle-open", lambda m: not m.consistent and m.label != "rigid"),
+                               ("rigid", "x-thin-open", lambda m: m.label == "rigid")):
+        sel = [m for m in modes if pick(m)]
+        if not sel:
+            continue
+        y = slog(np.array([m.eigenvalue for m in sel]))
+        colors = ["#c0392b" if m.eigenvalue < 0 and m.consistent else "#2c3e50" for m in sel]
+        fig.add_trace(go.Scatter(
+            x=[f"branch {m.branch}" for m in sel], y=y, mode="markers", name=kind,
+            marker=dict(symbol=symbol, size=11, color=colors, line=dict(width=1.5, color=colors)),
+            text=[f"λ = {m.eigenvalue:.5g}<br>{m.label}<br>{kind}" for m in sel],
+            hovertemplate="%{text}<extra></extra>"))
+    top = int(np.ceil(float(np.abs(slog(lam)).max()))) if lam.size else 1
+    ticks = np.arange(-top, top + 1)
+    fig.update_layout(
+        margin=dict(l=60, r=10, t=10, b=30), legend=dict(orientation="h", y=1.08),
+        yaxis=dict(title="eigenvalue (signed log scale)", tickvals=ticks.tolist(),
+                   ticktext=[f"{np.sign(t) * eps * (10 ** abs(t) - 1):.1g}" for t in ticks], zeroline=True))
+    return fig

@@ -1,0 +1,299 @@
+"""The per-client session of the explorer: preset, parameters, poses, current Scene, last analysis, errors.
+
+Pure Python (no viser): the GUI callbacks call these methods and read the results, and the unit tests drive them
+directly. Every number comes from the core (granstab.analyze, granstab.shapes, granstab.stiffness); a failure of
+a preset, a scene or an analysis is caught here and kept as a one-line `error` — nothing raises to the caller
+except programming errors (an unknown parameter name). Not thread-safe: the GUI serialises calls with a lock.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import granstab
+from granstab.analysis import analyze
+from granstab.branches import BOTH, MINUS, PLUS, RIGID
+
+from .field import Field, field_png, lambda6_field
+from .models import Body, ShapeModel, TwoParticleModel, load_model
+from .modes import label_mode, mode_offsets, rotation_matrix
+from .params import PARAMS
+
+PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
+DEFAULT_PRESET = "two_particle"
+CONSISTENT = (PLUS, MINUS, BOTH)
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One eigenpair of sym(𝓗^i) of branch `branch`: what the spectrum panel lists and the animation plays."""
+
+    branch: int
+    index: int
+    eigenvalue: float
+    code: int                  # granstab.branches: PLUS, MINUS, BOTH (consistent), INCONSISTENT, RIGID
+    label: str
+    shares: dict
+    hinges: bool
+
+    @property
+    def consistent(self) -> bool:
+        return self.code in CONSISTENT
+
+    @property
+    def key(self) -> str:
+        mark = "" if self.code == RIGID else " ✓" if self.consistent else " ✗"
+        return f"b{self.branch} #{self.index}: λ = {self.eigenvalue:.4g} {self.label}{mark}"
+
+
+def one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if isinstance(exc, (granstab.SceneError, ValueError)) else f"{type(exc).__name__}: {text}"
+
+
+class Session:
+    """State of one browser tab. `error` is None or the one-line message of the last failure."""
+
+    def __init__(self, preset: str | None = None, presets_dir=None):
+        self.presets_dir = Path(presets_dir) if presets_dir else PRESETS_DIR
+        self.preset: str | None = None
+        self.model = None
+        self.params: dict[str, float] = {}
+        self.scene: granstab.Scene | None = None
+        self.analysis = None
+        self.error: str | None = None
+        self.notice: str | None = None
+        self.elapsed = 0.0
+        self.revision = 0
+        self._modes: tuple[int, list] = (-1, [])
+        if not self.load_preset(preset or DEFAULT_PRESET) and self.model is None and preset not in (None, DEFAULT_PRESET):
+            message = self.error
+            self.load_preset(DEFAULT_PRESET)
+            self.error = message
+
+    # ------------------------------------------------------------------------------------------ inputs
+
+    def presets(self) -> list[str]:
+        """Preset names (file stems) in the presets folder, the two-particle pair first."""
+        names = sorted({p.stem for p in self.presets_dir.glob("*") if p.suffix in (".toml", ".json")})
+        return sorted(names, key=lambda n: (n != DEFAULT_PRESET, n))
+
+    def resolve(self, name_or_path: str) -> Path:
+        path = Path(name_or_path)
+        if path.is_file():
+            return path
+        for suffix in (".toml", ".json"):
+            candidate = self.presets_dir / f"{name_or_path}{suffix}"
+            if candidate.is_file():
+                return candidate
+        return path
+
+    def load_preset(self, name_or_path: str) -> bool:
+        """Switch to a preset name or scene file. On failure keep the current scene and set `error`."""
+        path = self.resolve(str(name_or_path))
+        try:
+            model = load_model(path)
+        except Exception as exc:  # noqa: BLE001 — any bad file must end up as a message, not a crash
+            self.error = one_line(exc) if isinstance(exc, granstab.SceneError) else f"{path}: {one_line(exc)}"
+            return False
+        self.preset = path.stem if path.parent == self.presets_dir else str(path)
+        self.model = model
+        self.params = model.initial_params()
+        self.notice = None
+        self.recompute()
+        return self.error is None
+
+    @property
+    def kind(self) -> str:
+        return self.model.kind
+
+    @property
+    def used_params(self) -> tuple:
+        """The parameters the current scene uses (the only sliders shown)."""
+        return tuple(self.model.params_used)
+
+    def set_params(self, **values) -> bool:
+        """Set parameters (clipped and rounded to their slider steps); recompute only if something changed."""
+        clean = {key: PARAMS[key].clean(value) for key, value in values.items()}
+        if all(self.params.get(key) == value for key, value in clean.items()):
+            return False
+        self.params.update(clean)
+        self.recompute()
+        return True
+
+    @property
+    def draggable(self) -> bool:
+        return bool(self.model.draggable)
+
+    def move(self, name: str, x, R) -> None:
+        """Move particle `name` to position x and orientation R (2D: in-plane; R (d, d) or an angle in 2D).
+
+        The slider-driven pair becomes a shape model of the same two ellipses on its first drag (contacts, normals,
+        curvatures and forces then follow the geometry)."""
+        if not self.draggable:
+            self.error = "this scene is contact-level (no shapes): its geometry cannot be dragged"
+            return
+        if isinstance(self.model, TwoParticleModel):
+            self.model = self.model.to_shapes(self.params)
+            self.notice = ("dragging turned the pair into shapes: contacts now follow the geometry; pick the "
+                           "preset again to return to the ρ/r, f/(kr) sliders")
+        if np.ndim(R) == 0:
+            R = rotation_matrix(2, R)
+        self.model.set_pose(name, np.asarray(x, float), np.asarray(R, float)[:self.scene_dim, :self.scene_dim])
+        self.recompute()
+
+    def reset_poses(self) -> None:
+        if isinstance(self.model, ShapeModel):
+            self.model.reset_poses()
+            self.recompute()
+
+    # ------------------------------------------------------------------------------------------ compute
+
+    def recompute(self) -> None:
+        """Build the scene and analyse it; any failure becomes `error` (the analysis is then None)."""
+        start = time.perf_counter()
+        self.revision += 1
+        self.analysis = None
+        try:
+            self.scene = self.model.build(self.params)
+            self.analysis = analyze(self.scene)
+            self.error = None
+        except Exception as exc:  # noqa: BLE001 — shown in the page, never raised into the server
+            self.error = one_line(exc)
+        self.elapsed = time.perf_counter() - start
+
+    @property
+    def scene_dim(self) -> int:
+        return self.scene.dim if self.scene is not None else getattr(self.model, "dim", 2)
+
+    @property
+    def verdict(self) -> str | None:
+        return None if self.analysis is None else self.analysis.summary["verdict"]
+
+    def report(self) -> dict:
+        """What the verdict panel shows: verdict, reason, flags, counts, the largest error estimate, times."""
+        if self.analysis is None:
+            return {"verdict": None, "error": self.error, "elapsed": self.elapsed}
+        a, s = self.analysis, self.analysis.summary
+        worst = max(a.errors.items(), key=lambda kv: kv[1]) if a.errors else ("", 0.0)
+        return {
+            "verdict": s["verdict"], "reason": s["reason"], "sufficient": s["sufficient"],
+            "type2": s["type2_nonuniqueness"], "type1": self.type1(),
+            "hinges": s["hinges_on_tolerance"], "n_branches": s["n_branches"],
+            "counts": (s["consistent_positive"], s["consistent_zero"], s["consistent_negative"]),
+            "n_particles": self.scene.n_particles, "n_contacts": self.scene.n_contacts,
+            "n_sliding": int(np.sum(self.scene.at_yield())), "worst_error": worst, "errors": a.errors,
+            "analysis_time": a.timings.get("total", 0.0), "elapsed": self.elapsed, "warnings": a.warnings,
+            "error": self.error, "notice": self.notice,
+        }
+
+    def type1(self) -> str:
+        """Type-1 non-uniqueness (Sec. 3.1) under a proportional load increment d𝕓 = current load.
+
+        It needs two branches, i.e. a potentially sliding contact; the core's `verdicts.load_response` decides."""
+        if self.analysis is None or len(self.analysis.branches) < 2:
+            return "no (a single branch: no contact at yield)"
+        if not hasattr(self.analysis, "problem"):
+            return "not evaluated (the core's Analysis does not expose its problem)"
+        from granstab.verdicts import load_response
+        s = self.scene
+        db = np.concatenate([s.load, s.load_moment], axis=1).reshape(-1)
+        if not np.any(db):
+            return "not evaluated (no load to increment)"
+        res = load_response(self.analysis, db)
+        return "yes (proportional loading)" if res["type1_nonuniqueness"] else "no (proportional loading)"
+
+    def modes(self) -> list[Mode]:
+        """Every eigenpair of every branch, labelled by what its motion does (cached per analysis)."""
+        if self._modes[0] == self.revision:
+            return self._modes[1]
+        out = []
+        if self.analysis is not None:
+            a = self.analysis
+            for i, b in enumerate(a.branches):
+                for j, (lam, code) in enumerate(zip(b.stability_eigenvalues, b.codes)):
+                    U = a.motion(b.stability_vectors[:, j])
+                    lab = label_mode(self.scene, U, b.mask, a.length, rigid=code == RIGID)
+                    out.append(Mode(i, j, float(lam), int(code), lab.label, lab.shares, bool(b.hinges[j])))
+        self._modes = (self.revision, out)
+        return out
+
+    def mode(self, key: str) -> Mode | None:
+        return next((m for m in self.modes() if m.key == key), None)
+
+    def bodies(self) -> list[Body]:
+        return self.model.bodies(self.params)
+
+    @property
+    def size(self) -> float:
+        """A particle length scale (mean largest semi-axis): sets arrows, markers and the animation amplitude."""
+        return float(np.mean([max(b.axes) for b in self.bodies()]))
+
+    def mode_bodies(self, mode: Mode, amplitude: float, phase: float) -> list[Body]:
+        """Bodies displaced along `mode` at `phase` (radians): x + A s du, R(A s dθ) R with s the phase factor.
+
+        A consistent-one-way mode (PLUS/MINUS) only moves in its consistent direction (s = ±|sin|)."""
+        b = self.analysis.branches[mode.branch]
+        U = self.analysis.motion(b.stability_vectors[:, mode.index])
+        du, dth = mode_offsets(self.scene, U, self.size)
+        s = np.sin(phase)
+        s = abs(s) if mode.code == PLUS else -abs(s) if mode.code == MINUS else s
+        index = {name: i for i, name in enumerate(self.scene.names)}
+        out = []
+        for body in self.bodies():
+            i = index[body.name]
+            dR = rotation_matrix(self.scene.dim, amplitude * s * dth[i])
+            out.append(Body(body.name, body.kind, body.axes, body.x + amplitude * s * du[i], dR @ body.R))
+        return out
+
+    def field(self) -> Field | None:
+        """The λ⁽⁶⁾ field for the pair (None for other scenes: no work for a panel that is not shown)."""
+        if self.kind != "two_particle":
+            return None
+        return lambda6_field(self.params["alpha"], self.params["rolling"])
+
+    def rolling_eigenvalue(self) -> float | None:
+        """λ⁽⁶⁾ of the current analysis in units of k: the rolling-labelled eigenvalue of the first branch."""
+        rolling = [m for m in self.modes() if m.branch == 0 and m.label == "rolling"]
+        return rolling[0].eigenvalue / self.params["k"] if rolling else None
+
+    # ------------------------------------------------------------------------------------------ exports
+
+    def export_scene(self) -> tuple[str, bytes]:
+        """The current scene as a scene file that reloads to the same analysis (shape or contact format, JSON)."""
+        if isinstance(self.model, ShapeModel):
+            data = self.model.to_dict(self.params)
+        elif self.scene is not None:
+            data = self.scene.to_dict()
+        else:
+            raise ValueError("no scene to export")
+        return f"{Path(str(self.preset)).stem}-scene.json", json.dumps(data, indent=1, default=_json).encode()
+
+    def export_analysis(self) -> tuple[str, bytes]:
+        """The analysis as JSON (`granstab analyze --json` object) with the app's parameters and mode labels."""
+        if self.analysis is None:
+            raise ValueError(f"no analysis to export: {self.error}")
+        data = self.analysis.to_dict()
+        data["app"] = {"preset": self.preset, "kind": self.kind,
+                       "params": {k: self.params[k] for k in self.used_params},
+                       "modes": [{"branch": m.branch, "index": m.index, "eigenvalue": m.eigenvalue,
+                                  "consistent": m.consistent, "label": m.label} for m in self.modes()]}
+        return f"{Path(str(self.preset)).stem}-analysis.json", json.dumps(data, indent=1, default=_json).encode()
+
+    def export_contour(self) -> tuple[str, bytes]:
+        field = self.field()
+        if field is None:
+            raise ValueError("the λ⁽⁶⁾ contour exists for the two-particle pair only")
+        return "lambda6-contour.png", field_png(field, (self.params["rho_r"], self.params["f_kr"]))
+
+
+def _json(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

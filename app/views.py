@@ -1,0 +1,366 @@
+"""Drawing a session into one client's viser scene: particles, contacts, forces, curvature, λ⁽⁶⁾ surface, modes.
+
+2D scenes are flat extruded shapes in the x-y plane seen from above (+z); 3D scenes are drawn as they are.
+Node tree (names are per client):
+  /particles/<name>            pose of the particle: transform controls when draggable, else a plain frame
+  /particles/<name>/body       the animation offset (identity unless a mode is playing)
+  /particles/<name>/body/mesh  the shape, in body axes;  …/body/marker  a stripe along body e1 (shows rotation)
+  /contacts/…                  points, normals, force arrows, osculating arcs (world axes)
+  /field/…                     the λ⁽⁶⁾ height surface of the pair, its axes and the current-state marker
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .modes import rotation_matrix
+
+PALETTE = [(120, 170, 230), (240, 170, 110), (150, 205, 140), (215, 150, 205), (230, 215, 120), (140, 210, 210)]
+MARKER = (40, 40, 60)
+COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0, 0), "tensile": (30, 110, 220),
+          "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
+Z_UP = np.array([0.0, 0.0, 1.0])
+
+
+# ------------------------------------------------------------------------------------------ geometry
+
+def to3(v: np.ndarray, z: float = 0.0) -> np.ndarray:
+    """(…, 2) → (…, 3) with the given z; 3D input is returned as is."""
+    v = np.asarray(v, float)
+    if v.shape[-1] == 3:
+        return v
+    return np.concatenate([v, np.full(v.shape[:-1] + (1,), z)], axis=-1)
+
+
+def rot3(R: np.ndarray) -> np.ndarray:
+    R = np.asarray(R, float)
+    if R.shape == (3, 3):
+        return R
+    out = np.eye(3)
+    out[:2, :2] = R
+    return out
+
+
+def wxyz(R: np.ndarray) -> np.ndarray:
+    """Quaternion (w, x, y, z) of a rotation matrix (2D: about e3)."""
+    R = rot3(R)
+    w = np.sqrt(max(0.0, 1.0 + np.trace(R))) / 2
+    if w > 1e-6:
+        return np.array([w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)])
+    i = int(np.argmax(np.diag(R)))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = np.sqrt(max(0.0, 1.0 + R[i, i] - R[j, j] - R[k, k])) * 2
+    q = np.zeros(4)
+    q[0] = (R[k, j] - R[j, k]) / s
+    q[1 + i] = s / 4
+    q[1 + j] = (R[j, i] + R[i, j]) / s
+    q[1 + k] = (R[k, i] + R[i, k]) / s
+    return q
+
+
+def quat_matrix(q) -> np.ndarray:
+    w, x, y, z = np.asarray(q, float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def extruded_ellipse(a: float, b: float, thickness: float, n: int = 96):
+    """Vertices (2n+2, 3) and faces of an ellipse of semi-axes a, b extruded along z by `thickness` (centred)."""
+    t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([a * np.cos(t), b * np.sin(t)], axis=1)
+    h = thickness / 2
+    V = np.concatenate([to3(ring, h), to3(ring, -h), [[0, 0, h], [0, 0, -h]]])
+    i = np.arange(n)
+    j = (i + 1) % n
+    top = np.stack([np.full(n, 2 * n), i, j], axis=1)
+    bottom = np.stack([np.full(n, 2 * n + 1), n + j, n + i], axis=1)
+    side = np.concatenate([np.stack([i, n + i, n + j], axis=1), np.stack([i, n + j, j], axis=1)])
+    return V, np.concatenate([top, bottom, side]).astype(np.uint32)
+
+
+def ellipsoid(axes, n_lat: int = 24, n_lon: int = 48):
+    """Vertices and faces of an ellipsoid with semi-axes `axes` (UV sphere scaled)."""
+    th = np.linspace(0, np.pi, n_lat + 1)
+    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    V = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1).reshape(-1, 3) * np.asarray(axes)
+    faces = []
+    for i in range(n_lat):
+        for j in range(n_lon):
+            a, b = i * n_lon + j, i * n_lon + (j + 1) % n_lon
+            c, d = a + n_lon, b + n_lon
+            faces += [[a, c, b], [b, c, d]]
+    return V, np.array(faces, dtype=np.uint32)
+
+
+def body_mesh(body, thickness: float):
+    if len(body.axes) == 2:
+        return extruded_ellipse(body.axes[0], body.axes[1], thickness)
+    return ellipsoid(body.axes)
+
+
+def osculating_arcs(points, centres, radii, normals_out, planes, size: float, n: int = 40) -> np.ndarray:
+    """Line segments (K·n, 2, 3) of osculating arcs: circle of radius ρ about `centres` through `points`, in the
+    plane spanned by the outward normal and `planes` (unit tangents), over an arc length of about ±1.2 size."""
+    segs = []
+    for p, c, rho, nout, t in zip(points, centres, radii, normals_out, planes):
+        half = min(0.8 * np.pi, 1.2 * size / rho)
+        ang = np.linspace(-half, half, n)
+        arc = c + rho * (np.cos(ang)[:, None] * nout + np.sin(ang)[:, None] * t)
+        segs.append(np.stack([arc[:-1], arc[1:]], axis=1))
+    return np.concatenate(segs) if segs else np.zeros((0, 2, 3))
+
+
+def circle_data(scene, size: float):
+    """Centres, radii, outward normals and tangents of the osculating circles of both sides of every contact
+    (convex directions only: principal radii ρ = -1/κ > 0; flat or concave directions are skipped)."""
+    from granstab.vec import tangent_basis
+    pts, cen, rad, nout, tan = [], [], [], [], []
+    T = tangent_basis(scene.normal)                                   # (M, d, d-1)
+    for side, K, sign in (("p", scene.curvature_p, -1.0), ("q", scene.curvature_q, 1.0)):
+        Kt = np.swapaxes(T, 1, 2) @ K @ T
+        lam, V = np.linalg.eigh(0.5 * (Kt + np.swapaxes(Kt, 1, 2)))
+        for c in range(scene.n_contacts):
+            for i in range(lam.shape[1]):
+                if lam[c, i] >= -1e-12:
+                    continue
+                rho = -1.0 / lam[c, i]
+                n_out = -sign * scene.normal[c]      # unit vector from the centre of curvature to the point
+                pts.append(scene.point[c])
+                cen.append(scene.point[c] + sign * rho * scene.normal[c])
+                rad.append(rho)
+                nout.append(n_out)
+                tan.append(T[c] @ V[c, :, i])
+    if not pts:
+        return None
+    return tuple(to3(np.array(a)) for a in (pts, cen)) + (np.array(rad),) + tuple(to3(np.array(a)) for a in (nout, tan))
+
+
+# ------------------------------------------------------------------------------------------ the view
+
+class SceneView:
+    """Holds one client's scene handles; every method only writes handles from session data."""
+
+    def __init__(self, scene_api):
+        self.api = scene_api
+        self.nodes: dict[str, object] = {}        # particle name → frame / transform controls
+        self.inner: dict[str, object] = {}        # particle name → /body frame (animation offset)
+        self.mesh_keys: dict[str, tuple] = {}
+        self.key = None                           # (model id, particle names, draggable) the tree was built for
+        self.on_drag = None                       # callback(name, event) set by the panel
+        self.on_pick = None                       # callback(rho_r, f_kr): a click on the λ⁽⁶⁾ surface
+        self.options = {"normals": True, "forces": True, "osculating": True, "surface": True, "force_scale": 1.0}
+        self.base = {}                            # particle name → Body drawn (pose of its frame)
+        self.dim = 2
+
+    # particles ---------------------------------------------------------------------------------
+    def draw_particles(self, session, skip: str | None = None) -> None:
+        """Build the particle tree when the scene's particles change, then write poses and meshes.
+        `skip`: a particle being dragged right now (the browser owns its pose until release)."""
+        bodies = session.bodies()
+        self.dim = session.scene_dim
+        size = session.size
+        key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
+        if key != self.key:
+            self.api.remove_by_name("/particles")
+            self.nodes, self.inner, self.mesh_keys = {}, {}, {}
+            self.key = key
+            for i, body in enumerate(bodies):
+                name = f"/particles/{body.name}"
+                if session.draggable:
+                    node = self.api.add_transform_controls(
+                        name, scale=0.55 * size, active_axes=(True, True, self.dim == 3), disable_sliders=self.dim == 2,
+                        depth_test=False, opacity=0.9, position=to3(body.x, 0.0), wxyz=wxyz(body.R))
+                    node.on_update(self._drag_callback(body.name))
+                else:
+                    node = self.api.add_frame(name, show_axes=False, position=to3(body.x), wxyz=wxyz(body.R))
+                self.nodes[body.name] = node
+                self.inner[body.name] = self.api.add_frame(f"{name}/body", show_axes=False)
+        for i, body in enumerate(bodies):
+            node = self.nodes[body.name]
+            if body.name != skip:
+                node.position = to3(body.x)
+                node.wxyz = wxyz(body.R)
+            self.inner[body.name].position = (0.0, 0.0, 0.0)
+            self.inner[body.name].wxyz = (1.0, 0.0, 0.0, 0.0)
+            mkey = (body.axes, round(size, 9))
+            if self.mesh_keys.get(body.name) != mkey:
+                self.mesh_keys[body.name] = mkey
+                V, F = body_mesh(body, 0.15 * size)
+                base = f"/particles/{body.name}/body"
+                self.api.add_mesh_simple(f"{base}/mesh", V, F, color=PALETTE[i % len(PALETTE)], flat_shading=False,
+                                         side="double", opacity=None if self.dim == 2 else 0.45)
+                a, b = body.axes[0], body.axes[1]
+                if self.dim == 2:   # along body e2: clear of the force arrows of the pair (along e1)
+                    w = 0.06 * size
+                    stripe = np.array([[-w / 2, 0.2 * b], [w / 2, 0.2 * b], [w / 2, 0.92 * b], [-w / 2, 0.92 * b]])
+                    Vs = to3(stripe, 0.08 * size)
+                    self.api.add_mesh_simple(f"{base}/marker", Vs, np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+                                             color=MARKER, side="double")
+                else:
+                    self.api.add_icosphere(f"{base}/marker", radius=0.12 * size, color=MARKER, position=(a, 0.0, 0.0))
+        self.base = {b.name: b for b in bodies}
+
+    def _drag_callback(self, name):
+        def _(event):
+            if self.on_drag is not None:
+                self.on_drag(name, event)
+        return _
+
+    def pose_of(self, name: str):
+        """Position (d,) and rotation (d, d) of a particle's node as the browser left it."""
+        node = self.nodes[name]
+        R = quat_matrix(node.wxyz)
+        x = np.asarray(node.position, float)
+        if self.dim == 2:
+            angle = float(np.arctan2(R[1, 0], R[0, 0]))
+            return x[:2], rotation_matrix(2, angle)
+        return x, R
+
+    def animate(self, bodies) -> None:
+        """Show bodies displaced along a mode: local offsets of the /body frames relative to the drawn poses."""
+        for body in bodies:
+            base = self.base.get(body.name)
+            if base is None:
+                continue
+            R0 = rot3(base.R)
+            dx = R0.T @ (to3(body.x) - to3(base.x))
+            self.inner[body.name].position = dx
+            self.inner[body.name].wxyz = wxyz(R0.T @ rot3(body.R))
+
+    def stop_animation(self) -> None:
+        for frame in self.inner.values():
+            frame.position = (0.0, 0.0, 0.0)
+            frame.wxyz = (1.0, 0.0, 0.0, 0.0)
+
+    # contacts ----------------------------------------------------------------------------------
+    def draw_contacts(self, session) -> dict:
+        """Points, normals, force arrows and osculating arcs; returns the legend numbers."""
+        scene = session.scene
+        self.api.remove_by_name("/contacts")
+        if scene is None or scene.n_contacts == 0:
+            return {"max_force": 0.0, "arrow": 0.0}
+        size = session.size
+        z = 0.1 * size if scene.dim == 2 else 0.0
+        P = to3(scene.point, z)
+        n = to3(scene.normal, 0.0)
+        o = self.options
+        self.api.add_point_cloud("/contacts/points", points=P, colors=COLORS["point"], point_size=0.08 * size,
+                                 point_shape="circle")
+        if o["normals"]:
+            self.api.add_line_segments("/contacts/normals", np.stack([P, P + 0.5 * size * n], axis=1),
+                                       COLORS["normal"], thickness=2.5, thickness_units="screen")
+        fmag = np.linalg.norm(scene.force, axis=1)
+        fmax = float(fmag.max())
+        arrow = 0.6 * size * o["force_scale"]
+        if o["forces"] and fmax > 0:
+            f = to3(scene.force, 0.0) / fmax * arrow                  # f^pq: on p; -f^pq on q
+            fn = np.sum(scene.force * scene.normal, axis=1)
+            sliding = scene.at_yield()
+            color = np.where(sliding[:, None], COLORS["sliding"],
+                             np.where((fn > 0)[:, None], COLORS["tensile"], COLORS["compressive"]))
+            keep = fmag > 1e-12 * fmax
+            starts = np.concatenate([P[keep], P[keep]])
+            ends = np.concatenate([P[keep] + f[keep], P[keep] - f[keep]])
+            shaft = 0.035 * size
+            self.api.add_arrows("/contacts/forces", np.stack([starts, ends], axis=1),
+                                np.concatenate([color[keep], color[keep]]).astype(np.uint8),
+                                shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
+        if o["osculating"]:
+            data = circle_data(scene, size)
+            if data is not None:
+                pts, cen, rad, nout, tan = data
+                cen = cen + np.array([0, 0, z]) if scene.dim == 2 else cen
+                segs = osculating_arcs(pts, cen, rad, nout, tan, size)
+                self.api.add_line_segments("/contacts/osculating", segs, COLORS["osculating"], thickness=1.5, thickness_units="screen")
+        return {"max_force": fmax, "arrow": arrow / size}
+
+    # the λ⁽⁶⁾ surface --------------------------------------------------------------------------
+    def field_frame(self, field, size: float):
+        """Where the surface sits: below the pair, x over ρ/r in [-1, 3]·r, y over f/(kr) in [-4.6, -2]·r."""
+        x0, x1, y0, y1 = -1.0 * size, 3.0 * size, -4.6 * size, -2.0 * size
+
+        def place(rho_r, f_kr):
+            X = x0 + (np.asarray(rho_r) - field.rho_r[0]) / (field.rho_r[-1] - field.rho_r[0]) * (x1 - x0)
+            Y = y0 + (np.asarray(f_kr) - field.f_kr[0]) / (field.f_kr[-1] - field.f_kr[0]) * (y1 - y0)
+            return X, Y
+        return place, (x0, x1, y0, y1)
+
+    def draw_field(self, session, field, current) -> None:
+        """The λ⁽⁶⁾/k field as a coloured height surface (red < 0, blue > 0) with the current state marked."""
+        if field is None or not self.options["surface"]:
+            self.api.remove_by_name("/field")
+            return
+        import trimesh
+        size = session.size
+        place, (x0, x1, y0, y1) = self.field_frame(field, size)
+        lim = float(np.abs(field.lam).max()) or 1.0
+        height = 0.8 * size
+        R, F = np.meshgrid(field.rho_r, field.f_kr)
+        X, Y = place(R, F)
+        Z = field.lam / lim * height
+        V = np.stack([X, Y, Z], axis=-1).reshape(-1, 3)
+        nr, nf = len(field.rho_r), len(field.f_kr)
+        idx = np.arange(nr * nf).reshape(nf, nr)
+        a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
+        faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+        v = field.lam.reshape(-1) / lim
+        colors = diverging(np.sign(v) * np.sqrt(np.abs(v)))     # √ stretch: the small values near 0 show too
+        key = (id(field),)
+        if getattr(self, "_field_key", None) != key:
+            self._field_key = key
+            mesh = trimesh.Trimesh(V, faces, vertex_colors=colors, process=False)
+            surface = self.api.add_mesh_trimesh("/field/surface", mesh)
+            surface.on_click(lambda event: self._picked(event, field, place, Z))
+            self.api.add_line_segments("/field/frame", np.array([
+                [[x0, y0, 0], [x1, y0, 0]], [[x1, y0, 0], [x1, y1, 0]], [[x1, y1, 0], [x0, y1, 0]],
+                [[x0, y1, 0], [x0, y0, 0]]]), (90, 90, 90), thickness=1.5, thickness_units="screen")
+            self.api.add_label("/field/xlabel", "ρ/r →", position=(0.5 * (x0 + x1), y0 - 0.25 * size, 0))
+            self.api.add_label("/field/ylabel", "f/(kr) ↑", position=(x0 - 0.55 * size, 0.5 * (y0 + y1), 0))
+            self.api.add_label("/field/title", "λ⁽⁶⁾/k: red < 0 < blue",
+                               position=(0.5 * (x0 + x1), y1 + 0.25 * size, 0))
+        rho_r, f_kr, lam = current
+        cx, cy = place(rho_r, f_kr)
+        cz = (0.0 if lam is None else float(np.clip(lam / lim, -1.5, 1.5))) * height
+        self.api.add_icosphere("/field/current", radius=0.09 * size, color=(255, 200, 0), position=(cx, cy, cz + 0.05 * size))
+
+    def _picked(self, event, field, place, Z) -> None:
+        """A click on the surface: march along the ray to where it meets the height field, report (ρ/r, f/(kr))."""
+        if self.on_pick is None:
+            return
+        hit = ray_heightfield(np.asarray(event.ray_origin), np.asarray(event.ray_direction), field, place, Z)
+        if hit is not None:
+            self.on_pick(*hit)
+
+    def clear_field(self) -> None:
+        self._field_key = None
+        self.api.remove_by_name("/field")
+
+
+def ray_heightfield(origin, direction, field, place, Z, n: int = 2000):
+    """First crossing of the ray with the surface z = Z(ρ/r, f/(kr)) placed by `place`, as (ρ/r, f/(kr)) or None."""
+    from scipy.interpolate import RegularGridInterpolator
+    xs, _ = place(field.rho_r, field.f_kr[0])
+    _, ys = place(field.rho_r[0], field.f_kr)
+    height = RegularGridInterpolator((ys, xs), Z, bounds_error=False, fill_value=np.nan)
+    span = 4.0 * max(xs[-1] - xs[0], ys[-1] - ys[0]) + np.linalg.norm(origin)
+    t = np.linspace(0.0, span, n)
+    pts = origin + t[:, None] * direction / np.linalg.norm(direction)
+    gap = pts[:, 2] - height(pts[:, [1, 0]])
+    inside = np.flatnonzero(np.isfinite(gap[:-1]) & np.isfinite(gap[1:]) & (np.sign(gap[:-1]) != np.sign(gap[1:])))
+    if inside.size == 0:
+        return None
+    k = inside[0]
+    w = gap[k] / (gap[k] - gap[k + 1])
+    x, y = (pts[k] + w * (pts[k + 1] - pts[k]))[:2]
+    rho = field.rho_r[0] + (x - xs[0]) / (xs[-1] - xs[0]) * (field.rho_r[-1] - field.rho_r[0])
+    f = field.f_kr[0] + (y - ys[0]) / (ys[-1] - ys[0]) * (field.f_kr[-1] - field.f_kr[0])
+    return float(rho), float(f)
+
+
+def diverging(v: np.ndarray) -> np.ndarray:
+    """RGBA uint8 of values in [-1, 1]: red (negative) – white (0) – blue (positive), like the contour plot."""
+    v = np.clip(np.asarray(v, float), -1, 1)[:, None]
+    red, white, blue = np.array([178, 24, 43]), np.array([247, 247, 247]), np.array([33, 102, 172])
+    rgb = np.where(v < 0, white + (-v) * (red - white), white + v * (blue - white))
+    return np.concatenate([rgb, np.full((len(rgb), 1), 255)], axis=1).astype(np.uint8)

@@ -1,0 +1,367 @@
+"""The explorer's session state without a browser: every change produces the right scene and numbers.
+
+Reference values are independent of the app: λ⁽⁶⁾ = f (ρ - r) and λ⁽⁴⁾ = 2k for the symmetric pair (NOTES,
+Sec. 4.1), the sign pattern of the λ⁽⁶⁾ contour (it changes sign exactly on ρ/r = 1 and on f = 0), and the
+paper's own 6×6 matrices (granstab.studies.two_particle) for the field. Tolerances are relative to the scale of
+the numbers compared (k for eigenvalues, the field's max |λ|), at a few hundred eps.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.field import lambda6_field
+from app.models import ContactModel, ShapeModel, TwoParticleModel, load_model
+from app.modes import label_mode
+from app.state import Session
+
+REPO = Path(__file__).resolve().parent.parent
+EPS = np.finfo(float).eps
+
+FLAT_PAIR = """\
+dim = 2
+title = "two ellipses, flat contact"
+[defaults]
+k = 1.0
+alpha = 1.0
+mu = 0.5
+[[particles]]
+name = "a"
+x = [0.0, 0.0]
+shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
+[[particles]]
+name = "b"
+x = [1.99, 0.0]
+shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
+"""
+
+THREE_3D = """\
+dim = 3
+title = "ellipsoid, sphere, ellipsoid"
+[defaults]
+k = 2.0
+alpha = 0.8
+mu = 0.4
+[[particles]]
+name = "a"
+x = [0.0, 0.0, 0.0]
+shape = { kind = "ellipsoid", a = 1.0, b = 0.7, c = 0.6 }
+[[particles]]
+name = "b"
+x = [1.99, 0.0, 0.0]
+shape = { kind = "sphere", radius = 1.0 }
+[[particles]]
+name = "c"
+x = [3.98, 0.0, 0.0]
+shape = { kind = "ellipsoid", a = 1.0, b = 1.3, c = 0.8 }
+"""
+
+CHAIN = """\
+dim = 2
+title = "three disks in a chain, contact level"
+[defaults]
+k = 1.0
+alpha = 0.5
+mu = 0.3
+[[particles]]
+name = "a"
+x = [0.0, 0.0]
+[[particles]]
+name = "b"
+x = [2.0, 0.0]
+[[particles]]
+name = "c"
+x = [4.0, 0.0]
+[[contacts]]
+p = "a"
+q = "b"
+point = [1.0, 0.0]
+normal = [1.0, 0.0]
+curvature_p = -1.0
+curvature_q = -1.0
+force = [-0.01, 0.0]
+[[contacts]]
+p = "b"
+q = "c"
+point = [3.0, 0.0]
+normal = [1.0, 0.0]
+curvature_p = -1.0
+curvature_q = -1.0
+force = [-0.01, 0.0]
+"""
+
+
+@pytest.fixture()
+def presets(tmp_path):
+    folder = tmp_path / "presets"
+    folder.mkdir()
+    (folder / "two_particle.toml").write_text((REPO / "presets" / "two_particle.toml").read_text())
+    (folder / "flat_pair.toml").write_text(FLAT_PAIR)
+    (folder / "three_3d.toml").write_text(THREE_3D)
+    (folder / "chain.toml").write_text(CHAIN)
+    (folder / "broken.toml").write_text("dim = 2\n[[particles]]\nname = 'a'\nx = [0.0]\n")
+    (folder / "malformed.toml").write_text("dim = = 2\n")
+    return folder
+
+
+@pytest.fixture()
+def pair(presets):
+    return Session(presets_dir=presets)
+
+
+def eig(session, label, branch=0):
+    return [m.eigenvalue for m in session.modes() if m.label == label and m.branch == branch]
+
+
+# ------------------------------------------------------------------------------------------ the pair
+
+def test_opens_on_the_two_particle_preset(pair):
+    assert (pair.preset, pair.kind, pair.error) == ("two_particle", "two_particle", None)
+    assert pair.params["rho_r"] == 0.5 and pair.params["f_kr"] == 0.01
+    assert set(pair.used_params) == {"rho_r", "f_kr", "mu", "mobilised", "alpha", "k", "rolling"}
+    assert pair.verdict == "unstable"
+    # λ⁽⁶⁾ = f (ρ - r) = 0.01 (0.5 - 1), λ⁽⁴⁾ = 2k (Sec. 4.1), in units of k = 1
+    assert pair.rolling_eigenvalue() == pytest.approx(-0.005, abs=100 * EPS)
+    assert eig(pair, "indentation") == [pytest.approx(2.0, abs=100 * EPS)]
+    assert len(eig(pair, "shearing")) == 1 and len(eig(pair, "rigid")) == 3
+
+
+@pytest.mark.parametrize("rho_r, verdict", [(0.3, "unstable"), (0.99, "unstable"), (1.0, "neutral"),
+                                            (1.01, "stable"), (2.5, "stable")])
+def test_verdict_changes_sign_on_rho_equal_r(pair, rho_r, verdict):
+    assert pair.set_params(rho_r=rho_r) or rho_r == 0.5
+    assert pair.verdict == verdict and pair.error is None
+    f, k = pair.params["f_kr"], pair.params["k"]
+    assert pair.rolling_eigenvalue() == pytest.approx(f * (rho_r - 1.0), abs=100 * EPS * k)
+
+
+@pytest.mark.parametrize("f_kr, rho_r, verdict", [(0.0, 0.5, "neutral"), (0.0, 2.0, "neutral"),
+                                                  (-0.004, 0.5, "stable"), (-0.004, 1.5, "unstable")])
+def test_zero_and_cohesive_forces(pair, f_kr, rho_r, verdict):
+    pair.set_params(f_kr=f_kr, rho_r=rho_r)
+    assert pair.error is None and pair.verdict == verdict
+    assert pair.rolling_eigenvalue() == pytest.approx(f_kr * (rho_r - 1.0), abs=100 * EPS)
+
+
+def test_k_scales_eigenvalues_not_the_verdict(pair):
+    pair.set_params(k=4.0)
+    assert pair.verdict == "unstable"
+    assert pair.rolling_eigenvalue() == pytest.approx(-0.005, rel=1e-12)       # λ⁽⁶⁾/k
+    assert eig(pair, "indentation") == [pytest.approx(8.0, rel=1e-12)]          # 2k
+
+
+def test_slider_values_are_cleaned_and_unchanged_values_do_nothing(pair):
+    revision = pair.revision
+    assert pair.set_params(rho_r=0.5) is False and pair.revision == revision
+    assert pair.set_params(rho_r=0.30000000000000004) and pair.params["rho_r"] == 0.3
+    pair.set_params(rho_r=99.0, mu=-1.0)
+    assert pair.params["rho_r"] == 3.0 and pair.params["mu"] == 0.0
+    with pytest.raises(KeyError):
+        pair.set_params(nonsense=1.0)
+
+
+def test_full_mobilisation_gives_two_branches_and_a_sliding_mode(pair):
+    pair.set_params(mobilised=1.0)
+    report = pair.report()
+    assert report["n_sliding"] == 1 and report["n_branches"] == 2
+    assert pair.scene.at_yield().tolist() == [True]
+    labels = {m.label for m in pair.modes() if m.consistent}
+    assert "sliding" in labels
+    assert report["type1"].startswith(("yes", "no", "not evaluated"))
+    assert pair.verdict == "unstable"
+
+
+def test_rolling_stiffness_lifts_the_rolling_mode(pair):
+    pair.set_params(rolling=0.01)                      # M = 0.01 k r²: νᵀMν = 0.01·(1 - (-1))²/2 = 0.02
+    assert pair.rolling_eigenvalue() == pytest.approx(-0.005 + 0.02, abs=100 * EPS)
+    assert pair.verdict == "stable"
+
+
+# ------------------------------------------------------------------------------------------ presets
+
+def test_switching_presets(pair):
+    assert pair.presets()[0] == "two_particle"
+    assert pair.load_preset("flat_pair") and pair.error is None
+    assert pair.kind == "shapes" and "rho_r" not in pair.used_params and "mobilised" in pair.used_params
+    assert pair.verdict == "stable" and pair.scene.n_contacts == 1
+    assert pair.field() is None                         # no contour work for a scene without it
+    assert pair.load_preset("two_particle") and pair.kind == "two_particle" and pair.verdict == "unstable"
+    assert pair.field() is not None
+
+
+@pytest.mark.parametrize("name, needle", [("broken", "broken.toml"), ("malformed", "malformed TOML"),
+                                          ("no_such_preset", "cannot read file")])
+def test_bad_preset_is_a_message_not_an_exception(pair, name, needle):
+    assert pair.load_preset(name) is False
+    assert needle in pair.error and "\n" not in pair.error
+    assert pair.kind == "two_particle" and pair.analysis is not None     # the previous scene stays
+
+
+def test_a_bad_preset_at_start_falls_back_to_the_pair(presets):
+    s = Session("broken", presets_dir=presets)
+    assert s.kind == "two_particle" and s.verdict == "unstable" and "broken.toml" in s.error
+
+
+def test_contact_level_scene_overrides_law_parameters(presets):
+    s = Session("chain", presets_dir=presets)
+    assert isinstance(s.model, ContactModel) and not s.draggable
+    assert set(s.used_params) == {"mu", "alpha", "k", "rolling"}
+    assert s.params["alpha"] == 0.5 and s.params["mu"] == 0.3
+    s.set_params(alpha=1.5, mu=0.7)
+    assert np.all(s.scene.alpha == 1.5) and np.all(s.scene.mu == 0.7) and s.error is None
+    s.move("b", [2.0, 0.1], 0.0)                        # not draggable: a message, no change
+    assert "cannot be dragged" in s.error and np.allclose(s.scene.x[1], [2.0, 0.0])
+
+
+def test_3d_shape_scene(presets):
+    s = Session("three_3d", presets_dir=presets)
+    assert s.error is None and s.scene.dim == 3 and s.scene.n_contacts == 2
+    assert s.params["k"] == 2.0 and s.params["alpha"] == 0.8
+    assert len(s.modes()) == 18 and sum(m.label == "rigid" for m in s.modes()) >= 6
+    assert all(b.R.shape == (3, 3) for b in s.bodies())
+
+
+# ------------------------------------------------------------------------------------------ dragging
+
+def test_drag_turns_the_pair_into_shapes_and_follows_the_geometry(pair):
+    pair.move("q", [1.995, 0.0], 0.0)                  # the slider state: overlap f/k = 0.005
+    assert pair.kind == "shapes" and pair.notice and pair.error is None
+    assert pair.scene.n_contacts == 1 and pair.verdict == "unstable"
+    assert -pair.scene.force[0] @ pair.scene.normal[0] == pytest.approx(0.005, rel=1e-9)   # f = kδ
+    pair.move("q", [1.98, 0.05], 0.1)                   # off axis, rotated: still touching, new normal
+    assert pair.scene.n_contacts == 1 and abs(pair.scene.normal[0][1]) > 1e-5 and pair.error is None
+    pair.move("q", [5.0, 0.0], 0.0)                     # pulled apart: the contact vanishes
+    assert pair.scene.n_contacts == 0 and pair.error is None
+    pair.reset_poses()
+    assert pair.scene.n_contacts == 1
+
+
+# ------------------------------------------------------------------------------------------ modes
+
+def test_mode_labels_of_the_pair(pair):
+    labels = {m.label for m in pair.modes()}
+    assert labels == {"rigid", "rolling", "indentation", "shearing"}
+    rolling = next(m for m in pair.modes() if m.label == "rolling")
+    assert rolling.consistent and rolling.shares["rolling"] == pytest.approx(1.0)
+
+
+def test_label_of_hand_made_motions(pair):
+    scene, L = pair.scene, pair.analysis.length
+    assert label_mode(scene, np.array([1.0, 0, 0, 1.0, 0, 0]), None, L).label == "rigid"      # translation
+    assert label_mode(scene, np.array([0, 0, 1.0, 0, 0, -1.0]), None, L).label == "rolling"
+    assert label_mode(scene, np.array([1.0, 0, 0, -1.0, 0, 0]), None, L).label == "indentation"
+    assert label_mode(scene, np.array([0, 1.0, 0, 0, -1.0, 0]), None, L).label == "shearing"
+    assert label_mode(scene, np.array([0, 1.0, 0, 0, -1.0, 0]), np.array([1]), L).label == "sliding"
+
+
+def test_mode_animation_poses(pair):
+    mode = next(m for m in pair.modes() if m.label == "rolling")
+    still = pair.mode_bodies(mode, 0.3, 0.0)
+    for a, b in zip(still, pair.bodies()):
+        assert np.allclose(a.x, b.x) and np.allclose(a.R, b.R)
+    moved = pair.mode_bodies(mode, 0.3, np.pi / 2)
+    angles = [np.arctan2(b.R[1, 0], b.R[0, 0]) for b in moved]
+    # rolling: equal and opposite turns, the largest motion = amplitude × particle size
+    assert angles[0] == pytest.approx(-angles[1], abs=1e-12)
+    assert max(abs(a) for a in angles) * pair.size == pytest.approx(0.3 * pair.size, rel=1e-9)
+
+
+# ------------------------------------------------------------------------------------------ field
+
+def test_field_changes_sign_exactly_on_rho_r_1_and_f_0(pair):
+    field = pair.field()
+    scale = 4.0                                          # ‖H‖/k: the round-off scale of every eigenvalue
+    i = np.flatnonzero(np.isclose(field.rho_r, 1.0))[0]
+    j = np.flatnonzero(np.isclose(field.f_kr, 0.0))[0]
+    assert np.abs(field.lam[:, i]).max() <= 100 * EPS * scale
+    assert np.abs(field.lam[j, :]).max() <= 100 * EPS * scale
+    R, F = np.meshgrid(field.rho_r, field.f_kr)
+    assert np.all(np.sign(field.lam[np.abs(field.lam) > 1e-9 * scale]) ==
+                  np.sign((F * (R - 1))[np.abs(field.lam) > 1e-9 * scale]))
+
+
+@pytest.mark.parametrize("alpha", [1.0, 0.3])
+def test_field_from_the_core_agrees_with_the_papers_matrices(alpha):
+    studies = lambda6_field(alpha, 0.0)
+    core = lambda6_field(alpha, 0.0, use_studies=False)
+    assert "studies" in studies.source and "contact_blocks" in core.source
+    # round-off of an eigenvalue is relative to ‖H‖ ≈ 2k + 2αk(1 + r²) (λ⁽⁴⁾, λ⁽⁵⁾), not to |λ⁽⁶⁾| ≤ 0.04k
+    norm_H = 2.0 + 2.0 * alpha * 2.0
+    assert np.abs(studies.lam - core.lam).max() <= 100 * EPS * norm_H
+
+
+def test_current_state_matches_the_field(pair):
+    pair.set_params(rho_r=1.5, f_kr=0.015)
+    field = pair.field()
+    i = np.flatnonzero(np.isclose(field.rho_r, 1.5))[0]
+    j = np.flatnonzero(np.isclose(field.f_kr, 0.015))[0]
+    assert pair.rolling_eigenvalue() == pytest.approx(field.lam[j, i], abs=100 * EPS)
+
+
+def test_a_click_on_the_surface_finds_its_grid_point(pair):
+    from app.views import SceneView, ray_heightfield
+    field = pair.field()
+    place, _ = SceneView(None).field_frame(field, pair.size)
+    Z = field.lam / np.abs(field.lam).max() * 0.8 * pair.size
+    X, Y = place(1.5, 0.01)
+    lam = field.lam[np.isclose(field.f_kr, 0.01), np.isclose(field.rho_r, 1.5)][0]
+    z = lam / np.abs(field.lam).max() * 0.8 * pair.size
+    ray = np.array([-0.3, 0.4, -1.0])                    # an oblique view that hits the surface at (1.5, 0.01)
+    hit = ray_heightfield(np.array([X, Y, z]) - 5.0 * ray, ray, field, place, Z)
+    # within 1% of a slider step (ρ/r step 0.01, f/(kr) step 0.0005): the click lands on the right slider value
+    assert hit[0] == pytest.approx(1.5, abs=1e-4) and hit[1] == pytest.approx(0.01, abs=5e-6)
+    assert ray_heightfield(np.array([X + 50.0, Y, 5.0]), np.array([0, 0, -1.0]), field, place, Z) is None
+
+
+# ------------------------------------------------------------------------------------------ exports
+
+@pytest.mark.parametrize("preset, change", [("two_particle", {"rho_r": 1.7, "mobilised": 0.4}),
+                                            ("flat_pair", {"mu": 0.8, "alpha": 0.6}),
+                                            ("chain", {"alpha": 0.9}), ("three_3d", {"rolling": 0.05})])
+def test_exported_scene_reloads_to_the_same_analysis(presets, tmp_path, preset, change):
+    s = Session(preset, presets_dir=presets)
+    s.set_params(**change)
+    if preset == "flat_pair":
+        s.move("b", [1.985, 0.1], 0.2)
+    name, content = s.export_scene()
+    path = tmp_path / name
+    path.write_bytes(content)
+    again = Session(str(path), presets_dir=presets)
+    assert again.error is None and again.verdict == s.verdict
+    a = np.concatenate([b.stability_eigenvalues for b in s.analysis.branches])
+    b = np.concatenate([b.stability_eigenvalues for b in again.analysis.branches])
+    assert np.abs(a - b).max() <= 1e-12 * np.abs(a).max()
+
+
+def test_export_analysis_and_contour(pair):
+    name, content = pair.export_analysis()
+    data = json.loads(content)
+    assert name.endswith(".json") and data["summary"]["verdict"] == "unstable"
+    assert data["app"]["params"]["rho_r"] == 0.5 and {m["label"] for m in data["app"]["modes"]} >= {"rolling"}
+    name, png = pair.export_contour()
+    assert name.endswith(".png") and png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+    pair.load_preset("flat_pair")
+    with pytest.raises(ValueError):
+        pair.export_contour()
+
+
+def test_failed_analysis_is_kept_as_a_message(pair, monkeypatch):
+    import app.state as state
+
+    def boom(scene):
+        raise RuntimeError("eigensolver exploded")
+    monkeypatch.setattr(state, "analyze", boom)
+    pair.set_params(rho_r=0.7)
+    assert pair.analysis is None and pair.verdict is None and "eigensolver exploded" in pair.error
+    assert pair.report()["verdict"] is None and pair.modes() == []
+    with pytest.raises(ValueError):
+        pair.export_analysis()
+
+
+def test_models_from_files():
+    assert isinstance(load_model(REPO / "presets" / "two_particle.toml"), TwoParticleModel)
+    pair = TwoParticleModel()
+    assert isinstance(pair.to_shapes(pair.initial_params()), ShapeModel)
