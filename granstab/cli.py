@@ -82,7 +82,7 @@ def cmd_analyze(args) -> int:
 
 def cmd_reproduce(args) -> int:
     from .report import reproduce
-    reproduce(args.name, Path(args.out))
+    reproduce(args.name, Path(args.out), root=args.root)
     return 0
 
 
@@ -110,6 +110,8 @@ def build_parser() -> Parser:
     p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
     p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])
     p.add_argument("--out", required=True)
+    p.add_argument("--root", type=Path, default=None,
+                   help="with 'all': also write REPRODUCTION.md at this repository root (links into --out)")
     p.set_defaults(run=cmd_reproduce)
     p = sub.add_parser("bench", help="error against run time; writes BENCHMARKS.md and plots")
     p.add_argument("--quick", action="store_true")
