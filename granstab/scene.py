@@ -270,22 +270,13 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
     base_law = {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((r, r))}
     law = _read_law(_Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, base_law)
 
-    particles = data.get("particles")
-    if not isinstance(particles, list) or not particles:
-        top.fail("particles", "must be a non-empty array of tables")
-    names, x, loads, load_moments = [], [], [], []
-    index = {}
-    for i, item in enumerate(particles):
-        rd = _Reader(source, f"particles[{i}]", item, PARTICLE_KEYS)
-        name = rd.text("name")
-        rd.entry = f"particles[{i}] ({name!r})"
-        if name in index:
-            rd.fail("name", f"duplicate particle name (also particles[{index[name]}])")
-        index[name] = i
-        names.append(name)
-        x.append(rd.array("x", (dim,)))
-        loads.append(rd.array("load", (dim,)) if rd.has("load") else None)
-        load_moments.append(rd.array("moment", () if dim == 2 else (3,)) if rd.has("moment") else None)
+    def read_particle(rd: _Reader, name: str):
+        load = rd.array("load", (dim,)) if rd.has("load") else None
+        moment = rd.array("moment", () if dim == 2 else (3,)) if rd.has("moment") else None
+        return name, rd.array("x", (dim,)), load, moment
+
+    names, x, loads, load_moments = zip(*read_particles(top, data, PARTICLE_KEYS, read_particle))
+    index = {name: i for i, name in enumerate(names)}
 
     contacts = data.get("contacts", [])
     if not isinstance(contacts, list):
@@ -340,8 +331,25 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
         "mu": np.array(cols["mu"]).reshape(M), "rolling": np.array(cols["rolling"]).reshape(M, r, r),
         "state": tuple(cols["state"]),
     }
-    return build_scene(dim, names, np.array(x).reshape(-1, dim), arrays, loads, load_moments,
+    return build_scene(dim, list(names), np.array(x).reshape(-1, dim), arrays, list(loads), list(load_moments),
                        title=title, source=source, tol=tol, entries=entries)
+
+
+def read_particles(top: _Reader, data: dict, allowed: set, read) -> list:
+    """The `particles` array: one table each, with a unique name; `read(rd, name)` returns an entry's data."""
+    particles = data.get("particles")
+    if not isinstance(particles, list) or not particles:
+        top.fail("particles", "must be a non-empty array of tables")
+    out, index = [], {}
+    for i, item in enumerate(particles):
+        rd = _Reader(top.source, f"particles[{i}]", item, allowed)
+        name = rd.text("name")
+        rd.entry = f"particles[{i}] ({name!r})"
+        if name in index:
+            rd.fail("name", f"duplicate particle name (also particles[{index[name]}])")
+        index[name] = i
+        out.append(read(rd, name))
+    return out
 
 
 def _read_law(rd: _Reader, dim: int, base: dict) -> dict:

@@ -26,7 +26,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .scene import LAW_DEFAULTS, LAW_KEYS, SceneError, _Reader, _read_law, build_scene
+from .scene import LAW_DEFAULTS, LAW_KEYS, SceneError, _Reader, _read_law, build_scene, read_particles
 from .tolerances import DEFAULT, EPS, Tolerances
 from .vec import rot_dim, tangent_basis
 
@@ -519,19 +519,9 @@ def read_shape_file(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
         if not np.any(shear):
             drd.fail("shear", "must be a non-zero vector")
 
-    particles = data.get("particles")
-    if not isinstance(particles, list) or not particles:
-        top.fail("particles", "must be a non-empty array of tables")
     allowed = {"name", "x", "shape", "angle" if dim == 2 else "rotation"}
-    entries, index = [], {}
-    for i, item in enumerate(particles):
-        rd = _Reader(source, f"particles[{i}]", item, allowed)
-        name = rd.text("name")
-        rd.entry = f"particles[{i}] ({name!r})"
-        if name in index:
-            rd.fail("name", f"duplicate particle name (also particles[{index[name]}])")
-        index[name] = i
-        entries.append((name, _read_shape(rd, dim), (rd.array("x", (dim,)), _read_orientation(rd, dim, tol))))
+    entries = read_particles(top, data, allowed, lambda rd, name: (
+        name, _read_shape(rd, dim), (rd.array("x", (dim,)), _read_orientation(rd, dim, tol))))
     return ShapeFile(dim=dim, title=title, particles=entries, law=law, mobilised=mobilised, shear=shear)
 
 

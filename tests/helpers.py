@@ -90,3 +90,23 @@ def dof_rotation(dim: int, n_particles: int, Q: np.ndarray) -> np.ndarray:
 
 def scene(data: dict) -> granstab.Scene:
     return granstab.scene_from_dict(data, source="<test>")
+
+
+# a shape-based scene used by the app tests: two flat-tipped ellipses (tip radius 2, half-length 1) pressed
+# tip to tip, rho/r > 1, stable
+FLAT_PAIR = """\
+dim = 2
+title = "two ellipses, flat contact"
+[defaults]
+k = 1.0
+alpha = 1.0
+mu = 0.5
+[[particles]]
+name = "a"
+x = [0.0, 0.0]
+shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
+[[particles]]
+name = "b"
+x = [1.99, 0.0]
+shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
+"""

@@ -16,29 +16,13 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from helpers import FLAT_PAIR
 
 CHROMIUM = Path("/usr/bin/chromium")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
          "--enable-unsafe-swiftshader"]
 REPO = Path(__file__).resolve().parent.parent
-FLAT_PAIR = """\
-# two flat-tipped ellipses (tip radius 2, half-length 1) pressed tip to tip: rho/r > 1, stable
-dim = 2
-title = "two ellipses, flat contact"
-[defaults]
-k = 1.0
-alpha = 1.0
-mu = 0.5
-[[particles]]
-name = "a"
-x = [0.0, 0.0]
-shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
-[[particles]]
-name = "b"
-x = [1.99, 0.0]
-shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
-"""
 
 pytestmark = pytest.mark.browser
 
@@ -78,9 +62,10 @@ def verdict_on_page(page, verdict, timeout=20_000):
     page.wait_for_selector(f'.granstab-verdict[data-verdict="{verdict}"]', timeout=timeout)
 
 
-@pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian chromium not installed (apt-get install chromium)")
 def test_explorer_end_to_end(app, tmp_path):
     from playwright.sync_api import sync_playwright
+
+    assert CHROMIUM.exists(), "Debian chromium is required: bash .ci/run installs it (apt-get install -y chromium)"
 
     with sync_playwright() as pw:
         ctx = pw.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=str(CHROMIUM),

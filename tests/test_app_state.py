@@ -17,26 +17,11 @@ from app.field import lambda6_field
 from app.models import ContactModel, ShapeModel, TwoParticleModel, load_model
 from app.modes import label_mode
 from app.state import Session
+from helpers import FLAT_PAIR
 
 REPO = Path(__file__).resolve().parent.parent
 EPS = np.finfo(float).eps
 
-FLAT_PAIR = """\
-dim = 2
-title = "two ellipses, flat contact"
-[defaults]
-k = 1.0
-alpha = 1.0
-mu = 0.5
-[[particles]]
-name = "a"
-x = [0.0, 0.0]
-shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
-[[particles]]
-name = "b"
-x = [1.99, 0.0]
-shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
-"""
 
 THREE_3D = """\
 dim = 3
