@@ -117,24 +117,33 @@ def modified_leakage(problem: Problem) -> float:
     return float(np.abs(HR).max() / max(np.linalg.norm(H), 1e-300))
 
 
+METHODS = ("auto", "dense", "sparse")
+
+
 def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding: int = 16,
-            on_branch=None) -> Analysis:
+            on_branch=None, method: str = "auto", k: int = 6, progress: bool = False) -> Analysis:
     """Analyse every loading branch of `scene` (Sec. 3, Appendix D).
 
     rotation_length_: L of the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric).
     max_sliding: refuse more than this many potentially sliding contacts (2^Ms branches).
     on_branch: called with each Branch as it is finished (streaming).
+    method: "dense" (every eigenpair of every branch, ℍ spectra, Type-2), "sparse" (the lowest k non-rigid
+    eigenpairs of sym(𝓗^i) per branch without any n_dof × n_dof matrix: granstab.sparse, for large clusters; see
+    `analyze_sparse` for what it leaves out) or "auto" (dense up to sparse.DENSE_MAX_DOF dofs, sparse above).
+    k: eigenpairs per branch on the sparse path. progress: a tqdm bar with time left over the branches.
     """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    from .sparse import DENSE_MAX_DOF, analyze_sparse
+    if method == "sparse" or (method == "auto" and scene.n_dof > DENSE_MAX_DOF):
+        return analyze_sparse(scene, k=k, rotation_length_=rotation_length_, max_sliding=max_sliding,
+                              on_branch=on_branch, progress=progress)
     timer = Timer()
     warnings = []
     with timer("total"):
         with timer("blocks"):
             blocks = contact_blocks(scene)
-        bad = np.flatnonzero(blocks.rolling_undetermined)
-        if bad.size:
-            warnings.append(f"{bad.size} contact(s) (first: contacts[{bad[0]}]) have K^p + K^q singular on the "
-                            "tangent plane (flat-on-flat or exact hand-in-glove): rolling is undetermined there "
-                            "and the pseudo-inverse drops it; the identities below measure the consequence")
+        warnings += curvature_warnings(scene, blocks)
         length = rotation_length_ or rotation_length(scene)
         with timer("assembly"):
             problem, parts = build_problem(scene, blocks, length)
@@ -144,7 +153,14 @@ def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding:
                              f"max_sliding = {max_sliding}")
         masks = enumerate_masks(problem.sliding, scene.n_contacts)
         with timer("branches"):
-            branches = solve_branches(problem, masks, on_branch=on_branch)
+            bar = _progress_bar(len(masks)) if progress and len(masks) > 1 else None
+            def stream(b, _user=on_branch):
+                bar.update()
+                if _user is not None:
+                    _user(b)
+            branches = solve_branches(problem, masks, on_branch=stream if bar is not None else on_branch)
+            if bar is not None:
+                bar.close()
         with timer("errors"):
             parts["H"] = parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]
             errors = identity_errors(scene, parts)
@@ -153,6 +169,70 @@ def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding:
             errors["equilibrium_residual"] = equilibrium_residual(scene)
             errors["eigen_residual_stability"] = max(b.residual_stability for b in branches)
             errors["eigen_residual_uniqueness"] = max(b.residual_uniqueness for b in branches)
-        summary = summarize(scene, branches, problem)
+        summary = flag_undetermined(summarize(scene, branches, problem), blocks)
     return Analysis(scene=scene, problem=problem, length=length, scale=dof_scale(scene, length), branches=branches,
                     summary=summary, errors=errors, timings=timer.times, warnings=warnings)
+
+
+def _progress_bar(total: int):
+    """A tqdm bar with the time left (tqdm is optional: None without it)."""
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:
+        return None
+    return tqdm(total=total, desc="branches", unit="branch", mininterval=0.5)
+
+
+CONFORMING_RATIO = 1e-6   # |K^p + K^q| below this times max(|K^p|, |K^q|): a nearly conforming contact (warned)
+
+
+def curvature_warnings(scene: Scene, blocks: ContactBlocks) -> list[str]:
+    """Warnings for contacts where the pseudo-inverse (K^p + K^q)^+ of eq:rolling decides the answer: exactly
+    singular (flat-on-flat, exact hand-in-glove; the cut-off drops the rolling) or nearly so (the rolling term
+    grows like 1/ratio and the answer is as sensitive to the curvature data)."""
+    out = []
+    bad = np.flatnonzero(blocks.rolling_undetermined)
+    if bad.size:
+        out.append(f"{bad.size} contact(s) (first: contacts[{bad[0]}]) have K^p + K^q singular on the "
+                   "tangent plane (flat-on-flat or exact hand-in-glove): rolling is undetermined there "
+                   "and the pseudo-inverse drops it; the identities below measure the consequence")
+    ratio = conforming_ratio(scene)
+    near = np.flatnonzero((ratio <= CONFORMING_RATIO) & ~blocks.rolling_undetermined
+                          & (np.linalg.norm(scene.force, axis=1) > 0))
+    if near.size:
+        c = near[np.argmin(ratio[near])]
+        out.append(f"{near.size} nearly conforming contact(s) (smallest |K^p + K^q| / max(|K^p|, |K^q|) = "
+                   f"{ratio[c]:.1e} at contacts[{c}], cut-off pinv_rtol = {scene.tol.pinv_rtol:.0e}): the rolling "
+                   "term scales like the inverse of that ratio, so the result is only as accurate as the "
+                   "curvature data relative to it")
+    return out
+
+
+def conforming_ratio(scene: Scene) -> np.ndarray:
+    """Per contact: smallest |eigenvalue| of K^p + K^q on the tangent plane over max(|K^p|, |K^q|) (inf when
+    both are zero is reported as 0: flat-on-flat)."""
+    if scene.n_contacts == 0:
+        return np.zeros(0)
+    from .vec import tangent_basis
+    T = tangent_basis(scene.normal)
+    Tt = np.swapaxes(T, 1, 2)
+    kp = Tt @ scene.curvature_p @ T
+    kq = Tt @ scene.curvature_q @ T
+    kp = 0.5 * (kp + np.swapaxes(kp, 1, 2))
+    kq = 0.5 * (kq + np.swapaxes(kq, 1, 2))
+    lam = np.abs(np.linalg.eigvalsh(kp + kq)).min(axis=1)
+    scale = np.maximum(np.abs(np.linalg.eigvalsh(kp)).max(axis=1), np.abs(np.linalg.eigvalsh(kq)).max(axis=1))
+    return np.divide(lam, scale, out=np.zeros_like(lam), where=scale > 0)
+
+
+def flag_undetermined(summary: dict, blocks: ContactBlocks) -> dict:
+    """Where a loaded contact's rolling is undetermined (K^p + K^q singular: the pseudo-inverse cut-off decides),
+    the verdict is not a proof: sufficient = False, hinges_on_tolerance = True, and the reason says why."""
+    n_bad = int(np.sum(blocks.rolling_undetermined))
+    if n_bad:
+        summary["sufficient"] = False
+        summary["hinges_on_tolerance"] = True
+        summary["reason"] += (f"; NOT DETERMINED: {n_bad} loaded contact(s) with K^p + K^q singular (flat-on-flat or "
+                              "exact hand-in-glove) — their rolling is undetermined and the verdict rests on the "
+                              "pseudo-inverse cut-off (pinv_rtol)")
+    return summary

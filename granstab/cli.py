@@ -75,7 +75,8 @@ def format_table(result) -> str:
 
 def cmd_analyze(args) -> int:
     scene = load_scene(args.scene)
-    result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding)
+    result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding, method=args.method,
+                     k=args.k, progress=args.progress)
     print(json.dumps(result.to_dict()) if args.json else format_table(result))
     return 0
 
@@ -106,6 +107,11 @@ def build_parser() -> Parser:
     p.add_argument("--rotation-length", type=float, default=None,
                    help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
     p.add_argument("--max-sliding", type=int, default=16, help="refuse more potentially sliding contacts")
+    p.add_argument("--method", choices=["auto", "dense", "sparse"], default="auto",
+                   help="dense: every eigenpair and the uniqueness analysis; sparse: the lowest --k eigenpairs per "
+                        "branch without n_dof x n_dof matrices; auto: sparse above granstab.sparse.DENSE_MAX_DOF dofs")
+    p.add_argument("--k", type=int, default=6, help="eigenpairs per branch on the sparse path")
+    p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
     p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])

@@ -110,7 +110,7 @@ def claim(cid, section, statement, paper, ours, verdict, note="") -> dict:
 # ------------------------------------------------------------------------------------------ two-particle
 
 def run_two_particle(out: Path, tick, say) -> dict:
-    field = two_particle.lambda6_field(FIG_RHO, FIG_FORCE)            # the paper's matrices (reference)
+    field = two_particle.lambda6_field(FIG_RHO, FIG_FORCE, verify=True)   # closed forms + the paper's matrices
     grid = two_particle.core_blocks_field(FIG_RHO, FIG_FORCE)        # granstab's own H, every grid point
     tick()
     core = two_particle.core_field(CORE_RHO, CORE_FORCE, progress=tick)
@@ -139,8 +139,8 @@ def run_two_particle(out: Path, tick, say) -> dict:
                             ["rho_over_r", "f_over_kr", "eig1", "eig2", "eig3", "eig4", "eig5", "eig6", "lambda4",
                              "lambda5", "lambda6", "lambda5_closed", "lambda6_closed", "n_zero", "verdict"], rows))
     np.savez(out / "two_particle.npz", **{k: v for k, v in grid.items() if isinstance(v, np.ndarray)},
-             paper_lam4=field["lam4"], paper_lam5=field["lam5"], paper_lam6=field["lam6"],
-             closed_lam5=field["lam5_closed"], closed_lam6=field["lam6_closed"],
+             paper_lam4=field["lam4_stacked"], paper_lam5=field["lam5_stacked"], paper_lam6=field["lam6_stacked"],
+             closed_lam5=field["lam5"], closed_lam6=field["lam6"],
              analyze_lam6=core["lam6"], analyze_lam5=core["lam5"], analyze_rho=core["rho_over_r"],
              analyze_f=core["f_over_kr"])
     files += figure_lambda6(grid, out)

@@ -56,3 +56,17 @@ def test_readable_table_and_module_entry_point():
                           capture_output=True, text=True)
     assert proc.returncode == 0
     assert "verdict: UNSTABLE" in proc.stdout and "errors (relative)" in proc.stdout
+
+
+def test_sparse_method_agrees_with_dense_on_real_data(capsys):
+    """`--method sparse` (lowest k eigenpairs, no dense matrices) against the dense spectrum, relative to max|λ|."""
+    path = str(PRESETS / "annulus_frame.json")
+    assert main(["analyze", path, "--json", "--method", "dense"]) == 0
+    dense = json.loads(capsys.readouterr().out)["branches"][0]["stability_eigenvalues"]
+    assert main(["analyze", path, "--json", "--method", "sparse", "--k", "5"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    sparse = sorted(out["branches"][0]["stability_eigenvalues"])
+    lowest = [lam for lam in dense if abs(lam) > 1e-12 * max(map(abs, dense))][:5]
+    assert np.allclose(sorted(lam for lam in sparse if abs(lam) > 1e-12 * max(map(abs, dense)))[:5], lowest,
+                       rtol=0, atol=1e-12 * max(map(abs, dense)))
+    assert any("sparse path" in w for w in out["warnings"])

@@ -55,7 +55,7 @@ def test_closed_forms_rederived_with_sympy():
 
 
 def test_lambda6_field_matches_closed_forms_and_changes_sign_on_the_two_lines():
-    field = two_particle.lambda6_field(np.linspace(0.2, 3.0, 57), np.linspace(-0.005, 0.02, 51))
+    field = two_particle.lambda6_field(np.linspace(0.2, 3.0, 57), np.linspace(-0.005, 0.02, 51), verify=True)
     for name in ("lam4", "lam5", "lam6"):
         assert field[f"error_{name}"] <= 100 * EPS                   # relative to ‖𝓗‖₂
     F, R = np.meshgrid(field["f_over_kr"], field["rho_over_r"], indexing="ij")

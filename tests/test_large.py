@@ -1,0 +1,202 @@
+"""The sparse path (granstab.sparse) against dense eigh, and large scenes (granstab.packings).
+
+Tolerance (why): both the sparse and the dense eigenvalues carry round-off of a few eps·‖Hs‖ per dof of
+accumulation; the documented bound is the core's zero tolerance, zero_factor·n·eps·‖Hs‖ (tolerances.py), which
+every comparison below uses (measured agreement is 1e-16…1e-15 relative to ‖Hs‖, far inside it).
+"""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import granstab
+from granstab import packings, sparse
+from granstab.branches import BOTH, MINUS, PLUS, RIGID
+from granstab.stiffness import assemble, contact_blocks
+from granstab.tolerances import DEFAULT
+
+
+def bound(spb) -> float:
+    return DEFAULT.zero_tol(spb.norm, spb.n)
+
+
+def dense_deflated(spb, mask=None):
+    """Eigen-decomposition of the deflated operator B as a dense matrix (small scenes only)."""
+    B = sparse.operator(spb, mask).matmat(np.eye(spb.n))
+    lam, V = np.linalg.eigh(0.5 * (B + B.T))
+    return sparse._drop_rigid(spb, lam, V)
+
+
+def dense_branch_nonrigid(result, mask):
+    """Non-rigid eigenvalues of sym(𝓗^mask) from the dense analyze(), ascending."""
+    for b in result.branches:
+        if np.array_equal(b.mask, mask):
+            return np.sort(b.stability_eigenvalues[b.codes != RIGID])
+    raise KeyError(mask)
+
+
+SCENES = {
+    "random2d": lambda: packings.random_packing(2, 150, seed=3),
+    "lattice3d": lambda: packings.lattice(3, 2),
+    "random3d_moments_rolling": lambda: packings.random_packing(3, 60, moments=0.3, rolling=0.05, seed=4),
+    "sharp2d": lambda: packings.lattice(2, 6, curvature_ratio=0.3, f_over_k=0.05),
+}
+
+
+@pytest.mark.parametrize("name", SCENES)
+@pytest.mark.parametrize("method", ["shift-invert", "lobpcg"])
+def test_lowest_modes_agree_with_dense(name, method):
+    s = SCENES[name]()
+    spb = sparse.sparse_problem(s)
+    modes = sparse.lowest_modes(spb, k=6, method=method)
+    lam_d, V_d = dense_deflated(spb)
+    tol = bound(spb)
+    assert np.abs(modes.eigenvalues - lam_d[:6]).max() <= tol
+    if method == "shift-invert":                                     # exact inverse: residuals at round-off
+        assert modes.verified
+        assert modes.residuals.max() * spb.norm <= tol
+    else:                                                            # LOBPCG stops at residual 1e-8 ‖Hs‖
+        assert modes.residuals.max() <= 1e-8
+    # the same eigenspaces: distance between projectors onto each (well separated) eigenvalue cluster
+    groups = np.split(np.arange(6), np.flatnonzero(np.diff(lam_d[:7]) > 1e-8 * spb.norm)[:5] + 1)
+    for g in groups:
+        if g[-1] == 5 and abs(lam_d[6] - lam_d[5]) <= 1e-8 * spb.norm:
+            continue                                               # cluster cut by k: not comparable
+        Ps, Pd = modes.vectors[:, g] @ modes.vectors[:, g].T, V_d[:, g] @ V_d[:, g].T
+        assert np.abs(Ps - Pd).max() <= 1e-6
+    # and with the core's dense analysis
+    res = granstab.analyze(s, method="dense")
+    lam_core = dense_branch_nonrigid(res, res.branches[0].mask)
+    assert np.abs(modes.eigenvalues - lam_core[:6]).max() <= tol
+
+
+def test_sliding_branches_share_one_factorisation_and_agree():
+    s = packings.random_packing(2, 60, n_sliding=3, seed=2)
+    spb = sparse.sparse_problem(s)
+    res = granstab.analyze(s, method="dense")
+    fac = None
+    for b in res.branches:
+        modes = sparse.lowest_modes(spb, k=5, mask=b.mask, factorization=fac, method="shift-invert")
+        fac = modes.info["factorization"]
+        lam = dense_branch_nonrigid(res, b.mask)
+        assert np.abs(modes.eigenvalues - lam[:5]).max() <= bound(spb)
+        assert modes.verified
+
+
+def test_negative_eigenvalues_are_found_and_verified_by_inertia():
+    """A shift inside the spectrum: the inertia counts the eigenvalues below it, and the result is still the
+    lowest k (the ν > 0 path); the two-particle rolling instability (one negative eigenvalue)."""
+    s = packings.random_packing(2, 80, seed=5)
+    spb = sparse.sparse_problem(s)
+    lam_d, _ = dense_deflated(spb)
+    sigma = 0.5 * (lam_d[2] + lam_d[3])                             # three eigenvalues below σ
+    modes = sparse.lowest_modes(spb, k=6, sigma=sigma, method="shift-invert")
+    assert modes.n_below == 3 and modes.verified
+    assert np.abs(modes.eigenvalues - lam_d[:6]).max() <= bound(spb)
+    pair = granstab.load_scene("presets/two_particle.toml")
+    m = sparse.lowest_modes(pair, k=3)
+    assert m.eigenvalues[0] == pytest.approx(0.01 * (0.5 - 1.0), abs=bound(sparse.sparse_problem(pair)))
+
+
+def test_inertia_counts_match_dense():
+    s = packings.lattice(2, 5, curvature_ratio=0.2, f_over_k=0.2)
+    spb = sparse.sparse_problem(s)
+    lam_d, _ = dense_deflated(spb)
+    for sigma in (-1e-3, lam_d[0] + 1e-9, 0.5 * (lam_d[4] + lam_d[5])):
+        fac = sparse.factor(spb, sigma)
+        U, K = sparse._lowrank(spb, np.zeros(0, bool), spb.norm)
+        shifted = sparse.Shifted(fac, U, K, sigma, fac.n_neg)
+        assert shifted.n_below == int(np.sum(lam_d < sigma))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_analyze_sparse_matches_dense_verdicts_and_codes(dim):
+    s = packings.random_packing(dim, 40 if dim == 2 else 32, n_sliding=2, moments=0.1 * (dim == 3), seed=7)
+    d = granstab.analyze(s, method="dense")
+    k = 8
+    sres = granstab.analyze(s, method="sparse", k=k)
+    assert sres.summary["verdict"] == d.summary["verdict"]
+    assert sres.summary["n_branches"] == d.summary["n_branches"] == 4
+    assert any("sparse path" in w for w in sres.warnings)
+    n_rigid = 3 if dim == 2 else 6
+    for bd, bs in zip(d.branches, sres.branches):
+        assert np.array_equal(bd.mask, bs.mask)
+        m = n_rigid + k
+        assert np.abs(bs.stability_eigenvalues - bd.stability_eigenvalues[:m]).max() <= 64 * s.n_dof * 2.3e-16 * 4
+        # codes agree up to the arbitrary sign of an eigenvector (PLUS <-> MINUS)
+        flip = {PLUS: MINUS, MINUS: PLUS, BOTH: BOTH}
+        for cd, cs in zip(bd.codes[:m], bs.codes):
+            assert cs == cd or cs == flip.get(int(cd), cd)
+        assert bs.uniqueness_n_zero == -1
+    for key in ("force_balance", "moment_balance", "rigid_leakage_parts", "rigid_leakage_modified"):
+        assert sres.errors[key] <= 1e-13
+
+
+def test_auto_method_switches_to_sparse_above_the_dense_limit():
+    s = packings.random_packing(2, 800, seed=1)                        # 2352 dofs > DENSE_MAX_DOF
+    assert s.n_dof > sparse.DENSE_MAX_DOF
+    res = granstab.analyze(s, k=4)
+    assert any("sparse path" in w for w in res.warnings)
+    assert len(res.branches[0].stability_eigenvalues) == 3 + 4
+    with pytest.raises(ValueError):
+        granstab.analyze(s, method="magic")
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_block_assembly_equals_scalar_assembly(dim):
+    s = packings.random_packing(dim, 50, moments=0.2, seed=dim)
+    cb = contact_blocks(s)
+    total = sum(cb.blocks.values())
+    A = assemble(total, cb.index, cb.n_dof)
+    B = sparse.assemble_blocks(total, s.p, s.q, s.dof_per_particle, s.n_dof)
+    assert sp.issparse(B) and B.format == "csr"
+    assert abs(A - B).max() <= 1e-15 * abs(A).max()
+
+
+def test_dissection_order_is_a_permutation():
+    s = packings.random_packing(3, 500, seed=0)
+    order = sparse.dissection_order(s.x, s.p, s.q)
+    assert np.array_equal(np.sort(order), np.arange(s.n_particles))
+
+
+@pytest.mark.parametrize("dim,kind", [(2, "triangular"), (2, "square"), (3, "fcc"), (3, "cubic")])
+def test_packings_are_valid_scenes_in_equilibrium(dim, kind):
+    s = packings.lattice(dim, 4 if dim == 2 else 2, kind=kind, mobilised=0.5, n_sliding=2, moments=0.1,
+                         rolling=0.01, seed=1)
+    assert s.n_contacts > s.n_particles
+    assert np.allclose(np.linalg.norm(s.normal, axis=1), 1.0, atol=1e-14)
+    assert np.sum(s.at_yield()) == 2
+    assert np.all(s.yield_function() <= 1e-9 * np.linalg.norm(s.force, axis=1))
+    res = granstab.analyze(s)
+    assert res.errors["equilibrium_residual"] == 0.0
+    assert res.errors["force_balance"] <= 1e-14 and res.errors["moment_balance"] <= 1e-14
+
+
+def test_ten_thousand_particles_sparse_without_dense_matrices():
+    """10⁴ particles (30 000 dofs): a dense n×n matrix would need 7.2 GB; the whole analysis stays far below
+    that (numpy allocations traced), the identities hold to round-off, and the two eigensolvers agree."""
+    import tracemalloc
+
+    s = packings.random_packing(2, 10_000, seed=11)
+    tracemalloc.start()
+    res = granstab.analyze(s, k=4)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 1.5e9
+    assert res.summary["verdict"] == "stable" and res.summary["sufficient"]
+    for key in ("force_balance", "moment_balance", "rigid_leakage_parts", "rigid_leakage_H_translations",
+                "rigid_leakage_modified", "eigen_residual_stability"):
+        assert res.errors[key] <= 1e-13, key
+    spb = sparse.sparse_problem(s)
+    lob = sparse.lowest_modes(spb, k=4, method="lobpcg")
+    lam = res.branches[0].stability_eigenvalues[3:]
+    assert np.abs(lob.eigenvalues - lam).max() <= bound(spb)
+
+
+@pytest.mark.parametrize("method", ["dense", "sparse"])
+def test_branches_stream_as_they_come_with_a_progress_bar(method, capsys):
+    s = packings.random_packing(2, 30, n_sliding=3, seed=4)
+    seen = []
+    res = granstab.analyze(s, method=method, k=4, progress=True, on_branch=seen.append)
+    assert len(seen) == 8 and all(a is b for a, b in zip(seen, res.branches))
+    err = capsys.readouterr().err
+    assert "branch" in err and "8/8" in err                           # tqdm bar with counts (and time left)
