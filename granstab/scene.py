@@ -259,14 +259,8 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
 
     if is_shape_scene(data):
         return shape_scene_from_dict(data, source=source, tol=tol)
-    top = _Reader(source, "scene", data, TOP_KEYS)
-    if "dim" not in data:
-        top.fail("dim", "missing (2 or 3)")
-    dim = data["dim"]
-    if dim not in (2, 3) or isinstance(dim, bool):
-        top.fail("dim", f"must be 2 or 3, got {dim!r}")
+    top, dim, title = read_header(data, source, TOP_KEYS)
     r = rot_dim(dim)
-    title = top.text("title", "") if "title" in data else ""
     base_law = {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((r, r))}
     law = _read_law(_Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, base_law)
 
@@ -333,6 +327,17 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
     }
     return build_scene(dim, list(names), np.array(x).reshape(-1, dim), arrays, list(loads), list(load_moments),
                        title=title, source=source, tol=tol, entries=entries)
+
+
+def read_header(data, source: str, allowed: set):
+    """The top-level table: its reader, dim (2 or 3, required) and title (optional)."""
+    top = _Reader(source, "scene", data, allowed)
+    if "dim" not in data:
+        top.fail("dim", "missing (2 or 3)")
+    dim = data["dim"]
+    if dim not in (2, 3) or isinstance(dim, bool):
+        top.fail("dim", f"must be 2 or 3, got {dim!r}")
+    return top, dim, top.text("title", "") if "title" in data else ""
 
 
 def read_particles(top: _Reader, data: dict, allowed: set, read) -> list:

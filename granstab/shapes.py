@@ -26,7 +26,8 @@ from typing import ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .scene import LAW_DEFAULTS, LAW_KEYS, SceneError, _Reader, _read_law, build_scene, read_particles
+from .scene import (LAW_DEFAULTS, LAW_KEYS, SceneError, _Reader, _read_law, build_scene, read_header,
+                    read_particles)
 from .tolerances import DEFAULT, EPS, Tolerances
 from .vec import rot_dim, tangent_basis
 
@@ -499,13 +500,7 @@ def read_shape_file(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
     radius = ..} | {kind = "ellipse", a, b} | {kind = "sphere", radius} | {kind = "ellipsoid", a, b, c}, and
     angle (2D, radians) or rotation (3D, 3x3). Errors are one-line SceneErrors naming file, entry and field.
     """
-    top = _Reader(source, "scene", data, SHAPE_TOP_KEYS)
-    if "dim" not in data:
-        top.fail("dim", "missing (2 or 3)")
-    dim = data["dim"]
-    if dim not in (2, 3) or isinstance(dim, bool):
-        top.fail("dim", f"must be 2 or 3, got {dim!r}")
-    title = top.text("title", "") if "title" in data else ""
+    top, dim, title = read_header(data, source, SHAPE_TOP_KEYS)
     drd = _Reader(source, "defaults", data.get("defaults", {}), SHAPE_DEFAULT_KEYS)
     law = _read_law(drd, dim, {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((rot_dim(dim),) * 2)})
     mobilised = float(drd.number("mobilised", 0.0))

@@ -49,7 +49,7 @@ import scipy.sparse.linalg as spla
 
 from .rigid import Projection, dof_scale, rotation_length, rotations, translations
 from .scene import Scene
-from .stiffness import contact_blocks
+from .stiffness import ContactBlocks, contact_blocks
 from .vec import rot_dim, rotate_matrix
 
 SMALL_DENSE = 48   # up to this many dofs lowest_modes uses a dense eigh of the operator (exact, instant)
@@ -104,25 +104,13 @@ def contact_chunks(scene: Scene, chunk: int = CHUNK):
 
 
 @dataclass(frozen=True, eq=False)
-class LocalData:
-    """What the sparse path keeps per contact besides H: sliding factors a, s (M, n_loc), dof index (M, n_loc),
-    rolling_undetermined (M,) — the fields of stiffness.ContactBlocks without the (M, n_loc, n_loc) blocks."""
-
-    slide_left: np.ndarray
-    slide_right: np.ndarray
-    index: np.ndarray
-    n_dof: int
-    rolling_undetermined: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
 class SparseProblem:
     """A scene set up for the sparse path, in scaled dofs Ũ = D⁻¹U (rigid.py). n = n_dof.
 
     H: CSR scaled elastic H̃ (non-symmetric); Hs: CSR sym(H̃); Hm: CSR scaled elastic mechanical part (for the
     preconditioner); A, S: (n, Ms) sliding factors (scaled, like branches.Problem); C: (n, r) scaled rotations;
     Q: (n, r) and R: (n, d + r) orthonormal bases of the rigid rotations and of all rigid motions (translations
-    first); norm: upper bound of ‖Hs‖₂ (max absolute row sum, plus the sliding terms); local: LocalData.
+    first); norm: upper bound of ‖Hs‖₂ (max absolute row sum, plus the sliding terms); local: stiffness.ContactBlocks without its (M, n_loc, n_loc) blocks.
     """
 
     scene: Scene
@@ -138,7 +126,7 @@ class SparseProblem:
     Q: np.ndarray
     R: np.ndarray
     norm: float
-    local: LocalData
+    local: ContactBlocks
     timings: dict = field(default_factory=dict)
 
     @property
@@ -200,7 +188,8 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
     t2 = time.perf_counter()
-    local = LocalData(slide_left=a, slide_right=s, index=index, n_dof=n, rolling_undetermined=undetermined)
+    local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=n,
+                          rolling_undetermined=undetermined)
     return SparseProblem(scene=scene, length=length, scale=D, H=H, Hs=Hs, Hm=Hm, A=A, S=S, sliding=sliding, C=C,
                          Q=Q, R=R, norm=max(norm, 1e-300), local=local,
                          timings={"blocks": t1 - t0, "assembly": t2 - t1})
@@ -802,6 +791,6 @@ def _sparse_branch(problem, spb: SparseProblem, modes: Modes, mask, k: int, norm
                   uniqueness_n_zero=-1, type2=[], residual_stability=res, residual_uniqueness=0.0), bool(cut)
 
 
-__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "LocalData", "Modes", "SparseProblem", "TwoLevel",
+__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseProblem", "TwoLevel",
            "analyze_sparse", "assemble_blocks", "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
            "operator", "sparse_problem"]
