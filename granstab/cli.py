@@ -133,6 +133,10 @@ def main(argv=None) -> int:
     except (SceneError, InputError) as exc:
         print(" ".join(str(exc).split()), file=sys.stderr)
         return 2
+    except OSError as exc:  # an output path that cannot be written: bad input too, one line
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"granstab: cannot write {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -137,3 +137,12 @@ def test_cohesive_elastic_contact_may_carry_tension(tmp_path, capsys):
     path.write_text(GOOD.replace("force = [-0.01, 0.0]", 'force = [0.004, 0.0]\nstate = "elastic"'))
     assert main(["analyze", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["n_sliding"] == 0
+
+
+def test_unwritable_output_is_one_line(tmp_path, capsys):
+    path = tmp_path / "good.toml"
+    path.write_text(GOOD)
+    target = tmp_path / "no" / "such" / "dir" / "k.npz"
+    assert main(["stiffness", str(path), "--out", str(target)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write" in err and "no/such/dir" in err
