@@ -903,33 +903,28 @@ def bench_accuracy(rep: Report, cfg: dict):
 
 
 def plot_accuracy(points, path):
-    """Error against run time, one colour per case, one marker per way (points: (case, way, time, error))."""
+    """Error against run time: one panel per case, one marker and colour per way, named in each panel's legend
+    (points: (case, way, time, error)); an exact result (error 0) sits on the floor line."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 5.6))
+    cases = list(dict.fromkeys(c for c, *_ in points))
+    fig, axes = plt.subplots(1, len(cases), figsize=(5.2 * len(cases), 5.0), squeeze=False)
     markers = {"closed": "*", "dense": "s", "sparse shift": "o", "sparse LOBPCG": "^", "exact": "D", "sparse low": "v"}
     floor = 1e-17
-    cases = list(dict.fromkeys(c for c, *_ in points))
-    for ci, case in enumerate(cases):
-        first = True
-        for c, w, t, e in points:
-            if c != case or not np.isfinite(e):
-                continue
+    for ax, case in zip(axes[0], cases):
+        ways = [(w, t, e) for c, w, t, e in points if c == case and np.isfinite(e)]
+        for i, (w, t, e) in enumerate(ways):
             mk = next((m for key, m in markers.items() if w.startswith(key)), "x")
-            ax.loglog(t, max(e, floor), mk, ms=7, alpha=0.8, color=f"C{ci}",
-                      label=case.replace("λ⁽⁶⁾", "lambda6") if first else None)
-            first = False
-            if ci in (0, len(cases) - 1):                            # label the pair and the largest cluster
-                ax.annotate(w.replace("sparse ", "").replace("exact geometry, ", "EG ").replace("𝓗", "H")[:30],
-                            (t, max(e, floor)), fontsize=6, xytext=(4, 2), textcoords="offset points")
-    ax.legend(fontsize=7, loc="upper left")
-    ax.axhline(floor, color="gray", lw=0.5)
-    ax.set_xlabel("run time (s)")
-    ax.set_ylabel("error / ||H|| (floor 1e-17 = exact)")
-    ax.set_title("error against run time (markers: * closed form, s dense, o shift-invert, ^ LOBPCG, "
-                 "D exact geometry)", fontsize=8)
-    ax.grid(True, which="both", alpha=0.3)
+            ax.loglog(t, max(e, floor), mk, ms=8, color=f"C{i % 10}", label=w.replace("𝓗", "H"))
+        ax.axhline(floor, color="gray", lw=0.5)
+        ax.set_title(case.replace("λ⁽⁶⁾", "λ6"), fontsize=9)
+        ax.set_xlabel("run time (s, median)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=1, frameon=False)
+    axes[0][0].set_ylabel("error / ‖H‖  (floor 1e-17 = exact)")
+    fig.suptitle("error against run time (markers: ★ closed form, ■ dense, ● shift-invert, ▲ LOBPCG, "
+                 "◆ exact geometry)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
 
 
