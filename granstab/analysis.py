@@ -89,7 +89,8 @@ def _branch_dict(b) -> dict:
 def build_problem(scene: Scene, blocks: ContactBlocks, length: float):
     """Elastic H, sliding factors and projection in scaled dofs Ũ = D⁻¹U (rigid.py); returns (problem, parts)."""
     D = dof_scale(scene, length)
-    parts = {name: assemble(blocks.blocks[name], blocks.index, blocks.n_dof) for name in blocks.blocks}
+    parts = {name: assemble(blocks.blocks[name], scene.p, scene.q, scene.dof_per_particle, blocks.n_dof)
+             for name in blocks.blocks}
     H = (parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]).toarray()
     H_el = D[:, None] * H * D[None, :]
     sliding = np.flatnonzero(scene.at_yield())

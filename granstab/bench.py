@@ -270,15 +270,16 @@ def assemble_per_contact_loop(scene):
 
 def assemble_vectorised(scene, chunk=None):
     """contact_blocks over all contacts (in chunks of sparse.CHUNK) + one block-level scatter to CSR
-    (granstab.sparse.assemble_blocks)."""
-    from .sparse import CHUNK, assemble_blocks, contact_chunks
+    (granstab.stiffness.assemble)."""
+    from .sparse import CHUNK, contact_chunks
+    from .stiffness import assemble
 
     M, n = scene.n_contacts, 2 * scene.dof_per_particle
     total = np.empty((M, n, n))
     for sl, cb in contact_chunks(scene, chunk or CHUNK):
         b = cb.blocks
         np.add(b["Hm"] + b["Hg1"], b["Hg2"] + b["Hg3"], out=total[sl])
-    return assemble_blocks(total, scene.p, scene.q, scene.dof_per_particle, scene.n_dof)
+    return assemble(total, scene.p, scene.q, scene.dof_per_particle, scene.n_dof)
 
 
 def bench_assembly(rep: Report, cfg: dict):
@@ -338,7 +339,7 @@ def bench_assembly(rep: Report, cfg: dict):
         "H = Hg1 + Hg2 + Hg3 + Hm as a CSR matrix: `contact_blocks` builds the (M, n, n) blocks of all contacts at "
         f"once (in chunks of {__import__('granstab.sparse', fromlist=['CHUNK']).CHUNK:,} contacts, so that its "
         "temporaries stay in cache and the cost per contact stays flat up to 10⁶ contacts), "
-        "`granstab.sparse.assemble_blocks` scatters them at the level of particle blocks (one sort of 4M keys). "
+        "`granstab.stiffness.assemble` scatters them at the level of particle blocks (one sort of 4M keys). "
         "The reference is a Python loop over contacts running the same kernel on one contact at a time.",
         "",
         table(["", "contacts", "per-contact loop", "vectorised", "speed-up", "max |ΔH|/|H|"], loop_rows),

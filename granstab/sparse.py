@@ -49,7 +49,7 @@ import scipy.sparse.linalg as spla
 
 from .rigid import Projection, dof_scale, rotation_length, rotations, translations
 from .scene import Scene
-from .stiffness import ContactBlocks, contact_blocks
+from .stiffness import ContactBlocks, assemble, contact_blocks
 from .vec import rot_dim, rotate_matrix
 
 SMALL_DENSE = 48   # up to this many dofs lowest_modes uses a dense eigh of the operator (exact, instant)
@@ -57,30 +57,6 @@ SIGMA_REL = 1e-6   # default shift σ = -SIGMA_REL · s (s = upper bound of ‖H
 
 
 # ------------------------------------------------------------------------------------------------ assembly
-
-def assemble_blocks(blocks: np.ndarray, p: np.ndarray, q: np.ndarray, per: int, n_dof: int) -> sp.csr_matrix:
-    """Scatter per-contact (M, 2·per, 2·per) blocks over [particle p, particle q] into CSR, summing duplicates.
-
-    The same matrix as stiffness.assemble, built at the level of per×per particle blocks (4M of them instead of
-    (2 per)² M scalars): one sort of the block keys, one segmented sum, BSR → CSR. (A counting-sort variant that
-    sums only the diagonal blocks was tried: faster below 10⁴ contacts, slower above, so this one is kept.)
-    """
-    M = len(p)
-    N = n_dof // per
-    if M == 0:
-        return sp.csr_matrix((n_dof, n_dof))
-    b = blocks.reshape(M, 2, per, 2, per).transpose(0, 1, 3, 2, 4).reshape(4 * M, per, per)
-    rows = np.stack([p, p, q, q], axis=1).reshape(-1).astype(np.int64)
-    cols = np.stack([p, q, p, q], axis=1).reshape(-1).astype(np.int64)
-    key = rows * N + cols
-    order = np.argsort(key, kind="stable")
-    key = key[order]
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    data = np.add.reduceat(b[order], starts, axis=0)
-    brow, bcol = np.divmod(key[starts], N)
-    indptr = np.r_[0, np.cumsum(np.bincount(brow, minlength=N))]
-    return sp.bsr_matrix((data, bcol, indptr), shape=(n_dof, n_dof)).tocsr()
-
 
 CHUNK = 16384   # contacts per chunk of contact_blocks: temporaries stay ~10 MB, so the cost stays linear in M
 
@@ -144,7 +120,7 @@ class SparseProblem:
 
 def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK) -> SparseProblem:
     """Assemble the scaled elastic H̃ = D H D (and its mechanical part) as CSR from the contact blocks, computed in
-    chunks of contacts and scattered once (assemble_blocks); its symmetric part, the sliding factors and the rigid
+    chunks of contacts and scattered once (stiffness.assemble); its symmetric part, the sliding factors and the rigid
     bases. Memory O(contacts); no per-part block arrays are kept."""
     t0 = time.perf_counter()
     length = length or rotation_length(scene)
@@ -166,9 +142,9 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
         a[sl], s[sl], index[sl] = cb.slide_left, cb.slide_right, cb.index
         undetermined[sl] = cb.rolling_undetermined
     t1 = time.perf_counter()
-    H = assemble_blocks(total, scene.p, scene.q, per, scene.n_dof)
+    H = assemble(total, scene.p, scene.q, per, scene.n_dof)
     del total
-    Hm = assemble_blocks(mech, scene.p, scene.q, per, scene.n_dof)
+    Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
     del mech
     Hs = ((H + H.T) * 0.5).tocsr()
     sliding = np.flatnonzero(scene.at_yield())
@@ -470,7 +446,8 @@ def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0):
     on a dense eigh of B, large ones raise a RuntimeError that says so."""
     kk = int(min(kk, n - 2))
     OPinv = spla.LinearOperator((n, n), matvec=shifted.solve, dtype=float)
-    attempts = [dict(tol=tol), dict(tol=max(tol, 1e-12), ncv=min(n - 1, max(4 * kk + 1, 40)))]
+    wide = min(n - 1, max(4 * kk + 1, 40))
+    attempts = [dict(tol=tol), dict(tol=tol, ncv=wide), dict(tol=max(tol, 1e-12), ncv=wide)]
     for options in attempts:
         try:
             lam, V = spla.eigsh(Bop, k=kk, sigma=shifted.sigma, which="LM", OPinv=OPinv, v0=v0,
@@ -792,5 +769,5 @@ def _sparse_branch(problem, spb: SparseProblem, modes: Modes, mask, k: int, norm
 
 
 __all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseProblem", "TwoLevel",
-           "analyze_sparse", "assemble_blocks", "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
+           "analyze_sparse", "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
            "operator", "sparse_problem"]

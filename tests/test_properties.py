@@ -152,4 +152,7 @@ def test_no_exception_escapes_from_the_sparse_solver(data):
     method = data.draw(st.sampled_from(["auto", "shift-invert", "lobpcg"]))
     modes = sparse.lowest_modes(s, k=k, method=method)
     assert np.all(np.isfinite(modes.eigenvalues))
-    assert modes.residuals.max(initial=0.0) <= (1e-12 if modes.method != "lobpcg" else 1e-7)
+    # residuals ‖Bv - λv‖/‖Hs‖: shift-invert converges the Ritz values of (B - σ)⁻¹ to machine precision, the
+    # residual in B then carries the LU's backward error times |λ - σ|/‖Hs‖ (≤ 1): bounded by 1e-10 with margin
+    # (seen up to 4e-12); LOBPCG stops at its residual tolerance 1e-8 ‖Hs‖.
+    assert modes.residuals.max(initial=0.0) <= (1e-10 if modes.method != "lobpcg" else 1e-7)

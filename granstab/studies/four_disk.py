@@ -267,7 +267,7 @@ def mechanical_only(**params) -> dict:
     sc = scene(**{**PAPER, **params})
     result = granstab.analyze(sc)
     cb = contact_blocks(sc)
-    Hm = assemble(cb.blocks["Hm"], cb.index, cb.n_dof).toarray()
+    Hm = assemble(cb.blocks["Hm"], sc.p, sc.q, sc.dof_per_particle, cb.n_dof).toarray()
     problem = dataclasses.replace(result.problem, H_el=result.scale[:, None] * Hm * result.scale[None, :])
     masks = np.array([b.mask for b in result.branches])
     branches = solve_branches(problem, masks)
