@@ -91,8 +91,8 @@ def build_problem(scene: Scene, blocks: ContactBlocks, length: float):
     D = dof_scale(scene, length)
     parts = {name: assemble(blocks.blocks[name], scene.p, scene.q, scene.dof_per_particle, blocks.n_dof)
              for name in blocks.blocks}
-    H = (parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]).toarray()
-    H_el = D[:, None] * H * D[None, :]
+    parts["H"] = parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]
+    H_el = D[:, None] * parts["H"].toarray() * D[None, :]
     sliding = np.flatnonzero(scene.at_yield())
     n = scene.n_dof
     A = np.zeros((n, len(sliding)))
@@ -163,7 +163,6 @@ def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding:
             if bar is not None:
                 bar.close()
         with timer("errors"):
-            parts["H"] = parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]
             errors = identity_errors(scene, parts)
             errors["rigid_leakage_modified"] = modified_leakage(problem)
             errors.update(problem.projection.errors())

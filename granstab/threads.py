@@ -9,7 +9,7 @@ only numpy and scipy.
 """
 from __future__ import annotations
 
-from contextlib import contextmanager, nullcontext
+from contextlib import nullcontext
 
 try:
     from threadpoolctl import threadpool_limits
