@@ -89,8 +89,11 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from .bench import run
-    run(quick=args.quick, out=Path(args.out))
+    from benchmarks.runner import TOPICS, run   # outside the core package; only this command needs it
+    unknown = sorted(set(args.only or ()) - set(TOPICS))
+    if unknown:
+        raise InputError(f"--only: unknown topic {unknown[0]!r} (choose from {', '.join(TOPICS)})")
+    run(quick=args.quick, out=Path(args.out), only=args.only)
     return 0
 
 
@@ -121,8 +124,10 @@ def build_parser() -> Parser:
                    help="with 'all': also write REPRODUCTION.md at this repository root (links into --out)")
     p.set_defaults(run=cmd_reproduce)
     p = sub.add_parser("bench", help="error against run time; writes BENCHMARKS.md and plots")
-    p.add_argument("--quick", action="store_true")
+    p.add_argument("--quick", action="store_true", help="small sizes and few repeats (under a minute)")
     p.add_argument("--out", default=".")
+    p.add_argument("--only", action="append", metavar="TOPIC",
+                   help="run only this topic (benchmarks.TOPICS; repeatable); BENCHMARKS.md then holds only these")
     p.set_defaults(run=cmd_bench)
     return parser
 

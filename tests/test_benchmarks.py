@@ -1,0 +1,34 @@
+"""`granstab bench`: the topics honour the benchmarks contract, the CLI runs one topic end to end and rejects an
+unknown one with a one-line error (exit 2). Speed itself is measured by the benchmarks, never asserted here."""
+import importlib
+import json
+
+import pytest
+
+from benchmarks import TOPICS
+from granstab.cli import main
+
+
+@pytest.mark.parametrize("topic", TOPICS)
+def test_topic_has_run_and_markdown(topic):
+    module = importlib.import_module(f"benchmarks.{topic}")
+    assert callable(module.run) and callable(module.markdown)
+    assert "quick" in module.run.__code__.co_varnames[:module.run.__code__.co_argcount]
+
+
+def test_unknown_topic_is_one_line_exit_2(capsys):
+    assert main(["bench", "--quick", "--only", "nope"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "nope" in err and "app_latency" in err
+
+
+def test_quick_run_of_one_topic_writes_its_section_and_results(tmp_path):
+    assert main(["bench", "--quick", "--only", "app_latency", "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "BENCHMARKS.md").read_text(encoding="utf-8")
+    assert "QUICK run" in text and "## App latency" in text and "(#app-latency)" in text
+    results = json.loads((tmp_path / "docs" / "bench" / "results.json").read_text())
+    scenes = results["app_latency"]["scenes"]
+    # one contact for the pair; the 5 × 10 triangular patch: 5·9 in rows + 4·(10 + 9) between rows = 121
+    assert {name: d["contacts"] for name, d in scenes.items()} == {"two-particle pair (6 dofs)": 1,
+                                                                   "50 disks, 2D (150 dofs)": 121}
+    assert all(d[key] > 0 for d in scenes.values() for key in ("t_build", "t_analyze", "t_total"))
