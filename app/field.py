@@ -1,6 +1,6 @@
 """The λ⁽⁶⁾ field of the symmetric pair over (ρ/r, f/(kr)) (Fig. Contours), and its PNG (no viser).
 
-λ⁽⁶⁾ is the rolling eigenvalue: its eigenvector is ν ∝ [0, 0, 1, 0, 0, -1] (NOTES, symmetric case), which is
+λ⁽⁶⁾ is the rolling eigenvalue: its eigenvector is ν ∝ [0, 0, 1, 0, 0, -1] (docs/errata.md, symmetric case), which is
 orthogonal to the rigid modes, so λ⁽⁶⁾ = νᵀ sym(𝓗) ν = νᵀ H ν in the scaled dofs [du, L dθ] of the analysis
 (L = r).
 The field is computed for a normal contact force (no mobilised friction, as in the paper's figure) at the

@@ -7,7 +7,7 @@ compressive forces inside the friction cone, loads from equilibrium (eq:equil1, 
 * `lattice(dim, size)`: equal disks/spheres on a triangular (2D) or face-centred cubic (3D) lattice, or a
   square/simple-cubic one. The geometry is that of compliant round particles: centre distance a, overlap δ, so the
   contact point sits midway and each side's curvature is that of the parallel curve through it, -1/(a/2)
-  (NOTES.md, "Where the curvature is evaluated"); `curvature_ratio` = ρ/r ≠ 1 makes the contacts sharper (< 1)
+  (docs/errata.md, "Where the curvature is evaluated"); `curvature_ratio` = ρ/r ≠ 1 makes the contacts sharper (< 1)
   or flatter (> 1) than a disk.
 * `random_packing(dim, n)`: a random contact network: jittered triangular/fcc lattice sites, polydisperse radii,
   contacts between lattice neighbours with the contact point on the centre line at the radius ratio and the

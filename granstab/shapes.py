@@ -13,7 +13,7 @@ has the common-normal pairs (P on p with normal n, Q on q with normal -n) as its
 sphere; its maximum is the separation distance (g > 0) or minus the overlap δ (g ≤ 0). `contact_geometry`
 maximises g by Newton's method on the sphere, started from the best of a fixed set of sampled directions.
 
-Curvatures follow NOTES.md ("Where the curvature is evaluated"): the contact point is the midpoint (P+Q)/2 and
+Curvatures follow docs/errata.md ("Where the curvature is evaluated"): the contact point is the midpoint (P+Q)/2 and
 each particle's curvature is that of its parallel curve/surface through it, principal radii ρ_i - δ/2 with
 unchanged principal directions. Sign convention of the paper (eq:rolling, eq:Dnpq): convex ⇒ negative
 eigenvalues, K = -Σ (1/(ρ_i - δ/2)) t_i⊗t_i, with K·n = 0; in 2D that is κ t⊗t with t = e3 × n.
@@ -200,7 +200,7 @@ def surface_normal_at(shape, pose, point) -> np.ndarray:
 
 def surface_curvature_at(shape, pose, point, offset=0.0) -> np.ndarray:
     """Curvature tensor (d, d), world axes, of the surface at `point` — or, with `offset` > 0, of the parallel
-    surface at that inward offset along the same normal (NOTES: offset δ/2 at a contact)."""
+    surface at that inward offset along the same normal (docs/errata.md: offset δ/2 at a contact)."""
     n = surface_normal_at(shape, pose, point)
     S = shape_tensor(shape, pose[1])
     return curvature_from_radii(radius_tensor(S, n), n, offset)
@@ -304,7 +304,7 @@ class ContactGeometry:
     """Common-normal contact of two overlapping convex bodies p, q (arrays in world axes).
 
     normal n^pq (outward from p), overlap δ = (P - Q)·n >= 0, point = (P + Q)/2, point_p = P on p's surface,
-    point_q = Q on q's surface, curvature_p/q: parallel-surface curvature tensors through the point (NOTES).
+    point_q = Q on q's surface, curvature_p/q: parallel-surface curvature tensors through the point (docs/errata.md).
     """
 
     normal: np.ndarray
@@ -336,7 +336,7 @@ def _touch_tol(x_p, x_q, Sp, Sq):
 def contact_geometry(shape_p, pose_p, shape_q, pose_q) -> ContactGeometry | None:
     """Common-normal contact of two shapes, None when separated (gap above round-off, see `_touch_tol`).
 
-    Curvatures are those of the parallel curves/surfaces through the midpoint (radii ρ - δ/2, NOTES)."""
+    Curvatures are those of the parallel curves/surfaces through the midpoint (radii ρ - δ/2, docs/errata.md)."""
     if shape_p.dim != shape_q.dim:
         raise ValueError("shapes of different dimension")
     x_p = np.asarray(pose_p[0], float).reshape(1, -1)

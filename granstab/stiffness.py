@@ -7,7 +7,7 @@ Each contact contributes a block over its local dofs U = [du^p, dθ^p, du^q, dθ
   kinematics (eq:dudef, eq:dtdef)   Bu: δu_def = du^q - du^p + dθ^q × r^qp - dθ^p × r^pq,  Bt: δθ_def
   rolling    (eq:rolling)           δs^t t^pq = -(K^p+K^q)^+ [δθ_def × n - K^q·δu_def,t]  (qp: +K^p, same n)
   contact point and normal          δr^pq = ½(δu_def·n)n + δs^t t (eq:dsn, eq:Drpq),  δn^pq = -K^p·δs^t t (eq:Dnpq)
-  force rotation (eq:Dfpq, eq:A3)   f × (δn × n) - ½(δθ_def·n) f × n  — with NOTES erratum 1: the qp rows use
+  force rotation (eq:Dfpq, eq:A3)   f × (δn × n) - ½(δθ_def·n) f × n  — with erratum 1, docs/errata.md: the qp rows use
                                     (δθ^qp_def·n^qp) = (δθ_def·n), so both sides carry the same twirl term
   statics A1 (eq:Matrix2)           force rows -δf, moment rows -(r × δf + δm)
 
@@ -85,7 +85,7 @@ def tangent_curvatures(scene: Scene):
     """Tangent-plane curvatures K^p, K^q (M, d, d) and the pseudo-inverse G = (K^p+K^q)^+ on the tangent plane.
 
     The cut-off is scale-aware: eigenvalues of K^p+K^q below pinv_rtol·max(|K^p|, |K^q|) are dropped (Table 1,
-    NOTES erratum 4). Returns (Kp, Kq, G, cut) with cut (M,) True where an eigenvalue was dropped.
+    erratum 4, docs/errata.md). Returns (Kp, Kq, G, cut) with cut (M,) True where an eigenvalue was dropped.
     """
     T = tangent_basis(scene.normal)                                   # (M, d, d-1)
     Tt = np.swapaxes(T, 1, 2)

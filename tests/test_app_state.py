@@ -1,6 +1,6 @@
 """The explorer's session state without a browser: every change produces the right scene and numbers.
 
-Reference values are independent of the app: λ⁽⁶⁾ = f (ρ - r) and λ⁽⁴⁾ = 2k for the symmetric pair (NOTES,
+Reference values are independent of the app: λ⁽⁶⁾ = f (ρ - r) and λ⁽⁴⁾ = 2k for the symmetric pair (docs/errata.md,
 Sec. 4.1), the sign pattern of the λ⁽⁶⁾ contour (it changes sign exactly on ρ/r = 1 and on f = 0), and the
 paper's own 6×6 matrices (granstab.studies.two_particle) for the field. Tolerances are relative to the scale of
 the numbers compared (k for eigenvalues, the field's max |λ|), at a few hundred eps.

@@ -95,7 +95,7 @@ def test_sliding_branch_stiffness_is_the_rank_one_update():
 
 
 def test_sliding_contact_symmetric_part_eigenvalues():
-    """NOTES erratum 3: sym(F_sliding) has eigenvalues k(1 ± √(1+μ²))/2 in 2D for every α (3D adds αk)."""
+    """erratum 3, docs/errata.md: sym(F_sliding) has eigenvalues k(1 ± √(1+μ²))/2 in 2D for every α (3D adds αk)."""
     for mu, alpha, k in [(0.5, 1.0, 1.0), (0.3, 0.2, 7.0), (1.2, 1e-3, 0.1)]:
         n = np.array([[1.0, 0.0]])
         f = np.array([[-1.0, mu]])

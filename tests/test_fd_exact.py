@@ -3,7 +3,7 @@
 Clusters of rigid ellipses (2D) and ellipsoids (3D) pressed together to an overlap δ = f/k (lengths in units
 of the particle size, ~1) from 1e-4 to 1e-1, with tangential forces (0.3 |f_n|) and, in one 3D cluster, a
 rolling stiffness. granstab.stiffness(scene) is fed the contact data of granstab.shapes (parallel-curve
-curvature, NOTES.md); the reference H_exact = ∂[b, w]/∂[u, θ] is a complex-step derivative (exact to round-off).
+curvature, docs/errata.md); the reference H_exact = ∂[b, w]/∂[u, θ] is a complex-step derivative (exact to round-off).
 
 Tolerances (why): H_exact and H both carry round-off of a few eps·‖H‖ (measured ≤ 6e-16 relative), so
 ‖H - H_exact‖ ≤ 1e-12 ‖H‖. The geometric part Hg = Hg1 + Hg2 + Hg3 is only ~(f/k)‖H‖, so the same absolute
@@ -108,7 +108,7 @@ def test_complex_step_matches_central_differences(name):
 @pytest.mark.parametrize("name", ["pair2d", "triangle2d", "pair3d", "tetra3d"])
 def test_surface_curvature_leaves_an_error_of_order_f_over_k(name):
     """Feeding the SURFACE curvature at the touching points P, Q (radius ρ instead of ρ - δ/2) leaves a relative
-    error in Hg of order f/k (NOTES: ~1.4 f/k for 2D ellipses, ~3.4 f/k for 3D ellipsoids; the factor depends
+    error in Hg of order f/k (docs/errata.md: ~1.4 f/k for 2D ellipses, ~3.4 f/k for 3D ellipsoids; the factor depends
     on the shapes) that shrinks linearly with f/k."""
     ratios = []
     for level in LEVELS[:3]:
@@ -150,7 +150,7 @@ def erratum1_difference(scene):
 @pytest.mark.parametrize("name", ["pair3d", "tetra3d"])
 @pytest.mark.parametrize("level", LEVELS)
 def test_printed_twirl_sign_would_fail(name, level):
-    """NOTES erratum 1: with tangential forces the twirl terms matter. The printed qp-row sign would be off by
+    """erratum 1, docs/errata.md: with tangential forces the twirl terms matter. The printed qp-row sign would be off by
     ≥ 5% of Hg, seven orders above the tolerance, and would break Σ_p db^p = 0 for a relative twist."""
     _, scene, _, st, H_exact = case(name, level)
     D = erratum1_difference(scene)

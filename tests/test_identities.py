@@ -1,4 +1,4 @@
-"""Exact identities of H for every motion, objectivity, and scale invariance (Sec. 2; NOTES erratum 1)."""
+"""Exact identities of H for every motion, objectivity, and scale invariance (Sec. 2; erratum 1, docs/errata.md)."""
 import numpy as np
 import pytest
 

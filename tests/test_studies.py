@@ -214,7 +214,7 @@ def test_four_disk_totals_are_the_papers(fd_result):
 def test_four_disk_uniqueness_table(fd_result):
     rows = four_disk.uniqueness_table(fd_result)
     t = four_disk.uniqueness_totals(rows)
-    assert t["zeros"] == [6, 5, 5, 4, 5, 4, 5, 4, 5, 5, 4, 4, 4, 4, 4, 4]     # NOTES erratum 5: 4 to 6
+    assert t["zeros"] == [6, 5, 5, 4, 5, 4, 5, 4, 5, 5, 4, 4, 4, 4, 4, 4]     # erratum 5, docs/errata.md: 4 to 6
     assert (t["consistent"], t["positive"], t["negative"], t["complex"]) == (26, 25, 1, 0)
     assert t["type2_branches"] == 16
 

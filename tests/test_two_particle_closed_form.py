@@ -1,4 +1,4 @@
-"""eq:exampleH2 (Appendix C, with NOTES erratum 2) for random r^p, r^q, ρ^p, ρ^q, k, α, f; λ⁽⁴⁾ = 2k."""
+"""eq:exampleH2 (Appendix C, with erratum 2, docs/errata.md) for random r^p, r^q, ρ^p, ρ^q, k, α, f; λ⁽⁴⁾ = 2k."""
 import numpy as np
 import pytest
 

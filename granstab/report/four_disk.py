@@ -147,8 +147,8 @@ def run(out: Path, tick, say) -> dict:
         claim("4.2-k", "Sec. 4.2, erratum 5", "ℍ^i: eigenvalues and consistent eigenvectors (no numbers in the paper)",
               "—", f"zeros per branch {min(ut['zeros'])}-{max(ut['zeros'])}; {ut['consistent']} consistent non-zero "
               f"({ut['positive']} positive, {ut['negative']} negative), {ut['complex']} complex",
-              "extends", "4 to 6 zeros (NOTES erratum 5): the extra null vectors of ℍ^i are pure disk rotations, "
-              "which only slide contacts that are on their sliding branch and so cost no force."),
+              "extends", "4 to 6 zeros (erratum 5, docs/errata.md): the extra null vectors of ℍ^i are pure disk "
+              "rotations, which only slide contacts that are on their sliding branch and so cost no force."),
     ]
     return {"data": data, "claims": claims, "files": files}
 
@@ -273,12 +273,12 @@ def markdown(result: dict, link) -> str:
         f"{ut['negative']} -)**, {ut['complex']} complex | {ut['type2_branches']} branches |")
     add("")
     add("The paper gives no numbers for ℍ^i. Its \"four zero eigenvalues\" hold for sym(𝓗^i); ℍ^i has 4 to 6 "
-        "(NOTES erratum 5). The null vectors beyond the rigid motions are pure disk rotations: a rotation that only "
-        "slides contacts on their sliding branch produces no force (F^sliding·h = 0), so ℍ^i loses rank, while the "
+        "(erratum 5, docs/errata.md). The null vectors beyond the rigid motions are pure disk rotations: a rotation "
+        "that only slides contacts on their sliding branch produces no force (F^sliding·h = 0), so ℍ^i loses rank, while the "
         "Hg3/Hg2 couplings keep sym(𝓗^i) at four zeros.\n")
     add("### Robustness of the count\n")
-    add("The count is sensitive (NOTES). Totals (consistent non-zero, positive, negative) when one tolerance or "
-        "parameter moves (`four_disk_tolerance_sweep.csv`, `four_disk_parameter_sweep.csv`):\n")
+    add("The count is sensitive (docs/errata.md). Totals (consistent non-zero, positive, negative) when one "
+        "tolerance or parameter moves (`four_disk_tolerance_sweep.csv`, `four_disk_parameter_sweep.csv`):\n")
     sw = data["tolerance_sweep"]
     add("| S tolerance s_rtol | " + " | ".join(f"{r['value']:.0e}" for r in sw["s_rtol"]) + " |")
     add("|---|" + "---|" * len(sw["s_rtol"]))

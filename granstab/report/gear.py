@@ -143,7 +143,7 @@ def markdown(result: dict, link) -> str:
         f"k_r = {g(r['rolling'])}: {r['n_zero']} zeros, gear-like "
         f"{g(r['gear_like_eigenvalue'], 4) if r['rolling'] else '0'}"
         for r in data["rolling"]) + ".")
-    add("- The zero needs r = ρ exactly (NOTES): with ρ/r = " + ", ".join(
+    add("- The zero needs r = ρ exactly (docs/errata.md): with ρ/r = " + ", ".join(
         f"{g(r['rho_over_r'])} → {g(r['gear_like_eigenvalue'], 3) if r['rho_over_r'] != 1 else '0'} ({r['verdict']})"
         for r in data["rho"]) + " (`gear_rho_sweep.csv`): the mode inherits the sign of λ⁽⁶⁾ = f(ρ - r).")
     par = {r["nx"]: r for r in data["parity"]}

@@ -95,6 +95,6 @@ def markdown(result: dict, link) -> str:
         f"[{g(data['mu'][0])}, {g(data['mu'][-1])}], α ∈ {{{', '.join(g(a) for a in data['alpha'])}}}, "
         f"k ∈ {{{', '.join(g(k) for k in data['k'])}}}, 2D and 3D, random contact orientations "
         f"(`sliding_contact.csv`). At μ = 0.5: {g(data['paper_negative'], 6)} k. The paper prints "
-        "(1 - √(1+μ²))/2 without the k (NOTES erratum 3).\n")
+        "(1 - √(1+μ²))/2 without the k (erratum 3, docs/errata.md).\n")
     return "\n".join(L)
     return "\n".join(L)

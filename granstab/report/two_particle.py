@@ -81,7 +81,8 @@ def run(out: Path, tick, say) -> dict:
         claim("4.1-a", "Sec. 4.1, eq:exampleH2", "H of the two-particle system (Table 1)",
               "eq:exampleH2", f"core H = eq:exampleH2 for 20 random unequal r, ρ, k, α, f: max rel. diff "
               f"{bound(general)}", "reproduced (with erratum 2)",
-              "eq:exampleH2 agrees with the corrected B of Appendix C (NOTES erratum 2), not with the printed one."),
+              "eq:exampleH2 agrees with the corrected B of Appendix C (erratum 2, docs/errata.md), not with the "
+              "printed one."),
         claim("4.1-b", "Sec. 4.1", "both stiffnesses symmetric (elastic contact, normal force)", "symmetric",
               f"max |H - Hᵀ|/‖𝓗‖ over the grid {bound(grid['asymmetry'])} (granstab), "
               f"{bound(field['max_asymmetry'])} (eq:exampleH2)", "reproduced"),

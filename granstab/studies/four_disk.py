@@ -1,6 +1,6 @@
 """The four-disk cluster of Sec. 4.2 (Fig. 7): 16 branches, consistent eigenmodes, robustness, the sliding path.
 
-Geometry. Four equal disks of radius R (= ρ = r at every contact, NOTES) at the corners of a rhombus: "top" at
+Geometry. Four equal disks of radius R (= ρ = r at every contact, docs/errata.md) at the corners of a rhombus: "top" at
 (0, 2R sin β), "left" at (-2R cos β, 0), "bottom" at (0, -2R sin β), "right" at (2R cos β, 0); β is the angle of
 the branch vectors left→top and right→top with the horizontal (at β = 45° the rhombus is a square, so the
 convention does not matter there). Contacts, in this order: top-left, top-right, bottom-left, bottom-right, with

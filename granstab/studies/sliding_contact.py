@@ -1,4 +1,4 @@
-"""Eigenvalues of the symmetric part of the sliding contact stiffness (Sec. 4.2; NOTES erratum 3).
+"""Eigenvalues of the symmetric part of the sliding contact stiffness (Sec. 4.2; erratum 3, docs/errata.md).
 
 F^sliding = k[αI + (1-α) n⊗n] - h⊗g with g = k(αh + μn) (eq:ContactF, eq:G). In the basis (n, h) of 2D,
 F = k [[1, 0], [-μ, 0]]: the α-terms cancel along h, so sym(F) = k [[1, -μ/2], [-μ/2, 0]] has the eigenvalues

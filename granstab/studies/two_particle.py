@@ -4,7 +4,7 @@ Set-up (Table 1). Particles p, q on the e1 axis, contact point at r^p from x^p, 
 normal force f^pq = [-f, 0] (f > 0 compression, f < 0 cohesion), convex radii of curvature ρ^p, ρ^q, elastic
 contact (k, αk), no contact moment stiffness. Dofs in the paper's order [u1^p, u2^p, θ3^p, u1^q, u2^q, θ3^q].
 
-Stiffness (eq:exampleH2, with NOTES erratum 2 for B): H = Hm + Hg, and the rigid rotation about the centre
+Stiffness (eq:exampleH2, with erratum 2, docs/errata.md for B): H = Hm + Hg, and the rigid rotation about the centre
 C = [0, -(r^p+r^q)/2, 1, 0, (r^p+r^q)/2, 1]ᵀ (eq:exampleC); P = I - C Cᵀ/(CᵀC) (eq:Pnrr), ℍ = H P and
 𝓗 = P H P (eq:newstiffnesses). H is symmetric here (elastic contact, normal force), so 𝓗 = sym(𝓗) and the
 spectra of ℍ and 𝓗 coincide (eq:proof1-3).
@@ -19,7 +19,7 @@ characteristic polynomial of ℍ factors as λ³ (λ - 2k) (λ - λ⁽⁵⁾) (�
 
 λ⁽⁶⁾ is exact for every k and α: on the rolling mode Hm vanishes and Hg1 + Hg2 + Hg3 reduce to f(ρ - r) (Hg2's
 force rows cancel Hg3's). Dimensionless: λ⁽⁶⁾/(k r²) = (f/(kr)) (ρ/r - 1), which changes sign exactly on ρ/r = 1
-and on f = 0 (NOTES). λ⁽⁵⁾ mixes translations and rotations, so it depends on the unit of length (the 1 in
+and on f = 0 (docs/errata.md). λ⁽⁵⁾ mixes translations and rotations, so it depends on the unit of length (the 1 in
 1 + r² is 1 length²): the formula is in the paper's literal metric, dofs [du, dθ] with lengths in file units.
 The field of Fig. 5 uses r = 1, where the metric is unambiguous (and equals granstab's scaled metric, L = r).
 """
