@@ -15,6 +15,7 @@ from granstab.branches import RIGID
 from granstab.rigid import Projection, dof_scale, rotations
 from granstab.studies import two_particle as tp
 
+from .figures import save
 from .formatting import fmt_e, fmt_t, table
 from .references import dense_lowest, nonrigid
 from .timing import once, timeit
@@ -146,8 +147,7 @@ def plot(results: dict, figdir: Path):
     axes[0][0].set_ylabel("error / ‖H‖  (floor 1e-17 = exact)")
     fig.suptitle("error against run time (markers: ★ closed form, ■ dense, ● shift-invert, ▲ LOBPCG, "
                  "◆ exact geometry)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(figdir / "error_vs_time.png", dpi=110, bbox_inches="tight")
+    save(fig, figdir / "error_vs_time.png", bbox_inches="tight")
 
 
 def markdown(results: dict) -> str:

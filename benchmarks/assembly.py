@@ -13,6 +13,7 @@ from granstab.packings import random_packing
 from granstab.sparse import CHUNK, contact_chunks
 from granstab.stiffness import assemble, contact_blocks, stiffness
 
+from .figures import save
 from .formatting import fmt_e, fmt_t, progress, table
 from .timing import once, slope, timeit
 
@@ -105,8 +106,7 @@ def plot(results: dict, figdir: Path):
     ax.set_ylabel("time (s): contact blocks + CSR")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(figdir / "assembly.png", dpi=110)
+    save(fig, figdir / "assembly.png")
 
 
 def markdown(results: dict) -> str:

@@ -14,6 +14,7 @@ from granstab.rigid import rotation_length
 from granstab.stiffness import contact_blocks
 from granstab.threads import blas_threads
 
+from .figures import save
 from .formatting import fmt_t, progress, table
 from .timing import once
 
@@ -80,8 +81,7 @@ def plot(results: dict, figdir: Path):
     ax.set_ylabel("time (s)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(figdir / "branches.png", dpi=110)
+    save(fig, figdir / "branches.png")
 
 
 def markdown(results: dict) -> str:

@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 
 from granstab.packings import random_packing
 
+from .figures import save
 from .formatting import fmt_long, fmt_t, progress, table
 from .references import dense_lowest
 from .timing import slope, timeit
@@ -86,8 +87,7 @@ def plot(results: dict, figdir: Path):
         ax.set_xlabel("particles N")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(figdir / "sparse_scaling.png", dpi=110)
+    save(fig, figdir / "sparse_scaling.png")
 
 
 def markdown(results: dict) -> str:

@@ -57,6 +57,12 @@ def mask_text(mask) -> str:
     return "".join("+" if v > 0 else "-" if v < 0 else "0" for v in mask)
 
 
+def section() -> tuple[list, object]:
+    """The lines of a REPRODUCTION.md section and the function that appends one."""
+    lines = []
+    return lines, lines.append
+
+
 def claim(cid, section, statement, paper, ours, verdict, note="") -> dict:
     return {"id": cid, "section": section, "claim": statement, "paper": paper, "ours": ours, "verdict": verdict,
             "note": note}

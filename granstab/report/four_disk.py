@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 from granstab.branches import BOTH, MINUS, PLUS
 from granstab.studies import four_disk
 
-from .common import LABEL, STYLE, bound, claim, g, mask_text, save, span, write_csv
+from .common import LABEL, STYLE, bound, claim, g, mask_text, save, section, span, write_csv
 
 
 PAPER_TOTALS = (30, 21, 9)
@@ -222,11 +222,10 @@ def figure_four_disk_path(path, out: Path) -> list[Path]:
         return save(fig, out, "four_disk_path")
 
 
-def markdown(result: dict, link) -> str:
-    """This study's section of REPRODUCTION.md; `link(name)` is a figure's path."""
-    fd = result
-    L = []
-    add = L.append
+def markdown(fd: dict, link) -> str:
+    """REPRODUCTION.md, Sec. 4.2 four disks: the branch tables of sym(𝓗^i) and ℍ^i, the robustness of the
+    count, the sliding path of Fig. 7c; `link(name)` is a figure's path."""
+    L, add = section()
     data = fd["data"]
     t, ut, path = data["totals"], data["uniqueness_totals"], data["path"]
     bv, bh = data["loads"]

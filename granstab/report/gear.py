@@ -12,7 +12,7 @@ import granstab
 from granstab.branches import BOTH, MINUS, PLUS
 from granstab.studies import gear
 
-from .common import STYLE, bound, claim, g, save, write_csv
+from .common import STYLE, bound, claim, g, save, section, write_csv
 
 
 def steps() -> int:
@@ -117,11 +117,9 @@ def figure_gear(data, mode, out: Path) -> list[Path]:
         return save(fig, out, "gear_mode")
 
 
-def markdown(result: dict, link) -> str:
-    """This study's section of REPRODUCTION.md; `link(name)` is a figure's path."""
-    gr = result
-    L = []
-    add = L.append
+def markdown(gr: dict, link) -> str:
+    """REPRODUCTION.md, Sec. 4.1 gear-like mode: the mode, the rolling and ρ/r sweeps, the parity finding."""
+    L, add = section()
     data = gr["data"]
     g0, g1 = data["gear"], data["with_rolling"]
     add("## 4.1 Gear-like mode (`granstab reproduce gear`, Fig. 6)\n")

@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 
 from granstab.studies import sliding_contact
 
-from .common import STYLE, bound, claim, g, save, write_csv
+from .common import STYLE, bound, claim, g, save, section, write_csv
 
 
 def steps() -> int:
@@ -79,13 +79,11 @@ def figure_sliding_contact(data, out: Path) -> list[Path]:
         return save(fig, out, "sliding_contact")
 
 
-def markdown(result: dict, link) -> str:
-    """This study's section of REPRODUCTION.md; `link(name)` is a figure's path."""
-    sc = result
-    L = []
-    add = L.append
-    data = sc["data"]
+def markdown(sc: dict, link) -> str:
+    """REPRODUCTION.md, Sec. 4.2 sliding contact: eigenvalues of sym(F^sliding) against k(1 ± √(1+μ²))/2."""
+    L, add = section()
     add("## 4.2 Sliding contact stiffness (`granstab reproduce sliding-contact`)\n")
+    data = sc["data"]
     add(f"![sliding contact]({link('sliding_contact.png')})\n")
     add("F^sliding = k[αI + (1-α) n⊗n] - h⊗g, g = k(αh + μn) (eq:ContactF). In the basis (n, h) it is "
         "k[[1, 0], [-μ, 0]]: the α terms cancel along h, so sym(F) has eigenvalues k(1 ± √(1+μ²))/2 for every α; in "

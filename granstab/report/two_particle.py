@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 import granstab
 from granstab.studies import two_particle
 
-from .common import STYLE, bound, claim, g, save, write_csv
+from .common import STYLE, bound, claim, g, save, section, write_csv
 
 
 #: the coarse grid on which granstab.analyze itself is run for the λ⁽⁶⁾ check (it contains ρ/r = 1 and f = 0)
@@ -176,11 +176,9 @@ def figure_lambda6(field, out: Path) -> list[Path]:
         return save(fig, out, "two_particle_lambda6")
 
 
-def markdown(result: dict, link) -> str:
-    """This study's section of REPRODUCTION.md; `link(name)` is a figure's path."""
-    tp = result
-    L = []
-    add = L.append
+def markdown(tp: dict, link) -> str:
+    """REPRODUCTION.md, Sec. 4.1 two particles: closed forms, the λ⁽⁶⁾ figure, the sample table."""
+    L, add = section()
     field, core = tp["field"], tp["core"]
     add("## 4.1 Two-particle system (`granstab reproduce two-particle`)\n")
     add("Table 1 of Appendix C: two particles on the e1 axis, normal n = e1, compressive normal force f (f^pq = "
