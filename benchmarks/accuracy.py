@@ -20,8 +20,8 @@ from .formatting import fmt_e, fmt_t, table
 from .references import dense_lowest, nonrigid
 from .timing import once, timeit
 
-QUICK = {"sizes": (30,), "repeat": 3, "slow": 0.5}
-FULL = {"sizes": (60, 200), "repeat": 5, "slow": 3.0}
+QUICK = {"sizes": (30,), "repeat": 3, "slow": 0.5, "min_time": 0.0}
+FULL = {"sizes": (60, 200), "repeat": 5, "slow": 3.0, "min_time": 0.1}
 EXACT_GEOMETRY = Path(__file__).resolve().parent.parent / "tests" / "exact_geometry.py"
 K = 6
 FLOOR = 1e-17          # an exact result (error 0) is drawn on this line
@@ -75,7 +75,7 @@ def pair_case(eg, cfg) -> list:
                   lambda: projected_lowest(sc, eg.central_difference(eg.cluster_from_scene(sc, pair)), 1, 1.0)[0])]
     points = []
     for name, fn in ways:
-        t, val = timeit(fn, repeat=cfg["repeat"], min_time=0.0, slow=cfg["slow"])
+        t, val = timeit(fn, repeat=cfg["repeat"], min_time=cfg["min_time"], slow=cfg["slow"])
         points.append(("pair, λ⁽⁶⁾", name, t, abs(float(val) - exact6) / 2.0))   # relative to ‖𝓗‖ ≈ 2k
     return points
 
@@ -113,7 +113,7 @@ def cluster_case(eg, n_side, cfg) -> tuple[list, str]:
                      lambda: projected_lowest(sc, eg.central_difference(eg.cluster_from_scene(sc, parts)), K, L)))
     points = [(case, label_ref + " (reference)", t_ref, 0.0)]
     for name, fn in ways:
-        t, val = timeit(fn, repeat=cfg["repeat"], min_time=0.0, slow=cfg["slow"])
+        t, val = timeit(fn, repeat=cfg["repeat"], min_time=cfg["min_time"], slow=cfg["slow"])
         points.append((case, name, t, float(np.abs(np.asarray(val) - ref).max() / norm)))
     return points, label_ref
 

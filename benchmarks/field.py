@@ -12,8 +12,8 @@ from granstab.threads import blas_threads
 from .formatting import fmt_e, fmt_t, table
 from .timing import once, timeit
 
-QUICK = {"loop_points": 1000, "repeat": 3, "slow": 0.5}     # a call slower than `slow` s is timed once
-FULL = {"loop_points": 10000, "repeat": 10, "slow": 3.0}
+QUICK = {"loop_points": 1000, "repeat": 3, "slow": 0.5, "min_time": 0.0}     # a call slower than `slow` s is timed once
+FULL = {"loop_points": 10000, "repeat": 10, "slow": 3.0, "min_time": 0.3}
 RHO = np.linspace(0.2, 3.0, 200)
 FORCE = np.linspace(-0.005, 0.02, 200)
 
@@ -51,7 +51,7 @@ def run(quick: bool = False) -> dict:
     F, R = np.meshgrid(FORCE, RHO, indexing="ij")
     n_loop = min(cfg["loop_points"], F.size)
     def median(fn, repeat):
-        return timeit(fn, repeat=repeat, min_time=0.0, slow=cfg["slow"])
+        return timeit(fn, repeat=repeat, min_time=cfg["min_time"], slow=cfg["slow"])
 
     with blas_threads(1):                              # stacks of 6×6 problems: one BLAS thread, as the core does
         t_loop, (vals, idx, t_eig) = once(lambda: per_point_loop(RHO, FORCE, None if n_loop == F.size else n_loop))

@@ -13,9 +13,9 @@ from .timing import timeit
 
 K = 6
 QUICK = {"sizes_2d": (100, 300), "sizes_3d": (108,), "dense_analyze_max": 100, "dense_analyze_3d_dof": 700,
-         "eigh_max_dof": 1200, "repeat": 3}
+         "eigh_max_dof": 1200, "repeat": 3, "min_time": 0.0}
 FULL = {"sizes_2d": (100, 300, 1000), "sizes_3d": (108, 256, 500), "dense_analyze_max": 300,
-        "dense_analyze_3d_dof": 1600, "eigh_max_dof": 3100, "repeat": 3}
+        "dense_analyze_3d_dof": 1600, "eigh_max_dof": 3100, "repeat": 3, "min_time": 0.3}
 
 
 def run(quick: bool = False) -> dict:
@@ -28,9 +28,9 @@ def run(quick: bool = False) -> dict:
         nd = scene.n_dof
         rep = cfg["repeat"]
         t_sp, modes = timeit(lambda: sparse.lowest_modes(sparse.sparse_problem(scene), k=K), repeat=rep,
-                             min_time=0.0)
+                             min_time=cfg["min_time"])
         t_lob, lob = timeit(lambda: sparse.lowest_modes(sparse.sparse_problem(scene), k=K, method="lobpcg"),
-                            repeat=rep, min_time=0.0)
+                            repeat=rep, min_time=cfg["min_time"])
         t_eigh = lam_d = None
         if nd <= cfg["eigh_max_dof"]:
             t_eigh, lam_d = timeit(lambda: dense_lowest(scene, K), repeat=1 if nd > 1500 else rep, min_time=0.0)
