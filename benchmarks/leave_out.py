@@ -14,7 +14,7 @@ from .assembly import assemble_vectorised
 from .formatting import fmt_t, table
 from .timing import timeit_pair
 
-QUICK = {"particles": 1000, "repeat": 5, "min_time": 0.3}
+QUICK = {"particles": 1000, "repeat": 5, "min_time": 0.2}
 FULL = {"particles": 3000, "repeat": 7, "min_time": 1.0}
 
 

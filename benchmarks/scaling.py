@@ -19,7 +19,7 @@ from .references import dense_lowest
 from .timing import slope, timeit
 
 ROOT = Path(__file__).resolve().parent.parent        # the checkout holding benchmarks/ (and granstab/)
-QUICK = {"sizes_2d": (1000, 3000), "sizes_3d": (500,), "extra": [], "dense_reference": 300, "threads": 1}
+QUICK = {"sizes_2d": (1000, 3000), "sizes_3d": (), "extra": [], "dense_reference": 300, "threads": 1}   # 3D in sparse_vs_dense
 FULL = {"sizes_2d": (1000, 3000, 10000, 30000, 100000), "sizes_3d": (1000, 3000, 10000, 30000, 100000),
         "extra": [(2, 30000, "lobpcg"), (2, 100000, "lobpcg"), (3, 10000, "shift-invert")], "dense_reference": 1000,
         "threads": None}    # threads: BLAS threads of the subprocesses (the runner's choice; None: the default)
