@@ -7,7 +7,6 @@ physics cannot. In REPRODUCTION.md the round-off bounds ("< 1e-15") are masked b
 """
 import csv
 import re
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,13 +24,8 @@ FIGURES = ("two_particle_lambda6", "gear_mode", "four_disk_spectra", "four_disk_
 def regenerated(tmp_path_factory):
     root = tmp_path_factory.mktemp("repo")
     out = root / "docs" / "reproduction"
-    start = time.perf_counter()
     results = report.reproduce("all", out, progress=False, root=root)
-    return {"root": root, "out": out, "results": results, "seconds": time.perf_counter() - start}
-
-
-def test_runs_well_within_two_minutes(regenerated):
-    assert regenerated["seconds"] < 120
+    return {"root": root, "out": out, "results": results}
 
 
 def test_no_claim_differs(regenerated):
