@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .analysis import analyze
+from .metric import CHOICES as METRIC_CHOICES
 from .branches import BOTH, MINUS, PLUS, RIGID
 from .scene import SceneError, load_scene
 from .stiffness import MaskError, stiffness
@@ -67,6 +68,12 @@ def format_table(result) -> str:
                  f"negative, {sm['consistent_zero']} zero; Type-2 non-uniqueness: "
                  f"{'yes' if sm['type2_nonuniqueness'] else 'no'}"
                  + ("; verdict hinges on an S within tolerance" if sm["hinges_on_tolerance"] else ""))
+    if sm.get("metrics"):
+        lines.append(f"metric family ({'robust' if sm['metric_robust'] else 'NOT robust'}): " + "; ".join(
+            f"{e['metric']}: {e['verdict']} {e['consistent_positive']}+/{e['consistent_negative']}-"
+            for e in sm["metrics"]))
+    if not sm["sufficient"]:
+        lines.append("not sufficient because: " + ", ".join(sm["insufficient_because"]))
     lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in d["errors"].items()))
     lines.append("timings: " + ", ".join(f"{k} {1e3 * v:.2f} ms" for k, v in d["timings"].items()))
     lines += [f"warning: {w}" for w in d["warnings"]]
@@ -75,8 +82,8 @@ def format_table(result) -> str:
 
 def cmd_analyze(args) -> int:
     scene = load_scene(args.scene)
-    result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding, method=args.method,
-                     k=args.k, progress=args.progress)
+    result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length, max_sliding=args.max_sliding,
+                     method=args.method, k=args.k, progress=args.progress)
     print(json.dumps(result.to_dict()) if args.json else format_table(result))
     return 0
 
@@ -106,6 +113,9 @@ def build_parser() -> Parser:
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--rotation-length", type=float, default=None,
                    help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
+    p.add_argument("--metric", choices=list(METRIC_CHOICES), default="family",
+                   help="projection metric: family (default: the verdict in L/10, L, 10L and inertia where masses are "
+                        "known, spectra in L, metric robustness reported), or only one of L, L/10, 10L, inertia")
     p.add_argument("--max-sliding", type=int, default=16, help="refuse more potentially sliding contacts")
     p.add_argument("--method", choices=["auto", "dense", "sparse"], default="auto",
                    help="dense: every eigenpair and the uniqueness analysis; sparse: the lowest --k eigenpairs per "
