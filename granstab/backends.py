@@ -226,7 +226,7 @@ class SparseBackend:
             bar.close()
         n_free = spb.n - spb.n_rigid
         complete = all(b.negative_count["total"] for b in branches)
-        notes = {"complete": complete, "k": k, "warnings": [
+        notes = {"complete": complete, "full": k >= n_free, "k": k, "warnings": [
             f"sparse path: the lowest {min(k, n_free)} of {n_free} non-rigid eigenpairs of sym(𝓗^i) per branch; "
             "uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated"]}
         if unverified:

@@ -64,8 +64,11 @@ def format_table(result) -> str:
         lines.append("  sym(𝓗) eigenvalues: " + ", ".join(cells))
     sm = d["summary"]
     lines.append(f"verdict: {sm['verdict'].upper()} — {sm['reason']}")
+    low = [k.split("_")[1] for k, v in sm["counts_are"].items() if v != "totals"]
     lines.append(f"consistent eigenvalues: {sm['consistent_positive']} positive, {sm['consistent_negative']} "
-                 f"negative, {sm['consistent_zero']} zero; Type-2 non-uniqueness: "
+                 f"negative, {sm['consistent_zero']} zero"
+                 + (f" ({', '.join(low)}: lower bounds; suggested k: {sm.get('suggest_k')})" if low else "")
+                 + "; Type-2 non-uniqueness: "
                  f"{'yes' if sm['type2_nonuniqueness'] else 'no'}"
                  + ("; verdict hinges on an S within tolerance" if sm["hinges_on_tolerance"] else ""))
     if sm.get("metrics"):

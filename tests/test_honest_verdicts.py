@@ -83,11 +83,13 @@ def test_sparse_counts_are_labelled_and_become_totals_with_enough_k():
     dense = granstab.analyze(scene, metric="L", method="dense")
     dense_neg = [int(np.sum(b.stability_eigenvalues < -b.accuracy)) for b in dense.branches]
     low = granstab.analyze(scene, metric="L", method="sparse", k=1)
-    assert low.summary["counts_are"] == "lower bounds" and low.summary["suggest_k"] >= 2
+    assert low.summary["counts_are"]["consistent_negative"] == "lower bounds" and low.summary["suggest_k"] >= 2
     assert low.summary["consistent_negative"] <= dense.summary["consistent_negative"]
     assert all(b.negative_count["count"] <= n for b, n in zip(low.branches, dense_neg))
     full = granstab.analyze(scene, metric="L", method="sparse", k=12)
-    assert full.summary["counts_are"] == "totals"
+    assert set(full.summary["counts_are"].values()) == {"totals"}           # k = 12 >= 9 non-rigid: everything
+    mid = granstab.analyze(scene, metric="L", method="sparse", k=5)
+    assert mid.summary["counts_are"]["consistent_positive"] == "lower bounds"
     assert [b.negative_count["count"] for b in full.branches] == dense_neg
     assert all(b.negative_count["total"] for b in full.branches)
     assert full.summary["consistent_negative"] == dense.summary["consistent_negative"] == 9
