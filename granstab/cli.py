@@ -11,7 +11,8 @@ import numpy as np
 from .analysis import analyze
 from .metric import CHOICES as METRIC_CHOICES
 from .branches import BOTH, MINUS, PLUS, RIGID
-from .scene import SceneError, load_scene
+from .files import load_scene
+from .scene import SceneError
 from .stiffness import MaskError, stiffness
 
 
