@@ -56,7 +56,8 @@ def format_table(result) -> str:
     s = result.scene
     d = result.to_dict()
     lines = [f"{s.title or s.source}: {s.dim}D, {s.n_particles} particles, {s.n_contacts} contacts, "
-             f"{d['n_sliding']} potentially sliding, {len(result.branches)} branch(es), L = {result.length:.4g}"]
+             f"{d['n_sliding']} potentially sliding, {len(result.branches)} branch(es), metric {result.metric.name}"
+             + ("" if result.length is None else f", L = {result.length:.4g}") + f" (eigenvalues in {result.metric.units})"]
     for b in result.branches:
         mask = " ".join(f"{int(v):+d}" for v in b.mask[result.problem.sliding]) or "(all elastic)"
         lines.append(f"branch [{mask}]  zeros: {b.n_zero} (tol {b.zero_tol:.1e})  ℍ nullity: {b.uniqueness_n_zero}")
