@@ -92,7 +92,7 @@ def _branch_dict(b, inertia: bool) -> dict:
         "uniqueness_n_zero": b.uniqueness_n_zero,
         "type2": [{"vector_sign": t["vector_sign"], "dimension": t["dimension"]} for t in b.type2],
     }
-    if getattr(b, "negative_count", None) is not None:
+    if b.negative_count is not None:
         out["negative_count"] = b.negative_count
     if inertia:                                                       # λ = ω²: frequencies and growth rates
         lam, acc = b.stability_eigenvalues, b.accuracy

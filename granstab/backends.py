@@ -299,9 +299,9 @@ def sparse_branch(problem: Problem, spb, modes, mask, k: int):
     b = Branch(mask=np.asarray(mask), stability_eigenvalues=lam, stability_vectors=V, codes=codes, hinges=hinges,
                n_zero=int(zero.sum()), zero_tol=float(bounds.max(initial=0.0)),
                uniqueness_eigenvalues=np.zeros(0, complex), uniqueness_n_zero=-1, type2=[],
-               residual_stability=res, residual_uniqueness=0.0, bounds=bounds)
-    b.negative_count = {"count": count, "total": total, "below": float(modes.sigma) if np.isfinite(modes.sigma)
-                        else None}
+               residual_stability=res, residual_uniqueness=0.0, bounds=bounds,
+               negative_count={"count": count, "total": total,
+                               "below": float(modes.sigma) if np.isfinite(modes.sigma) else None})
     return b, bool(cut)
 
 

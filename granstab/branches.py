@@ -74,6 +74,7 @@ class Branch:
     residual_stability: float = 0.0
     residual_uniqueness: float = 0.0
     bounds: np.ndarray | None = None   # per stability eigenvalue: |λ_exact - λ| <= bounds[j] (accuracy.py)
+    negative_count: dict | None = None  # sparse path: negatives of sym(𝓗^i) (count, total?, inertia shift)
 
     @property
     def accuracy(self) -> np.ndarray:

@@ -376,6 +376,8 @@ def metric_table(metrics: list) -> str:
                       f"{e['metric']} = {g(e['rotation_length'])}" for e in metrics)
     rows = " | ".join(f"{e['consistent_positive'] + e['consistent_negative']} ({e['consistent_positive']}/"
                       f"{e['consistent_negative']}), {e['verdict']}" for e in metrics)
-    return ("The projection metric (rotation length L of [du, L dθ], `--metric`): the counts are a property of "
-            "the metric, not of the packing; the verdict (unstable) is not.\n\n"
+    return ("Across the projection metric (rotation length L of [du, L dθ], `--metric`, issue 11) the counts "
+            "change and the verdict (unstable) does not: the counts are not properties of the packing alone. "
+            "(Zero eigenvalues of sym(𝓗^i) are decided by each eigenvalue's accuracy bound, granstab/accuracy.py; "
+            "the zero tolerance factor below now only sets the null space of ℍ^i.)\n\n"
             f"| projection metric | {head} |\n|---|" + "---|" * len(metrics) + f"\n| totals, verdict | {rows} |\n")
