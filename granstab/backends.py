@@ -189,15 +189,16 @@ class SparseBackend:
         self.tol = tol
 
     def prepare(self, scene: Scene, timer: Timer) -> State:
-        return State(scene=scene, sliding=np.flatnonzero(scene.at_yield()))
+        from .sparse import sparse_parts
+        parts = sparse_parts(scene)
+        timer.times.update(parts.timings)                                # blocks, assembly
+        return State(scene=scene, sliding=parts.sliding, blocks=parts.local, parts=parts)
 
     def problem(self, state: State, metric: Metric) -> SparseBranchProblem:
         from .sparse import sparse_problem
         scene = state.scene
-        spb = sparse_problem(scene, metric=metric)
+        spb = sparse_problem(scene, metric=metric, parts=state.parts)
         _require_finite(scene, spb.norm)
-        if state.blocks is None:
-            state.blocks = spb.local
         scales = part_scales(spb.Hm, spb.Hs - spb.Hm, spb.A, spb.S)
         proj = spb.projection
         core = Problem(H_el=spb.H, A=spb.A, S=spb.S, projection=proj, rigid=spb.R, sliding=spb.sliding,

@@ -120,17 +120,24 @@ class SparseProblem:
         return Projection.from_rotations(self.C)
 
 
-def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK, *,
-                   metric: Metric | None = None) -> SparseProblem:
-    """Assemble the scaled elastic H̃ = D H D (and its mechanical part) as CSR from the contact blocks, computed in
-    chunks of contacts and scattered once (stiffness.assemble); its symmetric part, the sliding factors and the rigid
-    bases. D is the metric's (metric.py; default the L metric with `length`, itself defaulting to the mean contact
-    radius). Memory O(contacts); no per-part block arrays are kept."""
+@dataclass(frozen=True, eq=False)
+class SparseParts:
+    """The metric-independent part of the sparse path (physical dofs): CSR H and Hm, sliding factors A, S (n, Ms),
+    the contacts' local data (ContactBlocks without blocks) and the timings of building them."""
+
+    H: sp.csr_matrix
+    Hm: sp.csr_matrix
+    A: np.ndarray
+    S: np.ndarray
+    sliding: np.ndarray
+    local: ContactBlocks
+    timings: dict
+
+
+def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
+    """H and its mechanical part as CSR from the contact blocks, computed in chunks of contacts and scattered once
+    (stiffness.assemble), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
     t0 = time.perf_counter()
-    if metric is None:
-        metric = length_metric(scene, length or default_length(scene), name="L")
-    length = metric.rotation_length
-    D = metric.diagonal
     per = scene.dof_per_particle
     M, n_loc = scene.n_contacts, 2 * per
     total = np.empty((M, n_loc, n_loc))
@@ -141,19 +148,15 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     undetermined = np.zeros(M, bool)
     for sl, cb in contact_chunks(scene, chunk):
         b = cb.blocks
-        Dl = metric.local(cb.index, per)                               # diag(D_p, D_q) per contact
-        total[sl] = Dl @ (b["Hm"] + b["Hg1"] + b["Hg2"] + b["Hg3"]) @ Dl
-        mech[sl] = Dl @ b["Hm"] @ Dl
-        a[sl] = np.einsum("mij,mj->mi", Dl, cb.slide_left)
-        s[sl] = np.einsum("mij,mj->mi", Dl, cb.slide_right)
-        index[sl] = cb.index
+        total[sl] = b["Hm"] + b["Hg1"] + b["Hg2"] + b["Hg3"]
+        mech[sl] = b["Hm"]
+        a[sl], s[sl], index[sl] = cb.slide_left, cb.slide_right, cb.index
         undetermined[sl] = cb.rolling_undetermined
     t1 = time.perf_counter()
     H = assemble(total, scene.p, scene.q, per, scene.n_dof)
     del total
     Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
     del mech
-    Hs = ((H + H.T) * 0.5).tocsr()
     sliding = np.flatnonzero(scene.at_yield())
     n, Ms = scene.n_dof, len(sliding)
     A = np.zeros((n, Ms))
@@ -163,6 +166,27 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
         cols = np.broadcast_to(np.arange(Ms)[:, None], rows.shape)
         np.add.at(A, (rows, cols), a[sliding])
         np.add.at(S, (rows, cols), s[sliding])
+    local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=n,
+                          rolling_undetermined=undetermined)
+    return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local,
+                       timings={"blocks": t1 - t0, "assembly": time.perf_counter() - t1})
+
+
+def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK, *,
+                   metric: Metric | None = None, parts: SparseParts | None = None) -> SparseProblem:
+    """The sparse problem in a metric's dofs (metric.py; default the L metric with `length`, itself defaulting to
+    the mean contact radius): H̃ = D H D and its mechanical part (sparse congruences, O(nnz)), sym(H̃), the scaled
+    sliding factors and the rigid bases. `parts` (sparse_parts) are shared by every metric of a family."""
+    if metric is None:
+        metric = length_metric(scene, length or default_length(scene), name="L")
+    parts = parts or sparse_parts(scene, chunk)
+    t1 = time.perf_counter()
+    D = metric.matrix()
+    H = (D @ parts.H @ D).tocsr()
+    Hm = (D @ parts.Hm @ D).tocsr()
+    Hs = ((H + H.T) * 0.5).tocsr()
+    A, S = np.asarray(D @ parts.A), np.asarray(D @ parts.S)
+    Ms = A.shape[1]
     C = metric.rotations(scene)
     Q, _ = np.linalg.qr(C)
     T, _ = np.linalg.qr(metric.translations(scene))
@@ -170,12 +194,10 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     norm = float(abs(Hs).sum(axis=1).max()) if Hs.nnz else 1.0
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
-    t2 = time.perf_counter()
-    local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=n,
-                          rolling_undetermined=undetermined)
-    return SparseProblem(scene=scene, length=length, scale=D, metric=metric, H=H, Hs=Hs, Hm=Hm, A=A, S=S, sliding=sliding, C=C,
-                         Q=Q, R=R, norm=max(norm, 1e-300), local=local,
-                         timings={"blocks": t1 - t0, "assembly": t2 - t1})
+    return SparseProblem(scene=scene, length=metric.rotation_length, scale=metric.diagonal, metric=metric, H=H,
+                         Hs=Hs, Hm=Hm, A=A, S=S, sliding=parts.sliding, C=C, Q=Q, R=R, norm=max(norm, 1e-300),
+                         local=parts.local, timings={**parts.timings, "projection": time.perf_counter() - t1})
+
 
 
 # ------------------------------------------------------------------------------------------ the operator
@@ -660,6 +682,6 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK) -> dict:
 DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this many dofs, the sparse one above
 
 
-__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseProblem", "TwoLevel",
+__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
            "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
-           "operator", "sparse_problem"]
+           "operator", "sparse_parts", "sparse_problem"]
