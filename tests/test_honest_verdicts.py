@@ -134,3 +134,26 @@ def test_overflow_is_never_a_proof():
             granstab.analyze(granstab.scene_from_dict(scaled(1e308), source="big.toml"))
     ok = granstab.analyze(granstab.scene_from_dict(scaled(1e150), source="big.toml"))
     assert ok.summary["verdict"] == "unstable" and ok.summary["sufficient"] is True
+
+
+def test_frame_in_micrometres_with_the_literal_metric_is_not_a_proof():
+    """annulus_frame with lengths × 1e6 (µm; k, curvatures ÷ 1e6): with the default L (mean contact radius) nothing
+    changes — unstable, 4 consistent negatives, proven. With --rotation-length 1 (the paper's literal metric, here
+    10⁶ times smaller than the contact radius) the rotational eigenvalues drop below their accuracy bounds: the old
+    code said 'neutral, sufficient'; now 'neutral' is not sufficient and says why."""
+    d = json.loads((PRESETS / "annulus_frame.json").read_text())
+    s = 1e6
+    d["defaults"]["k"] /= s
+    for p in d["particles"]:
+        p["x"] = [s * v for v in p["x"]]
+    for c in d["contacts"]:
+        c["point"] = [s * v for v in c["point"]]
+        for key in ("curvature_p", "curvature_q"):
+            c[key] = (np.asarray(c[key]) / s).tolist()
+    scene = granstab.scene_from_dict(d, source="frame_um.json")
+    default = granstab.analyze(scene, metric="L")
+    assert default.summary["verdict"] == "unstable" and default.summary["consistent_negative"] == 4
+    assert default.summary["sufficient"] is True
+    literal = granstab.analyze(scene, metric="L", rotation_length=1.0)
+    assert literal.summary["sufficient"] is False
+    assert "unresolved_sign" in literal.summary["insufficient_because"] and literal.summary["zero_margin"] < 1

@@ -186,3 +186,27 @@ def test_rotation_length_underscore_is_a_deprecated_alias():
         new = granstab.analyze(sc, rotation_length=1.0, metric="L")
     assert np.array_equal(old.branches[0].stability_eigenvalues, new.branches[0].stability_eigenvalues)
     assert new.length == 1.0 and new.metric.name == "L"
+
+
+def test_cli_metric_option_and_json(capsys):
+    """`granstab analyze --json`: the family by default (summary.metrics, metric_robust, per-eigenvalue accuracy);
+    `--metric 10L` the single metric at ten times the default L; `--metric inertia` frequencies and growth rates."""
+    import json
+    from granstab.cli import main
+    assert main(["analyze", str(PRESETS / "ellipsoid_trio.toml"), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [e["metric"] for e in d["summary"]["metrics"]] == ["L/10", "L", "10L", "inertia"]
+    assert d["summary"]["metric_robust"] is True and d["metric"] == "L"
+    assert len(d["branches"][0]["accuracy"]) == len(d["branches"][0]["stability_eigenvalues"])
+    L = d["rotation_length"]
+    assert main(["analyze", str(PRESETS / "ellipsoid_trio.toml"), "--json", "--metric", "10L"]) == 0
+    d10 = json.loads(capsys.readouterr().out)
+    assert d10["rotation_length"] == pytest.approx(10 * L) and d10["summary"]["metrics"] == []
+    assert main(["analyze", str(PRESETS / "ellipsoid_trio.toml"), "--json", "--metric", "inertia"]) == 0
+    di = json.loads(capsys.readouterr().out)
+    b = di["branches"][0]
+    lam = np.array(b["stability_eigenvalues"])
+    acc = np.array(b["accuracy"])
+    assert np.allclose(np.sort(np.array(b["frequencies"]) ** 2), np.sort(lam[lam > acc]), rtol=1e-12)
+    assert len(b["growth_rates"]) == di["summary"]["consistent_negative"] == 3
+    assert di["rotation_length"] is None and di["eigenvalue_units"] == "1/time²"
