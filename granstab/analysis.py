@@ -157,7 +157,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
             with timer("branches" if main else f"metric {m.name}"):
                 branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
                                                 progress=progress and main)
-            summary = summarize(scene, branches, problem, notes)
+            summary = summarize(branches, notes)
             entries[i] = family_entry(m, summary)
             if main:
                 result = (m, problem, branches, summary, notes)

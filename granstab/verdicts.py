@@ -17,7 +17,7 @@ from .stiffness import stiffness
 CONSISTENT = (PLUS, MINUS, BOTH)
 
 
-def summarize(scene, branches, problem, notes: dict | None = None) -> dict:
+def summarize(branches, notes: dict | None = None) -> dict:
     """Counts of consistent eigenvalues over all branches and the verdict with its reason.
 
     Signs come from each eigenvalue's accuracy bound (accuracy.py): |λ| > δ counts with its sign; |λ| <= δ is a zero
@@ -157,7 +157,7 @@ def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
     solutions on different branches that differ by more than a rigid motion. Solutions are physical motions with
     the rigid part removed.
     """
-    problem, scene = analysis.problem, analysis.scene
+    problem = analysis.problem
     metric = analysis.metric
     rhs = metric.physical(np.asarray(load_increment, dtype=float))   # D d𝕓: ℍ̃ Ũ = D H D Ũ
     masks = np.array([b.mask for b in analysis.branches])

@@ -109,11 +109,11 @@ def test_partial_spectrum_with_an_inconsistent_lowest_mode_is_not_stable():
     beyond it, so the verdict is 'not determined' with a suggested k — never 'stable'. The same branch with a
     complete spectrum is 'stable' but not sufficient (an inconsistent negative proves nothing, Sec. 3.2)."""
     b = _branch([0.0, 0.0, 0.0, -0.3], [RIGID, RIGID, RIGID, INCONSISTENT])
-    partial = summarize(None, [b], None, {"complete": False, "suggest_k": 28})
+    partial = summarize([b], {"complete": False, "suggest_k": 28})
     assert partial["verdict"] == "not determined" and partial["sufficient"] is False
     assert partial["insufficient_because"] == ["partial_spectrum"] and partial["suggest_k"] == 28
     assert "k >= 28" in partial["reason"]
-    full = summarize(None, [b], None, {"complete": True})
+    full = summarize([b], {"complete": True})
     assert full["verdict"] == "stable" and full["insufficient_because"] == ["inconsistent_negative"]
 
 

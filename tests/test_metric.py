@@ -11,7 +11,6 @@ import pytest
 import scipy.linalg as sla
 
 import granstab
-from granstab.branches import RIGID
 from granstab.scene import SceneError
 from granstab.shapes import Disk, Sphere, scene_from_shapes
 
