@@ -136,6 +136,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     if rotation_length is not None and not (np.isfinite(rotation_length) and rotation_length > 0):
         raise ValueError(f"rotation_length must be a positive number, got {rotation_length!r}")
+    if rotation_length is not None and metric == "inertia":
+        raise ValueError("rotation_length: the inertia metric has no rotation length")
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
     backend = choose_backend(scene, method, k)

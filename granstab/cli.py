@@ -86,6 +86,12 @@ def format_table(result) -> str:
 
 
 def cmd_analyze(args) -> int:
+    L = args.rotation_length
+    if L is not None and not (np.isfinite(L) and L > 0):
+        raise InputError(f"--rotation-length: must be a positive number, got {L:g}")
+    if L is not None and args.metric == "inertia":
+        raise InputError("--rotation-length: the inertia metric has no rotation length (use --metric L, L/10, 10L "
+                         "or family)")
     scene = load_scene(args.scene)
     result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length, max_sliding=args.max_sliding,
                      method=args.method, k=args.k, progress=args.progress)

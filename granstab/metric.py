@@ -139,18 +139,14 @@ def has_masses(scene: Scene) -> bool:
 
 
 def resolve(scene: Scene, metric: str = "L", rotation_length: float | None = None) -> Metric:
-    """One metric by name: "L" (or the given rotation_length), "L/10", "10L", "inertia"."""
+    """One metric by name: "L", "L/10", "10L" (L = rotation_length, default the mean contact radius), "inertia"."""
     if metric == "inertia":
         return inertia_metric(scene)
     factors = {name: f for name, f in FAMILY if f is not None}
     if metric not in factors:
         raise ValueError(f"metric must be one of {', '.join(CHOICES)}, got {metric!r}")
-    if rotation_length is not None:
-        if metric != "L":
-            raise ValueError("rotation_length sets L itself: use it with metric='L'")
-        return length_metric(scene, rotation_length, name="L" if rotation_length == default_length(scene)
-                             else f"L={rotation_length:.6g}")
-    return length_metric(scene, factors[metric] * default_length(scene), name=metric)
+    base = default_length(scene) if rotation_length is None else float(rotation_length)
+    return length_metric(scene, factors[metric] * base, name=metric)
 
 
 def family(scene: Scene, rotation_length: float | None = None) -> list[Metric]:

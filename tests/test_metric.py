@@ -234,3 +234,14 @@ def test_rotated_ellipsoids_give_a_full_inertia_tensor_and_both_backends_agree()
     assert np.all(np.abs(a.stability_eigenvalues[ia] - b.stability_eigenvalues[ib]) <= a.accuracy[ia] + b.accuracy[ib])
     assert dense.summary["verdict"] == sparse.summary["verdict"]
     assert dense.errors["rigid_leakage_modified"] <= 1e-14
+
+
+@pytest.mark.parametrize("argv, message", [(["--rotation-length", "0"], "--rotation-length: must be a positive"),
+                                           (["--rotation-length", "-1"], "--rotation-length: must be a positive"),
+                                           (["--metric", "inertia", "--rotation-length", "2"], "no rotation length"),
+                                           (["--metric", "L/3"], "invalid choice")])
+def test_metric_options_are_checked(argv, message, capsys):
+    from granstab.cli import main
+    assert main(["analyze", str(PRESETS / "ellipses_sharp.toml"), *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and message in err
