@@ -109,14 +109,23 @@ def cmd_convert(args) -> int:
     return 0
 
 
+def frame_number(text: str):
+    """--frame/--timestep: an integer where it is one (frame numbers, steps), else a float (times)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    return int(value) if value.is_integer() else value
+
+
 def add_convert(sub) -> None:
     p = sub.add_parser("convert", help="DEM snapshots / experimental frames → a contact-level scene (JSON)")
     p.add_argument("inputs", nargs="+", help="a folder or file(s) of one snapshot")
     p.add_argument("--out", required=True, help="scene file to write (JSON)")
     p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.FORMATS")
     which = p.add_mutually_exclusive_group()
-    which.add_argument("--frame", type=float, default=None, help="frame to read (default: the first)")
-    which.add_argument("--timestep", type=float, default=None, help="timestep to read (default: the first)")
+    which.add_argument("--frame", type=frame_number, default=None, help="frame to read (default: the first)")
+    which.add_argument("--timestep", type=frame_number, default=None, help="timestep to read (default: the first)")
     p.add_argument("--region", help="box:lo,hi,lo,hi[,lo,hi] | ids:ID,... | ids:@FILE (keep these particles)")
     p.add_argument("--k", type=float, help="normal stiffness (overrides the file's law)")
     p.add_argument("--alpha", type=float, help="tangential/normal stiffness ratio")

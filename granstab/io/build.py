@@ -32,6 +32,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..scene import Scene, SceneError, build_scene
 from ..vec import cross
+from .text import line_of
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
@@ -62,6 +63,16 @@ class Snapshot:
     frame: object = None
     frames: list | None = None
     notes: dict = field(default_factory=dict)  # format-specific report entries (duplicates, walls, ...)
+    particle_rows: tuple | None = None   # (file, data-row index per particle) for error messages
+    contact_rows: tuple | None = None    # (file, data-row index per contact)
+
+    def where(self, kind: str, index: int) -> str:
+        """"<file>: line L" of a particle or contact (or the source), for one-line errors."""
+        rows = self.particle_rows if kind == "particle" else self.contact_rows
+        if rows is None:
+            return self.source
+        path, row = rows
+        return f"{path}: line {line_of(path, int(row[index]))}"
 
 
 @dataclass
@@ -110,7 +121,7 @@ def build(snap: Snapshot, opts: Options) -> Imported:
     d = np.linalg.norm(branch, axis=1)
     if np.any(d == 0):
         c = int(np.flatnonzero(d == 0)[0])
-        raise SceneError(f"{snap.source}: contact {pair[c]}: x: the two centres coincide")
+        raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
     e = branch / d[:, None]
     normal = e if snap.normal is None else _unit_normals(snap, pair)
     geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap)
@@ -173,19 +184,21 @@ def _check_particles(snap: Snapshot) -> None:
     ids = np.asarray(snap.ids)
     uniq, counts = np.unique(ids, return_counts=True)
     if np.any(counts > 1):
-        raise SceneError(f"{where}: particle {uniq[counts > 1][0]}: id: listed twice in one frame")
+        i = int(np.flatnonzero(ids == uniq[counts > 1][0])[1])
+        raise SceneError(f"{snap.where('particle', i)}: particle {ids[i]}: id: listed twice in one frame")
     bad = np.flatnonzero(~(snap.radius > 0))
     if bad.size:
-        raise SceneError(f"{where}: particle {ids[bad[0]]}: radius: must be > 0, got {snap.radius[bad[0]]}")
+        raise SceneError(f"{snap.where('particle', bad[0])}: particle {ids[bad[0]]}: radius: must be > 0, "
+                         f"got {snap.radius[bad[0]]}")
     lo, hi = np.minimum(snap.p, snap.q), np.maximum(snap.p, snap.q)
     key = lo.astype(np.int64) * len(ids) + hi
     _, first, counts = np.unique(key, return_index=True, return_counts=True)
     if np.any(counts > 1):
-        c = first[counts > 1][0]
-        raise SceneError(f"{where}: contact {ids[snap.p[c]]}-{ids[snap.q[c]]}: id2: listed twice in one frame")
+        c = np.flatnonzero(key == key[first[counts > 1][0]])[1]
+        raise SceneError(f"{snap.where('contact', c)}: contact {ids[snap.p[c]]}-{ids[snap.q[c]]}: id2: listed twice in one frame")
     same = np.flatnonzero(snap.p == snap.q)
     if same.size:
-        raise SceneError(f"{where}: contact {ids[snap.p[same[0]]]}-{ids[snap.q[same[0]]]}: id2: a particle cannot "
+        raise SceneError(f"{snap.where('contact', same[0])}: contact {ids[snap.p[same[0]]]}-{ids[snap.q[same[0]]]}: id2: a particle cannot "
                          "touch itself")
 
 
@@ -193,7 +206,7 @@ def _unit_normals(snap: Snapshot, pair) -> np.ndarray:
     norm = np.linalg.norm(snap.normal, axis=1)
     bad = np.flatnonzero(~(np.abs(norm - 1.0) <= 1e-3))
     if bad.size:
-        raise SceneError(f"{snap.source}: contact {pair[bad[0]]}: normal: not a unit vector (|n| = {norm[bad[0]]:.6g})")
+        raise SceneError(f"{snap.where('contact', bad[0])}: contact {pair[bad[0]]}: normal: not a unit vector (|n| = {norm[bad[0]]:.6g})")
     return snap.normal / norm[:, None]
 
 
@@ -235,7 +248,8 @@ def _geometry(rule, rad_p, rad_q, d, e, normal, snap):
         bad = np.flatnonzero((rho_p <= 0) | (rho_q <= 0))
         if bad.size:
             c = bad[0]
-            raise SceneError(f"{snap.source}: contact {snap.ids[snap.p[c]]}-{snap.ids[snap.q[c]]}: radius: overlap "
+            raise SceneError(f"{snap.where('contact', c)}: contact {snap.ids[snap.p[c]]}-{snap.ids[snap.q[c]]}: "
+                             f"radius: overlap "
                              f"{delta[c]:.6g} exceeds twice a radius; try --geometry touching")
     else:
         rho_p = d * rad_p / (rad_p + rad_q)
@@ -311,7 +325,7 @@ def _cone(snap: Snapshot, normal, mu, opts: Options, pair):
     if np.any(outside):
         if opts.outside_cone == "error":
             c = int(np.flatnonzero(outside)[0])
-            raise SceneError(f"{snap.source}: contact {pair[c]}: force: outside the friction cone, |f_t|/(μ f_n) = "
+            raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: force: outside the friction cone, |f_t|/(μ f_n) = "
                              f"{ft[c] / limit[c]:.6g} ({int(outside.sum())} such contacts; see --outside-cone)")
         if opts.outside_cone in ("sliding", "project"):
             projected |= outside

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..scene import SceneError
 from .build import Snapshot
-from .text import integer_column, line_of, pick_frame, read_table
+from .text import check_unique, integer_column, line_of, pick_frame, read_table
 
 ANNULUS_FILES = ("particle_positions.txt", "Adjacency_list.txt")
 POSITION_FIELDS = ("frame", "id", "x", "y", "r", "edge")
@@ -58,6 +58,7 @@ def read_annulus(folder: Path, frame=None) -> Snapshot:
     prow = np.flatnonzero(pos[:, 0] == frame)
     P = pos[prow]
     ids = integer_column(P[:, 1], pos_path, "id", prow)
+    check_unique(ids, pos_path, "id", prow)
     A = adj[rows]
     id1 = integer_column(A[:, 1], adj_path, "id1", rows)
     id2 = integer_column(A[:, 2], adj_path, "id2", rows)
@@ -94,7 +95,8 @@ def read_annulus(folder: Path, frame=None) -> Snapshot:
                           "imbalance, which becomes its external load (b = −Σf); left out of the imbalance statistics"}
     return Snapshot(source=str(folder), format="rigidlibrary-annulus", dim=2, ids=ids, x=x, radius=P[:, 4],
                     p=p, q=q, force=force, normal=n, wall_flags=edge, length_unit="px", frame=int(frame),
-                    frames=[int(f) for f in frames], notes={"walls": walls, "duplicates": duplicates})
+                    frames=[int(f) for f in frames], notes={"walls": walls, "duplicates": duplicates},
+                    particle_rows=(pos_path, prow), contact_rows=(adj_path, rows[chosen]))
 
 
 def _compare_listings(key, forces, first, counts) -> dict:
@@ -187,4 +189,5 @@ def read_datasim(folder: Path, frame=None) -> Snapshot:
     return Snapshot(source=str(folder), format="rigidlibrary-datasim", dim=2, ids=np.arange(n_particles), x=x,
                     radius=radius, p=i, q=j, force=force, normal=n, mobilised=con[:, 4] != 0,
                     lattice=np.array([[box, 0.0], [shear * box, box_y]]), law=law, length_unit="simulation units",
-                    frame=frame, frames=steps, notes=notes)
+                    frame=frame, frames=steps, notes=notes, particle_rows=(init_path, np.arange(n_particles)),
+                    contact_rows=(con_path, np.arange(len(con))))

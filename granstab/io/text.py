@@ -2,6 +2,7 @@
 line and the field. The per-line scan below runs only after loadtxt has failed, to say where."""
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,9 @@ def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_ro
     "<file>: line L: <field>: <problem>" for a missing file, a non-number, a short row or a non-finite value."""
     path = Path(path)
     try:
-        data = np.loadtxt(path, delimiter=delimiter, comments=comments, skiprows=skiprows, ndmin=2)
+        with warnings.catch_warnings():  # an empty table is reported below, as one line
+            warnings.simplefilter("ignore", UserWarning)
+            data = np.loadtxt(path, delimiter=delimiter, comments=comments, skiprows=skiprows, ndmin=2)
     except OSError as exc:
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
     except (ValueError, UnicodeDecodeError):
@@ -109,3 +112,13 @@ def integer_column(values: np.ndarray, path, field: str, rows=None) -> np.ndarra
         row = bad[0] if rows is None else rows[bad[0]]
         raise SceneError(f"{path}: line {line_of(path, row)}: {field}: not an integer ({values[bad[0]]})")
     return ints
+
+
+def check_unique(ids: np.ndarray, path, field: str, rows=None) -> None:
+    """Particle ids of one frame are unique; the second listing is a one-line error naming its line."""
+    order = np.argsort(ids, kind="stable")
+    same = np.flatnonzero(ids[order][1:] == ids[order][:-1])
+    if same.size:
+        second = order[same[0] + 1]
+        row = second if rows is None else rows[second]
+        raise SceneError(f"{path}: line {line_of(path, row)}: {field}: {ids[second]} listed twice in one frame")

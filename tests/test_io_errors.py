@@ -1,0 +1,151 @@
+"""Malformed inputs to every granstab.io reader: exit 2 with one line naming the file, the line (or frame /
+timestep) and the field; never a traceback (issue 9, issue 12). Fixtures: tests/data/io/."""
+import shutil
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from granstab.cli import main
+
+DATA = Path(__file__).parent / "data" / "io"
+DATASIM = Path(__file__).parents[1].parent / "shared" / "data" / "rigidlibrary" / "DataSim"
+
+
+def convert(capsys, *args):
+    """Run `granstab convert`; the exit status and stderr (asserted to be at most one line)."""
+    rc = main(["convert", *map(str, args)])
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err
+    return rc, err
+
+
+def copy(tmp_path, name):
+    dest = tmp_path / name
+    shutil.copytree(DATA / name if (DATA / name).exists() else DATASIM, dest)
+    return dest
+
+
+def edit(path: Path, line: int, text: str | None):
+    """Replace 1-based `line` of `path` by `text` (None: delete it)."""
+    lines = path.read_text().splitlines(keepends=True)
+    if text is None:
+        del lines[line - 1]
+    else:
+        lines[line - 1] = text
+    path.write_text("".join(lines))
+
+
+def field(path: Path, line: int, col: int, value: str, sep=","):
+    cells = path.read_text().splitlines()[line - 1].split(sep)
+    cells[col] = value
+    edit(path, line, sep.join(cells) + "\n")
+
+
+ANNULUS_CASES = {
+    # name: (edit, expected pieces of the message)
+    "truncated": (lambda d: (d / "Adjacency_list.txt").write_text(
+        (d / "Adjacency_list.txt").read_text()[:-12]), ["Adjacency_list.txt", "line 126", "columns"]),
+    "missing column": (lambda d: edit(d / "particle_positions.txt", 3, "1,17,2575,5954,44\n"),
+                       ["particle_positions.txt", "line 3", "edge", "5 columns"]),
+    "not a number": (lambda d: field(d / "particle_positions.txt", 4, 2, "12O5.5"),
+                     ["particle_positions.txt", "line 4", "x", "not a number"]),
+    "nan": (lambda d: field(d / "Adjacency_list.txt", 5, 4, "nan"),
+            ["Adjacency_list.txt", "line 5", "normal", "not a finite number"]),
+    "unknown id": (lambda d: field(d / "Adjacency_list.txt", 7, 2, "99999"),
+                   ["Adjacency_list.txt", "line 7", "id2", "unknown particle id 99999"]),
+    "negative radius": (lambda d: field(d / "particle_positions.txt", 2, 4, "-44"),
+                        ["particle_positions.txt", "line 2", "radius", "> 0"]),
+    "fractional id": (lambda d: field(d / "particle_positions.txt", 6, 1, "12.5"),
+                      ["particle_positions.txt", "line 6", "id", "not an integer"]),
+    "mismatched frames": (lambda d: field(d / "Adjacency_list.txt", 1, 0, "3"),
+                          ["Adjacency_list.txt", "frame 3", "frame", "not in particle_positions.txt"]),
+    "duplicate particle": (lambda d: edit(d / "particle_positions.txt", 2,
+                                          (d / "particle_positions.txt").read_text().splitlines()[0] + "\n"),
+                           ["particle_positions.txt", "line 2", "id", "listed twice"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(ANNULUS_CASES))
+def test_malformed_annulus_input(tmp_path, capsys, case):
+    folder = copy(tmp_path, "annulus")
+    change, pieces = ANNULUS_CASES[case]
+    change(folder)
+    rc, err = convert(capsys, folder, "--frame", "1", "--out", tmp_path / "x.json")
+    assert rc == 2
+    for piece in pieces:
+        assert piece in err, (piece, err)
+
+
+def test_coincident_centres_name_the_contact_line(tmp_path, capsys):
+    folder = copy(tmp_path, "annulus")
+    adj = (folder / "Adjacency_list.txt").read_text().splitlines()
+    first = adj[0].split(",")
+    pos = (folder / "particle_positions.txt").read_text().splitlines()
+    rows = {line.split(",")[1]: i for i, line in enumerate(pos) if line.startswith("1,")}
+    a, b = pos[rows[first[1]]].split(","), pos[rows[first[2]]].split(",")
+    b[2:4] = a[2:4]
+    edit(folder / "particle_positions.txt", rows[first[2]] + 1, ",".join(b) + "\n")
+    rc, err = convert(capsys, folder, "--frame", "1", "--out", tmp_path / "x.json")
+    assert rc == 2 and "Adjacency_list.txt: line" in err and "x: the two centres coincide" in err
+
+
+def test_missing_frame(tmp_path, capsys):
+    rc, err = convert(capsys, DATA / "annulus", "--frame", "7", "--out", tmp_path / "x.json")
+    assert rc == 2 and "frame 7: frame: not in the file" in err and "particle_positions.txt" in err
+
+
+def test_missing_input_and_unknown_format(tmp_path, capsys):
+    rc, err = convert(capsys, tmp_path / "nothing", "--out", tmp_path / "x.json")
+    assert rc == 2 and "nothing: cannot read file" in err
+    (tmp_path / "odd.dat").write_text("1 2 3\n")
+    rc, err = convert(capsys, tmp_path / "odd.dat", "--out", tmp_path / "x.json")
+    assert rc == 2 and "odd.dat: format: not recognised" in err
+
+
+DATASIM_CASES = {
+    "unknown particle": (lambda d: field(d / "Contact5000.dat", 9, 1, "5000", sep="           "),
+                         ["Contact5000.dat", "line 9", "j", "unknown particle 5000"]),
+    "particle count": (lambda d: edit(d / "PosVel5000.dat", 1024, None),
+                       ["PosVel5000.dat", "x", "np = 1024"]),
+    "missing contact file": (lambda d: (d / "Contact5000.dat").unlink(),
+                             ["Contact5000.dat", "frame 5000", "missing"]),
+    "negative radius": (lambda d: field(d / "posinit.dat", 12, 3, "-1.0", sep="           "),
+                        ["posinit.dat", "line 12", "radius"]),
+    "missing parameter": (lambda d: (d / "Parameters_final.dat").write_text(
+        (d / "Parameters_final.dat").read_text().replace("k_rep", "k_xyz")), ["Parameters_final.dat", "k_rep"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(DATASIM_CASES))
+def test_malformed_datasim_input(tmp_path, capsys, case):
+    folder = copy(tmp_path, "DataSim")
+    change, pieces = DATASIM_CASES[case]
+    change(folder)
+    rc, err = convert(capsys, folder, "--out", tmp_path / "x.json")
+    assert rc == 2
+    for piece in pieces:
+        assert piece in err, (piece, err)
+
+
+def test_missing_timestep_datasim(tmp_path, capsys):
+    rc, err = convert(capsys, DATASIM, "--timestep", "4000", "--out", tmp_path / "x.json")
+    assert rc == 2 and "frame 4000" in err and "PosVel4000.dat" in err
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(which=st.sampled_from(["particle_positions.txt", "Adjacency_list.txt"]),
+       cut=st.floats(0.0, 1.0), junk=st.binary(max_size=40), at=st.floats(0.0, 1.0))
+def test_garbled_annulus_files_never_raise(tmp_path_factory, capsys, which, cut, junk, at):
+    """Truncate a file anywhere and splice random bytes in: success or exit 2 with one line, nothing else."""
+    folder = tmp_path_factory.mktemp("fuzz") / "annulus"
+    shutil.copytree(DATA / "annulus", folder)
+    path = folder / which
+    data = path.read_bytes()
+    data = data[: int(cut * len(data))] if cut < 0.5 else data
+    i = int(at * len(data))
+    path.write_bytes(data[:i] + junk + data[i:])
+    rc, err = convert(capsys, folder, "--frame", "1", "--out", folder / "x.json")
+    assert rc in (0, 2)
+    assert (rc == 0) == (err == ""), err
