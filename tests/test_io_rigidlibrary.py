@@ -8,6 +8,7 @@ import numpy as np
 import granstab
 from granstab.cli import main
 from granstab.io import load
+from io_checks import check_contact_geometry
 
 ROOT = Path(__file__).parents[1]
 DATA = ROOT.parent / "shared" / "data"
@@ -103,7 +104,7 @@ def test_datasim_lees_edwards_snapshot():
     pick = np.array([rows[(int(s.names[a]), int(s.names[b]))] for a, b in zip(s.p, s.q)])
     assert np.abs(s.normal - raw[pick, 2:4]).max() <= 1e-6
     assert np.abs(-np.sum(s.force * s.normal, 1) - raw[pick, 5]).max() <= 1e-12 * raw[:, 5].max()
-    _check_contact_geometry(s, np.loadtxt(DATASIM / "posinit.dat")[[int(n) for n in s.names], 3])
+    check_contact_geometry(s, np.loadtxt(DATASIM / "posinit.dat")[[int(n) for n in s.names], 3])
     # Hookean k_rep = 1: f_n = k δ with δ = R_p + R_q − d (the file's 6 digits)
     radius = np.loadtxt(DATASIM / "posinit.dat")[:, 3]
     d = np.linalg.norm(s.x[s.q] - s.x[s.p], axis=1)
@@ -114,25 +115,6 @@ def test_datasim_lees_edwards_snapshot():
     sliding = np.asarray(s.state) == "sliding"
     assert np.abs(s.yield_function()[sliding]).max() <= 1e-12 * np.abs(s.force).max()
     assert name_index and rep["imbalance"]["moment"]["median"] < 1e-3
-
-
-def _check_contact_geometry(s, radius):
-    """Unit normals from p to q, contact points on the centre line between the centres at R − δ/2, Newton's third
-    law (one f^pq per unordered pair), curvature −1/(R − δ/2)."""
-    branch = s.x[s.q] - s.x[s.p]
-    d = np.linalg.norm(branch, axis=1)
-    assert np.abs(np.linalg.norm(s.normal, axis=1) - 1).max() <= 1e-12
-    assert np.min(np.sum(branch * s.normal, 1) / d) > 1 - 1e-8
-    delta = radius[s.p] + radius[s.q] - d
-    a = np.linalg.norm(s.point - s.x[s.p], axis=1)
-    assert np.abs(a - (radius[s.p] - delta / 2)).max() <= 1e-12 * radius.max()
-    assert np.all(a < d) and np.abs(np.cross(np.pad(s.point - s.x[s.p], ((0, 0), (0, 1))), np.pad(branch, ((0, 0), (0, 1))))).max() <= 1e-9 * d.max() ** 2
-    t = np.stack([-s.normal[:, 1], s.normal[:, 0]], 1)
-    kappa_p = np.einsum("ci,cij,cj->c", t, s.curvature_p, t)
-    assert np.abs(kappa_p * (radius[s.p] - delta / 2) + 1).max() <= 1e-12
-    pairs = {frozenset(pq) for pq in zip(s.p, s.q)}
-    assert len(pairs) == s.n_contacts
-    assert np.all(np.sum(s.force * s.normal, 1) < 0)  # compression: f·n < 0 on p
 
 
 def test_datasim_imbalance_statistics_match_a_direct_sum():

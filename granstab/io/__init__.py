@@ -14,9 +14,9 @@ from pathlib import Path
 from ..scene import SceneError
 from .build import GEOMETRY, OUTSIDE_CONE, Imported, Options, build
 from .report import format_report
-from . import rigidlibrary
+from . import lammps, rigidlibrary
 
-FORMATS = ("rigidlibrary-annulus", "rigidlibrary-datasim")
+FORMATS = ("rigidlibrary-annulus", "rigidlibrary-datasim", "lammps")
 OPTION_KEYS = {"k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol", "length_scale", "units", "region",
                "keep_rattlers"}
 
@@ -24,12 +24,15 @@ OPTION_KEYS = {"k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol", "le
 def detect(paths: list[Path]) -> str:
     """The format of `paths` from their names and layout; a one-line error if none fits."""
     first = paths[0]
-    if not first.exists():
-        raise SceneError(f"{first}: cannot read file (no such file or directory)")
+    for path in paths:
+        if not path.exists():
+            raise SceneError(f"{path}: cannot read file (no such file or directory)")
     if rigidlibrary.is_annulus(first):
         return "rigidlibrary-annulus"
     if rigidlibrary.is_datasim(first):
         return "rigidlibrary-datasim"
+    if any(lammps.is_dump(p) for p in paths):
+        return "lammps"
     raise SceneError(f"{first}: format: not recognised (known: {', '.join(FORMATS)}); name it with --format")
 
 
@@ -52,8 +55,10 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, **op
     which = frame if frame is not None else timestep
     if fmt == "rigidlibrary-annulus":
         snap = rigidlibrary.read_annulus(paths[0], which)
-    else:
+    elif fmt == "rigidlibrary-datasim":
         snap = rigidlibrary.read_datasim(paths[0], which)
+    else:
+        snap = lammps.read_lammps(paths, which, options.get("columns"))
     if isinstance(options.get("region"), str):
         options["region"] = parse_region(options["region"])
     opts = Options(**{k: v for k, v in options.items() if k in OPTION_KEYS})

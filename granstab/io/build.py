@@ -63,16 +63,17 @@ class Snapshot:
     frame: object = None
     frames: list | None = None
     notes: dict = field(default_factory=dict)  # format-specific report entries (duplicates, walls, ...)
-    particle_rows: tuple | None = None   # (file, data-row index per particle) for error messages
-    contact_rows: tuple | None = None    # (file, data-row index per contact)
+    particle_rows: tuple | None = None   # (file, data row per particle or None = index[, line of row 0])
+    contact_rows: tuple | None = None    # (file, data row per contact or None = index[, line of row 0])
 
     def where(self, kind: str, index: int) -> str:
         """"<file>: line L" of a particle or contact (or the source), for one-line errors."""
         rows = self.particle_rows if kind == "particle" else self.contact_rows
         if rows is None:
             return self.source
-        path, row = rows
-        return f"{path}: line {line_of(path, int(row[index]))}"
+        path, row = rows[:2]
+        row = int(index if row is None else row[index])
+        return f"{path}: line {rows[2] + row if len(rows) > 2 else line_of(path, row)}"
 
 
 @dataclass
@@ -117,7 +118,7 @@ def build(snap: Snapshot, opts: Options) -> Imported:
     scale = opts.length_scale
     x = snap.x * scale
     radius = snap.radius * scale
-    branch, shifts = _branch_vectors(snap, x, scale)
+    branch, shifts = branch_vectors(x, snap.p, snap.q, None if snap.lattice is None else snap.lattice * scale)
     d = np.linalg.norm(branch, axis=1)
     if np.any(d == 0):
         c = int(np.flatnonzero(d == 0)[0])
@@ -133,7 +134,7 @@ def build(snap: Snapshot, opts: Options) -> Imported:
     imbalance = _imbalance(snap, arm_p, arm_p - branch)
 
     keep_c, keep_p, selection = _select(snap, x, opts, names)
-    unwrapped, cut = _unwrap(snap, x, shifts, keep_c, keep_p)
+    unwrapped, cut = _unwrap(snap, x, shifts, keep_c, scale)
     keep_c &= ~cut
     if not opts.keep_rattlers:
         touched = np.zeros(len(x), bool)
@@ -224,14 +225,14 @@ def _stats(values) -> dict:
 
 # ------------------------------------------------------------------------------------------------ geometry
 
-def _branch_vectors(snap: Snapshot, x, scale):
-    """x_q − x_p, minimum image in periodic cells, and the integer lattice shifts used (M, d)."""
-    raw = x[snap.q] - x[snap.p]
+def branch_vectors(x, p, q, lattice):
+    """x_q − x_p, minimum image when `lattice` (rows; NaN row = open axis) is given, and the integer lattice
+    shifts used (M, d). Lower-triangular lattices (Lees–Edwards, LAMMPS tilt) are reduced last axis first."""
+    raw = x[q] - x[p]
     shifts = np.zeros(raw.shape, dtype=np.int64)
-    if snap.lattice is None:
+    if lattice is None:
         return raw, shifts
-    lattice = snap.lattice * scale
-    for i in range(snap.dim - 1, -1, -1):  # triangular lattice: last axis first (Lees–Edwards, LAMMPS tilt)
+    for i in range(x.shape[1] - 1, -1, -1):
         if np.isnan(lattice[i, i]):
             continue
         s = np.round(raw[:, i] / lattice[i, i]).astype(np.int64)
@@ -283,6 +284,8 @@ def _law(snap: Snapshot, opts: Options, M: int):
             value, where = given, "command line"
         elif key in snap.law:
             value, where = snap.law[key]
+            if key == "k" and opts.length_scale != 1.0:  # force per file length → force per scene length
+                value, where = np.asarray(value) / opts.length_scale, f"{where}, / length scale"
         else:
             value, where = LAW_DEFAULTS[key], "built-in default (not in the file)"
         value = np.broadcast_to(np.asarray(value, float), (M,)).copy()
@@ -411,7 +414,7 @@ def region_mask(region, x, names, source) -> np.ndarray:
     return np.isin(names, wanted)
 
 
-def _unwrap(snap: Snapshot, x, shifts, keep_c, keep_p):
+def _unwrap(snap: Snapshot, x, shifts, keep_c, scale):
     """Positions unwrapped along a spanning tree of the kept contacts, and the contacts that close a loop around
     the periodic cell (their lattice shift disagrees with the tree's)."""
     cut = np.zeros(len(shifts), bool)
@@ -442,7 +445,7 @@ def _unwrap(snap: Snapshot, x, shifts, keep_c, keep_p):
         total = total + np.where((up != N)[:, None], total[up], 0)
         up = up[up]
     image = total[:N]
-    lattice = np.nan_to_num(snap.lattice)
+    lattice = np.nan_to_num(snap.lattice) * scale
     unwrapped = x - image @ lattice
     cut[c] = np.any(image[q] - image[p] != shifts[c], axis=1)
     return unwrapped, cut

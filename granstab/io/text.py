@@ -2,6 +2,7 @@
 line and the field. The per-line scan below runs only after loadtxt has failed, to say where."""
 from __future__ import annotations
 
+import io
 import warnings
 from pathlib import Path
 
@@ -58,32 +59,60 @@ def _data_lines(path: Path, comments, skiprows) -> list[int]:
 
 
 def _raise_first_bad_line(path: Path, fields, delimiter, comments, skiprows):
-    width = None
     with open(path, encoding="utf-8", errors="replace") as fh:
-        for number, text in enumerate(fh, 1):
-            if number <= skiprows:
-                continue
-            if comments:
-                text = text.split(comments, 1)[0]
-            if not text.strip():
-                continue
-            cells = [c.strip() for c in text.split(delimiter)]
-            for col, cell in enumerate(cells):
-                try:
-                    float(cell)
-                except ValueError:
-                    raise SceneError(f"{path}: line {number}: {column_name(fields, col)}: not a number "
-                                     f"({cell[:40]!r})") from None
-            if width is None:
-                width = len(cells)
-                if width < len(fields):
-                    raise SceneError(f"{path}: line {number}: {fields[width]}: missing column ({width} columns, "
-                                     f"expected {len(fields)}: {', '.join(fields)})")
-            elif len(cells) != width:
-                name = column_name(fields, min(len(cells), width))
-                raise SceneError(f"{path}: line {number}: {name}: {len(cells)} columns where the lines before have "
-                                 f"{width} (truncated or garbled line?)")
+        numbered = ((number, text) for number, text in enumerate(fh, 1) if number > skiprows)
+        scan_rows(numbered, path, fields, delimiter, comments)
     raise SceneError(f"{path}: not a numeric table")
+
+
+def scan_rows(numbered, path, fields, delimiter=None, comments="#"):
+    """Find the first line that is not a row of numbers as wide as the first one; raise its one-line error."""
+    width = None
+    for number, text in numbered:
+        if comments:
+            text = text.split(comments, 1)[0]
+        if not text.strip():
+            continue
+        cells = [c.strip() for c in text.split(delimiter)]
+        for col, cell in enumerate(cells):
+            try:
+                float(cell)
+            except ValueError:
+                raise SceneError(f"{path}: line {number}: {column_name(fields, col)}: not a number "
+                                 f"({cell[:40]!r})") from None
+        if width is None:
+            width = len(cells)
+            if width < len(fields):
+                raise SceneError(f"{path}: line {number}: {fields[width]}: missing column ({width} columns, "
+                                 f"expected {len(fields)}: {', '.join(fields)})")
+        elif len(cells) != width:
+            name = column_name(fields, min(len(cells), width))
+            raise SceneError(f"{path}: line {number}: {name}: {len(cells)} columns where the lines before have "
+                             f"{width} (truncated or garbled line?)")
+
+
+def read_block(text: str, first_line: int, path, fields, rows: int, what: str) -> np.ndarray:
+    """A block of `rows` whitespace-separated rows of len(fields) numbers starting at file line `first_line`
+    (a dump's ATOMS/ENTRIES section), with one-line errors naming the line and field."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            data = np.loadtxt(io.StringIO(text), ndmin=2, comments=None)
+    except ValueError:
+        scan_rows(enumerate(text.splitlines(), first_line), path, fields, comments=None)
+        raise SceneError(f"{path}: line {first_line}: {what}: not a numeric table") from None
+    if data.shape[0] != rows:
+        raise SceneError(f"{path}: line {first_line + data.shape[0]}: {what}: {data.shape[0]} rows where the header "
+                         f"says {rows} (truncated file?)")
+    if rows and data.shape[1] != len(fields):
+        raise SceneError(f"{path}: line {first_line}: {column_name(fields, min(data.shape[1], len(fields)))}: "
+                         f"{data.shape[1]} columns where the header names {len(fields)}")
+    bad = ~np.isfinite(data)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        raise SceneError(f"{path}: line {first_line + row}: {column_name(fields, col)}: not a finite number "
+                         f"({data[row, col]})")
+    return data
 
 
 def line_of(path, row: int, comments="#", skiprows=0) -> int:
