@@ -149,3 +149,102 @@ def test_garbled_annulus_files_never_raise(tmp_path_factory, capsys, which, cut,
     rc, err = convert(capsys, folder, "--frame", "1", "--out", folder / "x.json")
     assert rc in (0, 2)
     assert (rc == 0) == (err == ""), err
+
+
+LAMMPS = DATA / "lammps"
+SCRIPT2 = Path(__file__).parents[1] / "examples" / "dem" / "in.disks2d"
+
+
+def lammps_copy(tmp_path):
+    for name in ("atoms2d.dump", "contacts2d.dump"):
+        shutil.copy(LAMMPS / name, tmp_path / name)
+    return tmp_path / "atoms2d.dump", tmp_path / "contacts2d.dump"
+
+
+def last_block_line(path: Path, offset: int) -> int:
+    """1-based line `offset` lines after the last ITEM: ENTRIES/ATOMS header (offset 1 = first row)."""
+    lines = path.read_text().splitlines()
+    header = max(i for i, text in enumerate(lines) if text.startswith(("ITEM: ENTRIES", "ITEM: ATOMS")))
+    return header + 1 + offset
+
+
+def set_cell(path: Path, line: int, col: int, value: str):
+    field(path, line, col, value, sep=" ")
+
+
+LAMMPS_CASES = {
+    "truncated": (lambda a, c: c.write_text(c.read_text()[: -400]), ["contacts2d.dump", "line", "truncated"]),
+    "truncated at a line end": (lambda a, c: c.write_text("".join(c.read_text().splitlines(True)[:-3])),
+                                ["contacts2d.dump", "line 548", "entries", "263 rows where the header says 266"]),
+    "short row": (lambda a, c: edit(c, last_block_line(c, 3), "25 800 1.0\n"), ["contacts2d.dump", "line",
+                                                                                 "columns"]),
+    "unknown id": (lambda a, c: set_cell(c, last_block_line(c, 2), 1, "99999"),
+                   ["contacts2d.dump", "id2", "unknown atom id 99999", "timestep 21000"]),
+    "nan": (lambda a, c: set_cell(a, last_block_line(a, 4), 2, "nan"), ["atoms2d.dump", "x", "not a finite number"]),
+    "negative radius": (lambda a, c: set_cell(a, last_block_line(a, 5), 5, "-0.5"),
+                        ["atoms2d.dump", "radius", "must be > 0"]),
+    "garbled header": (lambda a, c: c.write_text(c.read_text().replace("NUMBER OF ENTRIES\n266", "NUMBER OF ENTRIES\nabc")),
+                       ["contacts2d.dump", "line 4", "number of rows", "not a number"]),
+    "mismatched timesteps": (lambda a, c: c.write_text("ITEM: TIMESTEP" + c.read_text().split("ITEM: TIMESTEP")[1]),
+                             ["contacts2d.dump", "timestep 21000", "mismatched atom/contact timesteps"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(LAMMPS_CASES))
+def test_malformed_lammps_input(tmp_path, capsys, case):
+    atoms, contacts = lammps_copy(tmp_path)
+    change, pieces = LAMMPS_CASES[case]
+    change(atoms, contacts)
+    rc, err = convert(capsys, atoms, contacts, SCRIPT2, "--out", tmp_path / "x.json")
+    assert rc == 2
+    for piece in pieces:
+        assert piece in err, (piece, err)
+
+
+def test_lammps_line_numbers_point_at_the_bad_value(tmp_path, capsys):
+    atoms, contacts = lammps_copy(tmp_path)
+    line = last_block_line(atoms, 7)
+    set_cell(atoms, line, 3, "1e999")
+    rc, err = convert(capsys, atoms, contacts, SCRIPT2, "--out", tmp_path / "x.json")
+    assert rc == 2 and f"atoms2d.dump: line {line}: y: not a finite number" in err
+
+
+def test_lammps_coincident_centres(tmp_path, capsys):
+    atoms, contacts = lammps_copy(tmp_path)
+    pair = contacts.read_text().splitlines()[last_block_line(contacts, 1) - 1].split()[:2]
+    rows = atoms.read_text().splitlines()
+    start = last_block_line(atoms, 1)
+    where = {r.split()[0]: k for k, r in enumerate(rows[start - 1:], start)}
+    a, b = rows[where[pair[0]] - 1].split(), rows[where[pair[1]] - 1].split()
+    b[2:5] = a[2:5]
+    edit(atoms, where[pair[1]], " ".join(b) + "\n")
+    rc, err = convert(capsys, atoms, contacts, SCRIPT2, "--out", tmp_path / "x.json")
+    assert rc == 2 and "contacts2d.dump: line" in err and f"contact {pair[0]}-{pair[1]}: x: the two centres coincide" in err
+
+
+def test_lammps_missing_timestep_and_bad_columns(tmp_path, capsys):
+    atoms, contacts = lammps_copy(tmp_path)
+    rc, err = convert(capsys, atoms, contacts, SCRIPT2, "--timestep", "999", "--out", tmp_path / "x.json")
+    assert rc == 2 and "atoms2d.dump: timestep 999: timestep: not in the file (it has 18000, 21000)" in err
+    rc, err = convert(capsys, atoms, contacts, "--columns", "id1,id2,fx", "--out", tmp_path / "x.json")
+    assert rc == 2 and "--columns: 3 names for the 11 columns" in err
+    rc, err = convert(capsys, atoms, contacts, "--columns", "id1,id2,force,-,-,-,-,-,-,-,-", "--out", tmp_path / "x")
+    assert rc == 2 and "--columns: unknown name 'force'" in err
+    rc, err = convert(capsys, atoms, "--out", tmp_path / "x.json")
+    assert rc == 2 and "need one per-atom dump (ITEM: ATOMS) and one local dump (ITEM: ENTRIES), got 1 and 0" in err
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(which=st.sampled_from(["atoms2d.dump", "contacts2d.dump"]), cut=st.floats(0.0, 1.0),
+       junk=st.binary(max_size=40), at=st.floats(0.0, 1.0))
+def test_garbled_lammps_dumps_never_raise(tmp_path_factory, capsys, which, cut, junk, at):
+    folder = tmp_path_factory.mktemp("fuzz")
+    atoms, contacts = lammps_copy(folder)
+    path = folder / which
+    data = path.read_bytes()
+    data = data[: int(cut * len(data))] if cut < 0.5 else data
+    i = int(at * len(data))
+    path.write_bytes(data[:i] + junk + data[i:])
+    rc, err = convert(capsys, atoms, contacts, SCRIPT2, "--out", folder / "x.json")
+    assert rc in (0, 2)
+    assert (rc == 0) == (err == ""), err

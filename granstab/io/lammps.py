@@ -83,14 +83,14 @@ def _header(path: Path, block: str, line: int) -> Block:
     values = {"tilt": np.zeros(3), "bounds": None, "periodic": (False, False, False)}
     i = 0
 
-    def fail(field, what):
-        raise SceneError(f"{path}: line {line + i}: {field}: {what}")
+    def fail(field, what, at=0):
+        raise SceneError(f"{path}: line {line + i + at}: {field}: {what}")
 
-    def number(kind, text, field):
+    def number(kind, text, field, at=1):
         try:
             return kind(text)
         except ValueError:
-            fail(field, f"not a number ({text.strip()[:40]!r})")
+            fail(field, f"not a number ({text.strip()[:40]!r})", at)
 
     while i < len(lines):
         item = lines[i].strip()
@@ -121,11 +121,9 @@ def _header(path: Path, block: str, line: int) -> Block:
             rows = []
             for k in range(3):
                 cells = lines[i + 1 + k].split()
-                i_line = i + 1 + k
                 if len(cells) != (3 if triclinic else 2):
-                    i = i_line
-                    fail("box bounds", f"expected {3 if triclinic else 2} numbers, got {len(cells)}")
-                rows.append([number(float, c, "box bounds") for c in cells])
+                    fail("box bounds", f"expected {3 if triclinic else 2} numbers, got {len(cells)}", 1 + k)
+                rows.append([number(float, c, "box bounds", 1 + k) for c in cells])
             rows = np.array(rows)
             values["bounds"] = rows[:, :2]
             values["tilt"] = rows[:, 2] if triclinic else np.zeros(3)
