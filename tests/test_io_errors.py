@@ -179,7 +179,7 @@ LAMMPS_CASES = {
     "short row": (lambda a, c: edit(c, last_block_line(c, 3), "25 800 1.0\n"), ["contacts2d.dump", "line",
                                                                                  "columns"]),
     "unknown id": (lambda a, c: set_cell(c, last_block_line(c, 2), 1, "99999"),
-                   ["contacts2d.dump", "id2", "unknown atom id 99999", "timestep 21000"]),
+                   ["contacts2d.dump", "id2", "unknown particle id 99999", "timestep 21000"]),
     "nan": (lambda a, c: set_cell(a, last_block_line(a, 4), 2, "nan"), ["atoms2d.dump", "x", "not a finite number"]),
     "negative radius": (lambda a, c: set_cell(a, last_block_line(a, 5), 5, "-0.5"),
                         ["atoms2d.dump", "radius", "must be > 0"]),
@@ -246,5 +246,57 @@ def test_garbled_lammps_dumps_never_raise(tmp_path_factory, capsys, which, cut, 
     i = int(at * len(data))
     path.write_bytes(data[:i] + junk + data[i:])
     rc, err = convert(capsys, atoms, contacts, SCRIPT2, "--out", folder / "x.json")
+    assert rc in (0, 2)
+    assert (rc == 0) == (err == ""), err
+
+
+TABLE_CASES = {
+    "unknown id": (lambda p, c: edit(c, 3, "2,9,0.0095,-0.0170\n"), ["contacts.csv", "line 3", "id2", "unknown particle id 9"]),
+    "nan": (lambda p, c: edit(c, 2, "1,2,nan,0.001\n"), ["contacts.csv", "line 2", "fx", "not a finite number"]),
+    "missing radius": (lambda p, c: p.write_text("id,x,y\n1,0,0\n2,1.98,0\n3,0.99,1.7\n"),
+                       ["particles.csv", "line 1", "radius", "missing column"]),
+    "negative radius": (lambda p, c: edit(p, 5, "3,0.99,1.70,-1.0\n"), ["particles.csv", "line 5", "radius", "> 0"]),
+    "short row": (lambda p, c: edit(c, 4, "3,1\n"), ["contacts.csv", "line 4", "fx", "columns"]),
+    "duplicate id": (lambda p, c: edit(p, 5, "2,0.99,1.70,1.0\n"), ["particles.csv", "line 5", "id", "listed twice"]),
+    "coincident centres": (lambda p, c: edit(p, 4, "2,0.0,0.0,1.0\n"), ["contacts.csv", "line 2", "1-2",
+                                                                        "x: the two centres coincide"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(TABLE_CASES))
+def test_malformed_table_input(tmp_path, capsys, case):
+    p, c = tmp_path / "particles.csv", tmp_path / "contacts.csv"
+    shutil.copy(DATA / "table" / "particles.csv", p)
+    shutil.copy(DATA / "table" / "contacts.csv", c)
+    change, pieces = TABLE_CASES[case]
+    change(p, c)
+    rc, err = convert(capsys, p, c, "--out", tmp_path / "x.json")
+    assert rc == 2
+    for piece in pieces:
+        assert piece in err, (piece, err)
+
+
+def test_table_frames_missing_and_mismatched(tmp_path, capsys):
+    p, c = tmp_path / "particles.csv", tmp_path / "contacts.csv"
+    p.write_text("frame,id,x,y,radius\n1,1,0,0,1\n1,2,1.98,0,1\n")
+    c.write_text("frame,id1,id2,fx,fy\n1,1,2,-0.02,0\n")
+    rc, err = convert(capsys, p, c, "--frame", "4", "--out", tmp_path / "x.json")
+    assert rc == 2 and "particles.csv: frame 4: frame: not in the file" in err
+    c.write_text("frame,id1,id2,fx,fy\n1,1,2,-0.02,0\n3,1,2,-0.02,0\n")
+    rc, err = convert(capsys, p, c, "--out", tmp_path / "x.json")
+    assert rc == 2 and "contacts.csv: frame 3: frame: not in particles.csv (mismatched files)" in err
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(which=st.sampled_from(["particles.csv", "contacts.csv"]), junk=st.binary(max_size=30), at=st.floats(0, 1))
+def test_garbled_tables_never_raise(tmp_path_factory, capsys, which, junk, at):
+    folder = tmp_path_factory.mktemp("fuzz")
+    for name in ("particles.csv", "contacts.csv"):
+        shutil.copy(DATA / "table" / name, folder / name)
+    data = (folder / which).read_bytes()
+    i = int(at * len(data))
+    (folder / which).write_bytes(data[:i] + junk + data[i:])
+    rc, err = convert(capsys, folder / "particles.csv", folder / "contacts.csv", "--format", "table",
+                      "--out", folder / "x.json")
     assert rc in (0, 2)
     assert (rc == 0) == (err == ""), err

@@ -32,7 +32,6 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..scene import Scene, SceneError, build_scene
 from ..vec import cross
-from .text import line_of
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
@@ -63,17 +62,13 @@ class Snapshot:
     frame: object = None
     frames: list | None = None
     notes: dict = field(default_factory=dict)  # format-specific report entries (duplicates, walls, ...)
-    particle_rows: tuple | None = None   # (file, data row per particle or None = index[, line of row 0])
-    contact_rows: tuple | None = None    # (file, data row per contact or None = index[, line of row 0])
+    particle_line: object = None   # particle index → "<file>: line L" (one-line errors), or None
+    contact_line: object = None    # contact index → "<file>: line L", or None
 
     def where(self, kind: str, index: int) -> str:
         """"<file>: line L" of a particle or contact (or the source), for one-line errors."""
-        rows = self.particle_rows if kind == "particle" else self.contact_rows
-        if rows is None:
-            return self.source
-        path, row = rows[:2]
-        row = int(index if row is None else row[index])
-        return f"{path}: line {rows[2] + row if len(rows) > 2 else line_of(path, row)}"
+        locate = self.particle_line if kind == "particle" else self.contact_line
+        return self.source if locate is None else locate(int(index))
 
 
 @dataclass

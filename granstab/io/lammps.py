@@ -26,10 +26,9 @@ import numpy as np
 
 from ..scene import SceneError
 from .build import Snapshot, branch_vectors
+from .columns import CONTACT_NAMES, columns_option, contact_forces, to_indices, unique_ids
 from .text import read_block
 
-CONTACT_NAMES = {"id1", "id2", "fx", "fy", "fz", "fnx", "fny", "fnz", "ftx", "fty", "ftz", "delx", "dely", "delz",
-                 "cx", "cy", "cz", "delta", "-"}
 ATOM_ALIASES = {"xu": "x", "yu": "y", "zu": "z", "xs": "xs", "ys": "ys", "zs": "zs"}
 GRAN_LOCAL = {"pos": ["-"] * 6, "vel": ["-"] * 6, "id": ["id1", "id2", "-"], "force": ["fx", "fy", "fz"],
               "force_normal": ["fnx", "fny", "fnz"], "force_tangential": ["ftx", "fty", "ftz"], "torque": ["-"] * 3,
@@ -279,8 +278,13 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
     data = read_block(cblock.text, cblock.first_line, cpath, names, cblock.count, "entries")
     col = {name: data[:, k] for k, name in enumerate(names) if name != "-"}
     dim = script["dimension"] if script and script["dimension"] else dim_hint
-    force, how = _forces(cpath, step, col, dim, len(data))
-    p, q = _indices(cpath, cblock, ids, col)
+    for need in ("id1", "id2"):
+        if need not in col:
+            raise SceneError(f"{cpath}: timestep {step}: {need}: no column (name the columns with --columns)")
+    force, how = contact_forces(f"{cpath}: timestep {step}", col, dim)
+    line = lambda row: f"{cpath}: line {cblock.first_line + row}"  # noqa: E731
+    what = f"not in the atom dump at timestep {step}"
+    p, q = (to_indices(ids, col[name], name, line, what) for name in ("id1", "id2"))
     lattice = lattice_of(ablock, dim)
     branch = branch_vectors(x[:, :dim], p, q, lattice)[0]
     d = np.linalg.norm(branch, axis=1)
@@ -297,33 +301,8 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
         frames=sorted(set(a_steps) & set(c_steps)),
         notes={"non_touching_pairs": dropped, "law_notes": notes, "dimension": dim, "forces_from": how,
                "columns": dict(enumerate(names, 1))},
-        particle_rows=(apath, None, ablock.first_line), contact_rows=(cpath, rows, cblock.first_line))
-
-
-def _forces(path: Path, step, col: dict, dim: int, rows: int):
-    """f^pq on id1: the total force (fx, fy, fz), or its normal part (fnx, ...) plus the tangential part (ftx, ...)
-    when the dump gives them separately (LAMMPS pair/local with granular styles: fx = F_n only, p1-p3 = F_t)."""
-    axes = "xyz"[:dim]
-    for need in ("id1", "id2"):
-        if need not in col:
-            raise SceneError(f"{path}: timestep {step}: {need}: no column (name the columns with --columns)")
-
-    def vector(prefix):
-        if all(prefix + a in col for a in axes):
-            return np.stack([col[prefix + a] for a in axes], axis=1)
-        if any(prefix + a in col for a in axes):
-            missing = next(prefix + a for a in axes if prefix + a not in col)
-            raise SceneError(f"{path}: timestep {step}: {missing}: no column ({dim}D needs {', '.join(prefix + a for a in axes)})")
-        return None
-
-    total, normal, tangential = vector("f"), vector("fn"), vector("ft")
-    if total is not None:
-        return total, "fx, fy" + (", fz" if dim == 3 else "") + " (total force on id1)"
-    if normal is None:
-        raise SceneError(f"{path}: timestep {step}: fx: no force column (name the columns with --columns)")
-    if tangential is None:
-        return normal, "normal part only (no tangential columns: frictionless data?)"
-    return normal + tangential, "normal part (pair/local fx, fy, fz) + tangential part (p1, p2, p3)"
+        particle_line=lambda i: f"{apath}: line {ablock.first_line + i}",
+        contact_line=lambda c: f"{cpath}: line {cblock.first_line + rows[c]}")
 
 
 def _atoms(path: Path, block: Block):
@@ -339,7 +318,7 @@ def _atoms(path: Path, block: Block):
     if np.any(ids != col["id"]):
         row = int(np.flatnonzero(ids != col["id"])[0])
         raise SceneError(f"{path}: line {block.first_line + row}: id: not an integer ({col['id'][row]})")
-    check_unique_block(ids, path, block)
+    unique_ids(ids, lambda row: f"{path}: line {block.first_line + row}", f"in timestep {block.timestep}")
     radius = col["radius"] if "radius" in col else col["diameter"] / 2
     if "x" in col:
         x = np.stack([col["x"], col["y"], col.get("z", np.zeros(len(ids)))], axis=1)
@@ -354,26 +333,10 @@ def _atoms(path: Path, block: Block):
     return ids, x, radius, 2 if flat else 3
 
 
-def check_unique_block(ids, path, block):
-    order = np.argsort(ids, kind="stable")
-    same = np.flatnonzero(ids[order][1:] == ids[order][:-1])
-    if same.size:
-        row = order[same[0] + 1]
-        raise SceneError(f"{path}: line {block.first_line + row}: id: {ids[row]} listed twice in timestep "
-                         f"{block.timestep}")
-
-
 def _contact_columns(path: Path, block: Block, columns: str | None, script) -> list:
     width = len(block.columns)
     if columns:
-        names = [c.strip() for c in columns.split(",")]
-        bad = [c for c in names if c not in CONTACT_NAMES]
-        if bad:
-            raise SceneError(f"--columns: unknown name {bad[0]!r} (known: {', '.join(sorted(CONTACT_NAMES))})")
-        if len(names) != width:
-            raise SceneError(f"--columns: {len(names)} names for the {width} columns of {path} "
-                             f"({' '.join(block.columns)})")
-        return names
+        return columns_option(columns, width, str(path), " ".join(block.columns))
     known = compute_columns(script["computes"], (script["pair"] or [None])[0]) if script else {}
     names = [c if c in CONTACT_NAMES else known.get(c) for c in block.columns]
     if "index" in block.columns:
@@ -383,17 +346,3 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
         raise SceneError(f"{path}: line {block.first_line - 1}: {unknown}: ambiguous column: name the columns with "
                          "--columns id1,id2,fx,fy,fz,... or give the input script as well")
     return names
-
-
-def _indices(path: Path, block: Block, ids, col):
-    order = np.argsort(ids)
-    out = []
-    for name in ("id1", "id2"):
-        values = col[name]
-        where = np.minimum(np.searchsorted(ids[order], values), len(ids) - 1)
-        bad = np.flatnonzero(ids[order][where] != values)
-        if bad.size:
-            raise SceneError(f"{path}: line {block.first_line + bad[0]}: {name}: unknown atom id {values[bad[0]]:g} "
-                             f"(not in the atom dump at timestep {block.timestep})")
-        out.append(order[where])
-    return out

@@ -96,7 +96,8 @@ def read_annulus(folder: Path, frame=None) -> Snapshot:
     return Snapshot(source=str(folder), format="rigidlibrary-annulus", dim=2, ids=ids, x=x, radius=P[:, 4],
                     p=p, q=q, force=force, normal=n, wall_flags=edge, length_unit="px", frame=int(frame),
                     frames=[int(f) for f in frames], notes={"walls": walls, "duplicates": duplicates},
-                    particle_rows=(pos_path, prow), contact_rows=(adj_path, rows[chosen]))
+                    particle_line=lambda i: f"{pos_path}: line {line_of(pos_path, prow[i])}",
+                    contact_line=lambda c: f"{adj_path}: line {line_of(adj_path, rows[chosen[c]])}")
 
 
 def _compare_listings(key, forces, first, counts) -> dict:
@@ -189,5 +190,6 @@ def read_datasim(folder: Path, frame=None) -> Snapshot:
     return Snapshot(source=str(folder), format="rigidlibrary-datasim", dim=2, ids=np.arange(n_particles), x=x,
                     radius=radius, p=i, q=j, force=force, normal=n, mobilised=con[:, 4] != 0,
                     lattice=np.array([[box, 0.0], [shear * box, box_y]]), law=law, length_unit="simulation units",
-                    frame=frame, frames=steps, notes=notes, particle_rows=(init_path, np.arange(n_particles)),
-                    contact_rows=(con_path, np.arange(len(con))))
+                    frame=frame, frames=steps, notes=notes,
+                    particle_line=lambda i: f"{init_path}: line {line_of(init_path, i)}",
+                    contact_line=lambda c: f"{con_path}: line {line_of(con_path, c)}")

@@ -1,0 +1,76 @@
+"""The generic particle + contact tables: the same scenes as the dedicated readers when the same data are
+written as tables (2D magnitudes f_n, f_t with pairs listed twice; 3D force vectors), --columns, frames."""
+from pathlib import Path
+
+import numpy as np
+
+from granstab.cli import main
+from granstab.io import load
+
+DATA = Path(__file__).parent / "data" / "io"
+ROOT = Path(__file__).parents[1]
+KEYS = ("x", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "load", "k", "alpha", "mu")
+
+
+def test_annulus_written_as_tables_gives_the_same_scene(tmp_path):
+    pos = np.loadtxt(DATA / "annulus" / "particle_positions.txt", delimiter=",")
+    adj = np.loadtxt(DATA / "annulus" / "Adjacency_list.txt", delimiter=",")
+    np.savetxt(tmp_path / "particles.csv", pos[:, :5], delimiter=",", header="frame,id,x,y,radius", comments="")
+    # both listings of every pair, the id1 > id2 one first (RigidLibrary's choice), as f_t, f_n magnitudes
+    rows = adj[np.lexsort((adj[:, 1] < adj[:, 2], np.maximum(adj[:, 1], adj[:, 2]), np.minimum(adj[:, 1], adj[:, 2]),
+                           adj[:, 0]))]
+    np.savetxt(tmp_path / "contacts.txt", rows, header="frame id1 id2 ft fn", comments="")
+    opts = dict(geometry="touching", mu=0.3, outside_cone="elastic", frame=2)
+    table = load([tmp_path / "particles.csv", tmp_path / "contacts.txt"], **opts)
+    ref = load(DATA / "annulus", **opts)
+    a, b = table.scene, ref.scene
+    assert a.names == b.names and np.array_equal(a.p, b.p) and a.state == b.state and a.n_contacts > 20
+    for key in KEYS:
+        assert np.abs(getattr(a, key) - getattr(b, key)).max() <= 1e-15 * max(np.abs(getattr(b, key)).max(), 1), key
+    dup = table.report["duplicates"]
+    assert dup["pairs_listed_twice"] == a.n_contacts and dup["newton_third_law_largest_relative_misfit"] == 0.0
+    assert table.frames == [1.0, 2.0] and table.report["frame"] == 2.0
+
+
+def test_3d_scene_through_a_force_vector_table(tmp_path):
+    ref = load([DATA / "lammps" / "atoms3d.dump", DATA / "lammps" / "contacts3d.dump",
+                ROOT / "examples" / "dem" / "in.spheres3d"], timestep=14000)
+    s = ref.scene
+    atoms = np.loadtxt((DATA / "lammps" / "atoms3d.dump").read_text().split("ITEM: TIMESTEP\n14000\n")[1]
+                       .split("\n", 7)[7].splitlines())
+    radius_of = dict(zip(atoms[:, 0].astype(int), atoms[:, 5]))
+    ids = np.array(s.names).astype(int)
+    np.savetxt(tmp_path / "p.csv", np.column_stack([ids, s.x, [radius_of[i] for i in ids]]), delimiter=",",
+               header="id,x,y,z,radius", comments="")
+    np.savetxt(tmp_path / "c.csv", np.column_stack([ids[s.p], ids[s.q], s.force]), delimiter=",",
+               header="id1,id2,fx,fy,fz", comments="", fmt="%.17g")
+    got = load([tmp_path / "p.csv", tmp_path / "c.csv"], k=1000, alpha=0.5, mu=0.5)
+    a = got.scene
+    assert a.dim == 3 and a.names == s.names and a.state == s.state
+    for key in ("x", "point", "normal", "curvature_p", "force", "load", "k"):
+        assert np.abs(getattr(a, key) - getattr(s, key)).max() <= 1e-12 * max(np.abs(getattr(s, key)).max(), 1), key
+
+
+def test_columns_rename_a_foreign_header(tmp_path, capsys):
+    (tmp_path / "p.csv").write_text((DATA / "table" / "particles.csv").read_text())
+    (tmp_path / "c.csv").write_text("a,b,c,d\n" + "\n".join((DATA / "table" / "contacts.csv").read_text()
+                                                           .splitlines()[1:]) + "\n")
+    rc = main(["convert", str(tmp_path / "p.csv"), str(tmp_path / "c.csv"), "--format", "table",
+               "--out", str(tmp_path / "x.json")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "c.csv: line 1: a: unknown column: name the columns with --columns" in err
+    rc = main(["convert", str(tmp_path / "p.csv"), str(tmp_path / "c.csv"), "--format", "table",
+               "--columns", "id1,id2,fx,fy", "--out", str(tmp_path / "x.json")])
+    assert rc == 0
+    direct = load([DATA / "table" / "particles.csv", DATA / "table" / "contacts.csv"]).scene
+    renamed = load([tmp_path / "p.csv", tmp_path / "c.csv"], format="table", columns="id1,id2,fx,fy").scene
+    assert np.array_equal(renamed.force, direct.force) and np.array_equal(renamed.point, direct.point)
+
+
+def test_three_disk_example():
+    imp = load([DATA / "table" / "particles.csv", DATA / "table" / "contacts.csv"])
+    s = imp.scene
+    assert (s.n_particles, s.n_contacts, s.dim) == (3, 3, 2)
+    d = np.linalg.norm(s.x[s.q] - s.x[s.p], axis=1)
+    assert np.allclose(np.linalg.norm(s.point - s.x[s.p], axis=1), 1.0 - (2.0 - d) / 2, rtol=0, atol=1e-15)
+    assert imp.report["law"]["k"]["source"].startswith("built-in default")
