@@ -74,3 +74,29 @@ def test_three_disk_example():
     d = np.linalg.norm(s.x[s.q] - s.x[s.p], axis=1)
     assert np.allclose(np.linalg.norm(s.point - s.x[s.p], axis=1), 1.0 - (2.0 - d) / 2, rtol=0, atol=1e-15)
     assert imp.report["law"]["k"]["source"].startswith("built-in default")
+
+
+def test_walls_become_loads_and_the_law_columns_are_used(tmp_path):
+    (tmp_path / "p.csv").write_text((DATA / "table" / "particles.csv").read_text())
+    # the three disks on a floor (wall id -1) that carries their weight; per-contact kn, kt, mu
+    (tmp_path / "c.csv").write_text(
+        "id1,id2,fx,fy,kn,kt,mu\n"
+        "1,2,-0.02,0.0,100,50,0.4\n2,3,0.01,-0.017,100,25,0.4\n3,1,0.01,0.017,200,50,0.3\n"
+        "1,-1,0.0,0.05,0,0,0\n2,-1,0.0,0.05,0,0,0\n")
+    imp = load([tmp_path / "p.csv", tmp_path / "c.csv"])
+    s, rep = imp.scene, imp.report
+    assert s.n_contacts == 3 and rep["walls"]["wall_contacts"] == 2 and rep["walls"]["particles_touching"] == 2
+    assert np.array_equal(s.k, [100, 100, 200]) and np.array_equal(s.alpha, [0.5, 0.25, 0.25])
+    assert np.array_equal(s.mu, [0.4, 0.4, 0.3]) and rep["law"]["k"]["source"] == "c.csv column kn"
+    # the loads follow the particle contacts (b = −Σf): for 1 and 2 they carry the wall's push
+    assert np.allclose(s.load[0], -(np.array([-0.02, 0.0]) - np.array([0.01, 0.017])), atol=1e-15)
+    # imbalance with the wall forces: particle 1: f12 + f13 + wall = (-0.02, 0) + (-0.01, -0.017) + (0, 0.05)
+    net1 = np.linalg.norm([-0.03, 0.033])
+    scale1 = 0.02 + np.hypot(0.01, 0.017) + 0.05
+    net2 = np.linalg.norm(np.array([0.02, 0.0]) + np.array([0.01, -0.017]) + np.array([0.0, 0.05]))
+    scale2 = 0.02 + np.hypot(0.01, 0.017) + 0.05
+    net3 = np.linalg.norm(np.array([-0.01, 0.017]) + np.array([0.01, 0.017]))
+    scale3 = 2 * np.hypot(0.01, 0.017)
+    ratios = np.array([net1 / scale1, net2 / scale2, net3 / scale3])
+    assert np.isclose(rep["imbalance"]["force"]["max"], ratios.max(), rtol=1e-12)
+    assert np.isclose(rep["imbalance"]["force"]["median"], np.median(ratios), rtol=1e-12)

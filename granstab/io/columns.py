@@ -7,7 +7,7 @@ import numpy as np
 from ..scene import SceneError
 
 CONTACT_NAMES = {
-    "id1", "id2",                 # the two particles (ids as in the particle file)
+    "id1", "id2",                 # the two particles (ids as in the particle file; a negative id2 is a wall)
     "fx", "fy", "fz",             # total force on id1 by id2
     "fnx", "fny", "fnz",          # … or its normal part
     "ftx", "fty", "ftz",          # … plus its tangential part
@@ -15,6 +15,7 @@ CONTACT_NAMES = {
     "nx", "ny", "nz",             # unit normal from id1 to id2 (default: the centre line)
     "mx", "my", "mz", "m",        # contact moment on id1 (3D components, 2D scalar)
     "mobilised",                  # nonzero: at the Coulomb limit by the file's own test
+    "kn", "kt", "mu",             # the file's contact law per contact: k = kn, α = kt/kn, μ
     "delx", "dely", "delz", "cx", "cy", "cz", "delta", "frame",   # read and checked or ignored
     "-",                          # ignore this column
 }

@@ -87,7 +87,9 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None) -> Sn
     x = np.stack([pcol[a] for a in "xyz"[:dim]], axis=1)
     radius = pcol.get("radius", pcol.get("r", pcol.get("diameter", np.zeros(0)) / 2))
     what = "not in the particle table" + ("" if which is None else f" at frame {which:g}")
-    p, q = (to_indices(ids, ccol[n], n, cline_of, what) for n in ("id1", "id2"))
+    wall = ccol["id2"] < 0
+    p = to_indices(ids, ccol["id1"], "id1", cline_of, what)
+    q = np.where(wall, p, to_indices(ids, np.where(wall, ids[0], ccol["id2"]), "id2", cline_of, what))
     normal = None
     if "nx" in ccol:
         normal = np.stack([ccol[f"n{a}"] for a in "xyz"[:dim]], axis=1)
@@ -100,13 +102,19 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None) -> Sn
         with np.errstate(invalid="ignore", divide="ignore"):
             normal = normal / np.linalg.norm(normal, axis=1)[:, None]
     moment = _moments(ccol, dim)
+    wall_load, walls = _walls(wall, p, force, len(ids), ccol["id2"])
+    rows = np.flatnonzero(~wall)
+    law = _law(ccol, rows, cpath)
     p, q, force, normal, moment, mobilised, keep, duplicates = _one_row_per_pair(
-        p, q, force, normal, moment, ccol.get("mobilised"))
+        p[rows], q[rows], force[rows], None if normal is None else normal[rows],
+        None if moment is None else moment[rows], None if "mobilised" not in ccol else ccol["mobilised"][rows])
+    law = {k: (v[keep], where) for k, (v, where) in law.items()}
+    keep = rows[keep]
     return Snapshot(source=f"{ppath} + {cpath}", format="table", dim=dim, ids=ids.astype(np.int64)
                     if np.all(ids == np.round(ids)) else ids, x=x, radius=radius, p=p, q=q, force=force,
-                    normal=normal, moment=moment, mobilised=mobilised,
+                    normal=normal, moment=moment, mobilised=mobilised, wall_load=wall_load, law=law,
                     frame=None if which is None else float(which), frames=frames,
-                    notes={"duplicates": duplicates, "forces_from": how},
+                    notes={"duplicates": duplicates, "forces_from": how, "walls": walls},
                     particle_line=pline_of, contact_line=lambda c: cline_of(keep[c]))
 
 
@@ -124,6 +132,30 @@ def _frame_rows(ppath, cpath, pcol, ccol, frame):
         raise SceneError(f"{cpath}: frame {extra[0]:g}: frame: not in {ppath.name} (mismatched files)")
     return (np.flatnonzero(pcol["frame"] == which), np.flatnonzero(ccol["frame"] == which),
             [float(f) for f in frames], which)
+
+
+def _walls(wall, p, force, n, id2):
+    """Rows with a negative id2 are forces on id1 by a wall: summed per particle, they are external loads."""
+    if not np.any(wall):
+        return None, "none in the file"
+    load = np.zeros((n, force.shape[1]))
+    np.add.at(load, p[wall], force[wall])
+    return load, {"wall_contacts": int(wall.sum()), "walls": int(np.unique(id2[wall]).size),
+                  "particles_touching": int(np.unique(p[wall]).size),
+                  "treatment": "wall forces become external loads on their particles (with the rest of the "
+                               "imbalance, b = −Σf over particle contacts)"}
+
+
+def _law(col, rows, path):
+    """k = kn, α = kt/kn, μ per contact where the table has those columns."""
+    law = {}
+    if "kn" in col:
+        law["k"] = (col["kn"][rows], f"{path.name} column kn")
+        if "kt" in col:
+            law["alpha"] = (col["kt"][rows] / col["kn"][rows], f"{path.name} columns kt/kn")
+    if "mu" in col:
+        law["mu"] = (col["mu"][rows], f"{path.name} column mu")
+    return law
 
 
 def _moments(col, dim):
