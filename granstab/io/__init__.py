@@ -14,9 +14,9 @@ from pathlib import Path
 from ..scene import SceneError
 from .build import GEOMETRY, OUTSIDE_CONE, Imported, Options, build
 from .report import format_report
-from . import lammps, rigidlibrary, table
+from . import lammps, mercury, rigidlibrary, table
 
-FORMATS = ("rigidlibrary-annulus", "rigidlibrary-datasim", "lammps", "table")
+FORMATS = ("rigidlibrary-annulus", "rigidlibrary-datasim", "lammps", "mercurydpm", "table")
 OPTION_KEYS = {"k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol", "length_scale", "units", "region",
                "keep_rattlers"}
 
@@ -33,6 +33,8 @@ def detect(paths: list[Path]) -> str:
         return "rigidlibrary-datasim"
     if any(lammps.is_dump(p) for p in paths):
         return "lammps"
+    if mercury.is_mercury(paths):
+        return "mercurydpm"
     if all(table.is_table(p) for p in paths):
         return "table"
     raise SceneError(f"{first}: format: not recognised (known: {', '.join(FORMATS)}); name it with --format")
@@ -59,6 +61,8 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, **op
         snap = rigidlibrary.read_annulus(paths[0], which)
     elif fmt == "rigidlibrary-datasim":
         snap = rigidlibrary.read_datasim(paths[0], which)
+    elif fmt == "mercurydpm":
+        snap = mercury.read_mercury(paths, which)
     elif fmt == "lammps":
         snap = lammps.read_lammps(paths, which, options.get("columns"))
     else:
