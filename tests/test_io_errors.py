@@ -3,6 +3,7 @@ timestep) and the field; never a traceback (issue 9, issue 12). Fixtures: tests/
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -19,6 +20,20 @@ def convert(capsys, *args):
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "Traceback" not in err
     return rc, err
+
+
+def garble(path: Path, cut: float, junk: bytes, at: float, cut_below: float = 0.5):
+    """Truncate `path` at `cut` of its length (when cut < cut_below) and splice `junk` in at `at`."""
+    data = path.read_bytes()
+    data = data[: int(cut * len(data))] if cut < cut_below else data
+    i = int(at * len(data))
+    path.write_bytes(data[:i] + junk + data[i:])
+
+
+def exits_cleanly(rc: int, err: str):
+    """Success with nothing on stderr, or exit 2 with one line (convert() checked it is one line)."""
+    assert rc in (0, 2)
+    assert (rc == 0) == (err == ""), err
 
 
 def copy(tmp_path, name):
@@ -142,13 +157,9 @@ def test_garbled_annulus_files_never_raise(tmp_path_factory, capsys, which, cut,
     folder = tmp_path_factory.mktemp("fuzz") / "annulus"
     shutil.copytree(DATA / "annulus", folder)
     path = folder / which
-    data = path.read_bytes()
-    data = data[: int(cut * len(data))] if cut < 0.5 else data
-    i = int(at * len(data))
-    path.write_bytes(data[:i] + junk + data[i:])
+    garble(path, cut, junk, at, 0.5)
     rc, err = convert(capsys, folder, "--frame", "1", "--out", folder / "x.json")
-    assert rc in (0, 2)
-    assert (rc == 0) == (err == ""), err
+    exits_cleanly(rc, err)
 
 
 LAMMPS = DATA / "lammps"
@@ -241,13 +252,9 @@ def test_garbled_lammps_dumps_never_raise(tmp_path_factory, capsys, which, cut, 
     folder = tmp_path_factory.mktemp("fuzz")
     atoms, contacts = lammps_copy(folder)
     path = folder / which
-    data = path.read_bytes()
-    data = data[: int(cut * len(data))] if cut < 0.5 else data
-    i = int(at * len(data))
-    path.write_bytes(data[:i] + junk + data[i:])
+    garble(path, cut, junk, at, 0.5)
     rc, err = convert(capsys, atoms, contacts, SCRIPT2, "--out", folder / "x.json")
-    assert rc in (0, 2)
-    assert (rc == 0) == (err == ""), err
+    exits_cleanly(rc, err)
 
 
 TABLE_CASES = {
@@ -293,10 +300,34 @@ def test_garbled_tables_never_raise(tmp_path_factory, capsys, which, junk, at):
     folder = tmp_path_factory.mktemp("fuzz")
     for name in ("particles.csv", "contacts.csv"):
         shutil.copy(DATA / "table" / name, folder / name)
-    data = (folder / which).read_bytes()
-    i = int(at * len(data))
-    (folder / which).write_bytes(data[:i] + junk + data[i:])
+    garble(folder / which, 1.0, junk, at)
     rc, err = convert(capsys, folder / "particles.csv", folder / "contacts.csv", "--format", "table",
                       "--out", folder / "x.json")
-    assert rc in (0, 2)
-    assert (rc == 0) == (err == ""), err
+    exits_cleanly(rc, err)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(which=st.sampled_from(["Contact5000.dat", "PosVel5000.dat", "posinit.dat", "Parameters_final.dat"]),
+       cut=st.floats(0.0, 1.0), junk=st.binary(max_size=30), at=st.floats(0.0, 1.0))
+def test_garbled_datasim_files_never_raise(tmp_path_factory, capsys, which, cut, junk, at):
+    folder = tmp_path_factory.mktemp("fuzz") / "DataSim"
+    shutil.copytree(DATASIM, folder)
+    path = folder / which
+    garble(path, cut, junk, at, 0.3)
+    rc, err = convert(capsys, folder, "--out", folder / "x.json")
+    exits_cleanly(rc, err)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(which=st.sampled_from([".data", ".fstat"]), cut=st.floats(0.0, 1.0), junk=st.binary(max_size=30),
+       at=st.floats(0.0, 1.0))
+def test_garbled_mercury_files_never_raise(tmp_path_factory, capsys, which, cut, junk, at):
+    from test_io_mercury import table_scene, write_mercury
+
+    folder = tmp_path_factory.mktemp("fuzz")
+    ref = table_scene().scene
+    files = write_mercury(folder / "run", [(1.0, ref.x, np.ones(3), ref.p, ref.q, ref.force, [])])
+    path = folder / f"run{which}"
+    garble(path, cut, junk, at, 0.5)
+    rc, err = convert(capsys, *files, "--out", folder / "x.json")
+    exits_cleanly(rc, err)

@@ -1,6 +1,5 @@
 """RigidLibrary readers on the real data (../shared/data/rigidlibrary): the annulus frame of
 presets/annulus_frame.json is reproduced, DataSim's Lees–Edwards snapshot converts with its ≈540 sliding contacts."""
-import json
 from pathlib import Path
 
 import numpy as np

@@ -56,6 +56,8 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, **op
     fmt = detect(paths) if format == "auto" else format
     if fmt not in FORMATS:
         raise SceneError(f"--format: must be auto or one of {', '.join(FORMATS)}, got {fmt!r}")
+    if options.get("columns") and fmt not in ("lammps", "table"):
+        raise SceneError(f"--columns: the {fmt} format has fixed columns (only lammps and table name them)")
     which = frame if frame is not None else timestep
     if fmt == "rigidlibrary-annulus":
         snap = rigidlibrary.read_annulus(paths[0], which)

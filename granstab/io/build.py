@@ -138,6 +138,9 @@ def build(snap: Snapshot, opts: Options) -> Imported:
         keep_p &= touched
     else:
         dropped = np.zeros(len(x), bool)
+    if not np.any(keep_p):
+        raise SceneError(f"{snap.source}: contacts: none left in the scene ({len(d)} in the frame, "
+                         f"{int(cut.sum())} cut around the cell, {selection['contacts']} outside the region)")
     index = np.cumsum(keep_p) - 1
     c = np.flatnonzero(keep_c)
     p, q = index[snap.p[c]], index[snap.q[c]]

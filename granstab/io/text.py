@@ -25,8 +25,10 @@ def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_ro
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
     except (ValueError, UnicodeDecodeError):
         _raise_first_bad_line(path, fields, delimiter, comments, skiprows)
-    if data.size == 0 and min_rows:
-        raise SceneError(f"{path}: no data rows")
+    if data.size == 0:
+        if min_rows:
+            raise SceneError(f"{path}: no data rows")
+        return np.zeros((0, len(fields)))
     if data.shape[0] < min_rows:
         raise SceneError(f"{path}: {data.shape[0]} data rows, expected at least {min_rows}")
     if data.size and data.shape[1] < len(fields):
