@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..scene import SceneError
+from ..reading import SceneError
 from .build import GEOMETRY, OUTSIDE_CONE, Imported, Options, build
 from .report import format_report
 from . import lammps, mercury, rigidlibrary, table
@@ -90,7 +90,7 @@ def parse_region(text: str):
         return [v for v in rest.split(",") if v]
     path = Path(rest[1:])
     if path.suffix.lower() in (".json", ".toml"):
-        from ..scene import load_scene
+        from ..files import load_scene
         return list(load_scene(path).names)
     try:
         return path.read_text(encoding="utf-8").replace(",", " ").split()

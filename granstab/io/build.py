@@ -30,7 +30,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from ..scene import Scene, SceneError, build_scene
+from ..reading import SceneError
+from ..scene import Scene, build_scene
 from ..vec import cross
 
 GEOMETRY = ("centres", "touching")

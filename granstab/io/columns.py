@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene import SceneError
+from ..reading import SceneError
 
 CONTACT_NAMES = {
     "id1", "id2",                 # the two particles (ids as in the particle file; a negative id2 is a wall)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene import SceneError
+from ..reading import SceneError
 from .build import Snapshot, branch_vectors
 from .columns import CONTACT_NAMES, columns_option, contact_forces, to_indices, unique_ids
 from .text import read_block

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene import SceneError
+from ..reading import SceneError
 from .build import Snapshot
 from .text import check_unique, integer_column, line_of, pick_frame, read_table
 

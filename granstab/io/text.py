@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene import SceneError
+from ..reading import SceneError
 
 
 def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_rows=0) -> np.ndarray:
