@@ -100,3 +100,17 @@ def test_walls_become_loads_and_the_law_columns_are_used(tmp_path):
     ratios = np.array([net1 / scale1, net2 / scale2, net3 / scale3])
     assert np.isclose(rep["imbalance"]["force"]["max"], ratios.max(), rtol=1e-12)
     assert np.isclose(rep["imbalance"]["force"]["median"], np.median(ratios), rtol=1e-12)
+
+
+def test_a_folder_of_tables_is_a_snapshot_for_analyze(tmp_path, capsys):
+    folder = tmp_path / "snap"
+    folder.mkdir()
+    for name in ("particles.csv", "contacts.csv"):
+        (folder / name).write_text((DATA / "table" / name).read_text())
+    assert main(["analyze", str(folder), "--json"]) == 0
+    out = capsys.readouterr().out
+    assert '"n_particles": 3' in out and '"n_contacts": 3' in out
+    (folder / "contacts.csv").unlink()
+    (folder / "particles.csv").unlink()
+    assert main(["analyze", str(folder)]) == 2
+    assert "no snapshot files in this folder" in capsys.readouterr().err

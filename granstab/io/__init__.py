@@ -42,6 +42,7 @@ def detect(paths: list[Path]) -> str:
 
 def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, **options) -> Imported:
     """Read a snapshot (a file, a folder or several files) into a Scene with its validation report.
+    A folder that is not a RigidLibrary layout stands for the files in it (one snapshot's dumps or tables).
 
     Options: k, alpha, mu (override the file's law), geometry ("centres" | "touching"), outside_cone
     ("sliding" | "project" | "elastic" | "error"), yield_rtol, length_scale (file length unit → scene unit),
@@ -50,6 +51,12 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, **op
     paths = [Path(p) for p in ([path_or_paths] if isinstance(path_or_paths, (str, Path)) else path_or_paths)]
     if not paths:
         raise SceneError("granstab.io.load: no input")
+    if len(paths) == 1 and paths[0].is_dir() and not (rigidlibrary.is_annulus(paths[0])
+                                                      or rigidlibrary.is_datasim(paths[0])):
+        paths = sorted(p for p in paths[0].iterdir() if p.is_file() and not p.name.startswith(".")
+                       and p.suffix.lower() not in (".json", ".toml", ".npz", ".py", ".sh", ".md"))
+        if not paths:
+            raise SceneError(f"{path_or_paths}: no snapshot files in this folder")
     unknown = sorted(set(options) - OPTION_KEYS - {"columns"})
     if unknown:
         raise SceneError(f"granstab.io.load: unknown option {unknown[0]!r}")
