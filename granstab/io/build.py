@@ -36,7 +36,6 @@ from ..vec import cross
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
-NAMES_SHOWN = 10
 
 
 @dataclass
