@@ -98,7 +98,6 @@ def test_datasim_lees_edwards_snapshot():
     assert rep["cone"]["outside"]["count"] == 0 and rep["forces"]["fn_nonpositive"]["count"] == 0
     raw = np.loadtxt(DATASIM / "Contact5000.dat")
     # normals and force magnitudes kept: f_n = −f·n as in the file
-    name_index = {name: i for i, name in enumerate(s.names)}
     rows = {(int(i), int(j)): r for r, (i, j) in enumerate(raw[:, :2])}
     pick = np.array([rows[(int(s.names[a]), int(s.names[b]))] for a, b in zip(s.p, s.q)])
     assert np.abs(s.normal - raw[pick, 2:4]).max() <= 1e-6
@@ -113,7 +112,7 @@ def test_datasim_lees_edwards_snapshot():
     assert rep["contacts"]["in_scene"] + rep["periodic"]["contacts_cut"] == 1928
     sliding = np.asarray(s.state) == "sliding"
     assert np.abs(s.yield_function()[sliding]).max() <= 1e-12 * np.abs(s.force).max()
-    assert name_index and rep["imbalance"]["moment"]["median"] < 1e-3
+    assert rep["imbalance"]["moment"]["median"] < 1e-3
 
 
 def test_datasim_imbalance_statistics_match_a_direct_sum():
@@ -134,4 +133,19 @@ def test_datasim_imbalance_statistics_match_a_direct_sum():
     assert np.isclose(got["p95"], np.percentile(ratio, 95), rtol=1e-12)
     assert np.isclose(got["max"], ratio.max(), rtol=1e-12)
     # RigidLibrary's tangential sign balances the moments; the opposite sign would not
-    assert imp.report["imbalance"]["moment"]["median"] < 1e-3
+    radius = np.loadtxt(DATASIM / "posinit.dat")[:, 3]
+    delta = raw[:, 5]                                     # Hookean k_rep = 1: the overlap is f_n
+    arm_i = (radius[i] - delta / 2)[:, None] * n
+    arm_j = -(radius[j] - delta / 2)[:, None] * n
+
+    def moment_median(sign):
+        g = -raw[:, 5:6] * n + sign * raw[:, 6:7] * t
+        torque, size = np.zeros(1024), np.zeros(1024)
+        for side, s_f, arm in ((i, 1, arm_i), (j, -1, arm_j)):
+            np.add.at(torque, side, s_f * (arm[:, 0] * g[:, 1] - arm[:, 1] * g[:, 0]))
+            np.add.at(size, side, np.linalg.norm(arm, axis=1) * np.linalg.norm(g, axis=1))
+        return np.median(np.abs(torque[size > 0]) / size[size > 0])
+
+    got = imp.report["imbalance"]["moment"]["median"]
+    assert got < 1e-3 and np.isclose(got, moment_median(+1), rtol=0.05)  # δ ≈ f_n here, not the geometric δ
+    assert moment_median(-1) > 100 * got
