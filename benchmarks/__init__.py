@@ -7,4 +7,5 @@ with its "## " heading), optionally `plot(results: dict, figdir: Path)` for its 
 `TOPICS` in report order. `benchmarks.runner.run` (what `granstab bench` calls) writes BENCHMARKS.md.
 """
 
-TOPICS = ("assembly", "sparse_vs_dense", "scaling", "field", "branches", "app_latency", "accuracy", "leave_out")
+TOPICS = ("assembly", "sparse_vs_dense", "scaling", "field", "branches", "app_latency", "accuracy", "leave_out",
+          "metrics")

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .analysis import analyze
+from .metric import CHOICES as METRIC_CHOICES
 from .branches import BOTH, MINUS, PLUS, RIGID
 from .files import load_scene
 from .scene import SceneError
@@ -55,7 +56,8 @@ def format_table(result) -> str:
     s = result.scene
     d = result.to_dict()
     lines = [f"{s.title or s.source}: {s.dim}D, {s.n_particles} particles, {s.n_contacts} contacts, "
-             f"{d['n_sliding']} potentially sliding, {len(result.branches)} branch(es), L = {result.length:.4g}"]
+             f"{d['n_sliding']} potentially sliding, {len(result.branches)} branch(es), metric {result.metric.name}"
+             + ("" if result.length is None else f", L = {result.length:.4g}") + f" (eigenvalues in {result.metric.units})"]
     for b in result.branches:
         mask = " ".join(f"{int(v):+d}" for v in b.mask[result.problem.sliding]) or "(all elastic)"
         lines.append(f"branch [{mask}]  zeros: {b.n_zero} (tol {b.zero_tol:.1e})  ℍ nullity: {b.uniqueness_n_zero}")
@@ -64,10 +66,19 @@ def format_table(result) -> str:
         lines.append("  sym(𝓗) eigenvalues: " + ", ".join(cells))
     sm = d["summary"]
     lines.append(f"verdict: {sm['verdict'].upper()} — {sm['reason']}")
+    low = [k.split("_")[1] for k, v in sm["counts_are"].items() if v != "totals"]
     lines.append(f"consistent eigenvalues: {sm['consistent_positive']} positive, {sm['consistent_negative']} "
-                 f"negative, {sm['consistent_zero']} zero; Type-2 non-uniqueness: "
+                 f"negative, {sm['consistent_zero']} zero"
+                 + (f" ({', '.join(low)}: lower bounds; suggested k: {sm.get('suggest_k')})" if low else "")
+                 + "; Type-2 non-uniqueness: "
                  f"{'yes' if sm['type2_nonuniqueness'] else 'no'}"
                  + ("; verdict hinges on an S within tolerance" if sm["hinges_on_tolerance"] else ""))
+    if sm.get("metrics"):
+        lines.append(f"metric family ({'robust' if sm['metric_robust'] else 'NOT robust'}): " + "; ".join(
+            f"{e['metric']}: {e['verdict']} {e['consistent_positive']}+/{e['consistent_negative']}-"
+            for e in sm["metrics"]))
+    if not sm["sufficient"]:
+        lines.append("not sufficient because: " + ", ".join(sm["insufficient_because"]))
     lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in d["errors"].items()))
     lines.append("timings: " + ", ".join(f"{k} {1e3 * v:.2f} ms" for k, v in d["timings"].items()))
     lines += [f"warning: {w}" for w in d["warnings"]]
@@ -75,9 +86,15 @@ def format_table(result) -> str:
 
 
 def cmd_analyze(args) -> int:
+    L = args.rotation_length
+    if L is not None and not (np.isfinite(L) and L > 0):
+        raise InputError(f"--rotation-length: must be a positive number, got {L:g}")
+    if L is not None and args.metric == "inertia":
+        raise InputError("--rotation-length: the inertia metric has no rotation length (use --metric L, L/10, 10L "
+                         "or family)")
     scene = load_scene(args.scene)
-    result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding, method=args.method,
-                     k=args.k, progress=args.progress)
+    result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length, max_sliding=args.max_sliding,
+                     method=args.method, k=args.k, progress=args.progress)
     print(json.dumps(result.to_dict()) if args.json else format_table(result))
     return 0
 
@@ -97,6 +114,58 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_convert(args) -> int:
+    """Snapshot(s) → contact-level scene JSON; prints the validation report (issue 9)."""
+    from .io import format_report, load
+
+    options = {key: getattr(args, key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
+                                                   "length_scale", "units", "region", "columns")
+               if getattr(args, key) is not None}
+    if args.keep_rattlers:
+        options["keep_rattlers"] = True
+    imported = load(args.inputs, format=args.format, frame=args.frame, timestep=args.timestep, **options)
+    Path(args.out).write_text(json.dumps(imported.scene.to_dict()), encoding="utf-8")
+    report = {**imported.report, "out": args.out}
+    print(json.dumps(report) if args.json else format_report(report) + f"\nwrote {args.out}")
+    return 0
+
+
+def frame_number(text: str):
+    """--frame/--timestep: an integer where it is one (frame numbers, steps), else a float (times)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    return int(value) if value.is_integer() else value
+
+
+def add_convert(sub) -> None:
+    p = sub.add_parser("convert", help="DEM snapshots / experimental frames → a contact-level scene (JSON)")
+    p.add_argument("inputs", nargs="+", help="a folder or file(s) of one snapshot")
+    p.add_argument("--out", required=True, help="scene file to write (JSON)")
+    p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.FORMATS")
+    which = p.add_mutually_exclusive_group()
+    which.add_argument("--frame", type=frame_number, default=None, help="frame to read (default: the first)")
+    which.add_argument("--timestep", type=frame_number, default=None, help="timestep to read (default: the first)")
+    p.add_argument("--region", help="box:lo,hi,lo,hi[,lo,hi] | ids:ID,... | ids:@FILE (keep these particles)")
+    p.add_argument("--k", type=float, help="normal stiffness (overrides the file's law)")
+    p.add_argument("--alpha", type=float, help="tangential/normal stiffness ratio")
+    p.add_argument("--mu", type=float, help="friction coefficient")
+    p.add_argument("--geometry", choices=["centres", "touching"], default=None,
+                   help="centres: contact at the middle of the overlap (default); touching: d split by the radii")
+    p.add_argument("--outside-cone", dest="outside_cone", choices=["sliding", "project", "elastic", "error"],
+                   default=None, help="forces outside the friction cone (default sliding: project, mark at yield)")
+    p.add_argument("--yield-rtol", dest="yield_rtol", type=float, default=None,
+                   help="relative distance to |f_t| = μ f_n that counts as at yield (default 1e-4)")
+    p.add_argument("--length-scale", dest="length_scale", type=float, default=None,
+                   help="scene length per file length unit (e.g. 0.027 for px → cm)")
+    p.add_argument("--units", help="name of the scene's length unit (report)")
+    p.add_argument("--columns", help="what each column is, e.g. id1,id2,fx,fy,fz (formats with named columns)")
+    p.add_argument("--keep-rattlers", action="store_true", help="keep particles without contacts")
+    p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    p.set_defaults(run=cmd_convert)
+
+
 def build_parser() -> Parser:
     parser = Parser(prog="granstab", description="Stability of granular clusters (Kuhn & Chang).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -110,6 +179,9 @@ def build_parser() -> Parser:
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--rotation-length", type=float, default=None,
                    help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
+    p.add_argument("--metric", choices=list(METRIC_CHOICES), default="family",
+                   help="projection metric: family (default: the verdict in L/10, L, 10L and inertia where masses are "
+                        "known, spectra in L, metric robustness reported), or only one of L, L/10, 10L, inertia")
     p.add_argument("--max-sliding", type=int, default=16, help="refuse more potentially sliding contacts")
     p.add_argument("--method", choices=["auto", "dense", "sparse"], default="auto",
                    help="dense: every eigenpair and the uniqueness analysis; sparse: the lowest --k eigenpairs per "
@@ -129,6 +201,7 @@ def build_parser() -> Parser:
     p.add_argument("--only", action="append", metavar="TOPIC",
                    help="run only this topic (benchmarks.TOPICS; repeatable); BENCHMARKS.md then holds only these")
     p.set_defaults(run=cmd_bench)
+    add_convert(sub)
     return parser
 
 
