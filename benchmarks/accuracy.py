@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 from granstab import shapes, sparse
 from granstab.analysis import analyze
 from granstab.branches import RIGID
-from granstab.rigid import Projection, dof_scale, rotations
+from granstab.rigid import Projection, dof_scale, rotation_length, rotations
 from granstab.studies import two_particle as tp
 
 from .figures import save
@@ -89,7 +89,7 @@ def cluster_case(eg, n_side, cfg) -> tuple[list, str]:
     parts = [(f"d{j}_{i}", shapes.Disk(1.0), (((i + 0.5 * (j % 2)) * a, j * a * np.sqrt(3) / 2), 0.0))
              for j in range(rws) for i in range(cols)]
     sc = shapes.scene_from_shapes(2, parts, k=1.0, alpha=0.8, mu=0.5, mobilised=0.4)
-    L = sparse.rotation_length(sc)
+    L = rotation_length(sc)
     norm = sparse.sparse_problem(sc).norm
     if eg is not None:
         t_ref, ref = once(lambda: projected_lowest(sc, eg.stiffness_exact(eg.cluster_from_scene(sc, parts)), K, L))

@@ -32,3 +32,16 @@ def test_quick_run_of_one_topic_writes_its_section_and_results(tmp_path):
     assert {name: d["contacts"] for name, d in scenes.items()} == {"two-particle pair (6 dofs)": 1,
                                                                    "50 disks, 2D (150 dofs)": 121}
     assert all(d[key] > 0 for d in scenes.values() for key in ("t_build", "t_analyze", "t_total"))
+
+
+@pytest.mark.slow
+def test_quick_run_of_every_topic(tmp_path):
+    """Every topic runs against the current core (a renamed core function breaks here, not in a release run) and
+    lands in BENCHMARKS.md, its table of contents and results.json; 20-60 s on a shared 2-core machine."""
+    assert main(["bench", "--quick", "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "BENCHMARKS.md").read_text(encoding="utf-8")
+    results = json.loads((tmp_path / "docs" / "bench" / "results.json").read_text())
+    assert list(results) == list(TOPICS)
+    headings = [line[3:] for line in text.splitlines() if line.startswith("## ")]
+    assert len(headings) == len(TOPICS) + 1 and headings[-1] == "Using the fast paths"
+    assert all(f"- [{h}](#" in text for h in headings)
