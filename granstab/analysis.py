@@ -122,7 +122,8 @@ METHODS = ("auto", "dense", "sparse")
 
 
 def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding: int = 16,
-            on_branch=None, method: str = "auto", k: int = 6, progress: bool = False) -> Analysis:
+            on_branch=None, method: str = "auto", k: int = 6, progress: bool = False, device: str = "cpu",
+            lowrank: bool | None = None) -> Analysis:
     """Analyse every loading branch of `scene` (Sec. 3, Appendix D).
 
     rotation_length_: L of the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric).
@@ -132,10 +133,16 @@ def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding:
     eigenpairs of sym(𝓗^i) per branch without any n_dof × n_dof matrix: granstab.sparse, for large clusters; see
     `analyze_sparse` for what it leaves out) or "auto" (dense up to sparse.DENSE_MAX_DOF dofs, sparse above).
     k: eigenpairs per branch on the sparse path. progress: a tqdm bar with time left over the branches.
+    device: "cpu", "gpu" (CuPy, else backend.DeviceError) or "auto" for the stacked branch eigenproblems
+    (backend.py). lowrank: solve the branches as low-rank updates of the elastic problem (lowrank.py: no ℍ^i
+    spectra, eigenvectors on demand); None = when there are at least lowrank.MIN_BRANCHES branches or the
+    device resolves to a GPU.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    from .backend import backend
     from .sparse import DENSE_MAX_DOF, analyze_sparse
+    backend(device)                                                   # an unusable device fails before any work
     if method == "sparse" or (method == "auto" and scene.n_dof > DENSE_MAX_DOF):
         return analyze_sparse(scene, k=k, rotation_length_=rotation_length_, max_sliding=max_sliding,
                               on_branch=on_branch, progress=progress)
@@ -159,7 +166,7 @@ def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding:
                 bar.update()
                 if _user is not None:
                     _user(b)
-            branches = solve_branches(problem, masks, on_branch=stream if bar is not None else on_branch)
+            branches, info = _solve(problem, masks, stream if bar is not None else on_branch, device, lowrank)
             if bar is not None:
                 bar.close()
         with timer("errors"):
@@ -169,9 +176,27 @@ def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding:
             errors["equilibrium_residual"] = equilibrium_residual(scene)
             errors["eigen_residual_stability"] = max(b.residual_stability for b in branches)
             errors["eigen_residual_uniqueness"] = max(b.residual_uniqueness for b in branches)
+            if info:
+                errors["branch_leakage"] = info["leakage"]
+                errors["branch_backward_error"] = info["backward_error"]
+                warnings.append(f"low-rank branch path on {info['device']} (unit round-off {info['eps']:.1e}): "
+                                f"{len(branches) - info['full_path']} of {len(branches)} branches without ℍ^i "
+                                "spectra (ℍ^i nullity proven from a bound on its smallest singular value), "
+                                f"{info['full_path']} on the full path")
         summary = flag_undetermined(summarize(scene, branches, problem), blocks)
     return Analysis(scene=scene, problem=problem, length=length, scale=dof_scale(scene, length), branches=branches,
                     summary=summary, errors=errors, timings=timer.times, warnings=warnings)
+
+
+def _solve(problem, masks, on_branch, device, lowrank):
+    """The branches on the full stacked path or on the low-rank path (lowrank.py), with that path's info."""
+    from .backend import backend
+    from .lowrank import MIN_BRANCHES, solve_branches_lowrank
+    if lowrank is None:
+        lowrank = len(masks) >= MIN_BRANCHES or backend(device).name == "gpu"
+    if not lowrank:
+        return solve_branches(problem, masks, on_branch=on_branch), {}
+    return solve_branches_lowrank(problem, masks, device=device, on_branch=on_branch)
 
 
 def _progress_bar(total: int):

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linprog
 
-from .threads import blas_threads
+from .threads import sized
 from .tolerances import EPS
 
 # codes of an eigenpair's consistency: vector_sign +1 / -1 / 0 (both), not consistent, rigid (trivial)
@@ -71,6 +71,8 @@ class Branch:
     type2: list = field(default_factory=list)
     residual_stability: float = 0.0
     residual_uniqueness: float = 0.0
+    stability_errors: np.ndarray | None = None   # (n,) absolute bound of each eigenvalue's error: ‖A v − λ v‖
+                                                 # (plus the reduction's leakage on the low-rank path, lowrank.py)
 
     def consistent(self) -> list[dict]:
         """Consistent non-trivial eigenpairs: eigenvalue, vector_sign (+1, -1, 0 = both), hinges."""
@@ -101,7 +103,11 @@ def branch_matrices(problem: Problem, masks: np.ndarray):
 
 def test_codes(problem: Problem, masks: np.ndarray, V: np.ndarray):
     """Appendix-D test of every column of V (L, n, k) against its branch mask: codes (L, k) and hinges (L, k)."""
-    Svals = np.einsum("nm,lnk->lmk", problem.S, V)                   # (L, Ms, k)
+    return codes_from_s(problem, masks, np.einsum("nm,lnk->lmk", problem.S, V))
+
+
+def codes_from_s(problem: Problem, masks: np.ndarray, Svals: np.ndarray):
+    """`test_codes` from the S values (L, Ms, k) of the columns (S = g·δu_def of each sliding contact, eq:flow)."""
     m = masks[:, problem.sliding][:, :, None].astype(float)
     test = np.where(np.abs(Svals) <= problem.s_tol, 0.0, np.sign(Svals))
     prod = m * test
@@ -174,11 +180,10 @@ def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None
     """
     n = problem.H_el.shape[0]
     chunk = chunk or max(1, int(4e7 // (8 * n * n * 6)))
-    threads = 1 if n <= SMALL and len(masks) >= 16 else None         # threads.py: small stacks run faster
     out = []
     for start in range(0, len(masks), chunk):
         part = masks[start:start + chunk]
-        with blas_threads(threads):
+        with sized(n):                                                # threads.py: 1 thread for small stacks
             _, HH, Hsym = branch_matrices(problem, part)
             lam, V = np.linalg.eigh(Hsym)
             mu, W = np.linalg.eig(HH)
@@ -194,9 +199,6 @@ def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None
             if on_branch is not None:
                 on_branch(b)
     return out
-
-
-SMALL = 96   # matrices up to this size are solved with one BLAS thread (threads.py)
 
 
 def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
@@ -231,10 +233,11 @@ def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
         null_m = sv_m <= tol_u[more, None]
         extra_u[more] = _count_nonrigid(R, np.swapaxes(Vt_m, 1, 2) * null_m[:, None, :])
         svd = {int(i): (sv_m[j], Vt_m[j]) for j, i in enumerate(more)}
-    res_s = np.linalg.norm(Hsym @ V - V * lam[:, None, :], axis=1).max(axis=1) / norm if n else np.zeros(L)
+    res_cols = np.linalg.norm(Hsym @ V - V * lam[:, None, :], axis=1)
+    res_s = res_cols.max(axis=1, initial=0.0) / norm
     res_u = np.linalg.norm(HH @ W - W * mu[:, None, :], axis=1).max(axis=1) / norm_u if n else np.zeros(L)
     return {"tol": tol, "zero": zero, "special": repeated | (extra_z > 0) | (extra_u > 0),
-            "n_null": null.sum(axis=1), "res_s": res_s, "res_u": res_u, "svd": svd}
+            "n_null": null.sum(axis=1), "res_s": res_s, "res_u": res_u, "svd": svd, "res_cols": res_cols}
 
 
 def _count_nonrigid(R: np.ndarray, W: np.ndarray) -> np.ndarray:
@@ -257,7 +260,8 @@ def _plain_branch(problem, mask, batch, i, lam, V, codes, hinges, mu) -> Branch:
     return Branch(mask=mask, stability_eigenvalues=lam, stability_vectors=V.copy(), codes=codes, hinges=hinges,
                   n_zero=int(zero.sum()), zero_tol=float(batch["tol"][i]), uniqueness_eigenvalues=mu[order],
                   uniqueness_n_zero=int(batch["n_null"][i]), type2=[],
-                  residual_stability=float(batch["res_s"][i]), residual_uniqueness=float(batch["res_u"][i]))
+                  residual_stability=float(batch["res_s"][i]), residual_uniqueness=float(batch["res_u"][i]),
+                  stability_errors=batch["res_cols"][i])
 
 
 def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> Branch:
@@ -292,12 +296,13 @@ def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> 
     norm_u = max(sv.max(), 1e-300)
     tol_u = problem.tol.zero_tol(norm_u, n)
     null = Vt[sv <= tol_u].T
-    res_s = float(np.linalg.norm(Hsym @ V - V * lam, axis=0).max() / norm) if n else 0.0
+    res_cols = np.linalg.norm(Hsym @ V - V * lam, axis=0)
+    res_s = float(res_cols.max(initial=0.0) / norm)
     res_u = float(np.linalg.norm(HH @ W - W * mu, axis=0).max() / norm_u) if n else 0.0
     return Branch(mask=mask, stability_eigenvalues=lam, stability_vectors=V, codes=codes, hinges=hinges,
                   n_zero=int(zero.size), zero_tol=tol, uniqueness_eigenvalues=mu[order],
                   uniqueness_n_zero=int(null.shape[1]), type2=_type2(problem, mask, null),
-                  residual_stability=res_s, residual_uniqueness=res_u)
+                  residual_stability=res_s, residual_uniqueness=res_u, stability_errors=res_cols)
 
 
 def _type2(problem, mask, null) -> list:

@@ -1,0 +1,223 @@
+"""All 2^Ms loading branches as low-rank updates of the elastic problem, stacked on a backend (numpy or CuPy).
+
+Branch i has sym(𝓗^i) = P sym(H^i) P with H^i = H_el + Σ_{on} a_j s_jᵀ (eq:ContactF, eq:newstiffnesses). The
+rigid motions R (translations and rotations, orthonormal) are exact null vectors of every sym(𝓗^i) (Σ db^p = 0,
+s·T = 0, P C = 0), so in the orthonormal complement N of R (Nᵀ P = Nᵀ) every branch is the k × k matrix
+
+    M_i = Nᵀ sym(H^i) N = M_0 + ½ (a diag(on_i) sᵀ + s diag(on_i) aᵀ),   M_0 = Nᵀ sym(H_el) N, a = NᵀA, s = NᵀS,
+
+the elastic matrix plus a symmetric update of rank ≤ 2·(#loading contacts). The elastic part and the projected
+factors are computed once; each chunk of branches is one batched product and one stacked `eigh` on the backend.
+
+What is exact and what is bounded, per branch and eigenvalue (reported as `Branch.stability_errors`):
+* The reduction is exact up to round-off: in the basis [N, R] the full matrix is [[M_i, E_iᵀ], [E_i, G_i]] with
+  E_i = Rᵀ sym(𝓗^i) N (the rigid leakage, zero in exact arithmetic); by Weyl, dropping it moves no eigenvalue by
+  more than ‖E_i‖₂ ≤ ‖E_i‖_F, which is computed per branch (also a low-rank update of E_0).
+* Each computed pair (λ, w) has residual r = ‖M_i w − λ w‖; a true eigenvalue lies within r (symmetric matrix).
+  The bound per eigenvalue is r + ‖E_i‖_F, whatever the backend's solver (LAPACK or batched Jacobi).
+* Eigenvalues whose bound keeps them off zero have a proven sign, so their counts are exact (Sylvester).
+* ℍ^i = H^i P has no non-rigid null vector when σ_min(H^i N) > its zero tolerance; σ_min(H^i N) ≥ λ_min(M_i)
+  (wᵀ M_i w = wᵀ NᵀH^iN w ≤ |w|·‖H^iN w‖), so a positive definite branch needs no SVD; the others get a lower bound
+  of σ_min² from the Gram matrix's eigenvalues less its rounding error.
+Branches with a repeated eigenvalue, a non-rigid zero or a possibly singular ℍ^i (which need the eigenspace search
+of Appendix D, or Type-2) are handed to `branches.solve_branches`, the full per-branch path, unchanged.
+
+What is kept per branch: eigenvalues, codes, hinges and error bounds (O(n)); the eigenvectors are recomputed on
+demand (`LazyVectors`), so memory does not grow with 2^Ms × n². ℍ^i spectra are not computed on this path (only
+its nullity), which is what makes it fast; the full path (`branches.solve_branches`) gives them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .backend import backend, residual_norms
+from .branches import RIGID, Branch, Problem, codes_from_s, solve_branches
+from .tolerances import EPS
+
+MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s)
+
+
+@dataclass(frozen=True, eq=False)
+class Reduced:
+    """The branch-independent pieces in the rigid-free basis N (n, k): M0 (k, k), a, s (k, Ms); leakage pieces
+    E0 (r, k), alpha, beta (r, Ms) with E_i = E0 + ½(alpha on sᵀ + beta on aᵀ); ℍ pieces HN = H_el N (n, k) and
+    the per-contact norms |A_j| |s_j| for an upper bound of ‖H^i N‖."""
+
+    N: np.ndarray
+    M0: np.ndarray
+    a: np.ndarray
+    s: np.ndarray
+    E0: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    HN: np.ndarray
+    HN_norm: float
+    AS_norm: np.ndarray
+    n: int
+
+    @property
+    def k(self) -> int:
+        return self.N.shape[1]
+
+
+def reduce(problem: Problem) -> Reduced:
+    """M0, a, s and the leakage pieces of the module docstring, once per cluster."""
+    R = problem.rigid
+    n, r = R.shape
+    Q, _ = np.linalg.qr(R, mode="complete")
+    N = Q[:, r:]
+    Hsym = 0.5 * (problem.H_el + problem.H_el.T)
+    PR = problem.projection.apply(R)
+    HN = problem.H_el @ N
+    return Reduced(N=N, M0=_sym(N.T @ Hsym @ N), a=N.T @ problem.A, s=N.T @ problem.S, E0=PR.T @ Hsym @ N,
+                   alpha=PR.T @ problem.A, beta=PR.T @ problem.S, HN=HN, HN_norm=float(np.linalg.norm(HN, 2)),
+                   AS_norm=np.linalg.norm(problem.A, axis=0) * np.linalg.norm(N.T @ problem.S, axis=0), n=n)
+
+
+def _sym(M):
+    return 0.5 * (M + M.swapaxes(-1, -2))
+
+
+def _updates(red: Reduced) -> tuple[np.ndarray, np.ndarray]:
+    """Per sliding contact j, the flattened updates of M (½(a_j s_jᵀ + s_j a_jᵀ), (Ms, k²)) and of E
+    (½(alpha_j s_jᵀ + beta_j a_jᵀ), (Ms, r·k)): a branch is then one row `on @ updates` (a single GEMM)."""
+    m = 0.5 * (np.einsum("im,jm->mij", red.a, red.s) + np.einsum("im,jm->mij", red.s, red.a))
+    e = 0.5 * (np.einsum("im,jm->mij", red.alpha, red.s) + np.einsum("im,jm->mij", red.beta, red.a))
+    return m.reshape(len(m), red.k ** 2), e.reshape(len(e), red.E0.size)
+
+
+def branch_stack(xp, red: Reduced, on, updates=None):
+    """M_i (L, k, k) for on (L, Ms) ∈ {0, 1} on the backend `xp`: M0 + sym(a diag(on) sᵀ)."""
+    dM = xp.asarray(updates if updates is not None else _updates(red)[0])
+    return xp.asarray(red.M0)[None] + xp.matmul(on, dM).reshape(-1, red.k, red.k)
+
+
+def leakage(xp, red: Reduced, on, updates=None):
+    """‖E_i‖_F (L,): the rigid leakage of each branch (module docstring)."""
+    dE = xp.asarray(updates if updates is not None else _updates(red)[1])
+    E = xp.asarray(red.E0.reshape(-1))[None] + xp.matmul(on, dE)
+    return xp.sqrt(xp.sum(E * E, axis=1))
+
+
+def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "cpu", chunk: int | None = None,
+                           on_branch=None):
+    """Every branch in `masks` (L, M): a list of `branches.Branch` in mask order, and info (device, unit round-off,
+    how many branches took the full path, the largest leakage and backward error relative to ‖M_i‖).
+
+    Plain branches come from the stacked reduced problems; the others from `solve_branches` (module docstring).
+    """
+    be = backend(device)
+    xp = be.xp
+    red = reduce(problem)
+    n, k = red.n, red.k
+    L = len(masks)
+    info = {"device": be.name, "eps": be.eps, "full_path": 0, "leakage": 0.0, "backward_error": 0.0}
+    if k == 0 or L == 0:
+        out = solve_branches(problem, masks, on_branch=on_branch)
+        info["full_path"] = len(out)
+        return out, info
+    size = chunk or be.chunk(8.0 * (5 * k * k + 2 * n * k), L)
+    dM, dE = (be.asarray(u) for u in _updates(red))
+    s_t = be.asarray(red.s.T)
+    out = []
+    with be.threads(k):
+        for start in range(0, L, size):
+            part = masks[start:start + size]
+            on_h = (part[:, problem.sliding] == 1).astype(float)
+            on = be.asarray(on_h)
+            M = branch_stack(xp, red, on, dM)
+            lam, W = xp.linalg.eigh(M)
+            Sv = xp.matmul(s_t[None], W)
+            got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE), "S": Sv}
+            host = {key: be.to_host(v) for key, v in got.items()}
+            special = _special(problem, red, host, on_h)
+            full = dict(zip(np.flatnonzero(special),
+                            solve_branches(problem, part[special]) if special.any() else []))
+            info["full_path"] += len(full)
+            codes, hinges = codes_from_s(problem, part, host["S"])
+            norm = np.maximum(np.abs(host["lam"]).max(axis=1), 1e-300)
+            info["leakage"] = max(info["leakage"], float((host["leak"] / norm).max()))
+            info["backward_error"] = max(info["backward_error"], float((host["res"].max(axis=1) / norm).max()))
+            for i, mask in enumerate(part):
+                b = full.get(i) or _plain(problem, red, mask, host, i, codes[i], hinges[i])
+                out.append(b)
+                if on_branch is not None:
+                    on_branch(b)
+    return out, info
+
+
+def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray) -> np.ndarray:
+    """Branches that need the full path: a non-rigid zero or a repeated eigenvalue within the zero tolerance of
+    branches.py (same rule, same norm), or an ℍ^i whose smallest singular value on N is not proven above its
+    zero tolerance."""
+    lam, res, leak = h["lam"], h["res"], h["leak"]
+    n = red.n
+    norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
+    tol = problem.tol.zero_tol(1.0, n) * norm
+    zero = np.any(np.abs(lam) <= tol[:, None], axis=1)
+    repeated = np.any(np.diff(lam, axis=1) <= tol[:, None], axis=1)
+    upper = red.HN_norm + on @ red.AS_norm                            # ≥ ‖H^i N‖₂ = ‖ℍ^i‖₂
+    tol_u = problem.tol.zero_tol(1.0, n) * upper
+    lower = lam[:, 0] - res[:, 0] - leak - 4 * n * EPS * norm         # ≤ λ_min(M_i) ≤ σ_min(H^i N)
+    unsure = np.flatnonzero(~(zero | repeated) & (lower <= tol_u))
+    singular = np.zeros(len(lam), bool)
+    if unsure.size:
+        X = red.HN[None] + problem.A[None] * on[unsure][:, None, :] @ red.s.T   # H^i N (m, n, k)
+        G = np.swapaxes(X, 1, 2) @ X
+        g = np.linalg.eigvalsh(G)
+        fro2 = np.sum(X * X, axis=(1, 2))
+        smin2 = g[:, 0] - 4 * n * EPS * fro2                          # ≤ σ_min(H^i N)²
+        tol_g = problem.tol.zero_tol(1.0, n) * np.sqrt(np.maximum(g[:, -1], 0.0))
+        singular[unsure] = smin2 <= tol_g ** 2
+    return zero | repeated | singular
+
+
+def _plain(problem: Problem, red: Reduced, mask, h: dict, i: int, codes, hinges) -> Branch:
+    """A Branch from the reduced eigenpairs of branch i: the rigid motions as exact zeros (code RIGID, error
+    bound ‖E_i‖_F), eigenvectors recomputed on demand."""
+    r = problem.rigid.shape[1]
+    lam = np.concatenate([np.zeros(r), h["lam"][i]])
+    order = np.argsort(lam, kind="stable")
+    err = np.concatenate([np.zeros(r), h["res"][i]]) + h["leak"][i]
+    all_codes = np.concatenate([np.full(r, RIGID, np.int8), codes])
+    all_hinges = np.concatenate([np.zeros(r, bool), hinges])
+    norm = max(float(np.abs(lam).max()), 1e-300)
+    vectors = LazyVectors(problem, red, np.asarray(mask), order, h["S"][i])
+    return Branch(mask=mask, stability_eigenvalues=lam[order], stability_vectors=vectors, codes=all_codes[order],
+                  hinges=all_hinges[order], n_zero=r, zero_tol=problem.tol.zero_tol(norm, red.n),
+                  uniqueness_eigenvalues=np.zeros(0, complex), uniqueness_n_zero=r, type2=[],
+                  residual_stability=float(err.max() / norm), residual_uniqueness=0.0, stability_errors=err[order])
+
+
+class LazyVectors:
+    """The eigenvectors of a plain branch (n, n), computed when indexed: the branch's reduced matrix is solved
+    again (one k × k eigh) and each column's sign is set to the one its consistency code was computed with (the
+    sign of its largest S value, stored); the rigid columns are the orthonormal rigid basis."""
+
+    def __init__(self, problem, red, mask, order, S):
+        self.problem, self.red, self.mask, self.order = problem, red, mask, order
+        self.finger = np.argmax(np.abs(S), axis=0) if S.size else np.zeros(S.shape[1], int)
+        self.sign = np.sign(S[self.finger, np.arange(S.shape[1])]) if S.size else np.ones(S.shape[1])
+
+    @property
+    def shape(self):
+        return (self.red.n, self.red.n)
+
+    def array(self) -> np.ndarray:
+        on = (self.mask[None, self.problem.sliding] == 1).astype(float)
+        with backend("cpu").threads(self.red.k):
+            _, W = np.linalg.eigh(branch_stack(np, self.red, on)[0])
+        if self.red.s.size:
+            flip = np.sign((self.red.s.T @ W)[self.finger, np.arange(W.shape[1])]) * self.sign
+            W = W * np.where(flip == 0, 1.0, flip)[None, :]
+        V = np.concatenate([self.problem.rigid, self.red.N @ W], axis=1)
+        return V[:, self.order]
+
+    def __array__(self, dtype=None, copy=None):
+        V = self.array()
+        return V if dtype is None else V.astype(dtype)
+
+    def __getitem__(self, index):
+        return self.array()[index]
