@@ -145,7 +145,7 @@ def analyze(scene: Scene, *, rotation_length_: float | None = None, max_sliding:
     backend(device)                                                   # an unusable device fails before any work
     if method == "sparse" or (method == "auto" and scene.n_dof > DENSE_MAX_DOF):
         return analyze_sparse(scene, k=k, rotation_length_=rotation_length_, max_sliding=max_sliding,
-                              on_branch=on_branch, progress=progress)
+                              on_branch=on_branch, progress=progress, device=device)
     timer = Timer()
     warnings = []
     with timer("total"):

@@ -33,9 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backend import backend, residual_norms
-from .branches import RIGID, Branch, Problem, codes_from_s, solve_branches
+from .branches import RIGID, Branch, Problem, canonical_signs, codes_from_s, solve_branches
 from .tolerances import EPS
 
+GUARD = 6            # extra Ritz vectors carried by the sparse path's refinement (faster convergence of the kk)
 MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s)
 
 
@@ -80,18 +81,28 @@ def _sym(M):
     return 0.5 * (M + M.swapaxes(-1, -2))
 
 
+def sym_updates(a: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Per sliding contact j the flattened ½(a_j s_jᵀ + s_j a_jᵀ), (Ms, k·k): a branch's update is then the row
+    `on @ updates` (one GEMM for a whole stack)."""
+    m = 0.5 * (np.einsum("im,jm->mij", a, s) + np.einsum("im,jm->mij", s, a))
+    return m.reshape(a.shape[1], a.shape[0] * s.shape[0])
+
+
 def _updates(red: Reduced) -> tuple[np.ndarray, np.ndarray]:
-    """Per sliding contact j, the flattened updates of M (½(a_j s_jᵀ + s_j a_jᵀ), (Ms, k²)) and of E
-    (½(alpha_j s_jᵀ + beta_j a_jᵀ), (Ms, r·k)): a branch is then one row `on @ updates` (a single GEMM)."""
-    m = 0.5 * (np.einsum("im,jm->mij", red.a, red.s) + np.einsum("im,jm->mij", red.s, red.a))
+    """The updates of M (sym_updates(a, s)) and of E (½(alpha_j s_jᵀ + beta_j a_jᵀ), (Ms, r·k))."""
     e = 0.5 * (np.einsum("im,jm->mij", red.alpha, red.s) + np.einsum("im,jm->mij", red.beta, red.a))
-    return m.reshape(len(m), red.k ** 2), e.reshape(len(e), red.E0.size)
+    return sym_updates(red.a, red.s), e.reshape(len(e), red.E0.size)
+
+
+def stack(xp, M0, updates, on):
+    """M0 + (on @ updates) reshaped: (L, k, k) on the backend `xp`."""
+    k = M0.shape[0]
+    return xp.asarray(M0)[None] + xp.matmul(on, xp.asarray(updates)).reshape(-1, k, k)
 
 
 def branch_stack(xp, red: Reduced, on, updates=None):
     """M_i (L, k, k) for on (L, Ms) ∈ {0, 1} on the backend `xp`: M0 + sym(a diag(on) sᵀ)."""
-    dM = xp.asarray(updates if updates is not None else _updates(red)[0])
-    return xp.asarray(red.M0)[None] + xp.matmul(on, dM).reshape(-1, red.k, red.k)
+    return stack(xp, red.M0, updates if updates is not None else _updates(red)[0], on)
 
 
 def leakage(xp, red: Reduced, on, updates=None):
@@ -132,6 +143,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
             Sv = xp.matmul(s_t[None], W)
             got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE), "S": Sv}
             host = {key: be.to_host(v) for key, v in got.items()}
+            host["S"] *= canonical_signs(problem, host["S"])[:, None, :]
             special = _special(problem, red, host, on_h)
             full = dict(zip(np.flatnonzero(special),
                             solve_branches(problem, part[special]) if special.any() else []))
@@ -221,3 +233,94 @@ class LazyVectors:
 
     def __getitem__(self, index):
         return self.array()[index]
+
+
+# ------------------------------------------------------------------------------------- the sparse path (sparse.py)
+
+class SparseRitz:
+    """The lowest eigenpairs of every branch of a large cluster from ONE elastic solve (granstab.sparse).
+
+    Branch i's deflated operator is B_i = B_0 + U_i K_i U_iᵀ with U_i in span[A, S] (and the rigid modes). An
+    eigenvector of B_i with eigenvalue λ is v = -(B_0 - λ)⁻¹ U_i K_i U_iᵀ v: near the low end it lies in the span of
+    the lowest elastic modes and of (B_0 - σ)⁻¹[A, S], (B_0 - σ)⁻²[A, S] (a Taylor expansion of (B_0 - λ)⁻¹ about
+    σ). That space W (n × d, d = K + 4 Ms, orthonormal, rigid-free) is built once from the elastic shift-invert
+    solve and its sparse LU; every branch is then the d × d Rayleigh-Ritz problem Wᵀ B_i W = Wᵀ Hs W + a low-rank
+    update, stacked on the backend like the dense branches.
+
+    Exact: the number ν of eigenvalues below σ per branch (Sylvester/Haynsworth from the shared LU, sparse.Shifted).
+    Bounded: every Ritz value θ is an upper bound of its eigenvalue (Cauchy interlacing) and has an eigenvalue
+    within its residual ‖B_i v − θ v‖ (exact operator). A branch whose Ritz values below σ are fewer than ν, or whose
+    residuals exceed `rtol`·‖Hs‖, is solved again by shift-invert ARPACK with the same LU (sparse.lowest_modes).
+    """
+
+    def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 8, rtol: float = 1e-10, device: str = "cpu"):
+        from .sparse import lowest_modes
+        self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
+        elastic = lowest_modes(spb, k + extra, None, tol=tol)
+        self.factorization = elastic.info.get("factorization")
+        R = spb.R
+        blocks = [elastic.vectors]
+        if self.factorization is not None and spb.A.shape[1]:
+            Z = np.concatenate([spb.A, spb.S], axis=1)
+            for _ in range(2):
+                Z = self.factorization.solve(Z)
+                Z -= R @ (R.T @ Z)
+                Z /= np.maximum(np.linalg.norm(Z, axis=0), 1e-300)
+                blocks.append(Z)
+        W = np.concatenate(blocks, axis=1)
+        W -= R @ (R.T @ W)
+        U, sv, _ = np.linalg.svd(W, full_matrices=False)
+        self.W = U[:, sv > 1e-12 * sv[0]]
+        HW = spb.Hs @ self.W
+        self.M0 = _sym(self.W.T @ HW)
+        self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
+        self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
+        self.steps = 3
+
+    def modes(self, masks: np.ndarray, kk: int):
+        """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""
+        from .sparse import Shifted, _finish, _lowrank, lowest_modes, operator
+        spb = self.spb
+        be = backend(self.device)
+        on = (masks[:, spb.sliding] == 1).astype(float)
+        block = min(kk + GUARD, self.W.shape[1])
+        with be.threads(self.W.shape[1]):
+            _, Y = be.xp.linalg.eigh(stack(be.xp, self.M0, self.updates, be.asarray(on)))
+            Y = be.to_host(Y[:, :, :block])
+        fac = self.factorization
+        for i, mask in enumerate(masks):
+            if fac is None:
+                self.stats["arpack"] += 1
+                yield lowest_modes(spb, kk, mask, tol=self.tol)
+                continue
+            U, K = _lowrank(spb, on[i] == 1, spb.norm)
+            shifted = Shifted(fac, U, K, fac.sigma, fac.n_neg)
+            Bop = operator(spb, mask, spb.norm)
+            mask8 = np.asarray(mask, np.int8)
+            V = self.W @ Y[i]
+            for step in range(self.steps + 1):
+                modes = _finish(spb, Bop, np.zeros(block), V, mask8, fac.sigma, False, shifted.n_below, "ritz", {})
+                nu, found = shifted.n_below, int(np.sum(modes.eigenvalues < fac.sigma))
+                if nu is not None and nu == found < kk and modes.residuals[:kk].max() <= self.rtol:
+                    out = _finish(spb, Bop, np.zeros(kk), modes.vectors[:, :kk], mask8, fac.sigma, True, nu, "ritz",
+                                  {"factorization": fac, "basis": self.W.shape[1], "refinements": step})
+                    self.stats["ritz"] += 1
+                    yield out
+                    break
+                if step < self.steps:
+                    V = self._refine(spb, Bop, shifted, modes.vectors)
+            else:
+                self.stats["arpack"] += 1
+                yield lowest_modes(spb, kk, mask, factorization=fac, tol=self.tol)
+
+    def _refine(self, spb, Bop, shifted, V):
+        """Rayleigh-Ritz on span[W, V, (B - σ)⁻¹V, (B - σ)⁻²V] (block shift-invert with the branch's Woodbury
+        operator): as many of the lowest Ritz vectors as V has columns."""
+        Z1 = shifted.solve(V)
+        Z2 = shifted.solve(Z1)
+        basis = np.concatenate([self.W, V, Z1, Z2], axis=1)
+        basis -= spb.R @ (spb.R.T @ basis)
+        basis, _ = np.linalg.qr(basis)
+        G = _sym(basis.T @ Bop.matmat(basis))
+        _, y = np.linalg.eigh(G)
+        return basis @ y[:, :V.shape[1]]

@@ -653,7 +653,7 @@ DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this m
 
 
 def analyze_sparse(scene: Scene, *, k: int = 6, rotation_length_: float | None = None, max_sliding: int = 16,
-                   on_branch=None, progress: bool = False, tol: float = 0.0):
+                   on_branch=None, progress: bool = False, tol: float = 0.0, device: str = "cpu"):
     """`analyze` on the sparse path: per loading branch the lowest k non-rigid eigenpairs of sym(𝓗^i) plus the
     rigid modes (code RIGID), with the Appendix-D consistency of each, verdicts, identities and timings.
 
@@ -688,10 +688,7 @@ def analyze_sparse(scene: Scene, *, k: int = 6, rotation_length_: float | None =
         with timer("branches"):
             norm2 = max(norm_estimate(spb.Hs), 1e-300)
             bar = _progress(len(masks), "branches (sparse)") if progress else None
-            fact = None
-            for mask in masks:
-                modes = lowest_modes(spb, k + 1, mask, factorization=fact, tol=tol)
-                fact = modes.info.get("factorization")
+            for mask, modes in zip(masks, _branch_modes(spb, masks, k + 1, tol, device)):
                 b, cut = _sparse_branch(problem, spb, modes, mask, k, norm2)
                 unverified += not modes.verified
                 incomplete += cut
@@ -718,6 +715,16 @@ def analyze_sparse(scene: Scene, *, k: int = 6, rotation_length_: float | None =
                         "that extends beyond k; its consistency search covers only the computed part")
     return Analysis(scene=scene, problem=problem, length=length, scale=spb.scale, branches=branches,
                     summary=summary, errors=errors, timings=timer.times, warnings=warnings)
+
+
+def _branch_modes(spb: SparseProblem, masks, kk: int, tol: float, device: str):
+    """Modes of every branch: several branches as low-rank updates of one elastic solve (lowrank.SparseRitz,
+    verified per branch, shift-invert ARPACK where that fails), a single one by shift-invert directly."""
+    if len(masks) > 1:
+        from .lowrank import SparseRitz
+        yield from SparseRitz(spb, kk, tol=tol, device=device).modes(masks, kk)
+        return
+    yield lowest_modes(spb, kk, masks[0], tol=tol)
 
 
 def _progress(total: int, desc: str):
