@@ -152,8 +152,9 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
             norm = np.maximum(np.abs(host["lam"]).max(axis=1), 1e-300)
             info["leakage"] = max(info["leakage"], float((host["leak"] / norm).max()))
             info["backward_error"] = max(info["backward_error"], float((host["res"].max(axis=1) / norm).max()))
+            plain = _plain_arrays(problem, host, codes, hinges)
             for i, mask in enumerate(part):
-                b = full.get(i) or _plain(problem, red, mask, host, i, codes[i], hinges[i])
+                b = full.get(i) or _plain(problem, red, mask, {key: v[i] for key, v in plain.items()})
                 out.append(b)
                 if on_branch is not None:
                     on_branch(b)
@@ -186,32 +187,45 @@ def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray) -> np.ndar
     return zero | repeated | singular
 
 
-def _plain(problem: Problem, red: Reduced, mask, h: dict, i: int, codes, hinges) -> Branch:
-    """A Branch from the reduced eigenpairs of branch i: the rigid motions as exact zeros (code RIGID, error
-    bound ‖E_i‖_F), eigenvectors recomputed on demand."""
+def _plain_arrays(problem: Problem, h: dict, codes, hinges) -> dict:
+    """Per-chunk arrays of the plain branches' Branch fields: the rigid motions as exact zeros (code RIGID, error
+    bound ‖E_i‖_F) sorted in with the reduced eigenvalues; each column's S fingerprint for `LazyVectors`."""
+    L, k = h["lam"].shape
     r = problem.rigid.shape[1]
-    lam = np.concatenate([np.zeros(r), h["lam"][i]])
-    order = np.argsort(lam, kind="stable")
-    err = np.concatenate([np.zeros(r), h["res"][i]]) + h["leak"][i]
-    all_codes = np.concatenate([np.full(r, RIGID, np.int8), codes])
-    all_hinges = np.concatenate([np.zeros(r, bool), hinges])
-    norm = max(float(np.abs(lam).max()), 1e-300)
-    vectors = LazyVectors(problem, red, np.asarray(mask), order, h["S"][i])
-    return Branch(mask=mask, stability_eigenvalues=lam[order], stability_vectors=vectors, codes=all_codes[order],
-                  hinges=all_hinges[order], n_zero=r, zero_tol=problem.tol.zero_tol(norm, red.n),
-                  uniqueness_eigenvalues=np.zeros(0, complex), uniqueness_n_zero=r, type2=[],
-                  residual_stability=float(err.max() / norm), residual_uniqueness=0.0, stability_errors=err[order])
+    lam = np.concatenate([np.zeros((L, r)), h["lam"]], axis=1)
+    order = np.argsort(lam, axis=1, kind="stable")
+    err = np.concatenate([np.zeros((L, r)), h["res"]], axis=1) + h["leak"][:, None]
+    codes = np.concatenate([np.full((L, r), RIGID, np.int8), codes], axis=1)
+    hinges = np.concatenate([np.zeros((L, r), bool), hinges], axis=1)
+    norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
+    S = h["S"]
+    finger = np.argmax(np.abs(S), axis=1) if S.shape[1] else np.zeros((L, k), int)
+    sign = np.take_along_axis(S, finger[:, None, :], axis=1)[:, 0, :] if S.shape[1] else np.ones((L, k))
+    take = lambda a: np.take_along_axis(a, order, axis=1)              # noqa: E731
+    return {"lam": take(lam), "err": take(err), "codes": take(codes), "hinges": take(hinges), "order": order,
+            "tol": problem.tol.zero_tol(1.0, problem.rigid.shape[0]) * norm, "res": err.max(axis=1) / norm,
+            "finger": finger, "sign": np.sign(sign)}
+
+
+def _plain(problem: Problem, red: Reduced, mask, p: dict) -> Branch:
+    """A Branch from one row of `_plain_arrays`, eigenvectors recomputed on demand."""
+    r = problem.rigid.shape[1]
+    return Branch(mask=mask, stability_eigenvalues=p["lam"], stability_vectors=LazyVectors(
+                      problem, red, mask, p["order"], p["finger"], p["sign"]), codes=p["codes"], hinges=p["hinges"],
+                  n_zero=r, zero_tol=float(p["tol"]), uniqueness_eigenvalues=np.zeros(0, complex),
+                  uniqueness_n_zero=r, type2=[], residual_stability=float(p["res"]), residual_uniqueness=0.0,
+                  stability_errors=p["err"])
 
 
 class LazyVectors:
     """The eigenvectors of a plain branch (n, n), computed when indexed: the branch's reduced matrix is solved
     again (one k × k eigh) and each column's sign is set to the one its consistency code was computed with (the
-    sign of its largest S value, stored); the rigid columns are the orthonormal rigid basis."""
+    sign of its largest S value: `finger` and `sign` per reduced column); the rigid columns are the orthonormal
+    rigid basis; `order` sorts the columns like the branch's eigenvalues."""
 
-    def __init__(self, problem, red, mask, order, S):
-        self.problem, self.red, self.mask, self.order = problem, red, mask, order
-        self.finger = np.argmax(np.abs(S), axis=0) if S.size else np.zeros(S.shape[1], int)
-        self.sign = np.sign(S[self.finger, np.arange(S.shape[1])]) if S.size else np.ones(S.shape[1])
+    def __init__(self, problem, red, mask, order, finger, sign):
+        self.problem, self.red, self.mask = problem, red, mask
+        self.order, self.finger, self.sign = order, finger, sign
 
     @property
     def shape(self):

@@ -1,0 +1,197 @@
+"""All 2^Ms loading branches: the low-rank path (granstab/lowrank.py) against the full stacked solve and the old
+per-branch loop on the same masks, with the error of each; the sparse path's Ritz branches against shift-invert
+ARPACK per branch; the GPU backend against the CPU where CuPy sees a GPU."""
+from __future__ import annotations
+
+import tracemalloc
+
+import numpy as np
+
+from granstab.analysis import analyze, build_problem
+from granstab.backend import gpu_available
+from granstab.branches import _branch, branch_matrices, enumerate_masks, solve_branches, test_codes
+from granstab.lowrank import SparseRitz, solve_branches_lowrank
+from granstab.packings import random_packing
+from granstab.rigid import rotation_length
+from granstab.sparse import lowest_modes, sparse_problem
+from granstab.stiffness import contact_blocks
+from granstab.threads import blas_threads
+
+from .formatting import fmt_e, fmt_long, fmt_t, progress, table
+from .timing import once
+
+QUICK = {"ms": (8, 10, 12), "full_max": 256, "loop_max": 64, "memory_ms": (8, 10), "worst_ms": 5,
+         "sparse": (2000, 4), "arpack_max": 4}
+FULL = {"ms": (12, 14, 16), "full_max": 2048, "loop_max": 256, "memory_ms": (10, 12, 14, 16), "worst_ms": 5,
+        "sparse": (10000, 8), "arpack_max": 4}
+MAIN = "16 disks (48 dofs), Ms contacts at yield"
+
+
+def per_branch_loop(problem, masks):
+    """REFERENCE ONLY: the old code, one branch at a time — its matrices, eigh, eig and the per-branch analysis."""
+    out = []
+    for mask in masks:
+        _, HH, Hsym = branch_matrices(problem, mask[None])
+        lam, V = np.linalg.eigh(Hsym[0])
+        mu, W = np.linalg.eig(HH[0])
+        codes, hinges = test_codes(problem, mask[None], V[None])
+        out.append(_branch(problem, mask, Hsym[0], HH[0], lam, V, codes[0], hinges[0], mu, W))
+    return out
+
+
+def compare(low, ref) -> dict:
+    """Largest eigenvalue difference relative to the max |λ| and in units of the two paths' summed per-eigenvalue
+    bounds (≤ 1: within the bounds), and whether every consistency code is the same."""
+    rel = max(float(np.abs(a.stability_eigenvalues - b.stability_eigenvalues).max()
+                    / np.abs(b.stability_eigenvalues).max()) for a, b in zip(low, ref))
+    bound = max(float((np.abs(a.stability_eigenvalues - b.stability_eigenvalues)
+                       / np.maximum(a.stability_errors + b.stability_errors, 1e-300)).max()) for a, b in zip(low, ref))
+    codes = all(np.array_equal(a.codes, b.codes) for a, b in zip(low, ref))
+    return {"max_rel_diff": rel, "diff_over_bounds": bound, "codes_equal": codes}
+
+
+def spread(L: int, m: int) -> np.ndarray:
+    """Indices of min(L, m) evenly spread branches."""
+    return np.linspace(0, L - 1, min(L, m)).astype(int)
+
+
+def dense_case(ms: int, cfg: dict, n_particles: int = 16) -> dict:
+    scene = random_packing(2, n_particles, n_sliding=ms, mobilised=0.3, seed=1)
+    problem, _ = build_problem(scene, contact_blocks(scene), rotation_length(scene))
+    masks = enumerate_masks(problem.sliding, scene.n_contacts)
+    L = len(masks)
+    t_an, res = once(lambda: analyze(scene))
+    t_low, (low, info) = once(lambda: solve_branches_lowrank(problem, masks))
+    sub, loop_sub = spread(L, cfg["full_max"]), spread(L, cfg["loop_max"])
+    t_full, full = once(lambda: solve_branches(problem, masks[sub]))
+    with blas_threads(1):                              # the old loop on one BLAS thread, as the core runs it
+        t_loop, looped = once(lambda: per_branch_loop(problem, masks[loop_sub]))
+    d = {"Ms": ms, "branches": L, "dof": scene.n_dof, "t_analyze": t_an, "t_lowrank": t_low,
+         "full_path_branches": info["full_path"], "leakage": info["leakage"], "backward_error": info["backward_error"],
+         "full_compared": len(sub), "t_full_subset": t_full, "t_full_est": t_full * L / len(sub),
+         "loop_compared": len(loop_sub), "t_loop_subset": t_loop, "t_loop_est": t_loop * L / len(loop_sub),
+         "vs_full": compare([low[i] for i in sub], full), "vs_loop": compare([low[i] for i in loop_sub], looped),
+         "verdict": res.summary["verdict"], "label": MAIN if n_particles == 16
+         else f"{n_particles} disks, every contact at yield (Type-2 searches on the full path)"}
+    if gpu_available():
+        t_gpu, (gpu, ginfo) = once(lambda: solve_branches_lowrank(problem, masks, device="gpu"))
+        d["gpu"] = {"t_lowrank": t_gpu, "vs_cpu": compare(gpu, low), "backward_error": ginfo["backward_error"]}
+    return d
+
+
+def memory(ms: int) -> dict:
+    """Peak traced memory (numpy buffers and Python objects) of analyze() with all 2^Ms branches."""
+    scene = random_packing(2, 16, n_sliding=ms, mobilised=0.3, seed=1)
+    tracemalloc.start()
+    analyze(scene)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return {"Ms": ms, "branches": 2 ** ms, "peak_MB": peak / 2 ** 20, "bytes_per_branch": peak / 2 ** ms}
+
+
+def sparse_case(n_particles: int, ms: int, cfg: dict) -> dict:
+    scene = random_packing(2, n_particles, n_sliding=ms, mobilised=0.3, seed=1)
+    spb = sparse_problem(scene)
+    masks = enumerate_masks(spb.sliding, scene.n_contacts)
+    k = 6
+    t_ritz, (ritz, modes) = once(lambda: (lambda r: (r, list(r.modes(masks, k + 1))))(SparseRitz(spb, k + 1)))
+    sub = masks[spread(len(masks), cfg["arpack_max"])]
+    state = {"fac": None}
+
+    def arpack():
+        out = []
+        for mask in sub:
+            m = lowest_modes(spb, k + 1, mask, factorization=state["fac"])
+            state["fac"] = m.info["factorization"]
+            out.append(m)
+        return out
+
+    arpack()                                           # the shared LU once, outside the timing (as in analyze)
+    t_arp, ref = once(arpack)
+    picked = [modes[i] for i in spread(len(masks), cfg["arpack_max"])]
+    diff = max(float(np.abs(a.eigenvalues - b.eigenvalues).max() / spb.norm) for a, b in zip(picked, ref))
+    res = max(float(m.residuals.max()) for m in modes)
+    return {"particles": scene.n_particles, "dof": spb.n, "Ms": ms, "branches": len(masks), "t_ritz": t_ritz,
+            "ritz": ritz.stats["ritz"], "arpack_fallback": ritz.stats["arpack"], "basis": ritz.stats["basis"],
+            "arpack_compared": len(sub), "t_arpack_subset": t_arp, "t_arpack_est": t_arp * len(masks) / len(sub),
+            "max_diff_rel_norm": diff, "max_residual_rel_norm": res,
+            "verified": int(sum(m.verified for m in modes))}
+
+
+def run(quick: bool = False) -> dict:
+    cfg = QUICK if quick else FULL
+    bar = progress(len(cfg["ms"]) + len(cfg["memory_ms"]) + 2, "branches")
+    cases = []
+    for ms in cfg["ms"]:
+        cases.append(dense_case(ms, cfg))
+        bar.update()
+    cases.append(dense_case(cfg["worst_ms"], cfg, n_particles=4))
+    bar.update()
+    mem = []
+    for ms in cfg["memory_ms"]:
+        mem.append(memory(ms))
+        bar.update()
+    sp = sparse_case(*cfg["sparse"], cfg)
+    bar.update()
+    bar.close()
+    return {"cases": cases, "memory": mem, "sparse": sp, "gpu": gpu_available()}
+
+
+def markdown(results: dict) -> str:
+    rows = []
+    for d in results["cases"]:
+        f, lo = d["vs_full"], d["vs_loop"]
+        rows.append([d["label"], d["Ms"], f"{d['branches']:,}", fmt_t(d["t_analyze"]), fmt_t(d["t_lowrank"]),
+                     f"{fmt_long(d['t_full_est'])} ({d['full_compared']:,})",
+                     f"{fmt_long(d['t_loop_est'])} ({d['loop_compared']:,})",
+                     f"**{d['t_full_est'] / d['t_lowrank']:.1f}×** / **{d['t_loop_est'] / d['t_lowrank']:.0f}×**",
+                     f"{fmt_e(f['max_rel_diff'])} ({f['diff_over_bounds']:.2f}), codes "
+                     f"{'equal' if f['codes_equal'] and lo['codes_equal'] else 'DIFFER'}",
+                     fmt_e(max(d["backward_error"], d["leakage"])), f"{d['full_path_branches']:,}"])
+    mem = [[m["Ms"], f"{m['branches']:,}", f"{m['peak_MB']:.0f} MB", f"{m['bytes_per_branch'] / 1024:.1f} kB"]
+           for m in results["memory"]]
+    s = results["sparse"]
+    lines = [
+        "## Branch enumeration: low-rank updates of the elastic problem",
+        "",
+        "Every branch is the elastic matrix plus a rank-≤2m update, solved in the rigid-free basis "
+        "(`granstab/lowrank.py`): one GEMM builds a chunk of branch matrices, one stacked `eigh` solves it on one "
+        "BLAS thread, and only eigenvalues, codes and per-eigenvalue error bounds are kept (eigenvectors on "
+        "demand). Side by side on the same masks: the full stacked solve of `branches.solve_branches` (eigh + eig "
+        "+ SVD of n × n per branch) and the old per-branch loop (one BLAS thread), both timed on an evenly spread "
+        "subset (size in brackets) and extrapolated to all branches. `error`: the largest eigenvalue difference "
+        "from the full solve relative to max |λ|, in brackets in units of the two paths' summed per-eigenvalue "
+        "bounds (≤ 1 means within them); codes: every consistency code identical (canonical eigenvector signs). "
+        "`bound`: the largest backward error ‖M w − λ w‖ / ‖M‖ or rigid leakage ‖E‖_F / ‖M‖ of any branch. "
+        "`full path`: branches with a repeated eigenvalue, a non-rigid zero or a possibly singular ℍ^i, handed "
+        "to the full per-branch code unchanged. Single runs (seconds each); `analyze` is end to end.",
+        "",
+        table(["cluster", "Ms", "branches", "analyze", "low-rank", "full stacked (est.)", "old loop (est.)",
+               "speed-up vs full / loop", "error vs full (in bounds)", "bound", "full path"], rows),
+        "",
+        "Peak traced memory of `analyze` (numpy buffers and Python objects, tracemalloc) — the old path kept "
+        "every branch's n × n eigenvectors (1.38 GB at Ms = 16); this one keeps O(n) numbers per branch:",
+        "",
+        table(["Ms", "branches", "peak", "per branch"], mem),
+        "",
+        f"Sparse path, {s['particles']:,}-particle 2D packing ({s['dof']:,} dofs), Ms = {s['Ms']} "
+        f"({s['branches']} branches), 6 lowest modes per branch: one elastic shift-invert solve and a "
+        f"{s['basis']}-vector Ritz basis, then per branch a stacked Rayleigh-Ritz, the exact inertia count from "
+        f"the shared LU and at most 3 block shift-invert refinements: **{fmt_long(s['t_ritz'])}** for all branches "
+        f"({s['ritz']} by Ritz, {s['arpack_fallback']} fell back to ARPACK; {s['verified']} verified) against "
+        f"shift-invert ARPACK per branch with the same LU, {fmt_long(s['t_arpack_est'])} (estimated from "
+        f"{s['arpack_compared']} branches), **{s['t_arpack_est'] / s['t_ritz']:.1f}×**. Largest eigenvalue "
+        f"difference {fmt_e(s['max_diff_rel_norm'])}·‖Hs‖, largest residual {fmt_e(s['max_residual_rel_norm'])}·‖Hs‖.",
+        "",
+    ]
+    if results["gpu"]:
+        g = [[d["Ms"], fmt_t(d["t_lowrank"]), fmt_t(d["gpu"]["t_lowrank"]),
+              f"{d['t_lowrank'] / d['gpu']['t_lowrank']:.0f}×", fmt_e(d["gpu"]["vs_cpu"]["max_rel_diff"]),
+              "equal" if d["gpu"]["vs_cpu"]["codes_equal"] else "DIFFER", fmt_e(d["gpu"]["backward_error"])]
+             for d in results["cases"] if "gpu" in d]
+        lines += ["GPU (CuPy) against CPU, low-rank path, same machine:", "",
+                  table(["Ms", "CPU", "GPU", "ratio", "max difference / max |λ|", "codes", "GPU backward error"], g)]
+    else:
+        lines += ["No GPU on this machine: the CuPy backend's numbers are not measured here (`pip install "
+                  "'granstab[gpu]'` on a CUDA machine, then `granstab bench --only branches`)."]
+    return "\n".join(lines)
