@@ -684,13 +684,14 @@ def analyze_sparse(scene: Scene, *, k: int = 6, rotation_length_: float | None =
                           sliding=spb.sliding, n_contacts=scene.n_contacts, tol=scene.tol)
         masks = enumerate_masks(spb.sliding, scene.n_contacts)
         branches = []
-        unverified = incomplete = 0
+        unverified = incomplete = ritz = 0
         with timer("branches"):
             norm2 = max(norm_estimate(spb.Hs), 1e-300)
             bar = _progress(len(masks), "branches (sparse)") if progress else None
             for mask, modes in zip(masks, _branch_modes(spb, masks, k + 1, tol, device)):
                 b, cut = _sparse_branch(problem, spb, modes, mask, k, norm2)
                 unverified += not modes.verified
+                ritz += modes.method == "ritz"
                 incomplete += cut
                 branches.append(b)
                 if on_branch is not None:
@@ -707,6 +708,9 @@ def analyze_sparse(scene: Scene, *, k: int = 6, rotation_length_: float | None =
     n_free = scene.n_dof - spb.n_rigid
     warnings.append(f"sparse path: the lowest {min(k, n_free)} of {n_free} non-rigid eigenpairs of sym(𝓗^i) per "
                     "branch; uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated")
+    if ritz:
+        warnings.append(f"{ritz} of {len(branches)} branches as Ritz updates of one elastic solve (lowrank.SparseRitz: "
+                        "count below σ exact by inertia, residuals ≤ 1e-10·‖Hs‖), the others by shift-invert")
     if unverified:
         warnings.append(f"{unverified} branch(es): the inertia check could not prove that the computed eigenvalues "
                         "are the lowest ones")

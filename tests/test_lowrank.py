@@ -119,6 +119,7 @@ def test_branches_with_free_spins_take_the_full_path_for_type2():
 
 # ---------------------------------------------------------------------------------------------- sparse path
 
+@pytest.mark.slow
 def test_sparse_ritz_branches_agree_with_shift_invert_and_dense():
     scene = packings.random_packing(2, 60, n_sliding=3, mobilised=0.3, f_over_k=0.1, curvature_ratio=0.2, seed=2)
     spb = sparse.sparse_problem(scene)
@@ -140,6 +141,7 @@ def test_sparse_ritz_branches_agree_with_shift_invert_and_dense():
     assert max(m.n_below for m in modes) >= 1
 
 
+@pytest.mark.slow
 def test_sparse_analyze_uses_ritz_and_keeps_the_verdict():
     scene = packings.random_packing(2, 60, n_sliding=3, mobilised=0.3, f_over_k=0.1, curvature_ratio=0.2, seed=2)
     d = granstab.analyze(scene, method="dense")
