@@ -149,3 +149,18 @@ def test_sparse_analyze_uses_ritz_and_keeps_the_verdict():
     assert s.summary["verdict"] == d.summary["verdict"]
     assert s.summary["consistent_negative"] == d.summary["consistent_negative"]
     assert not any("could not prove" in w for w in s.warnings)
+
+
+def test_analyze_takes_the_low_rank_path_from_min_branches_on():
+    from granstab.lowrank import MIN_BRANCHES
+    scene = packings.random_packing(2, 16, n_sliding=10, mobilised=0.3, seed=1)
+    assert 2 ** 10 >= MIN_BRANCHES
+    fast = granstab.analyze(scene, device="auto")
+    full = granstab.analyze(scene, lowrank=False)
+    assert any("low-rank branch path" in w for w in fast.warnings)
+    assert not any("low-rank branch path" in w for w in full.warnings)
+    assert {k: v for k, v in fast.summary.items() if k != "zero_margin"} == \
+           {k: v for k, v in full.summary.items() if k != "zero_margin"}
+    for bf, bl in zip(fast.to_dict()["branches"], full.to_dict()["branches"]):
+        assert [c["vector_sign"] for c in bf["consistent"]] == [c["vector_sign"] for c in bl["consistent"]]
+        assert bf["uniqueness_eigenvalues"] == [] and len(bl["uniqueness_eigenvalues"]) == scene.n_dof
