@@ -18,6 +18,7 @@ from granstab.stiffness import contact_blocks
 from granstab.threads import blas_threads
 
 from .formatting import fmt_e, fmt_long, fmt_t, progress, table
+from .machine import load_average, machine
 from .timing import once
 
 QUICK = {"ms": (8, 10, 12), "full_max": 256, "loop_max": 64, "memory_ms": (8, 10), "worst_ms": 5,
@@ -123,6 +124,7 @@ def sparse_case(n_particles: int, ms: int, cfg: dict) -> dict:
 
 def run(quick: bool = False) -> dict:
     cfg = QUICK if quick else FULL
+    start = load_average()
     bar = progress(len(cfg["ms"]) + len(cfg["memory_ms"]) + 2, "branches")
     cases = []
     for ms in cfg["ms"]:
@@ -137,7 +139,8 @@ def run(quick: bool = False) -> dict:
     sp = sparse_case(*cfg["sparse"], cfg)
     bar.update()
     bar.close()
-    return {"cases": cases, "memory": mem, "sparse": sp, "gpu": gpu_available()}
+    return {"cases": cases, "memory": mem, "sparse": sp, "gpu": gpu_available(), "machine": machine(),
+            "load": [start, load_average()]}
 
 
 def markdown(results: dict) -> str:
@@ -156,8 +159,13 @@ def markdown(results: dict) -> str:
     slope = (m1["peak_MB"] - m0["peak_MB"]) * 2 ** 20 / max(m1["branches"] - m0["branches"], 1)
     mem = [[m["Ms"], f"{m['branches']:,}", f"{m['peak_MB']:.0f} MB"] for m in results["memory"]]
     s = results["sparse"]
+    mc = results["machine"]
     lines = [
         "## Branch enumeration: low-rank updates of the elastic problem",
+        "",
+        f"Machine: {mc['cpu']}, {mc['cores']} cores, {mc['memory']}; numpy {mc['numpy']}, {mc['blas']}; load "
+        f"average {results['load'][0]} at the start, {results['load'][1]} at the end (a shared machine: absolute "
+        "times are noisy, the ratios are measured back to back).",
         "",
         "Every branch is the elastic matrix plus a rank-≤2m update, solved in the rigid-free basis "
         "(`granstab/lowrank.py`): one GEMM builds a chunk of branch matrices, one stacked `eigh` solves it on one "

@@ -251,6 +251,19 @@ class LazyVectors:
 
 # ------------------------------------------------------------------------------------- the sparse path (sparse.py)
 
+def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
+    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): twice, B is
+    projected off X (block Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
+    only, no Householder QR of n × m); directions below `cut` are dropped."""
+    for _ in range(2):
+        B = B - X @ (X.T @ B)
+        B = B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+        s, U = np.linalg.eigh(_sym(B.T @ B))
+        keep = s > cut * max(s[-1], 1e-300)
+        B = B @ (U[:, keep] / np.sqrt(s[keep]))
+    return B
+
+
 class SparseRitz:
     """The lowest eigenpairs of every branch of a large cluster from ONE elastic solve (granstab.sparse).
 
@@ -289,6 +302,11 @@ class SparseRitz:
         self.M0 = _sym(self.W.T @ HW)
         self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
         self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
+        if self.factorization is not None:                             # (Hs - σI)⁻¹ of every column _lowrank uses
+            solve = self.factorization.solve
+            T = R[:, :spb.scene.dim]
+            self.solved = {"Q": solve(spb.Q), "HQ": solve(spb.Hs @ spb.Q), "T": solve(T), "A": solve(spb.A),
+                           "S": solve(spb.S)}
         self.steps = 3
 
     def modes(self, masks: np.ndarray, kk: int):
@@ -308,7 +326,7 @@ class SparseRitz:
                 yield lowest_modes(spb, kk, mask, tol=self.tol)
                 continue
             U, K = _lowrank(spb, on[i] == 1, spb.norm)
-            shifted = Shifted(fac, U, K, fac.sigma, fac.n_neg)
+            shifted = Shifted(fac, U, K, fac.sigma, fac.n_neg, Z=self._solved(on[i] == 1))
             Bop = operator(spb, mask, spb.norm)
             mask8 = np.asarray(mask, np.int8)
             V = self.W @ Y[i]
@@ -327,14 +345,22 @@ class SparseRitz:
                 self.stats["arpack"] += 1
                 yield lowest_modes(spb, kk, mask, factorization=fac, tol=self.tol)
 
+    def _solved(self, on: np.ndarray) -> np.ndarray:
+        """(Hs - σI)⁻¹ U for sparse._lowrank's U = [Q, Y, T, A_on, S_on] of a branch, by linearity from the solves
+        made once (Y = Hs Q + ½(A_on S_onᵀ Q + S_on A_onᵀ Q))."""
+        spb, z = self.spb, self.solved
+        A, S = spb.A[:, on], spb.S[:, on]
+        ZY = z["HQ"] + 0.5 * (z["A"][:, on] @ (S.T @ spb.Q) + z["S"][:, on] @ (A.T @ spb.Q))
+        return np.concatenate([z["Q"], ZY, z["T"], z["A"][:, on], z["S"][:, on]], axis=1)
+
     def _refine(self, spb, Bop, shifted, V):
         """Rayleigh-Ritz on span[W, V, (B - σ)⁻¹V, (B - σ)⁻²V] (block shift-invert with the branch's Woodbury
         operator): as many of the lowest Ritz vectors as V has columns."""
         Z1 = shifted.solve(V)
         Z2 = shifted.solve(Z1)
-        basis = np.concatenate([self.W, V, Z1, Z2], axis=1)
-        basis -= spb.R @ (spb.R.T @ basis)
-        basis, _ = np.linalg.qr(basis)
+        basis = self.W
+        for block in (V, Z1, Z2):
+            basis = np.concatenate([basis, extend(np.concatenate([spb.R, basis], axis=1), block)], axis=1)
         G = _sym(basis.T @ Bop.matmat(basis))
         _, y = np.linalg.eigh(G)
         return basis @ y[:, :V.shape[1]]

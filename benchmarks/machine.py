@@ -1,0 +1,38 @@
+"""The machine a benchmark ran on: CPU, cores, memory, versions, BLAS, load average (a shared machine)."""
+from __future__ import annotations
+
+import os
+import platform
+from pathlib import Path
+
+import numpy as np
+import scipy
+
+
+def load_average() -> str:
+    """1, 5 and 15 minute load averages."""
+    try:
+        return " ".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
+def _first(path: str, key: str) -> str:
+    """The value of the first `key: value` line of a /proc file ('' where there is none)."""
+    try:
+        for line in Path(path).read_text().splitlines():
+            if line.startswith(key):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return ""
+
+
+def machine() -> dict:
+    """CPU, cores, memory, OS, Python, numpy, scipy and BLAS."""
+    mem = _first("/proc/meminfo", "MemTotal")
+    blas = np.show_config(mode="dicts")["Build Dependencies"]["blas"]
+    return {"cpu": _first("/proc/cpuinfo", "model name") or platform.processor(), "cores": os.cpu_count(),
+            "memory": f"{int(mem.split()[0]) / 2**20:.0f} GiB" if mem else "", "python": platform.python_version(),
+            "numpy": np.__version__, "scipy": scipy.__version__,
+            "blas": f"{blas['name']} {blas.get('version', '')}", "os": platform.platform()}
