@@ -118,22 +118,6 @@ def codes_from_s(problem: Problem, masks: np.ndarray, Svals: np.ndarray):
     return codes.astype(np.int8), np.any(band, axis=1)
 
 
-def canonical_signs(problem: Problem, Svals: np.ndarray, V: np.ndarray | None = None) -> np.ndarray:
-    """±1 per column (L, k) that fixes LAPACK's arbitrary eigenvector sign: the first S value (L, Ms, k) within
-    1e-8 of the largest |S| becomes positive; columns with every |S| <= s_floor use their first component within
-    1e-8 of the largest |component| of V (L, n, k) instead (+1 when V is None). Scale-invariant, so scaled copies
-    of a scene get the same codes, and the full and low-rank paths agree."""
-    def first_big(X):
-        big = np.abs(X) >= (1 - 1e-8) * np.abs(X).max(axis=1, keepdims=True)
-        pick = np.argmax(big, axis=1)
-        return np.sign(np.take_along_axis(X, pick[:, None, :], axis=1)[:, 0, :])
-    sign = first_big(Svals) if Svals.shape[1] else np.zeros(Svals.shape[::2])
-    flat = np.abs(Svals).max(axis=1, initial=0.0) <= problem.s_floor
-    if V is not None:
-        sign = np.where(flat, first_big(V), sign)
-    return np.where(sign == 0, 1.0, sign)
-
-
 def search_subspace(problem: Problem, mask: np.ndarray, W: np.ndarray):
     """A consistent unit vector in span(W) (n, k), or None: (vector, code, hinges).
 
@@ -172,6 +156,13 @@ def _finish(problem, mask, v):
     return v, code, bool(hinges[0, 0])
 
 
+def canonical_signs(V: np.ndarray) -> np.ndarray:
+    """Eigenvectors (..., n, k) with each column's largest-magnitude entry positive: LAPACK's sign choice varies
+    between builds, and the reported vector_sign (±v consistent) must not."""
+    idx = np.argmax(np.abs(V), axis=-2)[..., None, :]
+    return V * np.where(np.take_along_axis(V, idx, axis=-2) < 0, -1.0, 1.0)
+
+
 def eigen_groups(lam: np.ndarray, tol: float) -> list[np.ndarray]:
     """Indices of runs of sorted eigenvalues closer than tol (repeated eigenvalues), including singletons."""
     breaks = np.flatnonzero(np.diff(lam) > tol) + 1
@@ -202,7 +193,7 @@ def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None
         with sized(n):                                                # threads.py: 1 thread for small stacks
             _, HH, Hsym = branch_matrices(problem, part)
             lam, V = np.linalg.eigh(Hsym)
-            V *= canonical_signs(problem, np.einsum("nm,lnk->lmk", problem.S, V), V)[:, None, :]
+            V = canonical_signs(V)
             mu, W = np.linalg.eig(HH)
             codes, hinges = test_codes(problem, part, V)
             batch = _batched(problem, Hsym, HH, lam, V, mu, W)

@@ -10,7 +10,8 @@ import numpy as np
 
 from .analysis import analyze
 from .branches import BOTH, MINUS, PLUS, RIGID
-from .scene import SceneError, load_scene
+from .files import load_scene
+from .scene import SceneError
 from .stiffness import MaskError, stiffness
 
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backend import backend, residual_norms
-from .branches import RIGID, Branch, Problem, canonical_signs, codes_from_s, solve_branches
+from .branches import RIGID, Branch, Problem, codes_from_s, solve_branches
 from .tolerances import EPS
 
 GUARD = 6            # extra Ritz vectors carried by the sparse path's refinement (faster convergence of the kk)
@@ -131,6 +131,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
         return out, info
     size = chunk or be.chunk(8.0 * (5 * k * k + 2 * n * k), L)
     dM, dE = (be.asarray(u) for u in _updates(red))
+    N = be.asarray(red.N)
     s_t = be.asarray(red.s.T)
     out = []
     with be.threads(k):
@@ -140,10 +141,10 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
             on = be.asarray(on_h)
             M = branch_stack(xp, red, on, dM)
             lam, W = xp.linalg.eigh(M)
+            W = W * full_signs(xp, N, W)[:, None, :]
             Sv = xp.matmul(s_t[None], W)
             got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE), "S": Sv}
             host = {key: be.to_host(v) for key, v in got.items()}
-            host["S"] *= canonical_signs(problem, host["S"])[:, None, :]
             special = _special(problem, red, host, on_h)
             full = dict(zip(np.flatnonzero(special),
                             solve_branches(problem, part[special]) if special.any() else []))
@@ -159,6 +160,14 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
                 if on_branch is not None:
                     on_branch(b)
     return out, info
+
+
+def full_signs(xp, N, W):
+    """±1 per column (L, k): the sign that makes the largest-magnitude entry of the full eigenvector N w positive,
+    the convention of branches.canonical_signs, so both paths report the same vector_sign."""
+    V = xp.matmul(N[None], W)
+    idx = xp.argmax(xp.abs(V), axis=1)[:, None, :]
+    return xp.where(xp.take_along_axis(V, idx, axis=1)[:, 0, :] < 0, -1.0, 1.0)
 
 
 def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Scenes: particles and contact-level data (Sec. 2), read from TOML/JSON and validated.
+"""Scenes: particles and contact-level data (Sec. 2), read from a parsed TOML/JSON file (files.py) and validated.
 
 A `Scene` holds arrays over particles (N) and contacts (M); d = dim, r = 1 (2D) or 3 (3D):
 x (N, d), load b (N, d), load_moment w (N, r); per contact p, q (M,), point (M, d),
@@ -10,13 +10,11 @@ Loads default to equilibrium, b^p = -Σ f^pq and w^p = -Σ (r^pq × f^pq + m^pq)
 """
 from __future__ import annotations
 
-import json
-import tomllib
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
+from .reading import Reader, SceneError, read_law
 from .tolerances import DEFAULT, Tolerances
 from .vec import cross, rot_dim, tangent_basis
 
@@ -26,10 +24,6 @@ TOP_KEYS = {"dim", "title", "defaults", "particles", "contacts"}
 PARTICLE_KEYS = {"name", "x", "load", "moment"}
 CONTACT_KEYS = {"p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state", *LAW_KEYS}
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5, "rolling_stiffness": 0.0}
-
-
-class SceneError(ValueError):
-    """Invalid scene input; the message is the one line the CLI prints."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,122 +143,14 @@ class Scene:
 
 # ----------------------------------------------------------------------------------------------- reading
 
-def load_scene(path, tol: Tolerances = DEFAULT) -> Scene:
-    """Read a TOML (or JSON) scene file; raises SceneError with a one-line message naming the file."""
-    path = Path(path)
-    source = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SceneError(f"{source}: cannot read file ({exc.strerror or exc})") from None
-    except UnicodeDecodeError:
-        raise SceneError(f"{source}: not a UTF-8 text file") from None
-    if path.suffix.lower() == ".json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise SceneError(f"{source}: malformed JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
-    else:
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise SceneError(f"{source}: malformed TOML: {_one_line(str(exc))}") from None
-    return scene_from_dict(data, source=source, tol=tol)
-
-
-def _one_line(text: str) -> str:
-    return " ".join(text.split())
-
-
-class _Reader:
-    """Structural checks of one entry, raising one-line errors that name file, entry and field."""
-
-    def __init__(self, source: str, entry: str, data, allowed: set):
-        self.source, self.entry, self.data = source, entry, data
-        if not isinstance(data, dict):
-            self.fail("", f"must be a table, got {type(data).__name__}")
-        unknown = sorted(set(data) - allowed)
-        if unknown:
-            self.fail(unknown[0], f"unknown key (allowed: {', '.join(sorted(allowed))})")
-
-    def fail(self, key: str, msg: str):
-        where = f"{self.entry}: {key}" if key else self.entry
-        raise SceneError(_one_line(f"{self.source}: {where}: {msg}"))
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def text(self, key: str, default=None) -> str:
-        if key not in self.data:
-            if default is None:
-                self.fail(key, "missing")
-            return default
-        value = self.data[key]
-        if not isinstance(value, str) or not value:
-            self.fail(key, f"must be a non-empty string, got {value!r}")
-        return value
-
-    def number(self, key: str, default=None) -> float:
-        if key not in self.data:
-            if default is None:
-                self.fail(key, "missing")
-            return float(default)
-        return self._finite(key, self.data[key], ())
-
-    def array(self, key: str, shape: tuple, default=None) -> np.ndarray:
-        """A finite array of the given shape; shape () is a scalar."""
-        if key not in self.data:
-            if default is None:
-                self.fail(key, "missing")
-            return np.broadcast_to(np.asarray(default, dtype=float), shape).copy()
-        return self._finite(key, self.data[key], shape)
-
-    def _finite(self, key, value, shape):
-        def bad():
-            want = "a number" if shape == () else f"{'x'.join(map(str, shape))} numbers"
-            self.fail(key, f"must be {want}, got {json.dumps(value) if _jsonable(value) else value!r}")
-
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            bad()
-        if arr.shape != shape or not _all_numbers(value):
-            bad()
-        if not np.all(np.isfinite(arr)):
-            self.fail(key, "must be finite (no nan or inf)")
-        return arr
-
-
-def _jsonable(value) -> bool:
-    try:
-        json.dumps(value)
-        return True
-    except (TypeError, ValueError):
-        return False
-
-
-def _all_numbers(value) -> bool:
-    """True if every leaf is an int or float (not a bool, not a string that numpy would convert)."""
-    if isinstance(value, (list, tuple)):
-        return all(_all_numbers(v) for v in value)
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
-    """Build and validate a Scene from the parsed file format (a dict).
-
-    A scene with no `contacts` whose particles carry a `shape` is shape-based: its contacts are
-    derived from the geometry (shapes.py)."""
-    from .shapes import is_shape_scene, shape_scene_from_dict
-
-    if is_shape_scene(data):
-        return shape_scene_from_dict(data, source=source, tol=tol)
+def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
+    """Build and validate a Scene from the parsed contact-level file format (a dict); files.py dispatches."""
     top, dim, title = read_header(data, source, TOP_KEYS)
     r = rot_dim(dim)
     base_law = {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((r, r))}
-    law = _read_law(_Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, base_law)
+    law = read_law(Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, base_law)
 
-    def read_particle(rd: _Reader, name: str):
+    def read_particle(rd: Reader, name: str):
         load = rd.array("load", (dim,)) if rd.has("load") else None
         moment = rd.array("moment", () if dim == 2 else (3,)) if rd.has("moment") else None
         return name, rd.array("x", (dim,)), load, moment
@@ -280,7 +166,7 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
     entries = []
     seen = {}
     for c, item in enumerate(contacts):
-        rd = _Reader(source, f"contacts[{c}]", item, CONTACT_KEYS)
+        rd = Reader(source, f"contacts[{c}]", item, CONTACT_KEYS)
         pn, qn = rd.text("p"), rd.text("q")
         rd.entry = f"contacts[{c}] ({pn}-{qn})"
         for key, name in (("p", pn), ("q", qn)):
@@ -305,7 +191,7 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
             cols[key].append(_read_curvature(rd, key, dim, normal, tol))
         cols["force"].append(rd.array("force", (dim,)))
         cols["moment"].append(rd.array("moment", (r,), 0.0) if dim == 3 else rd.array("moment", (), 0.0).reshape(1))
-        own = _read_law(rd, dim, law)
+        own = read_law(rd, dim, law)
         for key in ("k", "alpha", "mu"):
             cols[key].append(own[key])
         cols["rolling"].append(own["rolling_stiffness"])
@@ -331,7 +217,7 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
 
 def read_header(data, source: str, allowed: set):
     """The top-level table: its reader, dim (2 or 3, required) and title (optional)."""
-    top = _Reader(source, "scene", data, allowed)
+    top = Reader(source, "scene", data, allowed)
     if "dim" not in data:
         top.fail("dim", "missing (2 or 3)")
     dim = data["dim"]
@@ -340,14 +226,14 @@ def read_header(data, source: str, allowed: set):
     return top, dim, top.text("title", "") if "title" in data else ""
 
 
-def read_particles(top: _Reader, data: dict, allowed: set, read) -> list:
+def read_particles(top: Reader, data: dict, allowed: set, read) -> list:
     """The `particles` array: one table each, with a unique name; `read(rd, name)` returns an entry's data."""
     particles = data.get("particles")
     if not isinstance(particles, list) or not particles:
         top.fail("particles", "must be a non-empty array of tables")
     out, index = [], {}
     for i, item in enumerate(particles):
-        rd = _Reader(top.source, f"particles[{i}]", item, allowed)
+        rd = Reader(top.source, f"particles[{i}]", item, allowed)
         name = rd.text("name")
         rd.entry = f"particles[{i}] ({name!r})"
         if name in index:
@@ -357,30 +243,7 @@ def read_particles(top: _Reader, data: dict, allowed: set, read) -> list:
     return out
 
 
-def _read_law(rd: _Reader, dim: int, base: dict) -> dict:
-    r = rot_dim(dim)
-    k = rd.number("k", base["k"])
-    alpha = rd.number("alpha", base["alpha"])
-    mu = rd.number("mu", base["mu"])
-    if k <= 0:
-        rd.fail("k", f"must be > 0, got {k}")
-    if alpha <= 0:
-        rd.fail("alpha", f"must be > 0, got {alpha}")
-    if mu < 0:
-        rd.fail("mu", f"must be >= 0, got {mu}")
-    rolling = base["rolling_stiffness"]
-    if "rolling_stiffness" in rd.data:
-        if dim == 2 or np.ndim(rd.data["rolling_stiffness"]) == 0:
-            value = rd.array("rolling_stiffness", ())
-            if value < 0:
-                rd.fail("rolling_stiffness", f"must be >= 0, got {value}")
-            rolling = value * np.eye(r)
-        else:
-            rolling = rd.array("rolling_stiffness", (3, 3))
-    return {"k": k, "alpha": alpha, "mu": mu, "rolling_stiffness": rolling}
-
-
-def _read_curvature(rd: _Reader, key: str, dim: int, normal: np.ndarray, tol: Tolerances) -> np.ndarray:
+def _read_curvature(rd: Reader, key: str, dim: int, normal: np.ndarray, tol: Tolerances) -> np.ndarray:
     """2D: scalar κ along t (convex < 0, κ = -1/ρ) → κ t⊗t; 3D: symmetric 3x3 with K·n = 0."""
     if dim == 2:
         kappa = float(rd.array(key, ()))
@@ -486,4 +349,4 @@ def _load_scales(scene: Scene):
     return fs, ms
 
 
-__all__ = ["Scene", "SceneError", "load_scene", "scene_from_dict", "build_scene", "equilibrium_loads"]
+__all__ = ["Scene", "SceneError", "contact_scene_from_dict", "build_scene", "equilibrium_loads"]
