@@ -3,7 +3,9 @@
 With Ms potentially sliding contacts there are 2^Ms branches; a mask has +1 (loading, sliding), -1 (unloading,
 elastic) for each of them and 0 for contacts not at yield. Branch i has H^i = H_el + Σ_{mask=+1} a ⊗ s (rank-one
 sliding terms, eq:ContactF), ℍ^i = H^i P^nrr and 𝓗^i = Pᵀ H^i P (eq:newstiffnesses). All branches are handled
-as one stacked array (in chunks), in the scaled dofs of rigid.py.
+as one stacked array (in chunks), in the scaled dofs of rigid.py; from lowrank.MIN_BRANCHES branches on (or on a
+GPU) analyze() uses lowrank.py, which solves them as low-rank updates of the elastic problem and hands only the
+branches that need the per-branch code below (repeated eigenvalues, non-rigid zeros, Type-2) to solve_branches.
 
 Consistency (Appendix D): the test vector of a motion v is sign(S) per potentially sliding contact with
 S = g·δu_def (eq:flow) and |S| <= s_tol counted as 0; v is consistent if mask·test is all >= 0, -v if all <= 0,
