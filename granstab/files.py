@@ -15,7 +15,11 @@ from .tolerances import DEFAULT, Tolerances
 
 
 def load_scene(path, tol: Tolerances = DEFAULT) -> Scene:
-    """Read a TOML (or JSON) scene file; raises SceneError with a one-line message naming the file."""
+    """Read a TOML (or JSON) scene file; raises SceneError with a one-line message naming the file.
+    Folders and other files (DEM snapshots, experiments) go to granstab.io.load with its defaults."""
+    from .io import is_snapshot, load
+    if is_snapshot(path):
+        return load(path).scene
     path = Path(path)
     source = str(path)
     try:
