@@ -289,7 +289,7 @@ class SparseRitz:
     residuals exceed `rtol`·‖Hs‖, is solved again by shift-invert ARPACK with the same LU (sparse.lowest_modes).
     """
 
-    def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 8, rtol: float = 1e-10, device: str = "cpu"):
+    def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 8, rtol: float = 1e-12, device: str = "cpu"):
         from .sparse import lowest_modes
         self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
         elastic = lowest_modes(spb, k + extra, None, tol=tol)
@@ -316,7 +316,7 @@ class SparseRitz:
             T = R[:, :spb.scene.dim]
             self.solved = {"Q": solve(spb.Q), "HQ": solve(spb.Hs @ spb.Q), "T": solve(T), "A": solve(spb.A),
                            "S": solve(spb.S)}
-        self.steps = 3
+        self.steps = 4
 
     def modes(self, masks: np.ndarray, kk: int):
         """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""

@@ -711,7 +711,7 @@ def analyze_sparse(scene: Scene, *, k: int = 6, rotation_length_: float | None =
                     "branch; uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated")
     if ritz:
         warnings.append(f"{ritz} of {len(branches)} branches as Ritz updates of one elastic solve (lowrank.SparseRitz: "
-                        "count below σ exact by inertia, residuals ≤ 1e-10·‖Hs‖), the others by shift-invert")
+                        "count below σ exact by inertia, residuals ≤ 1e-12·‖Hs‖), the others by shift-invert")
     if unverified:
         warnings.append(f"{unverified} branch(es): the inertia check could not prove that the computed eigenvalues "
                         "are the lowest ones")
