@@ -196,7 +196,7 @@ def markdown(results: dict) -> str:
         table(["Ms", "branches", "peak"], mem),
         "",
         f"Sparse path, {s['particles']:,}-particle 2D packing ({s['dof']:,} dofs), Ms = {s['Ms']} "
-        f"({s['branches']} branches), 6 lowest modes per branch: one elastic shift-invert solve and a "
+        f"({s['branches']} branches{', measured in a second run at load ' + ' → '.join(results['load_sparse']) if 'load_sparse' in results else ''}), 6 lowest modes per branch: one elastic shift-invert solve and a "
         f"{s['basis']}-vector Ritz basis, then per branch a stacked Rayleigh-Ritz, the exact inertia count from "
         f"the shared LU and at most 4 block shift-invert refinements (residuals ≤ 1e-12·‖Hs‖): **{fmt_long(s['t_ritz'])}** for all branches "
         f"({s['ritz']} by Ritz, {s['arpack_fallback']} fell back to ARPACK; {s['verified']} verified) against "
