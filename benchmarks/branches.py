@@ -47,7 +47,7 @@ def compare(low, ref, up_to_sign: bool = False) -> dict:
     rel = max(float(np.abs(a.stability_eigenvalues - b.stability_eigenvalues).max()
                     / np.abs(b.stability_eigenvalues).max()) for a, b in zip(low, ref))
     bound = max(float((np.abs(a.stability_eigenvalues - b.stability_eigenvalues)
-                       / np.maximum(a.stability_errors + b.stability_errors, 1e-300)).max()) for a, b in zip(low, ref))
+                       / np.maximum(a.accuracy + b.accuracy, 1e-300)).max()) for a, b in zip(low, ref))
     same = (lambda a, b: np.array_equal(np.where(np.abs(a) == 1, 1, a), np.where(np.abs(b) == 1, 1, b))) \
         if up_to_sign else np.array_equal
     codes = all(same(a.codes, b.codes) for a, b in zip(low, ref))

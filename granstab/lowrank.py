@@ -9,12 +9,13 @@ s·T = 0, P C = 0), so in the orthonormal complement N of R (Nᵀ P = Nᵀ) ever
 the elastic matrix plus a symmetric update of rank ≤ 2·(#loading contacts). The elastic part and the projected
 factors are computed once; each chunk of branches is one batched product and one stacked `eigh` on the backend.
 
-What is exact and what is bounded, per branch and eigenvalue (reported as `Branch.stability_errors`):
+What is exact and what is bounded, per branch and eigenvalue (reported as `Branch.bounds`, accuracy.py's meaning):
 * The reduction is exact up to round-off: in the basis [N, R] the full matrix is [[M_i, E_iᵀ], [E_i, G_i]] with
   E_i = Rᵀ sym(𝓗^i) N (the rigid leakage, zero in exact arithmetic); by Weyl, dropping it moves no eigenvalue by
   more than ‖E_i‖₂ ≤ ‖E_i‖_F, which is computed per branch (also a low-rank update of E_0).
-* Each computed pair (λ, w) has residual r = ‖M_i w − λ w‖; a true eigenvalue lies within r (symmetric matrix).
-  The bound per eigenvalue is r + ‖E_i‖_F, whatever the backend's solver (LAPACK or batched Jacobi).
+* Each computed pair (λ, w) has residual r = ‖M_i w − λ w‖; the eigenvalues match one to one within √2 r
+  (accuracy.py, Kahan), plus the rounding of r itself and the formation error of the problem. The bound per
+  eigenvalue is that of accuracy.vector_bounds plus ‖E_i‖_F, whatever the backend's solver (LAPACK or Jacobi).
 * Eigenvalues whose bound keeps them off zero have a proven sign, so their counts are exact (Sylvester).
 * ℍ^i = H^i P has no non-rigid null vector when σ_min(H^i N) > its zero tolerance; σ_min(H^i N) ≥ λ_min(M_i)
   (wᵀ M_i w = wᵀ NᵀH^iN w ≤ |w|·‖H^iN w‖), so a positive definite branch needs no SVD; the others get a lower bound
@@ -32,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .accuracy import vector_bounds
 from .backend import backend, residual_norms
 from .branches import RIGID, Branch, Problem, codes_from_s, solve_branches
 from .tolerances import EPS
@@ -143,8 +145,11 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
             lam, W = xp.linalg.eigh(M)
             W = W * full_signs(xp, N, W)[:, None, :]
             Sv = xp.matmul(s_t[None], W)
-            got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE), "S": Sv}
+            got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE), "S": Sv,
+                   "scale": xp.max(xp.sum(xp.abs(M), axis=-1), axis=-1)}
             host = {key: be.to_host(v) for key, v in got.items()}
+            host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
+                                           problem.formation_error, k) + host["leak"][:, None]
             special = _special(problem, red, host, on_h)
             full = dict(zip(np.flatnonzero(special),
                             solve_branches(problem, part[special]) if special.any() else []))
@@ -171,18 +176,15 @@ def full_signs(xp, N, W):
 
 
 def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray) -> np.ndarray:
-    """Branches that need the full path: a non-rigid zero or a repeated eigenvalue within the zero tolerance of
-    branches.py (same rule, same norm), or an ℍ^i whose smallest singular value on N is not proven above its
-    zero tolerance."""
-    lam, res, leak = h["lam"], h["res"], h["leak"]
+    """Branches that need the full path: a non-rigid zero or a repeated eigenvalue within the accuracy bounds
+    (branches.py's rule), or an ℍ^i whose smallest singular value on N is not proven above its zero tolerance."""
+    lam, bounds = h["lam"], h["bounds"]
     n = red.n
-    norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
-    tol = problem.tol.zero_tol(1.0, n) * norm
-    zero = np.any(np.abs(lam) <= tol[:, None], axis=1)
-    repeated = np.any(np.diff(lam, axis=1) <= tol[:, None], axis=1)
+    zero = np.any(np.abs(lam) <= bounds, axis=1)
+    repeated = np.any(np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:], axis=1)
     upper = red.HN_norm + on @ red.AS_norm                            # ≥ ‖H^i N‖₂ = ‖ℍ^i‖₂
     tol_u = problem.tol.zero_tol(1.0, n) * upper
-    lower = lam[:, 0] - res[:, 0] - leak - 4 * n * EPS * norm         # ≤ λ_min(M_i) ≤ σ_min(H^i N)
+    lower = lam[:, 0] - bounds[:, 0]                                  # ≤ λ_min(M_i) ≤ σ_min(H^i N)
     unsure = np.flatnonzero(~(zero | repeated) & (lower <= tol_u))
     singular = np.zeros(len(lam), bool)
     if unsure.size:
@@ -203,16 +205,18 @@ def _plain_arrays(problem: Problem, h: dict, codes, hinges) -> dict:
     r = problem.rigid.shape[1]
     lam = np.concatenate([np.zeros((L, r)), h["lam"]], axis=1)
     order = np.argsort(lam, axis=1, kind="stable")
-    err = np.concatenate([np.zeros((L, r)), h["res"]], axis=1) + h["leak"][:, None]
+    err = np.concatenate([np.broadcast_to(h["leak"][:, None] + problem.formation_error, (L, r)), h["bounds"]],
+                         axis=1)
     codes = np.concatenate([np.full((L, r), RIGID, np.int8), codes], axis=1)
     hinges = np.concatenate([np.zeros((L, r), bool), hinges], axis=1)
     norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
+    res = (np.sqrt(2.0) * h["res"].max(axis=1, initial=0.0) + h["leak"]) / norm
     S = h["S"]
     finger = np.argmax(np.abs(S), axis=1) if S.shape[1] else np.zeros((L, k), int)
     sign = np.take_along_axis(S, finger[:, None, :], axis=1)[:, 0, :] if S.shape[1] else np.ones((L, k))
     take = lambda a: np.take_along_axis(a, order, axis=1)              # noqa: E731
     return {"lam": take(lam), "err": take(err), "codes": take(codes), "hinges": take(hinges), "order": order,
-            "tol": problem.tol.zero_tol(1.0, problem.rigid.shape[0]) * norm, "res": err.max(axis=1) / norm,
+            "tol": err.max(axis=1), "res": res,
             "finger": finger, "sign": np.sign(sign)}
 
 
@@ -223,7 +227,7 @@ def _plain(problem: Problem, red: Reduced, mask, p: dict) -> Branch:
                       problem, red, mask, p["order"], p["finger"], p["sign"]), codes=p["codes"], hinges=p["hinges"],
                   n_zero=r, zero_tol=float(p["tol"]), uniqueness_eigenvalues=np.zeros(0, complex),
                   uniqueness_n_zero=r, type2=[], residual_stability=float(p["res"]), residual_uniqueness=0.0,
-                  stability_errors=p["err"])
+                  bounds=p["err"])
 
 
 class LazyVectors:

@@ -105,7 +105,7 @@ def test_gpu_branch_verdicts_equal_cpu(seed):
     for a, b in zip(cpu, gpu):
         assert np.array_equal(a.codes, b.codes)
         assert np.all(np.abs(a.stability_eigenvalues - b.stability_eigenvalues)
-                      <= a.stability_errors + b.stability_errors)
+                      <= a.accuracy + b.accuracy)
 
 
 @GPU
