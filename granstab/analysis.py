@@ -112,7 +112,7 @@ def build_problem(scene: Scene, blocks: ContactBlocks, metric):
 
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
-            rotation_length_: float | None = None) -> Analysis:
+            rotation_length_: float | None = None, device: str = "cpu", lowrank: bool | None = None) -> Analysis:
     """Analyse every loading branch of `scene` (Sec. 3, Appendix D).
 
     metric: "family" (default: the verdict in L/10, L, 10L and inertia where masses are known; spectra in L;
@@ -125,6 +125,9 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     eigenpairs of sym(𝓗^i) per branch and its exact negative count, without any n_dof × n_dof matrix) or "auto"
     (dense up to sparse.DENSE_MAX_DOF dofs, sparse above). Each backend says what it leaves out (`warnings`).
     k: eigenpairs per branch on the sparse path. progress: a tqdm bar with time left over the branches.
+    device: "cpu", "gpu" (CuPy, else backend.DeviceError) or "auto" for the stacked branch eigenproblems
+    (backend.py). lowrank: solve the branches as low-rank updates of the elastic problem (lowrank.py: no ℍ^i
+    spectra, eigenvectors on demand); None = from lowrank.MIN_BRANCHES branches on or on a GPU.
     """
     if rotation_length_ is not None:
         _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
@@ -140,7 +143,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         raise ValueError("rotation_length: the inertia metric has no rotation length")
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
-    backend = choose_backend(scene, method, k)
+    backend = choose_backend(scene, method, k, device, lowrank)
     timer = Timer()
     with timer("total"):
         state = backend.prepare(scene, timer)

@@ -55,12 +55,14 @@ class State:
     parts: dict | None = None
 
 
-def choose_backend(scene: Scene, method: str, k: int):
-    """"dense", "sparse" or "auto" (sparse above sparse.DENSE_MAX_DOF dofs)."""
+def choose_backend(scene: Scene, method: str, k: int, device: str = "cpu", lowrank: bool | None = None):
+    """"dense", "sparse" or "auto" (sparse above sparse.DENSE_MAX_DOF dofs); device and lowrank: see DenseBackend."""
+    from .backend import backend
     from .sparse import DENSE_MAX_DOF
+    backend(device)                                                   # an unusable device fails before any work
     if method == "sparse" or (method == "auto" and scene.n_dof > DENSE_MAX_DOF):
-        return SparseBackend(k)
-    return DenseBackend()
+        return SparseBackend(k, device=device)
+    return DenseBackend(device, lowrank)
 
 
 def _progress_bar(total: int, desc: str = "branches"):
@@ -123,9 +125,15 @@ def modified_leakage(problem: Problem) -> float:
 
 
 class DenseBackend:
-    """Every eigenpair of every branch (branches.solve_branches); leaves nothing out."""
+    """Every eigenpair of every branch (branches.solve_branches); leaves nothing out. From lowrank.MIN_BRANCHES
+    branches on, or when `device` resolves to a GPU (backend.py), the branches are solved as low-rank updates of
+    the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
+    branches it solves (their ℍ^i nullity is proven instead) and says so."""
 
     name = "dense"
+
+    def __init__(self, device: str = "cpu", lowrank: bool | None = None):
+        self.device, self.lowrank = device, lowrank
 
     def prepare(self, scene: Scene, timer: Timer) -> State:
         with timer("blocks"):
@@ -146,10 +154,24 @@ class DenseBackend:
             if on_branch is not None:
                 on_branch(b)
 
-        branches = solve_branches(problem, masks, on_branch=stream)
+        from .backend import backend
+        from .lowrank import MIN_BRANCHES, solve_branches_lowrank
+        lowrank = self.lowrank
+        if lowrank is None:
+            lowrank = len(masks) >= MIN_BRANCHES or backend(self.device).name == "gpu"
+        notes = {"complete": True}
+        if lowrank:
+            branches, info = solve_branches_lowrank(problem, masks, device=self.device, on_branch=stream)
+            notes["lowrank"] = info
+            notes["warnings"] = [f"low-rank branch path on {info['device']} (unit round-off {info['eps']:.1e}): "
+                                 f"{len(branches) - info['full_path']} of {len(branches)} branches without ℍ^i "
+                                 "spectra (ℍ^i nullity proven from a bound on its smallest singular value), "
+                                 f"{info['full_path']} on the full path"]
+        else:
+            branches = solve_branches(problem, masks, on_branch=stream)
         if bar is not None:
             bar.close()
-        return branches, {"complete": True}
+        return branches, notes
 
     def errors(self, state: State, problem: Problem, branches) -> dict:
         errors = identity_errors(state.scene, state.parts)
@@ -184,9 +206,10 @@ class SparseBackend:
 
     name = "sparse"
 
-    def __init__(self, k: int = 6, tol: float = 0.0):
+    def __init__(self, k: int = 6, tol: float = 0.0, device: str = "cpu"):
         self.k = int(k)
         self.tol = tol
+        self.device = device
 
     def prepare(self, scene: Scene, timer: Timer) -> State:
         from .sparse import sparse_parts
@@ -207,14 +230,11 @@ class SparseBackend:
         return SparseBranchProblem(sp=spb, core=core)
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False):
-        from .sparse import lowest_modes
         spb, k = problem.sp, self.k
         bar = _progress_bar(len(masks), "branches (sparse)") if progress else None
-        branches, unverified, cut = [], 0, 0
-        fact = None
-        for mask in masks:
-            modes = lowest_modes(spb, k + 1, mask, factorization=fact, tol=self.tol)
-            fact = modes.info.get("factorization")
+        branches, unverified, cut, ritz = [], 0, 0, 0
+        for mask, modes in zip(masks, self._modes(spb, masks, k + 1)):
+            ritz += modes.method == "ritz"
             b, was_cut = sparse_branch(problem.core, spb, modes, mask, k)
             unverified += not modes.verified
             cut += was_cut
@@ -230,6 +250,10 @@ class SparseBackend:
         notes = {"complete": complete, "full": k >= n_free, "k": k, "warnings": [
             f"sparse path: the lowest {min(k, n_free)} of {n_free} non-rigid eigenpairs of sym(𝓗^i) per branch; "
             "uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated"]}
+        if ritz:
+            notes["warnings"].append(f"{ritz} of {len(branches)} branches as Ritz updates of one elastic solve "
+                                     "(lowrank.SparseRitz: count below σ exact by inertia, residuals ≤ 1e-12·‖Hs‖), "
+                                     "the others by shift-invert")
         if unverified:
             notes["warnings"].append(f"{unverified} branch(es): the inertia check could not prove that the computed "
                                      "eigenvalues are the lowest ones")
@@ -240,6 +264,16 @@ class SparseBackend:
         if not complete:
             notes["suggest_k"] = int(need + 1 + max(b.n_zero - spb.n_rigid for b in branches))
         return branches, notes
+
+    def _modes(self, spb, masks, kk: int):
+        """Modes of every branch: several branches as low-rank updates of one elastic solve (lowrank.SparseRitz,
+        verified per branch, shift-invert ARPACK where that fails), a single one by shift-invert directly."""
+        from .sparse import lowest_modes
+        if len(masks) > 1:
+            from .lowrank import SparseRitz
+            yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)
+            return
+        yield lowest_modes(spb, kk, masks[0], tol=self.tol)
 
     def errors(self, state: State, problem: SparseBranchProblem, branches) -> dict:
         from .sparse import identity_errors as sparse_identities

@@ -3,7 +3,9 @@
 With Ms potentially sliding contacts there are 2^Ms branches; a mask has +1 (loading, sliding), -1 (unloading,
 elastic) for each of them and 0 for contacts not at yield. Branch i has H^i = H_el + Σ_{mask=+1} a ⊗ s (rank-one
 sliding terms, eq:ContactF), ℍ^i = H^i P^nrr and 𝓗^i = Pᵀ H^i P (eq:newstiffnesses). All branches are handled
-as one stacked array (in chunks), in the scaled dofs of rigid.py.
+as one stacked array (in chunks), in the scaled dofs of rigid.py; from lowrank.MIN_BRANCHES branches on (or on a
+GPU) analyze() uses lowrank.py, which solves them as low-rank updates of the elastic problem and hands only the
+branches that need the per-branch code below (repeated eigenvalues, non-rigid zeros, Type-2) to solve_branches.
 
 Consistency (Appendix D): the test vector of a motion v is sign(S) per potentially sliding contact with
 S = g·δu_def (eq:flow) and |S| <= s_tol counted as 0; v is consistent if mask·test is all >= 0, -v if all <= 0,
@@ -18,7 +20,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from .accuracy import eigen_bounds
-from .threads import blas_threads
+from .threads import sized
 from .tolerances import EPS
 
 # codes of an eigenpair's consistency: vector_sign +1 / -1 / 0 (both), not consistent, rigid (trivial)
@@ -111,7 +113,11 @@ def branch_matrices(problem: Problem, masks: np.ndarray):
 
 def test_codes(problem: Problem, masks: np.ndarray, V: np.ndarray):
     """Appendix-D test of every column of V (L, n, k) against its branch mask: codes (L, k) and hinges (L, k)."""
-    Svals = np.einsum("nm,lnk->lmk", problem.S, V)                   # (L, Ms, k)
+    return codes_from_s(problem, masks, np.einsum("nm,lnk->lmk", problem.S, V))
+
+
+def codes_from_s(problem: Problem, masks: np.ndarray, Svals: np.ndarray):
+    """`test_codes` from the S values (L, Ms, k) of the columns (S = g·δu_def of each sliding contact, eq:flow)."""
     m = masks[:, problem.sliding][:, :, None].astype(float)
     test = np.where(np.abs(Svals) <= problem.s_tol, 0.0, np.sign(Svals))
     prod = m * test
@@ -194,11 +200,10 @@ def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None
     """
     n = problem.H_el.shape[0]
     chunk = chunk or max(1, int(4e7 // (8 * n * n * 6)))
-    threads = 1 if n <= SMALL and len(masks) >= 16 else None         # threads.py: small stacks run faster
     out = []
     for start in range(0, len(masks), chunk):
         part = masks[start:start + chunk]
-        with blas_threads(threads):
+        with sized(n):                                                # threads.py: 1 thread for small stacks
             _, HH, Hsym = branch_matrices(problem, part)
             lam, V = np.linalg.eigh(Hsym)
             V = canonical_signs(V)
@@ -215,9 +220,6 @@ def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None
             if on_branch is not None:
                 on_branch(b)
     return out
-
-
-SMALL = 96   # matrices up to this size are solved with one BLAS thread (threads.py)
 
 
 def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
@@ -316,7 +318,8 @@ def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> 
     norm_u = max(sv.max(), 1e-300)
     tol_u = problem.tol.zero_tol(norm_u, n)
     null = Vt[sv <= tol_u].T
-    res_s = float(np.linalg.norm(Hsym @ V - V * lam, axis=0).max() / norm) if n else 0.0
+    res_cols = np.linalg.norm(Hsym @ V - V * lam, axis=0)
+    res_s = float(res_cols.max(initial=0.0) / norm)
     res_u = float(np.linalg.norm(HH @ W - W * mu, axis=0).max() / norm_u) if n else 0.0
     return Branch(mask=mask, stability_eigenvalues=lam, stability_vectors=V, codes=codes, hinges=hinges,
                   n_zero=int(zero.size), zero_tol=tol, uniqueness_eigenvalues=mu[order],

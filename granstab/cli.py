@@ -92,9 +92,14 @@ def cmd_analyze(args) -> int:
     if L is not None and args.metric == "inertia":
         raise InputError("--rotation-length: the inertia metric has no rotation length (use --metric L, L/10, 10L "
                          "or family)")
+    from .backend import DeviceError
     scene = load_scene(args.scene)
-    result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length, max_sliding=args.max_sliding,
-                     method=args.method, k=args.k, progress=args.progress)
+    try:
+        result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length,
+                         max_sliding=args.max_sliding, method=args.method, k=args.k, progress=args.progress,
+                         device=args.device)
+    except DeviceError as exc:
+        raise InputError(f"--device: {exc}") from None
     print(json.dumps(result.to_dict()) if args.json else format_table(result))
     return 0
 
@@ -188,6 +193,9 @@ def build_parser() -> Parser:
                         "branch without n_dof x n_dof matrices; auto: sparse above granstab.sparse.DENSE_MAX_DOF dofs")
     p.add_argument("--k", type=int, default=6, help="eigenpairs per branch on the sparse path")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
+    p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
+                   help="where the stacked branch eigenproblems run: gpu needs CuPy (pip install 'granstab[gpu]'); "
+                        "auto: the GPU when CuPy sees one")
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
     p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])

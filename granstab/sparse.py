@@ -237,7 +237,8 @@ class Shifted:
     n_below: int | None = None
 
     def __post_init__(self):
-        self.Z = self.lu.solve(self.U) if self.U.shape[1] else self.U
+        if self.Z is None:                                             # given: (Hs - σI)⁻¹U known (lowrank.py)
+            self.Z = self.lu.solve(self.U) if self.U.shape[1] else self.U
         Kinv = np.linalg.inv(self.K) if self.K.size else self.K
         Cap = Kinv + self.U.T @ self.Z
         Cap = 0.5 * (Cap + Cap.T)

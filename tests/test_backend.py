@@ -1,0 +1,121 @@
+"""The array backend (granstab/backend.py) and the BLAS thread policy (granstab/threads.py).
+
+The numpy path runs everywhere; the GPU tests need CuPy and a CUDA device and are skipped with that reason
+elsewhere (the only skip in the suite)."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import granstab
+from granstab import backend, packings, threads
+from granstab.analysis import build_problem
+from granstab.branches import enumerate_masks
+from granstab.lowrank import solve_branches_lowrank
+from granstab.rigid import rotation_length
+from granstab.stiffness import contact_blocks
+
+GPU = pytest.mark.skipif(not backend.gpu_available(),
+                         reason="no CuPy with a CUDA GPU here: the GPU backend is tested where one is present "
+                                "(pip install 'granstab[gpu]')")
+
+
+def known_stack(L=40, n=12, seed=0, spread=1e-8):
+    """Symmetric matrices Q diag(λ) Qᵀ with known eigenvalues, some pairs split by only `spread`."""
+    rng = np.random.default_rng(seed)
+    lam = np.sort(rng.uniform(-1, 1, (L, n)), axis=1)
+    lam[:, 1] = lam[:, 0] + spread
+    Q, _ = np.linalg.qr(rng.standard_normal((L, n, n)))
+    return (Q * lam[:, None, :]) @ np.swapaxes(Q, 1, 2), lam
+
+
+def test_cpu_eigh_stack_meets_its_own_error_bounds():
+    A, lam = known_stack()
+    got = backend.eigh_stack(A, "cpu")
+    assert got["device"] == "cpu" and got["eps"] == np.finfo(float).eps
+    err = np.abs(got["lam"] - lam)
+    assert np.all(err <= got["residual"] + 1e-15)                     # the bound holds per eigenvalue
+    assert got["residual"].max() <= 1e-13                              # and it is round-off small (‖A‖ ≤ 1)
+
+
+def test_chunking_gives_the_same_numbers(monkeypatch):
+    A, _ = known_stack(L=50)
+    whole = backend.eigh_stack(A, "cpu")
+    monkeypatch.setattr(backend, "CHUNK_BYTES", 8 * 12 * 12 * 4 * 7)   # 7 matrices per chunk: 8 chunks
+    assert backend.backend("cpu").chunk(8.0 * 12 * 12 * 4, 50) == 7
+    parts = backend.eigh_stack(A, "cpu", keep=lambda xp, A, lam, V, start: {"lam": lam, "first": lam[:, :1] * 0 + start})
+    assert np.array_equal(parts["lam"], whole["lam"])
+    assert sorted(set(parts["first"][:, 0])) == list(range(0, 50, 7))  # keep() saw every chunk's offset
+
+
+def test_unknown_device_is_an_error():
+    with pytest.raises(backend.DeviceError):
+        backend.backend("tpu")
+
+
+def test_auto_picks_the_gpu_exactly_when_cupy_sees_one():
+    assert backend.backend("auto").name == ("gpu" if backend.gpu_available() else "cpu")
+    assert backend.backend("cpu").xp is np
+
+
+def test_cli_device_gpu_without_cupy_is_one_line_exit_2():
+    cmd = [sys.executable, "-m", "granstab", "analyze", "presets/four_disk.toml", "--device", "gpu", "--json"]
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    if backend.gpu_available():                                          # then it must simply work
+        assert run.returncode == 0
+        return
+    assert run.returncode == 2
+    assert run.stdout == ""
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and "CuPy" in lines[0] and "--device" in lines[0]
+
+
+def test_thread_policy_by_size():
+    assert threads.for_size(48) == 1
+    assert threads.for_size(threads.SMALL + 1) == threads.cores() >= 1
+    pytest.importorskip("threadpoolctl", reason="threadpoolctl (test extra) applies the policy")
+    from threadpoolctl import threadpool_info
+    np.linalg.eigh(np.eye(3))                                            # BLAS is loaded
+    with threads.sized(10):
+        assert all(p["num_threads"] == 1 for p in threadpool_info() if p["user_api"] == "blas")
+
+
+# ------------------------------------------------------------------------------------------------- GPU only
+
+@GPU
+def test_gpu_eigh_stack_agrees_with_cpu_within_the_reported_bounds():
+    A, lam = known_stack(L=3000, n=48)
+    cpu = backend.eigh_stack(A, "cpu")
+    gpu = backend.eigh_stack(A, "gpu")
+    assert gpu["device"] == "gpu"
+    assert np.all(np.abs(gpu["lam"] - lam) <= gpu["residual"] + 1e-15)
+    assert np.all(np.abs(gpu["lam"] - cpu["lam"]) <= gpu["residual"] + cpu["residual"] + 1e-15)
+
+
+@GPU
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_gpu_branch_verdicts_equal_cpu(seed):
+    scene = packings.random_packing(2, 16, n_sliding=8, mobilised=0.3, seed=seed)
+    problem = build_problem(scene, contact_blocks(scene), rotation_length(scene))[0]
+    masks = enumerate_masks(problem.sliding, scene.n_contacts)
+    cpu, _ = solve_branches_lowrank(problem, masks, device="cpu")
+    gpu, info = solve_branches_lowrank(problem, masks, device="gpu")
+    assert info["device"] == "gpu"
+    for a, b in zip(cpu, gpu):
+        assert np.array_equal(a.codes, b.codes)
+        assert np.all(np.abs(a.stability_eigenvalues - b.stability_eigenvalues)
+                      <= a.accuracy + b.accuracy)
+
+
+@GPU
+@pytest.mark.parametrize("preset", ["four_disk", "two_particle", "spheres_tetrahedron", "gear_packing",
+                                    "annulus_frame"])
+def test_gpu_preset_verdicts_equal_cpu(preset):
+    path = f"presets/{preset}.json" if preset == "annulus_frame" else f"presets/{preset}.toml"
+    scene = granstab.load_scene(path)
+    a = granstab.analyze(scene, device="cpu")
+    b = granstab.analyze(scene, device="gpu")
+    for key in ("verdict", "sufficient", "consistent_negative", "consistent_zero", "consistent_positive",
+                "type2_nonuniqueness"):
+        assert a.summary[key] == b.summary[key]

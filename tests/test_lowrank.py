@@ -1,0 +1,165 @@
+"""The low-rank branch paths (granstab/lowrank.py) checked against the full solves they replace.
+
+Dense: every branch's reduced (rigid-free) eigenproblem against the full stacked path of branches.py — same codes,
+same summary, eigenvalues within the sum of both paths' reported per-eigenvalue bounds. Sparse: the Ritz
+branches of one elastic solve against shift-invert ARPACK per branch and against the dense spectra.
+"""
+import numpy as np
+import pytest
+
+import granstab
+from granstab import packings, sparse
+from granstab.analysis import build_problem
+from granstab import branches
+from granstab.branches import RIGID, enumerate_masks, solve_branches
+from granstab.lowrank import LazyVectors, SparseRitz, solve_branches_lowrank
+from granstab.rigid import rotation_length
+from granstab.stiffness import contact_blocks
+
+
+def problem_of(scene):
+    return build_problem(scene, contact_blocks(scene), rotation_length(scene))[0]
+
+
+def both_paths(scene):
+    problem = problem_of(scene)
+    masks = enumerate_masks(problem.sliding, scene.n_contacts)
+    low, info = solve_branches_lowrank(problem, masks)
+    return problem, solve_branches(problem, masks), low, info
+
+
+CASES = {
+    "2D, Ms = 5": dict(dim=2, n_particles=16, n_sliding=5, mobilised=0.3, seed=1),
+    "3D, Ms = 4, contact moments": dict(dim=3, n_particles=10, n_sliding=4, moments=0.2, seed=3),
+    "2D, f/k = 1e-9": dict(dim=2, n_particles=16, n_sliding=4, f_over_k=1e-9, seed=2),
+    "2D, f/k = 0.2, sharp tips": dict(dim=2, n_particles=16, n_sliding=4, f_over_k=0.2, curvature_ratio=0.3,
+                                       seed=4),
+    "3D, 1e-6 length scale": dict(dim=3, n_particles=10, n_sliding=3, radius=1e-6, seed=5),
+}
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_lowrank_branches_agree_with_the_full_path_within_their_bounds(name):
+    scene = packings.random_packing(**CASES[name])
+    problem, full, low, info = both_paths(scene)
+    assert len(full) == len(low) == 2 ** len(problem.sliding)
+    for f, lo in zip(full, low):
+        assert np.array_equal(f.mask, lo.mask)
+        gap = np.abs(f.stability_eigenvalues - lo.stability_eigenvalues)
+        # each path's eigenvalue lies within its bound of a true one (Bauer-Fike + Weyl for the leakage)
+        assert np.all(gap <= f.accuracy + lo.accuracy)
+        assert np.array_equal(f.codes, lo.codes)                        # canonical signs: no flip ambiguity
+        assert np.array_equal(f.hinges, lo.hinges)
+        assert (f.n_zero, f.uniqueness_n_zero) == (lo.n_zero, lo.uniqueness_n_zero)
+    # the bounds are round-off small: backward error and leakage relative to ‖M_i‖
+    assert info["backward_error"] <= 1e-13 and info["leakage"] <= 1e-13
+    summary = granstab.verdicts.summarize(full)
+    other = granstab.verdicts.summarize(low)
+    assert {k: v for k, v in summary.items() if k != "zero_margin"} == \
+           {k: v for k, v in other.items() if k != "zero_margin"}
+
+
+def test_vectors_on_demand_are_the_eigenvectors_their_codes_describe():
+    scene = packings.random_packing(2, 16, n_sliding=4, mobilised=0.3, seed=1)
+    problem, full, low, _ = both_paths(scene)
+    plain = [b for b in low if isinstance(b.stability_vectors, LazyVectors)]
+    assert len(plain) == len(low)
+    from granstab.branches import branch_matrices
+    for b, f in zip(low, full):
+        V = np.asarray(b.stability_vectors)
+        _, _, Hsym = branch_matrices(problem, b.mask[None])
+        res = np.linalg.norm(Hsym[0] @ V - V * b.stability_eigenvalues, axis=0)
+        assert np.all(res <= b.accuracy + 1e-14 * np.abs(b.stability_eigenvalues).max())
+        assert np.abs(V.T @ V - np.eye(len(V))).max() <= 1e-13
+        codes, _ = branches.test_codes(problem, b.mask[None], V[None])
+        keep = b.codes != RIGID
+        assert np.array_equal(codes[0][keep], b.codes[keep])
+        # the same eigenvectors as the full path, column by column (distinct eigenvalues: unique up to sign, and
+        # the sign is canonical)
+        assert np.abs(V[:, keep] - f.stability_vectors[:, keep]).max() <= 1e-8
+        assert np.allclose(b.stability_vectors[:, 3], V[:, 3])          # indexing like an array
+
+
+def test_kept_memory_per_branch_is_linear_in_the_dofs():
+    scene = packings.random_packing(2, 16, n_sliding=6, mobilised=0.3, seed=1)
+    _, full, low, _ = both_paths(scene)
+    n = scene.n_dof
+
+    def kept(b):
+        arrays = [b.stability_eigenvalues, b.codes, b.hinges, b.accuracy, b.uniqueness_eigenvalues]
+        vec = b.stability_vectors
+        arrays += [vec] if isinstance(vec, np.ndarray) else [vec.finger, vec.sign, vec.order]
+        return sum(a.nbytes for a in arrays)
+
+    assert max(kept(b) for b in low) <= 64 * n                           # O(n) numbers per branch
+    assert min(kept(b) for b in full) >= 8 * n * n                       # the full path keeps n × n vectors
+
+
+@pytest.mark.parametrize("preset", ["four_disk", "gear_packing", "spheres_tetrahedron", "two_particle"])
+def test_presets_give_the_same_summary_on_both_paths(preset):
+    scene = granstab.load_scene(f"presets/{preset}.toml")
+    a = granstab.analyze(scene, lowrank=False)
+    b = granstab.analyze(scene, lowrank=True)
+    assert {k: v for k, v in a.summary.items() if k != "zero_margin"} == \
+           {k: v for k, v in b.summary.items() if k != "zero_margin"}
+    assert any("low-rank branch path" in w for w in b.warnings)
+
+
+def test_branches_with_free_spins_take_the_full_path_for_type2():
+    """Every contact at yield on 4 disks (5 contacts): half the branches have non-rigid null vectors of ℍ^i
+    (Type-2 searches); exactly those must go to the full path, and the Type-2 findings must be the same."""
+    scene = packings.random_packing(2, 4, n_sliding=5, mobilised=0.3, seed=1)
+    problem, full, low, info = both_paths(scene)
+    n_rigid = problem.rigid.shape[1]
+    assert info["full_path"] == sum(b.uniqueness_n_zero > n_rigid for b in full) == 16
+    assert [bool(b.type2) for b in full] == [bool(b.type2) for b in low]
+    assert [b.uniqueness_n_zero for b in full] == [b.uniqueness_n_zero for b in low]
+
+
+# ---------------------------------------------------------------------------------------------- sparse path
+
+@pytest.mark.slow
+def test_sparse_ritz_branches_agree_with_shift_invert_and_dense():
+    scene = packings.random_packing(2, 60, n_sliding=3, mobilised=0.3, f_over_k=0.1, curvature_ratio=0.2, seed=2)
+    spb = sparse.sparse_problem(scene)
+    masks = enumerate_masks(spb.sliding, scene.n_contacts)
+    k = 6
+    ritz = SparseRitz(spb, k)
+    modes = list(ritz.modes(masks, k))
+    assert ritz.stats["ritz"] >= 4 and ritz.stats["ritz"] + ritz.stats["arpack"] == len(masks)
+    dense = solve_branches(problem_of(scene), masks)
+    for mask, m, d in zip(masks, modes, dense):
+        ref = sparse.lowest_modes(spb, k, mask)
+        assert m.verified
+        bound = (m.residuals + ref.residuals) * spb.norm
+        assert np.all(np.abs(m.eigenvalues - ref.eigenvalues) <= bound)
+        lam_d = d.stability_eigenvalues[d.codes != RIGID][:k]
+        assert np.all(np.abs(m.eigenvalues - lam_d) <= m.residuals * spb.norm + d.accuracy.max())
+        # the inertia count: exactly the dense number of eigenvalues below σ (some branches have one)
+        assert m.n_below == int(np.sum(lam_d < m.sigma))
+    assert max(m.n_below for m in modes) >= 1
+
+
+@pytest.mark.slow
+def test_sparse_analyze_uses_ritz_and_keeps_the_verdict():
+    scene = packings.random_packing(2, 60, n_sliding=3, mobilised=0.3, f_over_k=0.1, curvature_ratio=0.2, seed=2)
+    d = granstab.analyze(scene, method="dense")
+    s = granstab.analyze(scene, method="sparse", k=6)
+    assert s.summary["verdict"] == d.summary["verdict"]
+    assert s.summary["consistent_negative"] == d.summary["consistent_negative"]
+    assert not any("could not prove" in w for w in s.warnings)
+
+
+def test_analyze_takes_the_low_rank_path_from_min_branches_on():
+    from granstab.lowrank import MIN_BRANCHES
+    scene = packings.random_packing(2, 16, n_sliding=10, mobilised=0.3, seed=1)
+    assert 2 ** 10 >= MIN_BRANCHES
+    fast = granstab.analyze(scene, device="auto")
+    full = granstab.analyze(scene, lowrank=False)
+    assert any("low-rank branch path" in w for w in fast.warnings)
+    assert not any("low-rank branch path" in w for w in full.warnings)
+    assert {k: v for k, v in fast.summary.items() if k != "zero_margin"} == \
+           {k: v for k, v in full.summary.items() if k != "zero_margin"}
+    for bf, bl in zip(fast.to_dict()["branches"], full.to_dict()["branches"]):
+        assert [c["vector_sign"] for c in bf["consistent"]] == [c["vector_sign"] for c in bl["consistent"]]
+        assert bf["uniqueness_eigenvalues"] == [] and len(bl["uniqueness_eigenvalues"]) == scene.n_dof
