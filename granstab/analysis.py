@@ -15,11 +15,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import METHODS, Timer, choose_backend
-from .branches import Problem, enumerate_masks
+from .branches import Problem, enumerate_masks, sample_masks
 from .metric import CHOICES, Metric, family, resolve
 from .scene import Scene, SceneError
 from .stiffness import ContactBlocks
-from .verdicts import family_entry, finalize, summarize
+from .verdicts import family_entry, finalize, mark_partial, summarize
 
 __all__ = ["Analysis", "METHODS", "analyze", "build_problem"]
 
@@ -112,14 +112,18 @@ def build_problem(scene: Scene, blocks: ContactBlocks, metric):
 
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
-            rotation_length_: float | None = None, device: str = "cpu", lowrank: bool | None = None) -> Analysis:
+            sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
+            device: str = "cpu", lowrank: bool | None = None) -> Analysis:
     """Analyse every loading branch of `scene` (Sec. 3, Appendix D).
 
     metric: "family" (default: the verdict in L/10, L, 10L and inertia where masses are known; spectra in L;
     summary["metric_robust"], summary["metrics"]), or one of "L", "L/10", "10L", "inertia" (metric.py).
     rotation_length: L of the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric);
     `rotation_length_` is its deprecated old name.
-    max_sliding: refuse more than this many potentially sliding contacts (2^Ms branches).
+    max_sliding: refuse more than this many potentially sliding contacts (2^Ms branches), unless
+    sample_branches is given: then the all-loading, the all-unloading and that many seeded (`seed`) random other
+    branches are examined, summary["branches"] = "partial", and the verdict is a proof only where the unexamined
+    branches cannot change it (a consistent negative eigenvalue on any branch proves instability, eq:instab).
     on_branch: called with each Branch of the primary metric as it is finished (streaming).
     method: "dense" (every eigenpair of every branch, ℍ spectra, Type-2), "sparse" (the lowest k non-rigid
     eigenpairs of sym(𝓗^i) per branch and its exact negative count, without any n_dof × n_dof matrix) or "auto"
@@ -148,10 +152,12 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     with timer("total"):
         state = backend.prepare(scene, timer)
         Ms = len(state.sliding)
-        if Ms > max_sliding:
+        partial = Ms > max_sliding
+        if partial and sample_branches is None:
             raise SceneError(f"{scene.source}: {Ms} potentially sliding contacts: 2^{Ms} branches exceed "
                              f"max_sliding = {max_sliding}")
-        masks = enumerate_masks(state.sliding, scene.n_contacts)
+        masks = (sample_masks(state.sliding, scene.n_contacts, sample_branches, seed) if partial
+                 else enumerate_masks(state.sliding, scene.n_contacts))
         order = [primary] + [i for i in range(len(metrics)) if i != primary]
         entries = [None] * len(metrics)
         for i in order:
@@ -170,6 +176,9 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         with timer("errors"):
             errors = backend.errors(state, problem, branches)
         summary = finalize(summary, errors, state.blocks, entries if metric == "family" else None)
+        if partial:
+            mark_partial(summary, len(masks), Ms)
+        summary["branches"] = "partial" if partial else "all"
     warnings = backend.curvature_warnings(state) + notes.get("warnings", [])
     return Analysis(scene=scene, problem=problem, metric=m, branches=branches, summary=summary, errors=errors,
                     timings=timer.times, warnings=warnings, backend=backend.name)

@@ -111,6 +111,18 @@ def branch_matrices(problem: Problem, masks: np.ndarray):
     return H, HH, 0.5 * (HS + np.swapaxes(HS, 1, 2))
 
 
+def sample_masks(sliding: np.ndarray, n_contacts: int, n_sample: int, seed: int = 0) -> np.ndarray:
+    """The all-loading and all-unloading masks, then up to n_sample distinct seeded random ones (L, M), for Ms too
+    large to enumerate the 2^Ms branches."""
+    Ms = len(sliding)
+    rng = np.random.default_rng(seed)
+    signs = np.vstack([np.ones(Ms), -np.ones(Ms), rng.choice([-1.0, 1.0], size=(n_sample, Ms))]).astype(np.int8)
+    _, first = np.unique(signs, axis=0, return_index=True)
+    masks = np.zeros((len(first), n_contacts), dtype=np.int8)
+    masks[:, sliding] = signs[np.sort(first)]
+    return masks
+
+
 def test_codes(problem: Problem, masks: np.ndarray, V: np.ndarray):
     """Appendix-D test of every column of V (L, n, k) against its branch mask: codes (L, k) and hinges (L, k)."""
     return codes_from_s(problem, masks, np.einsum("nm,lnk->lmk", problem.S, V))

@@ -135,6 +135,52 @@ def cmd_convert(args) -> int:
     return 0
 
 
+def cmd_extract(args) -> int:
+    """The cluster of one particle as a scene file (issue 10): re-analyse, open in the app, check by hand."""
+    from .scan import extract
+    sub = extract(load_scene(args.input), args.center, rings=args.rings)
+    Path(args.out).write_text(json.dumps(sub.to_dict(), allow_nan=False), encoding="utf-8")
+    print(f"wrote {args.out}: {sub.n_particles} particles, {sub.n_contacts} contacts")
+    return 0
+
+
+def cmd_scan(args) -> int:
+    """Every local cluster of a packing → DIR/clusters, particles, summary.json, map (issue 10)."""
+    from .scan import scan
+    summary = scan(load_scene(args.input), args.out, rings=args.rings, centers=args.centers, metric=args.metric,
+                   max_sliding=args.max_sliding, sample_branches=args.sample_branches, scheduler=args.scheduler,
+                   workers=args.workers, progress=args.progress, fmt=args.format)
+    print(json.dumps(summary, allow_nan=False) if args.json else
+          f"{summary['clusters']} clusters in {summary['seconds']:.1f} s: "
+          + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}")
+    return 0
+
+
+def add_scan(sub) -> None:
+    p = sub.add_parser("extract", help="the cluster of one particle (centre + N contact rings) as a scene file")
+    p.add_argument("input", help="any scene or snapshot that analyze reads")
+    p.add_argument("--center", required=True, help="the centre particle's name")
+    p.add_argument("--rings", type=int, default=1, help="contact hops from the centre (default 1)")
+    p.add_argument("--out", required=True, help="scene file to write (JSON)")
+    p.set_defaults(run=cmd_extract)
+    p = sub.add_parser("scan", help="local stability scan: every cluster of a packing, as a map")
+    p.add_argument("input", help="any scene or snapshot that analyze reads")
+    p.add_argument("--out", required=True, help="output directory (an interrupted scan there resumes)")
+    p.add_argument("--rings", type=int, default=1, help="contact hops from each centre (default 1)")
+    p.add_argument("--centers", default="all", help="all | every:K | NAME,NAME,...")
+    p.add_argument("--metric", choices=list(METRIC_CHOICES), default="L",
+                   help="projection metric of every cluster (default L; family: robustness, 2-3x the time)")
+    p.add_argument("--max-sliding", type=int, default=8,
+                   help="clusters with more sliding contacts examine a sample of their branches (branches: partial)")
+    p.add_argument("--sample-branches", type=int, default=32, help="random branches examined beyond max-sliding")
+    p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (tcp://HOST:8786)")
+    p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: all cores; 1: serial)")
+    p.add_argument("--format", choices=["parquet", "csv"], default="parquet")
+    p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
+    p.add_argument("--json", action="store_true", help="print summary.json")
+    p.set_defaults(run=cmd_scan)
+
+
 def frame_number(text: str):
     """--frame/--timestep: an integer where it is one (frame numbers, steps), else a float (times)."""
     try:
@@ -210,6 +256,7 @@ def build_parser() -> Parser:
                    help="run only this topic (benchmarks.TOPICS; repeatable); BENCHMARKS.md then holds only these")
     p.set_defaults(run=cmd_bench)
     add_convert(sub)
+    add_scan(sub)
     return parser
 
 

@@ -136,6 +136,17 @@ def finalize(summary: dict, errors: dict, blocks, entries: list | None) -> dict:
     return summary
 
 
+def mark_partial(summary: dict, examined: int, Ms: int) -> dict:
+    """A sample of the 2^Ms branches was examined: a proven instability stands (one consistent negative eigenvalue
+    suffices, eq:instab); any other verdict could change on an unexamined branch."""
+    if not (summary["verdict"] == "unstable" and summary["sufficient"]):
+        summary["insufficient_because"].append("unexamined_branches")
+        summary["sufficient"] = False
+    summary["counts_are"] = {key: "lower bounds" for key in summary["counts_are"]}
+    summary["reason"] += f"; {examined} of the 2^{Ms} branches examined (a sample)"
+    return summary
+
+
 def flag_undetermined(summary: dict, blocks) -> dict:
     """Where a loaded contact's rolling is undetermined (K^p + K^q singular: the pseudo-inverse cut-off decides),
     the verdict is not a proof: sufficient = False, hinges_on_tolerance = True, and the reason says why."""

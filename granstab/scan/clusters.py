@@ -1,0 +1,70 @@
+"""Local clusters of a packing (the paper's Sec. 5: "clusters within larger systems").
+
+The cluster of a centre particle c with N rings is c, every particle within N contact hops of c, and every contact
+between two of them. Its loads are the scene format's equilibrium defaults (b^p = -Σ f^pq, w^p = -Σ (r×f + m)),
+so the forces of the contacts cut at its rim act as external loads: the paper's isolated cluster.
+"""
+from __future__ import annotations
+
+from operator import itemgetter
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..scene import Scene, SceneError, build_scene
+
+CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling")
+
+
+def adjacency(scene: Scene) -> sp.csr_matrix:
+    """Boolean contact graph with self-loops (n, n): one product with it adds one ring."""
+    n = scene.n_particles
+    ones = np.ones(scene.n_contacts, dtype=bool)
+    A = sp.coo_matrix((ones, (scene.p, scene.q)), shape=(n, n))
+    return (A + A.T + sp.identity(n, dtype=bool, format="coo")).tocsr().astype(bool)
+
+
+def members(scene: Scene, centers: np.ndarray, rings: int, graph: sp.csr_matrix | None = None) -> list[np.ndarray]:
+    """Sorted particle indices of the cluster of every centre (indices), all centres at once by sparse products."""
+    graph = adjacency(scene) if graph is None else graph
+    centers = np.asarray(centers, dtype=np.int64)
+    X = sp.csc_matrix((np.ones(len(centers), dtype=bool), (centers, np.arange(len(centers)))),
+                      shape=(scene.n_particles, len(centers)))
+    for _ in range(rings):
+        X = (graph @ X).astype(bool).tocsc()
+    X.sort_indices()
+    return np.split(X.indices.astype(np.int64), X.indptr[1:-1])
+
+
+def subscene(scene: Scene, keep: np.ndarray, title: str = "") -> Scene:
+    """The sub-scene of the particles `keep` (indices) and every contact between two of them, with equilibrium loads."""
+    inside = np.zeros(scene.n_particles, dtype=bool)
+    inside[keep] = True
+    c = np.flatnonzero(inside[scene.p] & inside[scene.q])
+    renumber = np.full(scene.n_particles, -1, dtype=np.int64)
+    renumber[keep] = np.arange(len(keep))
+    arrays = {name: getattr(scene, name)[c] for name in CONTACT_FIELDS}
+    arrays.update(p=renumber[scene.p[c]], q=renumber[scene.q[c]],
+                  state=tuple(itemgetter(*c)(scene.state)) if len(c) > 1 else tuple(scene.state[i] for i in c))
+    names = itemgetter(*keep)(scene.names) if len(keep) > 1 else (scene.names[keep[0]],)
+    mass = None if scene.mass is None else scene.mass[keep]
+    inertia = None if scene.inertia is None else scene.inertia[keep]
+    return build_scene(scene.dim, list(names), scene.x[keep], arrays, title=title, source=scene.source,
+                       tol=scene.tol, mass=mass, inertia=inertia)
+
+
+def particle_index(scene: Scene, name: str) -> int:
+    """Index of the particle called `name` (one-line SceneError when there is none)."""
+    try:
+        return scene.names.index(str(name))
+    except ValueError:
+        raise SceneError(f"{scene.source}: no particle named {name!r} (names are as in the scene)") from None
+
+
+def extract(scene: Scene, center: str, rings: int = 1) -> Scene:
+    """The cluster of particle `center` with `rings` contact hops, as a scene of its own (`granstab extract`)."""
+    if rings < 1:
+        raise SceneError(f"{scene.source}: rings must be >= 1, got {rings}")
+    c = particle_index(scene, center)
+    keep = members(scene, [c], rings)[0]
+    return subscene(scene, keep, title=f"cluster of {center} ({rings} ring{'s' * (rings > 1)}) in {scene.source}")

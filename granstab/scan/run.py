@@ -1,0 +1,141 @@
+"""`scan`: every local cluster of a packing analysed (the paper's third application, Sec. 5), in chunks, serially or
+on Dask (a local cluster by default, a real one by address), rows streamed to disk as chunks finish.
+
+A cluster with more potentially sliding contacts than `max_sliding` is not dropped: its all-loading, all-unloading
+and `sample_branches` random other branches are examined (`branches: partial`), and its verdict is a proof only
+where the unexamined branches cannot change it (analysis.py, verdicts.mark_partial).
+"""
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from ..analysis import analyze
+from ..branches import RIGID
+from ..scene import Scene, SceneError
+from ..threads import blas_threads
+from .clusters import members, particle_index, subscene
+from .output import ScanOutput
+
+CHUNK = 64            # clusters per task: scheduling overhead stays small against ~10 ms a cluster
+
+
+def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> dict:
+    """One row of clusters.parquet: the cluster of `center` analysed (errors become a row, never a lost cluster)."""
+    start = time.perf_counter()
+    row = {"center": scene.names[center], "members": [scene.names[i] for i in keep], "n_particles": len(keep)}
+    try:
+        sub = subscene(scene, keep)
+        res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
+                      sample_branches=options["sample_branches"], seed=center)
+    except SceneError as exc:
+        return {**row, "n_contacts": -1, "n_sliding": -1, "branches": "none", "n_branches": 0,
+                "lambda_min": np.nan, "consistent_negative": -1, "consistent_positive": -1, "verdict": "error",
+                "sufficient": False, "insufficient_because": "error", "metric_robust": None, "zero_margin": np.nan,
+                "eigen_residual": np.nan, "rigid_leakage": np.nan, "reason": " ".join(str(exc).split()),
+                "seconds": time.perf_counter() - start}
+    sm = res.summary
+    lam = [b.stability_eigenvalues[b.codes != RIGID] for b in res.branches]
+    return {**row, "n_contacts": sub.n_contacts, "n_sliding": int(np.sum(sub.at_yield())),
+            "branches": sm["branches"], "n_branches": sm["n_branches"],
+            "lambda_min": float(min((v.min() for v in lam if v.size), default=np.nan)),
+            "consistent_negative": sm["consistent_negative"], "consistent_positive": sm["consistent_positive"],
+            "verdict": sm["verdict"], "sufficient": sm["sufficient"],
+            "insufficient_because": ",".join(sm["insufficient_because"]), "metric_robust": sm["metric_robust"],
+            "zero_margin": np.nan if sm["zero_margin"] is None else sm["zero_margin"],
+            "eigen_residual": res.errors["eigen_residual_stability"],
+            "rigid_leakage": res.errors["rigid_leakage_modified"], "reason": sm["reason"],
+            "seconds": time.perf_counter() - start}
+
+
+def scan_chunk(scene: Scene, centers: np.ndarray, options: dict) -> list[dict]:
+    """Rows of a chunk of centres (indices): the unit of work sent to a Dask worker."""
+    with blas_threads(1):
+        return [cluster_row(scene, c, keep, options)
+                for c, keep in zip(centers, members(scene, centers, options["rings"]))]
+
+
+def select_centers(scene: Scene, centers) -> np.ndarray:
+    """`all`, `every:K` (every K-th particle) or names (a list or comma-separated) → particle indices."""
+    if isinstance(centers, str) and centers == "all":
+        return np.arange(scene.n_particles)
+    if isinstance(centers, str) and centers.startswith("every:"):
+        step = centers.split(":", 1)[1]
+        if not step.isdigit() or int(step) < 1:
+            raise SceneError(f"--centers: every:K needs a positive integer K, got {step!r}")
+        return np.arange(0, scene.n_particles, int(step))
+    names = centers.split(",") if isinstance(centers, str) else list(centers)
+    return np.array([particle_index(scene, name.strip()) for name in names], dtype=np.int64)
+
+
+def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = "L", max_sliding: int = 8,
+         sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None, chunk: int = CHUNK,
+         progress: bool = False, fmt: str = "parquet", figures: bool = True) -> dict:
+    """Analyse the cluster of every centre; write DIR/clusters.*, DIR/particles.*, DIR/summary.json and the map.
+
+    Resumes: centres already in DIR (from an interrupted scan with the same options) are skipped.
+    scheduler: a Dask scheduler address (tcp://HOST:PORT); workers: local Dask workers (default: this machine's
+    cores; 1 = serial, in this process). metric: the projection metric of every cluster (see analyze).
+    """
+    if rings < 1:
+        raise SceneError(f"rings must be >= 1, got {rings}")
+    options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches}
+    out = ScanOutput(out_dir, fmt, options, source=scene.source)
+    chosen = select_centers(scene, centers)
+    todo = chosen[~np.isin(np.asarray(scene.names, dtype=object)[chosen], list(out.done_centers()))]
+    chunks = [todo[i:i + chunk] for i in range(0, len(todo), chunk)]
+    bar = _progress(len(todo)) if progress else None
+    start = time.perf_counter()
+    if chunks:
+        run = _run_serial if (scheduler is None and (workers or os.cpu_count() or 1) <= 1) else _run_dask
+        run(scene, chunks, options, out, bar, scheduler=scheduler, workers=workers)
+    if bar is not None:
+        bar.close()
+    summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo))
+    if figures:
+        from .figure import write_figures
+        write_figures(scene, out.path)
+    return summary
+
+
+def _run_serial(scene, chunks, options, out, bar, **_):
+    for part in chunks:
+        out.write(scan_chunk(scene, part, options))
+        if bar is not None:
+            bar.update(len(part))
+
+
+def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
+    """Chunks as Dask tasks (rerun if a worker dies), results streamed to disk in the order they finish. The scene
+    travels once as the result of a task, not scattered: a task's result lost with its worker is recomputed."""
+    from dask.distributed import Client, LocalCluster, as_completed
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+    with Client(scheduler or cluster) as client:
+        shared = client.submit(_same, scene, pure=False)
+        client.replicate([shared])
+        futures = [client.submit(scan_chunk, shared, part, options, retries=3, pure=False) for part in chunks]
+        for future in as_completed(futures):
+            rows = future.result()
+            out.write(rows)
+            if bar is not None:
+                bar.update(len(rows))
+    if cluster is not None:
+        cluster.close()
+
+
+def _same(scene: Scene) -> Scene:
+    return scene
+
+
+def _progress(total: int):
+    """A tqdm bar with the time left (tqdm is optional: None without it)."""
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:
+        return None
+    return tqdm(total=total, desc="clusters", unit="cluster", mininterval=0.5)

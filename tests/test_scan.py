@@ -1,0 +1,188 @@
+"""The local stability scan (issue 10): clusters, equality with analyze, partial branches, resume, Dask, the map."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import granstab
+from granstab import packings
+from granstab.branches import RIGID
+from granstab.scan import extract, members, read_map, scan
+from granstab.scan.clusters import CONTACT_FIELDS
+from granstab.scan.run import scan_chunk
+
+ROOT = Path(__file__).resolve().parents[1]
+ANNULUS = ROOT / "presets" / "annulus_frame.json"
+
+
+def lowest(result) -> float:
+    return min(b.stability_eigenvalues[b.codes != RIGID].min() for b in result.branches)
+
+
+def test_clusters_are_the_contact_hops_of_a_breadth_first_search():
+    """members() by sparse products = a plain breadth-first search over the contact list, for 1 to 3 rings."""
+    scene = granstab.load_scene(ANNULUS)
+    neighbours = {i: set() for i in range(scene.n_particles)}
+    for a, b in zip(scene.p, scene.q):
+        neighbours[a].add(b)
+        neighbours[b].add(a)
+    centers = np.arange(0, scene.n_particles, 7)
+    for rings in (1, 2, 3):
+        for c, got in zip(centers, members(scene, centers, rings)):
+            seen = {c}
+            for _ in range(rings):
+                seen |= {n for s in seen for n in neighbours[s]}
+            assert got.tolist() == sorted(seen)
+
+
+def test_extracted_cluster_has_every_inner_contact_and_equilibrium_loads():
+    scene = granstab.load_scene(ANNULUS)
+    center = scene.names[40]
+    sub = extract(scene, center, rings=2)
+    inside = set(sub.names)
+    expected = sum(scene.names[a] in inside and scene.names[b] in inside for a, b in zip(scene.p, scene.q))
+    assert sub.n_contacts == expected and center in inside
+    # loads are the scene format's equilibrium defaults: Σ b + Σ f = 0 per particle, relative to Σ|f|
+    b = np.zeros_like(sub.x)
+    np.add.at(b, sub.p, sub.force)
+    np.add.at(b, sub.q, -sub.force)
+    scale = np.abs(sub.force).sum()
+    assert np.abs(sub.load + b).max() <= 1e-12 * scale
+
+
+def test_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path):
+    """Sampled rows of a scan = analyze() on `extract`: same verdict and counts, λ_min within 1e-10·max|λ|."""
+    scene = granstab.load_scene(ANNULUS)
+    names = [scene.names[i] for i in (3, 50, 99, 140)]
+    scan(scene, tmp_path, centers=",".join(names), workers=1, figures=False)
+    rows = read_map(tmp_path)["clusters"]
+    assert list(rows["center"]) == names
+    for i, name in enumerate(names):
+        res = granstab.analyze(extract(scene, name), metric="L")
+        scale = max(np.abs(b.stability_eigenvalues).max() for b in res.branches)
+        assert rows["verdict"][i] == res.summary["verdict"]
+        assert rows["consistent_negative"][i] == res.summary["consistent_negative"]
+        assert rows["consistent_positive"][i] == res.summary["consistent_positive"]
+        assert abs(rows["lambda_min"][i] - lowest(res)) <= 1e-10 * scale
+
+
+def test_scan_of_a_small_scene_equals_analyze_of_the_scene(tmp_path):
+    """rings large enough that every cluster is the whole scene: every row is `analyze` of the scene."""
+    scene = granstab.load_scene(ROOT / "presets" / "four_disk.toml")
+    ref = granstab.analyze(scene, metric="L")
+    summary = scan(scene, tmp_path, rings=4, workers=1, figures=False)
+    rows = read_map(tmp_path)["clusters"]
+    assert summary["clusters"] == scene.n_particles
+    assert set(rows["n_particles"]) == {scene.n_particles} and set(rows["n_branches"]) == {16}
+    assert set(rows["consistent_negative"]) == {ref.summary["consistent_negative"]} == {9}
+    assert np.allclose(rows["lambda_min"], lowest(ref), rtol=0, atol=1e-12)
+
+
+def planted_lattice(center: int, rho_over_r: float):
+    """A stable triangular lattice (flat contacts, ρ = 2r, f/(kr) = 1e-3) in which the contacts of one particle have
+    curvature radius ρ and almost no tangential stiffness (α = 1e-4 < f/(kr)): its rotation then costs almost no
+    elastic work and the geometric term decides, negative for sharp contacts (λ ∝ f(ρ - r), eq:exampleH2)."""
+    scene = packings.lattice(2, 9, curvature_ratio=2.0)
+    planted = (scene.p == center) | (scene.q == center)
+    factor = np.where(planted, 2.0 / rho_over_r, 1.0)[:, None, None]
+    arrays = {name: getattr(scene, name) for name in CONTACT_FIELDS + ("p", "q", "state")}
+    arrays.update(curvature_p=scene.curvature_p * factor, curvature_q=scene.curvature_q * factor,
+                  alpha=np.where(planted, 1e-4, scene.alpha))
+    return granstab.build_scene(2, scene.names, scene.x, arrays), planted
+
+
+@pytest.mark.parametrize("rho_over_r", [0.4, 2.0])
+def test_planted_unstable_cluster_is_found_and_nothing_far_away(tmp_path, rho_over_r):
+    """Sharp planted contacts: the planted particle's cluster and its neighbours' are unstable, nothing beyond three
+    diameters; the same contacts flat (the control): every cluster stable."""
+    scene, planted = planted_lattice(40, rho_over_r)
+    scan(scene, tmp_path, workers=1, figures=False)
+    data = read_map(tmp_path)
+    verdict = dict(zip(data["clusters"]["center"], data["clusters"]["verdict"]))
+    fraction = np.asarray(data["particles"]["unstable_fraction"], dtype=float)
+    assert list(data["particles"]["own_verdict"]) == [verdict[n] for n in scene.names]
+    if rho_over_r > 1:
+        assert set(verdict.values()) == {"stable"} and np.all(fraction == 0.0)
+        return
+    near = {scene.names[i] for i in np.r_[scene.p[planted], scene.q[planted]]}   # the planted particle + ring 1
+    assert all(verdict[n] == "unstable" for n in near)
+    far = np.linalg.norm(scene.x - scene.x[40], axis=1) > 3 * 2.0            # beyond three diameters (r = 1)
+    assert {verdict[scene.names[i]] for i in np.flatnonzero(far)} == {"stable"}
+    assert fraction[40] == 1.0 and np.all(fraction[far] == 0.0)
+
+
+def test_more_sliding_contacts_than_the_cap_examine_a_sample_and_say_so(tmp_path):
+    scene = packings.lattice(2, 3, n_sliding=6, mobilised=0.5)
+    summary = scan(scene, tmp_path, rings=3, max_sliding=3, sample_branches=5, workers=1, figures=False)
+    rows = read_map(tmp_path)["clusters"]
+    assert summary["partial_branches"] == summary["clusters"] == scene.n_particles
+    assert set(rows["branches"]) == {"partial"}
+    assert set(rows["n_branches"]) <= set(range(3, 8))              # 2 extremes + up to 5 distinct samples
+    for ok, verdict, because in zip(rows["sufficient"], rows["verdict"], rows["insufficient_because"]):
+        assert ok == (verdict == "unstable" and not because)
+        assert verdict == "unstable" or "unexamined_branches" in because
+
+
+def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
+    scene = granstab.load_scene(ANNULUS)
+    options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32}
+    from granstab.scan.output import ScanOutput
+    out = ScanOutput(tmp_path, "csv", options, source=scene.source)
+    out.write(scan_chunk(scene, np.arange(0, 20), options))              # what finished before the kill
+    summary = scan(scene, tmp_path, centers="every:1", workers=1, fmt="csv", figures=False)
+    rows = read_map(tmp_path)["clusters"]
+    assert summary["clusters_this_run"] == scene.n_particles - 20
+    assert list(rows["center"]) == list(scene.names)                  # each centre once, in scene order
+    with pytest.raises(granstab.SceneError, match="other options"):
+        scan(scene, tmp_path, rings=2, workers=1, fmt="csv", figures=False)
+
+
+@pytest.mark.slow
+def test_two_dask_workers_give_the_serial_rows_and_survive_a_killed_worker(tmp_path):
+    """A 2-worker LocalCluster = the serial scan; a worker killed mid-scan loses no cluster (Dask reruns it)."""
+    from dask.distributed import Client, LocalCluster
+    scene = granstab.load_scene(ANNULUS)
+    scan(scene, tmp_path / "serial", workers=1, figures=False)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with Client(cluster) as client:
+            victim = sorted(client.scheduler_info()["workers"])[0]
+            client.submit(_exit_after, 1.0, workers=[victim], allow_other_workers=False, pure=False)
+            scan(scene, tmp_path / "dask", scheduler=cluster.scheduler_address, chunk=8, figures=False)
+            assert victim not in client.scheduler_info()["workers"]       # it was killed during the scan
+    a, b = read_map(tmp_path / "serial")["clusters"], read_map(tmp_path / "dask")["clusters"]
+    assert list(b["center"]) == list(a["center"]) == list(scene.names)
+    for key in ("verdict", "consistent_negative", "consistent_positive", "n_contacts", "n_branches"):
+        assert list(a[key]) == list(b[key]), key
+    assert np.array_equal(a["lambda_min"], b["lambda_min"])
+
+
+def _exit_after(seconds: float):
+    import time
+    time.sleep(seconds)
+    os._exit(1)
+
+
+def test_cli_scan_and_extract_round_trip(tmp_path):
+    out = tmp_path / "scan"
+    proc = subprocess.run([sys.executable, "-m", "granstab", "scan", str(ANNULUS), "--out", str(out),
+                           "--centers", "every:20", "--workers", "1", "--json"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    assert summary["clusters"] == len(range(0, 143, 20)) and (out / "map.png").stat().st_size > 10_000
+    name = read_map(out)["clusters"]["center"][2]
+    sub_file = tmp_path / "sub.json"
+    proc = subprocess.run([sys.executable, "-m", "granstab", "extract", str(ANNULUS), "--center", name,
+                           "--out", str(sub_file)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    sub = granstab.load_scene(sub_file)
+    direct = extract(granstab.load_scene(ANNULUS), name)
+    assert sub.names == direct.names and np.allclose(sub.force, direct.force, rtol=0, atol=1e-15)
+    bad = subprocess.run([sys.executable, "-m", "granstab", "extract", str(ANNULUS), "--center", "nope",
+                          "--out", str(sub_file)], capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "'nope'" in bad.stderr
