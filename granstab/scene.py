@@ -101,14 +101,23 @@ class Scene:
         fn = np.sum(self.force * self.normal, axis=1)
         return np.linalg.norm(self.tangential_force(), axis=1) + self.mu * fn
 
+    def has_sliding_direction(self) -> np.ndarray:
+        """|f_t| > yield_rtol·|f|: a tangential force that defines h = f_t/|f_t| (eq:Hdirection), (M,).
+
+        A smaller |f_t| is within the yield test's own tolerance of zero and its direction is round-off (a rigid
+        rotation of the scene turns an exact 0 into ~1e-16·|f|): treating it as a direction made the
+        classification, and so the number of branches and the verdict, depend on the frame."""
+        ft = np.linalg.norm(self.tangential_force(), axis=1)
+        return ft > self.tol.yield_rtol * np.linalg.norm(self.force, axis=1)
+
     def at_yield(self) -> np.ndarray:
         """Potentially sliding contacts (Appendix D mask ±1): state "sliding", or "auto" with Q = 0 within
-        yield_rtol·|f| and a tangential force to slide along. Zero-force and frictionless normal contacts
-        have no sliding direction h (eq:Hdirection) and stay elastic."""
+        yield_rtol·|f| and a tangential force to slide along (`has_sliding_direction`). Zero-force and
+        frictionless normal contacts have no sliding direction h (eq:Hdirection) and stay elastic."""
         state = np.asarray(self.state)
-        ft = np.linalg.norm(self.tangential_force(), axis=1)
         scale = np.linalg.norm(self.force, axis=1)
-        auto = (state == "auto") & (self.yield_function() >= -self.tol.yield_rtol * scale) & (ft > 0)
+        auto = ((state == "auto") & (self.yield_function() >= -self.tol.yield_rtol * scale)
+                & self.has_sliding_direction())
         return (state == "sliding") | auto
 
     def dofs(self) -> list[str]:
@@ -453,10 +462,12 @@ def _check_friction(scene: Scene, entries) -> None:
         raise SceneError(f"{scene.source}: {entries[c]}: force: outside the friction cone, Q = {Q[c]:.6g} > 0 "
                          f"(|f_t| = {ft[c]:.6g}, μ|f_n| = {abs(Q[c] - ft[c]):.6g}); set state = \"elastic\" "
                          "for a cohesive contact")
-    not_at_yield = np.flatnonzero((state == "sliding") & ((np.abs(Q) > tol) | (ft == 0)))
+    direction = scene.has_sliding_direction()
+    not_at_yield = np.flatnonzero((state == "sliding") & ((np.abs(Q) > tol) | ~direction))
     if not_at_yield.size:
         c = not_at_yield[0]
-        why = "no tangential force to slide along" if ft[c] == 0 else f"Q = {Q[c]:.6g} ≠ 0"
+        why = (f"no tangential force to slide along (|f_t| = {ft[c]:.3g} <= yield_rtol·|f|)" if not direction[c]
+               else f"Q = {Q[c]:.6g} ≠ 0")
         raise SceneError(f"{scene.source}: {entries[c]}: state: \"sliding\" but not at yield ({why})")
 
 
