@@ -83,7 +83,8 @@ def require_finite(data, source: str) -> None:
 
 
 def cmd_stiffness(args) -> int:
-    scene = load_scene(args.scene)
+    with strict_numerics(args.scene):
+        scene = load_scene(args.scene)
     mask = parse_mask(args.mask, scene.n_contacts) if args.mask else None
     try:
         with strict_numerics(scene.source):
@@ -129,8 +130,8 @@ def cmd_analyze(args) -> int:
     progress = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
     with deadline(args.timeout, args.scene):
-        scene = load_scene(args.scene, progress=progress)
-        with strict_numerics(scene.source):
+        with strict_numerics(args.scene):
+            scene = load_scene(args.scene, progress=progress)
             if args.timeout:
                 refuse_unfinishable(scene, args, args.timeout - (time.perf_counter() - start))
             result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding,

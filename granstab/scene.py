@@ -17,7 +17,7 @@ import numpy as np
 
 from .fileformat import (PROGRESS_BYTES, DuplicateKeys, SceneError, decode, load_npz, one_line, parse_json,
                          parse_toml, read_bytes, write_json, write_npz)
-from .tables import ArrayTable, TextTable, describe, first, value_problem
+from .tables import ArrayTable, TextTable, describe, first, magnitude_message, row_problem, value_problem
 from .tolerances import COORDINATE_RATIO, DEFAULT, MAX_MAGNITUDE, MIN_SCALE, Tolerances
 from .vec import cross, rot_dim, tangent_basis
 
@@ -251,7 +251,7 @@ class _Reader:
             self.fail(key, problem)
         arr = np.array(self.data[key], dtype=float)
         if np.abs(arr).max(initial=0.0) > MAX_MAGNITUDE:
-            self.fail(key, magnitude_message(np.abs(arr).max()))
+            self.fail(key, magnitude_message(float(np.abs(arr).max())))
         return arr
 
 
@@ -561,11 +561,6 @@ def _given(values, N: int, width: int):
     return out, has
 
 
-def magnitude_message(value: float) -> str:
-    return (f"|value| = {value:.3g} exceeds {MAX_MAGNITUDE:.0e}: H and its checks multiply up to six input "
-            "numbers, which must stay below float64's 1.8e308 (change units)")
-
-
 def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
     """Every number finite with |v| <= MAX_MAGNITUDE; k and α >= MIN_SCALE; positions and contact points within
     COORDINATE_RATIO mean contact radii of the origin (beyond it r^pq = point - x loses more than input_rtol to
@@ -608,12 +603,9 @@ def _rows(arr, n: int) -> np.ndarray:
 
 
 def _check_magnitude(arr: np.ndarray, source: str, name, key: str) -> None:
-    big = ~(np.abs(arr) <= MAX_MAGNITUDE).all(axis=1) if arr.size else np.zeros(len(arr), bool)
-    if big.any():
-        i = first(big)
-        worst = np.abs(arr[i]).max()
-        raise SceneError(f"{source}: {name(i)}: {key}: "
-                         + ("must be finite (no nan or inf)" if not np.isfinite(worst) else magnitude_message(worst)))
+    bad = row_problem(arr)
+    if bad is not None:
+        raise SceneError(f"{source}: {name(bad[0])}: {key}: {bad[1]}")
 
 
 def _fmt(v) -> str:

@@ -15,6 +15,7 @@ from operator import itemgetter, methodcaller
 import numpy as np
 
 from .fileformat import DuplicateKeys, SceneError, one_line
+from .tolerances import MAX_MAGNITUDE
 
 
 def describe(value) -> str:
@@ -57,6 +58,21 @@ def numeric(values, n: int, shape: tuple) -> np.ndarray | None:
     if arr.dtype.kind not in "fiu" or arr.shape != (n, *shape):
         return None
     return arr.astype(float, copy=False)
+
+
+def magnitude_message(value: float) -> str:
+    return (f"|value| = {value:.3g} exceeds {MAX_MAGNITUDE:.0e}: H and its checks multiply up to six input "
+            "numbers, which must stay below float64's 1.8e308 (change units)")
+
+
+def row_problem(arr: np.ndarray):
+    """(first row, message) of an (n, k) array with a non-finite entry or one above MAX_MAGNITUDE, or None."""
+    ok = np.abs(arr) <= MAX_MAGNITUDE
+    if ok.all():
+        return None
+    i = first(~ok.all(axis=1))
+    worst = np.abs(arr[i]).max()
+    return i, "must be finite (no nan or inf)" if not np.isfinite(worst) else magnitude_message(worst)
 
 
 def first(mask: np.ndarray) -> int:
@@ -126,9 +142,9 @@ class TextTable:
                 if problem:
                     self.fail(int(rows[j]), key, problem)
             arr = np.array(values, dtype=float).reshape(len(values), *shape)
-        bad = ~np.isfinite(arr.reshape(len(values), int(np.prod(shape)))).all(axis=1)
-        if bad.any():
-            self.fail(int(np.flatnonzero(have)[first(bad)]), key, "must be finite (no nan or inf)")
+        bad = row_problem(arr.reshape(len(values), int(np.prod(shape))))
+        if bad is not None:
+            self.fail(int(np.flatnonzero(have)[bad[0]]), key, bad[1])
         if have.all():
             return arr
         out = np.empty((len(self.items), *shape))
@@ -186,9 +202,9 @@ class ArrayTable:
             self.fail(None, key, f"must be a numeric array of shape {(self.n, *shape)}, got {arr.dtype} "
                                  f"{arr.shape}")
         arr = arr.astype(float, copy=False)
-        bad = ~np.isfinite(arr.reshape(self.n, -1)).all(axis=1)
-        if bad.any():
-            self.fail(first(bad), key, "must be finite (no nan or inf)")
+        bad = row_problem(arr.reshape(self.n, int(np.prod(shape))))
+        if bad is not None:
+            self.fail(bad[0], key, bad[1])
         return arr
 
     def raw(self, key: str):
