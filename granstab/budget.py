@@ -13,8 +13,8 @@ from contextlib import contextmanager
 
 import numpy as np
 
-MEASURE_DIM = 192      # matrices larger than this are timed at this size and scaled by (n / MEASURE_DIM)³
-MEASURE_STACK = 64     # matrices timed at once (the branches are solved as stacks)
+MEASURE_DIM = 96       # matrices larger than this are timed at this size and scaled by (n / MEASURE_DIM)³
+MEASURE_STACK = 4      # matrices timed at once (a few hundredths of a second in all)
 
 
 class OverBudget(Exception):
@@ -22,15 +22,16 @@ class OverBudget(Exception):
 
 
 def branch_seconds(n: int, stack: int = MEASURE_STACK) -> float:
-    """Measured seconds per branch for n dofs: eigh + eig + SVD of a stack of random n×n matrices."""
-    from .branches import SMALL
+    """Measured seconds per branch for n dofs: eigh + eig + SVD and four products of a stack of random n×n
+    matrices, on one BLAS thread (a shared machine's threads give no more; measured here the real branches ran
+    no faster than this)."""
     from .threads import blas_threads
 
     m = max(1, min(n, MEASURE_DIM))
     rng = np.random.default_rng(0)
     A = rng.standard_normal((stack, m, m))
     S = A + np.swapaxes(A, 1, 2)
-    with blas_threads(1 if n <= SMALL else None):          # as branches.solve_branches runs them
+    with blas_threads(1):
         np.linalg.eig(A[:1, :2, :2])                        # first call loads LAPACK: not part of the cost
         start = time.perf_counter()
         np.linalg.eigh(S)
@@ -53,7 +54,7 @@ def refuse_over(source: str, seconds: float, timeout: float, n_dof: int, n_slidi
         return
     raise OverBudget(f"{source}: refused: 2^{n_sliding} = {2 ** n_sliding} branches of {n_dof} dofs need about "
                      f"{seconds:.3g} s on this machine (measured {1e3 * seconds / 2 ** n_sliding:.3g} ms a branch), "
-                     f"more than --timeout {timeout:g} s: cap the potentially sliding contacts (--max-sliding, or "
+                     f"more than the {timeout:.3g} s left of --timeout: cap the potentially sliding contacts (--max-sliding, or "
                      "state = \"elastic\" for contacts known to stick), analyse a smaller cluster around the region "
                      "of interest, or raise --timeout")
 

@@ -460,7 +460,10 @@ def read_header(data, source: str, allowed: set):
     dim = data["dim"]
     if type(dim) is not int or dim not in (2, 3):
         top.fail("dim", f"must be the integer 2 or 3, got {describe(dim)}")
-    return top, int(dim), top.text("title", "") if "title" in data else ""
+    title = data.get("title", "")
+    if not isinstance(title, str):
+        top.fail("title", f"must be a string, got {describe(title)}")
+    return top, int(dim), title
 
 
 def read_particles(top: _Reader, data: dict, allowed: set, read) -> list:

@@ -9,6 +9,7 @@ error: "<file>: <entry>: <field>: <what is wrong>". `TextTable` reads parsed TOM
 from __future__ import annotations
 
 import json
+import math
 from itertools import compress, repeat
 from operator import itemgetter, methodcaller
 
@@ -38,7 +39,9 @@ def value_problem(value, shape: tuple) -> str | None:
     want = "a number" if shape == () else f"{'x'.join(map(str, shape))} numbers"
     try:
         arr = np.array(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
+    except OverflowError:
+        return f"a number beyond float64's range ({magnitude_message(math.inf)})"
+    except (TypeError, ValueError):
         return f"must be {want}, got {describe(value)}"
     if arr.shape != shape or not all_numbers(value):
         return f"must be {want}, got {describe(value)}"
