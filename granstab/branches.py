@@ -150,6 +150,13 @@ def _finish(problem, mask, v):
     return v, code, bool(hinges[0, 0])
 
 
+def canonical_signs(V: np.ndarray) -> np.ndarray:
+    """Eigenvectors (..., n, k) with each column's largest-magnitude entry positive: LAPACK's sign choice varies
+    between builds, and the reported vector_sign (±v consistent) must not."""
+    idx = np.argmax(np.abs(V), axis=-2)[..., None, :]
+    return V * np.where(np.take_along_axis(V, idx, axis=-2) < 0, -1.0, 1.0)
+
+
 def eigen_groups(lam: np.ndarray, tol: float) -> list[np.ndarray]:
     """Indices of runs of sorted eigenvalues closer than tol (repeated eigenvalues), including singletons."""
     breaks = np.flatnonzero(np.diff(lam) > tol) + 1
@@ -181,6 +188,7 @@ def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None
         with blas_threads(threads):
             _, HH, Hsym = branch_matrices(problem, part)
             lam, V = np.linalg.eigh(Hsym)
+            V = canonical_signs(V)
             mu, W = np.linalg.eig(HH)
             codes, hinges = test_codes(problem, part, V)
             batch = _batched(problem, Hsym, HH, lam, V, mu, W)

@@ -15,7 +15,8 @@ import numpy as np
 from .analysis import analyze
 from .branches import BOTH, MINUS, PLUS, RIGID
 from .budget import OverBudget, deadline, estimate, refuse_over
-from .scene import SceneError, load_scene
+from .files import load_scene
+from .scene import SceneError
 from .stiffness import MaskError, stiffness
 
 

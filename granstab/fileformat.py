@@ -18,17 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .reading import DuplicateKeys, SceneError, one_line
+
 MAX_DEPTH = 10          # the schema nests at most 5 deep (scene → contacts → entry → 3x3 curvature rows)
 CHUNK = 1 << 23         # bytes per step of the structural scan (memory: a few times this, not the file)
 PROGRESS_BYTES = 1 << 25   # files larger than this show progress when asked
-
-
-class SceneError(ValueError):
-    """Invalid scene input; the message is the one line the CLI prints."""
-
-
-def one_line(text: str) -> str:
-    return " ".join(str(text).split())
 
 
 # ------------------------------------------------------------------------------------------------- reading
@@ -59,12 +53,6 @@ def parse_toml(text: str, source: str) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{source}: malformed TOML: {one_line(exc)}") from None
-
-
-class DuplicateKeys(dict):
-    """A JSON object that had a key twice (`duplicate`); made only when the key count says there is one."""
-
-    duplicate: str = ""
 
 
 def _pairs_hook(pairs):

@@ -1,4 +1,4 @@
-"""Scenes: particles and contact-level data (Sec. 2), read from TOML/JSON and validated.
+"""Scenes: particles and contact-level data (Sec. 2), read from a parsed file (files.py) and validated.
 
 A `Scene` holds arrays over particles (N) and contacts (M); d = dim, r = 1 (2D) or 3 (3D):
 x (N, d), load b (N, d), load_moment w (N, r); per contact p, q (M,), point (M, d),
@@ -11,13 +11,11 @@ Loads default to equilibrium, b^p = -Σ f^pq and w^p = -Σ (r^pq × f^pq + m^pq)
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from .fileformat import (PROGRESS_BYTES, DuplicateKeys, SceneError, decode, load_npz, one_line, parse_json,
-                         parse_toml, read_bytes, write_json, write_npz)
-from .tables import ArrayTable, TextTable, describe, first, magnitude_message, row_problem, value_problem
+from .reading import Reader, SceneError, describe, first, read_law, row_problem
+from .tables import ArrayTable, TextTable
 from .tolerances import COORDINATE_RATIO, DEFAULT, MAX_MAGNITUDE, MIN_SCALE, Tolerances
 from .vec import cross, rot_dim, tangent_basis
 
@@ -139,134 +137,12 @@ class Scene:
 
 # ----------------------------------------------------------------------------------------------- reading
 
-def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Scene:
-    """Read a scene file: TOML, JSON (same schema) or NPZ (`save_scene`'s binary form of it), chosen by the
-    suffix (.json, .npz, anything else TOML). Raises SceneError with a one-line message naming the file.
-    progress: a bar on stderr while a large file is read, then its stages (parse, checks)."""
-    path = Path(path)
-    source = str(path)
-    with _ReadProgress(path, progress) as bar:
-        if path.suffix.lower() == ".npz":
-            arrays = load_npz(path, source)
-            bar.stage("checks")
-            return scene_from_arrays(arrays, source=source, tol=tol)
-        raw = read_bytes(path, bar.update)
-        bar.stage("parse")
-        if path.suffix.lower() == ".json":
-            data, literals = parse_json(raw, source)
-        else:
-            data, literals = parse_toml(decode(raw, source), source), True
-        del raw
-        bar.stage("checks")
-        return scene_from_dict(data, source=source, tol=tol, literals=literals)
-
-
-def save_scene(scene: Scene, path) -> Path:
-    """Write `scene` as .json (strict: no NaN/Infinity) or .npz (binary: the same fields as whole arrays, fast for
-    10⁵–10⁶ contacts); `load_scene` reads either back to the same arrays. Other suffixes are refused."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
-        write_npz(scene_arrays(scene), path)
-    elif suffix == ".json":
-        write_json(scene.to_dict(), path)
-    else:
-        raise SceneError(f"{path}: save_scene writes .json or .npz, not {suffix or 'a file without suffix'!r}")
-    return path
-
-
-class _ReadProgress:
-    """tqdm bar over a file's bytes, then its stages (optional dependency, only for files > PROGRESS_BYTES)."""
-
-    def __init__(self, path: Path, enabled: bool):
-        self.bar = None
-        if enabled:
-            try:
-                size = path.stat().st_size
-                from tqdm.auto import tqdm
-            except (OSError, ImportError):
-                return
-            if size > PROGRESS_BYTES:
-                self.bar = tqdm(total=size, unit="B", unit_scale=True, desc=f"reading {path.name}", mininterval=0.5)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        if self.bar is not None:
-            self.bar.close()
-
-    def update(self, n: int) -> None:
-        if self.bar is not None:
-            self.bar.update(n)
-
-    def stage(self, name: str) -> None:
-        if self.bar is not None:
-            self.bar.set_description(f"{name} {self.bar.desc.split(' ', 1)[-1]}")
-            self.bar.refresh()
-
-
-class _Reader:
-    """Structural checks of one small table (the top level, `defaults`, a shape), one-line errors naming file,
-    entry and field. Arrays of entries (particles, contacts) are read column-wise by tables.py instead."""
-
-    def __init__(self, source: str, entry: str, data, allowed: set):
-        self.source, self.entry, self.data = source, entry, data
-        if not isinstance(data, dict):
-            self.fail("", f"must be a table, got {type(data).__name__}")
-        if isinstance(data, DuplicateKeys):
-            self.fail(data.duplicate, "duplicate key (JSON would keep only the last value)")
-        unknown = sorted(set(data) - allowed, key=str)
-        if unknown:
-            self.fail(unknown[0], f"unknown key (allowed: {', '.join(sorted(allowed))})")
-
-    def fail(self, key: str, msg: str):
-        where = f"{self.entry}: {key}" if key else self.entry
-        raise SceneError(one_line(f"{self.source}: {where}: {msg}"))
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def text(self, key: str, default=None) -> str:
-        if key not in self.data:
-            if default is None:
-                self.fail(key, "missing")
-            return default
-        value = self.data[key]
-        if not isinstance(value, str) or not value:
-            self.fail(key, f"must be a non-empty string, got {describe(value)}")
-        return value
-
-    def number(self, key: str, default=None) -> float:
-        return float(self.array(key, (), default))
-
-    def array(self, key: str, shape: tuple, default=None) -> np.ndarray:
-        """A finite array of the given shape (shape () is a scalar) within the accepted magnitude."""
-        if key not in self.data:
-            if default is None:
-                self.fail(key, "missing")
-            return np.broadcast_to(np.asarray(default, dtype=float), shape).copy()
-        problem = value_problem(self.data[key], shape)
-        if problem:
-            self.fail(key, problem)
-        arr = np.array(self.data[key], dtype=float)
-        if np.abs(arr).max(initial=0.0) > MAX_MAGNITUDE:
-            self.fail(key, magnitude_message(float(np.abs(arr).max())))
-        return arr
-
-
-def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT, *, literals: bool = True) -> Scene:
-    """Build and validate a Scene from the parsed file format (a dict).
-
-    A scene with no `contacts` whose particles carry a `shape` is shape-based: its contacts are derived from
-    the geometry (shapes.py). literals=False promises that the data hold no booleans (parse_json's scan), which
-    lets every column convert in one numpy call."""
-    from .shapes import is_shape_scene, shape_scene_from_dict
-
-    if is_shape_scene(data):
-        return shape_scene_from_dict(data, source=source, tol=tol)
+def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT, *,
+                            literals: bool = True) -> Scene:
+    """Build and validate a Scene from the parsed contact-level file format (a dict); files.py dispatches.
+    literals=False promises that the data hold no booleans, which lets every column convert in one numpy call."""
     top, dim, title = read_header(data, source, TOP_KEYS)
-    law = _read_law(_Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, _base_law(dim))
+    law = read_law(Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, _base_law(dim))
     if not isinstance(data.get("particles"), list) or not data["particles"]:
         top.fail("particles", "must be a non-empty array of tables")
     particles = TextTable(source, "particles", data["particles"], PARTICLE_KEYS, literals)
@@ -454,7 +330,7 @@ def _rolling_column(table, dim: int, default: np.ndarray) -> np.ndarray:
 
 def read_header(data, source: str, allowed: set):
     """The top-level table: its reader, dim (the integer 2 or 3, required) and title (optional)."""
-    top = _Reader(source, "scene", data, allowed)
+    top = Reader(source, "scene", data, allowed)
     if "dim" not in data:
         top.fail("dim", "missing (2 or 3)")
     dim = data["dim"]
@@ -466,7 +342,7 @@ def read_header(data, source: str, allowed: set):
     return top, int(dim), title
 
 
-def read_particles(top: _Reader, data: dict, allowed: set, read) -> list:
+def read_particles(top: Reader, data: dict, allowed: set, read) -> list:
     """The `particles` array of a shape scene (small): one table each, with a unique name; `read(rd, name)`
     returns an entry's data."""
     particles = data.get("particles")
@@ -474,7 +350,7 @@ def read_particles(top: _Reader, data: dict, allowed: set, read) -> list:
         top.fail("particles", "must be a non-empty array of tables")
     out, index = [], {}
     for i, item in enumerate(particles):
-        rd = _Reader(top.source, f"particles[{i}]", item, allowed)
+        rd = Reader(top.source, f"particles[{i}]", item, allowed)
         name = rd.text("name")
         rd.entry = f"particles[{i}] ({name!r})"
         if name in index:
@@ -482,29 +358,6 @@ def read_particles(top: _Reader, data: dict, allowed: set, read) -> list:
         index[name] = i
         out.append(read(rd, name))
     return out
-
-
-def _read_law(rd: _Reader, dim: int, base: dict) -> dict:
-    r = rot_dim(dim)
-    k = rd.number("k", base["k"])
-    alpha = rd.number("alpha", base["alpha"])
-    mu = rd.number("mu", base["mu"])
-    if k <= 0:
-        rd.fail("k", f"must be > 0, got {k}")
-    if alpha <= 0:
-        rd.fail("alpha", f"must be > 0, got {alpha}")
-    if mu < 0:
-        rd.fail("mu", f"must be >= 0, got {mu}")
-    rolling = base["rolling_stiffness"]
-    if "rolling_stiffness" in rd.data:
-        if dim == 2 or not isinstance(rd.data["rolling_stiffness"], list):
-            value = rd.array("rolling_stiffness", ())
-            if value < 0:
-                rd.fail("rolling_stiffness", f"must be >= 0, got {value}")
-            rolling = value * np.eye(r)
-        else:
-            rolling = rd.array("rolling_stiffness", (3, 3))
-    return {"k": k, "alpha": alpha, "mu": mu, "rolling_stiffness": rolling}
 
 
 def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="", source="<scene>",
@@ -666,5 +519,5 @@ def _load_scales(scene: Scene):
     return fs, ms
 
 
-__all__ = ["Scene", "SceneError", "load_scene", "save_scene", "scene_from_dict", "scene_from_arrays", "build_scene",
-           "equilibrium_loads"]
+__all__ = ["Scene", "SceneError", "build_scene", "contact_scene_from_dict", "equilibrium_loads", "scene_arrays",
+           "scene_from_arrays"]

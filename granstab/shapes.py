@@ -26,8 +26,8 @@ from typing import ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .scene import (LAW_DEFAULTS, LAW_KEYS, SceneError, _Reader, _read_law, build_scene, read_header,
-                    read_particles)
+from .reading import Reader, SceneError, read_law
+from .scene import LAW_DEFAULTS, LAW_KEYS, build_scene, read_header, read_particles
 from .tolerances import DEFAULT, EPS, Tolerances
 from .vec import rot_dim, tangent_basis
 
@@ -448,7 +448,7 @@ def is_shape_scene(data) -> bool:
             and any(isinstance(item, dict) and "shape" in item for item in data["particles"]))
 
 
-def _read_shape(rd: _Reader, dim: int):
+def _read_shape(rd: Reader, dim: int):
     """The `shape` table of a particle entry → a shape object (one-line SceneError on bad input)."""
     if not rd.has("shape"):
         rd.fail("shape", "missing (every particle of a shape scene needs one)")
@@ -459,7 +459,7 @@ def _read_shape(rd: _Reader, dim: int):
     kind = raw["kind"]
     if kind not in kinds:
         rd.fail("shape", f"kind: must be one of {', '.join(kinds)} in {dim}D, got {kind!r}")
-    sub = _Reader(rd.source, f"{rd.entry}: shape", raw, {"kind", *SHAPE_FIELDS[kind]})
+    sub = Reader(rd.source, f"{rd.entry}: shape", raw, {"kind", *SHAPE_FIELDS[kind]})
     sizes = {key: float(sub.number(key)) for key in SHAPE_FIELDS[kind]}
     for key, value in sizes.items():
         if value <= 0:
@@ -467,7 +467,7 @@ def _read_shape(rd: _Reader, dim: int):
     return SHAPES[kind](**sizes)
 
 
-def _read_orientation(rd: _Reader, dim: int, tol: Tolerances):
+def _read_orientation(rd: Reader, dim: int, tol: Tolerances):
     """2D `angle` (radians, default 0); 3D `rotation` (proper orthogonal 3x3, default identity)."""
     if dim == 2:
         return float(rd.number("angle", 0.0))
@@ -501,8 +501,8 @@ def read_shape_file(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
     angle (2D, radians) or rotation (3D, 3x3). Errors are one-line SceneErrors naming file, entry and field.
     """
     top, dim, title = read_header(data, source, SHAPE_TOP_KEYS)
-    drd = _Reader(source, "defaults", data.get("defaults", {}), SHAPE_DEFAULT_KEYS)
-    law = _read_law(drd, dim, {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((rot_dim(dim),) * 2)})
+    drd = Reader(source, "defaults", data.get("defaults", {}), SHAPE_DEFAULT_KEYS)
+    law = read_law(drd, dim, {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((rot_dim(dim),) * 2)})
     mobilised = float(drd.number("mobilised", 0.0))
     if not 0.0 <= mobilised <= 1.0:
         drd.fail("mobilised", f"must be in [0, 1], got {mobilised:g}")

@@ -8,46 +8,12 @@ error: "<file>: <entry>: <field>: <what is wrong>". `TextTable` reads parsed TOM
 """
 from __future__ import annotations
 
-import json
-import math
 from itertools import compress, repeat
 from operator import itemgetter, methodcaller
 
 import numpy as np
 
-from .fileformat import DuplicateKeys, SceneError, one_line
-from .tolerances import MAX_MAGNITUDE
-
-
-def describe(value) -> str:
-    try:
-        text = json.dumps(value)
-    except (TypeError, ValueError):
-        text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def all_numbers(value) -> bool:
-    """True if every leaf is an int or float (not a bool, not a string that numpy would convert)."""
-    if isinstance(value, (list, tuple)):
-        return all(all_numbers(v) for v in value)
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def value_problem(value, shape: tuple) -> str | None:
-    """Why `value` is not a finite float array of `shape` (shape () is a scalar), or None."""
-    want = "a number" if shape == () else f"{'x'.join(map(str, shape))} numbers"
-    try:
-        arr = np.array(value, dtype=float)
-    except OverflowError:
-        return f"a number beyond float64's range ({magnitude_message(math.inf)})"
-    except (TypeError, ValueError):
-        return f"must be {want}, got {describe(value)}"
-    if arr.shape != shape or not all_numbers(value):
-        return f"must be {want}, got {describe(value)}"
-    if not np.all(np.isfinite(arr)):
-        return "must be finite (no nan or inf)"
-    return None
+from .reading import DuplicateKeys, SceneError, describe, first, one_line, row_problem, value_problem
 
 
 def numeric(values, n: int, shape: tuple) -> np.ndarray | None:
@@ -61,25 +27,6 @@ def numeric(values, n: int, shape: tuple) -> np.ndarray | None:
     if arr.dtype.kind not in "fiu" or arr.shape != (n, *shape):
         return None
     return arr.astype(float, copy=False)
-
-
-def magnitude_message(value: float) -> str:
-    return (f"|value| = {value:.3g} exceeds {MAX_MAGNITUDE:.0e}: H and its checks multiply up to six input "
-            "numbers, which must stay below float64's 1.8e308 (change units)")
-
-
-def row_problem(arr: np.ndarray):
-    """(first row, message) of an (n, k) array with a non-finite entry or one above MAX_MAGNITUDE, or None."""
-    ok = np.abs(arr) <= MAX_MAGNITUDE
-    if ok.all():
-        return None
-    i = first(~ok.all(axis=1))
-    worst = np.abs(arr[i]).max()
-    return i, "must be finite (no nan or inf)" if not np.isfinite(worst) else magnitude_message(worst)
-
-
-def first(mask: np.ndarray) -> int:
-    return int(np.flatnonzero(mask)[0])
 
 
 class TextTable:

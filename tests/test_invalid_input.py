@@ -10,7 +10,8 @@ import pytest
 import granstab
 from granstab import fileformat, packings
 from granstab.cli import main
-from granstab.scene import load_scene, save_scene, scene_arrays
+from granstab.files import load_scene, save_scene
+from granstab.scene import scene_arrays
 
 GOOD = """dim = 2
 [[particles]]
@@ -266,7 +267,7 @@ def test_reading_progress_on_stderr(tmp_path, capsys, monkeypatch):
     """Files above PROGRESS_BYTES show a bar (bytes read, then the stages) when asked; nothing otherwise."""
     path = tmp_path / "s.json"
     path.write_text(json.dumps(tomllib.loads(GOOD)))
-    monkeypatch.setattr(granstab.scene, "PROGRESS_BYTES", 10)
+    monkeypatch.setattr(granstab.files, "PROGRESS_BYTES", 10)
     load_scene(path, progress=True)
     err = capsys.readouterr().err
     assert "checks s.json" in err and f"{path.stat().st_size}" in err
