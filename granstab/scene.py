@@ -125,6 +125,8 @@ class Scene:
         """The scene in the file format (contact level); `scene_from_dict` reads it back to the same arrays.
         Built column-wise from `scene_arrays` (numpy's tolist, then one zip per entry)."""
         cols = scene_arrays(self)
+        names = cols["particles/name"]
+        cols["contacts/p"], cols["contacts/q"] = names[self.p], names[self.q]      # the text format names them
 
         def rows(prefix: str, keys: tuple) -> list:
             return [dict(zip(keys, values)) for values in zip(*(cols[f"{prefix}/{k}"].tolist() for k in keys))]
@@ -155,13 +157,14 @@ NPZ_META = ("dim", "title")
 
 def scene_arrays(scene: Scene) -> dict:
     """The file format as whole arrays (NPZ): `particles/<field>` and `contacts/<field>` over the entries, the
-    same fields and units as the text format (2D curvatures and moments as scalars; p, q as names)."""
+    same fields and units as the text format (2D curvatures and moments as scalars; p, q as 0-based particle
+    indices, which scene_from_arrays also accepts as names)."""
     names = np.array(scene.names, dtype=str)
     scalar = scene.dim == 2
     out = {"dim": np.array(scene.dim), "title": np.array(scene.title, dtype=str),
            "particles/name": names, "particles/x": scene.x, "particles/load": scene.load,
            "particles/moment": scene.load_moment[:, 0] if scalar else scene.load_moment,
-           "contacts/p": names[scene.p], "contacts/q": names[scene.q], "contacts/point": scene.point,
+           "contacts/p": scene.p, "contacts/q": scene.q, "contacts/point": scene.point,
            "contacts/normal": scene.normal, "contacts/force": scene.force,
            "contacts/moment": scene.moment[:, 0] if scalar else scene.moment,
            "contacts/k": scene.k, "contacts/alpha": scene.alpha, "contacts/mu": scene.mu,
@@ -219,7 +222,7 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Sce
     particles, geometry, forces, law and state. Errors name the first bad entry and its field."""
     r = rot_dim(dim)
     names = particles.strings("name")
-    index = {name: i for i, name in enumerate(names)}
+    index = dict(zip(names, range(len(names))))
     if len(index) != len(names):
         seen = {}
         for i, name in enumerate(names):
@@ -233,14 +236,12 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Sce
     loads = (particles.numbers("load", (dim,), 0.0), particles.present("load"))
     moments = (particles.numbers("moment", moment_shape, 0.0).reshape(-1, r), particles.present("moment"))
 
-    pn, qn = contacts.strings("p"), contacts.strings("q")
-    contacts.label = lambda c: f"contacts[{c}] ({pn[c]}-{qn[c]})"
     M = len(contacts)
-    p = _indices(contacts, "p", pn, index)
-    q = _indices(contacts, "q", qn, index)
+    p, q = _particle_column(contacts, "p", names, index), _particle_column(contacts, "q", names, index)
+    contacts.label = lambda c: f"contacts[{c}] ({names[p[c]]}-{names[q[c]]})"
     if np.any(p == q):
         contacts.fail(first(p == q), "q", "a particle cannot touch itself (p = q)")
-    _check_unique_pairs(contacts, p, q, pn, qn)
+    _check_unique_pairs(contacts, p, q, names)
     normal = contacts.numbers("normal", (dim,))
     norm = np.linalg.norm(normal, axis=1)
     bad = np.abs(norm - 1.0) > tol.input_rtol
@@ -270,16 +271,27 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Sce
                        entries=contacts.label, particle_entries=particles.label)
 
 
-def _indices(table, key: str, names: list, index: dict) -> np.ndarray:
-    """Particle indices of the names in a contact column; an unknown name is an error naming the contact."""
-    found = list(map(index.get, names))
+def _particle_column(table, key: str, names: list, index: dict) -> np.ndarray:
+    """Particle indices of a contact's p or q: names (text and NPZ) or, in NPZ, 0-based indices into the particles
+    (what save_scene writes: no string work for 10⁶ contacts). An unknown particle names the contact."""
+    given, _ = table.raw(key)
+    if isinstance(given, np.ndarray) and given.dtype.kind in "iu":
+        if given.shape != (len(table),):
+            table.fail(None, key, f"must have shape ({len(table)},), got {given.shape}")
+        bad = (given < 0) | (given >= len(names))
+        if bad.any():
+            table.fail(first(bad), key, f"particle index {given[first(bad)]} is not in 0..{len(names) - 1}")
+        return given.astype(np.intp)
+    labels = table.strings(key)
+    found = list(map(index.get, labels))
     if None in found:
         c = found.index(None)
-        table.fail(c, key, f"unknown particle {names[c]!r}")
-    return np.array(found, dtype=np.intp).reshape(len(names))
+        table.label = lambda i: f"{table.name}[{i}]"
+        table.fail(c, key, f"unknown particle {labels[c]!r}")
+    return np.array(found, dtype=np.intp).reshape(len(labels))
 
 
-def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, pn: list, qn: list) -> None:
+def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, names: list) -> None:
     """One contact per unordered pair: the first repeat (in file order) is an error naming both entries."""
     if len(p) < 2:
         return
@@ -290,7 +302,7 @@ def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, pn: list, qn: list)
         later = order[1:][same]
         c = int(later.min())
         j = int(order[:-1][same][np.argmin(later)])
-        table.fail(c, "q", f"duplicate contact between {pn[c]!r} and {qn[c]!r} (also contacts[{j}])")
+        table.fail(c, "q", f"duplicate contact between {names[p[c]]!r} and {names[q[c]]!r} (also contacts[{j}])")
 
 
 def _curvature_column(table, key: str, dim: int, normal: np.ndarray, tol: Tolerances) -> np.ndarray:

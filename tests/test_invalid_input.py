@@ -216,7 +216,8 @@ def test_npz_errors_name_file_array_and_entry(tmp_path, capsys):
         ({**good, "contacts/force": good["contacts/force"][:, :1]}, ["contacts: force", "shape (1, 2)"]),
         ({**good, "contacts/k": np.array([1.0, 2.0])}, ["contacts/k", "2 rows, expected 1"]),
         ({**good, "contacts/point": np.array([[np.nan, 0.0]])}, ["contacts[0] (p-q): point", "finite"]),
-        ({**good, "contacts/q": np.array(["z"])}, ["contacts[0] (p-z): q", "unknown particle 'z'"]),
+        ({**good, "contacts/q": np.array(["z"])}, ["contacts[0]: q", "unknown particle 'z'"]),
+        ({**good, "contacts/q": np.array([2])}, ["contacts[0]: q", "particle index 2 is not in 0..1"]),
         ({**good, "dim": np.array(2.0)}, ["scene: dim", "integer"]),
     ]
     for arrays, words in cases:
