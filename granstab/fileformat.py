@@ -4,10 +4,9 @@ Only the syntax lives here; scene.py checks the schema and the physics. Every fa
 with ONE line naming the file (and the line where the syntax says it).
 
 JSON is parsed by the standard library's C parser after one vectorised pass over the bytes (numpy), which
-finds the nesting depth (rejected beyond MAX_DEPTH instead of recursing into a RecursionError), counts the
+finds the nesting depth (rejected beyond MAX_DEPTH instead of recursing into a RecursionError) and counts the
 keys (a duplicate key, which json keeps silently as last-one-wins, makes the parsed count smaller; only then is
-the file parsed again with an `object_pairs_hook` to name it) and sees whether true/false/null occur outside
-strings (the schema has none; scene.py then names where). TOML (tomllib) already rejects duplicate keys.
+the file parsed again with an `object_pairs_hook` to name it). TOML (tomllib) already rejects duplicate keys.
 """
 from __future__ import annotations
 
@@ -66,12 +65,11 @@ def _pairs_hook(pairs):
     return marked
 
 
-def parse_json(raw: bytes, source: str) -> tuple[object, bool]:
-    """Parse JSON bytes; returns (data, may_have_literals): the second is True where true/false/null may occur
-    outside strings. Depth beyond MAX_DEPTH and malformed text are one-line errors; objects with a duplicate key
-    come back as `DuplicateKeys` (only then is the slower hook used)."""
+def parse_json(raw: bytes, source: str):
+    """Parse JSON bytes. Depth beyond MAX_DEPTH and malformed text are one-line errors; objects with a duplicate
+    key come back as `DuplicateKeys` (only then is the slower hook used)."""
     text = decode(raw, source)
-    depth, pos, n_keys, literals = structure(raw)
+    depth, pos, n_keys = structure(raw)
     if depth > MAX_DEPTH:
         line = raw.count(b"\n", 0, pos) + 1
         raise SceneError(f"{source}: nesting deeper than {MAX_DEPTH} levels at line {line} (the scene schema "
@@ -84,27 +82,26 @@ def parse_json(raw: bytes, source: str) -> tuple[object, bool]:
         raise SceneError(f"{source}: malformed JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
     except RecursionError:   # unreachable after the depth scan; kept so that no traceback can escape
         raise SceneError(f"{source}: nesting too deep for the JSON parser") from None
-    return data, literals
+    return data
 
 
-# byte classes of the structural scan: 1 quote, 2 opening bracket, 3 closing bracket, 4 colon, 5 t/f/n
+# byte classes of the structural scan: 1 quote, 2 opening bracket, 3 closing bracket, 4 colon
 _CLASS = np.zeros(256, np.uint8)
 _CLASS[ord('"')] = 1
 _CLASS[[ord("["), ord("{")]] = 2
 _CLASS[[ord("]"), ord("}")]] = 3
 _CLASS[ord(":")] = 4
-_CLASS[list(b"tfn")] = 5                 # first letters of true / false / null
 
 
-def structure(raw: bytes) -> tuple[int, int, int, bool]:
+def structure(raw: bytes) -> tuple[int, int, int]:
     """One vectorised pass over JSON bytes: (max depth, byte offset where it is first reached, number of keys
-    (colons outside strings), whether t/f/n occur outside strings). Only the structural bytes are kept (a few
+    (colons outside strings)). Only the structural bytes are kept (a few
     per cent of the file); strings are tracked by quote parity after escaped characters are blanked (regex,
     C speed, only in files that have a backslash)."""
     if b"\\" in raw:
         raw = re.sub(rb"\\.", b"__", raw, flags=re.DOTALL)
     depth = inside = keys = 0
-    best, best_pos, letters = 0, 0, False
+    best, best_pos = 0, 0
     for start in range(0, len(raw), CHUNK):
         b = np.frombuffer(raw, np.uint8, count=min(CHUNK, len(raw) - start), offset=start)
         pos = np.flatnonzero(_CLASS[b])
@@ -118,10 +115,9 @@ def structure(raw: bytes) -> tuple[int, int, int, bool]:
             at = int(np.argmax(level))
             best, best_pos = int(level[at]), start + int(pos[at])
         keys += int(np.count_nonzero(outside & (cls == 4)))
-        letters |= bool(np.any(outside & (cls == 5)))
         if level.size:
             depth, inside = int(level[-1]), int(parity[-1])
-    return best, best_pos, keys, letters
+    return best, best_pos, keys
 
 
 def count_keys(data) -> int:

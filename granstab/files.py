@@ -27,12 +27,12 @@ def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Sc
         raw = read_bytes(path, bar.update)
         bar.stage("parse")
         if path.suffix.lower() == ".json":
-            data, literals = parse_json(raw, source)
+            data = parse_json(raw, source)
         else:
-            data, literals = parse_toml(decode(raw, source), source), True
+            data = parse_toml(decode(raw, source), source)
         del raw
         bar.stage("checks")
-        return scene_from_dict(data, source=source, tol=tol, literals=literals)
+        return scene_from_dict(data, source=source, tol=tol)
 
 
 def save_scene(scene: Scene, path) -> Path:
@@ -80,12 +80,11 @@ class _ReadProgress:
             self.bar.refresh()
 
 
-def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT, *, literals: bool = True) -> Scene:
+def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
     """Build and validate a Scene from the parsed file format (a dict).
 
     A scene with no `contacts` whose particles carry a `shape` is shape-based: its contacts are derived from the
-    geometry (shapes.py); any other is contact-level (scene.py). literals=False promises that the data hold no
-    booleans (parse_json's scan), which lets every column convert in one numpy call."""
+    geometry (shapes.py); any other is contact-level (scene.py)."""
     if is_shape_scene(data):
         return shape_scene_from_dict(data, source=source, tol=tol)
-    return contact_scene_from_dict(data, source=source, tol=tol, literals=literals)
+    return contact_scene_from_dict(data, source=source, tol=tol)

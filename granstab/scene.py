@@ -139,16 +139,14 @@ class Scene:
 
 # ----------------------------------------------------------------------------------------------- reading
 
-def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT, *,
-                            literals: bool = True) -> Scene:
-    """Build and validate a Scene from the parsed contact-level file format (a dict); files.py dispatches.
-    literals=False promises that the data hold no booleans, which lets every column convert in one numpy call."""
+def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
+    """Build and validate a Scene from the parsed contact-level file format (a dict); files.py dispatches."""
     top, dim, title = read_header(data, source, TOP_KEYS)
     law = read_law(Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, _base_law(dim))
     if not isinstance(data.get("particles"), list) or not data["particles"]:
         top.fail("particles", "must be a non-empty array of tables")
-    particles = TextTable(source, "particles", data["particles"], PARTICLE_KEYS, literals)
-    contacts = TextTable(source, "contacts", data.get("contacts", []), CONTACT_KEYS, literals)
+    particles = TextTable(source, "particles", data["particles"], PARTICLE_KEYS)
+    contacts = TextTable(source, "contacts", data.get("contacts", []), CONTACT_KEYS)
     return _scene_from_tables(dim, title, law, particles, contacts, source, tol)
 
 

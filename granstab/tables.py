@@ -8,7 +8,7 @@ error: "<file>: <entry>: <field>: <what is wrong>". `TextTable` reads parsed TOM
 """
 from __future__ import annotations
 
-from itertools import compress, repeat
+from itertools import chain, compress, repeat
 from operator import itemgetter, methodcaller
 
 import numpy as np
@@ -18,13 +18,18 @@ from .reading import DuplicateKeys, SceneError, describe, first, one_line, row_p
 
 def numeric(values, n: int, shape: tuple) -> np.ndarray | None:
     """The fast path: `values` (a list) as an (n, *shape) float array, or None where numpy cannot do it cleanly
-    (strings, ragged rows, objects, booleans). Mixed bool/number rows convert silently in numpy, so callers that
-    may hold booleans (text files with true/false) check those separately (`has_literal`)."""
+    (strings, ragged rows, objects, booleans — numpy would turn a boolean among numbers into 0 or 1, so the
+    leaves' types are looked at too, in C: chain and map)."""
     try:
         arr = np.array(values)
     except (TypeError, ValueError, OverflowError):
         return None
     if arr.dtype.kind not in "fiu" or arr.shape != (n, *shape):
+        return None
+    leaves = values
+    for _ in shape:
+        leaves = chain.from_iterable(leaves)
+    if bool in set(map(type, leaves)):
         return None
     return arr.astype(float, copy=False)
 
@@ -32,11 +37,10 @@ def numeric(values, n: int, shape: tuple) -> np.ndarray | None:
 class TextTable:
     """The entries `items` (a list of dicts) of the array `name` of a parsed scene file.
 
-    label(i) names entry i in errors (default "name[i]"); `literals` says the file may hold true/false/null,
-    which numpy would convert to numbers: such columns take the entry-by-entry path."""
+    label(i) names entry i in errors (default "name[i]")."""
 
-    def __init__(self, source: str, name: str, items, allowed: set, literals: bool = True):
-        self.source, self.name, self.items, self.literals = source, name, items, literals
+    def __init__(self, source: str, name: str, items, allowed: set):
+        self.source, self.name, self.items = source, name, items
         self.label = lambda i: f"{name}[{i}]"
         if not isinstance(items, list):
             raise SceneError(f"{source}: scene: {name}: must be an array of tables")
@@ -84,7 +88,7 @@ class TextTable:
         """Field `key` of every entry (of the entries `where` selects) as an (n, *shape) finite float array;
         entries without it take `default` (None: the field is required)."""
         values, have = self._values(key, default is None, where)
-        arr = None if self.literals else numeric(values, len(values), shape)
+        arr = numeric(values, len(values), shape)
         if arr is None:
             rows = np.flatnonzero(have)
             for j, value in enumerate(values):
