@@ -133,8 +133,7 @@ def cmd_analyze(args) -> int:
     with deadline(args.timeout, args.scene):
         with strict_numerics(args.scene):
             scene = load_scene(args.scene, progress=progress)
-            if args.timeout:
-                refuse_unfinishable(scene, args, args.timeout - (time.perf_counter() - start))
+            refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start))
             result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding,
                              method=args.method, k=args.k, progress=progress)
             data = result.to_dict()
@@ -144,12 +143,18 @@ def cmd_analyze(args) -> int:
     return 0
 
 
-def refuse_unfinishable(scene, args, seconds_left: float) -> None:
-    """Refuse (one line, before any work) dense branch enumerations whose measured cost exceeds the time left."""
+def refuse_unfinishable(scene, args, seconds_left: float | None) -> None:
+    """Refuse (one line, before any work) more sliding contacts than --max-sliding, and dense branch enumerations
+    whose measured cost exceeds the time left of --timeout; each message says what to do."""
     from .sparse import DENSE_MAX_DOF
     n_sliding = int(np.sum(scene.at_yield()))
+    if n_sliding > args.max_sliding:
+        raise OverBudget(f"{scene.source}: {n_sliding} potentially sliding contacts give 2^{n_sliding} branches, "
+                         f"more than --max-sliding {args.max_sliding} allows: raise --max-sliding (with --timeout "
+                         "to bound the time), set state = \"elastic\" for contacts known to stick, or analyse a "
+                         "smaller cluster")
     dense = args.method == "dense" or (args.method == "auto" and scene.n_dof <= DENSE_MAX_DOF)
-    if dense and n_sliding <= args.max_sliding:
+    if dense and seconds_left is not None:
         refuse_over(scene.source, estimate(scene.n_dof, 2 ** n_sliding), seconds_left, scene.n_dof, n_sliding)
 
 

@@ -3,6 +3,7 @@ import json
 import subprocess
 import sys
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -285,3 +286,11 @@ def test_coordinates_far_from_the_origin_and_tiny_scales_are_refused(tmp_path, c
             "curvature_q": 0 * scene.curvature_q}
     with pytest.raises(granstab.SceneError, match=r"mean contact radius 1e-60 is outside \[1e-50, 1e\+50\]"):
         granstab.build_scene(2, scene.names, scene.x * 1e-60, tiny)
+
+
+def test_more_sliding_contacts_than_allowed_is_refused_with_what_to_do(capsys):
+    path = str(Path(__file__).parent / "corpus" / "slow_all_at_yield_2d.json")
+    assert main(["analyze", path, "--max-sliding", "12"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"{path}: 16 potentially sliding contacts give 2^16 branches")
+    assert "--max-sliding 12" in err and 'state = "elastic"' in err
