@@ -34,7 +34,7 @@ from granstab.scene import CONTACT_KEYS, LAW_KEYS, PARTICLE_KEYS, STATES, TOP_KE
 
 QUICK_SIZES = (1_000, 10_000)
 FULL_SIZES = (10_000, 100_000, 1_000_000)
-REFERENCE_MAX = 100_000       # the per-contact reference takes ~minutes beyond this
+REFERENCE_MAX = 120_000       # the per-contact reference takes ~minutes beyond this
 CONTACTS_PER_PARTICLE = 2.7   # of the 2D random packings (measured; the sizes below are the actual counts)
 
 

@@ -43,7 +43,7 @@ def save_scene(scene: Scene, path) -> Path:
     if suffix == ".npz":
         write_npz(scene_arrays(scene), path)
     elif suffix == ".json":
-        write_json(scene.to_dict(), path)
+        write_json(scene.to_dict(), path)           # both pause the garbage collector (fileformat.paused_gc)
     else:
         raise SceneError(f"{path}: save_scene writes .json or .npz, not {suffix or 'a file without suffix'!r}")
     return path

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .fileformat import paused_gc
 from .reading import Reader, SceneError, describe, first, read_law, row_problem
 from .tables import ArrayTable, TextTable
 from .tolerances import COORDINATE_RATIO, DEFAULT, MAX_MAGNITUDE, MIN_SCALE, Tolerances
@@ -131,10 +132,12 @@ class Scene:
         def rows(prefix: str, keys: tuple) -> list:
             return [dict(zip(keys, values)) for values in zip(*(cols[f"{prefix}/{k}"].tolist() for k in keys))]
 
-        return {"dim": self.dim, "title": self.title,
-                "particles": rows("particles", ("name", "x", "load", "moment")),
-                "contacts": rows("contacts", ("p", "q", "point", "normal", "curvature_p", "curvature_q", "force",
-                                              "moment", "k", "alpha", "mu", "rolling_stiffness", "state"))}
+        with paused_gc():
+            return {"dim": self.dim, "title": self.title,
+                    "particles": rows("particles", ("name", "x", "load", "moment")),
+                    "contacts": rows("contacts", ("p", "q", "point", "normal", "curvature_p", "curvature_q",
+                                                  "force", "moment", "k", "alpha", "mu", "rolling_stiffness",
+                                                  "state"))}
 
 
 # ----------------------------------------------------------------------------------------------- reading
