@@ -59,19 +59,24 @@ def refuse_over(source: str, seconds: float, timeout: float, n_dof: int, n_slidi
                      "of interest, or raise --timeout")
 
 
+DENSE_ADVICE = ("cap the potentially sliding contacts (--max-sliding), use --method sparse with a small --k, "
+                "analyse a smaller cluster, or raise --timeout")
+SPARSE_ADVICE = ("lower --k, cap the potentially sliding contacts (--max-sliding), analyse a smaller cluster, or "
+                 "raise --timeout")
+
+
 @contextmanager
-def deadline(seconds: float | None, source: str):
+def deadline(seconds: float | None, source: str, advice: list):
     """Stop the enclosed work with OverBudget after `seconds` of wall time (SIGALRM; main thread only, where the
-    CLI runs; elsewhere, or with None, no deadline)."""
+    CLI runs; elsewhere, or with None, no deadline). `advice[0]` (which the caller may update once it knows the
+    path taken) ends the message."""
     import threading
     if not seconds or threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def expire(signum, frame):
-        raise OverBudget(f"{source}: stopped after --timeout {seconds:g} s, unfinished; cap the potentially "
-                         "sliding contacts (--max-sliding), use --method sparse with a small --k, analyse a smaller "
-                         "cluster, or raise --timeout")
+        raise OverBudget(f"{source}: stopped after --timeout {seconds:g} s, unfinished; {advice[0]}")
 
     previous = signal.signal(signal.SIGALRM, expire)
     signal.setitimer(signal.ITIMER_REAL, seconds)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .analysis import analyze
 from .branches import BOTH, MINUS, PLUS, RIGID
-from .budget import OverBudget, deadline, estimate, refuse_over
+from .budget import DENSE_ADVICE, SPARSE_ADVICE, OverBudget, deadline, estimate, refuse_over
 from .files import load_scene
 from .scene import SceneError
 from .stiffness import MaskError, stiffness
@@ -130,10 +130,12 @@ def format_table(result) -> str:
 def cmd_analyze(args) -> int:
     progress = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
-    with deadline(args.timeout, args.scene):
+    advice = [DENSE_ADVICE]
+    with deadline(args.timeout, args.scene, advice):
         with strict_numerics(args.scene):
             scene = load_scene(args.scene, progress=progress)
-            refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start))
+            if not refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start)):
+                advice[0] = SPARSE_ADVICE
             result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding,
                              method=args.method, k=args.k, progress=progress)
             data = result.to_dict()
@@ -143,9 +145,10 @@ def cmd_analyze(args) -> int:
     return 0
 
 
-def refuse_unfinishable(scene, args, seconds_left: float | None) -> None:
+def refuse_unfinishable(scene, args, seconds_left: float | None) -> bool:
     """Refuse (one line, before any work) more sliding contacts than --max-sliding, and dense branch enumerations
-    whose measured cost exceeds the time left of --timeout; each message says what to do."""
+    whose measured cost exceeds the time left of --timeout; each message says what to do. Returns whether the
+    dense path will run."""
     from .sparse import DENSE_MAX_DOF
     n_sliding = int(np.sum(scene.at_yield()))
     if n_sliding > args.max_sliding:
@@ -156,6 +159,7 @@ def refuse_unfinishable(scene, args, seconds_left: float | None) -> None:
     dense = args.method == "dense" or (args.method == "auto" and scene.n_dof <= DENSE_MAX_DOF)
     if dense and seconds_left is not None:
         refuse_over(scene.source, estimate(scene.n_dof, 2 ** n_sliding), seconds_left, scene.n_dof, n_sliding)
+    return dense
 
 
 def cmd_reproduce(args) -> int:

@@ -41,13 +41,14 @@ EXPECTED = json.loads((CORPUS / "expected.json").read_text(encoding="utf-8"))
 TIMEOUT = "20"
 
 
-def run(path: Path, *args) -> tuple[int, str, str, list]:
-    """`granstab analyze PATH --json ARGS` in-process: (exit status, stdout, stderr, warnings raised)."""
+def run(path: Path, *args, command=("analyze", "--json")) -> tuple[int, str, str, list]:
+    """`granstab analyze PATH --json ARGS` (or another command) in-process: (exit status, stdout, stderr,
+    warnings raised)."""
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
             warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        rc = main(["analyze", str(path), "--json", *args])
+        rc = main([command[0], str(path), *command[1:], *args])
     return rc, out.getvalue(), err.getvalue(), [str(w.message) for w in caught]
 
 
@@ -159,7 +160,11 @@ def hostile_files(draw) -> str:
 def test_hostile_files_exit_0_with_strict_json_or_2_with_one_line(tmp_path, text):
     path = tmp_path / "fuzzed.json"
     path.write_text(text, encoding="utf-8")
-    assert_contract(path, *run(path, "--timeout", TIMEOUT))
+    rc, out, err, caught = run(path, "--timeout", TIMEOUT)
+    assert_contract(path, rc, out, err, caught)
+    # `granstab stiffness` reads the same file: the same outcome, its own output
+    rc_k, out_k, err_k, caught_k = run(path, command=("stiffness", "--out", str(tmp_path / "K.npz")))
+    assert not caught_k and rc_k == rc and (out_k.startswith("wrote ") if rc == 0 else err_k == err)
 
 
 @st.composite
