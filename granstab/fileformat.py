@@ -63,10 +63,15 @@ def decode(raw: bytes, source: str) -> str:
 
 
 def parse_toml(text: str, source: str) -> dict:
+    """tomllib (which already refuses duplicate keys); its recursion on arrays nested hundreds deep is caught
+    here (tomllib is pure Python: nothing is left half-done) and reported as the nesting it is."""
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{source}: malformed TOML: {one_line(exc)}") from None
+    except RecursionError:
+        raise SceneError(f"{source}: nesting too deep for the TOML parser (the scene schema needs at most 5 "
+                         "levels)") from None
 
 
 def _pairs_hook(pairs):
