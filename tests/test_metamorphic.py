@@ -16,6 +16,7 @@ in one frame gets ~1e-18·|f| of round-off in a rotated frame; that used to make
 changed the branches and the verdict (ellipses_sharp, stable → neutral).
 """
 import math
+import os
 import tomllib
 from pathlib import Path
 
@@ -30,7 +31,8 @@ from test_properties import packing_scenes
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESETS = sorted(p for p in (ROOT / "presets").iterdir() if p.name != "annulus_frame.json")
-SETTINGS = settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", "120")) // 10, deadline=None,
+                    suppress_health_check=[HealthCheck.too_slow])      # FUZZ_EXAMPLES as in test_fuzz.py
 FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu",
           "rolling", "state")
 
