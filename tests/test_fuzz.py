@@ -27,6 +27,7 @@ import tomllib
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -205,3 +206,28 @@ def test_console_script_refuses_what_it_cannot_finish_in_one_line():
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(f"{path}: ")
     assert "refused" in proc.stderr or "stopped after --timeout" in proc.stderr
+
+
+def chain(dim: int, n: int) -> granstab.Scene:
+    """n equal disks/spheres in a straight line, each pressed on the next (a long, floppy chain: the sparse path)."""
+    r = 1 if dim == 2 else 3
+    x = np.zeros((n, dim))
+    x[:, 0] = 2.0 * np.arange(n)
+    normal = np.zeros((n - 1, dim))
+    normal[:, 0] = 1.0
+    K = -(np.eye(dim) - normal[0][:, None] * normal[0][None, :])
+    arrays = dict(p=np.arange(n - 1), q=np.arange(1, n), point=x[:-1] + normal, normal=normal,
+                  curvature_p=np.broadcast_to(K, (n - 1, dim, dim)).copy(),
+                  curvature_q=np.broadcast_to(K, (n - 1, dim, dim)).copy(), force=-0.01 * normal,
+                  moment=np.zeros((n - 1, r)), k=np.ones(n - 1), alpha=np.ones(n - 1), mu=np.full(n - 1, 0.5),
+                  rolling=np.zeros((n - 1, r, r)), state=("auto",) * (n - 1))
+    return granstab.build_scene(dim, [f"b{i}" for i in range(n)], x, arrays, title="chain")
+
+
+def test_a_long_chain_stops_at_the_deadline_in_one_line(tmp_path):
+    """The issue's silent hang (a 3,000-particle chain ran for minutes without a word): --timeout stops it, and the
+    advice fits the sparse path it took."""
+    path = granstab.save_scene(chain(3, 20_000), tmp_path / "chain.npz")
+    rc, out, err, caught = run(path, "--timeout", "0.5")
+    assert_contract(path, rc, out, err, caught)
+    assert rc == 2 and "stopped after --timeout 0.5 s, unfinished; lower --k" in err
