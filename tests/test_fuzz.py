@@ -198,6 +198,42 @@ def test_valid_scenes_at_the_ends_of_the_ranges_give_strict_json(tmp_path, scene
     assert rc == 0, err
 
 
+NPZ_SEEDS = [granstab.scene.scene_arrays(granstab.scene_from_dict(seed)) for seed in SEEDS]
+HOSTILE_ARRAYS = st.one_of(
+    st.sampled_from([np.array(2.5), np.array([1.0, np.nan]), np.array([[1e300, 0.0]]), np.array(["x", "y"]),
+                     np.zeros((0,)), np.zeros((2, 3, 4)), np.array([True, False]), np.array([-1, 7]),
+                     np.array([2 ** 62, 0]), np.array(["", "p"])]),
+    st.integers(0, 3).map(lambda k: np.full((k,), np.inf)),
+)
+
+
+@st.composite
+def hostile_arrays(draw) -> dict:
+    """An .npz scene with one array replaced, removed, added or scaled by 10^±300."""
+    arrays = dict(draw(st.sampled_from(NPZ_SEEDS)))
+    key = draw(st.sampled_from(sorted(arrays)))
+    kind = draw(st.sampled_from(["replace", "replace", "delete", "add", "scale"]))
+    if kind == "replace":
+        arrays[key] = draw(HOSTILE_ARRAYS)
+    elif kind == "delete":
+        del arrays[key]
+    elif kind == "add":
+        arrays[draw(st.sampled_from(["contacts/extra", "particles/shape", "extra"]))] = draw(HOSTILE_ARRAYS)
+    elif arrays[key].dtype.kind == "f":
+        arrays[key] = arrays[key] * 10.0 ** draw(st.integers(-300, 300))
+    return arrays
+
+
+@settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", "120")) // 2, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(arrays=hostile_arrays())
+def test_hostile_npz_files_exit_0_with_strict_json_or_2_with_one_line(tmp_path, arrays):
+    path = tmp_path / "fuzzed.npz"
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+    assert_contract(path, *run(path, "--timeout", TIMEOUT))
+
+
 def test_console_script_refuses_what_it_cannot_finish_in_one_line():
     """End to end (a real process, its own SIGALRM): 2^16 branches with --timeout 1 end in one line, exit 2."""
     path = CORPUS / "slow_all_at_yield_2d.json"
