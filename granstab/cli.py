@@ -197,6 +197,58 @@ def count(low: int):
     return parse
 
 
+def cmd_convert(args) -> int:
+    """Snapshot(s) → contact-level scene JSON; prints the validation report (issue 9)."""
+    from .io import format_report, load
+
+    options = {key: getattr(args, key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
+                                                   "length_scale", "units", "region", "columns")
+               if getattr(args, key) is not None}
+    if args.keep_rattlers:
+        options["keep_rattlers"] = True
+    imported = load(args.inputs, format=args.format, frame=args.frame, timestep=args.timestep, **options)
+    Path(args.out).write_text(json.dumps(imported.scene.to_dict()), encoding="utf-8")
+    report = {**imported.report, "out": args.out}
+    print(json.dumps(report) if args.json else format_report(report) + f"\nwrote {args.out}")
+    return 0
+
+
+def frame_number(text: str):
+    """--frame/--timestep: an integer where it is one (frame numbers, steps), else a float (times)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    return int(value) if value.is_integer() else value
+
+
+def add_convert(sub) -> None:
+    p = sub.add_parser("convert", help="DEM snapshots / experimental frames → a contact-level scene (JSON)")
+    p.add_argument("inputs", nargs="+", help="a folder or file(s) of one snapshot")
+    p.add_argument("--out", required=True, help="scene file to write (JSON)")
+    p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.FORMATS")
+    which = p.add_mutually_exclusive_group()
+    which.add_argument("--frame", type=frame_number, default=None, help="frame to read (default: the first)")
+    which.add_argument("--timestep", type=frame_number, default=None, help="timestep to read (default: the first)")
+    p.add_argument("--region", help="box:lo,hi,lo,hi[,lo,hi] | ids:ID,... | ids:@FILE (keep these particles)")
+    p.add_argument("--k", type=float, help="normal stiffness (overrides the file's law)")
+    p.add_argument("--alpha", type=float, help="tangential/normal stiffness ratio")
+    p.add_argument("--mu", type=float, help="friction coefficient")
+    p.add_argument("--geometry", choices=["centres", "touching"], default=None,
+                   help="centres: contact at the middle of the overlap (default); touching: d split by the radii")
+    p.add_argument("--outside-cone", dest="outside_cone", choices=["sliding", "project", "elastic", "error"],
+                   default=None, help="forces outside the friction cone (default sliding: project, mark at yield)")
+    p.add_argument("--yield-rtol", dest="yield_rtol", type=float, default=None,
+                   help="relative distance to |f_t| = μ f_n that counts as at yield (default 1e-4)")
+    p.add_argument("--length-scale", dest="length_scale", type=float, default=None,
+                   help="scene length per file length unit (e.g. 0.027 for px → cm)")
+    p.add_argument("--units", help="name of the scene's length unit (report)")
+    p.add_argument("--columns", help="what each column is, e.g. id1,id2,fx,fy,fz (formats with named columns)")
+    p.add_argument("--keep-rattlers", action="store_true", help="keep particles without contacts")
+    p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    p.set_defaults(run=cmd_convert)
+
+
 def build_parser() -> Parser:
     parser = Parser(prog="granstab", description="Stability of granular clusters (Kuhn & Chang).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -232,6 +284,7 @@ def build_parser() -> Parser:
     p.add_argument("--quick", action="store_true")
     p.add_argument("--out", default=".")
     p.set_defaults(run=cmd_bench)
+    add_convert(sub)
     return parser
 
 

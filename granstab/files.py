@@ -15,8 +15,12 @@ from .tolerances import DEFAULT, Tolerances
 
 def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Scene:
     """Read a scene file: TOML, JSON (same schema) or NPZ (`save_scene`'s binary form of it), chosen by the
-    suffix (.json, .npz, anything else TOML). Raises SceneError with a one-line message naming the file.
-    progress: a bar on stderr while a large file is read, then its stages (parse, checks)."""
+    suffix (.toml, .json, .npz). Raises SceneError with a one-line message naming the file.
+    progress: a bar on stderr while a large file is read, then its stages (parse, checks).
+    Folders and other files (DEM snapshots, experiments) go to granstab.io.load with its defaults."""
+    from .io import is_snapshot, load
+    if is_snapshot(path):
+        return load(path).scene
     path = Path(path)
     source = str(path)
     with _ReadProgress(path, progress) as bar:

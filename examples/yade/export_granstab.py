@@ -1,0 +1,42 @@
+"""Export a YADE simulation's current state as granstab's generic tables (particles.csv, contacts.csv).
+
+YADE is not installable here, so this script is not run by granstab's tests: it writes exactly the tables that
+tests/test_io_table.py reads (same header names). In a YADE script or shell, after the simulation step you want:
+
+    exec(open("export_granstab.py").read())
+    export_granstab("particles.csv", "contacts.csv")
+    # then:  granstab convert particles.csv contacts.csv --out scene.json
+
+Conventions (YADE, ScGeom + FrictPhys, e.g. Law2_ScGeom_FrictPhys_CundallStrack): i.geom.normal points from
+id1 to id2, the force F = i.phys.normalForce + i.phys.shearForce acts on id2 and −F on id1, so granstab's f^pq
+(the force on id1 by id2) is −F. Spheres become particles; an interaction of a sphere with any other body
+(wall, facet, box) becomes a wall row (id2 = −(body id + 1)), i.e. an external load on the sphere. kn, ks and
+tan(friction angle) of each interaction go into the kn, kt, mu columns, so granstab uses YADE's law.
+"""
+
+
+def export_granstab(particles_path="particles.csv", contacts_path="contacts.csv"):
+    from yade import O
+    from yade.utils import Sphere
+
+    spheres = {b.id: b for b in O.bodies if b is not None and isinstance(b.shape, Sphere)}
+    with open(particles_path, "w") as out:
+        out.write("id,x,y,z,radius\n")
+        for i, b in spheres.items():
+            x, y, z = b.state.pos
+            out.write(f"{i},{x!r},{y!r},{z!r},{b.shape.radius!r}\n")
+    with open(contacts_path, "w") as out:
+        out.write("id1,id2,fx,fy,fz,kn,kt,mu\n")
+        for i in O.interactions:
+            if not i.isReal:
+                continue
+            a, b = i.id1, i.id2
+            if a not in spheres and b not in spheres:
+                continue
+            force = i.phys.normalForce + i.phys.shearForce          # on id2; −force on id1
+            if a not in spheres:                                     # keep the sphere first
+                a, b, force = b, a, -force
+            f1 = -force                                              # on id1 (a sphere) by id2
+            other = b if b in spheres else -(b + 1)                  # a negative id2 is a wall
+            mu = getattr(i.phys, "tangensOfFrictionAngle", 0.0)
+            out.write(f"{a},{other},{f1[0]!r},{f1[1]!r},{f1[2]!r},{i.phys.kn!r},{i.phys.ks!r},{mu!r}\n")

@@ -1,0 +1,458 @@
+"""Contact-level scenes from particle snapshots: the conventions every reader shares.
+
+A reader hands over a `Snapshot` (particles with centres and radii, contacts as index pairs with the force on
+the first particle, in the file's units); `build` turns it into a granstab Scene and a validation report:
+
+- **Normal** n^pq: the file's normal where it has one, else the centre line from p to q (minimum image in
+  periodic cells). Overlap δ = R_p + R_q − d, d the centre distance.
+- **Geometry rule** `centres` (default, DEM): contact point on the centre line at the middle of the overlap,
+  x_p + (R_p − δ/2) e; curvature of the parallel surface through it, radius ρ = R − δ/2 for each particle
+  (NOTES.md: the curvature that enters Hg is that of the parallel curve through the contact point), κ = −1/ρ
+  (3D: K = −(I − n⊗n)/ρ). `touching` (data whose radii do not match the distances, e.g. photoelastic frames):
+  the point splits d in proportion to the radii, ρ_p = d R_p/(R_p+R_q), ρ_q = d − ρ_p.
+- **Forces** f^pq as given (the force on p by q; f^qp = −f^pq); compression has f·n < 0, checked.
+- **Cone policy** (eq:yield, Q = |f_t| + μ f·n): a contact with f_n > 0 and |f_t| within `yield_rtol` of μ f_n,
+  or flagged fully mobilised by the file, is put exactly on the cone and marked "sliding". One outside the cone
+  (|f_t| > μ f_n (1 + yield_rtol)) follows `outside_cone`: "sliding" (project onto the cone, mark at yield),
+  "project" (project, treat as sticking: "elastic"), "elastic" (keep the force, "elastic") or "error".
+  Contacts with f_n ≤ 0 and a force are "elastic" (tension is cohesion). Every change is counted and named.
+- **Loads** follow the contact forces (scene rule b^p = −Σ f^pq): walls, contacts cut by a region or around a
+  periodic cell and the snapshot's own imbalance become external loads; the report gives each.
+- **Periodic cells** (lattice rows, Lees–Edwards = sheared lattice): minimum-image branch vectors; particles are
+  unwrapped along the contact network, and contacts that close a loop around the cell are cut (their forces
+  become loads): the analysis then sees the cell as a free cluster held by dead loads.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+from ..reading import SceneError
+from ..scene import Scene, build_scene
+from ..vec import cross
+
+GEOMETRY = ("centres", "touching")
+OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
+
+
+@dataclass
+class Snapshot:
+    """Raw data of one frame as a reader found it (file units). Optional fields are None when absent."""
+
+    source: str
+    format: str
+    dim: int
+    ids: np.ndarray                 # (N,) particle ids as the file names them
+    x: np.ndarray                   # (N, d) centres
+    radius: np.ndarray              # (N,)
+    p: np.ndarray                   # (M,) particle indices
+    q: np.ndarray
+    force: np.ndarray               # (M, d) f^pq, the force on p by q
+    normal: np.ndarray | None = None     # (M, d) the file's unit normals p → q
+    moment: np.ndarray | None = None     # (M, r) contact moments m^pq
+    mobilised: np.ndarray | None = None  # (M,) the file's "fully mobilised" flags
+    lattice: np.ndarray | None = None    # (d, d) lower-triangular periodic lattice vectors (rows); NaN row = open
+    wall_flags: np.ndarray | None = None  # (N,) nonzero: touches a wall whose force the file does not give
+    wall_load: np.ndarray | None = None  # (N, d) wall forces the file gives
+    law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
+    length_unit: str = "file units"
+    frame: object = None
+    frames: list | None = None
+    notes: dict = field(default_factory=dict)  # format-specific report entries (duplicates, walls, ...)
+    particle_line: object = None   # particle index → "<file>: line L" (one-line errors), or None
+    contact_line: object = None    # contact index → "<file>: line L", or None
+
+    def where(self, kind: str, index: int) -> str:
+        """"<file>: line L" of a particle or contact (or the source), for one-line errors."""
+        locate = self.particle_line if kind == "particle" else self.contact_line
+        return self.source if locate is None else locate(int(index))
+
+
+@dataclass
+class Options:
+    """What the user says on top of the file (None: the file's value, else the built-in default)."""
+
+    k: float | None = None
+    alpha: float | None = None
+    mu: float | None = None
+    geometry: str = "centres"
+    outside_cone: str = "sliding"
+    yield_rtol: float = 1e-4
+    length_scale: float = 1.0
+    units: str | None = None
+    region: object = None
+    keep_rattlers: bool = False
+
+
+LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5}
+
+
+@dataclass
+class Imported:
+    """The result of `granstab.io.load`: the scene, its validation report and the frames the input holds."""
+
+    scene: Scene
+    report: dict
+    frames: list | None
+
+
+def build(snap: Snapshot, opts: Options) -> Imported:
+    """Scene + validation report from a snapshot (see the module docstring for every convention)."""
+    if opts.geometry not in GEOMETRY:
+        raise SceneError(f"--geometry: must be one of {', '.join(GEOMETRY)}, got {opts.geometry!r}")
+    if opts.outside_cone not in OUTSIDE_CONE:
+        raise SceneError(f"--outside-cone: must be one of {', '.join(OUTSIDE_CONE)}, got {opts.outside_cone!r}")
+    if not opts.length_scale > 0:
+        raise SceneError(f"--length-scale: must be > 0, got {opts.length_scale}")
+    _check_particles(snap)
+    names = np.array([str(i) for i in snap.ids], dtype=object)
+    pair = np.char.add(np.char.add(names[snap.p].astype(str), "-"), names[snap.q].astype(str))
+    scale = opts.length_scale
+    x = snap.x * scale
+    radius = snap.radius * scale
+    branch, shifts = branch_vectors(x, snap.p, snap.q, None if snap.lattice is None else snap.lattice * scale)
+    d = np.linalg.norm(branch, axis=1)
+    if np.any(d == 0):
+        c = int(np.flatnonzero(d == 0)[0])
+        raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
+    e = branch / d[:, None]
+    normal = e if snap.normal is None else _unit_normals(snap, pair)
+    geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap)
+    law, law_report = _law(snap, opts, len(d))
+    force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
+    report = {"source": snap.source, "format": snap.format, "frame": snap.frame,
+              "frames_available": None if snap.frames is None else len(snap.frames)}
+    arm_p = geom["rho_p"][:, None] * e
+    imbalance = _imbalance(snap, arm_p, arm_p - branch)
+
+    keep_c, keep_p, selection = _select(snap, x, opts, names)
+    unwrapped, cut = _unwrap(snap, x, shifts, keep_c, scale)
+    keep_c &= ~cut
+    if not opts.keep_rattlers:
+        touched = np.zeros(len(x), bool)
+        touched[snap.p[keep_c]] = touched[snap.q[keep_c]] = True
+        dropped = keep_p & ~touched
+        keep_p &= touched
+    else:
+        dropped = np.zeros(len(x), bool)
+    if not np.any(keep_p):
+        raise SceneError(f"{snap.source}: contacts: none left in the scene ({len(d)} in the frame, "
+                         f"{int(cut.sum())} cut around the cell, {selection['contacts']} outside the region)")
+    index = np.cumsum(keep_p) - 1
+    c = np.flatnonzero(keep_c)
+    p, q = index[snap.p[c]], index[snap.q[c]]
+    r = 1 if snap.dim == 2 else 3
+    point = unwrapped[snap.p[c]] + arm_p[c]
+    arrays = {
+        "p": p, "q": q, "point": point, "normal": normal[c],
+        "curvature_p": _curvature(-1.0 / geom["rho_p"][c], normal[c]),
+        "curvature_q": _curvature(-1.0 / geom["rho_q"][c], normal[c]),
+        "force": force[c], "moment": np.zeros((len(c), r)) if snap.moment is None else snap.moment[c],
+        "k": law["k"][c], "alpha": law["alpha"][c], "mu": law["mu"][c],
+        "rolling": np.zeros((len(c), r, r)), "state": tuple(state[c]),
+    }
+    title = f"{snap.format} {snap.source}" + ("" if snap.frame is None else f" frame {snap.frame}")
+    scene = build_scene(snap.dim, list(names[keep_p]), unwrapped[keep_p], arrays, title=title, source=snap.source,
+                        entries=[f"contact {s}" for s in pair[c]])
+    report.update({
+        "particles": {"in_file": len(x), "in_scene": int(keep_p.sum()), "outside_region": selection["particles"],
+                      "without_contacts_dropped": int(dropped.sum()), "dropped": _names(names[dropped])},
+        "contacts": {"in_file": len(d), "in_scene": len(c), "cut_by_region": selection["contacts"],
+                     "cut_around_periodic_cell": int(cut.sum()), "sliding": int(np.sum(state[c] == "sliding")),
+                     "elastic": int(np.sum(state[c] == "elastic"))},
+        "units": {"length": opts.units or (snap.length_unit if scale == 1.0 else f"{scale:g} {snap.length_unit}"),
+                  "length_scale": scale, "force": "as in the file"},
+        "geometry": geometry_report, "law": law_report, "forces": force_report, "cone": cone_report,
+        "imbalance": imbalance, "periodic": _periodic_report(snap, cut, pair),
+        "walls": snap.notes.get("walls", "none in the file"),
+        "duplicates": snap.notes.get("duplicates", "none (one row per contact)"),
+    })
+    report.update({k: v for k, v in snap.notes.items() if k not in report})
+    return Imported(scene=scene, report=report, frames=snap.frames)
+
+
+# ------------------------------------------------------------------------------------------------ checks
+
+def _check_particles(snap: Snapshot) -> None:
+    where = snap.source
+    if len(snap.ids) == 0:
+        raise SceneError(f"{where}: no particles")
+    ids = np.asarray(snap.ids)
+    uniq, counts = np.unique(ids, return_counts=True)
+    if np.any(counts > 1):
+        i = int(np.flatnonzero(ids == uniq[counts > 1][0])[1])
+        raise SceneError(f"{snap.where('particle', i)}: particle {ids[i]}: id: listed twice in one frame")
+    bad = np.flatnonzero(~(snap.radius > 0))
+    if bad.size:
+        raise SceneError(f"{snap.where('particle', bad[0])}: particle {ids[bad[0]]}: radius: must be > 0, "
+                         f"got {snap.radius[bad[0]]}")
+    lo, hi = np.minimum(snap.p, snap.q), np.maximum(snap.p, snap.q)
+    key = lo.astype(np.int64) * len(ids) + hi
+    _, first, counts = np.unique(key, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        c = np.flatnonzero(key == key[first[counts > 1][0]])[1]
+        raise SceneError(f"{snap.where('contact', c)}: contact {ids[snap.p[c]]}-{ids[snap.q[c]]}: id2: listed twice in one frame")
+    same = np.flatnonzero(snap.p == snap.q)
+    if same.size:
+        raise SceneError(f"{snap.where('contact', same[0])}: contact {ids[snap.p[same[0]]]}-{ids[snap.q[same[0]]]}: id2: a particle cannot "
+                         "touch itself")
+
+
+def _unit_normals(snap: Snapshot, pair) -> np.ndarray:
+    norm = np.linalg.norm(snap.normal, axis=1)
+    bad = np.flatnonzero(~(np.abs(norm - 1.0) <= 1e-3))
+    if bad.size:
+        raise SceneError(f"{snap.where('contact', bad[0])}: contact {pair[bad[0]]}: normal: not a unit vector (|n| = {norm[bad[0]]:.6g})")
+    return snap.normal / norm[:, None]
+
+
+def _names(values) -> list:
+    return [str(v) for v in values]
+
+
+def _stats(values) -> dict:
+    values = np.asarray(values, float)
+    if values.size == 0:
+        return {"min": None, "median": None, "p95": None, "max": None}
+    return {"min": float(values.min()), "median": float(np.median(values)),
+            "p95": float(np.percentile(values, 95)), "max": float(values.max())}
+
+
+# ------------------------------------------------------------------------------------------------ geometry
+
+def branch_vectors(x, p, q, lattice):
+    """x_q − x_p, minimum image when `lattice` (rows; NaN row = open axis) is given, and the integer lattice
+    shifts used (M, d). Lower-triangular lattices (Lees–Edwards, LAMMPS tilt) are reduced last axis first."""
+    raw = x[q] - x[p]
+    shifts = np.zeros(raw.shape, dtype=np.int64)
+    if lattice is None:
+        return raw, shifts
+    for i in range(x.shape[1] - 1, -1, -1):
+        if np.isnan(lattice[i, i]):
+            continue
+        s = np.round(raw[:, i] / lattice[i, i]).astype(np.int64)
+        raw = raw - s[:, None] * lattice[i][None, :]
+        shifts[:, i] = s
+    return raw, shifts
+
+
+def _geometry(rule, rad_p, rad_q, d, e, normal, snap):
+    """Contact point distance from p along e and the radii ρ of the parallel surfaces (module docstring)."""
+    delta = rad_p + rad_q - d
+    if rule == "centres":
+        rho_p, rho_q = rad_p - delta / 2, rad_q - delta / 2
+        bad = np.flatnonzero((rho_p <= 0) | (rho_q <= 0))
+        if bad.size:
+            c = bad[0]
+            raise SceneError(f"{snap.where('contact', c)}: contact {snap.ids[snap.p[c]]}-{snap.ids[snap.q[c]]}: "
+                             f"radius: overlap "
+                             f"{delta[c]:.6g} exceeds twice a radius; try --geometry touching")
+    else:
+        rho_p = d * rad_p / (rad_p + rad_q)
+        rho_q = d - rho_p
+    cosine = np.clip(np.sum(e * normal, axis=1), -1.0, 1.0)
+    report = {"rule": rule, "distance_over_sum_of_radii": _stats(d / (rad_p + rad_q)),
+              "overlap_over_mean_radius": _stats(2 * delta / (rad_p + rad_q)),
+              "gaps": int(np.sum(delta < 0)),
+              "normal_to_centre_line_deg_max": float(np.degrees(np.arccos(cosine.min()))) if len(d) else 0.0}
+    return {"rho_p": rho_p, "rho_q": rho_q}, report
+
+
+def _curvature(kappa, normal):
+    """2D: κ t⊗t with t = e3 × n; 3D: κ (I − n⊗n) (a sphere's parallel surface)."""
+    d = normal.shape[1]
+    if d == 2:
+        t = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
+        return kappa[:, None, None] * t[:, :, None] * t[:, None, :]
+    proj = np.eye(3)[None] - normal[:, :, None] * normal[:, None, :]
+    return kappa[:, None, None] * proj
+
+
+# ------------------------------------------------------------------------------------------------ law, cone
+
+def _law(snap: Snapshot, opts: Options, M: int):
+    """k, α, μ per contact: command line, else the file's model, else the built-in default (report says which)."""
+    law, report = {}, {}
+    for key in ("k", "alpha", "mu"):
+        given = getattr(opts, key)
+        if given is not None:
+            value, where = given, "command line"
+        elif key in snap.law:
+            value, where = snap.law[key]
+            if key == "k" and opts.length_scale != 1.0:  # force per file length → force per scene length
+                value, where = np.asarray(value) / opts.length_scale, f"{where}, / length scale"
+        else:
+            value, where = LAW_DEFAULTS[key], "built-in default (not in the file)"
+        value = np.broadcast_to(np.asarray(value, float), (M,)).copy()
+        low = 0.0 if key == "mu" else None
+        bad = ~np.isfinite(value) | ((value < 0) if low == 0.0 else (value <= 0))
+        if np.any(bad):
+            raise SceneError(f"{snap.source}: {key}: must be {'>= 0' if key == 'mu' else '> 0'}, "
+                             f"got {value[bad][0]} ({where})")
+        law[key] = value
+        shown = float(value[0]) if M and np.all(value == value[0]) else ("per contact" if M else None)
+        report[key] = {"value": shown, "source": where}
+        if M and shown == "per contact":
+            report[key].update(_stats(value))
+    return law, report
+
+
+def _cone(snap: Snapshot, normal, mu, opts: Options, pair):
+    """Forces on or inside the friction cone by the stated policy; states per contact (module docstring)."""
+    f = snap.force.copy()
+    fdotn = np.sum(f * normal, axis=1)
+    fn = -fdotn
+    ft_vec = f - fdotn[:, None] * normal
+    ft = np.linalg.norm(ft_vec, axis=1)
+    fmag = np.linalg.norm(f, axis=1)
+    loaded = fmag > 0
+    positive = fn > 0
+    if np.sum(loaded) and np.sum(fdotn[loaded] > 0) > np.sum(loaded) / 2:
+        raise SceneError(f"{snap.source}: force: f·n > 0 (tension) for {np.sum(fdotn[loaded] > 0)} of "
+                         f"{np.sum(loaded)} contacts: the forces look like the force on the second particle; "
+                         "granstab needs f^pq, the force on the first (swap the columns or the ids)")
+    tension = loaded & ~positive
+    limit = mu * np.where(positive, fn, 0.0)
+    outside = positive & (ft > limit * (1 + opts.yield_rtol))
+    flagged = np.zeros(len(f), bool) if snap.mobilised is None else snap.mobilised.astype(bool)
+    near = positive & (ft >= limit * (1 - opts.yield_rtol)) & ~outside
+    at_yield = (near | (flagged & positive & ~outside)) & (ft > 0) & (mu > 0)
+    state = np.full(len(f), "auto", dtype=object)
+    state[tension] = "elastic"
+    projected = at_yield.copy()
+    if np.any(outside):
+        if opts.outside_cone == "error":
+            c = int(np.flatnonzero(outside)[0])
+            raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: force: outside the friction cone, |f_t|/(μ f_n) = "
+                             f"{ft[c] / limit[c]:.6g} ({int(outside.sum())} such contacts; see --outside-cone)")
+        if opts.outside_cone in ("sliding", "project"):
+            projected |= outside
+        state[outside] = "sliding" if opts.outside_cone == "sliding" else "elastic"
+    state[at_yield] = "sliding"
+    change = np.zeros(len(f))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        factor = np.where(projected & (ft > 0), limit / np.where(ft > 0, ft, 1.0), 1.0)
+    f[projected] = (-fn[projected, None] * normal[projected]) + factor[projected, None] * ft_vec[projected]
+    change[projected] = np.abs(ft[projected] - limit[projected]) / fmag[projected]
+    action = {"sliding": "projected onto the cone, marked sliding (at yield)",
+              "project": "projected onto the cone, treated as sticking (elastic)",
+              "elastic": "kept as in the file, treated as elastic",
+              "error": "none outside"}[opts.outside_cone]
+    cone = {"yield_rtol": opts.yield_rtol, "at_yield": int(at_yield.sum()),
+            "at_yield_by_file_flag": int(np.sum(at_yield & flagged & ~near)),
+            "outside": {"count": int(outside.sum()), "fraction": float(outside.mean()) if len(f) else 0.0,
+                        "policy": opts.outside_cone, "action": action, "names": _names(pair[outside])},
+            "largest_ratio_ft_over_mu_fn": float(np.max(ft[positive] / np.maximum(limit[positive], 1e-300)))
+            if np.any(positive & (mu > 0)) else None,
+            "largest_change_over_force": float(change.max()) if len(f) else 0.0}
+    report = {"convention": "f^pq on p by q; compression f·n < 0",
+              "compressive": int(np.sum(positive)), "fn_nonpositive": {"count": int(np.sum(~positive)),
+                                                                    "with_force": int(tension.sum()),
+                                                                    "treated_as": "elastic",
+                                                                    "names": _names(pair[~positive])},
+              "fn": _stats(fn)}
+    return f, state, cone, report
+
+
+# ------------------------------------------------------------------------------------------------ imbalance
+
+def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
+    """Per particle |Σ f + wall| / Σ|f| and |Σ (r×f + m)| / Σ(|r||f| + |m|) over the file's contacts and forces."""
+    N, d = snap.x.shape
+    r = 1 if d == 2 else 3
+    net, torque = np.zeros((N, d)), np.zeros((N, r))
+    fscale, mscale = np.zeros(N), np.zeros(N)
+    force = snap.force
+    fmag = np.linalg.norm(force, axis=1)
+    moment = np.zeros((len(force), r)) if snap.moment is None else snap.moment
+    mmag = np.linalg.norm(moment, axis=1)
+    for side, sign, arm in ((snap.p, 1.0, arm_p), (snap.q, -1.0, arm_q)):
+        np.add.at(net, side, sign * force)
+        np.add.at(torque, side, cross(arm, sign * force) + sign * moment)
+        np.add.at(fscale, side, fmag)
+        np.add.at(mscale, side, np.linalg.norm(arm, axis=1) * fmag + mmag)
+    if snap.wall_load is not None:
+        net += snap.wall_load
+        fscale += np.linalg.norm(snap.wall_load, axis=1)
+    counted = fscale > 0
+    excluded = "particles without contacts"
+    if snap.wall_flags is not None:
+        counted &= snap.wall_flags == 0
+        excluded += ", particles touching a wall whose force the file does not give"
+    return {"particles": int(counted.sum()), "excluded": excluded,
+            "force": _stats(np.linalg.norm(net[counted], axis=1) / fscale[counted]),
+            "moment": _stats(np.linalg.norm(torque[counted], axis=1) / np.maximum(mscale[counted], 1e-300)),
+            "scale": "|Σf| over Σ|f| of the particle; |Σ(r×f + m)| over Σ(|r||f| + |m|)"}
+
+
+# ------------------------------------------------------------------------------------------------ selection
+
+def _select(snap: Snapshot, x, opts: Options, names):
+    """Contacts and particles inside the region (both ends inside); counts of what was left out."""
+    keep_p = np.ones(len(x), bool) if opts.region is None else region_mask(opts.region, x, names, snap.source)
+    keep_c = keep_p[snap.p] & keep_p[snap.q]
+    return keep_c, keep_p, {"particles": int(np.sum(~keep_p)), "contacts": int(np.sum(~keep_c))}
+
+
+def region_mask(region, x, names, source) -> np.ndarray:
+    """Particles inside `region`: a sequence of ids (names) or {"box": [lo0, hi0, lo1, hi1, ...]} on centres."""
+    if isinstance(region, dict):
+        box = np.asarray(region["box"], float).reshape(-1, 2)
+        if box.shape[0] != x.shape[1]:
+            raise SceneError(f"--region: box needs {2 * x.shape[1]} numbers (lo, hi per axis), got {box.size}")
+        return np.all((x >= box[:, 0]) & (x <= box[:, 1]), axis=1)
+    wanted = np.array([str(v) for v in region], dtype=object)
+    missing = ~np.isin(wanted, names)
+    if np.any(missing):
+        raise SceneError(f"{source}: --region: particle {wanted[missing][0]}: id: not in this frame "
+                         f"({int(missing.sum())} of {len(wanted)} ids missing)")
+    return np.isin(names, wanted)
+
+
+def _unwrap(snap: Snapshot, x, shifts, keep_c, scale):
+    """Positions unwrapped along a spanning tree of the kept contacts, and the contacts that close a loop around
+    the periodic cell (their lattice shift disagrees with the tree's)."""
+    cut = np.zeros(len(shifts), bool)
+    if snap.lattice is None or not np.any(shifts):
+        return x, cut
+    N = len(x)
+    c = np.flatnonzero(keep_c)
+    p, q = snap.p[c], snap.q[c]
+    contacts = coo_matrix((np.ones(len(c)), (p, q)), shape=(N, N))
+    _, label = connected_components(contacts, directed=False)
+    roots = np.unique(label, return_index=True)[1]
+    # a virtual root N joined to one particle of each component: one BFS gives a spanning forest
+    rows = np.concatenate([p, q, np.full(len(roots), N)])
+    cols = np.concatenate([q, p, roots])
+    data = np.concatenate([c + 1, -(c + 1), np.zeros(len(roots), np.int64)]).astype(np.int64)
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(N + 1, N + 1)).tocsr()
+    code = coo_matrix((data, (rows, cols)), shape=(N + 1, N + 1)).tocsr()
+    _, pred = breadth_first_order(graph, N, directed=True, return_predecessors=True)
+    pred = pred[:N]
+    pred = np.where(pred < 0, N, pred)
+    link = np.asarray(code[pred, np.arange(N)]).ravel()
+    step = np.zeros((N + 1, snap.dim), np.int64)
+    has = link != 0
+    step[:N][has] = np.sign(link[has])[:, None] * shifts[np.abs(link[has]) - 1]
+    # pointer jumping: the sum of steps along the path to the root in log(depth) vectorised passes
+    total, up = step.copy(), np.append(pred, N)
+    while np.any(up[:N] != N):
+        total = total + np.where((up != N)[:, None], total[up], 0)
+        up = up[up]
+    image = total[:N]
+    lattice = np.nan_to_num(snap.lattice) * scale
+    unwrapped = x - image @ lattice
+    cut[c] = np.any(image[q] - image[p] != shifts[c], axis=1)
+    return unwrapped, cut
+
+
+def _periodic_report(snap: Snapshot, cut, pair):
+    if snap.lattice is None:
+        return None
+    return {"lattice": np.nan_to_num(snap.lattice, nan=0.0).tolist(), **snap.notes.get("periodic", {}),
+            "contacts_cut": int(cut.sum()), "cut_names": _names(pair[cut]),
+            "treatment": "minimum-image branch vectors; particles unwrapped along the contacts; contacts closing a "
+                         "loop around the cell are cut and their forces become loads on both particles"}

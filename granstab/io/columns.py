@@ -1,0 +1,77 @@
+"""Named columns of per-contact tables (LAMMPS local dumps, generic tables): the names, the --columns mapping,
+forces from whichever columns a file has, and ids → particle indices, with one-line errors."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..reading import SceneError
+
+CONTACT_NAMES = {
+    "id1", "id2",                 # the two particles (ids as in the particle file; a negative id2 is a wall)
+    "fx", "fy", "fz",             # total force on id1 by id2
+    "fnx", "fny", "fnz",          # … or its normal part
+    "ftx", "fty", "ftz",          # … plus its tangential part
+    "fn", "ft",                   # 2D magnitudes: f = −f_n n + f_t t, t = e3 × n (RigidLibrary's convention)
+    "nx", "ny", "nz",             # unit normal from id1 to id2 (default: the centre line)
+    "mx", "my", "mz", "m",        # contact moment on id1 (3D components, 2D scalar)
+    "mobilised",                  # nonzero: at the Coulomb limit by the file's own test
+    "kn", "kt", "mu",             # the file's contact law per contact: k = kn, α = kt/kn, μ
+    "delx", "dely", "delz", "cx", "cy", "cz", "delta", "frame",   # read and checked or ignored
+    "-",                          # ignore this column
+}
+
+
+def columns_option(text: str, width: int, where: str, found: str) -> list:
+    """`--columns a,b,c`: one known name a column, as many as the file has."""
+    names = [c.strip() for c in text.split(",")]
+    bad = [c for c in names if c not in CONTACT_NAMES]
+    if bad:
+        raise SceneError(f"--columns: unknown name {bad[0]!r} (known: {', '.join(sorted(CONTACT_NAMES))})")
+    if len(names) != width:
+        raise SceneError(f"--columns: {len(names)} names for the {width} columns of {where} ({found})")
+    return names
+
+
+def contact_forces(where: str, col: dict, dim: int, normal=None):
+    """f^pq on id1 from the columns there are: f*, or fn* + ft*, or (2D) scalars fn, ft along `normal`."""
+    axes = "xyz"[:dim]
+
+    def vector(prefix):
+        present = [prefix + a in col for a in axes]
+        if all(present):
+            return np.stack([col[prefix + a] for a in axes], axis=1)
+        if any(present):
+            missing = next(prefix + a for a, ok in zip(axes, present) if not ok)
+            raise SceneError(f"{where}: {missing}: no column ({dim}D needs {', '.join(prefix + a for a in axes)})")
+        return None
+
+    total, normal_part, tangential = vector("f"), vector("fn"), vector("ft")
+    if total is not None:
+        return total, "f (total force on id1)"
+    if normal_part is not None:
+        if tangential is None:
+            return normal_part, "normal part only (no tangential columns: frictionless data?)"
+        return normal_part + tangential, "normal part + tangential part"
+    if "fn" in col and dim == 2 and normal is not None:
+        t = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
+        return -col["fn"][:, None] * normal + col.get("ft", np.zeros(len(normal)))[:, None] * t, \
+            "f = −f_n n + f_t t, t = e3 × n"
+    raise SceneError(f"{where}: fx: no force columns (fx fy [fz], fnx … + ftx …, or fn ft in 2D)")
+
+
+def to_indices(ids: np.ndarray, values: np.ndarray, name: str, line_of_row, what: str) -> np.ndarray:
+    """Particle indices of the ids in `values`; an id not in `ids` is a one-line error naming its line."""
+    order = np.argsort(ids)
+    where = np.minimum(np.searchsorted(ids[order], values), len(ids) - 1)
+    bad = np.flatnonzero(ids[order][where] != values)
+    if bad.size:
+        raise SceneError(f"{line_of_row(bad[0])}: {name}: unknown particle id {values[bad[0]]:g} ({what})")
+    return order[where]
+
+
+def unique_ids(ids: np.ndarray, line_of_row, what: str) -> None:
+    order = np.argsort(ids, kind="stable")
+    same = np.flatnonzero(ids[order][1:] == ids[order][:-1])
+    if same.size:
+        row = order[same[0] + 1]
+        raise SceneError(f"{line_of_row(row)}: id: {ids[row]} listed twice {what}")

@@ -1,0 +1,348 @@
+"""LAMMPS (and LIGGGHTS) text dumps: a per-atom dump plus a local contact dump, optionally the input script.
+
+    dump atoms all custom N atoms.dump id type x y z radius            (x/xu/xs..., radius or diameter)
+    compute ends all property/local patom1 patom2
+    compute pair all pair/local fx fy fz p10 p11 p12                   (LIGGGHTS: compute pg all pair/gran/local
+    dump contacts all local N contacts.dump c_ends[1] c_ends[2] c_pair[1] c_pair[2] c_pair[3]    id force ...)
+
+Local dumps name their columns c_ID[k]; what each is comes from `columns` (one name a column: id1, id2, fx, fy,
+fz, delx, dely, delz, cx, cy, cz, ftx, fty, ftz, delta, or - to ignore), from canonical header names, or from the
+input script's compute lines when the script is one of the inputs. The forces are those on id1 by id2
+(pair/local fx fy fz: the force on the first atom). pair/local also lists neighbour pairs that do not touch: they
+are dropped by overlap (R_1 + R_2 − d ≤ 0), not by force, and counted. Periodic boxes (pp) use minimum-image
+branch vectors (triclinic tilt: a sheared lattice). 2D when the script says `dimension 2`, or when every z is
+equal and fz = 0. The contact law comes from the script's pair_style/pair_coeff (granular hooke/hertz with
+linear_history or mindlin tangential, gran/hooke/history, gran/hertz/history) where it has one:
+Hookean k = k_n, α = k_t/k_n; Hertz k = dF/dδ = 1.5 k_n a with a = √(R_eff δ) (tangent stiffness at the
+current overlap), mindlin scales k_t by a (LAMMPS pair_granular documentation).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..reading import SceneError
+from .build import Snapshot, branch_vectors
+from .columns import CONTACT_NAMES, columns_option, contact_forces, to_indices, unique_ids
+from .text import read_block
+
+ATOM_ALIASES = {"xu": "x", "yu": "y", "zu": "z", "xs": "xs", "ys": "ys", "zs": "zs"}
+GRAN_LOCAL = {"pos": ["-"] * 6, "vel": ["-"] * 6, "id": ["id1", "id2", "-"], "force": ["fx", "fy", "fz"],
+              "force_normal": ["fnx", "fny", "fnz"], "force_tangential": ["ftx", "fty", "ftz"], "torque": ["-"] * 3,
+              "contactArea": ["-"], "delta": ["delta"], "heatFlux": ["-"], "contactPoint": ["cx", "cy", "cz"]}
+GRANULAR_P = {1: "ftx", 2: "fty", 3: "ftz", 10: "delx", 11: "dely", 12: "delz"}
+
+
+def is_dump(path: Path) -> bool:
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            return fh.readline().startswith("ITEM: TIMESTEP")
+    except OSError:
+        return False
+
+
+@dataclass
+class Block:
+    """One timestep of a dump: header values and where its rows are."""
+
+    timestep: int
+    count: int
+    bounds: np.ndarray | None   # (3, 2) box bounds as dumped (triclinic: *_bound values)
+    tilt: np.ndarray            # (3,) xy, xz, yz
+    periodic: tuple
+    columns: list
+    kind: str                   # "ATOMS" or "ENTRIES"
+    text: str
+    first_line: int
+
+
+def scan_dump(path: Path) -> list[Block]:
+    """Split a dump into timesteps (one loop per timestep, rows parsed later for the chosen one only)."""
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    starts = [m.start() for m in re.finditer(r"^ITEM: TIMESTEP", text, re.M)]
+    if not starts:
+        raise SceneError(f"{path}: line 1: ITEM: TIMESTEP: missing (not a LAMMPS dump)")
+    blocks, line = [], 1 + text.count("\n", 0, starts[0])
+    for k, start in enumerate(starts):
+        end = starts[k + 1] if k + 1 < len(starts) else len(text)
+        block = text[start:end]
+        blocks.append(_header(path, block, line))
+        line += block.count("\n")
+    return blocks
+
+
+def _header(path: Path, block: str, line: int) -> Block:
+    lines = block.split("\n", 24)
+    values = {"tilt": np.zeros(3), "bounds": None, "periodic": (False, False, False)}
+    i = 0
+
+    def fail(field, what, at=0):
+        raise SceneError(f"{path}: line {line + i + at}: {field}: {what}")
+
+    def number(kind, text, field, at=1):
+        try:
+            return kind(text)
+        except ValueError:
+            fail(field, f"not a number ({text.strip()[:40]!r})", at)
+
+    while i < len(lines):
+        item = lines[i].strip()
+        if not item.startswith("ITEM:"):
+            fail("ITEM", f"expected a header line, got {item[:40]!r} (truncated or garbled dump?)")
+        word = item[5:].strip()
+        if word.startswith("ATOMS") or word.startswith("ENTRIES"):
+            kind, _, cols = word.partition(" ")
+            if "timestep" not in values or "count" not in values:
+                fail(kind, "header incomplete (TIMESTEP and NUMBER OF ... must come first)")
+            rest = block.split("\n", i + 1)[-1] if block.count("\n") > i else ""
+            return Block(values["timestep"], values["count"], values["bounds"], values["tilt"], values["periodic"],
+                         cols.split(), kind, rest, line + i + 1)
+        if i + 1 >= len(lines):
+            fail(word.split()[0] if word else "ITEM", "file ends inside the header (truncated?)")
+        if word == "TIMESTEP":
+            values["timestep"] = number(int, lines[i + 1], "timestep")
+            i += 2
+        elif word.startswith("NUMBER OF"):
+            values["count"] = number(int, lines[i + 1], "number of rows")
+            i += 2
+        elif word.startswith("BOX BOUNDS"):
+            flags = word.split()[2:]
+            triclinic = flags[:3] == ["xy", "xz", "yz"]
+            flags = flags[3:] if triclinic else flags
+            if len(lines) < i + 4:
+                fail("box bounds", "file ends inside the header (truncated?)")
+            rows = []
+            for k in range(3):
+                cells = lines[i + 1 + k].split()
+                if len(cells) != (3 if triclinic else 2):
+                    fail("box bounds", f"expected {3 if triclinic else 2} numbers, got {len(cells)}", 1 + k)
+                rows.append([number(float, c, "box bounds", 1 + k) for c in cells])
+            rows = np.array(rows)
+            values["bounds"] = rows[:, :2]
+            values["tilt"] = rows[:, 2] if triclinic else np.zeros(3)
+            values["periodic"] = tuple(f.startswith("p") for f in flags) if len(flags) == 3 else (False,) * 3
+            i += 4
+        else:  # ITEM: TIME, UNITS, ...: one value line
+            i += 2
+    fail("ATOMS", "no ITEM: ATOMS / ENTRIES line (truncated?)")
+
+
+def lattice_of(block: Block, dim: int) -> np.ndarray | None:
+    """Periodic lattice vectors (rows, lower-triangular; NaN row for an open axis) from a dump's box."""
+    if block.bounds is None or not any(block.periodic[:dim]):
+        return None
+    xy, xz, yz = block.tilt
+    lo, hi = block.bounds[:, 0].copy(), block.bounds[:, 1].copy()
+    lo[0] -= min(0.0, xy, xz, xy + xz)
+    hi[0] -= max(0.0, xy, xz, xy + xz)
+    lo[1] -= min(0.0, yz)
+    hi[1] -= max(0.0, yz)
+    full = np.array([[hi[0] - lo[0], 0, 0], [xy, hi[1] - lo[1], 0], [xz, yz, hi[2] - lo[2]]])
+    lattice = full[:dim, :dim].copy()
+    for axis in range(dim):
+        if not block.periodic[axis]:
+            lattice[axis] = np.nan
+    return lattice
+
+
+# ------------------------------------------------------------------------------------------------ script
+
+def read_script(path: Path) -> dict:
+    """What an input script says about the dumps: dimension, compute columns, the contact law (a short file,
+    read line by line; ${name} variables with numeric values are substituted)."""
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    variables, computes, info = {}, {}, {"dimension": None, "pair": None, "coeff": None, "source": str(path)}
+    for number, raw in enumerate(text.replace("&\n", " ").splitlines(), 1):
+        words = re.sub(r"\$\{(\w+)\}|\$(\w)", lambda m: variables.get(m.group(1) or m.group(2), m.group(0)),
+                       raw.split("#", 1)[0]).split()
+        if not words:
+            continue
+        if words[0] == "variable" and len(words) >= 4 and words[2] in ("equal", "index", "string"):
+            variables[words[1]] = words[3]
+        elif words[0] == "dimension" and len(words) > 1:
+            info["dimension"] = int(words[1]) if words[1] in ("2", "3") else None
+        elif words[0] == "compute" and len(words) >= 4:
+            computes[words[1]] = (words[3], words[4:])
+        elif words[0] == "pair_style":
+            info["pair"], info["pair_line"] = words[1:], number
+        elif words[0] == "pair_coeff" and words[1:3] == ["*", "*"]:
+            info["coeff"], info["coeff_line"] = words[3:], number
+    info["computes"] = computes
+    return info
+
+
+def compute_columns(computes: dict, pair_style: str | None) -> dict:
+    """c_ID[k] → column name for the computes a local dump can name."""
+    names = {}
+    for cid, (style, args) in computes.items():
+        if style == "property/local":
+            cols = [{"patom1": "id1", "patom2": "id2"}.get(a, "-") for a in args]
+        elif style == "pair/local":
+            cols = []
+            for a in args:
+                if a in ("fx", "fy", "fz"):  # granular styles: the normal part only (single() returns F_n / r)
+                    cols.append("fn" + a[1] if pair_style == "granular" or pair_style.startswith("gran/") else a)
+                elif re.fullmatch(r"p\d+", a) and (pair_style == "granular" or pair_style.startswith("gran/")):
+                    cols.append(GRANULAR_P.get(int(a[1:]), "-") if pair_style == "granular"
+                                else {1: "ftx", 2: "fty", 3: "ftz"}.get(int(a[1:]), "-"))
+                else:
+                    cols.append("-")
+        elif style == "pair/gran/local":
+            keys = [a for a in args if a in GRAN_LOCAL or a == "history"] or ["pos", "vel", "id", "force", "torque"]
+            if "history" in keys:
+                continue  # unknown width: the user names the columns
+            cols = [c for a in keys for c in GRAN_LOCAL[a]]
+        else:
+            continue
+        for k, name in enumerate(cols, 1):
+            names[f"c_{cid}[{k}]"] = name
+        if len(cols) == 1:
+            names[f"c_{cid}"] = cols[0]
+    return names
+
+
+def contact_law(script: dict | None, radius_p, radius_q, delta) -> tuple[dict, list]:
+    """k, α, μ per contact from pair_style/pair_coeff (module docstring), with where they came from."""
+    if script is None or script["pair"] is None:
+        return {}, ["no input script: k, α, μ from the command line or defaults"]
+    style, where = script["pair"][0], f"{Path(script['source']).name} line"
+    a = np.sqrt(radius_p * radius_q / (radius_p + radius_q) * np.maximum(delta, 0.0))
+    try:
+        if style in ("gran/hooke/history", "gran/hooke", "gran/hertz/history"):
+            args = script["pair"][1:]
+            kn = float(args[0])
+            kt = 2.0 / 7.0 * kn if args[1] == "NULL" else float(args[1])
+            mu = float(args[4])
+            line = f"{where} {script['pair_line']} ({style})"
+            if style == "gran/hertz/history":
+                return {"k": (1.5 * kn * a, f"{line}: Hertz tangent stiffness 1.5 k_n a"),
+                        "alpha": (kt / (1.5 * kn) + 0 * a, f"{line}: k_t a / (1.5 k_n a)"), "mu": (mu, line)}, []
+            return {"k": (kn, line), "alpha": (kt / kn, f"{line}: k_t/k_n"), "mu": (mu, line)}, []
+        if style == "granular" and script["coeff"]:
+            words = script["coeff"]
+            line = f"{where} {script['coeff_line']} (pair_coeff)"
+            normal, kn = words[0], float(words[1])
+            t = words.index("tangential")
+            tangential, targs = words[t + 1], words[t + 2:]
+            notes = []
+            if "rolling" in words or "twisting" in words:
+                notes.append("rolling/twisting resistance in the script: contact moments are not converted")
+            if normal not in ("hooke", "hertz") or tangential not in ("linear_history", "mindlin"):
+                return {}, [f"{line}: model {normal}/{tangential} not converted: give --k --alpha --mu"] + notes
+            kt, mu = (float(targs[0]) if targs[0] != "NULL" else np.nan), float(targs[2])
+            k_normal = kn if normal == "hooke" else 1.5 * kn * a
+            k_tangent = kt if tangential == "linear_history" else kt * a
+            law = {"k": (k_normal + 0 * a, f"{line}: {normal} k_n" + ("" if normal == "hooke" else " → 1.5 k_n a")),
+                   "alpha": (k_tangent / k_normal + 0 * a, f"{line}: {tangential} k_t / k"), "mu": (mu, line)}
+            return law, notes
+    except (ValueError, IndexError):
+        raise SceneError(f"{script['source']}: pair_coeff: cannot read the {style} parameters") from None
+    return {}, [f"pair_style {style} not converted: give --k --alpha --mu"]
+
+
+# ------------------------------------------------------------------------------------------------ reading
+
+def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) -> Snapshot:
+    dumps = [p for p in paths if is_dump(p)]
+    scripts = [p for p in paths if p not in dumps]
+    if len(scripts) > 1:
+        raise SceneError(f"{scripts[1]}: not a LAMMPS dump, and {scripts[0].name} is already the input script")
+    script = read_script(scripts[0]) if scripts else None
+    indexed = [(p, scan_dump(p)) for p in dumps]
+    atoms = [(p, b) for p, b in indexed if b[0].kind == "ATOMS"]
+    local = [(p, b) for p, b in indexed if b[0].kind == "ENTRIES"]
+    if len(atoms) != 1 or len(local) != 1:
+        raise SceneError(f"{paths[0]}: need one per-atom dump (ITEM: ATOMS) and one local dump (ITEM: ENTRIES), "
+                         f"got {len(atoms)} and {len(local)}")
+    (apath, ablocks), (cpath, cblocks) = atoms[0], local[0]
+    a_steps = [b.timestep for b in ablocks]
+    c_steps = [b.timestep for b in cblocks]
+    step = a_steps[-1] if timestep is None else timestep
+    for path, steps in ((apath, a_steps), (cpath, c_steps)):
+        if step not in steps:
+            shown = ", ".join(map(str, steps[:5])) + (", …" if len(steps) > 5 else "")
+            which = "mismatched atom/contact timesteps: " if timestep is None else ""
+            raise SceneError(f"{path}: timestep {step}: timestep: {which}not in the file (it has {shown})")
+    ablock, cblock = ablocks[a_steps.index(step)], cblocks[c_steps.index(step)]
+    ids, x, radius, dim_hint = _atoms(apath, ablock)
+    names = _contact_columns(cpath, cblock, columns, script)
+    data = read_block(cblock.text, cblock.first_line, cpath, names, cblock.count, "entries")
+    col = {name: data[:, k] for k, name in enumerate(names) if name != "-"}
+    dim = script["dimension"] if script and script["dimension"] else dim_hint
+    for need in ("id1", "id2"):
+        if need not in col:
+            raise SceneError(f"{cpath}: timestep {step}: {need}: no column (name the columns with --columns)")
+    force, how = contact_forces(f"{cpath}: timestep {step}", col, dim)
+    line = lambda row: f"{cpath}: line {cblock.first_line + row}"  # noqa: E731
+    what = f"not in the atom dump at timestep {step}"
+    p, q = (to_indices(ids, col[name], name, line, what) for name in ("id1", "id2"))
+    lattice = lattice_of(ablock, dim)
+    branch = branch_vectors(x[:, :dim], p, q, lattice)[0]
+    d = np.linalg.norm(branch, axis=1)
+    delta = radius[p] + radius[q] - d
+    touching = delta > 0
+    apart = ~touching
+    dropped = {"count": int(apart.sum()), "with_force": int(np.sum(apart & np.any(force != 0, axis=1))),
+               "rule": "dropped: R_1 + R_2 − d ≤ 0 (pair/local lists neighbours that do not touch)"}
+    law, notes = contact_law(script, radius[p[touching]], radius[q[touching]], delta[touching])
+    rows = np.flatnonzero(touching)
+    return Snapshot(
+        source=f"{apath} + {cpath}", format="lammps", dim=dim, ids=ids, x=x[:, :dim], radius=radius,
+        p=p[touching], q=q[touching], force=force[touching], lattice=lattice, law=law, frame=int(step),
+        frames=sorted(set(a_steps) & set(c_steps)),
+        notes={"non_touching_pairs": dropped, "law_notes": notes, "dimension": dim, "forces_from": how,
+               "columns": dict(enumerate(names, 1))},
+        particle_line=lambda i: f"{apath}: line {ablock.first_line + i}",
+        contact_line=lambda c: f"{cpath}: line {cblock.first_line + rows[c]}")
+
+
+def _atoms(path: Path, block: Block):
+    names = [ATOM_ALIASES.get(c, c) for c in block.columns]
+    for need in ("id",):
+        if need not in names:
+            raise SceneError(f"{path}: timestep {block.timestep}: {need}: no column in ITEM: ATOMS")
+    if "radius" not in names and "diameter" not in names:
+        raise SceneError(f"{path}: timestep {block.timestep}: radius: no radius or diameter column in ITEM: ATOMS")
+    data = read_block(block.text, block.first_line, path, names, block.count, "atoms")
+    col = {name: data[:, k] for k, name in enumerate(names)}
+    ids = col["id"].astype(np.int64)
+    if np.any(ids != col["id"]):
+        row = int(np.flatnonzero(ids != col["id"])[0])
+        raise SceneError(f"{path}: line {block.first_line + row}: id: not an integer ({col['id'][row]})")
+    unique_ids(ids, lambda row: f"{path}: line {block.first_line + row}", f"in timestep {block.timestep}")
+    radius = col["radius"] if "radius" in col else col["diameter"] / 2
+    if "x" in col:
+        x = np.stack([col["x"], col["y"], col.get("z", np.zeros(len(ids)))], axis=1)
+    elif "xs" in col and block.bounds is not None:
+        lat = lattice_of(Block(0, 0, block.bounds, block.tilt, (True,) * 3, [], "", "", 0), 3)
+        lo = block.bounds[:, 0] - np.array([min(0.0, *block.tilt[:2], block.tilt[0] + block.tilt[1]),
+                                            min(0.0, block.tilt[2]), 0.0])
+        x = lo + np.stack([col["xs"], col["ys"], col.get("zs", np.zeros(len(ids)))], axis=1) @ lat
+    else:
+        raise SceneError(f"{path}: timestep {block.timestep}: x: no x/xu/xs column in ITEM: ATOMS")
+    flat = np.ptp(x[:, 2]) == 0 if len(x) else True
+    return ids, x, radius, 2 if flat else 3
+
+
+def _contact_columns(path: Path, block: Block, columns: str | None, script) -> list:
+    width = len(block.columns)
+    if columns:
+        return columns_option(columns, width, str(path), " ".join(block.columns))
+    known = compute_columns(script["computes"], (script["pair"] or [None])[0]) if script else {}
+    names = [c if c in CONTACT_NAMES else known.get(c) for c in block.columns]
+    if "index" in block.columns:
+        names[block.columns.index("index")] = "-"
+    if None in names:
+        unknown = block.columns[names.index(None)]
+        raise SceneError(f"{path}: line {block.first_line - 1}: {unknown}: ambiguous column: name the columns with "
+                         "--columns id1,id2,fx,fy,fz,... or give the input script as well")
+    return names

@@ -1,0 +1,29 @@
+"""Checks every imported scene must pass (issue 9): unit normals from p to q, contact points on the centre line
+at R − δ/2 from each centre, curvature −1/(R − δ/2) of the parallel surface, Newton's third law (one f^pq per
+unordered pair), compression f·n < 0 or an elastic contact. `radius` is per scene particle; tolerances relative to the radii."""
+import numpy as np
+
+
+def check_contact_geometry(s, radius, rtol=1e-12):
+    branch = s.x[s.q] - s.x[s.p]
+    d = np.linalg.norm(branch, axis=1)
+    assert np.abs(np.linalg.norm(s.normal, axis=1) - 1).max() <= rtol
+    assert np.min(np.sum(branch * s.normal, 1) / d) > 1 - 1e-8        # n^pq along p → q
+    delta = radius[s.p] + radius[s.q] - d
+    assert np.all(delta > 0)                                            # overlaps: R_p + R_q − d
+    rho_p, rho_q = radius[s.p] - delta / 2, radius[s.q] - delta / 2
+    a = np.linalg.norm(s.point - s.x[s.p], axis=1)
+    b = np.linalg.norm(s.point - s.x[s.q], axis=1)
+    assert np.abs(a - rho_p).max() <= rtol * radius.max() * 10         # middle of the overlap, from p …
+    assert np.abs(b - rho_q).max() <= rtol * radius.max() * 10         # … and from q: on the centre line
+    assert np.all((a < d) & (b < d))                                    # between the centres
+    eye = np.eye(s.dim)[None]
+    tangent = eye - s.normal[:, :, None] * s.normal[:, None, :]
+    trace = np.einsum("cij,cij->c", s.curvature_p, tangent) / (s.dim - 1)
+    assert np.abs(trace * rho_p + 1).max() <= 1e-10                    # κ = −1/(R − δ/2)
+    trace = np.einsum("cij,cij->c", s.curvature_q, tangent) / (s.dim - 1)
+    assert np.abs(trace * rho_q + 1).max() <= 1e-10
+    assert len({frozenset(pq) for pq in zip(s.p.tolist(), s.q.tolist())}) == s.n_contacts
+    tension = np.sum(s.force * s.normal, 1) >= 0                        # f_n <= 0: kept, elastic, reported
+    assert all(np.asarray(s.state)[tension] == "elastic")
+    return delta, tension

@@ -1,0 +1,60 @@
+"""The shipped DEM run (examples/dem, Debian's LAMMPS): compress, shear, dump; then convert and analyse its
+output. Needs the `lmp` executable (.ci/run installs it); marked `dem`."""
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import granstab
+from granstab.cli import main
+from granstab.io import load
+from io_checks import check_contact_geometry
+
+DEM = Path(__file__).parents[1] / "examples" / "dem"
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dem")
+    subprocess.run(["bash", str(DEM / "run.sh"), str(out)], check=True, timeout=300)
+    return out
+
+
+def radii(run, dim, step, names):
+    text = (run / f"atoms{dim}d.dump").read_text().split(f"ITEM: TIMESTEP\n{step}\n")[1].split("ITEM: TIMESTEP")[0]
+    atoms = np.loadtxt(text.split("\n", 7)[7].splitlines())
+    radius_of = dict(zip(atoms[:, 0].astype(int), atoms[:, 5]))
+    return np.array([radius_of[int(n)] for n in names])
+
+
+@pytest.mark.dem
+def test_sheared_disks_convert_with_sliding_contacts(run, tmp_path, capsys):
+    out = tmp_path / "disks.json"
+    rc = main(["convert", str(run / "atoms2d.dump"), str(run / "contacts2d.dump"), str(DEM / "in.disks2d"),
+               "--timestep", "18000", "--out", str(out), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert rc == 0 and report["dimension"] == 2 and report["particles"]["in_file"] == 1000
+    assert report["cone"]["at_yield"] >= 10                    # the shear mobilised contacts
+    assert report["non_touching_pairs"]["with_force"] == 0    # pair/local's extra neighbour pairs carry no force
+    assert report["imbalance"]["moment"]["median"] < 1e-3     # tangential forces on the right particle
+    scene = granstab.load_scene(out)
+    check_contact_geometry(scene, radii(run, 2, 18000, scene.names))
+    assert scene.state.count("sliding") >= 10
+
+
+@pytest.mark.dem
+def test_settled_disks_cluster_dense_and_spheres_sparse(run):
+    imp = load([run / "atoms2d.dump", run / "contacts2d.dump", DEM / "in.disks2d"], region="box:10,22,10,22")
+    s = imp.scene
+    assert imp.report["frame"] == 21000 and 40 <= s.n_particles <= 120
+    result = granstab.analyze(s, method="dense", max_sliding=4)
+    assert max(result.errors.values()) <= 1e-10
+    assert result.branches[0].n_zero >= 3                      # two translations and a rotation at least
+    s3 = load([run / "atoms3d.dump", run / "contacts3d.dump", DEM / "in.spheres3d"]).scene
+    assert s3.dim == 3 and s3.n_particles > 900
+    check_contact_geometry(s3, radii(run, 3, 14000, s3.names))
+    r3 = granstab.analyze(s3, method="sparse", k=4, max_sliding=4)
+    assert any(w.startswith("sparse path") for w in r3.to_dict()["warnings"])
+    assert max(r3.errors.values()) <= 1e-10
