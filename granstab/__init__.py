@@ -9,11 +9,11 @@ Public API::
     result.to_dict()                                           # the `granstab analyze --json` object
 """
 from .analysis import Analysis, analyze
-from .files import load_scene, scene_from_dict
+from .files import load_scene, save_scene, scene_from_dict
 from .scene import Scene, SceneError, build_scene
 from .stiffness import Stiffness, stiffness
 from .tolerances import Tolerances
 from .verdicts import load_response, second_order_work
 
 __all__ = ["Analysis", "Scene", "SceneError", "Stiffness", "Tolerances", "analyze", "build_scene", "load_response",
-           "load_scene", "scene_from_dict", "second_order_work", "stiffness"]
+           "load_scene", "save_scene", "scene_from_dict", "second_order_work", "stiffness"]

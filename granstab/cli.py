@@ -3,7 +3,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+import time
+import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +15,7 @@ import numpy as np
 from .analysis import analyze
 from .metric import CHOICES as METRIC_CHOICES
 from .branches import BOTH, MINUS, PLUS, RIGID
+from .budget import DENSE_ADVICE, SPARSE_ADVICE, OverBudget, deadline, estimate, refuse_over
 from .files import load_scene
 from .scene import SceneError
 from .stiffness import MaskError, stiffness
@@ -35,13 +40,61 @@ def parse_mask(text: str, n_contacts: int) -> np.ndarray:
     return mask
 
 
+class NumericalError(Exception):
+    """Floating-point overflow, invalid operation or a failed LAPACK call: one line, exit status 2."""
+
+
+@contextmanager
+def strict_numerics(source: str):
+    """numpy floating-point warnings (overflow, division by zero, invalid) and RuntimeWarnings become one-line
+    errors naming the file instead of warnings on stderr next to a result computed from them."""
+    try:
+        with np.errstate(over="raise", divide="raise", invalid="raise"), warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            yield
+    except (FloatingPointError, RuntimeWarning, OverflowError, np.linalg.LinAlgError) as exc:
+        raise NumericalError(f"{source}: numerical failure ({type(exc).__name__}: {exc}); the scene's magnitudes "
+                             "or conditioning are beyond what float64 resolves: change units or check the data") \
+            from None
+
+
+def non_finite_path(value, path: str = "") -> str | None:
+    """The first place (dotted path) in a JSON-able result that holds NaN or ±inf, or None."""
+    if isinstance(value, float):
+        return None if math.isfinite(value) else (path or "value")
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, (list, tuple)):
+        items = ((f"[{i}]", v) for i, v in enumerate(value))
+    else:
+        return None
+    for key, v in items:
+        sub = f"{path}{key}" if str(key).startswith("[") else (f"{path}.{key}" if path else str(key))
+        found = non_finite_path(v, sub)
+        if found:
+            return found
+    return None
+
+
+def require_finite(data, source: str) -> None:
+    """Strict output: a result holding a non-finite number is an error, never printed as a verdict."""
+    where = non_finite_path(data)
+    if where:
+        raise NumericalError(f"{source}: the analysis produced a non-finite number at {where} (overflow): "
+                             "change units or check the data's magnitudes")
+
+
 def cmd_stiffness(args) -> int:
-    scene = load_scene(args.scene)
+    with strict_numerics(args.scene):
+        scene = load_scene(args.scene)
     mask = parse_mask(args.mask, scene.n_contacts) if args.mask else None
     try:
-        K = stiffness(scene, mask)
+        with strict_numerics(scene.source):
+            K = stiffness(scene, mask)
     except MaskError as exc:
         raise InputError(f"--mask: {exc}") from None
+    if not all(np.isfinite(part).all() for part in (K.H, K.Hm, K.Hg1, K.Hg2, K.Hg3)):
+        raise NumericalError(f"{scene.source}: H has non-finite entries (overflow): change units")
     np.savez(args.out, H=K.H, Hm=K.Hm, Hg1=K.Hg1, Hg2=K.Hg2, Hg3=K.Hg3, dofs=np.array(K.dofs))
     print(f"wrote {args.out}: H {K.H.shape[0]}x{K.H.shape[1]} ({scene.n_particles} particles, "
           f"{scene.n_contacts} contacts)")
@@ -86,22 +139,48 @@ def format_table(result) -> str:
 
 
 def cmd_analyze(args) -> int:
-    L = args.rotation_length
-    if L is not None and not (np.isfinite(L) and L > 0):
-        raise InputError(f"--rotation-length: must be a positive number, got {L:g}")
-    if L is not None and args.metric == "inertia":
+    if args.rotation_length is not None and args.metric == "inertia":
         raise InputError("--rotation-length: the inertia metric has no rotation length (use --metric L, L/10, 10L "
                          "or family)")
     from .backend import DeviceError
-    scene = load_scene(args.scene)
-    try:
-        result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length,
-                         max_sliding=args.max_sliding, method=args.method, k=args.k, progress=args.progress,
-                         device=args.device)
-    except DeviceError as exc:
-        raise InputError(f"--device: {exc}") from None
-    print(json.dumps(result.to_dict()) if args.json else format_table(result))
+    progress = args.progress or sys.stderr.isatty()
+    start = time.perf_counter()
+    advice = [DENSE_ADVICE]
+    with deadline(args.timeout, args.scene, advice):
+        with strict_numerics(args.scene):
+            scene = load_scene(args.scene, progress=progress)
+            if not refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start)):
+                advice[0] = SPARSE_ADVICE
+            try:
+                result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length,
+                                 max_sliding=args.max_sliding, sample_branches=args.sample_branches,
+                                 method=args.method, k=args.k, progress=progress, device=args.device)
+            except DeviceError as exc:
+                raise InputError(f"--device: {exc}") from None
+            data = result.to_dict()
+            require_finite(data, scene.source)
+            text = json.dumps(data, allow_nan=False) if args.json else format_table(result)
+    print(text)
     return 0
+
+
+def refuse_unfinishable(scene, args, seconds_left: float | None) -> bool:
+    """Refuse (one line, before any work) more sliding contacts than --max-sliding, and dense branch enumerations
+    whose measured cost exceeds the time left of --timeout; each message says what to do. Returns whether the
+    dense path will run."""
+    from .sparse import DENSE_MAX_DOF
+    n_sliding = int(np.sum(scene.at_yield()))
+    sampled = n_sliding > args.max_sliding
+    if sampled and args.sample_branches is None:
+        raise OverBudget(f"{scene.source}: {n_sliding} potentially sliding contacts give 2^{n_sliding} branches, "
+                         f"more than --max-sliding {args.max_sliding} allows: examine a sample (--sample-branches N), "
+                         "raise --max-sliding (with --timeout to bound the time), set state = \"elastic\" for "
+                         "contacts known to stick, or scan local clusters (granstab scan)")
+    dense = args.method == "dense" or (args.method == "auto" and scene.n_dof <= DENSE_MAX_DOF)
+    if dense and seconds_left is not None:
+        n_branches = args.sample_branches + 2 if sampled else 2 ** n_sliding
+        refuse_over(scene.source, estimate(scene.n_dof, n_branches), seconds_left, scene.n_dof, n_sliding)
+    return dense
 
 
 def cmd_reproduce(args) -> int:
@@ -117,6 +196,29 @@ def cmd_bench(args) -> int:
         raise InputError(f"--only: unknown topic {unknown[0]!r} (choose from {', '.join(TOPICS)})")
     run(quick=args.quick, out=Path(args.out), only=args.only)
     return 0
+
+
+def positive_number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
+
+
+def count(low: int):
+    """argparse type: an integer >= low."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = low - 1
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {text!r}")
+        return value
+    return parse
 
 
 def cmd_convert(args) -> int:
@@ -228,17 +330,25 @@ def build_parser() -> Parser:
     p = sub.add_parser("analyze", help="branches, consistent eigenmodes and verdicts")
     p.add_argument("scene")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    p.add_argument("--rotation-length", type=float, default=None,
+    p.add_argument("--rotation-length", type=positive_number, default=None,
                    help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
     p.add_argument("--metric", choices=list(METRIC_CHOICES), default="family",
                    help="projection metric: family (default: the verdict in L/10, L, 10L and inertia where masses are "
                         "known, spectra in L, metric robustness reported), or only one of L, L/10, 10L, inertia")
-    p.add_argument("--max-sliding", type=int, default=16, help="refuse more potentially sliding contacts")
+    p.add_argument("--max-sliding", type=count(0), default=16, help="refuse more potentially sliding contacts")
+    p.add_argument("--sample-branches", type=count(1), default=None,
+                   help="beyond --max-sliding: examine the all-loading, all-unloading and N random branches "
+                        "(branches: partial; a verdict only where they suffice) instead of refusing")
     p.add_argument("--method", choices=["auto", "dense", "sparse"], default="auto",
                    help="dense: every eigenpair and the uniqueness analysis; sparse: the lowest --k eigenpairs per "
                         "branch without n_dof x n_dof matrices; auto: sparse above granstab.sparse.DENSE_MAX_DOF dofs")
-    p.add_argument("--k", type=int, default=6, help="eigenpairs per branch on the sparse path")
-    p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
+    p.add_argument("--k", type=count(1), default=6, help="eigenpairs per branch on the sparse path")
+    p.add_argument("--progress", action="store_true",
+                   help="progress bars with the time left on stderr (reading, branches; default when stderr is a "
+                        "terminal)")
+    p.add_argument("--timeout", type=positive_number, default=None,
+                   help="stop after this many seconds (one line, exit 2); work whose measured cost exceeds it is "
+                        "refused before it starts")
     p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
                    help="where the stacked branch eigenproblems run: gpu needs CuPy (pip install 'granstab[gpu]'); "
                         "auto: the GPU when CuPy sees one")
@@ -264,7 +374,7 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         return args.run(args)
-    except (SceneError, InputError) as exc:
+    except (SceneError, InputError, NumericalError, OverBudget) as exc:
         print(" ".join(str(exc).split()), file=sys.stderr)
         return 2
     except OSError as exc:  # an output path that cannot be written: bad input too, one line

@@ -1,13 +1,15 @@
-"""Structural reading of scene files: one-line `SceneError`s naming file, entry and field.
-
-Shared by the contact-level reader (scene.py) and the shape-based reader (shapes.py); imports neither.
+"""Structural reading of scene files: one-line `SceneError`s naming file, entry and field, and the value checks
+(types, shapes, finite, within MAX_MAGNITUDE) shared by the table-at-a-time `Reader` (top level, defaults, shape
+entries) and the column-wise readers of tables.py. Imports neither scene.py nor shapes.py.
 """
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 
+from .tolerances import MAX_MAGNITUDE
 from .vec import rot_dim
 
 
@@ -15,19 +17,79 @@ class SceneError(ValueError):
     """Invalid scene input; the message is the one line the CLI prints."""
 
 
-def one_line(text: str) -> str:
+def one_line(text) -> str:
     """Collapse whitespace and newlines (a parser's multi-line message) into one line."""
-    return " ".join(text.split())
+    return " ".join(str(text).split())
+
+
+class DuplicateKeys(dict):
+    """A JSON object that had a key twice (`duplicate`); fileformat.parse_json makes one only when the key count
+    says there is one, and every reader rejects it naming the entry and the key."""
+
+    duplicate: str = ""
+
+
+def describe(value) -> str:
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def all_numbers(value) -> bool:
+    """True if every leaf is an int or float (not a bool, not a string that numpy would convert)."""
+    if isinstance(value, (list, tuple)):
+        return all(all_numbers(v) for v in value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def value_problem(value, shape: tuple) -> str | None:
+    """Why `value` is not a finite float array of `shape` (shape () is a scalar), or None."""
+    want = "a number" if shape == () else f"{'x'.join(map(str, shape))} numbers"
+    try:
+        arr = np.array(value, dtype=float)
+    except OverflowError:
+        return f"a number beyond float64's range ({magnitude_message(math.inf)})"
+    except (TypeError, ValueError):
+        return f"must be {want}, got {describe(value)}"
+    if arr.shape != shape or not all_numbers(value):
+        return f"must be {want}, got {describe(value)}"
+    if not np.all(np.isfinite(arr)):
+        return "must be finite (no nan or inf)"
+    return None
+
+
+def magnitude_message(value: float) -> str:
+    return (f"|value| = {value:.3g} exceeds {MAX_MAGNITUDE:.0e}: H and its checks multiply up to six input "
+            "numbers, which must stay below float64's 1.8e308 (change units)")
+
+
+def row_problem(arr: np.ndarray):
+    """(first row, message) of an (n, k) array with a non-finite entry or one above MAX_MAGNITUDE, or None."""
+    ok = np.abs(arr) <= MAX_MAGNITUDE
+    if ok.all():
+        return None
+    i = first(~ok.all(axis=1))
+    worst = np.abs(arr[i]).max()
+    return i, "must be finite (no nan or inf)" if not np.isfinite(worst) else magnitude_message(worst)
+
+
+def first(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])
 
 
 class Reader:
-    """Structural checks of one entry, raising one-line errors that name file, entry and field."""
+    """Structural checks of one small table (the top level, `defaults`, a shape entry), one-line errors naming
+    file, entry and field. Arrays of entries (particles, contacts) are read column-wise by tables.py instead."""
 
     def __init__(self, source: str, entry: str, data, allowed: set):
         self.source, self.entry, self.data = source, entry, data
         if not isinstance(data, dict):
             self.fail("", f"must be a table, got {type(data).__name__}")
-        unknown = sorted(set(data) - allowed)
+        if isinstance(data, DuplicateKeys):
+            self.fail(data.duplicate, "duplicate key (JSON would keep only the last value)")
+        unknown = sorted(set(data) - allowed, key=str)
         if unknown:
             self.fail(unknown[0], f"unknown key (allowed: {', '.join(sorted(allowed))})")
 
@@ -45,53 +107,25 @@ class Reader:
             return default
         value = self.data[key]
         if not isinstance(value, str) or not value:
-            self.fail(key, f"must be a non-empty string, got {value!r}")
+            self.fail(key, f"must be a non-empty string, got {describe(value)}")
         return value
 
     def number(self, key: str, default=None) -> float:
-        if key not in self.data:
-            if default is None:
-                self.fail(key, "missing")
-            return float(default)
-        return self._finite(key, self.data[key], ())
+        return float(self.array(key, (), default))
 
     def array(self, key: str, shape: tuple, default=None) -> np.ndarray:
-        """A finite array of the given shape; shape () is a scalar."""
+        """A finite array of the given shape (shape () is a scalar) within the accepted magnitude."""
         if key not in self.data:
             if default is None:
                 self.fail(key, "missing")
             return np.broadcast_to(np.asarray(default, dtype=float), shape).copy()
-        return self._finite(key, self.data[key], shape)
-
-    def _finite(self, key, value, shape):
-        def bad():
-            want = "a number" if shape == () else f"{'x'.join(map(str, shape))} numbers"
-            self.fail(key, f"must be {want}, got {json.dumps(value) if _jsonable(value) else value!r}")
-
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            bad()
-        if arr.shape != shape or not _all_numbers(value):
-            bad()
-        if not np.all(np.isfinite(arr)):
-            self.fail(key, "must be finite (no nan or inf)")
+        problem = value_problem(self.data[key], shape)
+        if problem:
+            self.fail(key, problem)
+        arr = np.array(self.data[key], dtype=float)
+        if np.abs(arr).max(initial=0.0) > MAX_MAGNITUDE:
+            self.fail(key, magnitude_message(float(np.abs(arr).max())))
         return arr
-
-
-def _jsonable(value) -> bool:
-    try:
-        json.dumps(value)
-        return True
-    except (TypeError, ValueError):
-        return False
-
-
-def _all_numbers(value) -> bool:
-    """True if every leaf is an int or float (not a bool, not a string that numpy would convert)."""
-    if isinstance(value, (list, tuple)):
-        return all(_all_numbers(v) for v in value)
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def read_law(rd: Reader, dim: int, base: dict) -> dict:
@@ -108,7 +142,7 @@ def read_law(rd: Reader, dim: int, base: dict) -> dict:
         rd.fail("mu", f"must be >= 0, got {mu}")
     rolling = base["rolling_stiffness"]
     if "rolling_stiffness" in rd.data:
-        if dim == 2 or np.ndim(rd.data["rolling_stiffness"]) == 0:
+        if dim == 2 or not isinstance(rd.data["rolling_stiffness"], list):
             value = rd.array("rolling_stiffness", ())
             if value < 0:
                 rd.fail("rolling_stiffness", f"must be >= 0, got {value}")

@@ -400,7 +400,7 @@ def scene_from_shapes(dim, particles, *, k=1.0, alpha=1.0, mu=0.5, mobilised=0.0
     normal n^pq from `contact_geometry`; force f^pq = -kδ n + mobilised·μ·kδ t (compressive normal force from
     the overlap δ, tangential force along `tangent_directions(n, shear)`); no contact moments; rolling
     stiffness `rolling_stiffness` (scalar × I or an (r, r) matrix). State "sliding" when mobilised = 1 and the
-    contact carries friction, else "auto". Loads are the equilibrium defaults (eq:equil1).
+    contact carries friction (|f_t| > yield_rtol·|f|), else "auto". Loads are the equilibrium defaults (eq:equil1).
     Raises ValueError for invalid shapes/poses or degenerate contacts (see `common_normals`, `curvature_from_radii`).
     """
     if dim not in (2, 3):
@@ -436,7 +436,7 @@ def scene_from_shapes(dim, particles, *, k=1.0, alpha=1.0, mu=0.5, mobilised=0.0
     force = -fn[:, None] * n + (mobilised * mu * fn)[:, None] * tangent_directions(n, shear)
     rolling = np.asarray(rolling_stiffness, float)
     rolling = rolling * np.eye(r) if rolling.ndim == 0 else rolling.reshape(r, r)
-    sliding = (mobilised == 1.0) & (mu * fn > 0)
+    sliding = (mobilised == 1.0) & (mu * fn > tol.yield_rtol * fn * np.hypot(1.0, mu))   # |f_t| > yield_rtol·|f|
     arrays = {
         "p": p.astype(np.intp), "q": q.astype(np.intp), "point": 0.5 * (P + Q), "normal": n,
         "curvature_p": Kp.reshape(M, dim, dim), "curvature_q": Kq.reshape(M, dim, dim), "force": force,

@@ -29,3 +29,12 @@ class Tolerances:
 
 
 DEFAULT = Tolerances()
+
+# Accepted input ranges (scene.check_ranges). H, its identity checks and the eigen-solvers' norms multiply up to six
+# input numbers (e.g. the squared norm of k·α·r·r/L²), so with every |value| <= 1e50 no product passes 1e300, below
+# float64's 1.8e308; k, α and the mean contact radius L at least 1e-50 keep such products clear of underflow
+# (2.2e-308). Coordinates: r^pq = point - x is rounded to eps·|x|; with |x| <= 1e9·L that is below
+# 2.3e-7·L < input_rtol·L, so every contact radius is known to the input tolerance.
+MAX_MAGNITUDE = 1e50
+MIN_SCALE = 1e-50
+COORDINATE_RATIO = 1e9
