@@ -2,6 +2,7 @@
 zero (accuracy.py), `sufficient` is True only when every number is finite and resolved, every branch examined and
 the verdict holds across the metric family; the sparse path labels its counts and proves "stable" only by inertia.
 (The sharp pair at f/k = 1e-13 and 1e-14 is in test_extreme.py.)"""
+import dataclasses
 import json
 import tomllib
 from pathlib import Path
@@ -118,21 +119,30 @@ def test_partial_spectrum_with_an_inconsistent_lowest_mode_is_not_stable():
 
 
 def test_overflow_is_never_a_proof():
-    """Forces and stiffness × 1e300: H stays finite but the error estimates overflow → not sufficient, reason says
-    so; × 1e308 the stiffness itself overflows → a one-line SceneError (exit 2 on the CLI)."""
+    """Scene files with magnitudes beyond 1e50 are refused at reading (one line naming the field); a Scene built
+    around those checks (dataclasses.replace) with forces and stiffness × 1e300 keeps H finite but overflows the
+    error estimates → not sufficient, the reason says so; × 1e308 the stiffness itself overflows → SceneError."""
     d = tomllib.loads((PRESETS / "two_particle.toml").read_text())
 
     def scaled(s):
         return {**d, "defaults": {**d["defaults"], "k": s},
                 "contacts": [{**c, "force": [s * v for v in c["force"]]} for c in d["contacts"]]}
 
+    with pytest.raises(SceneError, match=r"big.toml: defaults: k: \|value\| = 1e\+300 exceeds 1e\+50"):
+        granstab.scene_from_dict(scaled(1e300), source="big.toml")
+    base = granstab.scene_from_dict(d, source="big.toml")
+
+    def unchecked(s):
+        return dataclasses.replace(base, k=base.k * s, force=base.force * s, load=base.load * s,
+                                   load_moment=base.load_moment * s)
+
     with np.errstate(over="ignore"):
-        res = granstab.analyze(granstab.scene_from_dict(scaled(1e300), source="big.toml"))
+        res = granstab.analyze(unchecked(1e300))
         assert res.summary["sufficient"] is False and "non_finite" in res.summary["insufficient_because"]
         assert "not finite" in res.summary["reason"]
         with pytest.raises(SceneError, match="big.toml: the stiffness H has non-finite entries"):
-            granstab.analyze(granstab.scene_from_dict(scaled(1e308), source="big.toml"))
-    ok = granstab.analyze(granstab.scene_from_dict(scaled(1e150), source="big.toml"))
+            granstab.analyze(unchecked(1e308))
+    ok = granstab.analyze(granstab.scene_from_dict(scaled(1e45), source="big.toml"))
     assert ok.summary["verdict"] == "unstable" and ok.summary["sufficient"] is True
 
 
