@@ -9,7 +9,6 @@ message in the page; nothing a user does reaches the server as an exception.
 from __future__ import annotations
 
 import html
-import tempfile
 import threading
 import time
 from contextlib import contextmanager
@@ -68,7 +67,8 @@ class ClientUI:
                 h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default, hint=p.hint)
                 h.on_update(lambda _: self.run(self._apply_sliders))
                 self.sliders[key] = h
-            self.reset = gui.add_button("Reset particle positions", visible=False)
+            self.reset = gui.add_button("Reset", visible=False,
+                                        hint="back to the start positions (a dragged pair: back to the ρ/r, f/(kr) sliders)")
             self.reset.on_click(lambda _: self.run(self._reset_poses))
             self.info = gui.add_markdown("")
         with tabs.add_tab("Verdict"):
@@ -82,17 +82,40 @@ class ClientUI:
                 h.on_update(lambda _: self.run(self._display))
         with tabs.add_tab("Export"):
             gui.add_markdown("Download the current scene (reloads to the same analysis), the analysis, the contour.")
-            for label, fn in (("Scene file (.json)", self.session.export_scene),
-                              ("Analysis (.json)", self.session.export_analysis),
-                              ("λ⁽⁶⁾ contour (.png)", self.session.export_contour)):
-                b = gui.add_button(label)
-                b.on_click(self._download(fn))
+            self.exports = {}
+            for key, label, fn in (("scene", "Scene file (.json)", self.session.export_scene),
+                                   ("analysis", "Analysis (.json)", self.session.export_analysis),
+                                   ("contour", "λ⁽⁶⁾ contour (.png)", self.session.export_contour)):
+                self.exports[key] = gui.add_button(label)
+                self.exports[key].on_click(self._download(fn))
         self.legend = gui.add_markdown("")
 
-        self.side = gui.add_panel()
-        with self.side.add_tab("λ⁽⁶⁾ field"):
-            self.field_note = gui.add_markdown("")
-            self.contour = gui.add_plotly(_empty_figure(), aspect=1.15)
+        self.side = None
+        self.side_kind = None
+        self._build_side()
+        gui.main_panel.dock_right()
+        gui.main_panel.set_width(400)
+
+    def _build_side(self) -> None:
+        """The side panel: the λ⁽⁶⁾ field tab only for the pair (no tab a scene does not use). It is docked BEFORE
+        its plots are added: docking remounts the panel's contents, and a plotly plot mounted before that leaves a
+        pending redraw on the discarded copy (the `_redrawFromAutoMarginCount` page error)."""
+        pair = self.session.kind == "two_particle"
+        if self.side is not None and self.side_kind == pair:
+            return
+        self._stop_play()
+        if self.side is not None:
+            self.side.remove()
+        gui = self.client.gui
+        self.side, self.side_kind = gui.add_panel(), pair
+        self.side.dock_left()
+        self.side.set_width(430)
+        self.field_note = self.contour = None
+        if pair:
+            with self.side.add_tab("λ⁽⁶⁾ field"):
+                self.field_note = gui.add_markdown("")
+                self.contour = gui.add_plotly(contour_figure(self.session.field(), (
+                    self.session.params["rho_r"], self.session.params["f_kr"])), aspect=1.15)
         with self.side.add_tab("Eigenmodes"):
             self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3)
             self.mode_pick = gui.add_dropdown("Mode", options=["(none)"], initial_value="(none)")
@@ -103,10 +126,6 @@ class ClientUI:
                                             hint="largest particle motion, in particle sizes")
             self.speed = gui.add_slider("Speed (cycles/s)", min=0.1, max=2.0, step=0.1, initial_value=0.5)
             self.mode_info = gui.add_markdown("")
-        self.side.dock_left()
-        self.side.set_width(430)
-        gui.main_panel.dock_right()
-        gui.main_panel.set_width(400)
 
     def _preset_option(self) -> str:
         options = self.session.presets()
@@ -162,11 +181,7 @@ class ClientUI:
 
     def _upload(self) -> None:
         up = self.upload.value
-        suffix = Path(up.name).suffix.lower() if Path(up.name).suffix.lower() in (".toml", ".json") else ".toml"
-        folder = Path(tempfile.mkdtemp(prefix="granstab-upload-"))
-        path = folder / (Path(up.name).stem + suffix)
-        path.write_bytes(up.content)
-        ok = self.session.load_preset(str(path))
+        ok = self.session.load_upload(up.name, up.content)
         self.view.key = None
         self.refresh(camera=ok)
 
@@ -229,7 +244,7 @@ class ClientUI:
             self._player.start()
 
     def _stop_play(self) -> None:
-        if self.play.value:
+        if getattr(self, "play", None) is not None and self.play.value:
             with self._quiet():
                 self.play.value = False
 
@@ -262,6 +277,7 @@ class ClientUI:
     def refresh(self, camera: bool = False, particles: bool = True, skip: str | None = None) -> None:
         """Write every handle from the session (sliders, verdict, plots, scene)."""
         s = self.session
+        self._build_side()
         self._sync_controls()
         with self.client.atomic():
             if particles:
@@ -296,17 +312,21 @@ class ClientUI:
                 h.visible = key in used
                 if key in used and h.value != s.params[key]:
                     h.value = s.params[key]
-            self.reset.visible = s.kind == "shapes"
+            self.reset.visible = s.resettable
+            self.show["surface"].visible = self.exports["contour"].visible = s.kind == "two_particle"
 
     def _write_verdict(self, legend: dict) -> None:
         s = self.session
         r = s.report()
         verdict = r["verdict"]
+        apart = s.scene is not None and s.scene.n_contacts == 0
         title = s.scene.title if s.scene is not None else str(s.preset)
+        if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
+            title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
         title = title if len(title) <= 90 else title[:87] + "…"
-        reason = "" if verdict is None else r["reason"] + ("" if r["sufficient"] else " — not proven")
+        reason = ("" if verdict in (None, "no contact") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
         self.headline.content = (
-            f'<div class="granstab-verdict" data-verdict="{verdict or "none"}" style="background:'
+            f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" style="background:'
             f'{VERDICT_COLOR.get(verdict, "#555")};color:white;font-weight:700;font-size:1.35em;padding:4px 10px;'
             f'border-radius:6px;letter-spacing:0.05em">{(verdict or "no verdict").upper()}</div>'
             f'<div style="font-style:italic;margin:4px 2px 0 2px">{html.escape(title)}</div>'
@@ -347,14 +367,13 @@ class ClientUI:
     def _write_field(self) -> None:
         s = self.session
         field = s.field()
-        self.contour.visible = field is not None
-        if field is None:
-            self.field_note.content = "The λ⁽⁶⁾ field belongs to the two-particle pair: pick *two_particle*."
+        if field is None or self.contour is None:
             return
-        lam = s.rolling_eigenvalue()
-        self.field_note.content = (
-            f"Rolling eigenvalue λ⁽⁶⁾/k over (ρ/r, f/(kr)) at α = {field.alpha:g}; ★ = now "
-            f"(λ⁽⁶⁾/k = {lam:.4g})" if lam is not None else "Rolling eigenvalue λ⁽⁶⁾/k; ★ = now")
+        lam, tol = s.rolling_eigenvalue(), s.zero_tolerance()
+        now = ("" if lam is None else f" (λ⁽⁶⁾/k = 0 within the zero tolerance {tol:.0e})" if lam == 0
+               else f" (λ⁽⁶⁾/k = {lam:.4g})")
+        self.field_note.content = (f"Rolling eigenvalue λ⁽⁶⁾/k over (ρ/r, f/(kr)) at α = {field.alpha:g}; "
+                                   f"★ = now{now}")
         self.contour.figure = contour_figure(field, (s.params["rho_r"], s.params["f_kr"]))
 
     def _write_modes(self) -> None:
@@ -400,7 +419,7 @@ class ClientUI:
         lo, hi = x.min(axis=0) - 1.2 * size, x.max(axis=0) + 1.2 * size
         if s.scene_dim == 2:
             if s.field() is not None and self.view.options["surface"]:
-                lo[1] = min(lo[1], -4.9 * size)
+                lo[1] = min(lo[1], -4.9 * s.field_scale)
             c = 0.5 * (lo + hi)
             extent = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * 1.3))
             self.client.camera.up_direction = (0.0, 1.0, 0.0)

@@ -8,6 +8,7 @@ except programming errors (an unknown parameter name). Not thread-safe: the GUI 
 from __future__ import annotations
 
 import json
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +27,7 @@ from .params import PARAMS
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
 DEFAULT_PRESET = "two_particle"
 CONSISTENT = (PLUS, MINUS, BOTH)
+MAX_UPLOAD = 5_000_000     # bytes: a scene file larger than this is refused before it is parsed
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,7 @@ class Session:
         self.elapsed = 0.0
         self.revision = 0
         self._modes: tuple[int, list] = (-1, [])
+        self._pair: TwoParticleModel | None = None   # the slider-driven pair a drag turned into shapes
         if not self.load_preset(preset or DEFAULT_PRESET) and self.model is None and preset not in (None, DEFAULT_PRESET):
             message = self.error
             self.load_preset(DEFAULT_PRESET)
@@ -102,10 +105,30 @@ class Session:
             return False
         self.preset = path.stem if path.parent == self.presets_dir else str(path)
         self.model = model
+        self._pair = None
         self.params = model.initial_params()
         self.notice = None
         self.recompute()
         return self.error is None
+
+    def load_upload(self, name: str, content: bytes) -> bool:
+        """Open a file sent from the page: size-guarded (MAX_UPLOAD bytes), read from a private temporary folder that
+        is removed afterwards; the page sees only the file's own name, never the server's path."""
+        name = Path(name).name or "upload"
+        if len(content) > MAX_UPLOAD:
+            self.error = f"{name}: rejected, {len(content) / 1e6:.1f} MB is over the {MAX_UPLOAD / 1e6:.0f} MB limit"
+            return False
+        suffix = Path(name).suffix.lower() if Path(name).suffix.lower() in (".toml", ".json") else ".toml"
+        with tempfile.TemporaryDirectory(prefix="granstab-upload-") as folder:
+            path = Path(folder) / (Path(name).stem + suffix)
+            path.write_bytes(content)
+            ok = self.load_preset(str(path))
+            hidden = str(path)
+        if self.error:
+            self.error = self.error.replace(hidden, name)
+        if ok:
+            self.preset = f"{name} (opened)"
+        return ok
 
     @property
     def kind(self) -> str:
@@ -138,16 +161,27 @@ class Session:
             self.error = "this scene is contact-level (no shapes): its geometry cannot be dragged"
             return
         if isinstance(self.model, TwoParticleModel):
+            self._pair = self.model
             self.model = self.model.to_shapes(self.params)
-            self.notice = ("dragging turned the pair into shapes: contacts now follow the geometry; pick the "
-                           "preset again to return to the ρ/r, f/(kr) sliders")
+            self.notice = ("dragging turned the pair into shapes: contacts now follow the geometry; *Reset* "
+                           "returns to the ρ/r, f/(kr) sliders")
         if np.ndim(R) == 0:
             R = rotation_matrix(2, R)
         self.model.set_pose(name, np.asarray(x, float), np.asarray(R, float)[:self.scene_dim, :self.scene_dim])
         self.recompute()
 
+    @property
+    def resettable(self) -> bool:
+        """Whether *Reset* has something to undo: dragged poses, or a pair turned into shapes by a drag."""
+        return self._pair is not None or isinstance(self.model, ShapeModel)
+
     def reset_poses(self) -> None:
-        if isinstance(self.model, ShapeModel):
+        """Back to the start poses; a dragged pair goes back to the slider-driven pair (ρ/r, f/(kr) as before)."""
+        if self._pair is not None:
+            self.model, self._pair, self.notice = self._pair, None, None
+            self.params = {**self.model.initial_params(), **self.params}
+            self.recompute()
+        elif isinstance(self.model, ShapeModel):
             self.model.reset_poses()
             self.recompute()
 
@@ -256,10 +290,26 @@ class Session:
             return None
         return lambda6_field(self.params["alpha"], self.params["rolling"])
 
+    @property
+    def field_scale(self) -> float:
+        """The length the λ⁽⁶⁾ surface is laid out in: the pair's r (fixed, unlike the particle size, which grows
+        with ρ/r — the surface is cached, so the current-state marker must be placed on the same scale)."""
+        return float(getattr(self.model, "r", 1.0))
+
     def rolling_eigenvalue(self) -> float | None:
-        """λ⁽⁶⁾ of the current analysis in units of k: the rolling-labelled eigenvalue of the first branch."""
+        """λ⁽⁶⁾ of the current analysis in units of k: the rolling-labelled eigenvalue of the first branch,
+        0 exactly when |λ⁽⁶⁾| is within the branch's zero tolerance (`zero_tolerance()`)."""
         rolling = [m for m in self.modes() if m.branch == 0 and m.label == "rolling"]
-        return rolling[0].eigenvalue / self.params["k"] if rolling else None
+        if not rolling:
+            return None
+        lam = rolling[0].eigenvalue
+        return 0.0 if abs(lam) <= self.analysis.branches[0].zero_tol else lam / self.params["k"]
+
+    def zero_tolerance(self) -> float | None:
+        """The eigenvalue zero tolerance of the first branch in units of k (what "λ = 0" means here)."""
+        if self.analysis is None or not self.analysis.branches:
+            return None
+        return self.analysis.branches[0].zero_tol / self.params["k"]
 
     # ------------------------------------------------------------------------------------------ exports
 

@@ -292,7 +292,7 @@ class SceneView:
             self.api.remove_by_name("/field")
             return
         import trimesh
-        size = session.size
+        size = session.field_scale      # fixed per pair: the cached surface and the marker share it
         place, (x0, x1, y0, y1) = self.field_frame(field, size)
         lim = float(np.abs(field.lam).max()) or 1.0
         height = 0.8 * size
@@ -306,7 +306,7 @@ class SceneView:
         faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
         v = field.lam.reshape(-1) / lim
         colors = diverging(np.sign(v) * np.sqrt(np.abs(v)))     # √ stretch: the small values near 0 show too
-        key = (id(field),)
+        key = (id(field), size)
         if getattr(self, "_field_key", None) != key:
             self._field_key = key
             mesh = trimesh.Trimesh(V, faces, vertex_colors=colors, process=False)
