@@ -819,7 +819,7 @@ def bench_accuracy(rep: Report, cfg: dict):
     f = float(-sc.force[0, 0])
     exact6 = f * (rho - 1.0)                       # λ⁽⁶⁾ = f(ρ_eff - r_eff), both reduced by δ/2 (NOTES)
     ways = [("closed form f(ρ − r)", lambda: tp.lambda6(1.0, rho, f)),
-            ("dense core analyze()", lambda: min(analyze(sc, rotation_length_=1.0).branches[0].stability_eigenvalues)),
+            ("dense core analyze()", lambda: min(analyze(sc, rotation_length=1.0).branches[0].stability_eigenvalues)),
             ("sparse lowest_modes (dense fallback at 6 dofs)",
              lambda: sparse.lowest_modes(sparse.sparse_problem(sc, length=1.0), k=1).eigenvalues[0])]
     if eg is not None:

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linprog
 
+from .accuracy import eigen_bounds
 from .threads import blas_threads
 from .tolerances import EPS
 
@@ -36,6 +37,7 @@ class Problem:
     sliding: np.ndarray        # (Ms,) indices of the potentially sliding contacts
     n_contacts: int
     tol: object
+    formation_error: float = 0.0   # bound of ‖sym(𝓗) computed − exact‖₂ from forming it (accuracy.formation_error)
 
     @property
     def s_tol(self) -> float:
@@ -71,6 +73,14 @@ class Branch:
     type2: list = field(default_factory=list)
     residual_stability: float = 0.0
     residual_uniqueness: float = 0.0
+    bounds: np.ndarray | None = None   # per stability eigenvalue: |λ_exact - λ| <= bounds[j] (accuracy.py)
+    negative_count: dict | None = None  # sparse path: negatives of sym(𝓗^i) (count, total?, inertia shift)
+
+    @property
+    def accuracy(self) -> np.ndarray:
+        """Per-eigenvalue error bounds (zero_tol for every eigenvalue where none were computed)."""
+        lam = self.stability_eigenvalues
+        return np.full(lam.shape, self.zero_tol) if self.bounds is None else self.bounds
 
     def consistent(self) -> list[dict]:
         """Consistent non-trivial eigenpairs: eigenvalue, vector_sign (+1, -1, 0 = both), hinges."""
@@ -157,9 +167,12 @@ def canonical_signs(V: np.ndarray) -> np.ndarray:
     return V * np.where(np.take_along_axis(V, idx, axis=-2) < 0, -1.0, 1.0)
 
 
-def eigen_groups(lam: np.ndarray, tol: float) -> list[np.ndarray]:
-    """Indices of runs of sorted eigenvalues closer than tol (repeated eigenvalues), including singletons."""
-    breaks = np.flatnonzero(np.diff(lam) > tol) + 1
+def eigen_groups(lam: np.ndarray, tol) -> list[np.ndarray]:
+    """Indices of runs of sorted eigenvalues closer than tol (repeated eigenvalues), including singletons; tol a
+    number or per-eigenvalue bounds (neighbours whose error intervals touch are one group)."""
+    tol = np.asarray(tol, dtype=float)
+    gap_tol = tol[:-1] + tol[1:] if tol.ndim else tol
+    breaks = np.flatnonzero(np.diff(lam) > gap_tol) + 1
     return np.split(np.arange(len(lam)), breaks)
 
 
@@ -218,9 +231,10 @@ def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
     R = problem.rigid
     n_rigid = R.shape[1]
     norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
-    tol = problem.tol.zero_factor * max(n, 1) * EPS * norm
-    zero = np.abs(lam) <= tol[:, None]
-    close = np.diff(lam, axis=1) <= tol[:, None]                     # adjacent eigenvalues in one group
+    bounds, resid = eigen_bounds(Hsym, lam, V, problem.formation_error)   # accuracy.py: |λ - λ̂| <= bound
+    tol = bounds.max(axis=1) if n else np.zeros(L)
+    zero = np.abs(lam) <= bounds
+    close = np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:]   # adjacent eigenvalues in one group
     repeated = np.any(close & ~zero[:, :-1] & ~zero[:, 1:], axis=1) | np.any(close & (zero[:, :-1] ^ zero[:, 1:]),
                                                                              axis=1)
     extra_z = np.zeros(L, dtype=int)
@@ -239,9 +253,9 @@ def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
         null_m = sv_m <= tol_u[more, None]
         extra_u[more] = _count_nonrigid(R, np.swapaxes(Vt_m, 1, 2) * null_m[:, None, :])
         svd = {int(i): (sv_m[j], Vt_m[j]) for j, i in enumerate(more)}
-    res_s = np.linalg.norm(Hsym @ V - V * lam[:, None, :], axis=1).max(axis=1) / norm if n else np.zeros(L)
+    res_s = resid.max(axis=1) / norm if n else np.zeros(L)
     res_u = np.linalg.norm(HH @ W - W * mu[:, None, :], axis=1).max(axis=1) / norm_u if n else np.zeros(L)
-    return {"tol": tol, "zero": zero, "special": repeated | (extra_z > 0) | (extra_u > 0),
+    return {"tol": tol, "bounds": bounds, "zero": zero, "special": repeated | (extra_z > 0) | (extra_u > 0),
             "n_null": null.sum(axis=1), "res_s": res_s, "res_u": res_u, "svd": svd}
 
 
@@ -265,18 +279,20 @@ def _plain_branch(problem, mask, batch, i, lam, V, codes, hinges, mu) -> Branch:
     return Branch(mask=mask, stability_eigenvalues=lam, stability_vectors=V.copy(), codes=codes, hinges=hinges,
                   n_zero=int(zero.sum()), zero_tol=float(batch["tol"][i]), uniqueness_eigenvalues=mu[order],
                   uniqueness_n_zero=int(batch["n_null"][i]), type2=[],
-                  residual_stability=float(batch["res_s"][i]), residual_uniqueness=float(batch["res_u"][i]))
+                  residual_stability=float(batch["res_s"][i]), residual_uniqueness=float(batch["res_u"][i]),
+                  bounds=batch["bounds"][i])
 
 
 def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> Branch:
     n = len(lam)
     norm = max(np.abs(lam).max(), 1e-300)
-    tol = problem.tol.zero_tol(norm, n)
+    bounds, _ = eigen_bounds(Hsym, lam, V, problem.formation_error)
+    tol = float(bounds.max()) if n else 0.0
     V = V.copy()
     codes = codes.copy()
     hinges = hinges.copy()
-    zero = np.flatnonzero(np.abs(lam) <= tol)
-    for group in eigen_groups(lam, tol):
+    zero = np.flatnonzero(np.abs(lam) <= bounds)
+    for group in eigen_groups(lam, bounds):
         if group[0] in zero or len(group) == 1:
             continue
         found = search_subspace(problem, mask, V[:, group])
@@ -305,7 +321,7 @@ def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> 
     return Branch(mask=mask, stability_eigenvalues=lam, stability_vectors=V, codes=codes, hinges=hinges,
                   n_zero=int(zero.size), zero_tol=tol, uniqueness_eigenvalues=mu[order],
                   uniqueness_n_zero=int(null.shape[1]), type2=_type2(problem, mask, null),
-                  residual_stability=res_s, residual_uniqueness=res_u)
+                  residual_stability=res_s, residual_uniqueness=res_u, bounds=bounds)
 
 
 def _type2(problem, mask, null) -> list:

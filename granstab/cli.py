@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .analysis import analyze
+from .metric import CHOICES as METRIC_CHOICES
 from .branches import BOTH, MINUS, PLUS, RIGID
 from .files import load_scene
 from .scene import SceneError
@@ -55,7 +56,8 @@ def format_table(result) -> str:
     s = result.scene
     d = result.to_dict()
     lines = [f"{s.title or s.source}: {s.dim}D, {s.n_particles} particles, {s.n_contacts} contacts, "
-             f"{d['n_sliding']} potentially sliding, {len(result.branches)} branch(es), L = {result.length:.4g}"]
+             f"{d['n_sliding']} potentially sliding, {len(result.branches)} branch(es), metric {result.metric.name}"
+             + ("" if result.length is None else f", L = {result.length:.4g}") + f" (eigenvalues in {result.metric.units})"]
     for b in result.branches:
         mask = " ".join(f"{int(v):+d}" for v in b.mask[result.problem.sliding]) or "(all elastic)"
         lines.append(f"branch [{mask}]  zeros: {b.n_zero} (tol {b.zero_tol:.1e})  ℍ nullity: {b.uniqueness_n_zero}")
@@ -64,10 +66,19 @@ def format_table(result) -> str:
         lines.append("  sym(𝓗) eigenvalues: " + ", ".join(cells))
     sm = d["summary"]
     lines.append(f"verdict: {sm['verdict'].upper()} — {sm['reason']}")
+    low = [k.split("_")[1] for k, v in sm["counts_are"].items() if v != "totals"]
     lines.append(f"consistent eigenvalues: {sm['consistent_positive']} positive, {sm['consistent_negative']} "
-                 f"negative, {sm['consistent_zero']} zero; Type-2 non-uniqueness: "
+                 f"negative, {sm['consistent_zero']} zero"
+                 + (f" ({', '.join(low)}: lower bounds; suggested k: {sm.get('suggest_k')})" if low else "")
+                 + "; Type-2 non-uniqueness: "
                  f"{'yes' if sm['type2_nonuniqueness'] else 'no'}"
                  + ("; verdict hinges on an S within tolerance" if sm["hinges_on_tolerance"] else ""))
+    if sm.get("metrics"):
+        lines.append(f"metric family ({'robust' if sm['metric_robust'] else 'NOT robust'}): " + "; ".join(
+            f"{e['metric']}: {e['verdict']} {e['consistent_positive']}+/{e['consistent_negative']}-"
+            for e in sm["metrics"]))
+    if not sm["sufficient"]:
+        lines.append("not sufficient because: " + ", ".join(sm["insufficient_because"]))
     lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in d["errors"].items()))
     lines.append("timings: " + ", ".join(f"{k} {1e3 * v:.2f} ms" for k, v in d["timings"].items()))
     lines += [f"warning: {w}" for w in d["warnings"]]
@@ -75,9 +86,15 @@ def format_table(result) -> str:
 
 
 def cmd_analyze(args) -> int:
+    L = args.rotation_length
+    if L is not None and not (np.isfinite(L) and L > 0):
+        raise InputError(f"--rotation-length: must be a positive number, got {L:g}")
+    if L is not None and args.metric == "inertia":
+        raise InputError("--rotation-length: the inertia metric has no rotation length (use --metric L, L/10, 10L "
+                         "or family)")
     scene = load_scene(args.scene)
-    result = analyze(scene, rotation_length_=args.rotation_length, max_sliding=args.max_sliding, method=args.method,
-                     k=args.k, progress=args.progress)
+    result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length, max_sliding=args.max_sliding,
+                     method=args.method, k=args.k, progress=args.progress)
     print(json.dumps(result.to_dict()) if args.json else format_table(result))
     return 0
 
@@ -159,6 +176,9 @@ def build_parser() -> Parser:
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--rotation-length", type=float, default=None,
                    help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
+    p.add_argument("--metric", choices=list(METRIC_CHOICES), default="family",
+                   help="projection metric: family (default: the verdict in L/10, L, 10L and inertia where masses are "
+                        "known, spectra in L, metric robustness reported), or only one of L, L/10, 10L, inertia")
     p.add_argument("--max-sliding", type=int, default=16, help="refuse more potentially sliding contacts")
     p.add_argument("--method", choices=["auto", "dense", "sparse"], default="auto",
                    help="dense: every eigenpair and the uniqueness analysis; sparse: the lowest --k eigenpairs per "

@@ -21,7 +21,7 @@ from .vec import cross, rot_dim, tangent_basis
 STATES = ("auto", "elastic", "sliding")
 LAW_KEYS = ("k", "alpha", "mu", "rolling_stiffness")
 TOP_KEYS = {"dim", "title", "defaults", "particles", "contacts"}
-PARTICLE_KEYS = {"name", "x", "load", "moment"}
+PARTICLE_KEYS = {"name", "x", "load", "moment", "mass", "inertia"}
 CONTACT_KEYS = {"p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state", *LAW_KEYS}
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5, "rolling_stiffness": 0.0}
 
@@ -51,6 +51,8 @@ class Scene:
     title: str = ""
     source: str = "<scene>"
     tol: Tolerances = field(default=DEFAULT)
+    mass: np.ndarray | None = None        # (N,) masses, for the inertia metric (metric.py); None: not known
+    inertia: np.ndarray | None = None     # (N, r, r) rotational inertia in the global frame
 
     @property
     def n_particles(self) -> int:
@@ -127,6 +129,8 @@ class Scene:
         for i, name in enumerate(self.names):
             particles.append({"name": name, "x": self.x[i].tolist(), "load": self.load[i].tolist(),
                               "moment": scalar_or_list(self.load_moment[i])})
+            if self.mass is not None:
+                particles[-1].update(mass=float(self.mass[i]), inertia=scalar_or_list(self.inertia[i]))
         contacts = []
         for c in range(self.n_contacts):
             contacts.append({
@@ -153,9 +157,10 @@ def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEF
     def read_particle(rd: Reader, name: str):
         load = rd.array("load", (dim,)) if rd.has("load") else None
         moment = rd.array("moment", () if dim == 2 else (3,)) if rd.has("moment") else None
-        return name, rd.array("x", (dim,)), load, moment
+        return name, rd.array("x", (dim,)), load, moment, _read_mass(rd, dim, tol)
 
-    names, x, loads, load_moments = zip(*read_particles(top, data, PARTICLE_KEYS, read_particle))
+    names, x, loads, load_moments, masses = zip(*read_particles(top, data, PARTICLE_KEYS, read_particle))
+    mass, inertia = _collect_masses(source, names, masses)
     index = {name: i for i, name in enumerate(names)}
 
     contacts = data.get("contacts", [])
@@ -212,7 +217,43 @@ def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEF
         "state": tuple(cols["state"]),
     }
     return build_scene(dim, list(names), np.array(x).reshape(-1, dim), arrays, list(loads), list(load_moments),
-                       title=title, source=source, tol=tol, entries=entries)
+                       title=title, source=source, tol=tol, entries=entries, mass=mass, inertia=inertia)
+
+
+def _read_mass(rd: Reader, dim: int, tol: Tolerances):
+    """Optional `mass` (> 0) and `inertia` (2D: a number > 0; 3D: a symmetric positive definite 3x3 tensor in the
+    global frame), both or neither: (mass, inertia) or None."""
+    if not (rd.has("mass") or rd.has("inertia")):
+        return None
+    for key in ("mass", "inertia"):
+        if not rd.has(key):
+            rd.fail(key, "missing: the inertia metric needs both mass and inertia")
+    mass = float(rd.number("mass"))
+    if not mass > 0:
+        rd.fail("mass", f"must be positive, got {mass:g}")
+    if dim == 2:
+        J = rd.array("inertia", ())
+        if not J > 0:
+            rd.fail("inertia", f"must be positive, got {float(J):g}")
+        return mass, np.asarray(J, float).reshape(1, 1)
+    J = rd.array("inertia", (3, 3))
+    if np.abs(J - J.T).max() > tol.input_rtol * np.abs(J).max():
+        rd.fail("inertia", "must be a symmetric 3x3 tensor")
+    if np.linalg.eigvalsh(0.5 * (J + J.T)).min() <= 0:
+        rd.fail("inertia", "must be positive definite")
+    return mass, 0.5 * (J + J.T)
+
+
+def _collect_masses(source: str, names, masses):
+    """Masses of every particle or of none (a scene cannot mix): (mass (N,), inertia (N, r, r)) or (None, None)."""
+    given = [m is not None for m in masses]
+    if not any(given):
+        return None, None
+    if not all(given):
+        i = given.index(False)
+        raise SceneError(f"{source}: particles[{i}] ({names[i]!r}): mass: missing (other particles have masses: "
+                         "give every particle mass and inertia, or none)")
+    return np.array([m for m, _ in masses]), np.array([J for _, J in masses])
 
 
 def read_header(data, source: str, allowed: set):
@@ -260,7 +301,7 @@ def _read_curvature(rd: Reader, key: str, dim: int, normal: np.ndarray, tol: Tol
 
 
 def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="", source="<scene>",
-                tol: Tolerances = DEFAULT, entries=None) -> Scene:
+                tol: Tolerances = DEFAULT, entries=None, mass=None, inertia=None) -> Scene:
     """Assemble a Scene from arrays (programmatic use: presets, studies, the app) and run the physical checks.
 
     `loads`/`load_moments` are lists with None where the equilibrium value is to be used (or None for all).
@@ -292,8 +333,11 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
                 raise SceneError(f"{source}: {entry}: moment: does not balance the contact moments "
                                  f"(residual |w + Σ(r×f + m)| = {res:.3g}, expected {_fmt(w_eq[i])})")
             load_moment[i] = given
+    if mass is not None:
+        mass = np.asarray(mass, float).reshape(N)
+        inertia = np.asarray(inertia, float).reshape(N, r, r)
     return Scene(dim=dim, names=tuple(names), x=base.x, load=load, load_moment=load_moment, title=title,
-                 source=source, tol=tol, **arrays)
+                 source=source, tol=tol, mass=mass, inertia=inertia, **arrays)
 
 
 def _fmt(v) -> str:

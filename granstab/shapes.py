@@ -151,6 +151,18 @@ def rotation_matrix(dim: int, orientation) -> np.ndarray:
     return R
 
 
+def mass_properties(shape, orientation, density: float = 1.0):
+    """Mass and rotational inertia (global frame) of a uniform solid: 2D (m, [[I]]) per unit thickness, ellipse
+    I = m(a² + b²)/4; 3D ellipsoid I_body = m/5 diag(b² + c², a² + c², a² + b²), rotated by the orientation."""
+    axes = np.asarray(shape.semi_axes, float)
+    if shape.dim == 2:
+        m = density * np.pi * axes.prod()
+        return m, np.array([[m * (axes ** 2).sum() / 4.0]])
+    m = density * 4.0 / 3.0 * np.pi * axes.prod()
+    R = rotation_matrix(3, orientation)
+    return m, R @ np.diag(m / 5.0 * ((axes ** 2).sum() - axes ** 2)) @ R.T
+
+
 def shape_tensor(shape, orientation) -> np.ndarray:
     """S = R diag(semi-axes²) Rᵀ, so that h(n) = sqrt(nᵀ S n) is the support function (d, d)."""
     R = rotation_matrix(shape.dim, orientation)
@@ -381,7 +393,7 @@ def candidate_pairs(x: np.ndarray, radii: np.ndarray) -> np.ndarray:
 
 
 def scene_from_shapes(dim, particles, *, k=1.0, alpha=1.0, mu=0.5, mobilised=0.0, rolling_stiffness=0.0,
-                      shear=None, title="", source="<shapes>", tol: Tolerances = DEFAULT):
+                      shear=None, title="", source="<shapes>", tol: Tolerances = DEFAULT, density: float = 1.0):
     """A granstab Scene from shapes: every overlapping (or touching) pair is a contact.
 
     particles: list of (name, shape, pose), pose = (position, orientation). Contact p < q in particle order,
@@ -433,13 +445,15 @@ def scene_from_shapes(dim, particles, *, k=1.0, alpha=1.0, mu=0.5, mobilised=0.0
         "state": tuple("sliding" if s else "auto" for s in sliding),
     }
     entries = [f"contact {names[a]}-{names[b]}" for a, b in zip(p, q)]
-    return build_scene(dim, names, x, arrays, title=title, source=source, tol=tol, entries=entries)
+    mass, inertia = zip(*(mass_properties(shape, pose[1], density) for _, shape, pose in particles))
+    return build_scene(dim, names, x, arrays, title=title, source=source, tol=tol, entries=entries, mass=mass,
+                       inertia=inertia)
 
 
 # ----------------------------------------------------------------------------------------- file format
 
 SHAPE_TOP_KEYS = {"dim", "title", "defaults", "particles"}
-SHAPE_DEFAULT_KEYS = {*LAW_KEYS, "mobilised", "shear"}
+SHAPE_DEFAULT_KEYS = {*LAW_KEYS, "mobilised", "shear", "density"}
 
 
 def is_shape_scene(data) -> bool:
@@ -503,6 +517,10 @@ def read_shape_file(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
     top, dim, title = read_header(data, source, SHAPE_TOP_KEYS)
     drd = Reader(source, "defaults", data.get("defaults", {}), SHAPE_DEFAULT_KEYS)
     law = read_law(drd, dim, {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((rot_dim(dim),) * 2)})
+    density = float(drd.number("density", 1.0))
+    if not density > 0:
+        drd.fail("density", f"must be positive, got {density:g}")
+    law["density"] = density
     mobilised = float(drd.number("mobilised", 0.0))
     if not 0.0 <= mobilised <= 1.0:
         drd.fail("mobilised", f"must be in [0, 1], got {mobilised:g}")
@@ -528,7 +546,7 @@ def shape_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAU
     try:
         return scene_from_shapes(dim, entries, k=law["k"], alpha=law["alpha"], mu=law["mu"], mobilised=mobilised,
                                  rolling_stiffness=law["rolling_stiffness"], shear=shear, title=title,
-                                 source=source, tol=tol)
+                                 source=source, tol=tol, density=law["density"])
     except (ValueError, RuntimeError) as exc:
         if isinstance(exc, SceneError):
             raise
@@ -556,7 +574,7 @@ def shape_scene_to_dict(dim, particles, *, k=1.0, alpha=1.0, mu=0.5, mobilised=0
     return {**data, "defaults": defaults, "particles": items}
 
 
-__all__ = ["Disk", "Ellipse", "Sphere", "Ellipsoid", "ContactGeometry", "contact_geometry", "scene_from_shapes",
+__all__ = ["mass_properties", "Disk", "Ellipse", "Sphere", "Ellipsoid", "ContactGeometry", "contact_geometry", "scene_from_shapes",
            "surface_curvature_at", "surface_normal_at", "shape_tensor", "rotation_matrix", "is_shape_scene",
            "shape_scene_from_dict", "shape_scene_to_dict", "tangent_directions", "curvature_from_radii",
            "radius_tensor", "bounding_radius", "candidate_pairs", "common_normals"]

@@ -47,7 +47,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .rigid import Projection, dof_scale, rotation_length, rotations, translations
+from .metric import Metric, default_length, length_metric
+from .rigid import Projection, rotations, translations
 from .scene import Scene
 from .stiffness import ContactBlocks, assemble, contact_blocks
 from .vec import rot_dim, rotate_matrix
@@ -90,8 +91,9 @@ class SparseProblem:
     """
 
     scene: Scene
-    length: float
-    scale: np.ndarray
+    length: float | None
+    scale: np.ndarray | None
+    metric: Metric
     H: sp.csr_matrix
     Hs: sp.csr_matrix
     Hm: sp.csr_matrix
@@ -118,17 +120,26 @@ class SparseProblem:
         return Projection.from_rotations(self.C)
 
 
-def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK) -> SparseProblem:
-    """Assemble the scaled elastic H̃ = D H D (and its mechanical part) as CSR from the contact blocks, computed in
-    chunks of contacts and scattered once (stiffness.assemble); its symmetric part, the sliding factors and the rigid
-    bases. Memory O(contacts); no per-part block arrays are kept."""
+@dataclass(frozen=True, eq=False)
+class SparseParts:
+    """The metric-independent part of the sparse path (physical dofs): CSR H and Hm, sliding factors A, S (n, Ms),
+    the contacts' local data (ContactBlocks without blocks) and the timings of building them."""
+
+    H: sp.csr_matrix
+    Hm: sp.csr_matrix
+    A: np.ndarray
+    S: np.ndarray
+    sliding: np.ndarray
+    local: ContactBlocks
+    timings: dict
+
+
+def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
+    """H and its mechanical part as CSR from the contact blocks, computed in chunks of contacts and scattered once
+    (stiffness.assemble), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
     t0 = time.perf_counter()
-    length = length or rotation_length(scene)
-    D = dof_scale(scene, length)
     per = scene.dof_per_particle
     M, n_loc = scene.n_contacts, 2 * per
-    loc = np.tile(D[:per], 2)                                          # D is the same on every particle
-    w = loc[None, :, None] * loc[None, None, :]
     total = np.empty((M, n_loc, n_loc))
     mech = np.empty((M, n_loc, n_loc))
     a = np.empty((M, n_loc))
@@ -137,8 +148,8 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     undetermined = np.zeros(M, bool)
     for sl, cb in contact_chunks(scene, chunk):
         b = cb.blocks
-        np.multiply(b["Hm"] + b["Hg1"] + b["Hg2"] + b["Hg3"], w, out=total[sl])
-        np.multiply(b["Hm"], w, out=mech[sl])
+        total[sl] = b["Hm"] + b["Hg1"] + b["Hg2"] + b["Hg3"]
+        mech[sl] = b["Hm"]
         a[sl], s[sl], index[sl] = cb.slide_left, cb.slide_right, cb.index
         undetermined[sl] = cb.rolling_undetermined
     t1 = time.perf_counter()
@@ -146,7 +157,6 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     del total
     Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
     del mech
-    Hs = ((H + H.T) * 0.5).tocsr()
     sliding = np.flatnonzero(scene.at_yield())
     n, Ms = scene.n_dof, len(sliding)
     A = np.zeros((n, Ms))
@@ -154,21 +164,40 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     if Ms:
         rows = index[sliding]
         cols = np.broadcast_to(np.arange(Ms)[:, None], rows.shape)
-        np.add.at(A, (rows, cols), a[sliding] * loc)
-        np.add.at(S, (rows, cols), s[sliding] * loc)
-    C = rotations(scene, length)
+        np.add.at(A, (rows, cols), a[sliding])
+        np.add.at(S, (rows, cols), s[sliding])
+    local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=n,
+                          rolling_undetermined=undetermined)
+    return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local,
+                       timings={"blocks": t1 - t0, "assembly": time.perf_counter() - t1})
+
+
+def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK, *,
+                   metric: Metric | None = None, parts: SparseParts | None = None) -> SparseProblem:
+    """The sparse problem in a metric's dofs (metric.py; default the L metric with `length`, itself defaulting to
+    the mean contact radius): H̃ = D H D and its mechanical part (sparse congruences, O(nnz)), sym(H̃), the scaled
+    sliding factors and the rigid bases. `parts` (sparse_parts) are shared by every metric of a family."""
+    if metric is None:
+        metric = length_metric(scene, length or default_length(scene), name="L")
+    parts = parts or sparse_parts(scene, chunk)
+    t1 = time.perf_counter()
+    D = metric.matrix()
+    H = (D @ parts.H @ D).tocsr()
+    Hm = (D @ parts.Hm @ D).tocsr()
+    Hs = ((H + H.T) * 0.5).tocsr()
+    A, S = np.asarray(D @ parts.A), np.asarray(D @ parts.S)
+    Ms = A.shape[1]
+    C = metric.rotations(scene)
     Q, _ = np.linalg.qr(C)
-    T = translations(scene) / np.sqrt(scene.n_particles)
+    T, _ = np.linalg.qr(metric.translations(scene))
     R = np.concatenate([T, Q], axis=1)
     norm = float(abs(Hs).sum(axis=1).max()) if Hs.nnz else 1.0
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
-    t2 = time.perf_counter()
-    local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=n,
-                          rolling_undetermined=undetermined)
-    return SparseProblem(scene=scene, length=length, scale=D, H=H, Hs=Hs, Hm=Hm, A=A, S=S, sliding=sliding, C=C,
-                         Q=Q, R=R, norm=max(norm, 1e-300), local=local,
-                         timings={"blocks": t1 - t0, "assembly": t2 - t1})
+    return SparseProblem(scene=scene, length=metric.rotation_length, scale=metric.diagonal, metric=metric, H=H,
+                         Hs=Hs, Hm=Hm, A=A, S=S, sliding=parts.sliding, C=C, Q=Q, R=R, norm=max(norm, 1e-300),
+                         local=parts.local, timings={**parts.timings, "projection": time.perf_counter() - t1})
+
 
 
 # ------------------------------------------------------------------------------------------ the operator
@@ -514,8 +543,9 @@ class TwoLevel:
         # tentative prolongator: rigid motions of each aggregate, rows (particle dofs), cols (aggregate modes)
         loc = np.zeros((N, per, per))
         loc[:, :d, :d] = np.eye(d)
-        loc[:, :d, d:] = rotate_matrix(x - centre[agg]) / sp_.length
+        loc[:, :d, d:] = rotate_matrix(x - centre[agg])
         loc[:, d:, d:] = np.eye(r)
+        loc = np.linalg.solve(sp_.metric.blocks, loc)                  # D⁻¹: the metric's dofs
         rows = np.broadcast_to((np.arange(N) * per)[:, None, None] + np.arange(per)[None, :, None], loc.shape)
         cols = np.broadcast_to((agg * per)[:, None, None] + np.arange(per)[None, None, :], loc.shape)
         P0 = sp.csr_matrix((loc.reshape(-1), (rows.reshape(-1), cols.reshape(-1))), shape=(n, n_agg * per))
@@ -627,7 +657,7 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK) -> dict:
     from .checks import identity_errors as core_identities
 
     scene = sp_.scene
-    Dinv = sp.diags(1.0 / sp_.scale)
+    Dinv = sp_.metric.inverse_matrix()
     H = (Dinv @ sp_.H @ Dinv).tocsr()
     rigid = np.concatenate([translations(scene), rotations(scene, 1.0)], axis=1)
     applied = {name: np.zeros(rigid.shape) for name in ("Hg1", "Hg2", "Hm")}
@@ -652,122 +682,6 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK) -> dict:
 DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this many dofs, the sparse one above
 
 
-def analyze_sparse(scene: Scene, *, k: int = 6, rotation_length_: float | None = None, max_sliding: int = 16,
-                   on_branch=None, progress: bool = False, tol: float = 0.0):
-    """`analyze` on the sparse path: per loading branch the lowest k non-rigid eigenpairs of sym(𝓗^i) plus the
-    rigid modes (code RIGID), with the Appendix-D consistency of each, verdicts, identities and timings.
-
-    What differs from the dense path (and is said in `warnings`): the spectra are partial (the k lowest), so the
-    verdict rests on them — it is exact for "unstable"/"neutral" when a consistent non-positive eigenpair is among
-    them, and "stable" is proven when the lowest eigenvalue is positive (verified by inertia); ℍ^i (uniqueness,
-    Type-2) is not evaluated: uniqueness_eigenvalues are empty, uniqueness_n_zero is -1 and
-    errors has no "eigen_residual_uniqueness". `load_response` and `second_order_work` need the dense path.
-    """
-    from .analysis import Analysis, Timer, curvature_warnings, equilibrium_residual, flag_undetermined
-    from .branches import Problem, enumerate_masks
-    from .scene import SceneError
-    from .verdicts import summarize
-
-    timer = Timer()
-    warnings = []
-    with timer("total"):
-        length = rotation_length_ or rotation_length(scene)
-        spb = sparse_problem(scene, length)
-        timer.times.update(spb.timings)
-        blocks = spb.local
-        warnings += curvature_warnings(scene, blocks)
-        Ms = len(spb.sliding)
-        if Ms > max_sliding:
-            raise SceneError(f"{scene.source}: {Ms} potentially sliding contacts: 2^{Ms} branches exceed "
-                             f"max_sliding = {max_sliding}")
-        problem = Problem(H_el=spb.H, A=spb.A, S=spb.S, projection=spb.projection, rigid=spb.R,
-                          sliding=spb.sliding, n_contacts=scene.n_contacts, tol=scene.tol)
-        masks = enumerate_masks(spb.sliding, scene.n_contacts)
-        branches = []
-        unverified = incomplete = 0
-        with timer("branches"):
-            norm2 = max(norm_estimate(spb.Hs), 1e-300)
-            bar = _progress(len(masks), "branches (sparse)") if progress else None
-            fact = None
-            for mask in masks:
-                modes = lowest_modes(spb, k + 1, mask, factorization=fact, tol=tol)
-                fact = modes.info.get("factorization")
-                b, cut = _sparse_branch(problem, spb, modes, mask, k, norm2)
-                unverified += not modes.verified
-                incomplete += cut
-                branches.append(b)
-                if on_branch is not None:
-                    on_branch(b)
-                if bar is not None:
-                    bar.update()
-            if bar is not None:
-                bar.close()
-        with timer("errors"):
-            errors = identity_errors(spb)
-            errors["equilibrium_residual"] = equilibrium_residual(scene)
-            errors["eigen_residual_stability"] = max(b.residual_stability for b in branches)
-        summary = flag_undetermined(summarize(scene, branches, problem), blocks)
-    n_free = scene.n_dof - spb.n_rigid
-    warnings.append(f"sparse path: the lowest {min(k, n_free)} of {n_free} non-rigid eigenpairs of sym(𝓗^i) per "
-                    "branch; uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated")
-    if unverified:
-        warnings.append(f"{unverified} branch(es): the inertia check could not prove that the computed eigenvalues "
-                        "are the lowest ones")
-    if incomplete:
-        warnings.append(f"{incomplete} branch(es): the highest computed eigenvalue belongs to a repeated cluster "
-                        "that extends beyond k; its consistency search covers only the computed part")
-    return Analysis(scene=scene, problem=problem, length=length, scale=spb.scale, branches=branches,
-                    summary=summary, errors=errors, timings=timer.times, warnings=warnings)
-
-
-def _progress(total: int, desc: str):
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:                                              # tqdm is optional (the "report" extra)
-        return None
-    return tqdm(total=total, desc=desc, unit="branch", mininterval=0.5)
-
-
-def _sparse_branch(problem, spb: SparseProblem, modes: Modes, mask, k: int, norm2: float):
-    """A branches.Branch from the k+1 lowest modes: rigid modes first in the basis, consistency codes, the
-    subspace search of Appendix D on repeated and non-rigid zero eigenvalues (as branches._branch does)."""
-    from .branches import INCONSISTENT, RIGID, Branch, eigen_groups, search_subspace, test_codes
-
-    n = spb.n
-    ztol = problem.tol.zero_tol(norm2, n)
-    lam_k, V_k = modes.eigenvalues, modes.vectors
-    cut = len(lam_k) > k and k > 0 and lam_k[k] - lam_k[k - 1] <= ztol
-    lam_k, V_k = lam_k[:k], V_k[:, :k]
-    n_rigid = spb.n_rigid
-    lam = np.r_[np.zeros(n_rigid), lam_k]
-    V = np.concatenate([spb.R, V_k], axis=1)
-    order = np.argsort(lam, kind="stable")
-    lam, V = lam[order], V[:, order]
-    rigid = order < n_rigid
-    codes, hinges = test_codes(problem, np.asarray(mask)[None], V[None])
-    codes, hinges = codes[0].copy(), hinges[0].copy()
-    codes[rigid] = RIGID
-    hinges[rigid] = False
-    zero = np.abs(lam) <= ztol
-    for group in eigen_groups(lam, ztol):
-        if len(group) == 1 or np.any(zero[group]):
-            continue
-        found = search_subspace(problem, mask, V[:, group])
-        codes[group] = INCONSISTENT
-        if found is not None:
-            V[:, group[0]], codes[group[0]], hinges[group[0]] = found
-    extra = np.flatnonzero(zero & ~rigid)
-    if extra.size:
-        codes[extra] = INCONSISTENT
-        found = search_subspace(problem, mask, V[:, extra])
-        if found is not None:
-            V[:, extra[0]], codes[extra[0]], hinges[extra[0]] = found
-    res = float(modes.residuals[:k].max() * spb.norm / norm2) if k else 0.0
-    return Branch(mask=np.asarray(mask), stability_eigenvalues=lam, stability_vectors=V, codes=codes, hinges=hinges,
-                  n_zero=int(zero.sum()), zero_tol=ztol, uniqueness_eigenvalues=np.zeros(0, complex),
-                  uniqueness_n_zero=-1, type2=[], residual_stability=res, residual_uniqueness=0.0), bool(cut)
-
-
-__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseProblem", "TwoLevel",
-           "analyze_sparse", "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
-           "operator", "sparse_problem"]
+__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
+           "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
+           "operator", "sparse_parts", "sparse_problem"]

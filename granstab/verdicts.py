@@ -10,56 +10,144 @@ from __future__ import annotations
 
 import numpy as np
 
+from .accuracy import resolved_sign
 from .branches import BOTH, MINUS, PLUS, RIGID, branch_matrices, test_codes
-from .rigid import dof_scale
 from .stiffness import stiffness
 
 CONSISTENT = (PLUS, MINUS, BOTH)
 
 
-def summarize(scene, branches, problem) -> dict:
-    """Counts of consistent eigenvalues over all branches and the verdict with its reason."""
-    pos = neg = zero = 0
-    hinge = False
-    inconsistent_negative = extra_zero = False
+def summarize(branches, notes: dict | None = None) -> dict:
+    """Counts of consistent eigenvalues over all branches and the verdict with its reason.
+
+    Signs come from each eigenvalue's accuracy bound (accuracy.py): |λ| > δ counts with its sign; |λ| <= δ is a zero
+    within accuracy whose sign is not determined (an exact zero only when λ = δ = 0). zero_margin = the smallest
+    |λ|/δ over every non-rigid eigenvalue, zeros included (< 1: some sign is not resolved). `notes` from the backend:
+    complete = False when negative eigenvalues may lie beyond the computed ones (sparse path), suggest_k.
+    """
+    notes = notes or {"complete": True}
+    pos = neg = zero = proven_zero = 0
+    hinge = inconsistent_negative = unresolved_other = non_finite = False
     margin = np.inf
     for b in branches:
-        lam, tol = b.stability_eigenvalues, b.zero_tol
-        nonzero = np.abs(lam) > tol
-        if nonzero.any():
-            margin = min(margin, float(np.abs(lam[nonzero]).min() / max(tol, 1e-300)))
+        lam, acc = b.stability_eigenvalues, b.accuracy
+        non_finite |= not (np.all(np.isfinite(lam)) and np.all(np.isfinite(acc)))
+        sign = resolved_sign(lam, acc)
+        exact = (lam == 0) & (acc == 0)
+        nonrigid = b.codes != RIGID
+        if nonrigid.any():
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(acc > 0, np.abs(lam) / acc, np.where(exact, np.inf, np.nan))
+            margin = min(margin, float(np.nanmin(np.r_[ratio[nonrigid], np.inf])))
         ok = np.isin(b.codes, CONSISTENT)
-        pos += int(np.sum(ok & (lam > tol)))
-        neg += int(np.sum(ok & (lam < -tol)))
-        zero += int(np.sum(ok & nonzero.__invert__()))
-        hinge |= bool(np.any(b.hinges & ok & ((lam < -tol) | ~nonzero)))
-        inconsistent_negative |= bool(np.any(~ok & (lam < -tol)))
-        extra_zero |= bool(np.any((b.codes != RIGID) & ~nonzero))
+        pos += int(np.sum(ok & (sign > 0)))
+        neg += int(np.sum(ok & (sign < 0)))
+        zero += int(np.sum(ok & (sign == 0)))
+        proven_zero += int(np.sum(ok & exact))
+        hinge |= bool(np.any(b.hinges & ok & (sign <= 0)))
+        inconsistent_negative |= bool(np.any(~ok & nonrigid & (sign < 0)))
+        unresolved_other |= bool(np.any(~ok & nonrigid & (sign == 0) & ~exact))
+    because = []
+    complete = notes.get("complete", True)
     if neg:
-        verdict, sufficient = "unstable", True
-        reason = f"{neg} consistent negative eigenvalue(s) of sym(𝓗^i): negative second-order work (eq:instab)"
+        verdict = "unstable"
+        reason = (f"{neg} consistent negative eigenvalue(s) of sym(𝓗^i), each below minus its accuracy bound: "
+                  "negative second-order work (eq:instab)")
     elif zero:
-        verdict, sufficient = "neutral", True
+        verdict = "neutral"
         reason = f"{zero} consistent non-rigid zero eigenvalue(s): zero second-order work (eq:neutral)"
+        if proven_zero < zero:
+            because.append("unresolved_sign")
+            reason += (f"; NOT DETERMINED: {zero - proven_zero} of them zero only within their accuracy bound — "
+                       "their sign is not resolved in double precision")
+    elif not complete:
+        verdict = "not determined"
+        because.append("partial_spectrum")
+        reason = ("no consistent negative or zero eigenpair among the computed ones, but negative eigenvalues beyond "
+                  f"them are not excluded; rerun with k >= {notes.get('suggest_k', '?')}")
     else:
         verdict = "stable"
-        sufficient = not (inconsistent_negative or extra_zero)
-        reason = ("every branch positive definite off the rigid modes (eq:stab)" if sufficient else
-                  "no consistent negative or zero eigenmode, but some eigenvalues are negative or zero with "
-                  "inconsistent eigenvectors: the sufficient condition of eq:stab is not met (Sec. 3.2)")
+        reason = "every branch positive definite off the rigid modes (eq:stab)"
+        if inconsistent_negative:
+            because.append("inconsistent_negative")
+        if unresolved_other:
+            because.append("unresolved_sign")
+        if because:
+            reason = ("no consistent negative or zero eigenmode, but some eigenvalues are negative or zero (within "
+                      "accuracy) with inconsistent eigenvectors: the sufficient condition of eq:stab is not met "
+                      "(Sec. 3.2)")
+    if non_finite:
+        because.append("non_finite")
     type2 = any(b.type2 for b in branches)
-    return {
+    out = {
         "verdict": verdict,
-        "sufficient": sufficient,
+        "sufficient": not because,
+        "insufficient_because": because,
         "reason": reason,
         "consistent_positive": pos,
         "consistent_negative": neg,
         "consistent_zero": zero,
+        "counts_are": {"consistent_positive": "totals" if notes.get("full", complete) else "lower bounds",
+                       "consistent_negative": "totals" if complete else "lower bounds",
+                       "consistent_zero": "totals" if complete else "lower bounds"},
         "type2_nonuniqueness": type2,
         "hinges_on_tolerance": hinge,
         "n_branches": len(branches),
         "zero_margin": None if not np.isfinite(margin) else margin,
     }
+    if not complete:
+        out["suggest_k"] = notes.get("suggest_k")
+    return out
+
+
+def family_entry(metric, summary: dict) -> dict:
+    """One metric's line of summary["metrics"] (issue 11)."""
+    return {"metric": metric.name, "rotation_length": metric.rotation_length, "verdict": summary["verdict"],
+            "sufficient": summary["sufficient"], "consistent_positive": summary["consistent_positive"],
+            "consistent_negative": summary["consistent_negative"]}
+
+
+def finalize(summary: dict, errors: dict, blocks, entries: list | None) -> dict:
+    """The summary's last word on sufficiency: non-finite error estimates, undetermined rolling (flag_undetermined)
+    and, over the metric family `entries`, whether verdict and counts are metric-robust; `sufficient` is True only
+    when `insufficient_because` is empty."""
+    because = summary["insufficient_because"]
+    if not all(np.isfinite(v) for v in errors.values()) and "non_finite" not in because:
+        because.append("non_finite")
+    flag_undetermined(summary, blocks)
+    if entries is not None:
+        key = ("verdict", "consistent_positive", "consistent_negative")
+        summary["metrics"] = entries
+        summary["metric_robust"] = all(tuple(e[k] for k in key) == tuple(entries[0][k] for k in key)
+                                       for e in entries)
+        # a contradiction: another metric PROVES a different verdict (one that only leaves the sign unresolved,
+        # e.g. an eigenvalue scaled below its accuracy bound, is listed but contradicts nothing)
+        if any(e["verdict"] != summary["verdict"] and e["sufficient"] for e in entries):
+            because.append("metric_dependent")
+        if len({e["verdict"] for e in entries}) > 1:
+            summary["reason"] += ("; the verdict depends on the projection metric: "
+                                  + ", ".join(f"{e['metric']} {e['verdict']}" for e in entries))
+    else:
+        summary["metric_robust"] = None
+        summary["metrics"] = []
+    if "non_finite" in because:
+        summary["reason"] += "; NOT DETERMINED: some computed numbers are not finite (overflow)"
+    summary["sufficient"] = not because
+    return summary
+
+
+def flag_undetermined(summary: dict, blocks) -> dict:
+    """Where a loaded contact's rolling is undetermined (K^p + K^q singular: the pseudo-inverse cut-off decides),
+    the verdict is not a proof: sufficient = False, hinges_on_tolerance = True, and the reason says why."""
+    n_bad = int(np.sum(blocks.rolling_undetermined))
+    if n_bad:
+        summary["insufficient_because"].append("rolling_undetermined")
+        summary["sufficient"] = False
+        summary["hinges_on_tolerance"] = True
+        summary["reason"] += (f"; NOT DETERMINED: {n_bad} loaded contact(s) with K^p + K^q singular (flat-on-flat or "
+                              "exact hand-in-glove) — their rolling is undetermined and the verdict rests on the "
+                              "pseudo-inverse cut-off (pinv_rtol)")
+    return summary
 
 
 def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
@@ -69,9 +157,9 @@ def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
     solutions on different branches that differ by more than a rigid motion. Solutions are physical motions with
     the rigid part removed.
     """
-    problem, scene = analysis.problem, analysis.scene
-    D = dof_scale(scene, analysis.length)
-    rhs = D * np.asarray(load_increment, dtype=float)
+    problem = analysis.problem
+    metric = analysis.metric
+    rhs = metric.physical(np.asarray(load_increment, dtype=float))   # D d𝕓: ℍ̃ Ũ = D H D Ũ
     masks = np.array([b.mask for b in analysis.branches])
     _, HH, _ = branch_matrices(problem, masks)
     solutions = []
@@ -82,7 +170,7 @@ def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
         code, hinge = (int(c[0, 0]) for c in test_codes(problem, mask[None], x[None, :, None]))
         ok = residual <= rtol and code in (PLUS, BOTH)
         solutions.append({"mask": mask.tolist(), "residual": residual, "consistent": ok, "hinges": bool(hinge),
-                          "motion": D * x, "scaled": x})
+                          "motion": metric.physical(x), "scaled": x})
     good = [s for s in solutions if s["consistent"]]
     distinct = any(np.linalg.norm(a["scaled"] - b["scaled"]) > 1e-6 * max(np.linalg.norm(a["scaled"]), 1e-300)
                    for i, a in enumerate(good) for b in good[i + 1:])
@@ -93,13 +181,13 @@ def second_order_work(analysis, motion) -> dict:
     """dUᵀ 𝓗^i dU for a motion dU on the branch its own S signs select (eq:newinner), split into geometric
     (Hg1 + Hg2 + Hg3) and mechanical (Hm) parts; negative work means softening along dU (Sec. 3.2)."""
     problem, scene = analysis.problem, analysis.scene
-    D = dof_scale(scene, analysis.length)
-    u = np.asarray(motion, dtype=float) / D
+    metric = analysis.metric
+    u = metric.scaled(np.asarray(motion, dtype=float))
     S = problem.S.T @ u
     mask = np.zeros(scene.n_contacts, dtype=int)
     mask[problem.sliding] = np.where(S > problem.s_tol, 1, -1)
     K = stiffness(scene, mask)
-    v = D * problem.projection.apply(u)                              # physical motion, rigid rotation removed
+    v = metric.physical(problem.projection.apply(u))                              # physical motion, rigid rotation removed
     geometric = float(v @ (K.Hg1 + K.Hg2 + K.Hg3) @ v)
     mechanical = float(v @ K.Hm @ v)
     return {"mask": mask.tolist(), "work": geometric + mechanical, "geometric": geometric, "mechanical": mechanical}

@@ -114,7 +114,7 @@ def _same_scene(a, b, rtol=1e-14):
 def test_two_particle_presets(name, rho, verdict, lam6):
     sc = granstab.load_scene(PRESETS / name)
     _same_scene(sc, two_particle.scene(1.0, rho, 0.01, state="auto"))
-    res = granstab.analyze(sc, rotation_length_=1.0)
+    res = granstab.analyze(sc, rotation_length=1.0)
     assert res.summary["verdict"] == verdict
     lam = res.branches[0].stability_eigenvalues
     assert np.min(np.abs(lam - lam6)) <= 1e-14

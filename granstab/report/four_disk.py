@@ -7,6 +7,7 @@ import numpy as np
 from matplotlib import rc_context
 from matplotlib.figure import Figure
 
+import granstab
 from granstab.branches import BOTH, MINUS, PLUS
 from granstab.studies import four_disk
 
@@ -45,6 +46,7 @@ def run(out: Path, tick, say) -> dict:
     """The four-disk study and its sweeps → CSV data, two figures and claims 4.2-a … 4.2-k."""
     data = four_disk.study(progress=tick)
     clusters = four_disk.cluster_sweep()
+    data["metrics"] = granstab.analyze(four_disk.scene(**four_disk.PAPER)).summary["metrics"]   # issue 11
     data["clusters"] = clusters
     t, ut = data["totals"], data["uniqueness_totals"]
     say(f"four-disk: 16 branches, zeros per branch {span(t['zeros_min'], t['zeros_max'])}, consistent non-zero "
@@ -285,6 +287,7 @@ def markdown(result: dict, link) -> str:
     add("| totals | " + " | ".join(f"{r['consistent_nonzero']} ({r['positive']}/{r['negative']})"
                                    for r in sw["s_rtol"]) + " |")
     add("")
+    add(metric_table(data["metrics"]))
     add("| zero tolerance factor | " + " | ".join(f"{r['value']:.0e}" for r in sw["zero_factor"]) + " |")
     add("|---|" + "---|" * len(sw["zero_factor"]))
     add("| totals | " + " | ".join(f"{r['consistent_nonzero']} ({r['positive']}/{r['negative']})"
@@ -365,3 +368,16 @@ def markdown(result: dict, link) -> str:
         f"a motion without rotation), mechanical {bound(float(np.max(np.abs(w['core_mechanical']))))}. As the paper "
         "says, no frictionally blocked energy is released: all of this softening is geometric.\n")
     return "\n".join(L)
+
+
+def metric_table(metrics: list) -> str:
+    """The four-disk totals across the projection metric family (issue 11), the paper's column (L = r = 1) marked."""
+    head = " | ".join(f"**{e['metric']} = {g(e['rotation_length'])} (paper)**" if e["metric"] == "L" else
+                      f"{e['metric']} = {g(e['rotation_length'])}" for e in metrics)
+    rows = " | ".join(f"{e['consistent_positive'] + e['consistent_negative']} ({e['consistent_positive']}/"
+                      f"{e['consistent_negative']}), {e['verdict']}" for e in metrics)
+    return ("Across the projection metric (rotation length L of [du, L dθ], `--metric`, issue 11) the counts "
+            "change and the verdict (unstable) does not: the counts are not properties of the packing alone. "
+            "(Zero eigenvalues of sym(𝓗^i) are decided by each eigenvalue's accuracy bound, granstab/accuracy.py; "
+            "the zero tolerance factor below now only sets the null space of ℍ^i.)\n\n"
+            f"| projection metric | {head} |\n|---|" + "---|" * len(metrics) + f"\n| totals, verdict | {rows} |\n")

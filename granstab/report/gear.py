@@ -62,7 +62,7 @@ def run(out: Path, tick, say) -> dict:
 def _gear_mode() -> dict:
     """The computed extra null vector of the zero-rolling packing, per disk (from the core's branch)."""
     sc = gear.packing(**{k: gear.DEFAULT[k] for k in ("nx", "ny", "R", "f_h", "f_v", "k", "alpha", "mu")})
-    res = granstab.analyze(sc)
+    res = granstab.analyze(sc, metric="L")
     b = res.branches[0]
     j = [i for i, c in enumerate(b.codes) if c in (PLUS, MINUS, BOTH) and abs(b.stability_eigenvalues[i]) <= b.zero_tol]
     v = b.stability_vectors[:, j[0]]

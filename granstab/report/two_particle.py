@@ -132,7 +132,7 @@ def _hand_in_glove() -> dict:
     sc = two_particle.scene(1.0, 1.0, 0.01, rq=2.0, rhoq=-1.002, state="auto")
     K = granstab.stiffness(sc)
     Hg = K.Hg1 + K.Hg2 + K.Hg3
-    res = granstab.analyze(sc, rotation_length_=1.0)
+    res = granstab.analyze(sc, metric="L", rotation_length=1.0)
     lam = res.branches[0].stability_eigenvalues
     return {"ratio": float(np.linalg.norm(Hg, 2) / np.linalg.norm(K.Hm, 2)),
             "eig": [float(v) for v in lam[np.abs(lam) > res.branches[0].zero_tol]],

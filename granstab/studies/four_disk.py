@@ -191,7 +191,7 @@ def uniqueness_totals(rows) -> dict:
 def count(**params) -> dict:
     """Totals of sym(𝓗^i) for one parameter set (keywords of `scene`)."""
     tol = params.pop("tol", DEFAULT_TOL)
-    result = granstab.analyze(scene(**params, tol=tol))
+    result = granstab.analyze(scene(**params, tol=tol), metric="L")
     t = totals(stability_table(result))
     t["verdict"] = result.summary["verdict"]
     return t
@@ -265,7 +265,7 @@ def mechanical_only(**params) -> dict:
     """Totals with the geometric stiffness switched off (H = Hm on every branch), same consistency test: which
     consistent eigenvalues owe their sign or their consistency to Hg."""
     sc = scene(**{**PAPER, **params})
-    result = granstab.analyze(sc)
+    result = granstab.analyze(sc, metric="L")
     cb = contact_blocks(sc)
     Hm = assemble(cb.blocks["Hm"], sc.p, sc.q, sc.dof_per_particle, cb.n_dof).toarray()
     problem = dataclasses.replace(result.problem, H_el=result.scale[:, None] * Hm * result.scale[None, :])
@@ -282,7 +282,7 @@ def cluster_sweep(gaps=CLUSTER_GAPS, **params) -> list[dict]:
     vector as a whole, as the core does for exactly repeated eigenvalues) instead of as separate eigenvectors.
     gap = 0 is the core's rule. Clusters split only by the O(f/k) geometric terms merge once gap exceeds their split."""
     sc = scene(**{**PAPER, **params})
-    result = granstab.analyze(sc)
+    result = granstab.analyze(sc, metric="L")
     problem = result.problem
     masks = np.array([b.mask for b in result.branches])
     _, _, Hsym = branch_matrices(problem, masks)
@@ -364,7 +364,7 @@ def sliding_path(betas_deg=None, mu: float = PAPER["mu"], alpha: float = PAPER["
         for name in ("Hg1", "Hg2", "Hg3", "Hm"):
             work[name].append(float(w @ getattr(K, name) @ w))
         work["total"].append(float(w @ K.H @ w))
-        sow = granstab.second_order_work(granstab.analyze(sc), w)
+        sow = granstab.second_order_work(granstab.analyze(sc, metric="L"), w)
         masks.append(sow["mask"])
         work["core_total"].append(sow["work"])
         work["core_geometric"].append(sow["geometric"])
@@ -400,7 +400,7 @@ def n_steps() -> int:
 def study(progress=None) -> dict:
     """Everything `granstab reproduce four-disk` reports."""
     tick = progress or (lambda: None)
-    result = granstab.analyze(scene(**PAPER))
+    result = granstab.analyze(scene(**PAPER), metric="L")
     rows = stability_table(result)
     urows = uniqueness_table(result)
     tick()

@@ -74,7 +74,7 @@ def _sym_calH(result) -> np.ndarray:
 def analyse(scene: granstab.Scene, nx: int) -> dict:
     """The single (elastic) branch of a packing: zero count, the non-rigid null space and the gear vector in it,
     or (with rolling stiffness) the lowest non-rigid mode and how close it is to the gear vector."""
-    result = granstab.analyze(scene)
+    result = granstab.analyze(scene, metric="L")
     b = result.branches[0]
     Hs = _sym_calH(result)
     lam, V = np.linalg.eigh(Hs)

@@ -210,8 +210,8 @@ def scene(r: float = 1.0, rho: float = 0.5, f: float = 0.01, k: float = 1.0, alp
 
 
 def core_modes(r: float, rho: float, f: float, k: float = 1.0, alpha: float = 1.0) -> dict:
-    """λ⁽⁴⁻⁶⁾ of the symmetric case computed by granstab.analyze (paper's metric, rotation_length_ = 1)."""
-    result = granstab.analyze(scene(r, rho, f, k, alpha), rotation_length_=1.0)
+    """λ⁽⁴⁻⁶⁾ of the symmetric case computed by granstab.analyze (paper's metric, rotation_length = 1)."""
+    result = granstab.analyze(scene(r, rho, f, k, alpha), metric="L", rotation_length=1.0)
     branch = result.branches[0]
     _, _, calH = branch_matrices(result.problem, branch.mask[None])   # the core's sym(𝓗) (= 𝓗, H symmetric)
     modes = identify_modes(calH[0], rigid_basis(r, r))

@@ -1,0 +1,159 @@
+"""Issue 15: verdicts never claim more than the numbers prove — per-eigenvalue accuracy bounds decide sign against
+zero (accuracy.py), `sufficient` is True only when every number is finite and resolved, every branch examined and
+the verdict holds across the metric family; the sparse path labels its counts and proves "stable" only by inertia.
+(The sharp pair at f/k = 1e-13 and 1e-14 is in test_extreme.py.)"""
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import granstab
+from granstab.branches import RIGID, Branch, INCONSISTENT
+from granstab.scene import SceneError
+from granstab.verdicts import summarize
+
+PRESETS = Path(__file__).parents[1] / "presets"
+
+
+def scaled_forces(path: Path, factor: float) -> dict:
+    """A contact-level scene with every contact force (and moment) × factor; loads re-derived (equilibrium)."""
+    d = json.loads(path.read_text())
+    for c in d["contacts"]:
+        c["force"] = [factor * v for v in c["force"]]
+        if "moment" in c:
+            c["moment"] = (np.asarray(c["moment"], float) * factor).tolist()
+    for p in d["particles"]:
+        p.pop("load", None)
+        p.pop("moment", None)
+    return d
+
+
+@pytest.mark.slow
+def test_annulus_frame_with_forces_times_1e_8_stays_proven_unstable():
+    """annulus_frame × 1e-8: its negative eigenvalues (≈ -1.5e-11, -1.4e-11, -1e-11) were all below the old zero
+    threshold 64·n·ε·‖A‖ ≈ 6.7e-11 and the frame read 'neutral, sufficient'. Each is now resolved by its own bound
+    (≈ 6.6e-12, from the residual and the separate scales of Hm and Hg): unstable like the unscaled frame, proven,
+    zero_margin > 1."""
+    ref = granstab.analyze(granstab.load_scene(PRESETS / "annulus_frame.json"), metric="L")
+    res = granstab.analyze(granstab.scene_from_dict(scaled_forces(PRESETS / "annulus_frame.json", 1e-8)),
+                           metric="L")
+    assert ref.summary["verdict"] == res.summary["verdict"] == "unstable"
+    assert res.summary["sufficient"] is True and res.summary["zero_margin"] > 1.0
+    b = res.branches[0]
+    n = b.stability_eigenvalues.size
+    old_threshold = 64 * n * np.finfo(float).eps * np.abs(b.stability_eigenvalues).max()
+    neg = b.stability_eigenvalues < -b.accuracy
+    assert neg.sum() == 3 and res.summary["consistent_negative"] >= 1
+    assert np.all(-b.stability_eigenvalues[neg] < old_threshold)          # all three were hidden before
+    assert np.all(b.accuracy[neg] < 0.7 * np.abs(b.stability_eigenvalues[neg]))
+
+
+def contact_free(n=30) -> granstab.Scene:
+    return granstab.scene_from_dict({"dim": 2, "particles": [{"name": f"p{i}", "x": [1.5 * i, 0.0]}
+                                                             for i in range(n)]}, source="free.toml")
+
+
+def test_contact_free_scene_dense_is_proven_neutral():
+    """H ≡ 0 exactly: every eigenvalue is exactly zero with a zero bound, so 'neutral' is proven (free particles move
+    without work) — never 'unstable, sufficient' as the old ‖Hs‖-relative tolerance gave on the sparse path."""
+    res = granstab.analyze(contact_free(), method="dense", metric="L")
+    b = res.branches[0]
+    assert np.all(b.stability_eigenvalues == 0) and np.all(b.accuracy == 0)
+    assert res.summary["verdict"] == "neutral" and res.summary["sufficient"] is True
+    assert b.n_zero == 90 and np.sum(b.codes == RIGID) == 3
+    assert res.summary["consistent_zero"] == 1          # the zero eigenspace is searched once (Appendix D)
+
+
+def test_contact_free_scene_sparse_is_not_unstable():
+    """The sparse path's tolerances survive ‖Hs‖ = 0: its eigenvalues (Rayleigh quotients of the deflated operator,
+    ~1e-35) sit inside their bounds, so the verdict is neutral and not proven, with the reason."""
+    res = granstab.analyze(contact_free(), method="sparse", metric="L")
+    assert res.summary["verdict"] == "neutral"
+    assert res.summary["sufficient"] is False and "unresolved_sign" in res.summary["insufficient_because"]
+    assert res.summary["consistent_negative"] == 0
+
+
+def test_sparse_counts_are_labelled_and_become_totals_with_enough_k():
+    """four_disk (16 branches, dense: 9 consistent negatives): with k = 1 the sparse counts are lower bounds
+    (labelled, with a suggested k); with k = 12 every branch's negatives are computed, the negative count per
+    branch equals the dense one and the consistent negatives are the dense total."""
+    scene = granstab.load_scene(PRESETS / "four_disk.toml")
+    dense = granstab.analyze(scene, metric="L", method="dense")
+    dense_neg = [int(np.sum(b.stability_eigenvalues < -b.accuracy)) for b in dense.branches]
+    low = granstab.analyze(scene, metric="L", method="sparse", k=1)
+    assert low.summary["counts_are"]["consistent_negative"] == "lower bounds" and low.summary["suggest_k"] >= 2
+    assert low.summary["consistent_negative"] <= dense.summary["consistent_negative"]
+    assert all(b.negative_count["count"] <= n for b, n in zip(low.branches, dense_neg))
+    full = granstab.analyze(scene, metric="L", method="sparse", k=12)
+    assert set(full.summary["counts_are"].values()) == {"totals"}           # k = 12 >= 9 non-rigid: everything
+    mid = granstab.analyze(scene, metric="L", method="sparse", k=5)
+    assert mid.summary["counts_are"]["consistent_positive"] == "lower bounds"
+    assert [b.negative_count["count"] for b in full.branches] == dense_neg
+    assert all(b.negative_count["total"] for b in full.branches)
+    assert full.summary["consistent_negative"] == dense.summary["consistent_negative"] == 9
+    assert full.summary["verdict"] == "unstable" and full.summary["sufficient"] is True
+
+
+def _branch(lam, codes, acc=1e-15):
+    n = len(lam)
+    return Branch(mask=np.zeros(1, np.int8), stability_eigenvalues=np.array(lam, float),
+                  stability_vectors=np.eye(n), codes=np.array(codes, np.int8), hinges=np.zeros(n, bool), n_zero=0,
+                  zero_tol=acc, uniqueness_eigenvalues=np.zeros(0, complex), uniqueness_n_zero=-1,
+                  bounds=np.full(n, acc))
+
+
+def test_partial_spectrum_with_an_inconsistent_lowest_mode_is_not_stable():
+    """A sparse branch whose only computed eigenpair (k = 1) is negative and inconsistent: more negatives may exist
+    beyond it, so the verdict is 'not determined' with a suggested k — never 'stable'. The same branch with a
+    complete spectrum is 'stable' but not sufficient (an inconsistent negative proves nothing, Sec. 3.2)."""
+    b = _branch([0.0, 0.0, 0.0, -0.3], [RIGID, RIGID, RIGID, INCONSISTENT])
+    partial = summarize([b], {"complete": False, "suggest_k": 28})
+    assert partial["verdict"] == "not determined" and partial["sufficient"] is False
+    assert partial["insufficient_because"] == ["partial_spectrum"] and partial["suggest_k"] == 28
+    assert "k >= 28" in partial["reason"]
+    full = summarize([b], {"complete": True})
+    assert full["verdict"] == "stable" and full["insufficient_because"] == ["inconsistent_negative"]
+
+
+def test_overflow_is_never_a_proof():
+    """Forces and stiffness × 1e300: H stays finite but the error estimates overflow → not sufficient, reason says
+    so; × 1e308 the stiffness itself overflows → a one-line SceneError (exit 2 on the CLI)."""
+    d = tomllib.loads((PRESETS / "two_particle.toml").read_text())
+
+    def scaled(s):
+        return {**d, "defaults": {**d["defaults"], "k": s},
+                "contacts": [{**c, "force": [s * v for v in c["force"]]} for c in d["contacts"]]}
+
+    with np.errstate(over="ignore"):
+        res = granstab.analyze(granstab.scene_from_dict(scaled(1e300), source="big.toml"))
+        assert res.summary["sufficient"] is False and "non_finite" in res.summary["insufficient_because"]
+        assert "not finite" in res.summary["reason"]
+        with pytest.raises(SceneError, match="big.toml: the stiffness H has non-finite entries"):
+            granstab.analyze(granstab.scene_from_dict(scaled(1e308), source="big.toml"))
+    ok = granstab.analyze(granstab.scene_from_dict(scaled(1e150), source="big.toml"))
+    assert ok.summary["verdict"] == "unstable" and ok.summary["sufficient"] is True
+
+
+def test_frame_in_micrometres_with_the_literal_metric_is_not_a_proof():
+    """annulus_frame with lengths × 1e6 (µm; k, curvatures ÷ 1e6): with the default L (mean contact radius) nothing
+    changes — unstable, 4 consistent negatives, proven. With --rotation-length 1 (the paper's literal metric, here
+    10⁶ times smaller than the contact radius) the rotational eigenvalues drop below their accuracy bounds: the old
+    code said 'neutral, sufficient'; now 'neutral' is not sufficient and says why."""
+    d = json.loads((PRESETS / "annulus_frame.json").read_text())
+    s = 1e6
+    d["defaults"]["k"] /= s
+    for p in d["particles"]:
+        p["x"] = [s * v for v in p["x"]]
+    for c in d["contacts"]:
+        c["point"] = [s * v for v in c["point"]]
+        for key in ("curvature_p", "curvature_q"):
+            c[key] = (np.asarray(c[key]) / s).tolist()
+    scene = granstab.scene_from_dict(d, source="frame_um.json")
+    default = granstab.analyze(scene, metric="L")
+    assert default.summary["verdict"] == "unstable" and default.summary["consistent_negative"] == 4
+    assert default.summary["sufficient"] is True
+    literal = granstab.analyze(scene, metric="L", rotation_length=1.0)
+    assert literal.summary["sufficient"] is False
+    assert "unresolved_sign" in literal.summary["insufficient_because"] and literal.summary["zero_margin"] < 1
