@@ -73,6 +73,9 @@ class ClientUI:
             self.info = gui.add_markdown("")
         with tabs.add_tab("Verdict"):
             self.details = gui.add_markdown("")
+            check = gui.add_button("Check other metrics", hint="the verdict in L/10, 10L (and the inertia metric "
+                                   "where masses are known): about 3× the time of one analysis")
+            check.on_click(lambda _: self.run(self._check_metrics))
         with tabs.add_tab("Display"):
             self.show = {key: gui.add_checkbox(label, initial_value=True) for key, label in (
                 ("forces", "Force arrows"), ("normals", "Contact normals"), ("osculating", "Osculating circles"),
@@ -275,10 +278,12 @@ class ClientUI:
 
     # --------------------------------------------------------------------------------------- refresh
     def refresh(self, camera: bool = False, particles: bool = True, skip: str | None = None) -> None:
-        """Write every handle from the session (sliders, verdict, plots, scene)."""
+        """Write every handle from the session: the verdict first (what a slider move is for), then the scene (only
+        the parts that changed are re-sent: SceneView keys each drawing by its data), plots and modes."""
         s = self.session
         self._build_side()
         self._sync_controls()
+        self._write_verdict()
         with self.client.atomic():
             if particles:
                 with self._quiet():                      # gizmo poses written here are not drags
@@ -290,11 +295,15 @@ class ClientUI:
                 self.view.clear_field()
             else:
                 self.view.draw_field(s, field, current)
-        self._write_verdict(legend)
+        self._write_legend(legend)
         self._write_field()
         self._write_modes()
         if camera:
             self._set_camera()
+
+    def _check_metrics(self) -> None:
+        self.session.check_metrics()
+        self._write_verdict()
 
     def _sync_controls(self) -> None:
         """Slider visibility/values and the preset list follow the session without firing callbacks."""
@@ -315,7 +324,7 @@ class ClientUI:
             self.reset.visible = s.resettable
             self.show["surface"].visible = self.exports["contour"].visible = s.kind == "two_particle"
 
-    def _write_verdict(self, legend: dict) -> None:
+    def _write_verdict(self) -> None:
         s = self.session
         r = s.report()
         verdict = r["verdict"]
@@ -353,8 +362,21 @@ class ClientUI:
                 f"| largest error estimate | {worst:.1e} ({name}) |",
                 f"| analysis time | {r['analysis_time'] * 1e3:.1f} ms (with scene: {r['elapsed'] * 1e3:.1f} ms) |",
             ]
+            rows.insert(6, f"| metric | {self._metric_row()} |")
             warn = "".join(f"\n\n**Warning:** {w}" for w in r["warnings"])
             self.details.content = f"**Why:** {r['reason']}\n\n" + "\n".join(rows) + warn
+
+    def _metric_row(self) -> str:
+        """The metric-robustness flag of the core (summary["metric_robust"]) once checked, else how to check."""
+        m = self.session.metrics
+        if m is None or m["revision"] != self.session.revision:
+            return "rotation length L only: *Check other metrics* below runs L/10, 10L (and inertia with masses)"
+        if m["robust"]:
+            return f"this verdict holds for every metric tried ({', '.join(x['metric'] for x in m['metrics'])})"
+        return " · ".join(f"{x['metric']}: {x['verdict']} ({x['consistent_negative']} negative)"
+                          for x in m["metrics"])
+
+    def _write_legend(self, legend: dict) -> None:
         if legend["max_force"] > 0:
             self.legend.content = (
                 f"**Legend** — arrows: the contact force on each particle (pointing into it when compressive; "

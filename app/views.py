@@ -151,6 +151,7 @@ class SceneView:
         self.on_pick = None                       # callback(rho_r, f_kr): a click on the λ⁽⁶⁾ surface
         self.options = {"normals": True, "forces": True, "osculating": True, "surface": True, "force_scale": 1.0}
         self.base = {}                            # particle name → Body drawn (pose of its frame)
+        self._contacts_key, self._legend = None, None   # what /contacts shows now (contacts_key) and its legend
         self.dim = 2
 
     # particles ---------------------------------------------------------------------------------
@@ -161,7 +162,8 @@ class SceneView:
         self.dim = session.scene_dim
         size = session.size
         key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
-        if key != self.key:
+        rebuilt = key != self.key
+        if rebuilt:
             self.api.remove_by_name("/particles")
             self.nodes, self.inner, self.mesh_keys = {}, {}, {}
             self.key = key
@@ -176,13 +178,14 @@ class SceneView:
                     node = self.api.add_frame(name, show_axes=False, position=to3(body.x), wxyz=wxyz(body.R))
                 self.nodes[body.name] = node
                 self.inner[body.name] = self.api.add_frame(f"{name}/body", show_axes=False)
+        drawn = {} if rebuilt else self.base
         for i, body in enumerate(bodies):
             node = self.nodes[body.name]
-            if body.name != skip:
+            old = drawn.get(body.name)
+            moved = old is None or not (np.array_equal(old.x, body.x) and np.array_equal(old.R, body.R))
+            if body.name != skip and moved:          # unchanged poses are not re-sent
                 node.position = to3(body.x)
                 node.wxyz = wxyz(body.R)
-            self.inner[body.name].position = (0.0, 0.0, 0.0)
-            self.inner[body.name].wxyz = (1.0, 0.0, 0.0, 0.0)
             mkey = (body.axes, round(size, 9))
             if self.mesh_keys.get(body.name) != mkey:
                 self.mesh_keys[body.name] = mkey
@@ -235,12 +238,22 @@ class SceneView:
 
     # contacts ----------------------------------------------------------------------------------
     def draw_contacts(self, session) -> dict:
-        """Points, normals, force arrows and osculating arcs; returns the legend numbers."""
+        """Points, normals, force arrows and osculating arcs; returns the legend numbers. Nothing is re-sent when
+        the drawn data (geometry, forces, yield flags, display options) are those already drawn: a μ or α slider
+        move on a 143-disk frame used to re-send 1.5 MB of drawings for an unchanged picture."""
         scene = session.scene
+        size = session.size
+        key = contacts_key(scene, size, self.options)
+        if key == self._contacts_key:
+            return self._legend
+        self._contacts_key = key
+        self._legend = self._draw_contacts(scene, size)
+        return self._legend
+
+    def _draw_contacts(self, scene, size: float) -> dict:
         self.api.remove_by_name("/contacts")
         if scene is None or scene.n_contacts == 0:
             return {"max_force": 0.0, "arrow": 0.0}
-        size = session.size
         z = 0.1 * size if scene.dim == 2 else 0.0
         P = to3(scene.point, z)
         n = to3(scene.normal, 0.0)
@@ -335,6 +348,17 @@ class SceneView:
     def clear_field(self) -> None:
         self._field_key = None
         self.api.remove_by_name("/field")
+
+
+def contacts_key(scene, size: float, options: dict) -> bytes | None:
+    """A digest of everything the contact drawings show (None without a scene)."""
+    if scene is None:
+        return None
+    import hashlib
+    h = hashlib.blake2b(repr((round(size, 12), sorted(options.items()), scene.n_contacts)).encode(), digest_size=16)
+    for a in (scene.point, scene.normal, scene.force, scene.curvature_p, scene.curvature_q, scene.at_yield()):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.digest()
 
 
 def ray_heightfield(origin, direction, field, place, Z, n: int = 2000):

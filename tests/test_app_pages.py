@@ -96,7 +96,8 @@ def test_panels_labels_reset_and_uploads(app, browser, tmp_path):
     page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
     page.get_by_role("option", name="ellipses_sharp").click()
     wait_for(lambda: s.preset == "ellipses_sharp" and s.analysis is not None, what="ellipses_sharp")
-    name = s.scene.names[1]
+    with ui.lock:                   # the page's refresh for the new preset has finished (it holds the lock)
+        name = s.scene.names[1]
     ui.view.nodes[name].position = (8.0, 0.0, 0.0)
     ui._on_drag(name, SimpleNamespace(phase="end"))
     verdict_on_page(page, "no-contact")
@@ -107,6 +108,9 @@ def test_panels_labels_reset_and_uploads(app, browser, tmp_path):
     page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
     page.get_by_role("option", name="two_particle").click()
     verdict_on_page(page, "unstable")
+    wait_for(lambda: s.kind == "two_particle", what="the pair")
+    with ui.lock:
+        pass
     ui.view.nodes["q"].position = (1.98, 0.4, 0.0)
     ui._on_drag("q", SimpleNamespace(phase="end"))
     wait_for(lambda: s.kind == "shapes", what="the drag")

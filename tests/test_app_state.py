@@ -337,7 +337,7 @@ def test_export_analysis_and_contour(pair):
 def test_failed_analysis_is_kept_as_a_message(pair, monkeypatch):
     import app.state as state
 
-    def boom(scene):
+    def boom(scene, **options):
         raise RuntimeError("eigensolver exploded")
     monkeypatch.setattr(state, "analyze", boom)
     pair.set_params(rho_r=0.7)
