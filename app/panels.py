@@ -40,6 +40,7 @@ class ClientUI:
         self._closed = False
         self._player: threading.Thread | None = None
         self._mode_keys: dict[str, tuple] = {}
+        self._spectrum_json = None
         self.selected: tuple | None = None
         self.errors_shown = 0
         self._build()
@@ -113,7 +114,7 @@ class ClientUI:
         self.side, self.side_kind = gui.add_panel(), pair
         self.side.dock_left()
         self.side.set_width(430)
-        self.field_note = self.contour = None
+        self.field_note = self.contour = self._spectrum_json = None
         if pair:
             with self.side.add_tab("λ⁽⁶⁾ field"):
                 self.field_note = gui.add_markdown("")
@@ -335,7 +336,8 @@ class ClientUI:
         title = title if len(title) <= 90 else title[:87] + "…"
         reason = ("" if verdict in (None, "no contact") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
         self.headline.content = (
-            f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" style="background:'
+            f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
+            f'data-revision="{s.revision}" style="background:'
             f'{VERDICT_COLOR.get(verdict, "#555")};color:white;font-weight:700;font-size:1.35em;padding:4px 10px;'
             f'border-radius:6px;letter-spacing:0.05em">{(verdict or "no verdict").upper()}</div>'
             f'<div style="font-style:italic;margin:4px 2px 0 2px">{html.escape(title)}</div>'
@@ -379,7 +381,7 @@ class ClientUI:
     def _write_legend(self, legend: dict) -> None:
         if legend["max_force"] > 0:
             self.legend.content = (
-                f"**Legend** — arrows: the contact force on each particle (pointing into it when compressive; "
+                f"**Legend** — {'lines' if legend.get('lines') else 'arrows'}: the contact force on each particle (pointing into it when compressive; "
                 f"red compressive, blue tensile, orange at the Coulomb limit); length {legend['arrow']:.2g}·size "
                 f"= largest |f| = {legend['max_force']:.3g}. Blue lines: normals n^pq. Purple arcs: osculating "
                 "circles (radius ρ at each contact). Dark stripe: a body axis (turns with the particle).")
@@ -401,7 +403,6 @@ class ClientUI:
     def _write_modes(self) -> None:
         s = self.session
         modes = s.modes()
-        self.spectrum.figure = spectrum_figure(modes)
         keys: dict[str, tuple] = {}
         by_branch: dict[int, int] = {}
         for m in sorted((m for m in modes if m.label != "rigid"), key=lambda m: (m.branch, m.eigenvalue)):
@@ -409,6 +410,12 @@ class ClientUI:
                 keys[m.key] = (m.branch, m.index)
                 by_branch[m.branch] = by_branch.get(m.branch, 0) + 1
         self._mode_keys = keys
+        listed = set(keys.values())
+        shown = [m for m in modes if (m.branch, m.index) in listed or (m.label == "rigid" and len(modes) <= 60)]
+        figure = spectrum_figure(shown, hidden=len(modes) - len(shown))
+        if figure.to_json() != self._spectrum_json:        # a plotly redraw costs the browser seconds: only on change
+            self._spectrum_json = figure.to_json()
+            self.spectrum.figure = figure
         if self.selected not in keys.values():
             pick = next((m for m in sorted(modes, key=lambda m: m.eigenvalue) if m.consistent), None)
             self.selected = (pick.branch, pick.index) if pick else next(iter(keys.values()), None)
@@ -480,8 +487,9 @@ def contour_figure(field, mark):
     return fig
 
 
-def spectrum_figure(modes):
-    """Eigenvalues of sym(𝓗^i) per branch on a signed log scale: ● consistent, ○ not consistent, × rigid."""
+def spectrum_figure(modes, hidden: int = 0):
+    """Eigenvalues of sym(𝓗^i) per branch on a signed log scale: ● consistent, ○ not consistent, × rigid
+    (`hidden`: how many higher eigenvalues are left out, said in the title)."""
     import plotly.graph_objects as go
     fig = go.Figure()
     lam = np.array([m.eigenvalue for m in modes]) if modes else np.zeros(0)
@@ -505,6 +513,9 @@ def spectrum_figure(modes):
             hovertemplate="%{text}<extra></extra>"))
     top = int(np.ceil(float(np.abs(slog(lam)).max()))) if lam.size else 1
     ticks = np.arange(-top, top + 1)
+    if hidden:
+        fig.add_annotation(text=f"lowest {len(modes)} shown, {hidden} higher left out", showarrow=False,
+                           xref="paper", yref="paper", x=1, y=1, xanchor="right", font=dict(size=10))
     fig.update_layout(
         margin=dict(l=60, r=10, t=10, b=30), legend=dict(orientation="h", y=1.08),
         yaxis=dict(title="eigenvalue (signed log scale)", tickvals=ticks.tolist(),

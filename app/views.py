@@ -19,6 +19,7 @@ MARKER = (40, 40, 60)
 COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0, 0), "tensile": (30, 110, 220),
           "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
 Z_UP = np.array([0.0, 0.0, 1.0])
+MAX_ARROWS = 24       # contacts drawn with force arrows (3D meshes); more contacts: force lines (no heads)
 
 
 # ------------------------------------------------------------------------------------------ geometry
@@ -151,7 +152,7 @@ class SceneView:
         self.on_pick = None                       # callback(rho_r, f_kr): a click on the λ⁽⁶⁾ surface
         self.options = {"normals": True, "forces": True, "osculating": True, "surface": True, "force_scale": 1.0}
         self.base = {}                            # particle name → Body drawn (pose of its frame)
-        self._contacts_key, self._legend = None, None   # what /contacts shows now (contacts_key) and its legend
+        self._contact_keys: dict[str, bytes] = {}     # what /contacts shows now: digest per group
         self.dim = 2
 
     # particles ---------------------------------------------------------------------------------
@@ -238,55 +239,69 @@ class SceneView:
 
     # contacts ----------------------------------------------------------------------------------
     def draw_contacts(self, session) -> dict:
-        """Points, normals, force arrows and osculating arcs; returns the legend numbers. Nothing is re-sent when
-        the drawn data (geometry, forces, yield flags, display options) are those already drawn: a μ or α slider
-        move on a 143-disk frame used to re-send 1.5 MB of drawings for an unchanged picture."""
-        scene = session.scene
-        size = session.size
-        key = contacts_key(scene, size, self.options)
-        if key == self._contacts_key:
-            return self._legend
-        self._contacts_key = key
-        self._legend = self._draw_contacts(scene, size)
-        return self._legend
+        """Points, normals, osculating arcs (the geometry) and force arrows; returns the legend numbers.
 
-    def _draw_contacts(self, scene, size: float) -> dict:
-        self.api.remove_by_name("/contacts")
+        Each of the two groups is re-sent only when what it shows changed (`digest` of its data and options): a μ
+        slider move on a 143-disk frame used to re-send 1.5 MB of drawings and cost the browser ≈ 8 s."""
+        scene, size, o = session.scene, session.size, self.options
         if scene is None or scene.n_contacts == 0:
+            if self._contact_keys:
+                self.api.remove_by_name("/contacts")
+                self._contact_keys = {}
             return {"max_force": 0.0, "arrow": 0.0}
         z = 0.1 * size if scene.dim == 2 else 0.0
         P = to3(scene.point, z)
-        n = to3(scene.normal, 0.0)
-        o = self.options
-        self.api.add_point_cloud("/contacts/points", points=P, colors=COLORS["point"], point_size=0.08 * size,
-                                 point_shape="circle")
-        if o["normals"]:
-            self.api.add_line_segments("/contacts/normals", np.stack([P, P + 0.5 * size * n], axis=1),
-                                       COLORS["normal"], thickness=2.5, thickness_units="screen")
+        geometry = digest((size, o["normals"], o["osculating"]), scene.point, scene.normal, scene.curvature_p,
+                          scene.curvature_q)
+        if self._contact_keys.get("geometry") != geometry:
+            self._contact_keys["geometry"] = geometry
+            self._draw_geometry(scene, size, P, z)
         fmag = np.linalg.norm(scene.force, axis=1)
         fmax = float(fmag.max())
         arrow = 0.6 * size * o["force_scale"]
-        if o["forces"] and fmax > 0:
-            f = to3(scene.force, 0.0) / fmax * arrow                  # f^pq: on p; -f^pq on q
-            fn = np.sum(scene.force * scene.normal, axis=1)
-            sliding = scene.at_yield()
-            color = np.where(sliding[:, None], COLORS["sliding"],
-                             np.where((fn > 0)[:, None], COLORS["tensile"], COLORS["compressive"]))
-            keep = fmag > 1e-12 * fmax
-            starts = np.concatenate([P[keep], P[keep]])
-            ends = np.concatenate([P[keep] + f[keep], P[keep] - f[keep]])
-            shaft = 0.035 * size
-            self.api.add_arrows("/contacts/forces", np.stack([starts, ends], axis=1),
-                                np.concatenate([color[keep], color[keep]]).astype(np.uint8),
-                                shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
-        if o["osculating"]:
+        yielding = scene.at_yield()
+        forces = digest((size, o["forces"], o["force_scale"]), scene.point, scene.normal, scene.force, yielding)
+        if self._contact_keys.get("forces") != forces:
+            self._contact_keys["forces"] = forces
+            self.api.remove_by_name("/contacts/forces")
+            if o["forces"] and fmax > 0:
+                self._draw_forces(scene, size, P, fmag, fmax, arrow, yielding)
+        return {"max_force": fmax, "arrow": arrow / size, "lines": scene.n_contacts > MAX_ARROWS}
+
+    def _draw_geometry(self, scene, size, P, z) -> None:
+        for part in ("points", "normals", "osculating"):
+            self.api.remove_by_name(f"/contacts/{part}")
+        self.api.add_point_cloud("/contacts/points", points=P, colors=COLORS["point"], point_size=0.08 * size,
+                                 point_shape="circle")
+        if self.options["normals"]:
+            n = to3(scene.normal, 0.0)
+            self.api.add_line_segments("/contacts/normals", np.stack([P, P + 0.5 * size * n], axis=1),
+                                       COLORS["normal"], thickness=2.5, thickness_units="screen")
+        if self.options["osculating"]:
             data = circle_data(scene, size)
             if data is not None:
                 pts, cen, rad, nout, tan = data
                 cen = cen + np.array([0, 0, z]) if scene.dim == 2 else cen
                 segs = osculating_arcs(pts, cen, rad, nout, tan, size)
-                self.api.add_line_segments("/contacts/osculating", segs, COLORS["osculating"], thickness=1.5, thickness_units="screen")
-        return {"max_force": fmax, "arrow": arrow / size}
+                self.api.add_line_segments("/contacts/osculating", segs, COLORS["osculating"], thickness=1.5,
+                                           thickness_units="screen")
+
+    def _draw_forces(self, scene, size, P, fmag, fmax, arrow, yielding) -> None:
+        f = to3(scene.force, 0.0) / fmax * arrow                  # f^pq: on p; -f^pq on q
+        fn = np.sum(scene.force * scene.normal, axis=1)
+        color = np.where(yielding[:, None], COLORS["sliding"],
+                         np.where((fn > 0)[:, None], COLORS["tensile"], COLORS["compressive"]))
+        keep = fmag > 1e-12 * fmax
+        starts = np.concatenate([P[keep], P[keep]])
+        ends = np.concatenate([P[keep] + f[keep], P[keep] - f[keep]])
+        colors = np.concatenate([color[keep], color[keep]]).astype(np.uint8)
+        if scene.n_contacts > MAX_ARROWS:      # arrow meshes cost the browser ~25 ms each to rebuild: lines instead
+            self.api.add_line_segments("/contacts/forces", np.stack([starts, ends], axis=1),
+                                       np.repeat(colors[:, None], 2, axis=1), thickness=3.0, thickness_units="screen")
+            return
+        shaft = 0.035 * size
+        self.api.add_arrows("/contacts/forces", np.stack([starts, ends], axis=1), colors,
+                            shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
 
     # the λ⁽⁶⁾ surface --------------------------------------------------------------------------
     def field_frame(self, field, size: float):
@@ -350,14 +365,14 @@ class SceneView:
         self.api.remove_by_name("/field")
 
 
-def contacts_key(scene, size: float, options: dict) -> bytes | None:
-    """A digest of everything the contact drawings show (None without a scene)."""
-    if scene is None:
-        return None
+def digest(small, *arrays) -> bytes:
+    """A short digest of a small tuple and some arrays: what a drawing shows, to skip re-sending it unchanged."""
     import hashlib
-    h = hashlib.blake2b(repr((round(size, 12), sorted(options.items()), scene.n_contacts)).encode(), digest_size=16)
-    for a in (scene.point, scene.normal, scene.force, scene.curvature_p, scene.curvature_q, scene.at_yield()):
-        h.update(np.ascontiguousarray(a).tobytes())
+    h = hashlib.blake2b(repr(small).encode(), digest_size=16)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(repr(a.shape).encode())
+        h.update(a.tobytes())
     return h.digest()
 
 
