@@ -80,7 +80,7 @@ class ClientUI:
         with tabs.add_tab("Display"):
             self.show = {key: gui.add_checkbox(label, initial_value=True) for key, label in (
                 ("forces", "Force arrows"), ("normals", "Contact normals"), ("osculating", "Osculating circles"),
-                ("surface", "λ⁽⁶⁾ height surface (pair)"))}
+                ("surface", "λ⁽⁶⁾ height surface (pair)"), ("shares", "Colour particles by the selected mode"))}
             self.force_scale = gui.add_slider("Arrow length ×", min=0.2, max=3.0, step=0.1, initial_value=1.0)
             for h in (*self.show.values(), self.force_scale):
                 h.on_update(lambda _: self.run(self._display))
@@ -425,8 +425,19 @@ class ClientUI:
             self.mode_pick.value = current
         self._describe_mode()
 
+    def _colour_by_mode(self, m) -> None:
+        s = self.session
+        if s.scene is None:
+            return
+        on = m is not None and self.show["shares"].value and s.scene.n_particles > 2
+        names = [b.name for b in s.bodies()]
+        index = {n: i for i, n in enumerate(s.scene.names)}
+        shares = s.particle_shares(m)[[index[n] for n in names]] if on else None
+        self.view.colour_particles(names, shares)
+
     def _describe_mode(self) -> None:
         m = self._current_mode()
+        self._colour_by_mode(m)
         if m is None:
             self.mode_info.content = "No mode to show." if self.session.analysis is not None else ""
             return
@@ -438,7 +449,9 @@ class ClientUI:
         where = f"{sliding} sliding, {unloading} unloading contact(s)" if sliding + unloading else "no contact at yield"
         self.mode_info.content = (f"**{m.label}** mode, λ = {m.eigenvalue:.5g} (branch {m.branch}: {where}), "
                                   f"{way}{' (hinges on the S tolerance)' if m.hinges else ''}. "
-                                  f"Contact deformation: {shares or '—'}. Tick *Play* to animate it.")
+                                  f"Contact deformation: {shares or '—'}. Tick *Play* to animate it."
+                                  + (" Particle colour: its share of this mode's motion, white 0 → dark red "
+                                     "100 % of the largest." if self.view.colours_by_mode else ""))
 
     def _set_camera(self) -> None:
         s = self.session

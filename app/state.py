@@ -284,6 +284,13 @@ class Session:
         """A particle length scale (mean largest semi-axis): sets arrows, markers and the animation amplitude."""
         return float(np.mean([max(b.axes) for b in self.bodies()]))
 
+    def particle_shares(self, mode: Mode) -> np.ndarray:
+        """Where the mode lives: each particle's |motion| √(|du|² + (size·|dθ|)²) over the largest one (N,), in [0, 1]."""
+        b = self.analysis.branches[mode.branch]
+        du, dth = mode_offsets(self.scene, self.analysis.motion(b.stability_vectors[:, mode.index]), self.size)
+        share = np.sqrt(np.sum(du ** 2, axis=1) + self.size ** 2 * np.sum(dth ** 2, axis=1))
+        return share / max(float(share.max()), 1e-300)
+
     def mode_bodies(self, mode: Mode, amplitude: float, phase: float) -> list[Body]:
         """Bodies displaced along `mode` at `phase` (radians): x + A s du, R(A s dθ) R with s the phase factor.
 

@@ -19,6 +19,7 @@ MARKER = (40, 40, 60)
 COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0, 0), "tensile": (30, 110, 220),
           "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
 Z_UP = np.array([0.0, 0.0, 1.0])
+SHARE_RED = np.array([150, 0, 20])      # the colour of a particle carrying the whole of the selected mode
 MAX_ARROWS = 24       # contacts drawn with force arrows (3D meshes); more contacts: force lines (no heads)
 
 
@@ -147,6 +148,9 @@ class SceneView:
         self.nodes: dict[str, object] = {}        # particle name → frame / transform controls
         self.inner: dict[str, object] = {}        # particle name → /body frame (animation offset)
         self.mesh_keys: dict[str, tuple] = {}
+        self.meshes: dict[str, object] = {}       # particle name → mesh handle
+        self.colours: dict[str, tuple] = {}       # particle name → colour shown now
+        self.colours_by_mode = False
         self.key = None                           # (model id, particle names, draggable) the tree was built for
         self.on_drag = None                       # callback(name, event) set by the panel
         self.on_pick = None                       # callback(rho_r, f_kr): a click on the λ⁽⁶⁾ surface
@@ -166,7 +170,7 @@ class SceneView:
         rebuilt = key != self.key
         if rebuilt:
             self.api.remove_by_name("/particles")
-            self.nodes, self.inner, self.mesh_keys = {}, {}, {}
+            self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
             self.key = key
             for i, body in enumerate(bodies):
                 name = f"/particles/{body.name}"
@@ -192,8 +196,9 @@ class SceneView:
                 self.mesh_keys[body.name] = mkey
                 V, F = body_mesh(body, 0.15 * size)
                 base = f"/particles/{body.name}/body"
-                self.api.add_mesh_simple(f"{base}/mesh", V, F, color=PALETTE[i % len(PALETTE)], flat_shading=False,
-                                         side="double", opacity=None if self.dim == 2 else 0.45)
+                self.meshes[body.name] = self.api.add_mesh_simple(
+                    f"{base}/mesh", V, F, color=self.colours.get(body.name, PALETTE[i % len(PALETTE)]),
+                    flat_shading=False, side="double", opacity=None if self.dim == 2 else 0.45)
                 a, b = body.axes[0], body.axes[1]
                 if self.dim == 2:   # along body e2: clear of the force arrows of the pair (along e1)
                     w = 0.06 * size
@@ -204,6 +209,17 @@ class SceneView:
                 else:
                     self.api.add_icosphere(f"{base}/marker", radius=0.12 * size, color=MARKER, position=(a, 0.0, 0.0))
         self.base = {b.name: b for b in bodies}
+
+    def colour_particles(self, names, shares=None) -> None:
+        """Colour each particle by its share of a mode (white 0 → dark red 1), or by the palette (shares None);
+        only the colours that change are sent."""
+        for i, name in enumerate(names):
+            colour = (PALETTE[i % len(PALETTE)] if shares is None else
+                      tuple(int(c) for c in np.round(np.array([250, 250, 250]) + shares[i] * (SHARE_RED - 250))))
+            if self.colours.get(name) != colour and name in self.meshes:
+                self.meshes[name].color = colour
+            self.colours[name] = colour
+        self.colours_by_mode = shares is not None
 
     def _drag_callback(self, name):
         def _(event):

@@ -7,11 +7,13 @@ pass by chance before the fix unlikely (0.6^5 ≈ 8 %; it failed on the first ru
 """
 from __future__ import annotations
 
+import os
 import shutil
 import time
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from test_app_browser import CHROMIUM, FLAGS, REPO, verdict_on_page, wait_for
 
@@ -23,7 +25,7 @@ LOADS = 5
 def app(tmp_path_factory):
     from app.server import App
     folder = tmp_path_factory.mktemp("presets")
-    for name in ("two_particle.toml", "ellipses_sharp.toml", "four_disk.toml"):
+    for name in ("two_particle.toml", "ellipses_sharp.toml", "four_disk.toml", "annulus_frame.json"):
         shutil.copy(REPO / "presets" / name, folder)
     running = App(host="127.0.0.1", port=0, presets_dir=folder)
     yield running
@@ -133,5 +135,33 @@ def test_panels_labels_reset_and_uploads(app, browser, tmp_path):
     verdict_on_page(page, "stable")
     assert s.preset == "uploaded_flat.toml (opened)"
     assert page.get_by_text("granstab-upload").count() == 0
+    page.close()
+    assert errors == []
+
+
+def test_unstable_frame_shows_where_the_mode_lives(app, browser):
+    """annulus_frame is UNSTABLE: the lowest consistent negative mode is selected and the particles are coloured by
+    their share of it (some dark, some white), with the colour legend in the mode text. GRANSTAB_APP_SHOTS=folder
+    saves the picture there (docs/app-mode-share.png is made that way)."""
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+    page.get_by_role("option", name="annulus_frame").click()
+    wait_for(lambda: ui.session.preset == "annulus_frame", timeout=60, what="annulus_frame")
+    verdict_on_page(page, "unstable", timeout=120_000)
+    page.get_by_text("Particle colour: its share").wait_for(timeout=120_000)
+    with ui.lock:
+        mode = ui._current_mode()
+        consistent = [m for m in ui.session.modes() if m.consistent]
+        colours = np.array(list(ui.view.colours.values()), float)
+    assert mode.consistent and mode.eigenvalue < 0 and mode.eigenvalue == min(m.eigenvalue for m in consistent)
+    assert len(colours) == 143
+    assert colours[:, 1].min() < 60 and colours[:, 1].max() > 240      # a particle carrying it all, one at rest
+    shots = os.environ.get("GRANSTAB_APP_SHOTS")
+    if shots:
+        page.wait_for_timeout(3000)
+        page.screenshot(path=str(Path(shots) / "app-mode-share.png"))
     page.close()
     assert errors == []

@@ -417,3 +417,16 @@ def test_reset_returns_a_dragged_pair_to_its_sliders(pair):
     assert pair.kind == "two_particle" and pair.notice is None and not pair.resettable
     assert (pair.params["rho_r"], pair.params["f_kr"]) == (1.5, 0.015)
     assert pair.verdict == "stable" and pair.rolling_eigenvalue() == pytest.approx(0.015 * 0.5, rel=1e-9)
+
+
+def test_particle_shares_locate_the_mode(pair, presets):
+    # the pair's rolling mode turns both particles equally: each carries the whole motion (share 1, to round-off)
+    rolling = next(m for m in pair.modes() if m.branch == 0 and m.label == "rolling")
+    assert pair.particle_shares(rolling) == pytest.approx([1.0, 1.0], abs=1e-9)
+    # the 143-disk frame: the lowest consistent negative mode is picked and lives on a few particles
+    frame = Session(str(REPO / "presets" / "annulus_frame.json"))
+    lowest = min((m for m in frame.modes() if m.consistent), key=lambda m: m.eigenvalue)
+    assert lowest.eigenvalue < 0 and frame.verdict == "unstable"
+    shares = frame.particle_shares(lowest)
+    assert shares.shape == (143,) and shares.max() == 1.0 and shares.min() >= 0
+    assert np.sum(shares > 0.5) < 143 // 2           # localised: fewer than half the disks carry half the motion
