@@ -206,6 +206,10 @@ class ContactModel:
     """A contact-level scene (file); uniform law parameters may be overridden, the geometry is fixed."""
 
     scene: granstab.Scene
+    report: str = ""           # an imported snapshot's validation report (granstab.io.format_report)
+    frames: list | None = None # the frames its input holds (None: one)
+    frame: object = None       # the frame shown
+    path: str = ""             # where it was read from (to read another frame)
     kind = "contacts"
     draggable = False
 
@@ -287,8 +291,16 @@ def model_from_dict(data, source: str):
     return model_for_scene(granstab.scene_from_dict(data, source=source))
 
 
-def load_model(path):
-    """The model of a scene file (TOML/JSON, shape or contact format); raises SceneError with one line."""
+def load_model(path, frame=None):
+    """The model of a scene file (TOML/JSON, shape or contact format) or of anything else `granstab.load_scene`
+    reads (DEM snapshots, RigidLibrary folders: granstab.io.load, with its validation report and frames);
+    raises SceneError with one line."""
+    from granstab.io import format_report, is_snapshot, load
+    if is_snapshot(path):
+        imported = load(path, frame=frame)
+        frames = list(imported.frames) if imported.frames else None
+        return ContactModel(imported.scene, report=format_report(imported.report), frames=frames,
+                            frame=imported.report.get("frame"), path=str(path))
     return model_from_dict(read_scene_file(path), str(path))
 
 

@@ -63,6 +63,14 @@ class ClientUI:
             self.preset.on_update(lambda _: self.run(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(lambda _: self.run(self._upload))
+            self.path = gui.add_text("Open path", initial_value="", hint="a scene file, DEM snapshot or RigidLibrary "
+                                     "folder on the machine running the explorer (what `granstab analyze` reads)")
+            self.path.on_update(lambda _: self.run(self._open_path))
+            self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
+            self.frame.on_update(lambda _: self.run(self._pick_frame))
+            self.analyse = gui.add_button("Analyse the whole packing", visible=False,
+                                          hint="large packings are drawn at once and analysed only on request")
+            self.analyse.on_click(lambda _: self.run(self._analyse))
             self.sliders = {}
             for key, p in PARAMS.items():
                 h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default, hint=p.hint)
@@ -188,6 +196,23 @@ class ClientUI:
         ok = self.session.load_upload(up.name, up.content)
         self.view.key = None
         self.refresh(camera=ok)
+
+    def _open_path(self) -> None:
+        path = self.path.value.strip()
+        if not path or path == self.session.preset:
+            return
+        ok = self.session.load_preset(path)
+        self.view.key = None
+        self.refresh(camera=ok)
+
+    def _pick_frame(self) -> None:
+        frames = getattr(self.session.model, "frames", None)
+        if frames and self.session.set_frame(frames[int(self.frame.value) - 1]):
+            self.refresh()
+
+    def _analyse(self) -> None:
+        self.session.analyse()
+        self.refresh()
 
     def _pick_field(self, rho_r: float, f_kr: float) -> None:
         """A click on the λ⁽⁶⁾ surface sets ρ/r and f/(kr) (rounded to the slider steps)."""
@@ -323,6 +348,12 @@ class ClientUI:
                 if key in used and h.value != s.params[key]:
                     h.value = s.params[key]
             self.reset.visible = s.resettable
+            frames = getattr(s.model, "frames", None)
+            self.frame.visible = bool(frames) and len(frames) > 1
+            if self.frame.visible:
+                self.frame.max = len(frames)
+                self.frame.value = frames.index(s.model.frame) + 1 if s.model.frame in frames else 1
+            self.analyse.visible = s.deferred
             self.show["surface"].visible = self.exports["contour"].visible = s.kind == "two_particle"
 
     def _write_verdict(self) -> None:
@@ -331,10 +362,13 @@ class ClientUI:
         verdict = r["verdict"]
         apart = s.scene is not None and s.scene.n_contacts == 0
         title = s.scene.title if s.scene is not None else str(s.preset)
+        if s.deferred:
+            title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (*Analyse the whole packing*)"
+            verdict = "not analysed"
         if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
         title = title if len(title) <= 90 else title[:87] + "…"
-        reason = ("" if verdict in (None, "no contact") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
+        reason = ("" if verdict in (None, "no contact", "not analysed") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
         self.headline.content = (
             f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
             f'data-revision="{s.revision}" style="background:'
@@ -345,9 +379,13 @@ class ClientUI:
         self._show_message(s.error)
         note = r.get("notice")
         params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g}" for k in s.used_params)
+        report = getattr(s.model, "report", "")
         self.info.content = (f"{note}\n\n" if note else "") + (
-            f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene")
-        if r["verdict"] is None:
+            f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene") + (
+            f"\n\n**Import report**\n\n```\n{report}\n```" if report else "")
+        if s.deferred:
+            self.details.content = "Not analysed yet: a large packing is analysed only on request."
+        elif r["verdict"] is None:
             self.details.content = f"**Analysis failed:** {s.error}\n\n(last attempt {r['elapsed'] * 1e3:.1f} ms)"
         else:
             pos, zero, neg = r["counts"]
@@ -403,6 +441,7 @@ class ClientUI:
     def _write_modes(self) -> None:
         s = self.session
         modes = s.modes()
+        self.spectrum.visible = bool(modes)                 # nothing analysed (yet): no empty plot
         keys: dict[str, tuple] = {}
         by_branch: dict[int, int] = {}
         for m in sorted((m for m in modes if m.label != "rigid"), key=lambda m: (m.branch, m.eigenvalue)):
@@ -459,6 +498,8 @@ class ClientUI:
         x = np.array([b.x for b in bodies])
         size = s.size
         lo, hi = x.min(axis=0) - 1.2 * size, x.max(axis=0) + 1.2 * size
+        span = float(np.max(hi - lo))
+        self.client.camera.near, self.client.camera.far = 1e-3 * span, 1e2 * span   # packings in px or in m
         if s.scene_dim == 2:
             if s.field() is not None and self.view.options["surface"]:
                 lo[1] = min(lo[1], -4.9 * s.field_scale)

@@ -28,6 +28,7 @@ from .params import PARAMS
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
 DEFAULT_PRESET = "two_particle"
 CONSISTENT = (PLUS, MINUS, BOTH)
+LARGE = 500               # particles: above this the whole packing is analysed only on request (`analyse`)
 MAX_UPLOAD = 5_000_000     # bytes: a scene file larger than this is refused before it is parsed
 
 
@@ -120,7 +121,7 @@ class Session:
         if len(content) > MAX_UPLOAD:
             self.error = f"{name}: rejected, {len(content) / 1e6:.1f} MB is over the {MAX_UPLOAD / 1e6:.0f} MB limit"
             return False
-        suffix = Path(name).suffix.lower() if Path(name).suffix.lower() in (".toml", ".json") else ".toml"
+        suffix = Path(name).suffix.lower()          # a snapshot's suffix picks its reader (granstab.io)
         with tempfile.TemporaryDirectory(prefix="granstab-upload-") as folder:
             path = Path(folder) / (Path(name).stem + suffix)
             path.write_bytes(content)
@@ -189,14 +190,40 @@ class Session:
 
     # ------------------------------------------------------------------------------------------ compute
 
-    def recompute(self) -> None:
-        """Build the scene and analyse it; any failure becomes `error` (the analysis is then None)."""
+    @property
+    def deferred(self) -> bool:
+        """A large packing: drawn at once, analysed only when asked (`analyse`)."""
+        return self.scene is not None and self.scene.n_particles > LARGE and self.analysis is None
+
+    def set_frame(self, frame) -> bool:
+        """Show another frame of an imported snapshot (its validation report follows)."""
+        if getattr(self.model, "frames", None) is None or frame == self.model.frame:
+            return False
+        try:
+            self.model = load_model(self.model.path, frame=frame)
+        except Exception as exc:  # noqa: BLE001
+            self.error = one_line(exc)
+            return False
+        self.recompute()
+        return True
+
+    def analyse(self) -> None:
+        """Analyse a large packing now (recompute skips it above LARGE particles)."""
+        self.recompute(force=True)
+
+    def recompute(self, force: bool = False) -> None:
+        """Build the scene and analyse it (a packing above LARGE particles only when `force`d); any failure
+        becomes `error` (the analysis is then None)."""
         start = time.perf_counter()
         self.revision += 1
         self.analysis = None
         self.metrics = None
         try:
             self.scene = self.model.build(self.params)
+            if self.scene.n_particles > LARGE and not force:
+                self.error = None
+                self.elapsed = time.perf_counter() - start
+                return
             with blas_threads(1):       # small problems: BLAS thread start-up costs more than it saves
                 self.analysis = analyze(self.scene, metric="L")
             self.error = None

@@ -20,6 +20,7 @@ COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0
           "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
 Z_UP = np.array([0.0, 0.0, 1.0])
 SHARE_RED = np.array([150, 0, 20])      # the colour of a particle carrying the whole of the selected mode
+MESH_MAX = 400        # particles drawn as meshes; a larger packing is one point cloud (and no osculating arcs)
 MAX_ARROWS = 24       # contacts drawn with force arrows (3D meshes); more contacts: force lines (no heads)
 
 
@@ -167,6 +168,9 @@ class SceneView:
         self.dim = session.scene_dim
         size = session.size
         key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
+        if len(bodies) > MESH_MAX:
+            self._draw_cloud(bodies, key)
+            return
         rebuilt = key != self.key
         if rebuilt:
             self.api.remove_by_name("/particles")
@@ -208,6 +212,20 @@ class SceneView:
                                              color=MARKER, side="double")
                 else:
                     self.api.add_icosphere(f"{base}/marker", radius=0.12 * size, color=MARKER, position=(a, 0.0, 0.0))
+        self.base = {b.name: b for b in bodies}
+
+    def _draw_cloud(self, bodies, key) -> None:
+        """A large packing: one point cloud of the centres (sized by the median radius), no per-particle nodes."""
+        x = np.array([to3(b.x) for b in bodies])
+        cloud = digest(key, x)
+        if cloud == self.key:
+            return
+        self.api.remove_by_name("/particles")
+        self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
+        self.key = cloud
+        radius = float(np.median([max(b.axes) for b in bodies]))
+        self.api.add_point_cloud("/particles/cloud", points=x, colors=PALETTE[0], point_size=1.8 * radius,
+                                 point_shape="circle")
         self.base = {b.name: b for b in bodies}
 
     def colour_particles(self, names, shares=None) -> None:
@@ -293,7 +311,7 @@ class SceneView:
             n = to3(scene.normal, 0.0)
             self.api.add_line_segments("/contacts/normals", np.stack([P, P + 0.5 * size * n], axis=1),
                                        COLORS["normal"], thickness=2.5, thickness_units="screen")
-        if self.options["osculating"]:
+        if self.options["osculating"] and scene.n_contacts <= MESH_MAX:     # arcs of thousands of contacts: clutter
             data = circle_data(scene, size)
             if data is not None:
                 pts, cen, rad, nout, tan = data

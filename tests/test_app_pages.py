@@ -165,3 +165,38 @@ def test_unstable_frame_shows_where_the_mode_lives(app, browser):
         page.screenshot(path=str(Path(shots) / "app-mode-share.png"))
     page.close()
     assert errors == []
+
+
+ANNULUS = REPO.parent / "shared" / "data" / "rigidlibrary" / "DataAnnulus" / "10"
+
+
+def test_open_a_real_packing_from_the_page(app, browser):
+    """A RigidLibrary annulus folder (1617 disks, 20 frames) typed into *Open path*: drawn as one point cloud, not
+    analysed until asked, its validation report shown, and a frame slider that reads another frame."""
+    from app.browser import number_box
+    folder = ANNULUS if ANNULUS.is_dir() else Path("/work/shared/data/rigidlibrary/DataAnnulus/10")
+    assert folder.is_dir(), f"the photoelastic annulus data are needed: {folder}"
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    box = page.locator("input.mantine-TextInput-input:visible").first  # the only visible text box: Open path
+    box.fill(str(folder))
+    box.press("Enter")
+    verdict_on_page(page, "not-analysed", timeout=120_000)
+    s = ui.session
+    assert s.scene.n_particles == 1617 and s.analysis is None and s.model.frame == 1
+    page.get_by_text("Import report").wait_for(timeout=30_000)
+    page.get_by_text("rigidlibrary-annulus, frame 1").first.wait_for(timeout=30_000)
+    assert list(ui.view.nodes) == [] and ui.frame.visible and ui.frame.max == 20
+    frame = number_box(page, ui.frame)
+    frame.fill("2")
+    frame.press("Enter")
+    page.get_by_text("rigidlibrary-annulus, frame 2").first.wait_for(timeout=60_000)
+    assert s.model.frame == 2 and s.scene.n_particles == 1620
+    shots = os.environ.get("GRANSTAB_APP_SHOTS")
+    if shots:
+        page.wait_for_timeout(3000)
+        page.screenshot(path=str(Path(shots) / "app-packing.png"))
+    page.close()
+    assert errors == []
