@@ -69,10 +69,10 @@ def run(quick: bool = False) -> dict:
 
 
 def markdown(results: dict) -> str:
-    lines = ["## App latency", "",
+    lines = ["## App latency in the browser (issue 13)", "",
              f"Slider move → verdict badge updated, measured in headless Chromium (software WebGL) on this 2-core "
              f"machine under load, {results['moves']} moves per scene (benchmarks/app_latency.py). Server time: scene "
-             "build + analysis for the same moves. Before issue 13 (same machine, same measure): two_particle "
+             "build + analysis for the same moves. As issue 13 measured them before (same machine, its own script): two_particle "
              "median ≈ 250 ms (50–820 ms), annulus_frame medians 5.9–10.1 s.", "",
              "| scene | slider | page median | page range | server median | page/server | goal |",
              "|---|---|---|---|---|---|---|"]
