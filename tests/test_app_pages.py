@@ -52,6 +52,16 @@ def open_page(browser, app, errors):
     return page
 
 
+def close_page(page, errors, shot: str) -> None:
+    """Save the picture as `shot` in $GRANSTAB_APP_SHOTS when set (docs/ is made that way), close, no page error."""
+    shots = os.environ.get("GRANSTAB_APP_SHOTS")
+    if shots:
+        page.wait_for_timeout(3000)
+        page.screenshot(path=str(Path(shots) / shot))
+    page.close()
+    assert errors == []
+
+
 def ui_of(app, page):
     return wait_for(lambda: next((u for u in list(app.uis.values())
                                   if page.locator(f'[id="{u.preset._impl.uuid}"]').count()), None), what="the tab's UI")
@@ -159,12 +169,7 @@ def test_unstable_frame_shows_where_the_mode_lives(app, browser):
     assert mode.consistent and mode.eigenvalue < 0 and mode.eigenvalue == min(m.eigenvalue for m in consistent)
     assert len(colours) == 143
     assert colours[:, 1].min() < 60 and colours[:, 1].max() > 240      # a particle carrying it all, one at rest
-    shots = os.environ.get("GRANSTAB_APP_SHOTS")
-    if shots:
-        page.wait_for_timeout(3000)
-        page.screenshot(path=str(Path(shots) / "app-mode-share.png"))
-    page.close()
-    assert errors == []
+    close_page(page, errors, "app-mode-share.png")
 
 
 ANNULUS = REPO.parent / "shared" / "data" / "rigidlibrary" / "DataAnnulus" / "10"
@@ -194,9 +199,4 @@ def test_open_a_real_packing_from_the_page(app, browser):
     frame.press("Enter")
     page.get_by_text("rigidlibrary-annulus, frame 2").first.wait_for(timeout=60_000)
     assert s.model.frame == 2 and s.scene.n_particles == 1620
-    shots = os.environ.get("GRANSTAB_APP_SHOTS")
-    if shots:
-        page.wait_for_timeout(3000)
-        page.screenshot(path=str(Path(shots) / "app-packing.png"))
-    page.close()
-    assert errors == []
+    close_page(page, errors, "app-packing.png")
