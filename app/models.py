@@ -38,6 +38,12 @@ class Body:
 
 # ------------------------------------------------------------------------------------------------ the pair
 
+def contact_shape(rho_r: float) -> str:
+    """What the pair's contact is called (Fig. 5): sharp tips (ρ < r, rolls off), circular (ρ = r, neutral), flat
+    (ρ > r, rocks back)."""
+    return "sharp" if rho_r < 1.0 else "circular" if rho_r == 1.0 else "flat"
+
+
 @dataclass
 class TwoParticleModel:
     """The symmetric two-particle example (Sec. 4.1, Appendix C), driven by ρ/r and f/(kr)."""
@@ -63,7 +69,8 @@ class TwoParticleModel:
                    "k": k, "alpha": P["alpha"], "mu": P["mu"], "rolling_stiffness": P["rolling"] * k * r * r,
                    # a tensile (cohesive) force lies outside the friction cone: the contact is elastic then
                    "state": "auto" if f >= 0 else "elastic"}
-        return {"dim": 2, "title": f"{self.title} (ρ/r = {P['rho_r']:g}, f/(kr) = {P['f_kr']:g})",
+        return {"dim": 2, "title": f"{self.title}, {contact_shape(P['rho_r'])} contact "
+                                    f"(ρ/r = {P['rho_r']:g}, f/(kr) = {P['f_kr']:g})",
                 "particles": [{"name": "p", "x": [0.0, 0.0]}, {"name": "q", "x": [2 * r, 0.0]}],
                 "contacts": [contact]}
 
@@ -109,7 +116,8 @@ class TwoParticleModel:
         start = {"rho_r": -1.0 / kp / r, "f_kr": fn / (k * r), "mu": mu, "alpha": float(scene.alpha[0]), "k": k,
                  "mobilised": ft / (mu * fn) if fn > 0 and mu > 0 else 0.0,
                  "rolling": float(scene.rolling[0, 0, 0]) / (k * r * r)}
-        return cls(r=r, start=start, title=scene.title.split("(")[0].strip() or "two particles")
+        base = scene.title.split("(")[0].split(",")[0].strip()     # the contact word follows ρ/r (contact_shape)
+        return cls(r=r, start=start, title=base or "two particles")
 
 
 # ------------------------------------------------------------------------------------------------ shapes
@@ -198,6 +206,10 @@ class ContactModel:
     """A contact-level scene (file); uniform law parameters may be overridden, the geometry is fixed."""
 
     scene: granstab.Scene
+    report: str = ""           # an imported snapshot's validation report (granstab.io.format_report)
+    frames: list | None = None # the frames its input holds (None: one)
+    frame: object = None       # the frame shown
+    path: str = ""             # where it was read from (to read another frame)
     kind = "contacts"
     draggable = False
 
@@ -279,8 +291,16 @@ def model_from_dict(data, source: str):
     return model_for_scene(granstab.scene_from_dict(data, source=source))
 
 
-def load_model(path):
-    """The model of a scene file (TOML/JSON, shape or contact format); raises SceneError with one line."""
+def load_model(path, frame=None):
+    """The model of a scene file (TOML/JSON, shape or contact format) or of anything else `granstab.load_scene`
+    reads (DEM snapshots, RigidLibrary folders: granstab.io.load, with its validation report and frames);
+    raises SceneError with one line."""
+    from granstab.io import format_report, is_snapshot, load
+    if is_snapshot(path):
+        imported = load(path, frame=frame)
+        frames = list(imported.frames) if imported.frames else None
+        return ContactModel(imported.scene, report=format_report(imported.report), frames=frames,
+                            frame=imported.report.get("frame"), path=str(path))
     return model_from_dict(read_scene_file(path), str(path))
 
 

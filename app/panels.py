@@ -9,7 +9,6 @@ message in the page; nothing a user does reaches the server as an exception.
 from __future__ import annotations
 
 import html
-import tempfile
 import threading
 import time
 from contextlib import contextmanager
@@ -41,6 +40,7 @@ class ClientUI:
         self._closed = False
         self._player: threading.Thread | None = None
         self._mode_keys: dict[str, tuple] = {}
+        self._spectrum_json = None
         self.selected: tuple | None = None
         self.errors_shown = 0
         self._build()
@@ -63,36 +63,71 @@ class ClientUI:
             self.preset.on_update(lambda _: self.run(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(lambda _: self.run(self._upload))
+            self.path = gui.add_text("Open path", initial_value="", hint="a scene file, DEM snapshot or RigidLibrary "
+                                     "folder on the machine running the explorer (what `granstab analyze` reads)")
+            self.path.on_update(lambda _: self.run(self._open_path))
+            self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
+            self.frame.on_update(lambda _: self.run(self._pick_frame))
+            self.analyse = gui.add_button("Analyse the whole packing", visible=False,
+                                          hint="large packings are drawn at once and analysed only on request")
+            self.analyse.on_click(lambda _: self.run(self._analyse))
             self.sliders = {}
             for key, p in PARAMS.items():
                 h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default, hint=p.hint)
                 h.on_update(lambda _: self.run(self._apply_sliders))
                 self.sliders[key] = h
-            self.reset = gui.add_button("Reset particle positions", visible=False)
+            self.reset = gui.add_button("Reset", visible=False,
+                                        hint="back to the start positions (a dragged pair: back to the ρ/r, f/(kr) sliders)")
             self.reset.on_click(lambda _: self.run(self._reset_poses))
             self.info = gui.add_markdown("")
         with tabs.add_tab("Verdict"):
             self.details = gui.add_markdown("")
+            check = gui.add_button("Check other metrics", hint="the verdict in L/10, 10L (and the inertia metric "
+                                   "where masses are known): about 3× the time of one analysis")
+            check.on_click(lambda _: self.run(self._check_metrics))
         with tabs.add_tab("Display"):
             self.show = {key: gui.add_checkbox(label, initial_value=True) for key, label in (
                 ("forces", "Force arrows"), ("normals", "Contact normals"), ("osculating", "Osculating circles"),
-                ("surface", "λ⁽⁶⁾ height surface (pair)"))}
+                ("surface", "λ⁽⁶⁾ height surface (pair)"), ("shares", "Colour particles by the selected mode"))}
             self.force_scale = gui.add_slider("Arrow length ×", min=0.2, max=3.0, step=0.1, initial_value=1.0)
             for h in (*self.show.values(), self.force_scale):
                 h.on_update(lambda _: self.run(self._display))
         with tabs.add_tab("Export"):
             gui.add_markdown("Download the current scene (reloads to the same analysis), the analysis, the contour.")
-            for label, fn in (("Scene file (.json)", self.session.export_scene),
-                              ("Analysis (.json)", self.session.export_analysis),
-                              ("λ⁽⁶⁾ contour (.png)", self.session.export_contour)):
-                b = gui.add_button(label)
-                b.on_click(self._download(fn))
+            self.exports = {}
+            for key, label, fn in (("scene", "Scene file (.json)", self.session.export_scene),
+                                   ("analysis", "Analysis (.json)", self.session.export_analysis),
+                                   ("contour", "λ⁽⁶⁾ contour (.png)", self.session.export_contour)):
+                self.exports[key] = gui.add_button(label)
+                self.exports[key].on_click(self._download(fn))
         self.legend = gui.add_markdown("")
 
-        self.side = gui.add_panel()
-        with self.side.add_tab("λ⁽⁶⁾ field"):
-            self.field_note = gui.add_markdown("")
-            self.contour = gui.add_plotly(_empty_figure(), aspect=1.15)
+        self.side = None
+        self.side_kind = None
+        self._build_side()
+        gui.main_panel.dock_right()
+        gui.main_panel.set_width(400)
+
+    def _build_side(self) -> None:
+        """The side panel: the λ⁽⁶⁾ field tab only for the pair (no tab a scene does not use). It is docked BEFORE
+        its plots are added: docking remounts the panel's contents, and a plotly plot mounted before that leaves a
+        pending redraw on the discarded copy (the `_redrawFromAutoMarginCount` page error)."""
+        pair = self.session.kind == "two_particle"
+        if self.side is not None and self.side_kind == pair:
+            return
+        self._stop_play()
+        if self.side is not None:
+            self.side.remove()
+        gui = self.client.gui
+        self.side, self.side_kind = gui.add_panel(), pair
+        self.side.dock_left()
+        self.side.set_width(430)
+        self.field_note = self.contour = self._spectrum_json = None
+        if pair:
+            with self.side.add_tab("λ⁽⁶⁾ field"):
+                self.field_note = gui.add_markdown("")
+                self.contour = gui.add_plotly(contour_figure(self.session.field(), (
+                    self.session.params["rho_r"], self.session.params["f_kr"])), aspect=1.15)
         with self.side.add_tab("Eigenmodes"):
             self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3)
             self.mode_pick = gui.add_dropdown("Mode", options=["(none)"], initial_value="(none)")
@@ -103,10 +138,6 @@ class ClientUI:
                                             hint="largest particle motion, in particle sizes")
             self.speed = gui.add_slider("Speed (cycles/s)", min=0.1, max=2.0, step=0.1, initial_value=0.5)
             self.mode_info = gui.add_markdown("")
-        self.side.dock_left()
-        self.side.set_width(430)
-        gui.main_panel.dock_right()
-        gui.main_panel.set_width(400)
 
     def _preset_option(self) -> str:
         options = self.session.presets()
@@ -162,13 +193,26 @@ class ClientUI:
 
     def _upload(self) -> None:
         up = self.upload.value
-        suffix = Path(up.name).suffix.lower() if Path(up.name).suffix.lower() in (".toml", ".json") else ".toml"
-        folder = Path(tempfile.mkdtemp(prefix="granstab-upload-"))
-        path = folder / (Path(up.name).stem + suffix)
-        path.write_bytes(up.content)
-        ok = self.session.load_preset(str(path))
+        ok = self.session.load_upload(up.name, up.content)
         self.view.key = None
         self.refresh(camera=ok)
+
+    def _open_path(self) -> None:
+        path = self.path.value.strip()
+        if not path or path == self.session.preset:
+            return
+        ok = self.session.load_preset(path)
+        self.view.key = None
+        self.refresh(camera=ok)
+
+    def _pick_frame(self) -> None:
+        frames = getattr(self.session.model, "frames", None)
+        if frames and self.session.set_frame(frames[int(self.frame.value) - 1]):
+            self.refresh()
+
+    def _analyse(self) -> None:
+        self.session.analyse()
+        self.refresh()
 
     def _pick_field(self, rho_r: float, f_kr: float) -> None:
         """A click on the λ⁽⁶⁾ surface sets ρ/r and f/(kr) (rounded to the slider steps)."""
@@ -229,7 +273,7 @@ class ClientUI:
             self._player.start()
 
     def _stop_play(self) -> None:
-        if self.play.value:
+        if getattr(self, "play", None) is not None and self.play.value:
             with self._quiet():
                 self.play.value = False
 
@@ -260,9 +304,12 @@ class ClientUI:
 
     # --------------------------------------------------------------------------------------- refresh
     def refresh(self, camera: bool = False, particles: bool = True, skip: str | None = None) -> None:
-        """Write every handle from the session (sliders, verdict, plots, scene)."""
+        """Write every handle from the session: the verdict first (what a slider move is for), then the scene (only
+        the parts that changed are re-sent: SceneView keys each drawing by its data), plots and modes."""
         s = self.session
+        self._build_side()
         self._sync_controls()
+        self._write_verdict()
         with self.client.atomic():
             if particles:
                 with self._quiet():                      # gizmo poses written here are not drags
@@ -274,11 +321,15 @@ class ClientUI:
                 self.view.clear_field()
             else:
                 self.view.draw_field(s, field, current)
-        self._write_verdict(legend)
+        self._write_legend(legend)
         self._write_field()
         self._write_modes()
         if camera:
             self._set_camera()
+
+    def _check_metrics(self) -> None:
+        self.session.check_metrics()
+        self._write_verdict()
 
     def _sync_controls(self) -> None:
         """Slider visibility/values and the preset list follow the session without firing callbacks."""
@@ -296,17 +347,31 @@ class ClientUI:
                 h.visible = key in used
                 if key in used and h.value != s.params[key]:
                     h.value = s.params[key]
-            self.reset.visible = s.kind == "shapes"
+            self.reset.visible = s.resettable
+            frames = getattr(s.model, "frames", None)
+            self.frame.visible = bool(frames) and len(frames) > 1
+            if self.frame.visible:
+                self.frame.max = len(frames)
+                self.frame.value = frames.index(s.model.frame) + 1 if s.model.frame in frames else 1
+            self.analyse.visible = s.deferred
+            self.show["surface"].visible = self.exports["contour"].visible = s.kind == "two_particle"
 
-    def _write_verdict(self, legend: dict) -> None:
+    def _write_verdict(self) -> None:
         s = self.session
         r = s.report()
         verdict = r["verdict"]
+        apart = s.scene is not None and s.scene.n_contacts == 0
         title = s.scene.title if s.scene is not None else str(s.preset)
+        if s.deferred:
+            title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (*Analyse the whole packing*)"
+            verdict = "not analysed"
+        if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
+            title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
         title = title if len(title) <= 90 else title[:87] + "…"
-        reason = "" if verdict is None else r["reason"] + ("" if r["sufficient"] else " — not proven")
+        reason = ("" if verdict in (None, "no contact", "not analysed") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
         self.headline.content = (
-            f'<div class="granstab-verdict" data-verdict="{verdict or "none"}" style="background:'
+            f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
+            f'data-revision="{s.revision}" style="background:'
             f'{VERDICT_COLOR.get(verdict, "#555")};color:white;font-weight:700;font-size:1.35em;padding:4px 10px;'
             f'border-radius:6px;letter-spacing:0.05em">{(verdict or "no verdict").upper()}</div>'
             f'<div style="font-style:italic;margin:4px 2px 0 2px">{html.escape(title)}</div>'
@@ -314,9 +379,13 @@ class ClientUI:
         self._show_message(s.error)
         note = r.get("notice")
         params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g}" for k in s.used_params)
+        report = getattr(s.model, "report", "")
         self.info.content = (f"{note}\n\n" if note else "") + (
-            f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene")
-        if r["verdict"] is None:
+            f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene") + (
+            f"\n\n**Import report**\n\n```\n{report}\n```" if report else "")
+        if s.deferred:
+            self.details.content = "Not analysed yet: a large packing is analysed only on request."
+        elif r["verdict"] is None:
             self.details.content = f"**Analysis failed:** {s.error}\n\n(last attempt {r['elapsed'] * 1e3:.1f} ms)"
         else:
             pos, zero, neg = r["counts"]
@@ -333,11 +402,24 @@ class ClientUI:
                 f"| largest error estimate | {worst:.1e} ({name}) |",
                 f"| analysis time | {r['analysis_time'] * 1e3:.1f} ms (with scene: {r['elapsed'] * 1e3:.1f} ms) |",
             ]
+            rows.insert(6, f"| metric | {self._metric_row()} |")
             warn = "".join(f"\n\n**Warning:** {w}" for w in r["warnings"])
             self.details.content = f"**Why:** {r['reason']}\n\n" + "\n".join(rows) + warn
+
+    def _metric_row(self) -> str:
+        """The metric-robustness flag of the core (summary["metric_robust"]) once checked, else how to check."""
+        m = self.session.metrics
+        if m is None or m["revision"] != self.session.revision:
+            return "rotation length L only: *Check other metrics* below runs L/10, 10L (and inertia with masses)"
+        if m["robust"]:
+            return f"this verdict holds for every metric tried ({', '.join(x['metric'] for x in m['metrics'])})"
+        return " · ".join(f"{x['metric']}: {x['verdict']} ({x['consistent_negative']} negative)"
+                          for x in m["metrics"])
+
+    def _write_legend(self, legend: dict) -> None:
         if legend["max_force"] > 0:
             self.legend.content = (
-                f"**Legend** — arrows: the contact force on each particle (pointing into it when compressive; "
+                f"**Legend** — {'lines' if legend.get('lines') else 'arrows'}: the contact force on each particle (pointing into it when compressive; "
                 f"red compressive, blue tensile, orange at the Coulomb limit); length {legend['arrow']:.2g}·size "
                 f"= largest |f| = {legend['max_force']:.3g}. Blue lines: normals n^pq. Purple arcs: osculating "
                 "circles (radius ρ at each contact). Dark stripe: a body axis (turns with the particle).")
@@ -347,20 +429,19 @@ class ClientUI:
     def _write_field(self) -> None:
         s = self.session
         field = s.field()
-        self.contour.visible = field is not None
-        if field is None:
-            self.field_note.content = "The λ⁽⁶⁾ field belongs to the two-particle pair: pick *two_particle*."
+        if field is None or self.contour is None:
             return
-        lam = s.rolling_eigenvalue()
-        self.field_note.content = (
-            f"Rolling eigenvalue λ⁽⁶⁾/k over (ρ/r, f/(kr)) at α = {field.alpha:g}; ★ = now "
-            f"(λ⁽⁶⁾/k = {lam:.4g})" if lam is not None else "Rolling eigenvalue λ⁽⁶⁾/k; ★ = now")
+        lam, tol = s.rolling_eigenvalue(), s.zero_tolerance()
+        now = ("" if lam is None else f" (λ⁽⁶⁾/k = 0 within the zero tolerance {tol:.0e})" if lam == 0
+               else f" (λ⁽⁶⁾/k = {lam:.4g})")
+        self.field_note.content = (f"Rolling eigenvalue λ⁽⁶⁾/k over (ρ/r, f/(kr)) at α = {field.alpha:g}; "
+                                   f"★ = now{now}")
         self.contour.figure = contour_figure(field, (s.params["rho_r"], s.params["f_kr"]))
 
     def _write_modes(self) -> None:
         s = self.session
         modes = s.modes()
-        self.spectrum.figure = spectrum_figure(modes)
+        self.spectrum.visible = bool(modes)                 # nothing analysed (yet): no empty plot
         keys: dict[str, tuple] = {}
         by_branch: dict[int, int] = {}
         for m in sorted((m for m in modes if m.label != "rigid"), key=lambda m: (m.branch, m.eigenvalue)):
@@ -368,6 +449,12 @@ class ClientUI:
                 keys[m.key] = (m.branch, m.index)
                 by_branch[m.branch] = by_branch.get(m.branch, 0) + 1
         self._mode_keys = keys
+        listed = set(keys.values())
+        shown = [m for m in modes if (m.branch, m.index) in listed or (m.label == "rigid" and len(modes) <= 60)]
+        figure = spectrum_figure(shown, hidden=len(modes) - len(shown))
+        if figure.to_json() != self._spectrum_json:        # a plotly redraw costs the browser seconds: only on change
+            self._spectrum_json = figure.to_json()
+            self.spectrum.figure = figure
         if self.selected not in keys.values():
             pick = next((m for m in sorted(modes, key=lambda m: m.eigenvalue) if m.consistent), None)
             self.selected = (pick.branch, pick.index) if pick else next(iter(keys.values()), None)
@@ -377,8 +464,19 @@ class ClientUI:
             self.mode_pick.value = current
         self._describe_mode()
 
+    def _colour_by_mode(self, m) -> None:
+        s = self.session
+        if s.scene is None:
+            return
+        on = m is not None and self.show["shares"].value and s.scene.n_particles > 2
+        names = [b.name for b in s.bodies()]
+        index = {n: i for i, n in enumerate(s.scene.names)}
+        shares = s.particle_shares(m)[[index[n] for n in names]] if on else None
+        self.view.colour_particles(names, shares)
+
     def _describe_mode(self) -> None:
         m = self._current_mode()
+        self._colour_by_mode(m)
         if m is None:
             self.mode_info.content = "No mode to show." if self.session.analysis is not None else ""
             return
@@ -390,7 +488,9 @@ class ClientUI:
         where = f"{sliding} sliding, {unloading} unloading contact(s)" if sliding + unloading else "no contact at yield"
         self.mode_info.content = (f"**{m.label}** mode, λ = {m.eigenvalue:.5g} (branch {m.branch}: {where}), "
                                   f"{way}{' (hinges on the S tolerance)' if m.hinges else ''}. "
-                                  f"Contact deformation: {shares or '—'}. Tick *Play* to animate it.")
+                                  f"Contact deformation: {shares or '—'}. Tick *Play* to animate it."
+                                  + (" Particle colour: its share of this mode's motion, white 0 → dark red "
+                                     "100 % of the largest." if self.view.colours_by_mode else ""))
 
     def _set_camera(self) -> None:
         s = self.session
@@ -398,9 +498,11 @@ class ClientUI:
         x = np.array([b.x for b in bodies])
         size = s.size
         lo, hi = x.min(axis=0) - 1.2 * size, x.max(axis=0) + 1.2 * size
+        span = float(np.max(hi - lo))
+        self.client.camera.near, self.client.camera.far = 1e-3 * span, 1e2 * span   # packings in px or in m
         if s.scene_dim == 2:
             if s.field() is not None and self.view.options["surface"]:
-                lo[1] = min(lo[1], -4.9 * size)
+                lo[1] = min(lo[1], -4.9 * s.field_scale)
             c = 0.5 * (lo + hi)
             extent = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * 1.3))
             self.client.camera.up_direction = (0.0, 1.0, 0.0)
@@ -439,8 +541,9 @@ def contour_figure(field, mark):
     return fig
 
 
-def spectrum_figure(modes):
-    """Eigenvalues of sym(𝓗^i) per branch on a signed log scale: ● consistent, ○ not consistent, × rigid."""
+def spectrum_figure(modes, hidden: int = 0):
+    """Eigenvalues of sym(𝓗^i) per branch on a signed log scale: ● consistent, ○ not consistent, × rigid
+    (`hidden`: how many higher eigenvalues are left out, said in the title)."""
     import plotly.graph_objects as go
     fig = go.Figure()
     lam = np.array([m.eigenvalue for m in modes]) if modes else np.zeros(0)
@@ -464,6 +567,9 @@ def spectrum_figure(modes):
             hovertemplate="%{text}<extra></extra>"))
     top = int(np.ceil(float(np.abs(slog(lam)).max()))) if lam.size else 1
     ticks = np.arange(-top, top + 1)
+    if hidden:
+        fig.add_annotation(text=f"lowest {len(modes)} shown, {hidden} higher left out", showarrow=False,
+                           xref="paper", yref="paper", x=1, y=1, xanchor="right", font=dict(size=10))
     fig.update_layout(
         margin=dict(l=60, r=10, t=10, b=30), legend=dict(orientation="h", y=1.08),
         yaxis=dict(title="eigenvalue (signed log scale)", tickvals=ticks.tolist(),

@@ -8,6 +8,7 @@ except programming errors (an unknown parameter name). Not thread-safe: the GUI 
 from __future__ import annotations
 
 import json
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +18,7 @@ import numpy as np
 import granstab
 from granstab.analysis import analyze
 from granstab.branches import BOTH, MINUS, PLUS, RIGID
+from granstab.threads import blas_threads
 
 from .field import Field, field_png, lambda6_field
 from .models import Body, ShapeModel, TwoParticleModel, load_model
@@ -26,6 +28,8 @@ from .params import PARAMS
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
 DEFAULT_PRESET = "two_particle"
 CONSISTENT = (PLUS, MINUS, BOTH)
+LARGE = 500               # particles: above this the whole packing is analysed only on request (`analyse`)
+MAX_UPLOAD = 5_000_000     # bytes: a scene file larger than this is refused before it is parsed
 
 
 @dataclass(frozen=True)
@@ -65,11 +69,13 @@ class Session:
         self.params: dict[str, float] = {}
         self.scene: granstab.Scene | None = None
         self.analysis = None
+        self.metrics: dict | None = None     # the metric-family check, when asked for (check_metrics)
         self.error: str | None = None
         self.notice: str | None = None
         self.elapsed = 0.0
         self.revision = 0
         self._modes: tuple[int, list] = (-1, [])
+        self._pair: TwoParticleModel | None = None   # the slider-driven pair a drag turned into shapes
         if not self.load_preset(preset or DEFAULT_PRESET) and self.model is None and preset not in (None, DEFAULT_PRESET):
             message = self.error
             self.load_preset(DEFAULT_PRESET)
@@ -102,10 +108,30 @@ class Session:
             return False
         self.preset = path.stem if path.parent == self.presets_dir else str(path)
         self.model = model
+        self._pair = None
         self.params = model.initial_params()
         self.notice = None
         self.recompute()
         return self.error is None
+
+    def load_upload(self, name: str, content: bytes) -> bool:
+        """Open a file sent from the page: size-guarded (MAX_UPLOAD bytes), read from a private temporary folder that
+        is removed afterwards; the page sees only the file's own name, never the server's path."""
+        name = Path(name).name or "upload"
+        if len(content) > MAX_UPLOAD:
+            self.error = f"{name}: rejected, {len(content) / 1e6:.1f} MB is over the {MAX_UPLOAD / 1e6:.0f} MB limit"
+            return False
+        suffix = Path(name).suffix.lower()          # a snapshot's suffix picks its reader (granstab.io)
+        with tempfile.TemporaryDirectory(prefix="granstab-upload-") as folder:
+            path = Path(folder) / (Path(name).stem + suffix)
+            path.write_bytes(content)
+            ok = self.load_preset(str(path))
+            hidden = str(path)
+        if self.error:
+            self.error = self.error.replace(hidden, name)
+        if ok:
+            self.preset = f"{name} (opened)"
+        return ok
 
     @property
     def kind(self) -> str:
@@ -138,33 +164,85 @@ class Session:
             self.error = "this scene is contact-level (no shapes): its geometry cannot be dragged"
             return
         if isinstance(self.model, TwoParticleModel):
+            self._pair = self.model
             self.model = self.model.to_shapes(self.params)
-            self.notice = ("dragging turned the pair into shapes: contacts now follow the geometry; pick the "
-                           "preset again to return to the ρ/r, f/(kr) sliders")
+            self.notice = ("dragging turned the pair into shapes: contacts now follow the geometry; *Reset* "
+                           "returns to the ρ/r, f/(kr) sliders")
         if np.ndim(R) == 0:
             R = rotation_matrix(2, R)
         self.model.set_pose(name, np.asarray(x, float), np.asarray(R, float)[:self.scene_dim, :self.scene_dim])
         self.recompute()
 
+    @property
+    def resettable(self) -> bool:
+        """Whether *Reset* has something to undo: dragged poses, or a pair turned into shapes by a drag."""
+        return self._pair is not None or isinstance(self.model, ShapeModel)
+
     def reset_poses(self) -> None:
-        if isinstance(self.model, ShapeModel):
+        """Back to the start poses; a dragged pair goes back to the slider-driven pair (ρ/r, f/(kr) as before)."""
+        if self._pair is not None:
+            self.model, self._pair, self.notice = self._pair, None, None
+            self.params = {**self.model.initial_params(), **self.params}
+            self.recompute()
+        elif isinstance(self.model, ShapeModel):
             self.model.reset_poses()
             self.recompute()
 
     # ------------------------------------------------------------------------------------------ compute
 
-    def recompute(self) -> None:
-        """Build the scene and analyse it; any failure becomes `error` (the analysis is then None)."""
+    @property
+    def deferred(self) -> bool:
+        """A large packing: drawn at once, analysed only when asked (`analyse`)."""
+        return self.scene is not None and self.scene.n_particles > LARGE and self.analysis is None
+
+    def set_frame(self, frame) -> bool:
+        """Show another frame of an imported snapshot (its validation report follows)."""
+        if getattr(self.model, "frames", None) is None or frame == self.model.frame:
+            return False
+        try:
+            self.model = load_model(self.model.path, frame=frame)
+        except Exception as exc:  # noqa: BLE001
+            self.error = one_line(exc)
+            return False
+        self.recompute()
+        return True
+
+    def analyse(self) -> None:
+        """Analyse a large packing now (recompute skips it above LARGE particles)."""
+        self.recompute(force=True)
+
+    def recompute(self, force: bool = False) -> None:
+        """Build the scene and analyse it (a packing above LARGE particles only when `force`d); any failure
+        becomes `error` (the analysis is then None)."""
         start = time.perf_counter()
         self.revision += 1
         self.analysis = None
+        self.metrics = None
         try:
             self.scene = self.model.build(self.params)
-            self.analysis = analyze(self.scene)
+            if self.scene.n_particles > LARGE and not force:
+                self.error = None
+                self.elapsed = time.perf_counter() - start
+                return
+            with blas_threads(1):       # small problems: BLAS thread start-up costs more than it saves
+                self.analysis = analyze(self.scene, metric="L")
             self.error = None
         except Exception as exc:  # noqa: BLE001 — shown in the page, never raised into the server
             self.error = one_line(exc)
         self.elapsed = time.perf_counter() - start
+
+    def check_metrics(self) -> dict | None:
+        """The verdict in every metric of the family (L/10, L, 10L, inertia where masses are known), on request:
+        the page shows the single-metric verdict first and runs this only when asked (it costs ~3× the analysis).
+        Returns {"robust": bool, "metrics": [per-metric verdict and counts], "time": s} (None without a scene)."""
+        if self.scene is None or self.analysis is None:
+            return None
+        start = time.perf_counter()
+        with blas_threads(1):
+            family = analyze(self.scene, metric="family").summary
+        self.metrics = {"robust": bool(family["metric_robust"]), "metrics": family["metrics"],
+                        "time": time.perf_counter() - start, "revision": self.revision}
+        return self.metrics
 
     @property
     def scene_dim(self) -> int:
@@ -233,6 +311,13 @@ class Session:
         """A particle length scale (mean largest semi-axis): sets arrows, markers and the animation amplitude."""
         return float(np.mean([max(b.axes) for b in self.bodies()]))
 
+    def particle_shares(self, mode: Mode) -> np.ndarray:
+        """Where the mode lives: each particle's |motion| √(|du|² + (size·|dθ|)²) over the largest one (N,), in [0, 1]."""
+        b = self.analysis.branches[mode.branch]
+        du, dth = mode_offsets(self.scene, self.analysis.motion(b.stability_vectors[:, mode.index]), self.size)
+        share = np.sqrt(np.sum(du ** 2, axis=1) + self.size ** 2 * np.sum(dth ** 2, axis=1))
+        return share / max(float(share.max()), 1e-300)
+
     def mode_bodies(self, mode: Mode, amplitude: float, phase: float) -> list[Body]:
         """Bodies displaced along `mode` at `phase` (radians): x + A s du, R(A s dθ) R with s the phase factor.
 
@@ -256,10 +341,26 @@ class Session:
             return None
         return lambda6_field(self.params["alpha"], self.params["rolling"])
 
+    @property
+    def field_scale(self) -> float:
+        """The length the λ⁽⁶⁾ surface is laid out in: the pair's r (fixed, unlike the particle size, which grows
+        with ρ/r — the surface is cached, so the current-state marker must be placed on the same scale)."""
+        return float(getattr(self.model, "r", 1.0))
+
     def rolling_eigenvalue(self) -> float | None:
-        """λ⁽⁶⁾ of the current analysis in units of k: the rolling-labelled eigenvalue of the first branch."""
+        """λ⁽⁶⁾ of the current analysis in units of k: the rolling-labelled eigenvalue of the first branch,
+        0 exactly when |λ⁽⁶⁾| is within the branch's zero tolerance (`zero_tolerance()`)."""
         rolling = [m for m in self.modes() if m.branch == 0 and m.label == "rolling"]
-        return rolling[0].eigenvalue / self.params["k"] if rolling else None
+        if not rolling:
+            return None
+        lam = rolling[0].eigenvalue
+        return 0.0 if abs(lam) <= self.analysis.branches[0].zero_tol else lam / self.params["k"]
+
+    def zero_tolerance(self) -> float | None:
+        """The eigenvalue zero tolerance of the first branch in units of k (what "λ = 0" means here)."""
+        if self.analysis is None or not self.analysis.branches:
+            return None
+        return self.analysis.branches[0].zero_tol / self.params["k"]
 
     # ------------------------------------------------------------------------------------------ exports
 

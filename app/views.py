@@ -19,6 +19,9 @@ MARKER = (40, 40, 60)
 COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0, 0), "tensile": (30, 110, 220),
           "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
 Z_UP = np.array([0.0, 0.0, 1.0])
+SHARE_RED = np.array([150, 0, 20])      # the colour of a particle carrying the whole of the selected mode
+MESH_MAX = 400        # particles drawn as meshes; a larger packing is one point cloud (and no osculating arcs)
+MAX_ARROWS = 24       # contacts drawn with force arrows (3D meshes); more contacts: force lines (no heads)
 
 
 # ------------------------------------------------------------------------------------------ geometry
@@ -146,11 +149,15 @@ class SceneView:
         self.nodes: dict[str, object] = {}        # particle name → frame / transform controls
         self.inner: dict[str, object] = {}        # particle name → /body frame (animation offset)
         self.mesh_keys: dict[str, tuple] = {}
+        self.meshes: dict[str, object] = {}       # particle name → mesh handle
+        self.colours: dict[str, tuple] = {}       # particle name → colour shown now
+        self.colours_by_mode = False
         self.key = None                           # (model id, particle names, draggable) the tree was built for
         self.on_drag = None                       # callback(name, event) set by the panel
         self.on_pick = None                       # callback(rho_r, f_kr): a click on the λ⁽⁶⁾ surface
         self.options = {"normals": True, "forces": True, "osculating": True, "surface": True, "force_scale": 1.0}
         self.base = {}                            # particle name → Body drawn (pose of its frame)
+        self._contact_keys: dict[str, bytes] = {}     # what /contacts shows now: digest per group
         self.dim = 2
 
     # particles ---------------------------------------------------------------------------------
@@ -161,9 +168,13 @@ class SceneView:
         self.dim = session.scene_dim
         size = session.size
         key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
-        if key != self.key:
+        if len(bodies) > MESH_MAX:
+            self._draw_cloud(bodies, key)
+            return
+        rebuilt = key != self.key
+        if rebuilt:
             self.api.remove_by_name("/particles")
-            self.nodes, self.inner, self.mesh_keys = {}, {}, {}
+            self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
             self.key = key
             for i, body in enumerate(bodies):
                 name = f"/particles/{body.name}"
@@ -176,20 +187,22 @@ class SceneView:
                     node = self.api.add_frame(name, show_axes=False, position=to3(body.x), wxyz=wxyz(body.R))
                 self.nodes[body.name] = node
                 self.inner[body.name] = self.api.add_frame(f"{name}/body", show_axes=False)
+        drawn = {} if rebuilt else self.base
         for i, body in enumerate(bodies):
             node = self.nodes[body.name]
-            if body.name != skip:
+            old = drawn.get(body.name)
+            moved = old is None or not (np.array_equal(old.x, body.x) and np.array_equal(old.R, body.R))
+            if body.name != skip and moved:          # unchanged poses are not re-sent
                 node.position = to3(body.x)
                 node.wxyz = wxyz(body.R)
-            self.inner[body.name].position = (0.0, 0.0, 0.0)
-            self.inner[body.name].wxyz = (1.0, 0.0, 0.0, 0.0)
             mkey = (body.axes, round(size, 9))
             if self.mesh_keys.get(body.name) != mkey:
                 self.mesh_keys[body.name] = mkey
                 V, F = body_mesh(body, 0.15 * size)
                 base = f"/particles/{body.name}/body"
-                self.api.add_mesh_simple(f"{base}/mesh", V, F, color=PALETTE[i % len(PALETTE)], flat_shading=False,
-                                         side="double", opacity=None if self.dim == 2 else 0.45)
+                self.meshes[body.name] = self.api.add_mesh_simple(
+                    f"{base}/mesh", V, F, color=self.colours.get(body.name, PALETTE[i % len(PALETTE)]),
+                    flat_shading=False, side="double", opacity=None if self.dim == 2 else 0.45)
                 a, b = body.axes[0], body.axes[1]
                 if self.dim == 2:   # along body e2: clear of the force arrows of the pair (along e1)
                     w = 0.06 * size
@@ -200,6 +213,31 @@ class SceneView:
                 else:
                     self.api.add_icosphere(f"{base}/marker", radius=0.12 * size, color=MARKER, position=(a, 0.0, 0.0))
         self.base = {b.name: b for b in bodies}
+
+    def _draw_cloud(self, bodies, key) -> None:
+        """A large packing: one point cloud of the centres (sized by the median radius), no per-particle nodes."""
+        x = np.array([to3(b.x) for b in bodies])
+        cloud = digest(key, x)
+        if cloud == self.key:
+            return
+        self.api.remove_by_name("/particles")
+        self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
+        self.key = cloud
+        radius = float(np.median([max(b.axes) for b in bodies]))
+        self.api.add_point_cloud("/particles/cloud", points=x, colors=PALETTE[0], point_size=1.8 * radius,
+                                 point_shape="circle")
+        self.base = {b.name: b for b in bodies}
+
+    def colour_particles(self, names, shares=None) -> None:
+        """Colour each particle by its share of a mode (white 0 → dark red 1), or by the palette (shares None);
+        only the colours that change are sent."""
+        for i, name in enumerate(names):
+            colour = (PALETTE[i % len(PALETTE)] if shares is None else
+                      tuple(int(c) for c in np.round(np.array([250, 250, 250]) + shares[i] * (SHARE_RED - 250))))
+            if self.colours.get(name) != colour and name in self.meshes:
+                self.meshes[name].color = colour
+            self.colours[name] = colour
+        self.colours_by_mode = shares is not None
 
     def _drag_callback(self, name):
         def _(event):
@@ -235,45 +273,69 @@ class SceneView:
 
     # contacts ----------------------------------------------------------------------------------
     def draw_contacts(self, session) -> dict:
-        """Points, normals, force arrows and osculating arcs; returns the legend numbers."""
-        scene = session.scene
-        self.api.remove_by_name("/contacts")
+        """Points, normals, osculating arcs (the geometry) and force arrows; returns the legend numbers.
+
+        Each of the two groups is re-sent only when what it shows changed (`digest` of its data and options): a μ
+        slider move on a 143-disk frame used to re-send 1.5 MB of drawings and cost the browser ≈ 8 s."""
+        scene, size, o = session.scene, session.size, self.options
         if scene is None or scene.n_contacts == 0:
+            if self._contact_keys:
+                self.api.remove_by_name("/contacts")
+                self._contact_keys = {}
             return {"max_force": 0.0, "arrow": 0.0}
-        size = session.size
         z = 0.1 * size if scene.dim == 2 else 0.0
         P = to3(scene.point, z)
-        n = to3(scene.normal, 0.0)
-        o = self.options
-        self.api.add_point_cloud("/contacts/points", points=P, colors=COLORS["point"], point_size=0.08 * size,
-                                 point_shape="circle")
-        if o["normals"]:
-            self.api.add_line_segments("/contacts/normals", np.stack([P, P + 0.5 * size * n], axis=1),
-                                       COLORS["normal"], thickness=2.5, thickness_units="screen")
+        geometry = digest((size, o["normals"], o["osculating"]), scene.point, scene.normal, scene.curvature_p,
+                          scene.curvature_q)
+        if self._contact_keys.get("geometry") != geometry:
+            self._contact_keys["geometry"] = geometry
+            self._draw_geometry(scene, size, P, z)
         fmag = np.linalg.norm(scene.force, axis=1)
         fmax = float(fmag.max())
         arrow = 0.6 * size * o["force_scale"]
-        if o["forces"] and fmax > 0:
-            f = to3(scene.force, 0.0) / fmax * arrow                  # f^pq: on p; -f^pq on q
-            fn = np.sum(scene.force * scene.normal, axis=1)
-            sliding = scene.at_yield()
-            color = np.where(sliding[:, None], COLORS["sliding"],
-                             np.where((fn > 0)[:, None], COLORS["tensile"], COLORS["compressive"]))
-            keep = fmag > 1e-12 * fmax
-            starts = np.concatenate([P[keep], P[keep]])
-            ends = np.concatenate([P[keep] + f[keep], P[keep] - f[keep]])
-            shaft = 0.035 * size
-            self.api.add_arrows("/contacts/forces", np.stack([starts, ends], axis=1),
-                                np.concatenate([color[keep], color[keep]]).astype(np.uint8),
-                                shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
-        if o["osculating"]:
+        yielding = scene.at_yield()
+        forces = digest((size, o["forces"], o["force_scale"]), scene.point, scene.normal, scene.force, yielding)
+        if self._contact_keys.get("forces") != forces:
+            self._contact_keys["forces"] = forces
+            self.api.remove_by_name("/contacts/forces")
+            if o["forces"] and fmax > 0:
+                self._draw_forces(scene, size, P, fmag, fmax, arrow, yielding)
+        return {"max_force": fmax, "arrow": arrow / size, "lines": scene.n_contacts > MAX_ARROWS}
+
+    def _draw_geometry(self, scene, size, P, z) -> None:
+        for part in ("points", "normals", "osculating"):
+            self.api.remove_by_name(f"/contacts/{part}")
+        self.api.add_point_cloud("/contacts/points", points=P, colors=COLORS["point"], point_size=0.08 * size,
+                                 point_shape="circle")
+        if self.options["normals"]:
+            n = to3(scene.normal, 0.0)
+            self.api.add_line_segments("/contacts/normals", np.stack([P, P + 0.5 * size * n], axis=1),
+                                       COLORS["normal"], thickness=2.5, thickness_units="screen")
+        if self.options["osculating"] and scene.n_contacts <= MESH_MAX:     # arcs of thousands of contacts: clutter
             data = circle_data(scene, size)
             if data is not None:
                 pts, cen, rad, nout, tan = data
                 cen = cen + np.array([0, 0, z]) if scene.dim == 2 else cen
                 segs = osculating_arcs(pts, cen, rad, nout, tan, size)
-                self.api.add_line_segments("/contacts/osculating", segs, COLORS["osculating"], thickness=1.5, thickness_units="screen")
-        return {"max_force": fmax, "arrow": arrow / size}
+                self.api.add_line_segments("/contacts/osculating", segs, COLORS["osculating"], thickness=1.5,
+                                           thickness_units="screen")
+
+    def _draw_forces(self, scene, size, P, fmag, fmax, arrow, yielding) -> None:
+        f = to3(scene.force, 0.0) / fmax * arrow                  # f^pq: on p; -f^pq on q
+        fn = np.sum(scene.force * scene.normal, axis=1)
+        color = np.where(yielding[:, None], COLORS["sliding"],
+                         np.where((fn > 0)[:, None], COLORS["tensile"], COLORS["compressive"]))
+        keep = fmag > 1e-12 * fmax
+        starts = np.concatenate([P[keep], P[keep]])
+        ends = np.concatenate([P[keep] + f[keep], P[keep] - f[keep]])
+        colors = np.concatenate([color[keep], color[keep]]).astype(np.uint8)
+        if scene.n_contacts > MAX_ARROWS:      # arrow meshes cost the browser ~25 ms each to rebuild: lines instead
+            self.api.add_line_segments("/contacts/forces", np.stack([starts, ends], axis=1),
+                                       np.repeat(colors[:, None], 2, axis=1), thickness=3.0, thickness_units="screen")
+            return
+        shaft = 0.035 * size
+        self.api.add_arrows("/contacts/forces", np.stack([starts, ends], axis=1), colors,
+                            shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
 
     # the λ⁽⁶⁾ surface --------------------------------------------------------------------------
     def field_frame(self, field, size: float):
@@ -292,7 +354,7 @@ class SceneView:
             self.api.remove_by_name("/field")
             return
         import trimesh
-        size = session.size
+        size = session.field_scale      # fixed per pair: the cached surface and the marker share it
         place, (x0, x1, y0, y1) = self.field_frame(field, size)
         lim = float(np.abs(field.lam).max()) or 1.0
         height = 0.8 * size
@@ -306,7 +368,7 @@ class SceneView:
         faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
         v = field.lam.reshape(-1) / lim
         colors = diverging(np.sign(v) * np.sqrt(np.abs(v)))     # √ stretch: the small values near 0 show too
-        key = (id(field),)
+        key = (id(field), size)
         if getattr(self, "_field_key", None) != key:
             self._field_key = key
             mesh = trimesh.Trimesh(V, faces, vertex_colors=colors, process=False)
@@ -335,6 +397,17 @@ class SceneView:
     def clear_field(self) -> None:
         self._field_key = None
         self.api.remove_by_name("/field")
+
+
+def digest(small, *arrays) -> bytes:
+    """A short digest of a small tuple and some arrays: what a drawing shows, to skip re-sending it unchanged."""
+    import hashlib
+    h = hashlib.blake2b(repr(small).encode(), digest_size=16)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(repr(a.shape).encode())
+        h.update(a.tobytes())
+    return h.digest()
 
 
 def ray_heightfield(origin, direction, field, place, Z, n: int = 2000):

@@ -104,8 +104,12 @@ def cmd_stiffness(args) -> int:
 MARK = {PLUS: "+v", MINUS: "-v", BOTH: "±v", RIGID: "rigid"}
 
 
-def format_table(result) -> str:
-    """A readable report of an Analysis: per branch the spectrum with consistency marks, then the verdict."""
+TABLE_LOWEST = 8   # eigenvalues per branch in the readable table (all of them with --all)
+
+
+def format_table(result, show_all: bool = False) -> str:
+    """A readable report of an Analysis: per branch the lowest TABLE_LOWEST eigenvalues with consistency marks and
+    the counts (every eigenvalue with show_all), then the verdict."""
     s = result.scene
     d = result.to_dict()
     lines = [f"{s.title or s.source}: {s.dim}D, {s.n_particles} particles, {s.n_contacts} contacts, "
@@ -114,9 +118,13 @@ def format_table(result) -> str:
     for b in result.branches:
         mask = " ".join(f"{int(v):+d}" for v in b.mask[result.problem.sliding]) or "(all elastic)"
         lines.append(f"branch [{mask}]  zeros: {b.n_zero} (tol {b.zero_tol:.1e})  ℍ nullity: {b.uniqueness_n_zero}")
-        cells = [f"{lam: .6g}{'(' + MARK[c] + ')' if c in MARK else ''}"
-                 for lam, c in zip(b.stability_eigenvalues, b.codes)]
-        lines.append("  sym(𝓗) eigenvalues: " + ", ".join(cells))
+        lam, codes = np.asarray(b.stability_eigenvalues), np.asarray(b.codes)
+        shown = np.argsort(lam, kind="stable") if show_all else np.argsort(lam, kind="stable")[:TABLE_LOWEST]
+        cells = [f"{lam[i]: .6g}{'(' + MARK[codes[i]] + ')' if codes[i] in MARK else ''}" for i in shown]
+        rest = len(lam) - len(shown)
+        lines.append(f"  sym(𝓗) eigenvalues ({'all ' if not rest else f'lowest {len(shown)} of '}{len(lam)}: "
+                     f"{int(np.sum(lam < -b.zero_tol))} negative, {b.n_zero} zero, {int(np.sum(lam > b.zero_tol))} "
+                     f"positive): " + ", ".join(cells) + (f", … ({rest} more: --all)" if rest else ""))
     sm = d["summary"]
     lines.append(f"verdict: {sm['verdict'].upper()} — {sm['reason']}")
     low = [k.split("_")[1] for k, v in sm["counts_are"].items() if v != "totals"]
@@ -159,7 +167,7 @@ def cmd_analyze(args) -> int:
                 raise InputError(f"--device: {exc}") from None
             data = result.to_dict()
             require_finite(data, scene.source)
-            text = json.dumps(data, allow_nan=False) if args.json else format_table(result)
+            text = json.dumps(data, allow_nan=False) if args.json else format_table(result, show_all=args.all)
     print(text)
     return 0
 
@@ -352,6 +360,8 @@ def build_parser() -> Parser:
     p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
                    help="where the stacked branch eigenproblems run: gpu needs CuPy (pip install 'granstab[gpu]'); "
                         "auto: the GPU when CuPy sees one")
+    p.add_argument("--all", action="store_true", help="list every eigenvalue in the table (default: the lowest "
+                   f"{TABLE_LOWEST} per branch and the counts)")
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
     p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])

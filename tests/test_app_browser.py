@@ -18,10 +18,7 @@ import numpy as np
 import pytest
 from helpers import FLAT_PAIR
 
-CHROMIUM = Path("/usr/bin/chromium")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--enable-unsafe-swiftshader"]
+from app.browser import CHROMIUM, FLAGS, number_box
 REPO = Path(__file__).resolve().parent.parent
 
 pytestmark = pytest.mark.browser
@@ -51,11 +48,6 @@ def wait_for(predicate, timeout=20.0, what="condition"):
             return value
         time.sleep(0.1)
     raise AssertionError(f"timed out waiting for {what}")
-
-
-def number_box(page, handle):
-    """The number input beside a viser slider (the slider root carries the handle's uuid as its id)."""
-    return page.locator(f'[id="{handle._impl.uuid}"]').locator("xpath=..").locator("input.mantine-NumberInput-input")
 
 
 def verdict_on_page(page, verdict, timeout=20_000):

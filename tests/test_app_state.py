@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -336,7 +337,7 @@ def test_export_analysis_and_contour(pair):
 def test_failed_analysis_is_kept_as_a_message(pair, monkeypatch):
     import app.state as state
 
-    def boom(scene):
+    def boom(scene, **options):
         raise RuntimeError("eigensolver exploded")
     monkeypatch.setattr(state, "analyze", boom)
     pair.set_params(rho_r=0.7)
@@ -350,3 +351,82 @@ def test_models_from_files():
     assert isinstance(load_model(REPO / "presets" / "two_particle.toml"), TwoParticleModel)
     pair = TwoParticleModel()
     assert isinstance(pair.to_shapes(pair.initial_params()), ShapeModel)
+
+
+# ------------------------------------------------------------------------------------------ issue 13 defects
+
+class RecordingScene:
+    """A stand-in for viser's scene API that keeps what the λ⁽⁶⁾ surface view sends (mesh, marker position)."""
+
+    def __init__(self):
+        self.sent = {}
+
+    def __getattr__(self, name):
+        def add(node, *args, **kwargs):
+            self.sent[node] = (args, kwargs)
+            return SimpleNamespace(on_click=lambda fn: None)
+        return add
+
+
+def test_current_state_ball_sits_on_the_cached_surface_for_every_rho(pair):
+    from scipy.interpolate import RegularGridInterpolator
+    """The surface is built once per field (cached) and the ball is placed on every update: both must use the
+    same scale, or the ball drifts off the surface as ρ/r (hence the drawn particle size) grows past 1."""
+    from app.views import SceneView
+    view = SceneView(RecordingScene())
+    field = pair.field()
+    view.draw_field(pair, field, (pair.params["rho_r"], pair.params["f_kr"], pair.rolling_eigenvalue()))
+    mesh = view.api.sent["/field/surface"][0][0]
+    V = np.asarray(mesh.vertices).reshape(len(field.f_kr), len(field.rho_r), 3)
+    xs, ys, Z = V[0, :, 0], V[:, 0, 1], V[:, :, 2]
+    for rho_r, f_kr in ((1.5, 0.01), (2.59, 0.015), (3.0, 0.02), (0.3, -0.004)):
+        pair.set_params(rho_r=rho_r, f_kr=f_kr)
+        assert pair.field() is field                                        # the cached surface is kept
+        view.draw_field(pair, pair.field(), (rho_r, f_kr, pair.rolling_eigenvalue()))
+        assert view.api.sent["/field/surface"][0][0] is mesh
+        cx, cy, cz = view.api.sent["/field/current"][1]["position"]
+        # the ball is over its (ρ/r, f/(kr)) on the surface (λ⁽⁶⁾ = f(ρ - r) is bilinear, so is the grid's
+        # interpolation: exact) and lifted by 0.05 r; tolerance 1e-9 r
+        assert (cx, cy) == (pytest.approx(np.interp(rho_r, field.rho_r, xs), abs=1e-9),
+                            pytest.approx(np.interp(f_kr, field.f_kr, ys), abs=1e-9))
+        surface_z = RegularGridInterpolator((ys, xs), Z)([[cy, cx]])[0]
+        assert cz - 0.05 * pair.field_scale == pytest.approx(surface_z, abs=1e-9)
+
+
+@pytest.mark.parametrize("rho_r, word", [(0.5, "sharp"), (1.0, "circular"), (1.5, "flat"), (3.0, "flat")])
+def test_the_pairs_title_follows_rho(pair, rho_r, word):
+    pair.set_params(rho_r=rho_r)
+    assert f", {word} contact (ρ/r = {rho_r:g}" in pair.scene.title
+    assert "sharp" not in pair.scene.title or word == "sharp"
+
+
+def test_rolling_eigenvalue_is_zero_within_the_tolerance_at_rho_equal_r(pair):
+    pair.set_params(rho_r=1.0, f_kr=0.01)
+    tol = pair.zero_tolerance()
+    assert 0 < tol < 1e-6                                  # relative to k = 1: a round-off scale, not a physics one
+    assert pair.rolling_eigenvalue() == 0.0
+    pair.set_params(rho_r=1.01)
+    assert pair.rolling_eigenvalue() == pytest.approx(0.01 * 0.01, rel=1e-9)    # f (ρ - r) just off the line
+
+
+def test_reset_returns_a_dragged_pair_to_its_sliders(pair):
+    pair.set_params(rho_r=1.5, f_kr=0.015)
+    pair.move("q", [2.0, 0.3], 0.0)
+    assert pair.kind == "shapes" and pair.resettable
+    pair.reset_poses()
+    assert pair.kind == "two_particle" and pair.notice is None and not pair.resettable
+    assert (pair.params["rho_r"], pair.params["f_kr"]) == (1.5, 0.015)
+    assert pair.verdict == "stable" and pair.rolling_eigenvalue() == pytest.approx(0.015 * 0.5, rel=1e-9)
+
+
+def test_particle_shares_locate_the_mode(pair, presets):
+    # the pair's rolling mode turns both particles equally: each carries the whole motion (share 1, to round-off)
+    rolling = next(m for m in pair.modes() if m.branch == 0 and m.label == "rolling")
+    assert pair.particle_shares(rolling) == pytest.approx([1.0, 1.0], abs=1e-9)
+    # the 143-disk frame: the lowest consistent negative mode is picked and lives on a few particles
+    frame = Session(str(REPO / "presets" / "annulus_frame.json"))
+    lowest = min((m for m in frame.modes() if m.consistent), key=lambda m: m.eigenvalue)
+    assert lowest.eigenvalue < 0 and frame.verdict == "unstable"
+    shares = frame.particle_shares(lowest)
+    assert shares.shape == (143,) and shares.max() == 1.0 and shares.min() >= 0
+    assert np.sum(shares > 0.5) < 143 // 2           # localised: fewer than half the disks carry half the motion

@@ -70,3 +70,19 @@ def test_sparse_method_agrees_with_dense_on_real_data(capsys):
     assert np.allclose(sorted(lam for lam in sparse if abs(lam) > 1e-12 * max(map(abs, dense)))[:5], lowest,
                        rtol=0, atol=1e-12 * max(map(abs, dense)))
     assert any("sparse path" in w for w in out["warnings"])
+
+
+def test_readable_table_lists_the_lowest_eigenvalues_and_counts(capsys):
+    """The 143-disk frame (429 eigenvalues): the table shows the lowest TABLE_LOWEST with the counts; --all every
+    one. The counts must match the analysis' (4 consistent negative, 3 rigid zeros)."""
+    from granstab.cli import TABLE_LOWEST
+    path = str(PRESETS / "annulus_frame.json")
+    assert main(["analyze", path, "--metric", "L"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "sym(𝓗) eigenvalues" in x)
+    assert f"(lowest {TABLE_LOWEST} of 429: 4 negative, 3 zero, 422 positive)" in line
+    assert line.count("(±v)") + line.count("(rigid)") == TABLE_LOWEST and "(421 more: --all)" in line
+    assert line.index("-0.0015365") < line.index("-0.00146259")                 # ascending, the lowest first
+    assert main(["analyze", path, "--metric", "L", "--all"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "sym(𝓗) eigenvalues" in x)
+    assert "(all 429: 4 negative, 3 zero, 422 positive)" in line
+    assert len(line.split("positive): ")[1].split(", ")) == 429 and "--all)" not in line

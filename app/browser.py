@@ -1,0 +1,26 @@
+"""Headless Debian Chromium for the browser tests and the latency benchmark (Playwright, never `playwright install`).
+
+`chromium(playwright, profile_dir)` opens a persistent context with the flags the project uses;
+`number_box(page, slider)` is the number input beside a viser slider (typing there moves the slider without
+turning the camera, which arrow keys on the handle do)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+CHROMIUM = Path("/usr/bin/chromium")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         "--enable-unsafe-swiftshader"]
+
+
+def chromium(playwright, profile_dir, width: int = 1600, height: int = 1000):
+    if not CHROMIUM.exists():
+        raise RuntimeError("Debian chromium is required (apt-get install -y chromium)")
+    return playwright.chromium.launch_persistent_context(str(profile_dir), executable_path=str(CHROMIUM),
+                                                         headless=True, args=FLAGS,
+                                                         viewport={"width": width, "height": height})
+
+
+def number_box(page, handle):
+    """The number input beside a viser slider (the slider root carries the handle's uuid as its id)."""
+    return page.locator(f'[id="{handle._impl.uuid}"]').locator("xpath=..").locator("input.mantine-NumberInput-input")
