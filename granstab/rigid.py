@@ -16,17 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Scene
+from .scene import Scene, mean_contact_radius
 from .vec import rot_dim, rotate_matrix
 
 
-def rotation_length(scene: Scene) -> float:
-    """Default L: the mean contact radius |r^pq|, |r^qp| (1 for a scene without contacts)."""
-    if scene.n_contacts == 0:
-        return 1.0
-    radii = np.concatenate([np.linalg.norm(scene.r_pq, axis=1), np.linalg.norm(scene.r_qp, axis=1)])
-    L = float(radii.mean())
-    return L if L > 0 else 1.0
+rotation_length = mean_contact_radius   # the default L of the scaled dofs [du, L dθ]
 
 
 def dof_scale(scene: Scene, length: float) -> np.ndarray:

@@ -492,8 +492,7 @@ def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
                              "(change units: products with it underflow float64)")
     if M == 0:
         return
-    from .rigid import rotation_length
-    L = rotation_length(scene)
+    L = mean_contact_radius(scene)
     if not MIN_SCALE <= L <= MAX_MAGNITUDE:
         raise SceneError(f"{scene.source}: contacts: point: the mean contact radius {L:.3g} is outside "
                          f"[{MIN_SCALE:.0e}, {MAX_MAGNITUDE:.0e}] (change units)")
@@ -505,6 +504,15 @@ def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
             raise SceneError(f"{scene.source}: {name(i)}: {key}: {np.abs(arr[i]).max():.3g} is more than "
                              f"{COORDINATE_RATIO:.0e} mean contact radii ({L:.3g}) from the origin: rounding "
                              f"would cost r^pq = point - x more than input_rtol; move the scene near the origin")
+
+
+def mean_contact_radius(scene: Scene) -> float:
+    """The mean contact radius over |r^pq| and |r^qp| (1 for a scene without contacts): granstab's length scale."""
+    if scene.n_contacts == 0:
+        return 1.0
+    radii = np.concatenate([np.linalg.norm(scene.r_pq, axis=1), np.linalg.norm(scene.r_qp, axis=1)])
+    L = float(radii.mean())
+    return L if L > 0 else 1.0
 
 
 def _rows(arr, n: int) -> np.ndarray:
