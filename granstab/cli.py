@@ -234,7 +234,7 @@ def cmd_convert(args) -> int:
     from .io import format_report, load
 
     options = {key: getattr(args, key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
-                                                   "length_scale", "units", "region", "columns")
+                                                   "length_scale", "units", "region", "columns", "density")
                if getattr(args, key) is not None}
     if args.keep_rattlers:
         options["keep_rattlers"] = True
@@ -321,6 +321,9 @@ def add_convert(sub) -> None:
     p.add_argument("--length-scale", dest="length_scale", type=float, default=None,
                    help="scene length per file length unit (e.g. 0.027 for px → cm)")
     p.add_argument("--units", help="name of the scene's length unit (report)")
+    p.add_argument("--density", type=float, default=None,
+                   help="mass per volume (2D: per area) when the file gives no masses: disks/spheres for the inertia "
+                        "metric")
     p.add_argument("--columns", help="what each column is, e.g. id1,id2,fx,fy,fz (formats with named columns)")
     p.add_argument("--keep-rattlers", action="store_true", help="keep particles without contacts")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")

@@ -153,3 +153,47 @@ def test_analyse_the_2d_fixture_dense_and_the_3d_fixture_sparse():
     s3 = load(inputs(3), timestep=14000).scene
     r3 = granstab.analyze(s3, method="sparse", k=4)
     assert any(w.startswith("sparse path") for w in r3.to_dict()["warnings"]) and max(r3.errors.values()) <= 1e-10
+
+
+def with_mass_column(src, dst, mass_of_radius):
+    """The atom dump with a `mass` column appended (written here, independently of granstab's reader)."""
+    out = []
+    columns = None
+    for line in src.read_text().splitlines():
+        if line.startswith("ITEM: ATOMS"):
+            columns = line.split()[2:]
+            out.append(line + " mass")
+        elif line.startswith("ITEM:"):
+            columns = None
+            out.append(line)
+        elif columns is not None:
+            out.append(f"{line} {mass_of_radius(float(line.split()[columns.index('radius')])):.17g}")
+        else:
+            out.append(line)
+    dst.write_text("\n".join(out) + "\n")
+    return dst
+
+
+def test_masses_from_the_file_or_a_density_give_the_inertia_metric(tmp_path, capsys):
+    plain = load(inputs(2), timestep=21000).scene
+    assert plain.mass is None                                    # nothing invented
+    with pytest.raises(granstab.SceneError, match="mass"):
+        granstab.analyze(plain, metric="inertia")
+    atoms = with_mass_column(inputs(2)[0], tmp_path / "atoms.dump", lambda r: 3.0 * np.pi * r**2)
+    filed = load([atoms, *inputs(2)[1:]], timestep=21000)
+    dense = load(inputs(2), timestep=21000, density=3.0)
+    R = raw_block(inputs(2)[0], 21000)
+    radius = dict(zip(R[:, 0].astype(int), R[:, 5]))[int(plain.names[0])]
+    for imp in (filed, dense):
+        s = imp.scene
+        assert s.names == plain.names
+        assert s.mass[0] == pytest.approx(3.0 * np.pi * radius**2, rel=1e-15)
+        assert s.inertia[0, 0, 0] == pytest.approx(0.5 * s.mass[0] * radius**2, rel=1e-15)   # solid disk
+    assert "file's masses" in filed.report["masses"] and "density 3" in dense.report["masses"]
+    a, b = (granstab.analyze(imp.scene, metric="inertia", method="dense") for imp in (filed, dense))
+    lam_a, lam_b = a.branches[0].stability_eigenvalues, b.branches[0].stability_eigenvalues
+    assert np.abs(lam_a - lam_b).max() <= 1e-9 * np.abs(lam_b).max()   # masses printed to 17 digits
+    bad = with_mass_column(inputs(2)[0], tmp_path / "bad.dump", lambda r: 0.0)
+    assert main(["convert", str(bad), *map(str, inputs(2)[1:]), "--out", str(tmp_path / "x.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "bad.dump: line" in err and "mass: must be a positive number" in err

@@ -18,7 +18,7 @@ from . import lammps, mercury, rigidlibrary, table
 
 FORMATS = ("rigidlibrary-annulus", "rigidlibrary-datasim", "lammps", "mercurydpm", "table")
 OPTION_KEYS = {"k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol", "length_scale", "units", "region",
-               "keep_rattlers"}
+               "keep_rattlers", "density"}
 
 
 def detect(paths: list[Path]) -> str:

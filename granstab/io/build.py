@@ -16,6 +16,9 @@ the first particle, in the file's units); `build` turns it into a granstab Scene
   (|f_t| > μ f_n (1 + yield_rtol)) follows `outside_cone`: "sliding" (project onto the cone, mark at yield),
   "project" (project, treat as sticking: "elastic"), "elastic" (keep the force, "elastic") or "error".
   Contacts with f_n ≤ 0 and a force are "elastic" (tension is cohesion). Every change is counted and named.
+- **Masses** (for the inertia metric, metric.py): the file's per-particle masses, else `density` × volume
+  (2D: disk area π R², 3D: sphere volume 4/3 π R³); moments of inertia of solid disks (½ m R²) and spheres
+  (2/5 m R² I). Neither: the scene carries no masses and `--metric inertia` says so.
 - **Loads** follow the contact forces (scene rule b^p = −Σ f^pq): walls, contacts cut by a region or around a
   periodic cell and the snapshot's own imbalance become external loads; the report gives each.
 - **Periodic cells** (lattice rows, Lees–Edwards = sheared lattice): minimum-image branch vectors; particles are
@@ -57,6 +60,7 @@ class Snapshot:
     lattice: np.ndarray | None = None    # (d, d) lower-triangular periodic lattice vectors (rows); NaN row = open
     wall_flags: np.ndarray | None = None  # (N,) nonzero: touches a wall whose force the file does not give
     wall_load: np.ndarray | None = None  # (N, d) wall forces the file gives
+    mass: np.ndarray | None = None       # (N,) per-particle masses the file gives (e.g. LAMMPS `mass`)
     law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
     length_unit: str = "file units"
     frame: object = None
@@ -85,6 +89,7 @@ class Options:
     units: str | None = None
     region: object = None
     keep_rattlers: bool = False
+    density: float | None = None    # mass per scene volume (2D: per area), when the file gives no masses
 
 
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5}
@@ -155,8 +160,10 @@ def build(snap: Snapshot, opts: Options) -> Imported:
         "rolling": np.zeros((len(c), r, r)), "state": tuple(state[c]),
     }
     title = f"{snap.format} {snap.source}" + ("" if snap.frame is None else f" frame {snap.frame}")
+    mass, inertia, report["masses"] = _masses(snap, opts.density, radius)
     scene = build_scene(snap.dim, list(names[keep_p]), unwrapped[keep_p], arrays, title=title, source=snap.source,
-                        entries=[f"contact {s}" for s in pair[c]])
+                        entries=[f"contact {s}" for s in pair[c]],
+                        **({} if mass is None else {"mass": mass[keep_p], "inertia": inertia[keep_p]}))
     report.update({
         "particles": {"in_file": len(x), "in_scene": int(keep_p.sum()), "outside_region": selection["particles"],
                       "without_contacts_dropped": int(dropped.sum()), "dropped": _names(names[dropped])},
@@ -175,6 +182,27 @@ def build(snap: Snapshot, opts: Options) -> Imported:
 
 
 # ------------------------------------------------------------------------------------------------ checks
+
+def _masses(snap: Snapshot, density: float | None, radius: np.ndarray):
+    """(mass (N,), inertia (N, r, r), report line) of solid disks (2D) or spheres (3D); (None, None, None) when
+    neither the file's masses nor a density are given. `radius` in scene units."""
+    if density is not None and not (np.isfinite(density) and density > 0):
+        raise SceneError(f"--density: must be a positive number, got {density}")
+    if snap.mass is not None:
+        bad = np.flatnonzero(~(snap.mass > 0) | ~np.isfinite(snap.mass))
+        if bad.size:
+            raise SceneError(f"{snap.where('particle', bad[0])}: particle {snap.ids[bad[0]]}: mass: must be a "
+                             f"positive number, got {snap.mass[bad[0]]}")
+        mass, how = np.asarray(snap.mass, float), "the file's masses"
+    elif density is not None:
+        volume = np.pi * radius**2 if snap.dim == 2 else 4.0 / 3.0 * np.pi * radius**3
+        mass, how = density * volume, f"density {density:g} x {'disk area' if snap.dim == 2 else 'sphere volume'}"
+    else:
+        return None, None, None
+    if snap.dim == 2:
+        return mass, (0.5 * mass * radius**2).reshape(-1, 1, 1), how + "; solid disks"
+    return mass, 0.4 * (mass * radius**2)[:, None, None] * np.eye(3), how + "; solid spheres"
+
 
 def _check_particles(snap: Snapshot) -> None:
     where = snap.source

@@ -273,7 +273,7 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
             which = "mismatched atom/contact timesteps: " if timestep is None else ""
             raise SceneError(f"{path}: timestep {step}: timestep: {which}not in the file (it has {shown})")
     ablock, cblock = ablocks[a_steps.index(step)], cblocks[c_steps.index(step)]
-    ids, x, radius, dim_hint = _atoms(apath, ablock)
+    ids, x, radius, mass, dim_hint = _atoms(apath, ablock)
     names = _contact_columns(cpath, cblock, columns, script)
     data = read_block(cblock.text, cblock.first_line, cpath, names, cblock.count, "entries")
     col = {name: data[:, k] for k, name in enumerate(names) if name != "-"}
@@ -296,7 +296,7 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
     law, notes = contact_law(script, radius[p[touching]], radius[q[touching]], delta[touching])
     rows = np.flatnonzero(touching)
     return Snapshot(
-        source=f"{apath} + {cpath}", format="lammps", dim=dim, ids=ids, x=x[:, :dim], radius=radius,
+        source=f"{apath} + {cpath}", format="lammps", dim=dim, ids=ids, x=x[:, :dim], radius=radius, mass=mass,
         p=p[touching], q=q[touching], force=force[touching], lattice=lattice, law=law, frame=int(step),
         frames=sorted(set(a_steps) & set(c_steps)),
         notes={"non_touching_pairs": dropped, "law_notes": notes, "dimension": dim, "forces_from": how,
@@ -330,7 +330,7 @@ def _atoms(path: Path, block: Block):
     else:
         raise SceneError(f"{path}: timestep {block.timestep}: x: no x/xu/xs column in ITEM: ATOMS")
     flat = np.ptp(x[:, 2]) == 0 if len(x) else True
-    return ids, x, radius, 2 if flat else 3
+    return ids, x, radius, col.get("mass"), 2 if flat else 3
 
 
 def _contact_columns(path: Path, block: Block, columns: str | None, script) -> list:

@@ -43,6 +43,7 @@ def format_report(report: dict) -> str:
         f"(treated as {fo['fn_nonpositive']['treated_as']}){_names(fo['fn_nonpositive']['names'])}",
         f"duplicates: {r['duplicates']}",
         f"walls: {r['walls']}",
+        f"masses: {r.get('masses') or 'none (for the inertia metric: a mass column or --density)'}",
         f"imbalance over {imb['particles']} particles: force {_stats(imb['force'])}; moment {_stats(imb['moment'])}"
         f" ({imb['scale']})",
     ]
