@@ -81,6 +81,10 @@ class ClientUI:
             self.reset.on_click(lambda _: self.run(self._reset_poses))
             self.info = gui.add_markdown("")
         with tabs.add_tab("Verdict"):
+            self.metric = gui.add_dropdown("Metric", options=["L", "inertia"], initial_value="L", visible=False,
+                                           hint="L: rotations scaled by the mean contact radius; inertia: the "
+                                                "kinetic-energy metric (λ = ω², frequencies), for scenes with masses")
+            self.metric.on_update(lambda _: self.run(self._set_metric))
             self.details = gui.add_markdown("")
             check = gui.add_button("Check other metrics", hint="the verdict in L/10, 10L (and the inertia metric "
                                    "where masses are known): about 3× the time of one analysis")
@@ -181,6 +185,10 @@ class ClientUI:
     def _apply_sliders(self) -> None:
         values = {key: self.sliders[key].value for key in self.session.used_params}
         if self.session.set_params(**values):
+            self.refresh()
+
+    def _set_metric(self) -> None:
+        if self.session.set_metric(self.metric.value):
             self.refresh()
 
     def _load_preset(self) -> None:
@@ -354,6 +362,9 @@ class ClientUI:
                 self.frame.max = len(frames)
                 self.frame.value = frames.index(s.model.frame) + 1 if s.model.frame in frames else 1
             self.analyse.visible = s.deferred
+            self.metric.visible = len(s.metric_choices) > 1
+            if self.metric.value != s.metric:
+                self.metric.value = s.metric
             self.show["surface"].visible = self.exports["contour"].visible = s.kind == "two_particle"
 
     def _write_verdict(self) -> None:
@@ -403,6 +414,12 @@ class ClientUI:
                 f"| analysis time | {r['analysis_time'] * 1e3:.1f} ms (with scene: {r['elapsed'] * 1e3:.1f} ms) |",
             ]
             rows.insert(6, f"| metric | {self._metric_row()} |")
+            if r["dynamics"] is not None:
+                d = r["dynamics"]
+                rows.insert(7, "| lowest frequencies ω = √λ | " + (", ".join(f"{w:.4g}" for w in d["frequencies"])
+                                                                    or "none") + " (1/time: √(k/m)) |")
+                rows.insert(8, "| growth rates √(−λ) | " + (", ".join(f"{g:.4g}" for g in d["growth_rates"])
+                                                             or "none: no resolved negative λ") + " |")
             warn = "".join(f"\n\n**Warning:** {w}" for w in r["warnings"])
             self.details.content = f"**Why:** {r['reason']}\n\n" + "\n".join(rows) + warn
 
@@ -410,7 +427,8 @@ class ClientUI:
         """The metric-robustness flag of the core (summary["metric_robust"]) once checked, else how to check."""
         m = self.session.metrics
         if m is None or m["revision"] != self.session.revision:
-            return "rotation length L only: *Check other metrics* below runs L/10, 10L (and inertia with masses)"
+            return (f"{self.session.metric} only: *Check other metrics* below runs L/10, L, 10L (and inertia with "
+                    "masses)")
         if m["robust"]:
             return f"this verdict holds for every metric tried ({', '.join(x['metric'] for x in m['metrics'])})"
         return " · ".join(f"{x['metric']}: {x['verdict']} ({x['consistent_negative']} negative)"

@@ -70,6 +70,7 @@ class Session:
         self.scene: granstab.Scene | None = None
         self.analysis = None
         self.metrics: dict | None = None     # the metric-family check, when asked for (check_metrics)
+        self.metric = "L"                    # the projection metric of the verdict: "L" or "inertia" (with masses)
         self.error: str | None = None
         self.notice: str | None = None
         self.elapsed = 0.0
@@ -224,12 +225,41 @@ class Session:
                 self.error = None
                 self.elapsed = time.perf_counter() - start
                 return
+            if self.metric not in self.metric_choices:
+                self.notice = f"this scene has no masses: metric {self.metric} → L"
+                self.metric = "L"
             with blas_threads(1):       # small problems: BLAS thread start-up costs more than it saves
-                self.analysis = analyze(self.scene, metric="L")
+                self.analysis = analyze(self.scene, metric=self.metric)
             self.error = None
         except Exception as exc:  # noqa: BLE001 — shown in the page, never raised into the server
             self.error = one_line(exc)
         self.elapsed = time.perf_counter() - start
+
+    @property
+    def metric_choices(self) -> tuple:
+        """The metrics the verdict can use here: L always, the inertia metric where the scene has masses."""
+        return ("L", "inertia") if self.scene is not None and self.scene.mass is not None else ("L",)
+
+    def set_metric(self, name: str) -> bool:
+        """Analyse in metric `name` (one of metric_choices); recompute only on a change."""
+        if name not in self.metric_choices:
+            self.error = f"metric: {name!r} is not available here (choices: {', '.join(self.metric_choices)})"
+            return False
+        if name == self.metric:
+            return False
+        self.metric = name
+        self.recompute()
+        return True
+
+    def dynamics(self) -> dict | None:
+        """Inertia metric only (λ = ω², eq:Hm's 𝓗 in the kinetic-energy metric): the lowest frequencies ω = √λ and the
+        largest growth rates √(−λ) of the branch with the lowest eigenvalue, eigenvalues resolved by their accuracy."""
+        if self.analysis is None or self.metric != "inertia":
+            return None
+        b = min(self.analysis.branches, key=lambda b: b.stability_eigenvalues.min())
+        lam, acc = b.stability_eigenvalues, b.accuracy
+        return {"frequencies": np.sqrt(np.sort(lam[lam > acc])[:4]),
+                "growth_rates": np.sqrt(-np.sort(lam[lam < -acc])[:3]), "branch": b.mask}
 
     def check_metrics(self) -> dict | None:
         """The verdict in every metric of the family (L/10, L, 10L, inertia where masses are known), on request:
@@ -266,7 +296,7 @@ class Session:
             "n_particles": self.scene.n_particles, "n_contacts": self.scene.n_contacts,
             "n_sliding": int(np.sum(self.scene.at_yield())), "worst_error": worst, "errors": a.errors,
             "analysis_time": a.timings.get("total", 0.0), "elapsed": self.elapsed, "warnings": a.warnings,
-            "error": self.error, "notice": self.notice,
+            "error": self.error, "notice": self.notice, "metric": self.metric, "dynamics": self.dynamics(),
         }
 
     def type1(self) -> str:

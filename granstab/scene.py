@@ -485,7 +485,7 @@ def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
         if arr is not None:
             _check_magnitude(_rows(arr, scene.n_particles), scene.source, particle_name, key)
     for key, arr in (("k", scene.k), ("alpha", scene.alpha)):
-        small = arr < MIN_SCALE
+        small = (arr != 0) & (np.abs(arr) < MIN_SCALE)     # 0 is exact (alpha = 0: frictionless)
         if small.any():
             c = first(small)
             raise SceneError(f"{scene.source}: {contact_name(c)}: {key}: {arr[c]:.3g} is below {MIN_SCALE:.0e} "

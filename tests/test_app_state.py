@@ -430,3 +430,23 @@ def test_particle_shares_locate_the_mode(pair, presets):
     shares = frame.particle_shares(lowest)
     assert shares.shape == (143,) and shares.max() == 1.0 and shares.min() >= 0
     assert np.sum(shares > 0.5) < 143 // 2           # localised: fewer than half the disks carry half the motion
+
+
+def test_inertia_metric_where_the_scene_has_masses():
+    """The metric dropdown offers the inertia metric only with masses; its frequencies scale as 1/√m."""
+    import dataclasses
+
+    import granstab
+    s = Session("four_disk", presets_dir=REPO / "presets")
+    assert s.preset == "four_disk" and s.metric_choices == ("L",) and not s.set_metric("inertia") and "not available" in s.error
+    s = Session("ellipses_sharp", presets_dir=REPO / "presets")
+    assert s.metric_choices == ("L", "inertia") and s.report()["dynamics"] is None
+    assert s.set_metric("inertia") and s.analysis.metric.name == "inertia"
+    d = s.report()["dynamics"]
+    heavy = dataclasses.replace(s.scene, mass=4 * s.scene.mass, inertia=4 * s.scene.inertia)
+    b = min(granstab.analyze(heavy, metric="inertia").branches, key=lambda b: b.stability_eigenvalues.min())
+    lam = np.sort(b.stability_eigenvalues)
+    w4 = np.sqrt(lam[lam > b.accuracy.max()])[:len(d["frequencies"])]
+    # four times the mass: half the frequencies (relative to the largest, at the eigenvalues' accuracy)
+    assert len(d["frequencies"]) > 0 and np.allclose(w4, d["frequencies"] / 2, rtol=1e-8)
+    assert s.load_preset("four_disk") and s.metric == "L" and "no masses" in s.notice

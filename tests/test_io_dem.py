@@ -52,6 +52,11 @@ def test_settled_disks_cluster_dense_and_spheres_sparse(run):
     result = granstab.analyze(s, method="dense", max_sliding=4)
     assert max(result.errors.values()) <= 1e-10
     assert result.branches[0].n_zero >= 3                      # two translations and a rotation at least
+    # the dump's mass column (LAMMPS `set density 1.0` gives spheres 4/3 π R³ even in 2D; dumped to 6 digits)
+    R = radii(run, 2, 21000, s.names)
+    assert np.allclose(s.mass, 4 / 3 * np.pi * R**3, rtol=1e-5) and np.allclose(s.inertia[:, 0, 0], 0.5 * s.mass * R**2)
+    inertial = granstab.analyze(s, method="dense", max_sliding=4, metric="inertia")
+    assert max(inertial.errors.values()) <= 1e-10 and inertial.branches[0].n_zero >= 3
     s3 = load([run / "atoms3d.dump", run / "contacts3d.dump", DEM / "in.spheres3d"]).scene
     assert s3.dim == 3 and s3.n_particles > 900
     check_contact_geometry(s3, radii(run, 3, 14000, s3.names))

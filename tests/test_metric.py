@@ -236,8 +236,8 @@ def test_rotated_ellipsoids_give_a_full_inertia_tensor_and_both_backends_agree()
     assert dense.errors["rigid_leakage_modified"] <= 1e-14
 
 
-@pytest.mark.parametrize("argv, message", [(["--rotation-length", "0"], "--rotation-length: must be a positive"),
-                                           (["--rotation-length", "-1"], "--rotation-length: must be a positive"),
+@pytest.mark.parametrize("argv, message", [(["--rotation-length", "0"], "--rotation-length: must be a finite number > 0"),
+                                           (["--rotation-length", "-1"], "--rotation-length: must be a finite number > 0"),
                                            (["--metric", "inertia", "--rotation-length", "2"], "no rotation length"),
                                            (["--metric", "L/3"], "invalid choice")])
 def test_metric_options_are_checked(argv, message, capsys):
