@@ -43,6 +43,8 @@ class ClientUI:
         self._spectrum_json = None
         self.selected: tuple | None = None
         self.errors_shown = 0
+        self._listening = False                   # a scene click callback is registered (scan map only)
+        self._shown: dict[str, float] = {}        # slider values the page shows (set by the user or written here)
         self._build()
         self.run(self.refresh, camera=True)
 
@@ -71,6 +73,10 @@ class ClientUI:
             self.analyse = gui.add_button("Analyse the whole packing", visible=False,
                                           hint="large packings are drawn at once and analysed only on request")
             self.analyse.on_click(lambda _: self.run(self._analyse))
+            self.cluster_name = gui.add_text("Open cluster of", initial_value="", visible=False)
+            self.cluster_name.on_update(lambda _: self.run(self._open_cluster, self.cluster_name.value.strip()))
+            self.back = gui.add_button("Back to the map", visible=False, hint="the scan map this cluster came from")
+            self.back.on_click(lambda _: self.run(self._back_to_map))
             self.sliders = {}
             for key, p in PARAMS.items():
                 h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default, hint=p.hint)
@@ -96,6 +102,10 @@ class ClientUI:
             self.force_scale = gui.add_slider("Arrow length ×", min=0.2, max=3.0, step=0.1, initial_value=1.0)
             for h in (*self.show.values(), self.force_scale):
                 h.on_update(lambda _: self.run(self._display))
+            self.camera_view = gui.add_dropdown("View", options=["top", "oblique"], initial_value="top",
+                                                hint="oblique: the λ⁽⁶⁾ height surface and 2D scenes seen from the side")
+            self.camera_view.on_update(lambda _: self.run(self._set_camera))
+            gui.add_button("Reset view").on_click(lambda _: self.run(self._set_camera))
         with tabs.add_tab("Export"):
             gui.add_markdown("Download the current scene (reloads to the same analysis), the analysis, the contour.")
             self.exports = {}
@@ -184,6 +194,7 @@ class ClientUI:
     # --------------------------------------------------------------------------------------- callbacks
     def _apply_sliders(self) -> None:
         values = {key: self.sliders[key].value for key in self.session.used_params}
+        self._shown.update(values)              # what the page shows: not written back (see _sync_controls)
         if self.session.set_params(**values):
             self.refresh()
 
@@ -217,6 +228,24 @@ class ClientUI:
         frames = getattr(self.session.model, "frames", None)
         if frames and self.session.set_frame(frames[int(self.frame.value) - 1]):
             self.refresh()
+
+    def _open_cluster(self, name: str) -> None:
+        if name and self.session.open_cluster(name):
+            self.view.key = None
+            self.refresh(camera=True)
+        elif name:
+            self._show_message(self.session.error)
+
+    def _back_to_map(self) -> None:
+        if self.session.back_to_map():
+            self.view.key = None
+            self.refresh(camera=True)
+
+    def _map_click(self, event) -> None:
+        """A click in the scene while the scan map is shown: open the cluster of the particle under it."""
+        name = self.session.pick(event.ray_origin, event.ray_direction)
+        if name is not None:
+            self._open_cluster(name)
 
     def _analyse(self) -> None:
         self.session.analyse()
@@ -267,7 +296,7 @@ class ClientUI:
         def _(event):
             def send():
                 filename, content = fn()
-                (event.client or self.client).send_file_download(filename, content)
+                (event.client or self.client).send_file_download(filename, content, save_immediately=True)
             self.run(send)
         return _
 
@@ -353,8 +382,11 @@ class ClientUI:
             used = set(s.used_params)
             for key, h in self.sliders.items():
                 h.visible = key in used
-                if key in used and h.value != s.params[key]:
-                    h.value = s.params[key]
+                # write a slider only when the session changed its value (a preset, a reset, a cleaned entry), never
+                # because the handle differs: it may already hold a newer entry whose callback is queued, and
+                # writing the older value back would drop that entry (seen under load: the last of quick entries lost)
+                if key in used and s.params[key] != self._shown.get(key):
+                    h.value = self._shown[key] = s.params[key]
             self.reset.visible = s.resettable
             frames = getattr(s.model, "frames", None)
             self.frame.visible = bool(frames) and len(frames) > 1
@@ -362,6 +394,14 @@ class ClientUI:
                 self.frame.max = len(frames)
                 self.frame.value = frames.index(s.model.frame) + 1 if s.model.frame in frames else 1
             self.analyse.visible = s.deferred
+            on_map = s.kind == "scan_map"
+            self.cluster_name.visible, self.back.visible = on_map, s.map is not None
+            if on_map != self._listening:             # scene clicks are only listened to on the map
+                self._listening = on_map
+                if on_map:
+                    self.client.scene.on_click()(lambda event: self.run(self._map_click, event))
+                else:
+                    self.client.scene.remove_click_callback()
             self.metric.visible = len(s.metric_choices) > 1
             if self.metric.value != s.metric:
                 self.metric.value = s.metric
@@ -376,17 +416,22 @@ class ClientUI:
         if s.deferred:
             title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (*Analyse the whole packing*)"
             verdict = "not analysed"
+        if s.kind == "scan_map":
+            title, verdict = f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map"
         if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
         title = title if len(title) <= 90 else title[:87] + "…"
-        reason = ("" if verdict in (None, "no contact", "not analysed") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
+        reason = ("" if verdict in (None, "no contact", "not analysed", "scan map") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
         self.headline.content = (
             f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
             f'data-revision="{s.revision}" style="background:'
             f'{VERDICT_COLOR.get(verdict, "#555")};color:white;font-weight:700;font-size:1.35em;padding:4px 10px;'
             f'border-radius:6px;letter-spacing:0.05em">{(verdict or "no verdict").upper()}</div>'
             f'<div style="font-style:italic;margin:4px 2px 0 2px">{html.escape(title)}</div>'
-            f'<div style="margin:2px 2px 4px 2px;font-size:0.92em">{html.escape(reason)}</div>')
+            # two lines at most, always two lines tall: the controls below never jump when the reason wraps
+            f'<div title="{html.escape(reason)}" style="margin:2px 2px 4px 2px;font-size:0.92em;line-height:1.3em;'
+            f'height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;-webkit-box-orient:vertical">'
+            f'{html.escape(reason)}</div>')
         self._show_message(s.error)
         note = r.get("notice")
         params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g}" for k in s.used_params)
@@ -394,7 +439,12 @@ class ClientUI:
         self.info.content = (f"{note}\n\n" if note else "") + (
             f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene") + (
             f"\n\n**Import report**\n\n```\n{report}\n```" if report else "")
-        if s.deferred:
+        if s.kind == "scan_map":
+            self.details.content = (f"**Scan map.** {s.model.report}.\n\nColour: the fraction of the clusters "
+                                    "containing a particle that are unstable (white 0 → dark red 1; grey: in no "
+                                    "scanned cluster). Click a particle, or type its name under *Scene*, to open its "
+                                    "cluster here; *Back to the map* returns.")
+        elif s.deferred:
             self.details.content = "Not analysed yet: a large packing is analysed only on request."
         elif r["verdict"] is None:
             self.details.content = f"**Analysis failed:** {s.error}\n\n(last attempt {r['elapsed'] * 1e3:.1f} ms)"
@@ -435,7 +485,10 @@ class ClientUI:
                           for x in m["metrics"])
 
     def _write_legend(self, legend: dict) -> None:
-        if legend["max_force"] > 0:
+        if self.session.kind == "scan_map":
+            self.legend.content = ("**Legend** — particle colour: the share of the scanned clusters containing it that "
+                                   "are unstable (white 0 → dark red 1; grey: in no cluster).")
+        elif legend["max_force"] > 0:
             self.legend.content = (
                 f"**Legend** — {'lines' if legend.get('lines') else 'arrows'}: the contact force on each particle (pointing into it when compressive; "
                 f"red compressive, blue tensile, orange at the Coulomb limit); length {legend['arrow']:.2g}·size "
@@ -490,7 +543,7 @@ class ClientUI:
         names = [b.name for b in s.bodies()]
         index = {n: i for i, n in enumerate(s.scene.names)}
         shares = s.particle_shares(m)[[index[n] for n in names]] if on else None
-        self.view.colour_particles(names, shares)
+        self.view.colour_particles(names, shares, s.map_colours)
 
     def _describe_mode(self) -> None:
         m = self._current_mode()
@@ -523,8 +576,13 @@ class ClientUI:
                 lo[1] = min(lo[1], -4.9 * s.field_scale)
             c = 0.5 * (lo + hi)
             extent = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * 1.3))
-            self.client.camera.up_direction = (0.0, 1.0, 0.0)
-            self.client.camera.position = (float(c[0]), float(c[1]), 0.8 * extent + 0.5 * size)
+            distance = 0.8 * extent + 0.5 * size
+            if self.camera_view.value == "oblique":      # from the front and above: heights become readable
+                self.client.camera.up_direction = (0.0, 0.0, 1.0)
+                self.client.camera.position = (float(c[0]), float(c[1]) - 0.8 * distance, 0.75 * distance)
+            else:
+                self.client.camera.up_direction = (0.0, 1.0, 0.0)
+                self.client.camera.position = (float(c[0]), float(c[1]), distance)
             self.client.camera.look_at = (float(c[0]), float(c[1]), 0.0)
         else:
             c = 0.5 * (lo + hi)

@@ -24,6 +24,7 @@ from .field import Field, field_png, lambda6_field
 from .models import Body, ShapeModel, TwoParticleModel, load_model
 from .modes import label_mode, mode_offsets, rotation_matrix
 from .params import PARAMS
+from .scanmap import fraction_colours, is_scan_dir, load_scan_map
 
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
 DEFAULT_PRESET = "two_particle"
@@ -77,6 +78,7 @@ class Session:
         self.revision = 0
         self._modes: tuple[int, list] = (-1, [])
         self._pair: TwoParticleModel | None = None   # the slider-driven pair a drag turned into shapes
+        self.map = None                              # the scan map a cluster was opened from (back_to_map)
         if not self.load_preset(preset or DEFAULT_PRESET) and self.model is None and preset not in (None, DEFAULT_PRESET):
             message = self.error
             self.load_preset(DEFAULT_PRESET)
@@ -103,13 +105,13 @@ class Session:
         """Switch to a preset name or scene file. On failure keep the current scene and set `error`."""
         path = self.resolve(str(name_or_path))
         try:
-            model = load_model(path)
+            model = load_scan_map(path) if is_scan_dir(path) else load_model(path)
         except Exception as exc:  # noqa: BLE001 — any bad file must end up as a message, not a crash
             self.error = one_line(exc) if isinstance(exc, granstab.SceneError) else f"{path}: {one_line(exc)}"
             return False
         self.preset = path.stem if path.parent == self.presets_dir else str(path)
         self.model = model
-        self._pair = None
+        self._pair = self.map = None
         self.params = model.initial_params()
         self.notice = None
         self.recompute()
@@ -194,7 +196,8 @@ class Session:
     @property
     def deferred(self) -> bool:
         """A large packing: drawn at once, analysed only when asked (`analyse`)."""
-        return self.scene is not None and self.scene.n_particles > LARGE and self.analysis is None
+        return (self.kind != "scan_map" and self.scene is not None and self.scene.n_particles > LARGE
+                and self.analysis is None)
 
     def set_frame(self, frame) -> bool:
         """Show another frame of an imported snapshot (its validation report follows)."""
@@ -207,6 +210,38 @@ class Session:
             return False
         self.recompute()
         return True
+
+    @property
+    def map_colours(self) -> np.ndarray | None:
+        """(N, 3) colours of the scan map (fraction of unstable clusters per particle), or None off the map."""
+        return fraction_colours(self.model.fraction) if self.kind == "scan_map" else None
+
+    def open_cluster(self, name: str) -> bool:
+        """From the scan map: the cluster of particle `name` becomes the scene (back_to_map returns)."""
+        scan_map = self.model if self.kind == "scan_map" else None
+        if scan_map is None:
+            self.error = "open a scan folder first: clusters are opened from its map"
+            return False
+        try:
+            self.model = scan_map.cluster(str(name))
+        except granstab.SceneError as exc:
+            self.error = one_line(exc)
+            return False
+        self.map, self.params, self.notice = scan_map, self.model.initial_params(), None
+        self.recompute()
+        return True
+
+    def back_to_map(self) -> bool:
+        if self.map is None:
+            return False
+        self.model, self.map = self.map, None
+        self.params = self.model.initial_params()
+        self.recompute()
+        return True
+
+    def pick(self, origin, direction) -> str | None:
+        """The particle of the scan map under a click ray (None off the map or between particles)."""
+        return self.model.pick(origin, direction) if self.kind == "scan_map" else None
 
     def analyse(self) -> None:
         """Analyse a large packing now (recompute skips it above LARGE particles)."""
@@ -221,7 +256,7 @@ class Session:
         self.metrics = None
         try:
             self.scene = self.model.build(self.params)
-            if self.scene.n_particles > LARGE and not force:
+            if self.kind == "scan_map" or (self.scene.n_particles > LARGE and not force):
                 self.error = None
                 self.elapsed = time.perf_counter() - start
                 return

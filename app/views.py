@@ -152,6 +152,9 @@ class SceneView:
         self.meshes: dict[str, object] = {}       # particle name → mesh handle
         self.colours: dict[str, tuple] = {}       # particle name → colour shown now
         self.colours_by_mode = False
+        self.cloud = None                         # the point cloud of a large packing (one node for all)
+        self._cloud_colours = None                # digest of the colours it shows
+        self.contacts_frame = None                # parent of every contact drawing (hidden while a mode plays)
         self.key = None                           # (model id, particle names, draggable) the tree was built for
         self.on_drag = None                       # callback(name, event) set by the panel
         self.on_pick = None                       # callback(rho_r, f_kr): a click on the λ⁽⁶⁾ surface
@@ -174,6 +177,7 @@ class SceneView:
         rebuilt = key != self.key
         if rebuilt:
             self.api.remove_by_name("/particles")
+            self.cloud = None
             self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
             self.key = key
             for i, body in enumerate(bodies):
@@ -224,16 +228,23 @@ class SceneView:
         self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
         self.key = cloud
         radius = float(np.median([max(b.axes) for b in bodies]))
-        self.api.add_point_cloud("/particles/cloud", points=x, colors=PALETTE[0], point_size=1.8 * radius,
+        self._cloud_colours = None
+        self.cloud = self.api.add_point_cloud("/particles/cloud", points=x, colors=PALETTE[0], point_size=1.8 * radius,
                                  point_shape="circle")
         self.base = {b.name: b for b in bodies}
 
-    def colour_particles(self, names, shares=None) -> None:
-        """Colour each particle by its share of a mode (white 0 → dark red 1), or by the palette (shares None);
-        only the colours that change are sent."""
+    def colour_particles(self, names, shares=None, colours=None) -> None:
+        """Colour each particle by its share of a mode (white 0 → dark red 1), by given (N, 3) `colours` (the scan
+        map), or by the palette; only the colours that change are sent (a point cloud: its colour array)."""
+        if colours is None and shares is not None:
+            colours = np.round(np.array([250, 250, 250]) + np.asarray(shares)[:, None] * (SHARE_RED - 250))
+        if self.cloud is not None:
+            rgb = np.asarray(np.tile(PALETTE[0], (len(names), 1)) if colours is None else colours, np.uint8)
+            if digest((), rgb) != self._cloud_colours:
+                self._cloud_colours = digest((), rgb)
+                self.cloud.colors = rgb
         for i, name in enumerate(names):
-            colour = (PALETTE[i % len(PALETTE)] if shares is None else
-                      tuple(int(c) for c in np.round(np.array([250, 250, 250]) + shares[i] * (SHARE_RED - 250))))
+            colour = PALETTE[i % len(PALETTE)] if colours is None else tuple(int(c) for c in colours[i])
             if self.colours.get(name) != colour and name in self.meshes:
                 self.meshes[name].color = colour
             self.colours[name] = colour
@@ -256,7 +267,9 @@ class SceneView:
         return x, R
 
     def animate(self, bodies) -> None:
-        """Show bodies displaced along a mode: local offsets of the /body frames relative to the drawn poses."""
+        """Show bodies displaced along a mode: local offsets of the /body frames relative to the drawn poses. The
+        contact drawings belong to the undeformed state: hidden while a mode plays (stop_animation shows them)."""
+        self._contacts_visible(False)
         for body in bodies:
             base = self.base.get(body.name)
             if base is None:
@@ -270,6 +283,17 @@ class SceneView:
         for frame in self.inner.values():
             frame.position = (0.0, 0.0, 0.0)
             frame.wxyz = (1.0, 0.0, 0.0, 0.0)
+        self._contacts_visible(True)
+
+    def _contacts_visible(self, visible: bool) -> None:
+        """Show or hide every contact drawing at once (the /contacts frame is their parent)."""
+        if self.contacts_frame is not None and self.contacts_frame.visible != visible:
+            self.contacts_frame.visible = visible
+
+    def _contacts_parent(self) -> None:
+        """The /contacts frame that the contact drawings hang from (made again after /contacts was removed)."""
+        if self.contacts_frame is None:
+            self.contacts_frame = self.api.add_frame("/contacts", show_axes=False)
 
     # contacts ----------------------------------------------------------------------------------
     def draw_contacts(self, session) -> dict:
@@ -278,13 +302,15 @@ class SceneView:
         Each of the two groups is re-sent only when what it shows changed (`digest` of its data and options): a μ
         slider move on a 143-disk frame used to re-send 1.5 MB of drawings and cost the browser ≈ 8 s."""
         scene, size, o = session.scene, session.size, self.options
-        if scene is None or scene.n_contacts == 0:
+        if scene is None or scene.n_contacts == 0 or session.kind == "scan_map":     # the map shows particles only
             if self._contact_keys:
                 self.api.remove_by_name("/contacts")
+                self.contacts_frame = None
                 self._contact_keys = {}
             return {"max_force": 0.0, "arrow": 0.0}
         z = 0.1 * size if scene.dim == 2 else 0.0
         P = to3(scene.point, z)
+        self._contacts_parent()
         geometry = digest((size, o["normals"], o["osculating"]), scene.point, scene.normal, scene.curvature_p,
                           scene.curvature_q)
         if self._contact_keys.get("geometry") != geometry:

@@ -200,3 +200,79 @@ def test_open_a_real_packing_from_the_page(app, browser):
     page.get_by_text("rigidlibrary-annulus, frame 2").first.wait_for(timeout=60_000)
     assert s.model.frame == 2 and s.scene.n_particles == 1620
     close_page(page, errors, "app-packing.png")
+
+
+def test_scan_map_in_the_page(app, browser, tmp_path):
+    """A scan folder typed into *Open path*: the packing coloured by the map (the planted sharp particle dark red),
+    its cluster opened by name (UNSTABLE, as the scan's row), and *Back to the map*."""
+    import json as _json
+
+    import granstab
+    from granstab.scan import scan
+    from test_scan import planted_lattice
+    scene, _ = planted_lattice(40, 0.4)
+    packing = tmp_path / "lattice.json"
+    packing.write_text(_json.dumps(scene.to_dict()))
+    scan(granstab.load_scene(packing), tmp_path / "scan", workers=1, figures=False)
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    box = page.locator("input.mantine-TextInput-input:visible").first  # Open path
+    box.fill(str(tmp_path / "scan"))
+    box.press("Enter")
+    verdict_on_page(page, "scan-map", timeout=120_000)
+    page.get_by_text("click one (or type its name) for its cluster").wait_for(timeout=30_000)
+    assert ui.view.colours["p40"] == (176, 20, 20) and ui.view.colours["p00"] == (250, 250, 250)
+    name = page.locator("input.mantine-TextInput-input:visible").nth(1)   # Open cluster of
+    name.fill("p40")
+    name.press("Enter")
+    verdict_on_page(page, "unstable", timeout=120_000)
+    assert ui.session.kind == "contacts" and ui.session.scene.n_particles == 7
+    ui.play.value = True                   # a playing mode hides the contact drawings of the undeformed state
+    wait_for(lambda: ui.view.contacts_frame.visible is False, timeout=30, what="contacts hidden while playing")
+    ui.play.value = False
+    wait_for(lambda: ui.view.contacts_frame.visible is True, timeout=30, what="contacts shown again")
+    page.get_by_role("button", name="Back to the map").click()
+    verdict_on_page(page, "scan-map", timeout=120_000)
+    close_page(page, errors, "app-scan-map.png")
+
+
+def test_two_tabs_are_independent(app, browser):
+    """Two tabs on one server: a preset picked in one leaves the other's scene and verdict as they were."""
+    errors: list[str] = []
+    first, second = open_page(browser, app, errors), open_page(browser, app, errors)
+    for page in (first, second):
+        verdict_on_page(page, "unstable", timeout=60_000)
+    ui1, ui2 = ui_of(app, first), ui_of(app, second)
+    assert ui1 is not ui2 and ui1.session is not ui2.session
+    first.locator(f'[id="{ui1.preset._impl.uuid}"]').click()
+    first.get_by_role("option", name="four_disk").click()
+    wait_for(lambda: ui1.session.preset == "four_disk", timeout=60, what="four_disk in the first tab")
+    verdict_on_page(first, "unstable", timeout=120_000)
+    second.wait_for_timeout(1000)
+    assert ui2.session.preset == "two_particle" and ui2.session.scene.n_particles == 2
+    assert second.locator(".granstab-verdict").get_attribute("data-revision") == str(ui2.session.revision)
+    second.close()
+    close_page(first, errors, "app-two-tabs.png")
+
+
+def test_export_downloads_in_one_click(app, browser, tmp_path):
+    """*Export* → *Scene file (.json)*: one click saves the file under its full name (no notification link to click),
+    and the file reloads to the same verdict."""
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    page.get_by_role("tab", name="Export").click()
+    with page.expect_download(timeout=60_000) as info:
+        page.get_by_role("button", name="Scene file (.json)").click()
+    download = info.value
+    expected, content = ui.session.export_scene()
+    assert download.suggested_filename == expected
+    saved = tmp_path / expected
+    download.save_as(saved)
+    assert saved.read_bytes() == content
+    import granstab
+    assert granstab.analyze(granstab.load_scene(saved)).summary["verdict"] == ui.session.verdict == "unstable"
+    close_page(page, errors, "app-export.png")

@@ -450,3 +450,30 @@ def test_inertia_metric_where_the_scene_has_masses():
     # four times the mass: half the frequencies (relative to the largest, at the eigenvalues' accuracy)
     assert len(d["frequencies"]) > 0 and np.allclose(w4, d["frequencies"] / 2, rtol=1e-8)
     assert s.load_preset("four_disk") and s.metric == "L" and "no masses" in s.notice
+
+
+def test_scan_map_opens_a_cluster_and_returns(tmp_path):
+    """A scan folder opens as the map (no analysis of the packing); a click ray over the planted sharp particle
+    opens its cluster, whose verdict and size are the scan row's; *Back to the map* returns."""
+    import granstab
+    from granstab.scan import read_map, scan
+    from test_scan import planted_lattice
+    scene, _ = planted_lattice(40, 0.4)
+    packing = tmp_path / "lattice.json"
+    packing.write_text(json.dumps(scene.to_dict()))
+    scan(granstab.load_scene(packing), tmp_path / "scan", workers=1, figures=False)
+    clusters = read_map(tmp_path / "scan")["clusters"]
+    row = {k: v[list(clusters["center"]).index("p40")] for k, v in clusters.items()}
+    s = Session(str(tmp_path / "scan"))
+    assert s.error is None and s.kind == "scan_map" and s.analysis is None and not s.deferred
+    colours = s.map_colours
+    assert tuple(colours[40]) == (176, 20, 20) and tuple(colours[0]) == (250, 250, 250)   # fraction 1 and 0
+    top = [*scene.x[40] + [0.3, -0.2], 50.0]                 # straight down onto particle 40, off its centre
+    assert s.pick(top, [0.0, 0.0, -1.0]) == "p40"
+    gap = scene.x[40] + [1.0, 1.0 / np.sqrt(3)]       # the centroid of a triangle of neighbours (spacing 2, r = 1)
+    assert s.pick([*gap, 50.0], [0.0, 0.0, -1.0]) is None
+    assert s.open_cluster("p40") and s.kind == "contacts" and s.map is not None
+    assert s.verdict == row["verdict"] == "unstable" and s.scene.n_particles == row["n_particles"]
+    assert s.analysis.summary["consistent_negative"] == row["consistent_negative"]
+    assert s.back_to_map() and s.kind == "scan_map" and s.map is None
+    assert not s.open_cluster("nope") and "no centre" in s.error

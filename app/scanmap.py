@@ -1,0 +1,121 @@
+"""A finished scan (`granstab scan … --out DIR`) as a model of the explorer: the whole packing coloured by the
+per-particle map, and the cluster of any particle as a contact-level model of its own (no viser).
+
+The packing is re-read from the scan's `source` (as the scan's options.json states it: the path as given, else
+relative to the scan folder's parent); each cluster is the scan's own member list, cut out with
+`granstab.scan.subscene`, so the explorer shows exactly the cluster that the scan's row describes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import granstab
+
+from .models import Body, ContactModel
+from .params import defaults
+
+WHITE, RED, GREY = np.array([250, 250, 250]), np.array([176, 20, 20]), (150, 150, 150)
+
+
+def is_scan_dir(path) -> bool:
+    """A folder that a scan wrote (summary.json and options.json in it)."""
+    path = Path(path)
+    return path.is_dir() and (path / "summary.json").is_file() and (path / "options.json").is_file()
+
+
+def fraction_colours(fraction: np.ndarray) -> np.ndarray:
+    """(N, 3) uint8: white (0: no cluster containing the particle is unstable) → dark red (1: all are); grey: in
+    no scanned cluster (NaN)."""
+    f = np.clip(np.nan_to_num(fraction, nan=0.0), 0.0, 1.0)[:, None]
+    rgb = np.round(WHITE + f * (RED - WHITE)).astype(np.uint8)
+    rgb[np.isnan(fraction)] = GREY
+    return rgb
+
+
+@dataclass
+class ScanMapModel:
+    """The scanned packing and its map: `fraction` (unstable_fraction per particle, NaN: in no cluster),
+    `own` (the verdict of each particle's own cluster, '' if it was no centre), `members` (centre → names)."""
+
+    scene: granstab.Scene
+    fraction: np.ndarray
+    own: np.ndarray
+    members: dict
+    summary: dict
+    path: str
+    kind = "scan_map"
+    draggable = False
+    params_used = ()
+
+    def initial_params(self) -> dict:
+        return defaults()
+
+    def build(self, P: dict) -> granstab.Scene:
+        return self.scene
+
+    def bodies(self, P: dict) -> list[Body]:
+        return ContactModel(self.scene).bodies(P)
+
+    @property
+    def report(self) -> str:
+        s = self.summary
+        counts = ", ".join(f"{n} {v}" for v, n in sorted(s["verdicts"].items()))
+        return (f"scan {self.path} of {s['source']}: {s['clusters']} clusters (rings {s['options']['rings']}, "
+                f"metric {s['options']['metric']}): {counts}; {s['partial_branches']} with branches: partial")
+
+    def cluster(self, name: str) -> ContactModel:
+        """The cluster whose centre is `name`, as the scan analysed it (one-line SceneError if it has none)."""
+        from granstab.scan import subscene
+        if name not in self.members:
+            raise granstab.SceneError(f"{self.path}: particle {name!r} was no centre of this scan "
+                                      f"({len(self.members)} centres)")
+        index = {n: i for i, n in enumerate(self.scene.names)}
+        keep = np.array(sorted(index[m] for m in self.members[name]))
+        rings = self.summary["options"]["rings"]
+        sub = subscene(self.scene, keep, title=f"cluster of {name} ({rings} ring"
+                                     f"{'s' * (rings > 1)}) from scan {Path(self.path).name}")
+        return ContactModel(sub, report=f"cluster of particle {name}: its own verdict in the scan "
+                                        f"{self.own[index[name]] or '—'}; {len(keep)} particles")
+
+    def pick(self, origin, direction) -> str | None:
+        """The particle under a click ray (2D: where the ray meets the plane z = 0; 3D: the centre nearest the
+        ray), if the ray passes within the particle's drawn radius; else None."""
+        o, d = np.asarray(origin, float), np.asarray(direction, float)
+        d = d / np.linalg.norm(d)
+        x = np.zeros((self.scene.n_particles, 3))
+        x[:, :self.scene.dim] = self.scene.x
+        if self.scene.dim == 2:
+            if abs(d[2]) < 1e-12:
+                return None
+            hit = o - o[2] / d[2] * d
+            dist = np.linalg.norm(x - hit, axis=1)
+        else:
+            t = np.maximum((x - o) @ d, 0.0)
+            dist = np.linalg.norm(x - (o + t[:, None] * d), axis=1)
+        radius = np.array([b.axes[0] for b in self.bodies({})])
+        i = int(np.argmin(dist / radius))
+        return self.scene.names[i] if dist[i] <= radius[i] else None
+
+
+def load_scan_map(path) -> ScanMapModel:
+    """The model of a scan folder; one-line SceneError when its packing cannot be found or read."""
+    from granstab.scan import read_map
+    path = Path(path)
+    data = read_map(path)
+    source = Path(data["summary"]["options"]["source"])
+    where = next((p for p in (source, path.parent / source) if p.exists()), None)
+    if where is None:
+        raise granstab.SceneError(f"{path / 'options.json'}: source: the scanned packing {source} is not found "
+                                  "(open the scan from the folder it was run in)")
+    scene = granstab.load_scene(where)
+    particles = data["particles"]
+    if list(particles["name"]) != list(scene.names):
+        raise granstab.SceneError(f"{path}: particles: the names do not match those of {where} (was it changed "
+                                  "since the scan?)")
+    clusters = data["clusters"]
+    members = {str(c): [str(m) for m in row] for c, row in zip(clusters["center"], clusters["members"])}
+    return ScanMapModel(scene, np.asarray(particles["unstable_fraction"], float),
+                        np.asarray(particles["own_verdict"], dtype=object), members, data["summary"], str(path))
