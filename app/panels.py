@@ -23,6 +23,7 @@ VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b
 DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
 FRAME = 1 / 20            # s per animation frame
 MODES_PER_BRANCH = 24     # the mode picker lists the lowest non-rigid modes of each branch
+SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for (seconds of browser work per update)
 
 
 class ClientUI:
@@ -42,6 +43,7 @@ class ClientUI:
         self._mode_keys: dict[str, tuple] = {}
         self._spectrum_json = None
         self.selected: tuple | None = None
+        self._modes_of = None                     # the model whose modes are listed (selection kept within it)
         self.errors_shown = 0
         self._listening = False                   # a scene click callback is registered (scan map only)
         self._shown: dict[str, float] = {}        # slider values the page shows (set by the user or written here)
@@ -143,6 +145,11 @@ class ClientUI:
                 self.contour = gui.add_plotly(contour_figure(self.session.field(), (
                     self.session.params["rho_r"], self.session.params["f_kr"])), aspect=1.15)
         with self.side.add_tab("Eigenmodes"):
+            self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True,
+                                                  hint=f"on by default up to {SPECTRUM_PARTICLES} particles: the plot "
+                                                       "costs the browser seconds on large scenes")
+            self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
+            self._spectrum_default = None        # the scene size the checkbox default was last set for
             self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3)
             self.mode_pick = gui.add_dropdown("Mode", options=["(none)"], initial_value="(none)")
             self.mode_pick.on_update(lambda _: self.run(self._pick_mode))
@@ -512,7 +519,14 @@ class ClientUI:
     def _write_modes(self) -> None:
         s = self.session
         modes = s.modes()
-        self.spectrum.visible = bool(modes)                 # nothing analysed (yet): no empty plot
+        large = s.scene is not None and s.scene.n_particles > SPECTRUM_PARTICLES
+        if large != self._spectrum_default:          # a new scene size class: the default for it (off when large)
+            self._spectrum_default = large
+            with self._quiet():
+                self.show_spectrum.value = not large
+        plot = bool(modes) and self.show_spectrum.value
+        self.show_spectrum.visible = bool(modes)
+        self.spectrum.visible = plot                        # nothing analysed (yet), or not asked for: no plot
         keys: dict[str, tuple] = {}
         by_branch: dict[int, int] = {}
         for m in sorted((m for m in modes if m.label != "rigid"), key=lambda m: (m.branch, m.eigenvalue)):
@@ -522,10 +536,12 @@ class ClientUI:
         self._mode_keys = keys
         listed = set(keys.values())
         shown = [m for m in modes if (m.branch, m.index) in listed or (m.label == "rigid" and len(modes) <= 60)]
-        figure = spectrum_figure(shown, hidden=len(modes) - len(shown))
-        if figure.to_json() != self._spectrum_json:        # a plotly redraw costs the browser seconds: only on change
+        figure = spectrum_figure(shown, hidden=len(modes) - len(shown)) if plot else None
+        if plot and figure.to_json() != self._spectrum_json:   # a plotly redraw costs the browser seconds: on change
             self._spectrum_json = figure.to_json()
             self.spectrum.figure = figure
+        if self._modes_of is not s.model:            # another scene: its own lowest mode, not the old index
+            self._modes_of, self.selected = s.model, None
         if self.selected not in keys.values():
             pick = next((m for m in sorted(modes, key=lambda m: m.eigenvalue) if m.consistent), None)
             self.selected = (pick.branch, pick.index) if pick else next(iter(keys.values()), None)
