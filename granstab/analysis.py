@@ -128,7 +128,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     method: "dense" (every eigenpair of every branch, ℍ spectra, Type-2), "sparse" (the lowest k non-rigid
     eigenpairs of sym(𝓗^i) per branch and its exact negative count, without any n_dof × n_dof matrix) or "auto"
     (dense up to sparse.DENSE_MAX_DOF dofs, sparse above). Each backend says what it leaves out (`warnings`).
-    k: eigenpairs per branch on the sparse path. progress: a tqdm bar with time left over the branches.
+    k: eigenpairs per branch on the sparse path. progress: a tqdm bar with time left over the branches of each
+    metric.
     device: "cpu", "gpu" (CuPy, else backend.DeviceError) or "auto" for the stacked branch eigenproblems
     (backend.py). lowrank: solve the branches as low-rank updates of the elastic problem (lowrank.py: no ℍ^i
     spectra, eigenvectors on demand); None = from lowrank.MIN_BRANCHES branches on or on a GPU.
@@ -167,7 +168,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                 problem = backend.problem(state, m)
             with timer("branches" if main else f"metric {m.name}"):
                 branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
-                                                progress=progress and main)
+                                                progress=progress, label=f"branches, metric {m.name}")
             summary = summarize(branches, notes)
             entries[i] = family_entry(m, summary)
             if main:

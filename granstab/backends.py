@@ -2,7 +2,7 @@
 
     state = backend.prepare(scene, timer)          # contact blocks, assembled parts (shared by every metric)
     problem = backend.problem(state, metric)       # the projection in a metric (metric.py)
-    branches, notes = backend.solve(problem, masks, on_branch=None, progress=False)
+    branches, notes = backend.solve(problem, masks, on_branch=None, progress=False, label="branches")
     errors = backend.errors(state, problem, branches)
 
 * `DenseBackend`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (branches.py).
@@ -145,8 +145,9 @@ class DenseBackend:
     def problem(self, state: State, metric: Metric) -> Problem:
         return dense_problem(state.scene, state.blocks, state.parts, metric)
 
-    def solve(self, problem: Problem, masks: np.ndarray, on_branch=None, progress: bool = False):
-        bar = _progress_bar(len(masks)) if progress and len(masks) > 1 else None
+    def solve(self, problem: Problem, masks: np.ndarray, on_branch=None, progress: bool = False,
+              label: str = "branches"):
+        bar = _progress_bar(len(masks), label) if progress and len(masks) > 1 else None
 
         def stream(b):
             if bar is not None:
@@ -229,9 +230,10 @@ class SparseBackend:
                        formation_error=formation_error(scales, proj.C, proj.Cplus))
         return SparseBranchProblem(sp=spb, core=core)
 
-    def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False):
+    def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
+              label: str = "branches"):
         spb, k = problem.sp, self.k
-        bar = _progress_bar(len(masks), "branches (sparse)") if progress else None
+        bar = _progress_bar(len(masks), f"{label} (sparse)") if progress else None
         branches, unverified, cut, ritz = [], 0, 0, 0
         for mask, modes in zip(masks, self._modes(spb, masks, k + 1)):
             ritz += modes.method == "ritz"

@@ -61,8 +61,8 @@ def refuse_over(source: str, seconds: float, timeout: float, n_dof: int, n_slidi
 
 DENSE_ADVICE = ("cap the potentially sliding contacts (--max-sliding), use --method sparse with a small --k, "
                 "analyse a smaller cluster, or raise --timeout")
-SPARSE_ADVICE = ("lower --k, cap the potentially sliding contacts (--max-sliding), analyse a smaller cluster, or "
-                 "raise --timeout")
+SPARSE_ADVICE = ("lower --k, cap the potentially sliding contacts (--max-sliding), one metric instead of the family "
+                 "(--metric L), analyse a smaller cluster, or raise --timeout")
 
 
 @contextmanager
