@@ -460,6 +460,8 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
 
 
 DENSE_FALLBACK_MAX_DOF = 4000   # ARPACK failures below this size are solved densely instead
+DENSE_FALLBACK_PATIENCE = 300   # ARPACK restarts allowed where the dense fallback exists (tightly clustered spectra,
+                                # e.g. a compressed chain in the L/10 metric, took > 3 min for 1,200 dofs otherwise)
 
 
 def _drop_rigid(sp_: SparseProblem, lam, V):
@@ -472,9 +474,12 @@ def _drop_rigid(sp_: SparseProblem, lam, V):
 
 def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0):
     """The kk eigenpairs of B nearest σ by shift-invert ARPACK. If ARPACK does not converge (clustered
-    eigenvalues at σ), retry with a larger Krylov space and a round-off tolerance; small problems then fall back
-    on a dense eigh of B, large ones raise a RuntimeError that says so."""
+    eigenvalues at σ), retry with a larger Krylov space and a round-off tolerance; small problems (at most
+    DENSE_FALLBACK_MAX_DOF dofs, where ARPACK gets DENSE_FALLBACK_PATIENCE restarts) then fall back on a dense eigh
+    of B, large ones raise a RuntimeError that says so."""
     kk = int(min(kk, n - 2))
+    if n <= DENSE_FALLBACK_MAX_DOF:         # a dense eigh of B costs seconds at most: do not wait longer for ARPACK
+        maxiter = min(maxiter or 10 * n, DENSE_FALLBACK_PATIENCE)
     OPinv = spla.LinearOperator((n, n), matvec=shifted.solve, dtype=float)
     wide = min(n - 1, max(4 * kk + 1, 40))
     attempts = [dict(tol=tol), dict(tol=tol, ncv=wide), dict(tol=max(tol, 1e-12), ncv=wide)]
