@@ -35,4 +35,15 @@ def machine() -> dict:
     return {"cpu": _first("/proc/cpuinfo", "model name") or platform.processor(), "cores": os.cpu_count(),
             "memory": f"{int(mem.split()[0]) / 2**20:.0f} GiB" if mem else "", "python": platform.python_version(),
             "numpy": np.__version__, "scipy": scipy.__version__,
-            "blas": f"{blas['name']} {blas.get('version', '')}", "os": platform.platform()}
+            "blas": f"{blas['name']} {blas.get('version', '')}", "os": platform.platform(), "gpu": gpu_name()}
+
+
+def gpu_name() -> str:
+    """The GPU CuPy sees (name, memory, CuPy version), or 'none'."""
+    from granstab.backend import gpu_available
+    if not gpu_available():
+        return "none"
+    import cupy
+    props = cupy.cuda.runtime.getDeviceProperties(0)
+    name = props["name"].decode() if isinstance(props["name"], bytes) else props["name"]
+    return f"{name}, {props['totalGlobalMem'] / 2 ** 30:.0f} GiB (CuPy {cupy.__version__})"

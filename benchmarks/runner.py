@@ -42,8 +42,8 @@ def anchor(heading: str) -> str:
 class Document:
     """BENCHMARKS.md: a head with the machine and its load, a table of contents, the topics' sections."""
 
-    def __init__(self, out: Path, quick: bool):
-        self.out = Path(out)
+    def __init__(self, out: Path, quick: bool, name: str = "BENCHMARKS.md"):
+        self.out, self.name = Path(out), name
         self.quick = quick
         self.sections: list[str] = []
         self.results: dict = {}
@@ -68,7 +68,7 @@ class Document:
             "Every comparison below is measured side by side in this one run; times are medians over repeats.",
             "",
             f"Machine: {m['cpu']}, {m['cores']} cores, {m['memory']}; {m['os']}; Python {m['python']}, numpy "
-            f"{m['numpy']}, scipy {m['scipy']}, BLAS {m['blas']}. A SHARED machine: load average "
+            f"{m['numpy']}, scipy {m['scipy']}, BLAS {m['blas']}; GPU: {m.get('gpu', 'none')}. A SHARED machine: load average "
             f"{self.load_start} at the start, {load_average()} now (1, 5, 15 min) — absolute times are noisy, "
             "ratios measured back to back are the robust numbers. BLAS threads: "
             f"{QUICK_BLAS_THREADS if self.quick else 'the library default'}.",
@@ -79,18 +79,25 @@ class Document:
         titles = [s.splitlines()[0][3:] for s in self.sections]
         toc = [f"- [{t}](#{anchor(t)})" for t in titles]
         body = [line for s in self.sections for line in (s, "")]
-        (self.out / "BENCHMARKS.md").write_text("\n".join(head + toc + [""] + body), encoding="utf-8")
-        (self.out / "docs" / "bench" / "results.json").write_text(json.dumps(self.results, indent=1, default=float))
+        (self.out / self.name).write_text("\n".join(head + toc + [""] + body), encoding="utf-8")
+        results = "results.json" if self.name == "BENCHMARKS.md" else f"results-{Path(self.name).stem}.json"
+        (self.out / "docs" / "bench" / results).write_text(json.dumps(self.results, indent=1, default=float))
 
 
-def run(quick: bool = False, out: Path = Path("."), only=None) -> Path:
-    """Run the topics (all, or those named in `only`) and write BENCHMARKS.md and the figures into `out`."""
+GPU_TOPICS = ("branches", "scan")   # the topics that measure the GPU beside the CPU wherever CuPy sees one
+
+
+def run(quick: bool = False, out: Path = Path("."), only=None, device: str = "cpu") -> Path:
+    """Run the topics (all, or those named in `only`) and write BENCHMARKS.md and the figures into `out`;
+    device="gpu": the GPU topics (GPU_TOPICS, or `only`) into BENCHMARKS-gpu.md, the machine named in its head."""
     unknown = sorted(set(only or ()) - set(TOPICS))
     if unknown:
         raise ValueError(f"unknown benchmark topic {unknown[0]!r} (choose from {', '.join(TOPICS)})")
+    if device == "gpu":
+        only = only or GPU_TOPICS
     figdir = Path(out) / "docs" / "bench"
     figdir.mkdir(parents=True, exist_ok=True)
-    doc = Document(Path(out), quick)
+    doc = Document(Path(out), quick, "BENCHMARKS-gpu.md" if device == "gpu" else "BENCHMARKS.md")
     for topic in [t for t in TOPICS if not only or t in only]:
         t = time.perf_counter()
         module = importlib.import_module(f"{__package__}.{topic}")
@@ -99,7 +106,7 @@ def run(quick: bool = False, out: Path = Path("."), only=None) -> Path:
         if hasattr(module, "plot"):
             module.plot(results, figdir)
         doc.add(topic, results, module.markdown(results))
-        print(f"[bench] {topic}: {time.perf_counter() - t:.1f} s -> {doc.out / 'BENCHMARKS.md'}", file=sys.stderr)
+        print(f"[bench] {topic}: {time.perf_counter() - t:.1f} s -> {doc.out / doc.name}", file=sys.stderr)
     if not only:
         doc.sections.append(USAGE)
     doc.write()

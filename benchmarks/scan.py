@@ -1,60 +1,96 @@
-"""The local stability scan (issue 10): clusters per second serially and on 2 local Dask workers, in one run, on
-random 2D and 3D packings (rings = 1); the cost of a cluster split into extraction and analysis; and, from these
-measured costs, the time a 10⁶-particle scan would take on 1, 16 and 256 workers and where the bottleneck moves."""
+"""The local stability scan (issue 10): the batched path against a loop of `analyze` calls on the same clusters,
+whole scans of a 10⁵-particle 2D and a 10⁴-particle 3D packing (serial, 2 Dask workers, and the GPU where CuPy
+sees one), the peak memory of a chunk at two packing sizes, and a 10⁶-particle extrapolation from these costs."""
 from __future__ import annotations
 
 import statistics
 import tempfile
 import time
+import tracemalloc
 
 import numpy as np
 
-from granstab import analyze, packings
-from granstab.scan import members, scan, subscene
+from granstab import packings
+from granstab.backend import gpu_available
+from granstab.scan import members, read_map, scan
+from granstab.scan.run import CHUNK, cluster_row, scan_chunk
 
 TASK_OVERHEAD_S = 1e-3      # Dask's documented scheduler cost per task (order of magnitude), for the extrapolation
-CHUNK = 64
+OPTIONS = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32}
+QUICK = {"sizes": {2: 3000, 3: 600}, "sample": 128, "memory": (2000, 8000)}
+FULL = {"sizes": {2: 100_000, 3: 10_000}, "sample": 512, "memory": (10_000, 100_000)}
 
 
-def _scan_rate(scene, workers: int) -> tuple[float, dict]:
+def packing(dim: int, n: int):
+    """A random packing with one contact in ~30 at yield (2^Ms branches per cluster, Ms up to ~5)."""
+    return packings.random_packing(dim, n, n_sliding=n // 10, mobilised=0.5, seed=2)
+
+
+def batched_vs_loop(scene, sample: int) -> dict:
+    """The same `sample` clusters: one batched chunk (median of 3) against a loop of `analyze` (one pass)."""
+    centers = np.linspace(0, scene.n_particles - 1, sample).astype(int)
+    times = []
+    for _ in range(3):
+        t = time.perf_counter()
+        rows = scan_chunk(scene, centers, OPTIONS)
+        times.append(time.perf_counter() - t)
+    t = time.perf_counter()
+    ref = [cluster_row(scene, c, keep, OPTIONS) for c, keep in zip(centers, members(scene, centers, 1))]
+    loop = time.perf_counter() - t
+    same = all((a["verdict"], a["consistent_negative"], a["consistent_positive"]) ==
+               (b["verdict"], b["consistent_negative"], b["consistent_positive"]) for a, b in zip(rows, ref))
+    diff = max(abs(a["lambda_min"] - b["lambda_min"]) / abs(b["lambda_min"]) for a, b in zip(rows, ref))
+    return {"clusters": sample, "batched_s": statistics.median(times), "loop_s": loop,
+            "speedup": loop / statistics.median(times), "same_verdicts": same, "max_rel_diff": diff,
+            "batched_share": sum(r["path"] == "batched" for r in rows) / len(rows)}
+
+
+def whole_scan(scene, workers: int, device: str = "cpu") -> tuple[float, dict]:
     with tempfile.TemporaryDirectory() as out:
         t = time.perf_counter()
-        summary = scan(scene, out, workers=workers, figures=False)
-        return time.perf_counter() - t, summary
+        summary = scan(scene, out, workers=workers, figures=False, device=device)
+        seconds = time.perf_counter() - t
+        rows = read_map(out)["clusters"]
+        return seconds, {"summary": summary, "lambda_min": np.asarray(rows["lambda_min"]),
+                         "verdict": list(rows["verdict"])}
 
 
-def _per_cluster(scene, n: int) -> dict:
-    """Median seconds per cluster to extract it and to analyse it (metric L), over n centres."""
-    centers = np.linspace(0, scene.n_particles - 1, n).astype(int)
-    t_extract, t_analyze = [], []
-    for keep in members(scene, centers, 1):
-        t = time.perf_counter()
-        sub = subscene(scene, keep)
-        t_extract.append(time.perf_counter() - t)
-        t = time.perf_counter()
-        analyze(sub, metric="L")
-        t_analyze.append(time.perf_counter() - t)
-    return {"extract_s": statistics.median(t_extract), "analyze_s": statistics.median(t_analyze)}
+def chunk_memory(n: int) -> float:
+    """Peak traced memory (MB) of one batched chunk of CHUNK clusters in an n-particle 2D packing."""
+    scene = packing(2, n)
+    centers = np.arange(CHUNK)
+    tracemalloc.start()
+    scan_chunk(scene, centers, OPTIONS)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak / 2 ** 20
 
 
 def run(quick: bool = False) -> dict:
-    sizes = {2: 300 if quick else 3000, 3: 150 if quick else 1000}
+    cfg = QUICK if quick else FULL
     rows = []
-    for dim, n in sizes.items():
-        scene = packings.random_packing(dim, n, n_sliding=0, mobilised=0.5, seed=2)
-        serial_s, summary = _scan_rate(scene, 1)
-        dask_s, summary2 = _scan_rate(scene, 2)
-        rows.append({"dim": dim, "n_particles": scene.n_particles, "n_contacts": scene.n_contacts,
-                     "serial_s": serial_s, "dask2_s": dask_s, "speedup_2_workers": serial_s / dask_s,
-                     "clusters_per_s_serial": scene.n_particles / serial_s,
-                     "clusters_per_s_dask2": scene.n_particles / dask_s,
-                     "same_verdicts": summary["verdicts"] == summary2["verdicts"], "verdicts": summary["verdicts"],
-                     **_per_cluster(scene, 20 if quick else 100)})
-    return {"rows": rows, "extrapolation": _extrapolate(rows[0])}
+    for dim, n in cfg["sizes"].items():
+        scene = packing(dim, n)
+        row = {"dim": dim, "n_particles": scene.n_particles, "n_contacts": scene.n_contacts,
+               "at_yield": int(scene.at_yield().sum()), **batched_vs_loop(scene, cfg["sample"])}
+        serial, a = whole_scan(scene, 1)
+        dask, b = whole_scan(scene, 2)
+        row.update(serial_s=serial, dask2_s=dask, speedup_2_workers=serial / dask,
+                   clusters_per_s_serial=scene.n_particles / serial, verdicts=a["summary"]["verdicts"],
+                   same_verdicts=a["verdict"] == b["verdict"])
+        if gpu_available():
+            gpu, c = whole_scan(scene, 1, device="gpu")
+            row["gpu"] = {"seconds": gpu, "clusters_per_s": scene.n_particles / gpu, "vs_cpu_serial": serial / gpu,
+                          "same_verdicts": c["verdict"] == a["verdict"],
+                          "max_rel_diff": float(np.nanmax(np.abs(c["lambda_min"] - a["lambda_min"])
+                                                          / np.abs(a["lambda_min"])))}
+        rows.append(row)
+    memory = [{"n_particles": n, "peak_MB": chunk_memory(n)} for n in cfg["memory"]]
+    return {"rows": rows, "memory": memory, "extrapolation": _extrapolate(rows[0]), "gpu": gpu_available()}
 
 
 def _extrapolate(row: dict) -> list[dict]:
-    """10⁶ particles (2D, rings = 1) from the measured per-cluster costs: compute / workers against the scheduler's
+    """10⁶ particles (2D, rings = 1) from the measured serial rate: compute / workers against the scheduler's
     per-task cost (serial at the scheduler) and reading an NPZ of 3·10⁶ contacts (≈ 3 s per 10⁶, BENCHMARKS.md)."""
     n = 1_000_000
     per_cluster = row["serial_s"] / row["n_particles"]
@@ -64,30 +100,50 @@ def _extrapolate(row: dict) -> list[dict]:
         scheduling = n / CHUNK * TASK_OVERHEAD_S
         reading = 9.0
         parts = {"compute": compute, "scheduling": scheduling, "reading": reading}
-        out.append({"workers": workers, "hours": (max(compute, scheduling) + reading) / 3600,
+        out.append({"workers": workers, "minutes": (max(compute, scheduling) + reading) / 60,
                     "bottleneck": max(parts, key=parts.get), **parts})
     return out
 
 
 def markdown(results: dict) -> str:
     lines = ["## The local scan: clusters per second (issue 10)", "",
-             "`granstab scan` (rings = 1, metric L) on random packings, serially (`--workers 1`) and on a 2-worker "
-             "local Dask cluster in the same run (its start-up included); per cluster, the median cost of extracting "
-             "it and of `analyze` on it. This 2-core machine is shared, so the 2-worker ratio is a lower bound.", "",
-             "| packing | particles | contacts | serial | 2 workers | speed-up | clusters/s (serial) | "
-             "extract / cluster | analyze / cluster | verdicts |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "`granstab scan` (rings = 1, metric L, max-sliding 8) on random packings with one contact in ~30 at "
+             "yield. **Batched against loop**: the same clusters (evenly spread centres) through the batched path "
+             "(`granstab/scan/batch.py`: one stacked eigenproblem per cluster size, median of 3) and through a loop "
+             "of `analyze` calls, one pass; the error is the largest relative difference of λ_min between the two. "
+             "**Whole scan**: every particle a centre, serially (`--workers 1`) and on a 2-worker local Dask cluster "
+             "(its start-up included), rows written to parquet. This 2-core machine is shared, so the 2-worker "
+             "ratio is a lower bound.", "",
+             "| packing | particles | contacts (at yield) | batched / loop (clusters) | speed-up | error (verdicts) | "
+             "whole scan, serial | 2 workers | speed-up | clusters/s | verdicts |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results["rows"]:
-        lines.append(f"| {r['dim']}D random | {r['n_particles']:,} | {r['n_contacts']:,} | {r['serial_s']:.1f} s | "
-                     f"{r['dask2_s']:.1f} s | {r['speedup_2_workers']:.2f}× | {r['clusters_per_s_serial']:.0f} | "
-                     f"{1e3 * r['extract_s']:.1f} ms | {1e3 * r['analyze_s']:.1f} ms | "
-                     + ", ".join(f"{k} {v}" for k, v in r["verdicts"].items())
-                     + ("" if r["same_verdicts"] else " (**differ between serial and Dask**)") + " |")
-    lines += ["", "A 10⁶-particle 2D scan extrapolated from the serial rate above (compute / workers, the scheduler's "
+        lines.append(
+            f"| {r['dim']}D random | {r['n_particles']:,} | {r['n_contacts']:,} ({r['at_yield']:,}) | "
+            f"{r['batched_s']:.2f} s / {r['loop_s']:.1f} s ({r['clusters']}) | **{r['speedup']:.0f}×** | "
+            f"{r['max_rel_diff']:.1e} ({'same' if r['same_verdicts'] else '**DIFFER**'}) | {r['serial_s']:.1f} s | "
+            f"{r['dask2_s']:.1f} s | {r['speedup_2_workers']:.2f}× | {r['clusters_per_s_serial']:.0f} | "
+            + ", ".join(f"{k} {v}" for k, v in r["verdicts"].items())
+            + ("" if r["same_verdicts"] else " (**differ between serial and Dask**)") + " |")
+    if results["gpu"]:
+        lines += ["", "| packing | GPU whole scan | clusters/s | vs CPU serial | λ_min rel. diff (verdicts) |",
+                  "|---|---|---|---|---|"]
+        for r in results["rows"]:
+            g = r["gpu"]
+            lines.append(f"| {r['dim']}D, {r['n_particles']:,} | {g['seconds']:.1f} s | {g['clusters_per_s']:.0f} | "
+                         f"{g['vs_cpu_serial']:.1f}× | {g['max_rel_diff']:.1e} "
+                         f"({'same' if g['same_verdicts'] else '**DIFFER**'}) |")
+    else:
+        lines += ["", "No GPU on this machine: `--device gpu` scans are measured where CuPy sees one "
+                  "(`granstab bench --device gpu`)."]
+    mem = results["memory"]
+    lines += ["", f"Peak traced memory of one chunk of {CHUNK} clusters (tracemalloc): "
+              + ", ".join(f"{m['peak_MB']:.0f} MB in a {m['n_particles']:,}-particle packing" for m in mem)
+              + " — set by the chunk, not by the packing.", "",
+              "A 10⁶-particle 2D scan extrapolated from the serial rate above (compute / workers, the scheduler's "
               f"~{TASK_OVERHEAD_S * 1e3:.0f} ms a task for {CHUNK} clusters a task, reading an NPZ snapshot):", "",
               "| workers | compute | scheduling | reading | total | bottleneck |", "|---|---|---|---|---|---|"]
     for e in results["extrapolation"]:
         lines.append(f"| {e['workers']} | {e['compute']:.0f} s | {e['scheduling']:.0f} s | {e['reading']:.0f} s | "
-                     f"{e['hours'] * 60:.1f} min | {e['bottleneck']} |")
-    lines += ["", "Each cluster is one `analyze` call: stacking the eigenproblems of same-size clusters into one "
-              "LAPACK call (the issue's ≥ 10× goal) is not done yet.", ""]
-    return "\n".join(lines)
+                     f"{e['minutes']:.1f} min | {e['bottleneck']} |")
+    return "\n".join(lines) + "\n"

@@ -176,7 +176,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         m, problem, branches, summary, notes = result
         with timer("errors"):
             errors = backend.errors(state, problem, branches)
-        summary = finalize(summary, errors, state.blocks, entries if metric == "family" else None)
+        summary = finalize(summary, errors, int(np.sum(state.blocks.rolling_undetermined)), entries if metric == "family" else None)
         if partial:
             mark_partial(summary, len(masks), Ms)
         summary["branches"] = "partial" if partial else "all"

@@ -130,13 +130,18 @@ def test_codes(problem: Problem, masks: np.ndarray, V: np.ndarray):
 
 def codes_from_s(problem: Problem, masks: np.ndarray, Svals: np.ndarray):
     """`test_codes` from the S values (L, Ms, k) of the columns (S = g·δu_def of each sliding contact, eq:flow)."""
-    m = masks[:, problem.sliding][:, :, None].astype(float)
-    test = np.where(np.abs(Svals) <= problem.s_tol, 0.0, np.sign(Svals))
+    return consistency(masks[:, problem.sliding][:, :, None].astype(float), Svals, problem.s_tol, problem.s_floor)
+
+
+def consistency(m: np.ndarray, Svals: np.ndarray, s_tol, s_floor):
+    """Appendix-D codes (L, k) and hinges (L, k) of columns with S values Svals (L, Ms, k) against branch masks m
+    (L, Ms, 1) (0 for contacts not at yield); s_tol, s_floor: scalars or per branch (L, 1, 1)."""
+    test = np.where(np.abs(Svals) <= s_tol, 0.0, np.sign(Svals))
     prod = m * test
     plus = np.all(prod >= 0, axis=1)
     minus = np.all(prod <= 0, axis=1)
     codes = np.where(plus & minus, BOTH, np.where(plus, PLUS, np.where(minus, MINUS, INCONSISTENT)))
-    band = (np.abs(Svals) <= problem.s_tol) & (np.abs(Svals) > problem.s_floor) & (m != 0)
+    band = (np.abs(Svals) <= s_tol) & (np.abs(Svals) > s_floor) & (m != 0)
     return codes.astype(np.int8), np.any(band, axis=1)
 
 

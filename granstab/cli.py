@@ -199,10 +199,14 @@ def cmd_reproduce(args) -> int:
 
 def cmd_bench(args) -> int:
     from benchmarks.runner import TOPICS, run   # outside the core package; only this command needs it
+    from .backend import gpu_available
     unknown = sorted(set(args.only or ()) - set(TOPICS))
     if unknown:
         raise InputError(f"--only: unknown topic {unknown[0]!r} (choose from {', '.join(TOPICS)})")
-    run(quick=args.quick, out=Path(args.out), only=args.only)
+    if args.device == "gpu" and not gpu_available():
+        raise InputError("--device gpu: needs CuPy and a CUDA GPU (pip install 'granstab[gpu]'); without one the "
+                         "CPU benchmarks are `granstab bench`")
+    run(quick=args.quick, out=Path(args.out), only=args.only, device=args.device)
     return 0
 
 
@@ -256,10 +260,14 @@ def cmd_extract(args) -> int:
 
 def cmd_scan(args) -> int:
     """Every local cluster of a packing → DIR/clusters, particles, summary.json, map (issue 10)."""
+    from .backend import DeviceError
     from .scan import scan
-    summary = scan(load_scene(args.input), args.out, rings=args.rings, centers=args.centers, metric=args.metric,
-                   max_sliding=args.max_sliding, sample_branches=args.sample_branches, scheduler=args.scheduler,
-                   workers=args.workers, progress=args.progress, fmt=args.format)
+    try:
+        summary = scan(load_scene(args.input), args.out, rings=args.rings, centers=args.centers, metric=args.metric,
+                       max_sliding=args.max_sliding, sample_branches=args.sample_branches, scheduler=args.scheduler,
+                       workers=args.workers, progress=args.progress, fmt=args.format, device=args.device)
+    except DeviceError as exc:
+        raise InputError(f"--device: {exc}") from None
     print(json.dumps(summary, allow_nan=False) if args.json else
           f"{summary['clusters']} clusters in {summary['seconds']:.1f} s: "
           + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}")
@@ -286,6 +294,8 @@ def add_scan(sub) -> None:
     p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (tcp://HOST:8786)")
     p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: all cores; 1: serial)")
     p.add_argument("--format", choices=["parquet", "csv"], default="parquet")
+    p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
+                   help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
     p.add_argument("--json", action="store_true", help="print summary.json")
     p.set_defaults(run=cmd_scan)
@@ -377,6 +387,8 @@ def build_parser() -> Parser:
     p.add_argument("--out", default=".")
     p.add_argument("--only", action="append", metavar="TOPIC",
                    help="run only this topic (benchmarks.TOPICS; repeatable); BENCHMARKS.md then holds only these")
+    p.add_argument("--device", choices=["cpu", "gpu"], default="cpu",
+                   help="gpu: the GPU topics (branches, scan: GPU beside CPU) into BENCHMARKS-gpu.md")
     p.set_defaults(run=cmd_bench)
     add_convert(sub)
     add_scan(sub)

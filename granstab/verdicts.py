@@ -18,35 +18,53 @@ CONSISTENT = (PLUS, MINUS, BOTH)
 
 
 def summarize(branches, notes: dict | None = None) -> dict:
-    """Counts of consistent eigenvalues over all branches and the verdict with its reason.
+    """Counts of consistent eigenvalues over all branches and the verdict with its reason (`tally`, `verdict_of`).
+
+    `notes` from the backend: complete = False when negative eigenvalues may lie beyond the computed ones (sparse
+    path), suggest_k.
+    """
+    parts = [(b.stability_eigenvalues, b.accuracy, b.codes, b.hinges) for b in branches]
+    lam, acc, codes, hinges = (np.concatenate([p[i] for p in parts]) if parts else np.empty(0) for i in range(4))
+    counts = {key: value[0] for key, value in tally(lam, acc, codes, hinges.astype(bool),
+                                                    np.zeros(len(lam), dtype=np.int64), 1).items()}
+    return verdict_of(counts, notes, n_branches=len(branches), type2=any(b.type2 for b in branches))
+
+
+def tally(lam, acc, codes, hinges, owner, n_groups: int) -> dict:
+    """Per group (e.g. the branches of one cluster) the counts the verdict rests on, from flat per-eigenvalue arrays
+    (`owner`: the group of each eigenvalue), vectorised over any number of groups.
 
     Signs come from each eigenvalue's accuracy bound (accuracy.py): |λ| > δ counts with its sign; |λ| <= δ is a zero
-    within accuracy whose sign is not determined (an exact zero only when λ = δ = 0). zero_margin = the smallest
-    |λ|/δ over every non-rigid eigenvalue, zeros included (< 1: some sign is not resolved). `notes` from the backend:
-    complete = False when negative eigenvalues may lie beyond the computed ones (sparse path), suggest_k.
+    within accuracy whose sign is not determined (an exact zero only when λ = δ = 0). margin = the smallest |λ|/δ
+    over every non-rigid eigenvalue, zeros included (< 1: some sign is not resolved).
     """
+    def count(flags):
+        return np.bincount(owner, weights=flags, minlength=n_groups).astype(np.int64)
+
+    def any_(flags):
+        return count(flags) > 0
+
+    sign = resolved_sign(lam, acc)
+    exact = (lam == 0) & (acc == 0)
+    nonrigid = codes != RIGID
+    ok = np.isin(codes, CONSISTENT)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(acc > 0, np.abs(lam) / acc, np.where(exact, np.inf, np.nan))
+    ratio = np.where(nonrigid & ~np.isnan(ratio), ratio, np.inf)
+    margin = np.full(n_groups, np.inf)
+    np.minimum.at(margin, owner, ratio)
+    return {"pos": count(ok & (sign > 0)), "neg": count(ok & (sign < 0)), "zero": count(ok & (sign == 0)),
+            "proven_zero": count(ok & exact), "hinge": any_(hinges & ok & (sign <= 0)),
+            "inconsistent_negative": any_(~ok & nonrigid & (sign < 0)),
+            "unresolved_other": any_(~ok & nonrigid & (sign == 0) & ~exact),
+            "non_finite": any_(~(np.isfinite(lam) & np.isfinite(acc))), "margin": margin}
+
+
+def verdict_of(counts: dict, notes: dict | None, n_branches: int, type2: bool = False) -> dict:
+    """The summary of one cluster from its `tally` counts: verdict (eq:stab, eq:neutral, eq:instab), reason,
+    whether it is a proof (`sufficient`, `insufficient_because`) and the counts."""
     notes = notes or {"complete": True}
-    pos = neg = zero = proven_zero = 0
-    hinge = inconsistent_negative = unresolved_other = non_finite = False
-    margin = np.inf
-    for b in branches:
-        lam, acc = b.stability_eigenvalues, b.accuracy
-        non_finite |= not (np.all(np.isfinite(lam)) and np.all(np.isfinite(acc)))
-        sign = resolved_sign(lam, acc)
-        exact = (lam == 0) & (acc == 0)
-        nonrigid = b.codes != RIGID
-        if nonrigid.any():
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.where(acc > 0, np.abs(lam) / acc, np.where(exact, np.inf, np.nan))
-            margin = min(margin, float(np.nanmin(np.r_[ratio[nonrigid], np.inf])))
-        ok = np.isin(b.codes, CONSISTENT)
-        pos += int(np.sum(ok & (sign > 0)))
-        neg += int(np.sum(ok & (sign < 0)))
-        zero += int(np.sum(ok & (sign == 0)))
-        proven_zero += int(np.sum(ok & exact))
-        hinge |= bool(np.any(b.hinges & ok & (sign <= 0)))
-        inconsistent_negative |= bool(np.any(~ok & nonrigid & (sign < 0)))
-        unresolved_other |= bool(np.any(~ok & nonrigid & (sign == 0) & ~exact))
+    neg, zero, proven_zero = int(counts["neg"]), int(counts["zero"]), int(counts["proven_zero"])
     because = []
     complete = notes.get("complete", True)
     if neg:
@@ -68,31 +86,31 @@ def summarize(branches, notes: dict | None = None) -> dict:
     else:
         verdict = "stable"
         reason = "every branch positive definite off the rigid modes (eq:stab)"
-        if inconsistent_negative:
+        if counts["inconsistent_negative"]:
             because.append("inconsistent_negative")
-        if unresolved_other:
+        if counts["unresolved_other"]:
             because.append("unresolved_sign")
         if because:
             reason = ("no consistent negative or zero eigenmode, but some eigenvalues are negative or zero (within "
                       "accuracy) with inconsistent eigenvectors: the sufficient condition of eq:stab is not met "
                       "(Sec. 3.2)")
-    if non_finite:
+    if counts["non_finite"]:
         because.append("non_finite")
-    type2 = any(b.type2 for b in branches)
+    margin = float(counts["margin"])
     out = {
         "verdict": verdict,
         "sufficient": not because,
         "insufficient_because": because,
         "reason": reason,
-        "consistent_positive": pos,
+        "consistent_positive": int(counts["pos"]),
         "consistent_negative": neg,
         "consistent_zero": zero,
         "counts_are": {"consistent_positive": "totals" if notes.get("full", complete) else "lower bounds",
                        "consistent_negative": "totals" if complete else "lower bounds",
                        "consistent_zero": "totals" if complete else "lower bounds"},
-        "type2_nonuniqueness": type2,
-        "hinges_on_tolerance": hinge,
-        "n_branches": len(branches),
+        "type2_nonuniqueness": bool(type2),
+        "hinges_on_tolerance": bool(counts["hinge"]),
+        "n_branches": n_branches,
         "zero_margin": None if not np.isfinite(margin) else margin,
     }
     if not complete:
@@ -107,14 +125,14 @@ def family_entry(metric, summary: dict) -> dict:
             "consistent_negative": summary["consistent_negative"]}
 
 
-def finalize(summary: dict, errors: dict, blocks, entries: list | None) -> dict:
+def finalize(summary: dict, errors: dict, n_undetermined: int, entries: list | None) -> dict:
     """The summary's last word on sufficiency: non-finite error estimates, undetermined rolling (flag_undetermined)
     and, over the metric family `entries`, whether verdict and counts are metric-robust; `sufficient` is True only
     when `insufficient_because` is empty."""
     because = summary["insufficient_because"]
     if not all(np.isfinite(v) for v in errors.values()) and "non_finite" not in because:
         because.append("non_finite")
-    flag_undetermined(summary, blocks)
+    flag_undetermined(summary, n_undetermined)
     if entries is not None:
         key = ("verdict", "consistent_positive", "consistent_negative")
         summary["metrics"] = entries
@@ -147,10 +165,9 @@ def mark_partial(summary: dict, examined: int, Ms: int) -> dict:
     return summary
 
 
-def flag_undetermined(summary: dict, blocks) -> dict:
+def flag_undetermined(summary: dict, n_bad: int) -> dict:
     """Where a loaded contact's rolling is undetermined (K^p + K^q singular: the pseudo-inverse cut-off decides),
     the verdict is not a proof: sufficient = False, hinges_on_tolerance = True, and the reason says why."""
-    n_bad = int(np.sum(blocks.rolling_undetermined))
     if n_bad:
         summary["insufficient_because"].append("rolling_undetermined")
         summary["sufficient"] = False

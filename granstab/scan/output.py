@@ -14,7 +14,7 @@ import numpy as np
 from ..scene import Scene, SceneError
 
 FORMATS = ("parquet", "csv")
-STRING_COLUMNS = ("center", "members", "branches", "verdict", "insufficient_because", "reason", "name",
+STRING_COLUMNS = ("center", "members", "path", "branches", "verdict", "insufficient_because", "reason", "name",
                   "own_verdict")
 
 

@@ -13,19 +13,25 @@ import time
 import numpy as np
 
 from ..analysis import analyze
+from ..backend import backend
 from ..branches import RIGID
 from ..scene import Scene, SceneError
 from ..threads import blas_threads
+from ..verdicts import finalize, verdict_of
+from .batch import batchable, solve_chunk
 from .clusters import members, particle_index, subscene
 from .output import ScanOutput
 
-CHUNK = 64            # clusters per task: scheduling overhead stays small against ~10 ms a cluster
+CHUNK = 512           # clusters per task: the batched path amortises its per-chunk work; Dask's per-task cost small
+GPU_CHUNK = 16384     # on a GPU one stacked solve wants many clusters
 
 
 def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> dict:
-    """One row of clusters.parquet: the cluster of `center` analysed (errors become a row, never a lost cluster)."""
+    """One row of clusters.parquet from `analyze` on the cluster's sub-scene (errors become a row, never a lost
+    cluster)."""
     start = time.perf_counter()
-    row = {"center": scene.names[center], "members": [scene.names[i] for i in keep], "n_particles": len(keep)}
+    row = {"center": scene.names[center], "members": [scene.names[i] for i in keep], "n_particles": len(keep),
+           "path": "analyze"}
     try:
         sub = subscene(scene, keep)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
@@ -36,25 +42,54 @@ def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> d
                 "sufficient": False, "insufficient_because": "error", "metric_robust": None, "zero_margin": np.nan,
                 "eigen_residual": np.nan, "rigid_leakage": np.nan, "reason": " ".join(str(exc).split()),
                 "seconds": time.perf_counter() - start}
-    sm = res.summary
     lam = [b.stability_eigenvalues[b.codes != RIGID] for b in res.branches]
-    return {**row, "n_contacts": sub.n_contacts, "n_sliding": int(np.sum(sub.at_yield())),
-            "branches": sm["branches"], "n_branches": sm["n_branches"],
-            "lambda_min": float(min((v.min() for v in lam if v.size), default=np.nan)),
+    return summary_row(row, res.summary, n_contacts=sub.n_contacts, n_sliding=int(np.sum(sub.at_yield())),
+                       lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
+                       eigen_residual=res.errors["eigen_residual_stability"],
+                       rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
+
+
+def summary_row(row: dict, sm: dict, *, n_contacts: int, n_sliding: int, lambda_min: float, eigen_residual: float,
+                rigid_leakage: float, seconds: float) -> dict:
+    """A row from an `analyze`-style summary (verdicts.py) and the cluster's numbers."""
+    return {**row, "n_contacts": n_contacts, "n_sliding": n_sliding,
+            "branches": sm.get("branches", "all"), "n_branches": sm["n_branches"], "lambda_min": lambda_min,
             "consistent_negative": sm["consistent_negative"], "consistent_positive": sm["consistent_positive"],
             "verdict": sm["verdict"], "sufficient": sm["sufficient"],
             "insufficient_because": ",".join(sm["insufficient_because"]), "metric_robust": sm["metric_robust"],
             "zero_margin": np.nan if sm["zero_margin"] is None else sm["zero_margin"],
-            "eigen_residual": res.errors["eigen_residual_stability"],
-            "rigid_leakage": res.errors["rigid_leakage_modified"], "reason": sm["reason"],
-            "seconds": time.perf_counter() - start}
+            "eigen_residual": eigen_residual, "rigid_leakage": rigid_leakage, "reason": sm["reason"],
+            "seconds": seconds}
+
+
+def batched_rows(scene: Scene, centers: np.ndarray, member_lists: list, options: dict) -> dict:
+    """Rows of the clusters the batched path serves (batch.py), by position in `centers`; seconds are the chunk's
+    time shared equally."""
+    start = time.perf_counter()
+    solved = solve_chunk(scene, centers, member_lists, options)
+    share = (time.perf_counter() - start) / max(len(solved), 1)
+    rows = {}
+    for i, got in solved.items():
+        sm = verdict_of(got["counts"], None, n_branches=got["n_branches"])
+        errors = {"eigen_residual": got["eigen_residual"], "rigid_leakage": got["rigid_leakage"]}
+        sm = finalize(sm, errors, got["n_undetermined"], None)
+        c, keep = centers[i], member_lists[i]
+        row = {"center": scene.names[c], "members": [scene.names[j] for j in keep], "n_particles": len(keep),
+               "path": "batched"}
+        rows[i] = summary_row(row, sm, n_contacts=got["n_contacts"], n_sliding=got["n_sliding"],
+                              lambda_min=got["lambda_min"], eigen_residual=got["eigen_residual"],
+                              rigid_leakage=got["rigid_leakage"], seconds=share)
+    return rows
 
 
 def scan_chunk(scene: Scene, centers: np.ndarray, options: dict) -> list[dict]:
-    """Rows of a chunk of centres (indices): the unit of work sent to a Dask worker."""
+    """Rows of a chunk of centres (indices): the unit of work sent to a Dask worker. The batched path (batch.py)
+    takes what it can; `analyze` per cluster the rest."""
+    member_lists = members(scene, centers, options["rings"])
     with blas_threads(1):
-        return [cluster_row(scene, c, keep, options)
-                for c, keep in zip(centers, members(scene, centers, options["rings"]))]
+        done = batched_rows(scene, centers, member_lists, options) if batchable(options) else {}
+        return [done[i] if i in done else cluster_row(scene, c, keep, options)
+                for i, (c, keep) in enumerate(zip(centers, member_lists))]
 
 
 def select_centers(scene: Scene, centers) -> np.ndarray:
@@ -71,18 +106,23 @@ def select_centers(scene: Scene, centers) -> np.ndarray:
 
 
 def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = "L", max_sliding: int = 8,
-         sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None, chunk: int = CHUNK,
-         progress: bool = False, fmt: str = "parquet", figures: bool = True) -> dict:
+         sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
+         chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
+         device: str = "cpu") -> dict:
     """Analyse the cluster of every centre; write DIR/clusters.*, DIR/particles.*, DIR/summary.json and the map.
 
     Resumes: centres already in DIR (from an interrupted scan with the same options) are skipped.
     scheduler: a Dask scheduler address (tcp://HOST:PORT); workers: local Dask workers (default: this machine's
     cores; 1 = serial, in this process). metric: the projection metric of every cluster (see analyze).
+    device: "cpu", "gpu" or "auto" for the stacked eigenproblems of the batched path (backend.py); chunk: clusters
+    per task (default CHUNK, GPU_CHUNK on a GPU).
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches}
+    device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, source=scene.source)
+    chunk = chunk or (GPU_CHUNK if device == "gpu" else CHUNK)
     chosen = select_centers(scene, centers)
     todo = chosen[~np.isin(np.asarray(scene.names, dtype=object)[chosen], list(out.done_centers()))]
     chunks = [todo[i:i + chunk] for i in range(0, len(todo), chunk)]
@@ -90,7 +130,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     start = time.perf_counter()
     if chunks:
         run = _run_serial if (scheduler is None and (workers or os.cpu_count() or 1) <= 1) else _run_dask
-        run(scene, chunks, options, out, bar, scheduler=scheduler, workers=workers)
+        run(scene, chunks, {**options, "device": device}, out, bar, scheduler=scheduler, workers=workers)
     if bar is not None:
         bar.close()
     summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo))

@@ -1,0 +1,237 @@
+"""The clusters of a scan chunk solved together: stacked branch matrices and one stacked `eigh` per cluster size.
+
+`analyze` per cluster spends milliseconds on Python around a 21 × 21 eigenproblem. Here the contact blocks are
+built once for the chunk (stiffness.py: a cluster's blocks are the packing's, since every term of H is written
+per contact, eq:Hg3 included), and every step after that is one array operation over all clusters of a size:
+
+  scatter the blocks into H̃ = D H D (G, n, n) in the metric L of each cluster (its mean contact radius, rigid.py)
+  → rigid motions, C̃⁺ and the formation-error bound (accuracy.py) → every branch H^i = H_el + A diag(on) Sᵀ
+  (eq:ContactF) of every cluster → sym(𝓗^i) = sym(P H^i P) (eq:newstiffnesses) → stacked eigh on the backend
+  (backend.py: numpy, or CuPy with --device gpu) → per-eigenvalue bounds, consistency codes (Appendix D)
+  → counts and verdicts per cluster (verdicts.tally, verdict_of).
+
+The same numbers as `analyze(subscene, metric=...)` on the dense path, up to round-off, for the stability verdict
+and the row's columns. Left out, because no row column uses them: the ℍ^i spectra (uniqueness, Type-2). Handed
+back to `analyze` (the caller's per-cluster path), unchanged: clusters whose branches need the eigenspace search
+of Appendix D (a repeated eigenvalue or a non-rigid zero), clusters over max_sliding (sampled branches), clusters
+without contacts, and metrics other than the L family.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..accuracy import gamma
+from ..backend import backend
+from ..branches import RIGID, consistency
+from ..stiffness import contact_blocks
+from ..tolerances import EPS
+from ..vec import rot_dim, rotate_matrix
+from ..verdicts import tally
+from .clusters import subscene
+
+LENGTH_FACTORS = {"L": 1.0, "L/10": 0.1, "10L": 10.0}
+STACK_BYTES = 256 * 2 ** 20       # the branch matrices of one stacked solve (and their copies) on the host
+
+
+def batchable(options: dict) -> bool:
+    """Whether the batched path serves these scan options (the L metric family; boundary loads)."""
+    return options["metric"] in LENGTH_FACTORS and options.get("boundary", "loads") == "loads"
+
+
+def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -> dict:
+    """Per batchable centre (index into `centers`) its row fields; the others are left to the caller.
+
+    Returns {position in centers: dict of row fields}. Clusters are grouped by particle count; each group is one
+    stack of all its clusters' branches (split to STACK_BYTES)."""
+    union = np.unique(np.concatenate(member_lists))
+    sub = subscene(scene, union)                                    # the chunk's contacts, validated once
+    local = np.searchsorted(union, np.concatenate(member_lists))
+    sizes = np.array([len(m) for m in member_lists])
+    starts = np.r_[0, np.cumsum(sizes)[:-1]]
+    blocks = contact_blocks(sub)
+    pairs = _cluster_contacts(sub, local, sizes)
+    n_contacts = np.bincount(pairs["cluster"], minlength=len(centers))
+    n_sliding = np.bincount(pairs["cluster"], weights=sub.at_yield()[pairs["contact"]],
+                            minlength=len(centers)).astype(int)
+    ok = (n_contacts > 0) & (n_sliding <= options["max_sliding"])
+    out = {}
+    factor = LENGTH_FACTORS[options["metric"]]
+    for n in np.unique(sizes[ok]):
+        group = np.flatnonzero(ok & (sizes == n))
+        for part in _split(group, n * sub.dof_per_particle, n_sliding):
+            out.update(_solve_group(sub, blocks, pairs, part, local, starts, int(n), factor, n_sliding,
+                                    options.get("device", "cpu")))
+    return out
+
+
+def _split(group: np.ndarray, nd: int, n_sliding: np.ndarray) -> list[np.ndarray]:
+    """Consecutive parts of a group whose branch matrices (8 copies of nd² doubles each) fit STACK_BYTES."""
+    cost = 2.0 ** n_sliding[group] * 8 * 8 * nd * nd
+    cut = np.floor(np.cumsum(cost) / STACK_BYTES).astype(int)
+    return [group[cut == c] for c in np.unique(cut)]
+
+
+def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray) -> dict:
+    """Every (cluster, contact) with both particles in the cluster, with the particles' ranks in the cluster,
+    in cluster order and, within a cluster, in contact order (the order `subscene` keeps)."""
+    G, N = len(sizes), sub.n_particles
+    cluster = np.repeat(np.arange(G), sizes)
+    X = sp.csr_matrix((np.ones(len(local)), (local, cluster)), shape=(N, G))
+    both = X[sub.p].multiply(X[sub.q]).tocsc()
+    both.sort_indices()
+    contact = both.indices.astype(np.int64)
+    owner = np.repeat(np.arange(G), np.diff(both.indptr))
+    keys = cluster * N + local                                      # sorted: members are sorted per cluster
+    first = np.r_[0, np.cumsum(sizes)[:-1]]
+
+    def rank(particle):
+        return np.searchsorted(keys, owner * N + particle) - first[owner]
+
+    return {"cluster": owner, "contact": contact, "lp": rank(sub.p[contact]), "lq": rank(sub.q[contact])}
+
+
+def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, device) -> dict:
+    """Row fields of the clusters `part` (all with n particles): see the module docstring."""
+    d, r = sub.dim, rot_dim(sub.dim)
+    per = d + r
+    nd = n * per
+    G = len(part)
+    slot = np.full(len(n_sliding), -1)
+    slot[part] = np.arange(G)
+    sel = slot[pairs["cluster"]] >= 0
+    g, m = slot[pairs["cluster"][sel]], pairs["contact"][sel]
+    idx = np.concatenate([pairs["lp"][sel, None] * per + np.arange(per),
+                          pairs["lq"][sel, None] * per + np.arange(per)], axis=1)      # (P, 2per) local dofs
+
+    # metric: L = mean contact radius of the cluster (rigid.rotation_length), D = diag(1, 1/L) per particle
+    radii = np.linalg.norm(sub.r_pq[m], axis=1) + np.linalg.norm(sub.r_qp[m], axis=1)
+    L = np.bincount(g, weights=radii, minlength=G) / (2 * np.bincount(g, minlength=G))
+    L = factor * np.where(L > 0, L, 1.0)
+    rotation = np.tile(np.r_[np.zeros(d), np.ones(r)].astype(bool), n)
+    dscale = np.where(rotation[None], 1.0 / L[:, None], 1.0)                         # (G, nd)
+    Dp = dscale[g[:, None], idx]                                                     # (P, 2per)
+
+    def scatter(values):                                                             # (P, 2per, 2per) → (G, nd, nd)
+        flat = (g[:, None, None] * nd + idx[:, :, None]) * nd + idx[:, None, :]
+        scaled = values * Dp[:, :, None] * Dp[:, None, :]
+        return np.bincount(flat.ravel(), weights=scaled.ravel(), minlength=G * nd * nd).reshape(G, nd, nd)
+
+    Hm = scatter(blocks.blocks["Hm"][m])
+    Hg = scatter(sum(blocks.blocks[k][m] for k in ("Hg1", "Hg2", "Hg3")))
+    H_el = Hm + Hg
+
+    # sliding factors A, S (G, nd, Ms) in the metric's dofs, the contacts in cluster order (eq:ContactF, eq:flow)
+    slide = sel & sub.at_yield()[pairs["contact"]]
+    gs, ms = slot[pairs["cluster"][slide]], pairs["contact"][slide]
+    col = _rank_within(gs)
+    Ms = int(n_sliding[part].max())
+    A = np.zeros((G, nd, Ms))
+    S = np.zeros((G, nd, Ms))
+    idx_s = idx[slide[sel]]
+    Ds = Dp[slide[sel]]
+    np.add.at(A, (gs[:, None], idx_s, col[:, None]), blocks.slide_left[ms] * Ds)
+    np.add.at(S, (gs[:, None], idx_s, col[:, None]), blocks.slide_right[ms] * Ds)
+
+    # rigid motions about the centroid in scaled dofs (eq:dtrigid), C̃⁺ (eq:Moore1), the formation error
+    x = sub.x[np.concatenate([local[starts[c]:starts[c] + n] for c in part])].reshape(G, n, d)
+    C = np.zeros((G, n, per, r))
+    C[:, :, :d, :] = rotate_matrix((x - x.mean(axis=1, keepdims=True)).reshape(-1, d)).reshape(G, n, d, r)
+    C[:, :, d:, :] = L[:, None, None, None] * np.eye(r)
+    C = C.reshape(G, nd, r)
+    T = np.zeros((G, n, per, d))
+    T[:, :, :d, :] = np.eye(d)
+    R, _ = np.linalg.qr(np.concatenate([T.reshape(G, nd, d), C], axis=2))
+    Ct = np.swapaxes(C, 1, 2)
+    Cplus = np.linalg.solve(Ct @ C, Ct)
+    kappa = np.linalg.norm(C, axis=(1, 2)) * np.linalg.norm(Cplus, axis=(1, 2))
+    scales = (_abs_norm(Hm) + _abs_norm(Hg)
+              + np.sum(np.linalg.norm(A, axis=1) * np.linalg.norm(S, axis=1), axis=1))
+    formation = (8 * EPS + 2 * gamma(nd) * kappa) * scales
+    s_scale = np.linalg.norm(S, axis=1).max(axis=1, initial=0.0)
+    leak = H_el @ R - (H_el @ C) @ (Cplus @ R)
+    leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
+
+    # every branch of every cluster (enumerate_masks order), its sym(𝓗^i), stacked eigh, bounds and codes
+    owner, masks = _branch_masks(n_sliding[part], Ms)
+    on = (masks == 1).astype(float)
+    Hi = H_el[owner] + np.einsum("bnm,bm,bkm->bnk", A[owner], on, S[owner])
+    HH = Hi - (Hi @ C[owner]) @ Cplus[owner]
+    HS = HH - np.swapaxes(Cplus[owner], 1, 2) @ (Ct[owner] @ HH)
+    Hsym = 0.5 * (HS + np.swapaxes(HS, 1, 2))
+    S_b = S[owner]
+    got = backend_eigh(Hsym, S_b, device)
+    lam = got["lam"]
+    bounds = (np.sqrt(2.0) * got["residual"] + gamma(nd + 2) * (_abs_norm(Hsym)[:, None] + np.abs(lam))
+              + formation[owner, None])
+    zero = np.abs(lam) <= bounds
+    close = np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:]
+    repeated = np.any(close & ~(zero[:, :-1] & zero[:, 1:]), axis=1)
+    special = repeated | (zero.sum(axis=1) > R.shape[2])
+    codes, hinges = consistency(masks[:, :, None].astype(float), got["S"], (sub.tol.s_rtol * s_scale)[owner, None, None],
+                                (1e3 * EPS * s_scale)[owner, None, None])          # branches.Problem.s_tol, s_floor
+    codes[zero] = RIGID
+    hinges[zero] = False
+
+    bad = np.zeros(G, dtype=bool)
+    np.logical_or.at(bad, owner, special)
+    flat_owner = np.repeat(owner, nd)
+    counts = tally(lam.ravel(), bounds.ravel(), codes.ravel(), hinges.ravel(), flat_owner, G)
+    lam_min = np.full(G, np.inf)
+    np.minimum.at(lam_min, flat_owner, np.where(codes.ravel() != RIGID, lam.ravel(), np.inf))
+    residual = np.zeros(G)
+    np.maximum.at(residual, owner, got["residual"].max(axis=1) / np.maximum(np.abs(lam).max(axis=1), 1e-300))
+    undetermined = np.bincount(g, weights=blocks.rolling_undetermined[m], minlength=G).astype(int)
+    n_branches = np.bincount(owner, minlength=G)
+    out = {}
+    for i, c in enumerate(part):
+        if bad[i]:
+            continue
+        out[int(c)] = {"counts": {k: v[i] for k, v in counts.items()}, "n_branches": int(n_branches[i]),
+                       "lambda_min": float(lam_min[i]) if np.isfinite(lam_min[i]) else np.nan,
+                       "eigen_residual": float(residual[i]), "rigid_leakage": float(leakage[i]),
+                       "n_undetermined": int(undetermined[i]), "n_contacts": int(np.sum(g == i)),
+                       "n_sliding": int(n_sliding[c])}
+    return out
+
+
+def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str) -> dict:
+    """Stacked eigh of sym(𝓗^i) on the device: eigenvalues, residual norms ‖A v − λ v‖ and the S values
+    Sᵀ v (eq:flow) of the eigenvectors with canonical signs (branches.canonical_signs); eigenvectors stay there."""
+    from ..backend import eigh_stack, residual_norms
+    be = backend(device)
+
+    def keep(xp, A, lam, V, start):
+        idx = xp.argmax(xp.abs(V), axis=1)[:, None, :]
+        sign = xp.where(xp.take_along_axis(V, idx, axis=1) < 0, -1.0, 1.0)
+        Sd = be.asarray(S[start:start + A.shape[0]])
+        return {"lam": lam, "residual": residual_norms(xp, A, lam, V),
+                "S": xp.matmul(xp.swapaxes(Sd, 1, 2), V) * sign}
+
+    return eigh_stack(Hsym, device=be.name, keep=keep)
+
+
+def _branch_masks(n_sliding: np.ndarray, Ms: int):
+    """Owner (B,) and masks (B, Ms) of all 2^Ms_c branches of every cluster, padded with 0 (enumerate_masks order:
+    branch 0 all loading)."""
+    owner = np.repeat(np.arange(len(n_sliding)), 2 ** n_sliding)
+    masks = np.zeros((len(owner), Ms), dtype=np.int8)
+    first = np.r_[0, np.cumsum(2 ** n_sliding)[:-1]]
+    for k in np.unique(n_sliding):
+        rows = (first[n_sliding == k][:, None] + np.arange(2 ** k)).ravel()
+        bits = (np.arange(2 ** k)[:, None] >> np.arange(k)[::-1]) & 1
+        masks[rows, :k] = np.tile(1 - 2 * bits, (int(np.sum(n_sliding == k)), 1))
+    return owner, masks
+
+
+def _rank_within(groups: np.ndarray) -> np.ndarray:
+    """0, 1, 2, ... within each run of equal values of a sorted array."""
+    if groups.size == 0:
+        return groups
+    first = np.r_[0, np.flatnonzero(np.diff(groups)) + 1]
+    return np.arange(len(groups)) - np.repeat(first, np.diff(np.r_[first, len(groups)]))
+
+
+def _abs_norm(H: np.ndarray) -> np.ndarray:
+    """‖|H|‖∞ per matrix of a stack (accuracy.abs_norm_inf)."""
+    return np.abs(H).sum(axis=-1).max(axis=-1) if H.shape[-1] else np.zeros(len(H))
