@@ -24,6 +24,10 @@ from .output import ScanOutput
 
 CHUNK = 512           # clusters per task: the batched path amortises its per-chunk work; Dask's per-task cost small
 GPU_CHUNK = 16384     # on a GPU one stacked solve wants many clusters
+# Local workers' environment: one BLAS thread each, and NOT Dask's default MALLOC_TRIM_THRESHOLD_, which also turns
+# off glibc's dynamic mmap threshold, so that every numpy temporary over 128 kB is a fresh mmap with page faults
+# (measured: 1.6× the CPU time of a chunk in a worker against the same chunk in this process; 1.17× without it).
+WORKER_ENVIRON = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}
 
 
 def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> dict:
@@ -150,11 +154,13 @@ def _run_serial(scene, chunks, options, out, bar, **_):
 def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
     """Chunks as Dask tasks (rerun if a worker dies), results streamed to disk in the order they finish. The scene
     travels once as the result of a task, not scattered: a task's result lost with its worker is recomputed."""
+    import dask
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
     if scheduler is None:
-        cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
+            cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
+                                   dashboard_address=None)
     with Client(scheduler or cluster) as client:
         shared = client.submit(_same, scene, pure=False)
         client.replicate([shared])
