@@ -3,7 +3,8 @@
 The two places where granstab solves many small symmetric eigenproblems — the 2^Ms loading branches of a cluster
 (lowrank.py) and the clusters of a scan — write their stacked arithmetic against `backend.xp` (array-API style:
 `xp.linalg.eigh`, `xp.matmul`, ...), so the same code runs on numpy or on CuPy. The rest of the core stays
-numpy/scipy. CuPy is the optional extra `.[gpu]` (cupy-cuda12x); `device="gpu"` without it is a one-line error.
+numpy/scipy. CuPy is the optional extra `.[gpu]` (cupy-cuda12x; `.[gpu-cuda13]`: cupy-cuda13x); `device="gpu"`
+without it is a one-line error.
 
 Stacks are cut into chunks that fit the device (CPU: CHUNK_BYTES of working arrays; GPU: half its free memory),
 and only what the caller keeps (eigenvalues, residual norms, selected columns) comes back to the host.
@@ -89,8 +90,8 @@ def backend(device: str = "cpu") -> Backend:
     cp = _cupy()
     if cp is None:
         if device == "gpu":
-            raise DeviceError("device 'gpu' needs CuPy and a CUDA GPU: pip install 'granstab[gpu]' "
-                              "(cupy-cuda12x) on a machine with one, or use --device cpu")
+            raise DeviceError("device 'gpu' needs CuPy and a CUDA GPU: pip install 'granstab[gpu]' (CUDA 12) or "
+                              "'granstab[gpu-cuda13]' (CUDA 13) on a machine with one, or use --device cpu")
         return Backend("cpu", np)
     return Backend("gpu", cp)
 
