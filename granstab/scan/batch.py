@@ -28,7 +28,6 @@ from ..stiffness import contact_blocks
 from ..tolerances import EPS
 from ..vec import rot_dim, rotate_matrix
 from ..verdicts import tally
-from .clusters import subscene
 
 LENGTH_FACTORS = {"L": 1.0, "L/10": 0.1, "10L": 10.0}
 STACK_BYTES = 256 * 2 ** 20       # the branch matrices of one stacked solve (and their copies) on the host
@@ -42,25 +41,24 @@ def batchable(options: dict) -> bool:
 def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -> dict:
     """Per batchable centre (index into `centers`) its row fields; the others are left to the caller.
 
-    Returns {position in centers: dict of row fields}. Clusters are grouped by particle count; each group is one
-    stack of all its clusters' branches (split to STACK_BYTES)."""
-    union = np.unique(np.concatenate(member_lists))
-    sub = subscene(scene, union)                                    # the chunk's contacts, validated once
-    local = np.searchsorted(union, np.concatenate(member_lists))
+    Returns {position in centers: dict of row fields}. `scene` is best the chunk's own (run.chunk_scene): its contact
+    blocks are all built. Clusters are grouped by particle count; each group is one stack of all its clusters'
+    branches (split to STACK_BYTES)."""
+    local = np.concatenate(member_lists)
     sizes = np.array([len(m) for m in member_lists])
     starts = np.r_[0, np.cumsum(sizes)[:-1]]
-    blocks = contact_blocks(sub)
-    pairs = _cluster_contacts(sub, local, sizes)
+    blocks = contact_blocks(scene)
+    pairs = _cluster_contacts(scene, local, sizes)
     n_contacts = np.bincount(pairs["cluster"], minlength=len(centers))
-    n_sliding = np.bincount(pairs["cluster"], weights=sub.at_yield()[pairs["contact"]],
+    n_sliding = np.bincount(pairs["cluster"], weights=scene.at_yield()[pairs["contact"]],
                             minlength=len(centers)).astype(int)
     ok = (n_contacts > 0) & (n_sliding <= options["max_sliding"])
     out = {}
     factor = LENGTH_FACTORS[options["metric"]]
     for n in np.unique(sizes[ok]):
         group = np.flatnonzero(ok & (sizes == n))
-        for part in _split(group, n * sub.dof_per_particle, n_sliding):
-            out.update(_solve_group(sub, blocks, pairs, part, local, starts, int(n), factor, n_sliding,
+        for part in _split(group, n * scene.dof_per_particle, n_sliding):
+            out.update(_solve_group(scene, blocks, pairs, part, local, starts, int(n), factor, n_sliding,
                                     options.get("device", "cpu")))
     return out
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import time
+import zlib
 
 import numpy as np
 
@@ -39,7 +40,7 @@ def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> d
     try:
         sub = subscene(scene, keep)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
-                      sample_branches=options["sample_branches"], seed=center)
+                      sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()))
     except SceneError as exc:
         return {**row, "n_contacts": -1, "n_sliding": -1, "branches": "none", "n_branches": 0,
                 "lambda_min": np.nan, "consistent_negative": -1, "consistent_positive": -1, "verdict": "error",
@@ -86,9 +87,18 @@ def batched_rows(scene: Scene, centers: np.ndarray, member_lists: list, options:
     return rows
 
 
+def chunk_scene(scene: Scene, centers: np.ndarray, rings: int) -> tuple[Scene, np.ndarray]:
+    """The sub-scene of every particle of the clusters of `centers`, and the centres' indices in it: all that a chunk
+    needs (the cluster of c in it is the cluster of c in the packing: every path of ≤ rings hops from c stays inside
+    it), so a task carries its own small scene, never the packing."""
+    union = np.unique(np.concatenate(members(scene, centers, rings)))
+    return subscene(scene, union), np.searchsorted(union, centers)
+
+
 def scan_chunk(scene: Scene, centers: np.ndarray, options: dict) -> list[dict]:
-    """Rows of a chunk of centres (indices): the unit of work sent to a Dask worker. The batched path (batch.py)
-    takes what it can; `analyze` per cluster the rest."""
+    """Rows of a chunk of centres (indices into `scene`, best a `chunk_scene`): the unit of work of a Dask task. The
+    batched path (batch.py) takes what it can; `analyze` per cluster the rest (a partial cluster's branch sample is
+    seeded by its centre's name, so it does not depend on the chunking)."""
     member_lists = members(scene, centers, options["rings"])
     with blas_threads(1):
         done = batched_rows(scene, centers, member_lists, options) if batchable(options) else {}
@@ -146,14 +156,14 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
 
 def _run_serial(scene, chunks, options, out, bar, **_):
     for part in chunks:
-        out.write(scan_chunk(scene, part, options))
+        out.write(scan_chunk(*chunk_scene(scene, part, options["rings"]), options))
         if bar is not None:
             bar.update(len(part))
 
 
 def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
-    """Chunks as Dask tasks (rerun if a worker dies), results streamed to disk in the order they finish. The scene
-    travels once as the result of a task, not scattered: a task's result lost with its worker is recomputed."""
+    """Chunks as Dask tasks, each with its own `chunk_scene` (rerun if a worker dies), results streamed to disk in the
+    order they finish."""
     import dask
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
@@ -162,9 +172,8 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
             cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
                                    dashboard_address=None)
     with Client(scheduler or cluster) as client:
-        shared = client.submit(_same, scene, pure=False)
-        client.replicate([shared])
-        futures = [client.submit(scan_chunk, shared, part, options, retries=3, pure=False) for part in chunks]
+        futures = [client.submit(scan_chunk, *chunk_scene(scene, part, options["rings"]), options, retries=3,
+                                 pure=False) for part in chunks]
         for future in as_completed(futures):
             rows = future.result()
             out.write(rows)
@@ -172,10 +181,6 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
                 bar.update(len(rows))
     if cluster is not None:
         cluster.close()
-
-
-def _same(scene: Scene) -> Scene:
-    return scene
 
 
 def _progress(total: int):
