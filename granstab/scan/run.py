@@ -20,7 +20,7 @@ from ..scene import Scene, SceneError
 from ..threads import blas_threads
 from ..verdicts import finalize, verdict_of
 from .batch import batchable, solve_chunk
-from .clusters import members, particle_index, subscene
+from .clusters import adjacency, members, particle_index, subscene
 from .output import ScanOutput
 
 CHUNK = 512           # clusters per task: the batched path amortises its per-chunk work; Dask's per-task cost small
@@ -87,11 +87,11 @@ def batched_rows(scene: Scene, centers: np.ndarray, member_lists: list, options:
     return rows
 
 
-def chunk_scene(scene: Scene, centers: np.ndarray, rings: int) -> tuple[Scene, np.ndarray]:
+def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[Scene, np.ndarray]:
     """The sub-scene of every particle of the clusters of `centers`, and the centres' indices in it: all that a chunk
     needs (the cluster of c in it is the cluster of c in the packing: every path of ≤ rings hops from c stays inside
-    it), so a task carries its own small scene, never the packing."""
-    union = np.unique(np.concatenate(members(scene, centers, rings)))
+    it), so a task carries its own small scene, never the packing. graph: clusters.adjacency(scene), if at hand."""
+    union = np.unique(np.concatenate(members(scene, centers, rings, graph)))
     return subscene(scene, union), np.searchsorted(union, centers)
 
 
@@ -155,8 +155,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
 
 
 def _run_serial(scene, chunks, options, out, bar, **_):
+    graph = adjacency(scene)
     for part in chunks:
-        out.write(scan_chunk(*chunk_scene(scene, part, options["rings"]), options))
+        out.write(scan_chunk(*chunk_scene(scene, part, options["rings"], graph), options))
         if bar is not None:
             bar.update(len(part))
 
@@ -171,8 +172,9 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
         with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
             cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
                                    dashboard_address=None)
+    graph = adjacency(scene)
     with Client(scheduler or cluster) as client:
-        futures = [client.submit(scan_chunk, *chunk_scene(scene, part, options["rings"]), options, retries=3,
+        futures = [client.submit(scan_chunk, *chunk_scene(scene, part, options["rings"], graph), options, retries=3,
                                  pure=False) for part in chunks]
         for future in as_completed(futures):
             rows = future.result()
