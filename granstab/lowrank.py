@@ -29,6 +29,7 @@ its nullity), which is what makes it fast; the full path (`branches.solve_branch
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,7 @@ import numpy as np
 from .accuracy import vector_bounds
 from .backend import backend, residual_norms
 from .branches import RIGID, Branch, Problem, codes_from_s, solve_branches
+from .threads import cores
 from .tolerances import EPS
 
 GUARD = 6            # extra Ritz vectors carried by the sparse path's refinement (faster convergence of the kk)
@@ -135,30 +137,33 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
     dM, dE = (be.asarray(u) for u in _updates(red))
     N = be.asarray(red.N)
     s_t = be.asarray(red.s.T)
+
+    def solve(start):
+        """The stacked arithmetic of one chunk (numpy releases the GIL: CPU chunks run on every core)."""
+        part = masks[start:start + size]
+        on_h = (part[:, problem.sliding] == 1).astype(float)
+        on = be.asarray(on_h)
+        M = branch_stack(xp, red, on, dM)
+        lam, W = xp.linalg.eigh(M)
+        W = W * full_signs(xp, N, W)[:, None, :]
+        got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE),
+               "S": xp.matmul(s_t[None], W), "scale": xp.max(xp.sum(xp.abs(M), axis=-1), axis=-1)}
+        host = {key: be.to_host(v) for key, v in got.items()}
+        host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
+                                       problem.formation_error, k) + host["leak"][:, None]
+        codes, hinges = codes_from_s(problem, part, host["S"])
+        return part, host, _special(problem, red, host, on_h), _plain_arrays(problem, host, codes, hinges)
+
     out = []
-    with be.threads(k):
-        for start in range(0, L, size):
-            part = masks[start:start + size]
-            on_h = (part[:, problem.sliding] == 1).astype(float)
-            on = be.asarray(on_h)
-            M = branch_stack(xp, red, on, dM)
-            lam, W = xp.linalg.eigh(M)
-            W = W * full_signs(xp, N, W)[:, None, :]
-            Sv = xp.matmul(s_t[None], W)
-            got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE), "S": Sv,
-                   "scale": xp.max(xp.sum(xp.abs(M), axis=-1), axis=-1)}
-            host = {key: be.to_host(v) for key, v in got.items()}
-            host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
-                                           problem.formation_error, k) + host["leak"][:, None]
-            special = _special(problem, red, host, on_h)
-            full = dict(zip(np.flatnonzero(special),
-                            solve_branches(problem, part[special]) if special.any() else []))
+    with be.threads(k), ThreadPoolExecutor(cores() if be.name == "cpu" else 1) as pool:
+        for part, host, special, plain in pool.map(solve, range(0, L, size)):
+            with be.threads(n):
+                full = dict(zip(np.flatnonzero(special),
+                                solve_branches(problem, part[special]) if special.any() else []))
             info["full_path"] += len(full)
-            codes, hinges = codes_from_s(problem, part, host["S"])
             norm = np.maximum(np.abs(host["lam"]).max(axis=1), 1e-300)
             info["leakage"] = max(info["leakage"], float((host["leak"] / norm).max()))
             info["backward_error"] = max(info["backward_error"], float((host["res"].max(axis=1) / norm).max()))
-            plain = _plain_arrays(problem, host, codes, hinges)
             for i, mask in enumerate(part):
                 b = full.get(i) or _plain(problem, red, mask, {key: v[i] for key, v in plain.items()})
                 out.append(b)

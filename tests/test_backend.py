@@ -10,6 +10,7 @@ import pytest
 
 import granstab
 from granstab import backend, packings, threads
+from granstab.accuracy import vector_bounds
 from granstab.analysis import build_problem
 from granstab.branches import enumerate_masks
 from granstab.lowrank import solve_branches_lowrank
@@ -35,7 +36,7 @@ def test_cpu_eigh_stack_meets_its_own_error_bounds():
     got = backend.eigh_stack(A, "cpu")
     assert got["device"] == "cpu" and got["eps"] == np.finfo(float).eps
     err = np.abs(got["lam"] - lam)
-    assert np.all(err <= got["residual"] + 1e-15)                     # the bound holds per eigenvalue
+    assert np.all(err <= honest_bounds(A, got))                        # the bound holds per eigenvalue
     assert got["residual"].max() <= 1e-13                              # and it is round-off small (‖A‖ ≤ 1)
 
 
@@ -83,14 +84,24 @@ def test_thread_policy_by_size():
 
 # ------------------------------------------------------------------------------------------------- GPU only
 
+def honest_bounds(A, got):
+    """accuracy.py's per-eigenvalue bound from the reported residuals: √2‖r‖ + γ_{n+2}(‖|A|‖∞ + |λ|) (the rounding
+    of the residual itself) plus the error of forming Q diag(λ) Qᵀ in floating point, 4nε·max|λ| (‖A‖₂ ≤ 1 here)."""
+    n = A.shape[-1]
+    scale = np.abs(A).sum(axis=-1).max(axis=-1)[:, None]
+    return vector_bounds(got["lam"], got["residual"], scale, 4 * n * np.finfo(float).eps, n)
+
+
 @GPU
 def test_gpu_eigh_stack_agrees_with_cpu_within_the_reported_bounds():
+    """On the H100 the Jacobi solver's error (5.6e-15) exceeded its bare residual (5.5e-15): only the honest bound
+    (residual, its own rounding and the formation error of the test matrix) holds, on both devices."""
     A, lam = known_stack(L=3000, n=48)
     cpu = backend.eigh_stack(A, "cpu")
     gpu = backend.eigh_stack(A, "gpu")
     assert gpu["device"] == "gpu"
-    assert np.all(np.abs(gpu["lam"] - lam) <= gpu["residual"] + 1e-15)
-    assert np.all(np.abs(gpu["lam"] - cpu["lam"]) <= gpu["residual"] + cpu["residual"] + 1e-15)
+    assert np.all(np.abs(gpu["lam"] - lam) <= honest_bounds(A, gpu))
+    assert np.all(np.abs(gpu["lam"] - cpu["lam"]) <= honest_bounds(A, gpu) + honest_bounds(A, cpu))
 
 
 @GPU

@@ -163,3 +163,18 @@ def test_analyze_takes_the_low_rank_path_from_min_branches_on():
     for bf, bl in zip(fast.to_dict()["branches"], full.to_dict()["branches"]):
         assert [c["vector_sign"] for c in bf["consistent"]] == [c["vector_sign"] for c in bl["consistent"]]
         assert bf["uniqueness_eigenvalues"] == [] and len(bl["uniqueness_eigenvalues"]) == scene.n_dof
+
+
+def test_chunks_on_every_core_give_the_one_chunk_numbers():
+    """The CPU runs the chunks of branches in a thread pool (one BLAS thread each): any chunking gives exactly the
+    numbers of one chunk, in mask order, with the special branches of every chunk on the full path."""
+    scene = packings.random_packing(2, 16, n_sliding=7, mobilised=0.3, seed=1)
+    problem = problem_of(scene)
+    masks = enumerate_masks(problem.sliding, scene.n_contacts)
+    whole, info_whole = solve_branches_lowrank(problem, masks, chunk=len(masks))
+    parts, info_parts = solve_branches_lowrank(problem, masks, chunk=9)               # 15 chunks, the last short
+    assert info_parts["full_path"] == info_whole["full_path"]
+    for a, b in zip(whole, parts):
+        assert np.array_equal(a.mask, b.mask) and np.array_equal(a.codes, b.codes)
+        assert np.array_equal(a.stability_eigenvalues, b.stability_eigenvalues)
+        assert np.array_equal(a.accuracy, b.accuracy)
