@@ -133,16 +133,16 @@ def codes_from_s(problem: Problem, masks: np.ndarray, Svals: np.ndarray):
     return consistency(masks[:, problem.sliding][:, :, None].astype(float), Svals, problem.s_tol, problem.s_floor)
 
 
-def consistency(m: np.ndarray, Svals: np.ndarray, s_tol, s_floor):
+def consistency(m, Svals, s_tol, s_floor, xp=np):
     """Appendix-D codes (L, k) and hinges (L, k) of columns with S values Svals (L, Ms, k) against branch masks m
-    (L, Ms, 1) (0 for contacts not at yield); s_tol, s_floor: scalars or per branch (L, 1, 1)."""
-    test = np.where(np.abs(Svals) <= s_tol, 0.0, np.sign(Svals))
+    (L, Ms, 1) (0 for contacts not at yield); s_tol, s_floor: scalars or per branch (L, 1, 1); xp: numpy or CuPy."""
+    test = xp.where(xp.abs(Svals) <= s_tol, 0.0, xp.sign(Svals))
     prod = m * test
-    plus = np.all(prod >= 0, axis=1)
-    minus = np.all(prod <= 0, axis=1)
-    codes = np.where(plus & minus, BOTH, np.where(plus, PLUS, np.where(minus, MINUS, INCONSISTENT)))
-    band = (np.abs(Svals) <= s_tol) & (np.abs(Svals) > s_floor) & (m != 0)
-    return codes.astype(np.int8), np.any(band, axis=1)
+    plus = xp.all(prod >= 0, axis=1)
+    minus = xp.all(prod <= 0, axis=1)
+    codes = xp.where(plus & minus, BOTH, xp.where(plus, PLUS, xp.where(minus, MINUS, INCONSISTENT)))
+    band = (xp.abs(Svals) <= s_tol) & (xp.abs(Svals) > s_floor) & (m != 0)
+    return codes.astype(np.int8), xp.any(band, axis=1)
 
 
 def search_subspace(problem: Problem, mask: np.ndarray, W: np.ndarray):

@@ -36,12 +36,13 @@ import numpy as np
 
 from .accuracy import vector_bounds
 from .backend import backend, residual_norms
-from .branches import RIGID, Branch, Problem, codes_from_s, solve_branches
+from .branches import RIGID, Branch, Problem, consistency, solve_branches
 from .threads import cores
 from .tolerances import EPS
 
 GUARD = 6            # extra Ritz vectors carried by the sparse path's refinement (faster convergence of the kk)
 MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s)
+GPU_THREADS = 4       # chunks in flight on a GPU (each takes its share of the device memory, backend.chunk)
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,29 +134,34 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
         out = solve_branches(problem, masks, on_branch=on_branch)
         info["full_path"] = len(out)
         return out, info
-    size = chunk or be.chunk(8.0 * (5 * k * k + 2 * n * k), L)
+    workers = cores() if be.name == "cpu" else min(GPU_THREADS, cores())
+    size = chunk or min(be.chunk(8.0 * (5 * k * k + 2 * n * k) * workers, L), -(-L // (2 * workers)))
     dM, dE = (be.asarray(u) for u in _updates(red))
     N = be.asarray(red.N)
     s_t = be.asarray(red.s.T)
 
     def solve(start):
-        """The stacked arithmetic of one chunk (numpy releases the GIL: CPU chunks run on every core)."""
+        """The stacked arithmetic of one chunk, in a thread pool: numpy releases the GIL, so CPU chunks run on every
+        core; on a GPU one chunk's host work overlaps the next chunk's device work."""
         part = masks[start:start + size]
         on_h = (part[:, problem.sliding] == 1).astype(float)
         on = be.asarray(on_h)
         M = branch_stack(xp, red, on, dM)
         lam, W = xp.linalg.eigh(M)
         W = W * full_signs(xp, N, W)[:, None, :]
+        Sv = xp.matmul(s_t[None], W)
+        m = be.asarray(part[:, problem.sliding])[:, :, None]
+        codes, hinges = consistency(m, Sv, problem.s_tol, problem.s_floor, xp)
         got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE),
-               "S": xp.matmul(s_t[None], W), "scale": xp.max(xp.sum(xp.abs(M), axis=-1), axis=-1)}
-        host = {key: be.to_host(v) for key, v in got.items()}
+               "scale": xp.max(xp.sum(xp.abs(M), axis=-1), axis=-1), "codes": codes, "hinges": hinges,
+               **fingerprint(xp, Sv)}
+        host = {key: be.to_host(v) for key, v in got.items()}          # O(L·k): the S values stay on the device
         host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
                                        problem.formation_error, k) + host["leak"][:, None]
-        codes, hinges = codes_from_s(problem, part, host["S"])
-        return part, host, _special(problem, red, host, on_h), _plain_arrays(problem, host, codes, hinges)
+        return part, host, _special(problem, red, host, on_h), _plain_arrays(problem, host)
 
     out = []
-    with be.threads(k), ThreadPoolExecutor(cores() if be.name == "cpu" else 1) as pool:
+    with be.threads(k), ThreadPoolExecutor(workers) as pool:
         for part, host, special, plain in pool.map(solve, range(0, L, size)):
             with be.threads(n):
                 full = dict(zip(np.flatnonzero(special),
@@ -203,26 +209,31 @@ def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray) -> np.ndar
     return zero | repeated | singular
 
 
-def _plain_arrays(problem: Problem, h: dict, codes, hinges) -> dict:
+def fingerprint(xp, S) -> dict:
+    """Per reduced column (L, k) the sliding contact with the largest |S| and that S's sign: what `LazyVectors` needs
+    to give a recomputed eigenvector the sign its consistency code was computed with."""
+    if S.shape[1] == 0:
+        return {"finger": xp.zeros(S.shape[::2], dtype=xp.int64), "sign": xp.ones(S.shape[::2])}
+    finger = xp.argmax(xp.abs(S), axis=1)
+    return {"finger": finger, "sign": xp.sign(xp.take_along_axis(S, finger[:, None, :], axis=1)[:, 0, :])}
+
+
+def _plain_arrays(problem: Problem, h: dict) -> dict:
     """Per-chunk arrays of the plain branches' Branch fields: the rigid motions as exact zeros (code RIGID, error
-    bound ‖E_i‖_F) sorted in with the reduced eigenvalues; each column's S fingerprint for `LazyVectors`."""
+    bound ‖E_i‖_F) sorted in with the reduced eigenvalues."""
     L, k = h["lam"].shape
     r = problem.rigid.shape[1]
     lam = np.concatenate([np.zeros((L, r)), h["lam"]], axis=1)
     order = np.argsort(lam, axis=1, kind="stable")
     err = np.concatenate([np.broadcast_to(h["leak"][:, None] + problem.formation_error, (L, r)), h["bounds"]],
                          axis=1)
-    codes = np.concatenate([np.full((L, r), RIGID, np.int8), codes], axis=1)
-    hinges = np.concatenate([np.zeros((L, r), bool), hinges], axis=1)
+    codes = np.concatenate([np.full((L, r), RIGID, np.int8), h["codes"]], axis=1)
+    hinges = np.concatenate([np.zeros((L, r), bool), h["hinges"]], axis=1)
     norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
     res = (np.sqrt(2.0) * h["res"].max(axis=1, initial=0.0) + h["leak"]) / norm
-    S = h["S"]
-    finger = np.argmax(np.abs(S), axis=1) if S.shape[1] else np.zeros((L, k), int)
-    sign = np.take_along_axis(S, finger[:, None, :], axis=1)[:, 0, :] if S.shape[1] else np.ones((L, k))
     take = lambda a: np.take_along_axis(a, order, axis=1)              # noqa: E731
     return {"lam": take(lam), "err": take(err), "codes": take(codes), "hinges": take(hinges), "order": order,
-            "tol": err.max(axis=1), "res": res,
-            "finger": finger, "sign": np.sign(sign)}
+            "tol": err.max(axis=1), "res": res, "finger": h["finger"], "sign": h["sign"]}
 
 
 def _plain(problem: Problem, red: Reduced, mask, p: dict) -> Branch:
