@@ -19,12 +19,13 @@ from granstab.threads import blas_threads
 
 from .formatting import fmt_e, fmt_long, fmt_t, progress, table
 from .machine import load_average, machine
-from .timing import once
+from .timing import once, timeit
 
 QUICK = {"ms": (8, 10, 12), "full_max": 256, "loop_max": 64, "memory_ms": (8, 10), "worst_ms": 5,
          "sparse": (2000, 4), "arpack_max": 4}
 FULL = {"ms": (12, 14, 16), "full_max": 2048, "loop_max": 256, "memory_ms": (14, 16), "worst_ms": 5,
         "sparse": (10000, 8), "arpack_max": 4}
+GPU = {"ms": (12, 14, 16), "full_max": 512, "loop_max": 64}    # `bench --device gpu`: the dense cases, GPU beside CPU
 MAIN = "16 disks (48 dofs), Ms contacts at yield"
 
 
@@ -78,8 +79,11 @@ def dense_case(ms: int, cfg: dict, n_particles: int = 16) -> dict:
          "verdict": res.summary["verdict"], "label": MAIN if n_particles == 16
          else f"{n_particles} disks, every contact at yield (Type-2 searches on the full path)"}
     if gpu_available():
-        t_gpu, (gpu, ginfo) = once(lambda: solve_branches_lowrank(problem, masks, device="gpu"))
-        d["gpu"] = {"t_lowrank": t_gpu, "vs_cpu": compare(gpu, low), "backward_error": ginfo["backward_error"]}
+        t_gpu, (gpu, ginfo) = timeit(lambda: solve_branches_lowrank(problem, masks, device="gpu"), repeat=3,
+                                     warmup=1, slow=1e9)
+        t_gpu_an, res_gpu = timeit(lambda: analyze(scene, metric="L", device="gpu"), repeat=3, warmup=0, slow=1e9)
+        d["gpu"] = {"t_lowrank": t_gpu, "t_analyze": t_gpu_an, "vs_cpu": compare(gpu, low),
+                    "backward_error": ginfo["backward_error"], "same_verdict": res_gpu.summary == res.summary}
     return d
 
 
@@ -122,28 +126,79 @@ def sparse_case(n_particles: int, ms: int, cfg: dict) -> dict:
             "verified": int(sum(m.verified for m in modes))}
 
 
-def run(quick: bool = False) -> dict:
-    cfg = QUICK if quick else FULL
+def run(quick: bool = False, device: str = "cpu") -> dict:
+    """The cases of QUICK or FULL; device="gpu": only the dense cases (GPU config), each GPU beside CPU."""
+    cfg = GPU if device == "gpu" else QUICK if quick else FULL
     start = load_average()
-    bar = progress(len(cfg["ms"]) + len(cfg["memory_ms"]) + 2, "branches")
+    gpu_run = device == "gpu"
+    bar = progress(len(cfg["ms"]) + (0 if gpu_run else len(cfg["memory_ms"]) + 2), "branches")
     cases = []
     for ms in cfg["ms"]:
         cases.append(dense_case(ms, cfg))
         bar.update()
-    cases.append(dense_case(cfg["worst_ms"], cfg, n_particles=4))
-    bar.update()
-    mem = []
-    for ms in cfg["memory_ms"]:
-        mem.append(memory(ms))
+    mem, sp = [], None
+    if not gpu_run:
+        cases.append(dense_case(cfg["worst_ms"], cfg, n_particles=4))
         bar.update()
-    sp = sparse_case(*cfg["sparse"], cfg)
-    bar.update()
+        for ms in cfg["memory_ms"]:
+            mem.append(memory(ms))
+            bar.update()
+        sp = sparse_case(*cfg["sparse"], cfg)
+        bar.update()
     bar.close()
     return {"cases": cases, "memory": mem, "sparse": sp, "gpu": gpu_available(), "machine": machine(),
             "load": [start, load_average()]}
 
 
 def markdown(results: dict) -> str:
+    mc = results["machine"]
+    lines = [
+        "## Branch enumeration: low-rank updates of the elastic problem",
+        "",
+        f"Machine: {mc['cpu']}, {mc['cores']} cores, {mc['memory']}; numpy {mc['numpy']}, {mc['blas']}; GPU: "
+        f"{mc.get('gpu', 'none')}; load average {results['load'][0]} at the start, {results['load'][1]} at the end "
+        "(a shared machine: absolute times are noisy, the ratios are measured back to back).",
+        "",
+        "Every branch is the elastic matrix plus a rank-≤2m update, solved in the rigid-free basis "
+        "(`granstab/lowrank.py`): one GEMM builds a chunk of branch matrices, one stacked `eigh` solves it (the "
+        "chunks in a thread pool on every core, one BLAS thread each; on a GPU, CuPy), the consistency codes are "
+        "computed next to the eigenvectors, and only eigenvalues, codes and per-eigenvalue error bounds come back "
+        "(eigenvectors on demand). Side by side on the same masks: the full stacked solve of "
+        "`branches.solve_branches` (eigh + eig + SVD of n × n per branch) and the old per-branch loop (one BLAS "
+        "thread), both timed on an evenly spread subset (size in brackets) and extrapolated to all branches. "
+        "`error`: the largest eigenvalue difference from the full solve relative to max |λ|, in brackets in units "
+        "of the two paths' summed per-eigenvalue bounds (≤ 1 means within them); codes: every consistency code "
+        "identical (canonical eigenvector signs; against the old loop, which keeps LAPACK's signs, up to PLUS ↔ "
+        "MINUS). `bound`: the largest backward error ‖M w − λ w‖ / ‖M‖ or rigid leakage ‖E‖_F / ‖M‖ of any "
+        "branch. `full path`: branches with a repeated eigenvalue, a non-rigid zero or a possibly singular ℍ^i, "
+        "handed to the full per-branch code unchanged. Single runs (seconds each); `analyze` is end to end in one "
+        "metric (the default metric family runs the branches once per metric). Goal (issue 14): Ms = 16 on the "
+        "48-dof cluster under 10 s on a 2-core CPU, under 2 s on one H100.",
+        "",
+        table(["cluster", "Ms", "branches", "analyze (metric L)", "low-rank", "full stacked (est.)", "old loop (est.)",
+               "speed-up vs full / loop", "error vs full (in bounds)", "bound", "full path"], _case_rows(results)),
+        "",
+    ]
+    if results["memory"]:
+        lines += _memory_lines(results["memory"])
+    if results["sparse"]:
+        lines += _sparse_lines(results)
+    if results["gpu"]:
+        g = [[d["Ms"], f"{d['branches']:,}", fmt_t(d["t_analyze"]), fmt_t(d["gpu"]["t_analyze"]),
+              fmt_t(d["t_lowrank"]), fmt_t(d["gpu"]["t_lowrank"]), f"{d['t_lowrank'] / d['gpu']['t_lowrank']:.1f}×",
+              fmt_e(d["gpu"]["vs_cpu"]["max_rel_diff"]), "equal" if d["gpu"]["vs_cpu"]["codes_equal"] else "DIFFER",
+              "same" if d["gpu"].get("same_verdict", True) else "DIFFER", fmt_e(d["gpu"]["backward_error"])]
+             for d in results["cases"] if "gpu" in d]
+        lines += ["GPU (CuPy) against CPU on the same machine (GPU times: medians of 3 after a warm-up):", "",
+                  table(["Ms", "branches", "analyze CPU", "analyze GPU", "low-rank CPU", "low-rank GPU", "ratio",
+                         "max difference / max |λ|", "codes", "summary", "GPU backward error"], g)]
+    else:
+        lines += ["No GPU on this machine: the CuPy backend's numbers are in BENCHMARKS-gpu.md (`granstab bench "
+                  "--device gpu` on a CUDA machine with `pip install 'granstab[gpu]'`)."]
+    return "\n".join(lines)
+
+
+def _case_rows(results: dict) -> list:
     rows = []
     for d in results["cases"]:
         f, lo = d["vs_full"], d["vs_loop"]
@@ -155,47 +210,23 @@ def markdown(results: dict) -> str:
                      f"{'equal' if f['codes_equal'] else 'DIFFER'}"
                      f"{'' if lo['codes_equal'] else ' (loop: DIFFER)'}",
                      fmt_e(max(d["backward_error"], d["leakage"])), f"{d['full_path_branches']:,}"])
-    m0, m1 = results["memory"][0], results["memory"][-1]
+    return rows
+
+
+def _memory_lines(memory: list) -> list:
+    m0, m1 = memory[0], memory[-1]
     slope = (m1["peak_MB"] - m0["peak_MB"]) * 2 ** 20 / max(m1["branches"] - m0["branches"], 1)
-    mem = [[m["Ms"], f"{m['branches']:,}", f"{m['peak_MB']:.0f} MB"] for m in results["memory"]]
+    return ["Peak traced memory of `analyze` (numpy buffers and Python objects, tracemalloc) — the old path kept "
+            "every branch's n × n eigenvectors (1.38 GB at Ms = 16); this one keeps O(n) numbers per branch, "
+            f"{slope / 1024:.1f} kB per extra branch between the rows (the Branch objects and their O(n) arrays), "
+            "on top of a fixed working set of the chunks in flight (backend.CHUNK_BYTES = 64 MB in all):", "",
+            table(["Ms", "branches", "peak"], [[m["Ms"], f"{m['branches']:,}", f"{m['peak_MB']:.0f} MB"]
+                                                for m in memory]), ""]
+
+
+def _sparse_lines(results: dict) -> list:
     s = results["sparse"]
-    mc = results["machine"]
-    lines = [
-        "## Branch enumeration: low-rank updates of the elastic problem",
-        "",
-        f"Machine: {mc['cpu']}, {mc['cores']} cores, {mc['memory']}; numpy {mc['numpy']}, {mc['blas']}; load "
-        f"average {results['load'][0]} at the start, {results['load'][1]} at the end (a shared machine: absolute "
-        "times are noisy, the ratios are measured back to back).",
-        "",
-        "Every branch is the elastic matrix plus a rank-≤2m update, solved in the rigid-free basis "
-        "(`granstab/lowrank.py`): one GEMM builds a chunk of branch matrices, one stacked `eigh` solves it on one "
-        "BLAS thread, and only eigenvalues, codes and per-eigenvalue error bounds are kept (eigenvectors on "
-        "demand). Side by side on the same masks: the full stacked solve of `branches.solve_branches` (eigh + eig "
-        "+ SVD of n × n per branch) and the old per-branch loop (one BLAS thread), both timed on an evenly spread "
-        "subset (size in brackets) and extrapolated to all branches. `error`: the largest eigenvalue difference "
-        "from the full solve relative to max |λ|, in brackets in units of the two paths' summed per-eigenvalue "
-        "bounds (≤ 1 means within them); codes: every consistency code identical (canonical eigenvector signs; "
-        "against the old loop, which keeps LAPACK's signs, up to PLUS ↔ MINUS). "
-        "`bound`: the largest backward error ‖M w − λ w‖ / ‖M‖ or rigid leakage ‖E‖_F / ‖M‖ of any branch. "
-        "`full path`: branches with a repeated eigenvalue, a non-rigid zero or a possibly singular ℍ^i, handed "
-        "to the full per-branch code unchanged. Single runs (seconds each); `analyze` is end to end in one metric "
-        "(the default metric family runs the branches once per metric).",
-        "",
-        table(["cluster", "Ms", "branches", "analyze (metric L)", "low-rank", "full stacked (est.)", "old loop (est.)",
-               "speed-up vs full / loop", "error vs full (in bounds)", "bound", "full path"], rows),
-        "",
-        "On this CPU the stacked k × k `eigh` (k = n − rigid motions = 45) is about two thirds of the low-rank "
-        "time: with every eigenvector needed for the consistency codes of all eigenpairs, that is the floor here, "
-        "so Ms = 16 on 48 dofs takes tens of seconds on a loaded 2-core machine (the 10 s goal is not met on it). "
-        "`analyze` adds the verdict summary (verdicts.summarize, a Python loop over branches).",
-        "",
-        "Peak traced memory of `analyze` (numpy buffers and Python objects, tracemalloc) — the old path kept "
-        "every branch's n × n eigenvectors (1.38 GB at Ms = 16); this one keeps O(n) numbers per branch, "
-        f"{slope / 1024:.1f} kB per extra branch between the rows (the Branch objects and their O(n) arrays), on "
-        "top of a fixed working set of one chunk (backend.CHUNK_BYTES = 64 MB):",
-        "",
-        table(["Ms", "branches", "peak"], mem),
-        "",
+    return [
         f"Sparse path, {s['particles']:,}-particle 2D packing ({s['dof']:,} dofs), Ms = {s['Ms']} "
         f"({s['branches']} branches{', measured in a second run at load ' + ' → '.join(results['load_sparse']) if 'load_sparse' in results else ''}), 6 lowest modes per branch: one elastic shift-invert solve and a "
         f"{s['basis']}-vector Ritz basis, then per branch a stacked Rayleigh-Ritz, the exact inertia count from "
@@ -206,14 +237,3 @@ def markdown(results: dict) -> str:
         f"difference {fmt_e(s['max_diff_rel_norm'])}·‖Hs‖, largest residual {fmt_e(s['max_residual_rel_norm'])}·‖Hs‖.",
         "",
     ]
-    if results["gpu"]:
-        g = [[d["Ms"], fmt_t(d["t_lowrank"]), fmt_t(d["gpu"]["t_lowrank"]),
-              f"{d['t_lowrank'] / d['gpu']['t_lowrank']:.0f}×", fmt_e(d["gpu"]["vs_cpu"]["max_rel_diff"]),
-              "equal" if d["gpu"]["vs_cpu"]["codes_equal"] else "DIFFER", fmt_e(d["gpu"]["backward_error"])]
-             for d in results["cases"] if "gpu" in d]
-        lines += ["GPU (CuPy) against CPU, low-rank path, same machine:", "",
-                  table(["Ms", "CPU", "GPU", "ratio", "max difference / max |λ|", "codes", "GPU backward error"], g)]
-    else:
-        lines += ["No GPU on this machine: the CuPy backend's numbers are not measured here (`pip install "
-                  "'granstab[gpu]'` on a CUDA machine, then `granstab bench --only branches`)."]
-    return "\n".join(lines)

@@ -3,6 +3,7 @@ figures in docs/bench/ and every topic's results in docs/bench/results.json."""
 from __future__ import annotations
 
 import importlib
+import inspect
 import json
 import sys
 import time
@@ -102,7 +103,8 @@ def run(quick: bool = False, out: Path = Path("."), only=None, device: str = "cp
         t = time.perf_counter()
         module = importlib.import_module(f"{__package__}.{topic}")
         with blas_threads(QUICK_BLAS_THREADS if quick else None):     # after the import: limits loaded libraries
-            results = module.run(quick)
+            results = (module.run(quick, device=device) if "device" in inspect.signature(module.run).parameters
+                       else module.run(quick))
         if hasattr(module, "plot"):
             module.plot(results, figdir)
         doc.add(topic, results, module.markdown(results))

@@ -42,7 +42,7 @@ from .tolerances import EPS
 
 GUARD = 6            # extra Ritz vectors carried by the sparse path's refinement (faster convergence of the kk)
 MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s)
-GPU_THREADS = 4       # chunks in flight on a GPU (each takes its share of the device memory, backend.chunk)
+GPU_THREADS = 8       # chunks in flight on a GPU (each takes its share of the device memory, backend.chunk)
 
 
 @dataclass(frozen=True, eq=False)

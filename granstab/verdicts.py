@@ -39,6 +39,8 @@ def tally(lam, acc, codes, hinges, owner, n_groups: int) -> dict:
     over every non-rigid eigenvalue, zeros included (< 1: some sign is not resolved).
     """
     def count(flags):
+        if n_groups == 1:                                               # one cluster (summarize): a plain sum
+            return np.array([np.count_nonzero(flags)], dtype=np.int64)
         return np.bincount(owner, weights=flags, minlength=n_groups).astype(np.int64)
 
     def any_(flags):
