@@ -13,7 +13,7 @@ import numpy as np
 from granstab import packings
 from granstab.backend import gpu_available
 from granstab.scan import members, read_map, scan
-from granstab.scan.run import CHUNK, cluster_row, scan_chunk
+from granstab.scan.run import CHUNK, chunk_scene, cluster_row, scan_chunk
 
 TASK_OVERHEAD_S = 1e-3      # Dask's documented scheduler cost per task (order of magnitude), for the extrapolation
 OPTIONS = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32}
@@ -32,7 +32,7 @@ def batched_vs_loop(scene, sample: int) -> dict:
     times = []
     for _ in range(3):
         t = time.perf_counter()
-        rows = scan_chunk(scene, centers, OPTIONS)
+        rows = scan_chunk(*chunk_scene(scene, centers, 1), OPTIONS)
         times.append(time.perf_counter() - t)
     t = time.perf_counter()
     ref = [cluster_row(scene, c, keep, OPTIONS) for c, keep in zip(centers, members(scene, centers, 1))]
@@ -56,11 +56,12 @@ def whole_scan(scene, workers: int, device: str = "cpu") -> tuple[float, dict]:
 
 
 def chunk_memory(n: int) -> float:
-    """Peak traced memory (MB) of one batched chunk of CHUNK clusters in an n-particle 2D packing."""
+    """Peak traced memory (MB) of one batched chunk of CHUNK clusters in an n-particle 2D packing (its chunk_scene
+    and its rows: what a task holds)."""
     scene = packing(2, n)
     centers = np.arange(CHUNK)
     tracemalloc.start()
-    scan_chunk(scene, centers, OPTIONS)
+    scan_chunk(*chunk_scene(scene, centers, 1), OPTIONS)
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     return peak / 2 ** 20
@@ -109,7 +110,8 @@ def markdown(results: dict) -> str:
     lines = ["## The local scan: clusters per second (issue 10)", "",
              "`granstab scan` (rings = 1, metric L, max-sliding 8) on random packings with one contact in ~30 at "
              "yield. **Batched against loop**: the same clusters (evenly spread centres) through the batched path "
-             "(`granstab/scan/batch.py`: one stacked eigenproblem per cluster size, median of 3) and through a loop "
+             "(`granstab/scan/batch.py`: their chunk scene cut out, then one stacked eigenproblem per cluster size, "
+             "median of 3) and through a loop "
              "of `analyze` calls, one pass; the error is the largest relative difference of λ_min between the two. "
              "**Whole scan**: every particle a centre, serially (`--workers 1`) and on a 2-worker local Dask cluster "
              "(its start-up included), rows written to parquet. This 2-core machine is shared, so the 2-worker "

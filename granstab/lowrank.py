@@ -158,7 +158,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
         host = {key: be.to_host(v) for key, v in got.items()}          # O(L·k): the S values stay on the device
         host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
                                        problem.formation_error, k) + host["leak"][:, None]
-        return part, host, _special(problem, red, host, on_h), _plain_arrays(problem, host)
+        return part, host, _special(problem, red, host, on_h, be), _plain_arrays(problem, host)
 
     out = []
     with be.threads(k), ThreadPoolExecutor(workers) as pool:
@@ -186,7 +186,7 @@ def full_signs(xp, N, W):
     return xp.where(xp.take_along_axis(V, idx, axis=1)[:, 0, :] < 0, -1.0, 1.0)
 
 
-def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray) -> np.ndarray:
+def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray, be) -> np.ndarray:
     """Branches that need the full path: a non-rigid zero or a repeated eigenvalue within the accuracy bounds
     (branches.py's rule), or an ℍ^i whose smallest singular value on N is not proven above its zero tolerance."""
     lam, bounds = h["lam"], h["bounds"]
@@ -199,14 +199,31 @@ def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray) -> np.ndar
     unsure = np.flatnonzero(~(zero | repeated) & (lower <= tol_u))
     singular = np.zeros(len(lam), bool)
     if unsure.size:
-        X = red.HN[None] + problem.A[None] * on[unsure][:, None, :] @ red.s.T   # H^i N (m, n, k)
-        G = np.swapaxes(X, 1, 2) @ X
-        g = np.linalg.eigvalsh(G)
-        fro2 = np.sum(X * X, axis=(1, 2))
-        smin2 = g[:, 0] - 4 * n * EPS * fro2                          # ≤ σ_min(H^i N)²
-        tol_g = problem.tol.zero_tol(1.0, n) * np.sqrt(np.maximum(g[:, -1], 0.0))
+        smin2, gmax = gram_floor(be, problem.A, red, on[unsure])
+        tol_g = problem.tol.zero_tol(1.0, n) * np.sqrt(np.maximum(gmax, 0.0))
         singular[unsure] = smin2 <= tol_g ** 2
     return zero | repeated | singular
+
+
+def gram_floor(be, A: np.ndarray, red: Reduced, on: np.ndarray):
+    """A lower bound of σ_min(H^i N)² and the largest eigenvalue of G = (H^i N)ᵀ(H^i N) per branch, on the backend.
+
+    G is formed to within 4nε‖H^i N‖_F² (γ_n per entry). Its smallest eigenvalue: on the CPU LAPACK's eigvalsh,
+    backward stable, whose error that term also covers; on a GPU (Jacobi, ~1e-14 relative) nothing is assumed of
+    the solver: eigh's own residual gives the bound (accuracy.vector_bounds, Kahan), as for every other eigenvalue.
+    """
+    xp, n = be.xp, red.n
+    X = be.asarray(red.HN)[None] + be.asarray(A)[None] * be.asarray(on)[:, None, :] @ be.asarray(red.s.T)
+    G = xp.swapaxes(X, 1, 2) @ X
+    fro2 = be.to_host(xp.sum(X * X, axis=(1, 2)))
+    if be.name == "cpu":
+        g = np.linalg.eigvalsh(G)
+        return g[:, 0] - 4 * n * EPS * fro2, g[:, -1]
+    g, Z = xp.linalg.eigh(G)
+    res = be.to_host(residual_norms(xp, G, g, Z)[:, 0])
+    scale = be.to_host(xp.max(xp.sum(xp.abs(G), axis=-1), axis=-1))
+    g0, gmax = be.to_host(g[:, 0]), be.to_host(g[:, -1])
+    return g0 - vector_bounds(g0, res, scale, 0.0, G.shape[-1]) - 4 * n * EPS * fro2, gmax
 
 
 def fingerprint(xp, S) -> dict:
