@@ -23,6 +23,9 @@ from .verdicts import family_entry, finalize, mark_partial, summarize
 
 __all__ = ["Analysis", "METHODS", "analyze", "build_problem"]
 
+KEEP = ("auto", "all", "verdict")
+KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would grow with 2^Ms (3.4 kB a branch)
+
 
 @dataclass(eq=False)
 class Analysis:
@@ -113,7 +116,7 @@ def build_problem(scene: Scene, blocks: ContactBlocks, metric):
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
-            device: str = "cpu", lowrank: bool | None = None) -> Analysis:
+            device: str = "cpu", lowrank: bool | None = None, keep: str = "auto") -> Analysis:
     """Analyse every loading branch of `scene` (Sec. 3, Appendix D).
 
     metric: "family" (default: the verdict in L/10, L, 10L and inertia where masses are known; spectra in L;
@@ -133,6 +136,9 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     device: "cpu", "gpu" (CuPy, else backend.DeviceError) or "auto" for the stacked branch eigenproblems
     (backend.py). lowrank: solve the branches as low-rank updates of the elastic problem (lowrank.py: no ℍ^i
     spectra, eigenvectors on demand); None = from lowrank.MIN_BRANCHES branches on or on a GPU.
+    keep: "all" branches in the result, or "verdict": on the low-rank path only those the verdict rests on (a
+    consistent eigenpair of sign ≤ 0, Type-2) and the one with the lowest eigenvalue, the counts still over all, so
+    memory does not grow with 2^Ms; "auto" (default): "all" up to KEEP_ALL branches.
     """
     if rotation_length_ is not None:
         _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
@@ -140,6 +146,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         rotation_length = rotation_length if rotation_length is not None else rotation_length_
     if metric not in CHOICES:
         raise ValueError(f"metric must be one of {', '.join(CHOICES)}, got {metric!r}")
+    if keep not in KEEP:
+        raise ValueError(f"keep must be one of {', '.join(KEEP)}, got {keep!r}")
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     if rotation_length is not None and not (np.isfinite(rotation_length) and rotation_length > 0):
@@ -159,6 +167,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                              f"max_sliding = {max_sliding}")
         masks = (sample_masks(state.sliding, scene.n_contacts, sample_branches, seed) if partial
                  else enumerate_masks(state.sliding, scene.n_contacts))
+        keep_all = keep == "all" or (keep == "auto" and len(masks) <= KEEP_ALL)
         order = [primary] + [i for i in range(len(metrics)) if i != primary]
         entries = [None] * len(metrics)
         for i in order:
@@ -168,7 +177,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                 problem = backend.problem(state, m)
             with timer("branches" if main else f"metric {m.name}"):
                 branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
-                                                progress=progress, label=f"branches, metric {m.name}")
+                                                progress=progress, label=f"branches, metric {m.name}",
+                                                keep_all=keep_all)
             summary = summarize(branches, notes)
             entries[i] = family_entry(m, summary)
             if main:
@@ -176,10 +186,17 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         m, problem, branches, summary, notes = result
         with timer("errors"):
             errors = backend.errors(state, problem, branches)
+        if "residual_stability" in notes:                                # over every branch, kept or not
+            errors["eigen_residual_stability"] = max(errors["eigen_residual_stability"], notes["residual_stability"])
         summary = finalize(summary, errors, int(np.sum(state.blocks.rolling_undetermined)), entries if metric == "family" else None)
         if partial:
             mark_partial(summary, len(masks), Ms)
         summary["branches"] = "partial" if partial else "all"
+        summary["branches_kept"] = len(branches)
     warnings = backend.curvature_warnings(state) + notes.get("warnings", [])
+    if len(branches) < summary["n_branches"]:
+        warnings.append(f"{len(branches)} of {summary['n_branches']} branches kept (keep='{keep}'): those with a "
+                        "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
+                        "over all branches (keep='all' keeps every one)")
     return Analysis(scene=scene, problem=problem, metric=m, branches=branches, summary=summary, errors=errors,
                     timings=timer.times, warnings=warnings, backend=backend.name)

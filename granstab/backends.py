@@ -146,7 +146,7 @@ class DenseBackend:
         return dense_problem(state.scene, state.blocks, state.parts, metric)
 
     def solve(self, problem: Problem, masks: np.ndarray, on_branch=None, progress: bool = False,
-              label: str = "branches"):
+              label: str = "branches", keep_all: bool = True):
         bar = _progress_bar(len(masks), label) if progress and len(masks) > 1 else None
 
         def stream(b):
@@ -162,8 +162,12 @@ class DenseBackend:
             lowrank = len(masks) >= MIN_BRANCHES or backend(self.device).name == "gpu"
         notes = {"complete": True}
         if lowrank:
-            branches, info = solve_branches_lowrank(problem, masks, device=self.device, on_branch=stream)
+            branches, info = solve_branches_lowrank(problem, masks, device=self.device, keep_all=keep_all,
+                                                    on_branch=stream if bar is not None or on_branch else None)
             notes["lowrank"] = info
+            notes["residual_stability"] = info["residual_stability"]
+            if not keep_all:
+                notes.update(tally=info["tally"], n_branches=info["n_branches"])
             notes["warnings"] = [f"low-rank branch path on {info['device']} (unit round-off {info['eps']:.1e}): "
                                  f"{len(branches) - info['full_path']} of {len(branches)} branches without ℍ^i "
                                  "spectra (ℍ^i nullity proven from a bound on its smallest singular value), "
@@ -231,7 +235,7 @@ class SparseBackend:
         return SparseBranchProblem(sp=spb, core=core)
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
-              label: str = "branches"):
+              label: str = "branches", keep_all: bool = True):
         spb, k = problem.sp, self.k
         bar = _progress_bar(len(masks), f"{label} (sparse)") if progress else None
         branches, unverified, cut, ritz = [], 0, 0, 0

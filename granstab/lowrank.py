@@ -34,11 +34,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .accuracy import vector_bounds
+from .accuracy import resolved_sign, vector_bounds
 from .backend import backend, residual_norms
 from .branches import RIGID, Branch, Problem, consistency, solve_branches
 from .threads import cores
 from .tolerances import EPS
+from .verdicts import CONSISTENT, merge_tallies, tally
 
 GUARD = 6            # extra Ritz vectors carried by the sparse path's refinement (faster convergence of the kk)
 MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s)
@@ -118,11 +119,15 @@ def leakage(xp, red: Reduced, on, updates=None):
 
 
 def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "cpu", chunk: int | None = None,
-                           on_branch=None):
+                           on_branch=None, keep_all: bool = True):
     """Every branch in `masks` (L, M): a list of `branches.Branch` in mask order, and info (device, unit round-off,
-    how many branches took the full path, the largest leakage and backward error relative to ‖M_i‖).
+    how many branches took the full path, the largest leakage and backward error relative to ‖M_i‖, the largest
+    residual_stability).
 
     Plain branches come from the stacked reduced problems; the others from `solve_branches` (module docstring).
+    keep_all=False: only the branches a verdict rests on are returned — those with a consistent eigenpair of sign
+    ≤ 0 (resolved or not) or Type-2, and the branch with the lowest non-rigid eigenvalue — and info["tally"] holds
+    the counts over all L branches (verdicts.tally): memory no longer grows with 2^Ms.
     """
     be = backend(device)
     xp = be.xp
@@ -160,9 +165,10 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
                                        problem.formation_error, k) + host["leak"][:, None]
         return part, host, _special(problem, red, host, on_h, be), _plain_arrays(problem, host)
 
-    out = []
+    kept = Kept(keep_all)
+    info["residual_stability"] = 0.0
     with be.threads(k), ThreadPoolExecutor(workers) as pool:
-        for part, host, special, plain in pool.map(solve, range(0, L, size)):
+        for start, (part, host, special, plain) in zip(range(0, L, size), pool.map(solve, range(0, L, size))):
             with be.threads(n):
                 full = dict(zip(np.flatnonzero(special),
                                 solve_branches(problem, part[special]) if special.any() else []))
@@ -170,12 +176,85 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
             norm = np.maximum(np.abs(host["lam"]).max(axis=1), 1e-300)
             info["leakage"] = max(info["leakage"], float((host["leak"] / norm).max()))
             info["backward_error"] = max(info["backward_error"], float((host["res"].max(axis=1) / norm).max()))
-            for i, mask in enumerate(part):
-                b = full.get(i) or _plain(problem, red, mask, {key: v[i] for key, v in plain.items()})
-                out.append(b)
-                if on_branch is not None:
-                    on_branch(b)
+            info["residual_stability"] = max([info["residual_stability"], float(plain["res"][~special].max(initial=0)),
+                                              *(b.residual_stability for b in full.values())])
+
+            def branch(i):
+                return full.get(i) or _plain(problem, red, part[i], {key: v[i] for key, v in plain.items()})
+
+            if keep_all or on_branch is not None:
+                for i in range(len(part)):
+                    b = branch(i)
+                    kept.add(start + i, b, plain, i, special[i])
+                    if on_branch is not None:
+                        on_branch(b)
+            else:
+                kept.add_chunk(start, branch, plain, special, full)
+    out = kept.branches()
+    if not keep_all:
+        info["tally"], info["n_branches"] = kept.tally, L
     return out, info
+
+
+class Kept:
+    """The branches `solve_branches_lowrank` returns: all of them, or (keep_all False) those a verdict rests on and
+    the one with the lowest non-rigid eigenvalue, with the running `verdicts.tally` of every branch."""
+
+    def __init__(self, keep_all: bool):
+        self.keep_all, self.tally = keep_all, None
+        self.chosen: dict = {}
+        self.lowest = (np.inf, None)
+
+    def add(self, index: int, b: Branch, plain: dict, i: int, special: bool) -> None:
+        """One branch (every branch is made: keep_all, or a caller streaming them)."""
+        if self.keep_all:
+            self.chosen[index] = b
+            return
+        self._count([b.stability_eigenvalues], [b.accuracy], [b.codes], [b.hinges])
+        low = _lowest(b.stability_eigenvalues, b.codes)
+        if _worth(b.stability_eigenvalues, b.accuracy, b.codes) or b.type2:
+            self.chosen[index] = b
+        if low < self.lowest[0]:
+            self.lowest = (low, (index, b))
+
+    def add_chunk(self, start: int, branch, plain: dict, special: np.ndarray, full: dict) -> None:
+        """A chunk without making a Branch for the rows nobody keeps (vectorised over its plain rows)."""
+        rows = ~special
+        self._count([plain["lam"][rows].ravel()] + [b.stability_eigenvalues for b in full.values()],
+                    [plain["err"][rows].ravel()] + [b.accuracy for b in full.values()],
+                    [plain["codes"][rows].ravel()] + [b.codes for b in full.values()],
+                    [plain["hinges"][rows].ravel()] + [b.hinges for b in full.values()])
+        worth = _worth(plain["lam"], plain["err"], plain["codes"]) & rows
+        lows = _lowest(plain["lam"], plain["codes"])
+        for i, b in full.items():
+            worth[i] = _worth(b.stability_eigenvalues, b.accuracy, b.codes) or bool(b.type2)
+            lows[i] = _lowest(b.stability_eigenvalues, b.codes)
+        for i in np.flatnonzero(worth):
+            self.chosen[start + int(i)] = branch(int(i))
+        i = int(np.argmin(lows))
+        if lows[i] < self.lowest[0]:
+            self.lowest = (float(lows[i]), (start + i, self.chosen.get(start + i) or branch(i)))
+
+    def _count(self, lam, acc, codes, hinges) -> None:
+        lam, acc, codes, hinges = (np.concatenate(a) for a in (lam, acc, codes, hinges))
+        one = tally(lam, acc, codes, hinges.astype(bool), np.zeros(len(lam), dtype=np.int64), 1)
+        self.tally = merge_tallies(self.tally, {key: value[0] for key, value in one.items()})
+
+    def branches(self) -> list:
+        if self.lowest[1] is not None:
+            self.chosen.setdefault(*self.lowest[1])
+        return [self.chosen[i] for i in sorted(self.chosen)]
+
+
+def _worth(lam, acc, codes):
+    """A branch (row) with a consistent eigenpair of sign ≤ 0 within accuracy: what instability or neutrality rests
+    on (eq:instab, eq:neutral)."""
+    return np.any(np.isin(codes, CONSISTENT) & (resolved_sign(lam, acc) <= 0), axis=-1)
+
+
+def _lowest(lam, codes):
+    """The lowest non-rigid eigenvalue of a branch (row); inf if it has none."""
+    return np.min(np.where(codes != RIGID, lam, np.inf), axis=-1, initial=np.inf)
 
 
 def full_signs(xp, N, W):

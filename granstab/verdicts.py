@@ -21,13 +21,31 @@ def summarize(branches, notes: dict | None = None) -> dict:
     """Counts of consistent eigenvalues over all branches and the verdict with its reason (`tally`, `verdict_of`).
 
     `notes` from the backend: complete = False when negative eigenvalues may lie beyond the computed ones (sparse
-    path), suggest_k.
+    path), suggest_k; tally and n_branches when the backend kept only some branches (counts over all of them).
     """
+    notes = notes or {}
+    counts = notes.get("tally") or branch_tally(branches)
+    return verdict_of(counts, notes, n_branches=notes.get("n_branches", len(branches)),
+                      type2=any(b.type2 for b in branches))
+
+
+def branch_tally(branches) -> dict:
+    """`tally` of a list of Branch objects, as one group (scalars)."""
     parts = [(b.stability_eigenvalues, b.accuracy, b.codes, b.hinges) for b in branches]
     lam, acc, codes, hinges = (np.concatenate([p[i] for p in parts]) if parts else np.empty(0) for i in range(4))
-    counts = {key: value[0] for key, value in tally(lam, acc, codes, hinges.astype(bool),
-                                                    np.zeros(len(lam), dtype=np.int64), 1).items()}
-    return verdict_of(counts, notes, n_branches=len(branches), type2=any(b.type2 for b in branches))
+    return {key: value[0] for key, value in tally(lam, acc, codes, hinges.astype(bool),
+                                                  np.zeros(len(lam), dtype=np.int64), 1).items()}
+
+
+def merge_tallies(a: dict | None, b: dict) -> dict:
+    """Two one-group tallies as one (counts add, flags or, the margin is the smaller)."""
+    if a is None:
+        return dict(b)
+    return {key: (min(a[key], b[key]) if key == "margin" else a[key] + b[key] if key in COUNTED else
+                  bool(a[key] or b[key])) for key in a}
+
+
+COUNTED = ("pos", "neg", "zero", "proven_zero")
 
 
 def tally(lam, acc, codes, hinges, owner, n_groups: int) -> dict:

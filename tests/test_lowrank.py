@@ -178,3 +178,26 @@ def test_chunks_on_every_core_give_the_one_chunk_numbers():
         assert np.array_equal(a.mask, b.mask) and np.array_equal(a.codes, b.codes)
         assert np.array_equal(a.stability_eigenvalues, b.stability_eigenvalues)
         assert np.array_equal(a.accuracy, b.accuracy)
+
+
+def test_keeping_only_what_the_verdict_rests_on_changes_no_number():
+    """keep="verdict" (memory independent of 2^Ms) against keep="all" on a cluster with 4,096 branches, unstable on
+    some: the same summary (verdict, proof, every count over all branches, zero margin) and error estimates; the kept
+    branches are exactly the all-branch results that have a consistent eigenpair of sign <= 0, plus the lowest."""
+    scene = packings.random_packing(2, 16, n_sliding=12, mobilised=0.3, seed=1)
+    every = granstab.analyze(scene, metric="L", keep="all")
+    few = granstab.analyze(scene, metric="L", keep="verdict")
+    assert every.summary["verdict"] == "unstable" and every.summary["n_branches"] == 4096
+    for key in ("verdict", "sufficient", "insufficient_because", "consistent_negative", "consistent_zero",
+                "consistent_positive", "n_branches", "zero_margin", "hinges_on_tolerance", "type2_nonuniqueness"):
+        assert few.summary[key] == every.summary[key], key
+    assert few.errors["eigen_residual_stability"] == every.errors["eigen_residual_stability"]
+    by_mask = {b.mask.tobytes(): b for b in every.branches}
+    wanted = {key for key, b in by_mask.items()
+              if any(c["eigenvalue"] <= b.accuracy[c["index"]] for c in b.consistent())}
+    lowest = min(by_mask, key=lambda key: by_mask[key].stability_eigenvalues[by_mask[key].codes != RIGID].min())
+    kept = {b.mask.tobytes() for b in few.branches}
+    assert kept == wanted | {lowest} and 0 < len(kept) < 4096
+    assert few.summary["branches_kept"] == len(kept) and any("branches kept" in w for w in few.warnings)
+    for b in few.branches:
+        assert np.array_equal(b.stability_eigenvalues, by_mask[b.mask.tobytes()].stability_eigenvalues)
