@@ -22,7 +22,9 @@ from helpers import random_cluster, scene as make_scene
 IDENTITIES = ("force_balance", "moment_balance", "rigid_leakage_parts", "rigid_leakage_H_translations",
               "rigid_leakage_modified", "projection_idempotence", "projection_symmetry", "equilibrium_residual",
               "eigen_residual_stability", "eigen_residual_uniqueness")
-SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomized: CI runs the same examples every time (a random draw found the grouping above once; a failing CI on
+# a fresh draw would say nothing about the change under test)
+SETTINGS = settings(max_examples=30, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 
 
 @st.composite
@@ -62,12 +64,13 @@ def check_identities(res):
     for key in IDENTITIES:
         bound = 1e-12
         if key == "eigen_residual_stability":
-            # a vector chosen inside a cluster of eigenvalues closer than zero_tol (the Appendix-D subspace
-            # search) has a residual up to the cluster's width (a chain of gaps <= zero_tol)
+            # a vector chosen inside a group of eigenvalues whose accuracy intervals touch (the Appendix-D subspace
+            # search, grouped as branches._branch groups them: gaps <= δ_i + δ_i+1, up to 2·zero_tol) has a residual
+            # up to the group's width
             width = 0.0
             for b in res.branches:
                 lam = b.stability_eigenvalues
-                for g in eigen_groups(lam, b.zero_tol):
+                for g in eigen_groups(lam, b.accuracy):
                     width = max(width, (lam[g[-1]] - lam[g[0]]) / max(np.abs(lam).max(), 1e-300))
             bound = 1e-12 + width
         if key == "eigen_residual_uniqueness":
