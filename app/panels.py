@@ -150,7 +150,7 @@ class ClientUI:
                                                        "costs the browser seconds on large scenes")
             self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
             self._spectrum_default = None        # the scene size the checkbox default was last set for
-            self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3)
+            self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3, visible=False)
             self.mode_pick = gui.add_dropdown("Mode", options=["(none)"], initial_value="(none)")
             self.mode_pick.on_update(lambda _: self.run(self._pick_mode))
             self.play = gui.add_checkbox("Play", initial_value=False)
@@ -526,7 +526,8 @@ class ClientUI:
                 self.show_spectrum.value = not large
         plot = bool(modes) and self.show_spectrum.value
         self.show_spectrum.visible = bool(modes)
-        self.spectrum.visible = plot                        # nothing analysed (yet), or not asked for: no plot
+        if plot:            # mounted when first needed, then never unmounted: unmounting a plot with a plotly redraw
+            self.spectrum.visible = True    # pending is the `_redrawFromAutoMarginCount` page error; empty when unused
         keys: dict[str, tuple] = {}
         by_branch: dict[int, int] = {}
         for m in sorted((m for m in modes if m.label != "rigid"), key=lambda m: (m.branch, m.eigenvalue)):
@@ -536,8 +537,9 @@ class ClientUI:
         self._mode_keys = keys
         listed = set(keys.values())
         shown = [m for m in modes if (m.branch, m.index) in listed or (m.label == "rigid" and len(modes) <= 60)]
-        figure = spectrum_figure(shown, hidden=len(modes) - len(shown)) if plot else None
-        if plot and figure.to_json() != self._spectrum_json:   # a plotly redraw costs the browser seconds: on change
+        figure = (spectrum_figure(shown, hidden=len(modes) - len(shown)) if plot
+                  else _empty_figure() if self.spectrum.visible else None)
+        if figure is not None and figure.to_json() != self._spectrum_json:   # a redraw costs the browser: on change
             self._spectrum_json = figure.to_json()
             self.spectrum.figure = figure
         if self._modes_of is not s.model:            # another scene: its own lowest mode, not the old index
