@@ -56,8 +56,14 @@ class Analysis:
         return d
 
     def motion(self, vector: np.ndarray) -> np.ndarray:
-        """Physical motion U = D Ũ of a scaled eigenvector, normalised to unit length."""
-        u = self.metric.physical(np.asarray(vector, dtype=float))
+        """Physical motion U = D Ũ of a scaled eigenvector over every dof of the scene (fixed particles: zero),
+        normalised to unit length."""
+        vector = np.asarray(vector, dtype=float)
+        if self.problem.free is not None:
+            full = np.zeros(self.scene.n_dof)
+            full[self.problem.free] = vector
+            vector = full
+        u = self.metric.physical(vector)
         return u / np.linalg.norm(u)
 
     def to_dict(self) -> dict:

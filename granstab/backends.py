@@ -61,6 +61,9 @@ def choose_backend(scene: Scene, method: str, k: int, device: str = "cpu", lowra
     from .sparse import DENSE_MAX_DOF
     backend(device)                                                   # an unusable device fails before any work
     if method == "sparse" or (method == "auto" and scene.n_dof > DENSE_MAX_DOF):
+        if scene.fixed is not None:
+            raise SceneError(f"{scene.source}: fixed particles are supported on the dense path only (at most "
+                             f"{DENSE_MAX_DOF} dofs; method='dense')")
         return SparseBackend(k, device=device)
     return DenseBackend(device, lowrank)
 
@@ -107,14 +110,21 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     H_el = metric.congruence(parts["H"])
     _require_finite(scene, float(np.abs(H_el).sum()) if H_el.size else 0.0)
     A, S = D @ parts["A"], D @ parts["S"]
-    C = metric.rotations(scene)
-    rigid, _ = np.linalg.qr(np.concatenate([metric.translations(scene), C], axis=1))
-    projection = Projection.from_rotations(C)
     geometric = parts["Hg1"] + parts["Hg2"] + parts["Hg3"]
-    scales = part_scales(D @ parts["Hm"] @ D, D @ geometric @ D, A, S)
+    mechanical, geometric = D @ parts["Hm"] @ D, D @ geometric @ D
+    free = scene.free_dofs
+    if free is None:
+        C = metric.rotations(scene)
+        rigid, _ = np.linalg.qr(np.concatenate([metric.translations(scene), C], axis=1))
+    else:                          # held by fixed particles: their dofs dropped, no rigid motion, no projection
+        H_el, A, S = H_el[np.ix_(free, free)], A[free], S[free]
+        mechanical, geometric = mechanical[free][:, free], geometric[free][:, free]
+        C = rigid = np.zeros((len(free), 0))
+    projection = Projection.from_rotations(C)
+    scales = part_scales(mechanical, geometric, A, S)
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
-                   formation_error=formation_error(scales, C, projection.Cplus))
+                   formation_error=formation_error(scales, C, projection.Cplus), free=free)
 
 
 def modified_leakage(problem: Problem) -> float:

@@ -40,6 +40,7 @@ class Problem:
     n_contacts: int
     tol: object
     formation_error: float = 0.0   # bound of ‖sym(𝓗) computed − exact‖₂ from forming it (accuracy.formation_error)
+    free: np.ndarray | None = None  # the scene's dofs these n are (Scene.free_dofs), None: all of them
 
     @property
     def s_tol(self) -> float:

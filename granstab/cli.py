@@ -252,9 +252,10 @@ def cmd_convert(args) -> int:
 def cmd_extract(args) -> int:
     """The cluster of one particle as a scene file (issue 10): re-analyse, open in the app, check by hand."""
     from .scan import extract
-    sub = extract(load_scene(args.input), args.center, rings=args.rings)
+    sub = extract(load_scene(args.input), args.center, rings=args.rings, boundary=args.boundary)
     Path(args.out).write_text(json.dumps(sub.to_dict(), allow_nan=False), encoding="utf-8")
-    print(f"wrote {args.out}: {sub.n_particles} particles, {sub.n_contacts} contacts")
+    held = "" if sub.fixed is None else f" ({int(sub.fixed.sum())} of them held fixed)"
+    print(f"wrote {args.out}: {sub.n_particles} particles{held}, {sub.n_contacts} contacts")
     return 0
 
 
@@ -264,8 +265,9 @@ def cmd_scan(args) -> int:
     from .scan import scan
     try:
         summary = scan(load_scene(args.input), args.out, rings=args.rings, centers=args.centers, metric=args.metric,
-                       max_sliding=args.max_sliding, sample_branches=args.sample_branches, scheduler=args.scheduler,
-                       workers=args.workers, progress=args.progress, fmt=args.format, device=args.device)
+                       boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
+                       scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
+                       device=args.device)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     print(json.dumps(summary, allow_nan=False) if args.json else
@@ -274,17 +276,25 @@ def cmd_scan(args) -> int:
     return 0
 
 
+def boundary_argument(p) -> None:
+    p.add_argument("--boundary", choices=["loads", "fixed"], default="loads",
+                   help="loads: the cut contacts' forces act as dead loads (the isolated cluster, Sec. 5); fixed: the "
+                        "next ring of particles is held fixed (no rigid modes)")
+
+
 def add_scan(sub) -> None:
     p = sub.add_parser("extract", help="the cluster of one particle (centre + N contact rings) as a scene file")
     p.add_argument("input", help="any scene or snapshot that analyze reads")
     p.add_argument("--center", required=True, help="the centre particle's name")
     p.add_argument("--rings", type=int, default=1, help="contact hops from the centre (default 1)")
+    boundary_argument(p)
     p.add_argument("--out", required=True, help="scene file to write (JSON)")
     p.set_defaults(run=cmd_extract)
     p = sub.add_parser("scan", help="local stability scan: every cluster of a packing, as a map")
     p.add_argument("input", help="any scene or snapshot that analyze reads")
     p.add_argument("--out", required=True, help="output directory (an interrupted scan there resumes)")
     p.add_argument("--rings", type=int, default=1, help="contact hops from each centre (default 1)")
+    boundary_argument(p)
     p.add_argument("--centers", default="all", help="all | every:K | NAME,NAME,...")
     p.add_argument("--metric", choices=list(METRIC_CHOICES), default="L",
                    help="projection metric of every cluster (default L; family: robustness, 2-3x the time)")

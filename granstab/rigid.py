@@ -57,7 +57,8 @@ class Projection:
 
     @classmethod
     def from_rotations(cls, C: np.ndarray) -> "Projection":
-        return cls(C=C, Cplus=np.linalg.solve(C.T @ C, C.T))
+        """P^nrr of the rotations C (n, r); r = 0 (a cluster held by fixed particles): the identity."""
+        return cls(C=C, Cplus=np.linalg.solve(C.T @ C, C.T) if C.shape[1] else C.T.copy())
 
     def apply(self, v: np.ndarray) -> np.ndarray:
         """P^nrr v for v (n,) or (n, k)."""
@@ -77,5 +78,5 @@ class Projection:
         r = self.C.shape[1]
         u, v = rng.standard_normal((2, self.C.shape[0]))
         sym = abs(u @ self.apply(v) - v @ self.apply(u)) / (np.linalg.norm(u) * np.linalg.norm(v))
-        return {"projection_idempotence": float(np.abs(self.Cplus @ self.C - np.eye(r)).max()),
+        return {"projection_idempotence": float(np.abs(self.Cplus @ self.C - np.eye(r)).max(initial=0.0)),
                 "projection_symmetry": float(sym)}

@@ -23,7 +23,7 @@ from .vec import cross, rot_dim, tangent_basis
 STATES = ("auto", "elastic", "sliding")
 LAW_KEYS = ("k", "alpha", "mu", "rolling_stiffness")
 TOP_KEYS = {"dim", "title", "defaults", "particles", "contacts"}
-PARTICLE_KEYS = {"name", "x", "load", "moment", "mass", "inertia"}
+PARTICLE_KEYS = {"name", "x", "load", "moment", "mass", "inertia", "fixed"}
 CONTACT_KEYS = {"p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state", *LAW_KEYS}
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5, "rolling_stiffness": 0.0}
 
@@ -55,6 +55,7 @@ class Scene:
     tol: Tolerances = field(default=DEFAULT)
     mass: np.ndarray | None = None        # (N,) masses, for the inertia metric (metric.py); None: not known
     inertia: np.ndarray | None = None     # (N, r, r) rotational inertia in the global frame
+    fixed: np.ndarray | None = None       # (N,) bool: particles held fixed (supports: no dofs, no rigid modes)
 
     @property
     def n_particles(self) -> int:
@@ -118,6 +119,14 @@ class Scene:
                 & self.has_sliding_direction())
         return (state == "sliding") | auto
 
+    @property
+    def free_dofs(self) -> np.ndarray | None:
+        """Indices of the dofs of the particles not held fixed; None when no particle is fixed."""
+        if self.fixed is None:
+            return None
+        per = self.dof_per_particle
+        return (np.flatnonzero(~self.fixed)[:, None] * per + np.arange(per)).ravel()
+
     def dofs(self) -> list[str]:
         """Dof labels: particles in file order, translations then rotations (p.u1, p.u2, p.th3 …)."""
         rot = ["th3"] if self.dim == 2 else ["th1", "th2", "th3"]
@@ -134,7 +143,8 @@ class Scene:
         def rows(prefix: str, keys: tuple) -> list:
             return [dict(zip(keys, values)) for values in zip(*(cols[f"{prefix}/{k}"].tolist() for k in keys))]
 
-        particle_keys = ("name", "x", "load", "moment") + (("mass", "inertia") if self.mass is not None else ())
+        particle_keys = (("name", "x", "load", "moment") + (("mass", "inertia") if self.mass is not None else ())
+                         + (("fixed",) if self.fixed is not None else ()))
         with paused_gc():
             return {"dim": self.dim, "title": self.title,
                     "particles": rows("particles", particle_keys),
@@ -177,6 +187,8 @@ def scene_arrays(scene: Scene) -> dict:
     for key in ("curvature_p", "curvature_q"):
         K = getattr(scene, key)
         out[f"contacts/{key}"] = _kappa(K, scene.normal) if scalar else K
+    if scene.fixed is not None:
+        out["particles/fixed"] = scene.fixed
     if scene.mass is not None:
         out["particles/mass"] = scene.mass
         out["particles/inertia"] = scene.inertia[:, 0, 0] if scalar else scene.inertia
@@ -243,6 +255,7 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Sce
     loads = (particles.numbers("load", (dim,), 0.0), particles.present("load"))
     moments = (particles.numbers("moment", moment_shape, 0.0).reshape(-1, r), particles.present("moment"))
     mass, inertia = _mass_columns(particles, dim, tol)
+    fixed = _fixed_column(particles)
 
     M = len(contacts)
     p, q = _particle_column(contacts, "p", names, index), _particle_column(contacts, "q", names, index)
@@ -276,7 +289,24 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Sce
         contacts.fail(c, "state", f"must be one of {', '.join(STATES)}, got {state[c]!r}")
     arrays["state"] = tuple(state)
     return build_scene(dim, names, x, arrays, loads, moments, title=title, source=source, tol=tol,
-                       entries=contacts.label, particle_entries=particles.label, mass=mass, inertia=inertia)
+                       entries=contacts.label, particle_entries=particles.label, mass=mass, inertia=inertia,
+                       fixed=fixed)
+
+
+def _fixed_column(particles) -> np.ndarray | None:
+    """Optional `fixed` (true/false) of each particle: a support with no dofs (absent: false). None if none is."""
+    values, have = particles.raw("fixed")
+    flags = np.zeros(len(particles), bool)
+    if not have.any():
+        return None
+    given = np.asarray(values)
+    if given.dtype != bool or given.shape != (int(have.sum()),):
+        j = next((j for j, v in enumerate(values) if not isinstance(v, (bool, np.bool_))), 0)
+        particles.fail(int(np.flatnonzero(have)[j]), "fixed", f"must be true or false, got {describe(values[j])}")
+    flags[have] = given
+    if flags.all():
+        particles.fail(0, "fixed", "every particle is fixed: at least one must be free to move")
+    return flags if flags.any() else None
 
 
 def _particle_column(table, key: str, names: list, index: dict) -> np.ndarray:
@@ -412,9 +442,11 @@ def read_particles(top: Reader, data: dict, allowed: set, read) -> list:
 
 
 def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="", source="<scene>",
-                tol: Tolerances = DEFAULT, entries=None, particle_entries=None, mass=None, inertia=None) -> Scene:
+                tol: Tolerances = DEFAULT, entries=None, particle_entries=None, mass=None, inertia=None,
+                fixed=None) -> Scene:
     """Assemble a Scene from arrays (programmatic use: presets, studies, the app) and run the range and
-    physical checks (vectorised); `mass` (N,) and `inertia` (N, r, r) are optional (the inertia metric).
+    physical checks (vectorised); `mass` (N,) and `inertia` (N, r, r) are optional (the inertia metric); `fixed`
+    (N,) bool marks supports (particles without dofs).
 
     `loads`/`load_moments`: None (equilibrium values for all), a list with None where the equilibrium value is
     to be used, or a pair (values (N, ·), given (N,) bool). `entries` names contacts in error messages: a list
@@ -446,8 +478,9 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
     if mass is not None:
         mass = np.asarray(mass, float).reshape(N)
         inertia = np.asarray(inertia, float).reshape(N, r, r)
+    fixed = None if fixed is None or not np.any(fixed) else np.asarray(fixed, bool).reshape(N)
     return Scene(dim=dim, names=tuple(names), x=base.x, load=load, load_moment=load_moment, title=title,
-                 source=source, tol=tol, mass=mass, inertia=inertia, **arrays)
+                 source=source, tol=tol, mass=mass, inertia=inertia, fixed=fixed, **arrays)
 
 
 def _namer(entries, prefix):

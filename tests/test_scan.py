@@ -184,7 +184,7 @@ def test_more_sliding_contacts_than_the_cap_examine_a_sample_and_say_so(tmp_path
 
 def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
     scene = granstab.load_scene(ANNULUS)
-    options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32}
+    options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads"}
     from granstab.scan.output import ScanOutput
     out = ScanOutput(tmp_path, "csv", options, source=scene.source)
     out.write(scan_chunk(scene, np.arange(0, 20), options))              # what finished before the kill
@@ -239,3 +239,58 @@ def test_cli_scan_and_extract_round_trip(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "granstab", "extract", str(ANNULUS), "--center", "nope",
                           "--out", str(sub_file)], capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "'nope'" in bad.stderr
+
+
+def test_fixed_boundary_holds_the_next_ring_and_keeps_the_packing_stiffness():
+    """--boundary fixed: the ring one contact beyond the cluster is held (no dofs, no rigid modes, no projection),
+    and the stiffness on the cluster's dofs is exactly the packing's own H restricted to them (every contact of a
+    cluster particle is in the sub-scene, eq:final1), at round-off relative to ‖H‖."""
+    from granstab.stiffness import stiffness
+    scene = packings.random_packing(2, 80, n_sliding=10, mobilised=0.5, seed=5)
+    center = 37
+    sub = extract(scene, scene.names[center], rings=1, boundary="fixed")
+    inner = members(scene, [center], 1)[0]
+    held = set(members(scene, [center], 2)[0]) - set(inner)
+    assert {sub.names[i] for i in np.flatnonzero(sub.fixed)} == {scene.names[i] for i in held}
+    assert not any(sub.fixed[a] and sub.fixed[b] for a, b in zip(sub.p, sub.q))    # no contact between two held
+    per = scene.dof_per_particle
+    packing_dofs = (inner[:, None] * per + np.arange(per)).ravel()
+    H = stiffness(scene).H
+    H_cluster = stiffness(sub).H[np.ix_(sub.free_dofs, sub.free_dofs)]
+    assert np.abs(H_cluster - H[np.ix_(packing_dofs, packing_dofs)]).max() <= 1e-12 * np.abs(H).max()
+    res = granstab.analyze(sub, metric="L")
+    assert res.problem.rigid.shape == (len(sub.free_dofs), 0)
+    assert all(not np.any(b.codes == RIGID) for b in res.branches)
+    assert res.motion(res.branches[0].stability_vectors[:, 0]).shape == (sub.n_dof,)
+    assert np.all(res.motion(res.branches[0].stability_vectors[:, 0]).reshape(-1, per)[sub.fixed] == 0)
+
+
+def test_fixed_boundary_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path):
+    scene = granstab.load_scene(ANNULUS)
+    names = [scene.names[i] for i in (3, 50, 99, 140)]
+    scan(scene, tmp_path, centers=",".join(names), boundary="fixed", workers=1, figures=False)
+    rows = read_map(tmp_path)["clusters"]
+    for i, name in enumerate(names):
+        res = granstab.analyze(extract(scene, name, boundary="fixed"), metric="L")
+        scale = max(np.abs(b.stability_eigenvalues).max() for b in res.branches)
+        assert rows["path"][i] == "analyze" and rows["verdict"][i] == res.summary["verdict"]
+        assert rows["consistent_positive"][i] == res.summary["consistent_positive"]
+        assert abs(rows["lambda_min"][i] - lowest(res)) <= 1e-10 * scale
+    with pytest.raises(granstab.SceneError, match="other options"):      # a resume may not mix boundaries
+        scan(scene, tmp_path, centers=",".join(names), workers=1, figures=False)
+
+
+@pytest.mark.parametrize("value, message", [(1, "must be true or false"), ("yes", "must be true or false")])
+def test_a_bad_fixed_flag_is_one_line_naming_the_particle(tmp_path, value, message):
+    data = extract(granstab.load_scene(ANNULUS), granstab.load_scene(ANNULUS).names[40], boundary="fixed").to_dict()
+    data["particles"][2]["fixed"] = value
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(granstab.SceneError) as err:
+        granstab.load_scene(path)
+    assert "particles[2]" in str(err.value) and "fixed" in str(err.value) and message in str(err.value)
+    assert "\n" not in str(err.value)
+    data["particles"] = [{**entry, "fixed": True} for entry in data["particles"]]
+    path.write_text(json.dumps(data))
+    with pytest.raises(granstab.SceneError, match="at least one must be free"):
+        granstab.load_scene(path)

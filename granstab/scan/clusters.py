@@ -36,21 +36,36 @@ def members(scene: Scene, centers: np.ndarray, rings: int, graph: sp.csr_matrix 
     return np.split(X.indices.astype(np.int64), X.indptr[1:-1])
 
 
-def subscene(scene: Scene, keep: np.ndarray, title: str = "") -> Scene:
-    """The sub-scene of the particles `keep` (indices) and every contact between two of them, with equilibrium loads."""
+def subscene(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None = None) -> Scene:
+    """The sub-scene of the particles `keep` (indices) and every contact between two of them, with equilibrium loads.
+
+    hold: further particles (indices) held fixed around them (`--boundary fixed`): the contacts between a kept and a
+    held particle are added, those between two held ones are not (they would act on no dof)."""
+    hold = np.zeros(0, dtype=np.int64) if hold is None else np.asarray(hold, dtype=np.int64)
+    every = np.sort(np.concatenate([keep, hold]))
     inside = np.zeros(scene.n_particles, dtype=bool)
-    inside[keep] = True
-    c = np.flatnonzero(inside[scene.p] & inside[scene.q])
+    inside[every] = True
+    free = np.zeros(scene.n_particles, dtype=bool)
+    free[keep] = True
+    c = np.flatnonzero(inside[scene.p] & inside[scene.q] & (free[scene.p] | free[scene.q]))
     renumber = np.full(scene.n_particles, -1, dtype=np.int64)
-    renumber[keep] = np.arange(len(keep))
+    renumber[every] = np.arange(len(every))
     arrays = {name: getattr(scene, name)[c] for name in CONTACT_FIELDS}
     arrays.update(p=renumber[scene.p[c]], q=renumber[scene.q[c]],
                   state=tuple(itemgetter(*c)(scene.state)) if len(c) > 1 else tuple(scene.state[i] for i in c))
-    names = itemgetter(*keep)(scene.names) if len(keep) > 1 else (scene.names[keep[0]],)
-    mass = None if scene.mass is None else scene.mass[keep]
-    inertia = None if scene.inertia is None else scene.inertia[keep]
-    return build_scene(scene.dim, list(names), scene.x[keep], arrays, title=title, source=scene.source,
-                       tol=scene.tol, mass=mass, inertia=inertia)
+    names = itemgetter(*every)(scene.names) if len(every) > 1 else (scene.names[every[0]],)
+    mass = None if scene.mass is None else scene.mass[every]
+    inertia = None if scene.inertia is None else scene.inertia[every]
+    fixed = ~free[every] | (False if scene.fixed is None else scene.fixed[every])
+    return build_scene(scene.dim, list(names), scene.x[every], arrays, title=title, source=scene.source,
+                       tol=scene.tol, mass=mass, inertia=inertia, fixed=fixed)
+
+
+def boundary_ring(scene: Scene, center: int, rings: int, graph: sp.csr_matrix | None = None):
+    """The cluster of `center` (indices, sorted) and the particles one contact beyond it (the ring `--boundary fixed`
+    holds)."""
+    inner, outer = members(scene, [center], rings, graph)[0], members(scene, [center], rings + 1, graph)[0]
+    return inner, np.setdiff1d(outer, inner)
 
 
 def particle_index(scene: Scene, name: str) -> int:
@@ -61,10 +76,23 @@ def particle_index(scene: Scene, name: str) -> int:
         raise SceneError(f"{scene.source}: no particle named {name!r} (names are as in the scene)") from None
 
 
-def extract(scene: Scene, center: str, rings: int = 1) -> Scene:
-    """The cluster of particle `center` with `rings` contact hops, as a scene of its own (`granstab extract`)."""
+BOUNDARIES = ("loads", "fixed")
+
+
+def extract(scene: Scene, center: str, rings: int = 1, boundary: str = "loads") -> Scene:
+    """The cluster of particle `center` with `rings` contact hops, as a scene of its own (`granstab extract`).
+
+    boundary "loads" (the paper's isolated cluster, Sec. 5): the forces of the cut contacts act as dead loads and
+    the rigid-rotation projection applies (eq:newstiffnesses) — can the cluster, pushed as its neighbours push it
+    now, deform unstably? "fixed": the next ring of particles is held fixed (supports, no rigid modes, no
+    projection) — can it deform unstably while its surroundings do not move (a stiffer, sufficient question)?"""
     if rings < 1:
         raise SceneError(f"{scene.source}: rings must be >= 1, got {rings}")
+    if boundary not in BOUNDARIES:
+        raise SceneError(f"{scene.source}: boundary must be one of {', '.join(BOUNDARIES)}, got {boundary!r}")
     c = particle_index(scene, center)
-    keep = members(scene, [c], rings)[0]
-    return subscene(scene, keep, title=f"cluster of {center} ({rings} ring{'s' * (rings > 1)}) in {scene.source}")
+    title = f"cluster of {center} ({rings} ring{'s' * (rings > 1)}, boundary {boundary}) in {scene.source}"
+    if boundary == "fixed":
+        inner, ring = boundary_ring(scene, c, rings)
+        return subscene(scene, inner, title=title, hold=ring)
+    return subscene(scene, members(scene, [c], rings)[0], title=title)

@@ -20,7 +20,7 @@ from ..scene import Scene, SceneError
 from ..threads import blas_threads
 from ..verdicts import finalize, verdict_of
 from .batch import batchable, solve_chunk
-from .clusters import adjacency, members, particle_index, subscene
+from .clusters import BOUNDARIES, adjacency, boundary_ring, members, particle_index, subscene
 from .output import ScanOutput
 
 CHUNK = 512           # clusters per task: the batched path amortises its per-chunk work; Dask's per-task cost small
@@ -38,7 +38,8 @@ def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> d
     row = {"center": scene.names[center], "members": [scene.names[i] for i in keep], "n_particles": len(keep),
            "path": "analyze"}
     try:
-        sub = subscene(scene, keep)
+        hold = boundary_ring(scene, center, options["rings"])[1] if options.get("boundary") == "fixed" else None
+        sub = subscene(scene, keep, hold=hold)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
                       sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()))
     except SceneError as exc:
@@ -95,6 +96,11 @@ def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tu
     return subscene(scene, union), np.searchsorted(union, centers)
 
 
+def reach(options: dict) -> int:
+    """Contact hops a chunk's scene must hold around its centres: the rings, and the held ring beyond them."""
+    return options["rings"] + (options.get("boundary") == "fixed")
+
+
 def scan_chunk(scene: Scene, centers: np.ndarray, options: dict) -> list[dict]:
     """Rows of a chunk of centres (indices into `scene`, best a `chunk_scene`): the unit of work of a Dask task. The
     batched path (batch.py) takes what it can; `analyze` per cluster the rest (a partial cluster's branch sample is
@@ -120,6 +126,7 @@ def select_centers(scene: Scene, centers) -> np.ndarray:
 
 
 def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = "L", max_sliding: int = 8,
+         boundary: str = "loads",
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
          device: str = "cpu") -> dict:
@@ -129,11 +136,15 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     scheduler: a Dask scheduler address (tcp://HOST:PORT); workers: local Dask workers (default: this machine's
     cores; 1 = serial, in this process). metric: the projection metric of every cluster (see analyze).
     device: "cpu", "gpu" or "auto" for the stacked eigenproblems of the batched path (backend.py); chunk: clusters
-    per task (default CHUNK, GPU_CHUNK on a GPU).
+    per task (default CHUNK, GPU_CHUNK on a GPU). boundary: "loads" (the isolated cluster) or "fixed" (the next ring
+    held fixed, analysed per cluster): see clusters.extract.
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
-    options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches}
+    if boundary not in BOUNDARIES:
+        raise SceneError(f"--boundary: one of {', '.join(BOUNDARIES)}, got {boundary!r}")
+    options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
+               "boundary": boundary}
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, source=scene.source)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else CHUNK)
@@ -157,7 +168,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
 def _run_serial(scene, chunks, options, out, bar, **_):
     graph = adjacency(scene)
     for part in chunks:
-        out.write(scan_chunk(*chunk_scene(scene, part, options["rings"], graph), options))
+        out.write(scan_chunk(*chunk_scene(scene, part, reach(options), graph), options))
         if bar is not None:
             bar.update(len(part))
 
@@ -174,7 +185,7 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
                                    dashboard_address=None)
     graph = adjacency(scene)
     with Client(scheduler or cluster) as client:
-        futures = [client.submit(scan_chunk, *chunk_scene(scene, part, options["rings"], graph), options, retries=3,
+        futures = [client.submit(scan_chunk, *chunk_scene(scene, part, reach(options), graph), options, retries=3,
                                  pure=False) for part in chunks]
         for future in as_completed(futures):
             rows = future.result()
