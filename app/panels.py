@@ -81,7 +81,9 @@ class ClientUI:
             self.back.on_click(lambda _: self.run(self._back_to_map))
             self.sliders = {}
             for key, p in PARAMS.items():
-                h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default, hint=p.hint)
+                # no hover hint: its tooltip covers the number box above (after a preset pick the pointer rests
+                # on a slider); what each slider is stands in the scene line below them
+                h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default)
                 h.on_update(lambda _: self.run(self._apply_sliders))
                 self.sliders[key] = h
             self.reset = gui.add_button("Reset", visible=False,
@@ -441,7 +443,7 @@ class ClientUI:
             f'{html.escape(reason)}</div>')
         self._show_message(s.error)
         note = r.get("notice")
-        params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g}" for k in s.used_params)
+        params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g} ({PARAMS[k].hint})" for k in s.used_params)
         report = getattr(s.model, "report", "")
         self.info.content = (f"{note}\n\n" if note else "") + (
             f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene") + (
