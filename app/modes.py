@@ -41,7 +41,10 @@ def contact_deformation(scene, U: np.ndarray):
 
 
 def non_rigid(scene, U: np.ndarray, length: float) -> np.ndarray:
-    """U minus its least-squares rigid part (translations and rotations about the centroid, metric [du, L dθ])."""
+    """U minus its least-squares rigid part (translations and rotations about the centroid, metric [du, L dθ]); U
+    itself where particles are fixed (a scene held by supports has no rigid motion)."""
+    if scene.fixed is not None:
+        return U
     D = np.tile(np.r_[np.ones(scene.dim), np.full(rot_dim(scene.dim), length)], scene.n_particles)
     R = np.concatenate([translations(scene), rotations(scene, length)], axis=1)   # scaled dofs
     Q, _ = np.linalg.qr(R)

@@ -344,6 +344,8 @@ class Session:
             return "not evaluated (the core's Analysis does not expose its problem)"
         from granstab.verdicts import load_response
         s = self.scene
+        if s.fixed is not None:
+            return "not evaluated (a scene held by fixed particles)"
         db = np.concatenate([s.load, s.load_moment], axis=1).reshape(-1)
         if not np.any(db):
             return "not evaluated (no load to increment)"

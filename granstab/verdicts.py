@@ -198,6 +198,12 @@ def flag_undetermined(summary: dict, n_bad: int) -> dict:
     return summary
 
 
+def _require_no_supports(analysis) -> None:
+    if analysis.problem.free is not None:
+        raise ValueError(f"{analysis.scene.source}: load responses and second-order work are not implemented for "
+                         "scenes with fixed particles yet (the verdicts are)")
+
+
 def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
     """Solve ℍ^i dU = d𝕓 on every branch (eq:problem) and keep the consistent solutions (Sec. 3.1).
 
@@ -205,6 +211,7 @@ def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
     solutions on different branches that differ by more than a rigid motion. Solutions are physical motions with
     the rigid part removed.
     """
+    _require_no_supports(analysis)
     problem = analysis.problem
     metric = analysis.metric
     rhs = metric.physical(np.asarray(load_increment, dtype=float))   # D d𝕓: ℍ̃ Ũ = D H D Ũ
@@ -228,6 +235,7 @@ def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
 def second_order_work(analysis, motion) -> dict:
     """dUᵀ 𝓗^i dU for a motion dU on the branch its own S signs select (eq:newinner), split into geometric
     (Hg1 + Hg2 + Hg3) and mechanical (Hm) parts; negative work means softening along dU (Sec. 3.2)."""
+    _require_no_supports(analysis)
     problem, scene = analysis.problem, analysis.scene
     metric = analysis.metric
     u = metric.scaled(np.asarray(motion, dtype=float))

@@ -294,3 +294,24 @@ def test_a_bad_fixed_flag_is_one_line_naming_the_particle(tmp_path, value, messa
     path.write_text(json.dumps(data))
     with pytest.raises(granstab.SceneError, match="at least one must be free"):
         granstab.load_scene(path)
+
+
+def test_a_fixed_boundary_scan_map_opens_its_cluster_with_the_ring_held(tmp_path):
+    """The explorer opens a cluster of a `--boundary fixed` scan as the scan analysed it: the ring held fixed, the
+    same verdict; its modes animate with the held particles at rest and are not made rigid-free."""
+    from app.state import Session
+    scene = granstab.load_scene(ANNULUS)
+    name = scene.names[50]
+    scan(scene, tmp_path, centers=name, boundary="fixed", workers=1, figures=False)
+    s = Session("two_particle")
+    assert s.load_preset(str(tmp_path)) and s.kind == "scan_map"
+    assert s.open_cluster(name) and s.error is None
+    direct = extract(scene, name, boundary="fixed")
+    assert s.scene.fixed is not None and sorted(s.scene.names) == sorted(direct.names)
+    assert s.analysis.summary["verdict"] == read_map(tmp_path)["clusters"]["verdict"][0]
+    mode = s.modes()[0]
+    bodies = {b.name: b for b in s.mode_bodies(mode, 0.2, 0.25)}
+    rest = {b.name: b for b in s.bodies()}
+    for i in np.flatnonzero(s.scene.fixed):
+        held = s.scene.names[i]
+        assert np.allclose(bodies[held].x, rest[held].x, rtol=0, atol=1e-12 * s.size)
