@@ -23,6 +23,7 @@ VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b
 DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
 FRAME = 1 / 20            # s per animation frame
 MODES_PER_BRANCH = 24     # the mode picker lists the lowest non-rigid modes of each branch
+SEND_WAIT = 0.1          # s at most that the scene waits for the verdict to leave in a window of its own
 SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for (seconds of browser work per update)
 
 
@@ -350,12 +351,13 @@ class ClientUI:
 
     # --------------------------------------------------------------------------------------- refresh
     def refresh(self, camera: bool = False, particles: bool = True, skip: str | None = None) -> None:
-        """Write every handle from the session: the verdict first (what a slider move is for), then the scene (only
-        the parts that changed are re-sent: SceneView keys each drawing by its data), plots and modes."""
+        """Write every handle from the session: the verdict first, sent on its own (what a slider move is for), then
+        the scene (only the parts that changed are re-sent: SceneView keys each drawing by its data), plots and modes."""
         s = self.session
         self._build_side()
         self._sync_controls()
         self._write_verdict()
+        self._send_now()
         with self.client.atomic():
             if particles:
                 with self._quiet():                      # gizmo poses written here are not drags
@@ -372,6 +374,19 @@ class ClientUI:
         self._write_modes()
         if camera:
             self._set_camera()
+
+    def _send_now(self) -> None:
+        """Send what is queued (the verdict and the other panels' text) in a websocket window of its own, and wait
+        until it left (at most SEND_WAIT). The browser applies a window of GUI messages at once, but one that also
+        holds scene messages only at its next 3D frame: on a large scene in a software-rendered browser that kept
+        the new verdict waiting ≈ 0.5–1 s behind the particle colours of the same window. viser has no public call
+        for "sent": its per-client buffer keeps each connection's cursor (the last message taken into a window)."""
+        buffer = self.client._websock_connection.get_message_buffer()
+        last = buffer.message_counter - 1
+        self.client.flush()
+        end = time.monotonic() + SEND_WAIT
+        while buffer.generator_cursors.get(self.client.client_id, last) < last and time.monotonic() < end:
+            time.sleep(0.002)
 
     def _check_metrics(self) -> None:
         self.session.check_metrics()
