@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..accuracy import gamma
-from ..backend import backend
+from ..accuracy import gamma, vector_bounds
+from ..backend import backend, eigh_stack, residual_norms
 from ..branches import RIGID, consistency
 from ..stiffness import contact_blocks
 from ..tolerances import EPS
@@ -157,11 +157,9 @@ def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, 
     HH = Hi - (Hi @ C[owner]) @ Cplus[owner]
     HS = HH - np.swapaxes(Cplus[owner], 1, 2) @ (Ct[owner] @ HH)
     Hsym = 0.5 * (HS + np.swapaxes(HS, 1, 2))
-    S_b = S[owner]
-    got = backend_eigh(Hsym, S_b, device)
+    got = backend_eigh(Hsym, S[owner], device)
     lam = got["lam"]
-    bounds = (np.sqrt(2.0) * got["residual"] + gamma(nd + 2) * (_abs_norm(Hsym)[:, None] + np.abs(lam))
-              + formation[owner, None])
+    bounds = vector_bounds(lam, got["residual"], _abs_norm(Hsym)[:, None], formation[owner, None], nd)
     zero = np.abs(lam) <= bounds
     close = np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:]
     repeated = np.any(close & ~(zero[:, :-1] & zero[:, 1:]), axis=1)
@@ -181,6 +179,7 @@ def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, 
     np.maximum.at(residual, owner, got["residual"].max(axis=1) / np.maximum(np.abs(lam).max(axis=1), 1e-300))
     undetermined = np.bincount(g, weights=blocks.rolling_undetermined[m], minlength=G).astype(int)
     n_branches = np.bincount(owner, minlength=G)
+    n_contacts = np.bincount(g, minlength=G)
     out = {}
     for i, c in enumerate(part):
         if bad[i]:
@@ -188,7 +187,7 @@ def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, 
         out[int(c)] = {"counts": {k: v[i] for k, v in counts.items()}, "n_branches": int(n_branches[i]),
                        "lambda_min": float(lam_min[i]) if np.isfinite(lam_min[i]) else np.nan,
                        "eigen_residual": float(residual[i]), "rigid_leakage": float(leakage[i]),
-                       "n_undetermined": int(undetermined[i]), "n_contacts": int(np.sum(g == i)),
+                       "n_undetermined": int(undetermined[i]), "n_contacts": int(n_contacts[i]),
                        "n_sliding": int(n_sliding[c])}
     return out
 
@@ -196,7 +195,6 @@ def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, 
 def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str) -> dict:
     """Stacked eigh of sym(𝓗^i) on the device: eigenvalues, residual norms ‖A v − λ v‖ and the S values
     Sᵀ v (eq:flow) of the eigenvectors with canonical signs (branches.canonical_signs); eigenvectors stay there."""
-    from ..backend import eigh_stack, residual_norms
     be = backend(device)
 
     def keep(xp, A, lam, V, start):
