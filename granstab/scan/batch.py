@@ -49,8 +49,9 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
     starts = np.r_[0, np.cumsum(sizes)[:-1]]
     blocks = contact_blocks(scene)
     pairs = _cluster_contacts(scene, local, sizes)
+    pairs["sliding"] = scene.at_yield()[pairs["contact"]]
     n_contacts = np.bincount(pairs["cluster"], minlength=len(centers))
-    n_sliding = np.bincount(pairs["cluster"], weights=scene.at_yield()[pairs["contact"]],
+    n_sliding = np.bincount(pairs["cluster"], weights=pairs["sliding"],
                             minlength=len(centers)).astype(int)
     ok = (n_contacts > 0) & (n_sliding <= options["max_sliding"])
     out = {}
@@ -120,7 +121,7 @@ def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, 
     H_el = Hm + Hg
 
     # sliding factors A, S (G, nd, Ms) in the metric's dofs, the contacts in cluster order (eq:ContactF, eq:flow)
-    slide = sel & sub.at_yield()[pairs["contact"]]
+    slide = sel & pairs["sliding"]
     gs, ms = slot[pairs["cluster"][slide]], pairs["contact"][slide]
     col = _rank_within(gs)
     Ms = int(n_sliding[part].max())
@@ -153,7 +154,7 @@ def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, 
     # every branch of every cluster (enumerate_masks order), its sym(𝓗^i), stacked eigh, bounds and codes
     owner, masks = _branch_masks(n_sliding[part], Ms)
     on = (masks == 1).astype(float)
-    Hi = H_el[owner] + np.einsum("bnm,bm,bkm->bnk", A[owner], on, S[owner])
+    Hi = H_el[owner] + (A[owner] * on[:, None, :]) @ np.swapaxes(S[owner], 1, 2)
     HH = Hi - (Hi @ C[owner]) @ Cplus[owner]
     HS = HH - np.swapaxes(Cplus[owner], 1, 2) @ (Ct[owner] @ HH)
     Hsym = 0.5 * (HS + np.swapaxes(HS, 1, 2))

@@ -19,7 +19,8 @@ STRING_COLUMNS = ("center", "members", "path", "branches", "verdict", "insuffici
 
 
 class ScanOutput:
-    """The scan directory: options.json (checked on resume), parts/ (streamed rows), the final tables."""
+    """The scan directory: options.json (checked on resume), parts/ (streamed rows), the final tables. The parts are
+    kept in memory too (`tables`), so that `finish` does not read them back."""
 
     def __init__(self, out_dir, fmt: str, options: dict, source: str):
         if fmt not in FORMATS:
@@ -37,113 +38,130 @@ class ScanOutput:
         else:
             saved.write_text(json.dumps(stated), encoding="utf-8")
         self.options = stated
+        self.tables = [read_arrow(f, fmt) for f in sorted(self.parts.glob(f"*.{fmt}"))]   # an interrupted scan's
 
     def done_centers(self) -> set[str]:
         """Centres whose rows are already on disk (an interrupted scan)."""
-        return {str(c) for c in self._read_parts().get("center", [])}
+        return {str(c) for t in self.tables for c in t.column("center").to_pylist()}
 
-    def write(self, rows: list[dict]) -> None:
-        """One chunk's rows as a new part file (written whole, then renamed: a killed scan leaves no torn file)."""
+    def write(self, table) -> None:
+        """One chunk's rows (an Arrow table, `rows_table`) as a new part file (written whole, then renamed: a killed
+        scan leaves no torn file)."""
         name = self.parts / f"part-{uuid.uuid4().hex}.{self.fmt}"
         tmp = name.with_suffix(".tmp")
-        write_table(rows_to_columns(rows), tmp, self.fmt)
+        write_table(table, tmp, self.fmt)
         tmp.rename(name)
-
-    def _read_parts(self) -> dict:
-        tables = [read_table(f, self.fmt) for f in sorted(self.parts.glob(f"*.{self.fmt}"))]
-        if not tables:
-            return {}
-        return {key: np.concatenate([t[key] for t in tables]) for key in tables[0]}
+        self.tables.append(table)
 
     def finish(self, scene: Scene, chosen: np.ndarray, seconds: float, n_new: int) -> dict:
         """Combine the parts (each centre once, in scene order) into the tables, the map and summary.json."""
-        clusters = self._read_parts()
-        if clusters:
-            index = {name: i for i, name in enumerate(scene.names)}
-            position = np.array([index[str(c)] for c in clusters["center"]])
-            _, first = np.unique(position, return_index=True)
-            order = first[np.argsort(position[first])]
-            clusters = {key: value[order] for key, value in clusters.items()}
+        import pyarrow as pa
+        tables = self.tables or [rows_table([])]
+        clusters = pa.concat_tables(tables, promote_options="default")
+        position = name_positions(scene, clusters.column("center"))
+        _, first = np.unique(position, return_index=True)
+        clusters = clusters.take(pa.array(first[np.argsort(position[first])]))
         write_table(clusters, self.path / f"clusters.{self.fmt}", self.fmt)
-        particles = particle_map(scene, clusters)
-        write_table(particles, self.path / f"particles.{self.fmt}", self.fmt)
-        verdicts, counts = np.unique(clusters.get("verdict", np.array([], dtype=object)), return_counts=True)
-        n = len(clusters.get("center", []))
+        write_table(pa.table(particle_map(scene, clusters)), self.path / f"particles.{self.fmt}", self.fmt)
+        verdict = column(clusters, "verdict")
+        verdicts, counts = np.unique(verdict, return_counts=True)
+        n = clusters.num_rows
         summary = {"source": scene.source, "n_particles": scene.n_particles, "n_contacts": scene.n_contacts,
                    "clusters": n, "clusters_requested": int(len(chosen)), "clusters_this_run": int(n_new),
                    "verdicts": {str(v): int(c) for v, c in zip(verdicts, counts)},
-                   "partial_branches": int(np.sum(clusters.get("branches", np.array([])) == "partial")),
+                   "partial_branches": int(np.sum(column(clusters, "branches") == "partial")),
                    "seconds": seconds, "clusters_per_second": n_new / seconds if seconds > 0 and n_new else None,
-                   "cluster_seconds_median": float(np.median(clusters["seconds"])) if n else None,
+                   "cluster_seconds_median": float(np.median(column(clusters, "seconds"))) if n else None,
                    "options": self.options}
         (self.path / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
         return summary
 
 
-def particle_map(scene: Scene, clusters: dict) -> dict:
+def name_positions(scene: Scene, names) -> np.ndarray:
+    """Indices in the scene of an Arrow array of particle names (vectorised: pyarrow.compute.index_in)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    return pc.index_in(names, value_set=pa.array(scene.names, type=pa.string())).to_numpy(zero_copy_only=False)
+
+
+def particle_map(scene: Scene, clusters) -> dict:
     """Per particle: the verdict of its own cluster ('' if it was no centre) and the fraction of the clusters
-    containing it that are unstable (NaN if none contains it)."""
+    containing it that are unstable (NaN if none contains it). clusters: the Arrow table of the rows."""
+    import pyarrow.compute as pc
     names = np.asarray(scene.names, dtype=object)
     own = np.full(scene.n_particles, "", dtype=object)
-    contains = np.zeros(scene.n_particles)
-    unstable = np.zeros(scene.n_particles)
-    if clusters:
-        index = {name: i for i, name in enumerate(scene.names)}
-        own[[index[str(c)] for c in clusters["center"]]] = clusters["verdict"]
-        sizes = np.array([len(m) for m in clusters["members"]])
-        flat = np.array([index[str(m)] for row in clusters["members"] for m in row], dtype=np.int64)
-        contains = np.bincount(flat, minlength=scene.n_particles).astype(float)
-        weight = np.repeat(clusters["verdict"] == "unstable", sizes).astype(float)
-        unstable = np.bincount(flat, weights=weight, minlength=scene.n_particles)
+    own[name_positions(scene, clusters.column("center"))] = column(clusters, "verdict")
+    members = clusters.column("members")
+    flat = name_positions(scene, pc.list_flatten(members))
+    sizes = pc.list_value_length(members).to_numpy(zero_copy_only=False).astype(np.int64)
+    contains = np.bincount(flat, minlength=scene.n_particles).astype(float)
+    weight = np.repeat(column(clusters, "verdict") == "unstable", sizes).astype(float)
+    unstable = np.bincount(flat, weights=weight, minlength=scene.n_particles)
     with np.errstate(invalid="ignore", divide="ignore"):
         fraction = np.where(contains > 0, unstable / np.maximum(contains, 1), np.nan)
     return {"name": names, "own_verdict": own, "unstable_fraction": fraction, "n_clusters": contains.astype(np.int64)}
 
 
-def rows_to_columns(rows: list[dict]) -> dict:
-    return {key: np.array([r[key] for r in rows] + [None], dtype=object)[:-1] if key == "members"
-            else np.array([r[key] for r in rows], dtype=object if key in STRING_COLUMNS else None)
-            for key in rows[0]}
-
-
-def write_table(columns: dict, path: Path, fmt: str) -> None:
+def rows_table(rows: list[dict]):
+    """A chunk's rows (dicts of run.summary_row's fields) as an Arrow table, member lists as lists of names. Made
+    where the chunk ran (a Dask worker), so that the client only writes it."""
     import pyarrow as pa
-    table = pa.table({key: (pa.array([list(map(str, m)) for m in value], type=pa.list_(pa.string()))
-                            if key == "members" and fmt == "parquet"
-                            else pa.array([";".join(map(str, m)) for m in value], type=pa.string())
-                            if key == "members"
-                            else pa.array(list(value), type=pa.string()) if key in STRING_COLUMNS
-                            else pa.array(value))
-                      for key, value in columns.items()})
+    keys = rows[0] if rows else ("center", "members", "verdict", "branches", "seconds")
+    return pa.table({key: pa.array([r[key] for r in rows], type=_arrow_type(key)) for key in keys})
+
+
+def _arrow_type(key: str):
+    import pyarrow as pa
+    return pa.list_(pa.string()) if key == "members" else pa.string() if key in STRING_COLUMNS else None
+
+
+def column(table, key: str) -> np.ndarray:
+    """A column as numpy: object arrays for strings and member lists (lists of names)."""
+    values = table.column(key)
+    if key == "members":
+        return np.array(values.to_pylist() + [None], dtype=object)[:-1]
+    if key in STRING_COLUMNS:
+        return np.array(values.to_pylist(), dtype=object)
+    return values.to_numpy(zero_copy_only=False)
+
+
+def write_table(table, path: Path, fmt: str) -> None:
+    """Parquet as it is; csv with the member lists joined by ';'."""
+    import pyarrow as pa
     if fmt == "parquet":
         import pyarrow.parquet as pq
         pq.write_table(table, path)
-    else:
-        import pyarrow.csv as pcsv
-        pcsv.write_csv(table, path)
+        return
+    import pyarrow.compute as pc
+    import pyarrow.csv as pcsv
+    if "members" in table.column_names:
+        table = table.set_column(table.column_names.index("members"), "members",
+                                 pc.binary_join(table.column("members"), ";"))
+    pcsv.write_csv(table.cast(pa.schema([pa.field(f.name, pa.string()) if pa.types.is_null(f.type) else f
+                                         for f in table.schema])), path)
+
+
+def read_arrow(path: Path, fmt: str):
+    """A table written by `write_table`, member lists as lists again."""
+    import pyarrow as pa
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
+        return pq.read_table(path)
+    import pyarrow.compute as pc
+    import pyarrow.csv as pcsv
+    header = Path(path).open(encoding="utf-8").readline().strip().split(",")
+    types = {c.strip('"'): pa.string() for c in header if c.strip('"') in STRING_COLUMNS}
+    table = pcsv.read_csv(path, convert_options=pcsv.ConvertOptions(column_types=types, strings_can_be_null=False))
+    if "members" in table.column_names:
+        table = table.set_column(table.column_names.index("members"), "members",
+                                 pc.split_pattern(table.column("members"), ";"))
+    return table
 
 
 def read_table(path: Path, fmt: str) -> dict:
     """A table as a dict of numpy arrays (object arrays for strings and member lists)."""
-    import pyarrow as pa
-    if fmt == "parquet":
-        import pyarrow.parquet as pq
-        table = pq.read_table(path)
-    else:
-        import pyarrow.csv as pcsv
-        header = Path(path).open(encoding="utf-8").readline().strip().split(",")
-        types = {c.strip('"'): pa.string() for c in header if c.strip('"') in STRING_COLUMNS}
-        table = pcsv.read_csv(path, convert_options=pcsv.ConvertOptions(column_types=types,
-                                                                       strings_can_be_null=False))
-    out = {}
-    for key in table.column_names:
-        values = table.column(key).to_pylist()
-        if key == "members":
-            values = [m.split(";") if isinstance(m, str) else m for m in values] + [None]
-            out[key] = np.array(values, dtype=object)[:-1]
-        else:
-            out[key] = np.array(values, dtype=object if key in STRING_COLUMNS else None)
-    return out
+    table = read_arrow(path, fmt)
+    return {key: column(table, key) for key in table.column_names}
 
 
 def read_map(out_dir) -> dict:

@@ -21,7 +21,7 @@ from ..threads import blas_threads
 from ..verdicts import finalize, verdict_of
 from .batch import batchable, solve_chunk
 from .clusters import BOUNDARIES, adjacency, boundary_ring, members, particle_index, subscene
-from .output import ScanOutput
+from .output import ScanOutput, rows_table
 
 CHUNK = 512           # clusters per task: the batched path amortises its per-chunk work; Dask's per-task cost small
 GPU_CHUNK = 16384     # on a GPU one stacked solve wants many clusters
@@ -112,6 +112,12 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict) -> list[dict]:
                 for i, (c, keep) in enumerate(zip(centers, member_lists))]
 
 
+def chunk_table(scene: Scene, centers: np.ndarray, options: dict):
+    """`scan_chunk`'s rows as an Arrow table (output.rows_table): the unit of work of the serial loop and of a Dask
+    task, so that a worker, not the client, builds the table."""
+    return rows_table(scan_chunk(scene, centers, options))
+
+
 def select_centers(scene: Scene, centers) -> np.ndarray:
     """`all`, `every:K` (every K-th particle) or names (a list or comma-separated) → particle indices."""
     if isinstance(centers, str) and centers == "all":
@@ -168,7 +174,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
 def _run_serial(scene, chunks, options, out, bar, **_):
     graph = adjacency(scene)
     for part in chunks:
-        out.write(scan_chunk(*chunk_scene(scene, part, reach(options), graph), options))
+        out.write(chunk_table(*chunk_scene(scene, part, reach(options), graph), options))
         if bar is not None:
             bar.update(len(part))
 
@@ -185,13 +191,13 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
                                    dashboard_address=None)
     graph = adjacency(scene)
     with Client(scheduler or cluster) as client:
-        futures = [client.submit(scan_chunk, *chunk_scene(scene, part, reach(options), graph), options, retries=3,
+        futures = [client.submit(chunk_table, *chunk_scene(scene, part, reach(options), graph), options, retries=3,
                                  pure=False) for part in chunks]
         for future in as_completed(futures):
-            rows = future.result()
-            out.write(rows)
+            table = future.result()
+            out.write(table)
             if bar is not None:
-                bar.update(len(rows))
+                bar.update(table.num_rows)
     if cluster is not None:
         cluster.close()
 
