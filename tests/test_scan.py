@@ -16,7 +16,7 @@ from granstab.branches import RIGID
 from granstab.scan import extract, members, read_map, scan
 from granstab.backend import gpu_available
 from granstab.scan.clusters import CONTACT_FIELDS, subscene
-from granstab.scan.run import chunk_table, cluster_row, scan_chunk
+from granstab.scan.run import chunk_cut, chunk_table, cluster_row, scan_chunk
 
 ROOT = Path(__file__).resolve().parents[1]
 ANNULUS = ROOT / "presets" / "annulus_frame.json"
@@ -187,7 +187,7 @@ def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
     options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads"}
     from granstab.scan.output import ScanOutput
     out = ScanOutput(tmp_path, "csv", options, source=scene.source)
-    out.write(chunk_table(scene, np.arange(0, 20), options))              # what finished before the kill
+    out.write(chunk_table(*chunk_cut(scene, np.arange(0, 20), 1), options))              # what finished before the kill
     summary = scan(scene, tmp_path, centers="every:1", workers=1, fmt="csv", figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert summary["clusters_this_run"] == scene.n_particles - 20

@@ -41,6 +41,12 @@ def subscene(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray |
 
     hold: further particles (indices) held fixed around them (`--boundary fixed`): the contacts between a kept and a
     held particle are added, those between two held ones are not (they would act on no dof)."""
+    return build_scene(**cut(scene, keep, title, hold))
+
+
+def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None = None) -> dict:
+    """`build_scene`'s arguments for `subscene(scene, keep, title, hold)`: slices of the scene's arrays only, so that
+    a scan's client cuts a chunk cheaply and the worker that runs it builds (and checks) the scene."""
     hold = np.zeros(0, dtype=np.int64) if hold is None else np.asarray(hold, dtype=np.int64)
     every = np.sort(np.concatenate([keep, hold]))
     inside = np.zeros(scene.n_particles, dtype=bool)
@@ -57,8 +63,8 @@ def subscene(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray |
     mass = None if scene.mass is None else scene.mass[every]
     inertia = None if scene.inertia is None else scene.inertia[every]
     fixed = ~free[every] | (False if scene.fixed is None else scene.fixed[every])
-    return build_scene(scene.dim, list(names), scene.x[every], arrays, title=title, source=scene.source,
-                       tol=scene.tol, mass=mass, inertia=inertia, fixed=fixed)
+    return {"dim": scene.dim, "names": list(names), "x": scene.x[every], "arrays": arrays, "title": title,
+            "source": scene.source, "tol": scene.tol, "mass": mass, "inertia": inertia, "fixed": fixed}
 
 
 def boundary_ring(scene: Scene, center: int, rings: int, graph: sp.csr_matrix | None = None):

@@ -16,11 +16,11 @@ import numpy as np
 from ..analysis import analyze
 from ..backend import backend
 from ..branches import RIGID
-from ..scene import Scene, SceneError
+from ..scene import Scene, SceneError, build_scene
 from ..threads import blas_threads
 from ..verdicts import finalize, verdict_of
 from .batch import batchable, solve_chunk
-from .clusters import BOUNDARIES, adjacency, boundary_ring, members, particle_index, subscene
+from .clusters import BOUNDARIES, adjacency, boundary_ring, cut, members, particle_index, subscene
 from .output import ScanOutput, rows_table
 
 CHUNK = 512           # clusters per task: the batched path amortises its per-chunk work; Dask's per-task cost small
@@ -88,12 +88,19 @@ def batched_rows(scene: Scene, centers: np.ndarray, member_lists: list, options:
     return rows
 
 
-def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[Scene, np.ndarray]:
-    """The sub-scene of every particle of the clusters of `centers`, and the centres' indices in it: all that a chunk
-    needs (the cluster of c in it is the cluster of c in the packing: every path of ≤ rings hops from c stays inside
-    it), so a task carries its own small scene, never the packing. graph: clusters.adjacency(scene), if at hand."""
+def chunk_cut(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[dict, np.ndarray]:
+    """The sub-scene of every particle of the clusters of `centers`, as `build_scene`'s arguments (clusters.cut), and
+    the centres' indices in it: all that a chunk needs (the cluster of c in it is the cluster of c in the packing:
+    every path of ≤ rings hops from c stays inside it), so a task carries its own small scene, never the packing, and
+    the client only slices arrays. graph: clusters.adjacency(scene), if at hand."""
     union = np.unique(np.concatenate(members(scene, centers, rings, graph)))
-    return subscene(scene, union), np.searchsorted(union, centers)
+    return cut(scene, union), np.searchsorted(union, centers)
+
+
+def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[Scene, np.ndarray]:
+    """`chunk_cut` built: the chunk's scene and its centres."""
+    arguments, where = chunk_cut(scene, centers, rings, graph)
+    return build_scene(**arguments), where
 
 
 def reach(options: dict) -> int:
@@ -112,10 +119,10 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict) -> list[dict]:
                 for i, (c, keep) in enumerate(zip(centers, member_lists))]
 
 
-def chunk_table(scene: Scene, centers: np.ndarray, options: dict):
-    """`scan_chunk`'s rows as an Arrow table (output.rows_table): the unit of work of the serial loop and of a Dask
-    task, so that a worker, not the client, builds the table."""
-    return rows_table(scan_chunk(scene, centers, options))
+def chunk_table(arguments: dict, centers: np.ndarray, options: dict):
+    """The rows of a chunk cut by `chunk_cut`, as an Arrow table (output.rows_table): the unit of work of the serial
+    loop and of a Dask task, so that the worker, not the client, builds the chunk's scene and the table."""
+    return rows_table(scan_chunk(build_scene(**arguments), centers, options))
 
 
 def select_centers(scene: Scene, centers) -> np.ndarray:
@@ -174,13 +181,13 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
 def _run_serial(scene, chunks, options, out, bar, **_):
     graph = adjacency(scene)
     for part in chunks:
-        out.write(chunk_table(*chunk_scene(scene, part, reach(options), graph), options))
+        out.write(chunk_table(*chunk_cut(scene, part, reach(options), graph), options))
         if bar is not None:
             bar.update(len(part))
 
 
 def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
-    """Chunks as Dask tasks, each with its own `chunk_scene` (rerun if a worker dies), results streamed to disk in the
+    """Chunks as Dask tasks, each with its own `chunk_cut` (rerun if a worker dies), results streamed to disk in the
     order they finish."""
     import dask
     from dask.distributed import Client, LocalCluster, as_completed
@@ -191,7 +198,7 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
                                    dashboard_address=None)
     graph = adjacency(scene)
     with Client(scheduler or cluster) as client:
-        futures = [client.submit(chunk_table, *chunk_scene(scene, part, reach(options), graph), options, retries=3,
+        futures = [client.submit(chunk_table, *chunk_cut(scene, part, reach(options), graph), options, retries=3,
                                  pure=False) for part in chunks]
         for future in as_completed(futures):
             table = future.result()
