@@ -5,6 +5,8 @@ import json
 import os
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -187,7 +189,7 @@ def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
     options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads"}
     from granstab.scan.output import ScanOutput
     out = ScanOutput(tmp_path, "csv", options, source=scene.source)
-    out.write(chunk_table(*chunk_cut(scene, np.arange(0, 20), 1), options))              # what finished before the kill
+    out.write(chunk_table(chunk_cut(scene, np.arange(0, 20), 1), options))              # what finished before the kill
     summary = scan(scene, tmp_path, centers="every:1", workers=1, fmt="csv", figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert summary["clusters_this_run"] == scene.n_particles - 20
@@ -198,27 +200,33 @@ def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
 
 @pytest.mark.slow
 def test_two_dask_workers_give_the_serial_rows_and_survive_a_killed_worker(tmp_path):
-    """A 2-worker LocalCluster = the serial scan; a worker killed mid-scan loses no cluster (Dask reruns it)."""
+    """A 2-worker LocalCluster = the serial scan; a worker killed mid-scan (once the first chunk is on disk, while
+    the scan still runs: one cluster a task) loses no cluster (Dask reruns its tasks; every row once)."""
     from dask.distributed import Client, LocalCluster
     scene = granstab.load_scene(ANNULUS)
     scan(scene, tmp_path / "serial", workers=1, figures=False)
+    parts = tmp_path / "dask" / "parts"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         with Client(cluster) as client:
             victim = sorted(client.scheduler_info()["workers"])[0]
-            client.submit(_exit_after, 1.0, workers=[victim], allow_other_workers=False, pure=False)
-            scan(scene, tmp_path / "dask", scheduler=cluster.scheduler_address, chunk=8, figures=False)
-            assert victim not in client.scheduler_info()["workers"]       # it was killed during the scan
+            runner = threading.Thread(target=scan, args=(scene, tmp_path / "dask"),
+                                      kwargs={"scheduler": cluster.scheduler_address, "chunk": 1, "figures": False})
+            runner.start()
+            deadline = time.monotonic() + 120
+            while not (parts.is_dir() and any(parts.glob("*.arrow"))) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            client.run(os._exit, 1, workers=[victim], on_error="return")   # at once, not queued behind tasks
+            killed_while_running = runner.is_alive()
+            runner.join()
+            assert killed_while_running
+            while victim in client.scheduler_info()["workers"] and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert victim not in client.scheduler_info()["workers"]
     a, b = read_map(tmp_path / "serial")["clusters"], read_map(tmp_path / "dask")["clusters"]
     assert list(b["center"]) == list(a["center"]) == list(scene.names)
     for key in ("verdict", "consistent_negative", "consistent_positive", "n_contacts", "n_branches"):
         assert list(a[key]) == list(b[key]), key
     assert np.array_equal(a["lambda_min"], b["lambda_min"])
-
-
-def _exit_after(seconds: float):
-    import time
-    time.sleep(seconds)
-    os._exit(1)
 
 
 def test_cli_scan_and_extract_round_trip(tmp_path):

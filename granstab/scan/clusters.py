@@ -28,12 +28,19 @@ def members(scene: Scene, centers: np.ndarray, rings: int, graph: sp.csr_matrix 
     """Sorted particle indices of the cluster of every centre (indices), all centres at once by sparse products."""
     graph = adjacency(scene) if graph is None else graph
     centers = np.asarray(centers, dtype=np.int64)
-    X = sp.csc_matrix((np.ones(len(centers), dtype=bool), (centers, np.arange(len(centers)))),
-                      shape=(scene.n_particles, len(centers)))
-    for _ in range(rings):
-        X = (graph @ X).astype(bool).tocsc()
+    X = sp.csr_matrix((np.ones(len(centers), dtype=bool), (np.arange(len(centers)), centers)),
+                      shape=(len(centers), scene.n_particles))
+    for _ in range(rings):                 # one row a centre: the product's work is the clusters', not the packing's
+        X = (X @ graph).astype(bool)
     X.sort_indices()
     return np.split(X.indices.astype(np.int64), X.indptr[1:-1])
+
+
+def incidence(scene: Scene) -> sp.csr_matrix:
+    """Particle × contact incidence (n, M), boolean: row i lists the contacts of particle i."""
+    M = scene.n_contacts
+    return sp.csr_matrix((np.ones(2 * M, dtype=bool), (np.r_[scene.p, scene.q], np.r_[np.arange(M), np.arange(M)])),
+                         shape=(scene.n_particles, M))
 
 
 def subscene(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None = None) -> Scene:
@@ -44,25 +51,29 @@ def subscene(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray |
     return build_scene(**cut(scene, keep, title, hold))
 
 
-def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None = None) -> dict:
+def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None = None,
+        contacts_of: sp.csr_matrix | None = None) -> dict:
     """`build_scene`'s arguments for `subscene(scene, keep, title, hold)`: slices of the scene's arrays only, so that
-    a scan's client cuts a chunk cheaply and the worker that runs it builds (and checks) the scene."""
+    a scan's client cuts a chunk cheaply and the worker that runs it builds (and checks) the scene. contacts_of:
+    `incidence(scene)`, if at hand (then the work is of the size of the cut, not of the scene)."""
     hold = np.zeros(0, dtype=np.int64) if hold is None else np.asarray(hold, dtype=np.int64)
     every = np.sort(np.concatenate([keep, hold]))
-    inside = np.zeros(scene.n_particles, dtype=bool)
-    inside[every] = True
-    free = np.zeros(scene.n_particles, dtype=bool)
-    free[keep] = True
-    c = np.flatnonzero(inside[scene.p] & inside[scene.q] & (free[scene.p] | free[scene.q]))
-    renumber = np.full(scene.n_particles, -1, dtype=np.int64)
-    renumber[every] = np.arange(len(every))
+    contacts_of = incidence(scene) if contacts_of is None else contacts_of
+    touching = np.unique(contacts_of[every].indices)
+    p, q = np.searchsorted(every, scene.p[touching]), np.searchsorted(every, scene.q[touching])
+    free = np.isin(every, keep)
+    inside_p = every[np.minimum(p, len(every) - 1)] == scene.p[touching]
+    inside_q = every[np.minimum(q, len(every) - 1)] == scene.q[touching]
+    within = inside_p & inside_q
+    within[within] &= free[p[within]] | free[q[within]]
+    c = touching[within]
     arrays = {name: getattr(scene, name)[c] for name in CONTACT_FIELDS}
-    arrays.update(p=renumber[scene.p[c]], q=renumber[scene.q[c]],
+    arrays.update(p=p[within], q=q[within],
                   state=tuple(itemgetter(*c)(scene.state)) if len(c) > 1 else tuple(scene.state[i] for i in c))
     names = itemgetter(*every)(scene.names) if len(every) > 1 else (scene.names[every[0]],)
     mass = None if scene.mass is None else scene.mass[every]
     inertia = None if scene.inertia is None else scene.inertia[every]
-    fixed = ~free[every] | (False if scene.fixed is None else scene.fixed[every])
+    fixed = ~free | (False if scene.fixed is None else scene.fixed[every])
     return {"dim": scene.dim, "names": list(names), "x": scene.x[every], "arrays": arrays, "title": title,
             "source": scene.source, "tol": scene.tol, "mass": mass, "inertia": inertia, "fixed": fixed}
 

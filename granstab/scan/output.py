@@ -1,4 +1,4 @@
-"""What a scan writes: one part file a finished chunk (streamed, so an interrupted scan resumes), then
+"""What a scan writes: one part file a finished chunk (Arrow IPC; streamed, so an interrupted scan resumes), then
 clusters.{parquet,csv} (one row a cluster), particles.{parquet,csv} (the per-particle map) and summary.json.
 
 Parquet through pyarrow (the `scan` extra); csv stores the member list as names joined by ';'.
@@ -38,18 +38,18 @@ class ScanOutput:
         else:
             saved.write_text(json.dumps(stated), encoding="utf-8")
         self.options = stated
-        self.tables = [read_arrow(f, fmt) for f in sorted(self.parts.glob(f"*.{fmt}"))]   # an interrupted scan's
+        self.tables = [_feather().read_table(f) for f in sorted(self.parts.glob("*.arrow"))]   # an interrupted scan's
 
     def done_centers(self) -> set[str]:
         """Centres whose rows are already on disk (an interrupted scan)."""
         return {str(c) for t in self.tables for c in t.column("center").to_pylist()}
 
     def write(self, table) -> None:
-        """One chunk's rows (an Arrow table, `rows_table`) as a new part file (written whole, then renamed: a killed
-        scan leaves no torn file)."""
-        name = self.parts / f"part-{uuid.uuid4().hex}.{self.fmt}"
+        """One chunk's rows (an Arrow table, `rows_table`) as a new part file, Arrow IPC whatever the final format
+        (written whole, then renamed: a killed scan leaves no torn file)."""
+        name = self.parts / f"part-{uuid.uuid4().hex}.arrow"
         tmp = name.with_suffix(".tmp")
-        write_table(table, tmp, self.fmt)
+        _feather().write_feather(table, tmp, compression="uncompressed")
         tmp.rename(name)
         self.tables.append(table)
 
@@ -75,6 +75,11 @@ class ScanOutput:
                    "options": self.options}
         (self.path / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
         return summary
+
+
+def _feather():
+    import pyarrow.feather
+    return pyarrow.feather
 
 
 def name_positions(scene: Scene, names) -> np.ndarray:

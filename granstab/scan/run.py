@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import time
 import zlib
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,7 +21,7 @@ from ..scene import Scene, SceneError, build_scene
 from ..threads import blas_threads
 from ..verdicts import finalize, verdict_of
 from .batch import batchable, solve_chunk
-from .clusters import BOUNDARIES, adjacency, boundary_ring, cut, members, particle_index, subscene
+from .clusters import BOUNDARIES, adjacency, boundary_ring, cut, incidence, members, particle_index, subscene
 from .output import ScanOutput, rows_table
 
 CHUNK = 512           # clusters per task: the batched path amortises its per-chunk work; Dask's per-task cost small
@@ -88,19 +89,31 @@ def batched_rows(scene: Scene, centers: np.ndarray, member_lists: list, options:
     return rows
 
 
-def chunk_cut(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[dict, np.ndarray]:
-    """The sub-scene of every particle of the clusters of `centers`, as `build_scene`'s arguments (clusters.cut), and
-    the centres' indices in it: all that a chunk needs (the cluster of c in it is the cluster of c in the packing:
-    every path of ≤ rings hops from c stays inside it), so a task carries its own small scene, never the packing, and
-    the client only slices arrays. graph: clusters.adjacency(scene), if at hand."""
+@dataclass(frozen=True)
+class Chunk:
+    """A chunk of centres as it travels to a worker: `build_scene`'s arguments for the sub-scene of every particle of
+    their clusters (clusters.cut) and the centres' indices in it. A dataclass, so that Dask ships it whole instead of
+    walking its lists of names for futures (measured: 4.5 s of the client's time in a 10⁵-particle scan)."""
+    arguments: dict
+    centers: np.ndarray
+
+    def scene(self) -> Scene:
+        return build_scene(**self.arguments)
+
+
+def chunk_cut(scene: Scene, centers: np.ndarray, rings: int, graph=None, contacts_of=None) -> Chunk:
+    """All that the chunk of `centers` needs: the cluster of c in its sub-scene is the cluster of c in the packing
+    (every path of ≤ rings hops from c stays inside it), so a task carries its own small scene, never the packing,
+    and the client only slices arrays. graph, contacts_of: clusters.adjacency(scene) and clusters.incidence(scene),
+    if at hand (a scan makes them once: then cutting a chunk costs the chunk's size, not the packing's)."""
     union = np.unique(np.concatenate(members(scene, centers, rings, graph)))
-    return cut(scene, union), np.searchsorted(union, centers)
+    return Chunk(cut(scene, union, contacts_of=contacts_of), np.searchsorted(union, centers))
 
 
 def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[Scene, np.ndarray]:
-    """`chunk_cut` built: the chunk's scene and its centres."""
-    arguments, where = chunk_cut(scene, centers, rings, graph)
-    return build_scene(**arguments), where
+    """The chunk's scene, built, and its centres' indices in it."""
+    chunk = chunk_cut(scene, centers, rings, graph)
+    return chunk.scene(), chunk.centers
 
 
 def reach(options: dict) -> int:
@@ -119,10 +132,10 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict) -> list[dict]:
                 for i, (c, keep) in enumerate(zip(centers, member_lists))]
 
 
-def chunk_table(arguments: dict, centers: np.ndarray, options: dict):
-    """The rows of a chunk cut by `chunk_cut`, as an Arrow table (output.rows_table): the unit of work of the serial
-    loop and of a Dask task, so that the worker, not the client, builds the chunk's scene and the table."""
-    return rows_table(scan_chunk(build_scene(**arguments), centers, options))
+def chunk_table(chunk: Chunk, options: dict):
+    """The rows of a `Chunk` as an Arrow table (output.rows_table): the unit of work of the serial loop and of a Dask
+    task, so that the worker, not the client, builds the chunk's scene and the table."""
+    return rows_table(scan_chunk(chunk.scene(), chunk.centers, options))
 
 
 def select_centers(scene: Scene, centers) -> np.ndarray:
@@ -179,9 +192,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
 
 
 def _run_serial(scene, chunks, options, out, bar, **_):
-    graph = adjacency(scene)
+    graph, contacts_of = adjacency(scene), incidence(scene)
     for part in chunks:
-        out.write(chunk_table(*chunk_cut(scene, part, reach(options), graph), options))
+        out.write(chunk_table(chunk_cut(scene, part, reach(options), graph, contacts_of), options))
         if bar is not None:
             bar.update(len(part))
 
@@ -196,10 +209,10 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
         with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
             cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
                                    dashboard_address=None)
-    graph = adjacency(scene)
+    graph, contacts_of = adjacency(scene), incidence(scene)
     with Client(scheduler or cluster) as client:
-        futures = [client.submit(chunk_table, *chunk_cut(scene, part, reach(options), graph), options, retries=3,
-                                 pure=False) for part in chunks]
+        futures = [client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph, contacts_of), options,
+                                 retries=3, pure=False) for part in chunks]
         for future in as_completed(futures):
             table = future.result()
             out.write(table)
