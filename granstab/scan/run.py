@@ -26,6 +26,7 @@ from .output import ScanOutput, rows_table
 
 CHUNK = 512           # clusters per task: the batched path amortises its per-chunk work; Dask's per-task cost small
 GPU_CHUNK = 16384     # on a GPU one stacked solve wants many clusters
+IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next ones already sent
 # Local workers' environment: one BLAS thread each, and NOT Dask's default MALLOC_TRIM_THRESHOLD_, which also turns
 # off glibc's dynamic mmap threshold, so that every numpy temporary over 128 kB is a fresh mmap with page faults
 # (measured: 1.6× the CPU time of a chunk in a worker against the same chunk in this process; 1.17× without it).
@@ -200,8 +201,9 @@ def _run_serial(scene, chunks, options, out, bar, **_):
 
 
 def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
-    """Chunks as Dask tasks, each with its own `chunk_cut` (rerun if a worker dies), results streamed to disk in the
-    order they finish."""
+    """Chunks as Dask tasks, each with its own `Chunk` (rerun if a worker dies), results streamed to disk in the order
+    they finish. At most IN_FLIGHT tasks per worker thread are out at a time: the client cuts the next chunk while
+    the workers compute, and holds a few chunks, never all of them."""
     import dask
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
@@ -210,14 +212,26 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
             cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
                                    dashboard_address=None)
     graph, contacts_of = adjacency(scene), incidence(scene)
+    todo = iter(chunks)
     with Client(scheduler or cluster) as client:
-        futures = [client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph, contacts_of), options,
-                                 retries=3, pure=False) for part in chunks]
-        for future in as_completed(futures):
+        def submit(part):
+            return client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph, contacts_of), options,
+                                 retries=3, pure=False)
+
+        running = as_completed()
+
+        def fill():                                     # the cluster's threads now (a real cluster may grow)
+            want = IN_FLIGHT * max(sum(client.nthreads().values()), 1)
+            while running.count() < want and (part := next(todo, None)) is not None:
+                running.add(submit(part))
+
+        fill()
+        for future in running:
             table = future.result()
             out.write(table)
             if bar is not None:
                 bar.update(table.num_rows)
+            fill()
     if cluster is not None:
         cluster.close()
 
