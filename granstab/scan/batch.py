@@ -151,13 +151,18 @@ def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, 
     leak = H_el @ R - (H_el @ C) @ (Cplus @ R)
     leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
 
-    # every branch of every cluster (enumerate_masks order), its sym(𝓗^i), stacked eigh, bounds and codes
+    # every branch of every cluster (enumerate_masks order), its sym(𝓗^i), stacked eigh, bounds and codes:
+    # sym(Pᵀ H^i P) = sym(Pᵀ H_el P) + sym((PᵀA) diag(on) (PᵀS)ᵀ) with P = I − C C̃⁺, projected once per cluster
+    def project(M):                                                                  # Pᵀ M
+        return M - np.swapaxes(Cplus, 1, 2) @ (Ct @ M)
+
+    HP = project(H_el)
+    HP = HP - (HP @ C) @ Cplus
     owner, masks = _branch_masks(n_sliding[part], Ms)
-    on = (masks == 1).astype(float)
-    Hi = H_el[owner] + (A[owner] * on[:, None, :]) @ np.swapaxes(S[owner], 1, 2)
-    HH = Hi - (Hi @ C[owner]) @ Cplus[owner]
-    HS = HH - np.swapaxes(Cplus[owner], 1, 2) @ (Ct[owner] @ HH)
-    Hsym = 0.5 * (HS + np.swapaxes(HS, 1, 2))
+    Hsym = (0.5 * (HP + np.swapaxes(HP, 1, 2)))[owner]
+    if Ms:
+        X = (project(A)[owner] * (masks == 1)[:, None, :]) @ np.swapaxes(project(S)[owner], 1, 2)
+        Hsym += 0.5 * (X + np.swapaxes(X, 1, 2))
     got = backend_eigh(Hsym, S[owner], device)
     lam = got["lam"]
     bounds = vector_bounds(lam, got["residual"], _abs_norm(Hsym)[:, None], formation[owner, None], nd)
@@ -195,15 +200,13 @@ def _solve_group(sub, blocks, pairs, part, local, starts, n, factor, n_sliding, 
 
 def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str) -> dict:
     """Stacked eigh of sym(𝓗^i) on the device: eigenvalues, residual norms ‖A v − λ v‖ and the S values
-    Sᵀ v (eq:flow) of the eigenvectors with canonical signs (branches.canonical_signs); eigenvectors stay there."""
+    Sᵀ v (eq:flow) of the eigenvectors, whatever their signs (a row counts consistent modes, PLUS, MINUS or BOTH
+    alike); eigenvectors stay there."""
     be = backend(device)
 
     def keep(xp, A, lam, V, start):
-        idx = xp.argmax(xp.abs(V), axis=1)[:, None, :]
-        sign = xp.where(xp.take_along_axis(V, idx, axis=1) < 0, -1.0, 1.0)
         Sd = be.asarray(S[start:start + A.shape[0]])
-        return {"lam": lam, "residual": residual_norms(xp, A, lam, V),
-                "S": xp.matmul(xp.swapaxes(Sd, 1, 2), V) * sign}
+        return {"lam": lam, "residual": residual_norms(xp, A, lam, V), "S": xp.matmul(xp.swapaxes(Sd, 1, 2), V)}
 
     return eigh_stack(Hsym, device=be.name, keep=keep)
 
