@@ -14,7 +14,9 @@ branch vectors (triclinic tilt: a sheared lattice). 2D when the script says `dim
 equal and fz = 0. The contact law comes from the script's pair_style/pair_coeff (granular hooke/hertz with
 linear_history or mindlin tangential, gran/hooke/history, gran/hertz/history) where it has one:
 Hookean k = k_n, α = k_t/k_n; Hertz k = dF/dδ = 1.5 k_n a with a = √(R_eff δ) (tangent stiffness at the
-current overlap), mindlin scales k_t by a (LAMMPS pair_granular documentation).
+current overlap), mindlin scales k_t by a (LAMMPS pair_granular documentation); LIGGGHTS `pair_style gran model
+hooke/stiffness tangential history` with kn, kt, coefficientFriction from `fix property/global`. pair/gran/local
+(LIGGGHTS) gives the force on id1 and lists touching pairs only (checked against Debian's liggghts 3.8.0).
 """
 from __future__ import annotations
 
@@ -30,9 +32,14 @@ from .columns import CONTACT_NAMES, columns_option, contact_forces, to_indices, 
 from .text import read_block
 
 ATOM_ALIASES = {"xu": "x", "yu": "y", "zu": "z", "xs": "xs", "ys": "ys", "zs": "zs"}
+# LIGGGHTS compute pair/gran/local: its columns come in this order whatever the keyword order (3.8.0, checked on
+# Debian's liggghts); no keyword = pos vel id force torque history contactArea. `history` has as many columns as
+# the pair style keeps (3 for tangential history): the columns after it are ignored.
 GRAN_LOCAL = {"pos": ["-"] * 6, "vel": ["-"] * 6, "id": ["id1", "id2", "-"], "force": ["fx", "fy", "fz"],
               "force_normal": ["fnx", "fny", "fnz"], "force_tangential": ["ftx", "fty", "ftz"], "torque": ["-"] * 3,
-              "contactArea": ["-"], "delta": ["delta"], "heatFlux": ["-"], "contactPoint": ["cx", "cy", "cz"]}
+              "history": None, "contactArea": ["-"], "delta": ["delta"], "heatFlux": ["-"],
+              "contactPoint": ["cx", "cy", "cz"]}
+GRAN_LOCAL_DEFAULT = ("pos", "vel", "id", "force", "torque", "history", "contactArea")
 GRANULAR_P = {1: "ftx", 2: "fty", 3: "ftz", 10: "delx", 11: "dely", 12: "delz"}
 
 
@@ -160,8 +167,11 @@ def read_script(path: Path) -> dict:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
-    variables, computes, info = {}, {}, {"dimension": None, "pair": None, "coeff": None, "source": str(path)}
-    for number, raw in enumerate(text.replace("&\n", " ").splitlines(), 1):
+    variables, computes, properties = {}, {}, {}
+    info = {"dimension": None, "pair": None, "coeff": None, "source": str(path), "properties": properties}
+    lines = text.splitlines()
+    starts = [n for n in range(1, len(lines) + 1) if n == 1 or not lines[n - 2].rstrip().endswith("&")]
+    for number, raw in zip(starts, re.sub(r"&[ \t\r]*\n", " ", text).splitlines()):   # & joins lines: 1st's number
         words = re.sub(r"\$\{(\w+)\}|\$(\w)", lambda m: variables.get(m.group(1) or m.group(2), m.group(0)),
                        raw.split("#", 1)[0]).split()
         if not words:
@@ -176,6 +186,8 @@ def read_script(path: Path) -> dict:
             info["pair"], info["pair_line"] = words[1:], number
         elif words[0] == "pair_coeff" and words[1:3] == ["*", "*"]:
             info["coeff"], info["coeff_line"] = words[3:], number
+        elif words[:1] == ["fix"] and words[3:4] == ["property/global"] and len(words) >= 7:
+            properties[words[4]] = (words[5:], number)    # LIGGGHTS: name peratomtype[pair] [n] values
     info["computes"] = computes
     return info
 
@@ -197,10 +209,10 @@ def compute_columns(computes: dict, pair_style: str | None) -> dict:
                 else:
                     cols.append("-")
         elif style == "pair/gran/local":
-            keys = [a for a in args if a in GRAN_LOCAL or a == "history"] or ["pos", "vel", "id", "force", "torque"]
+            keys = [k for k in GRAN_LOCAL if k in args] if args else GRAN_LOCAL_DEFAULT
+            cols = [c for a in keys[:keys.index("history") if "history" in keys else None] for c in GRAN_LOCAL[a]]
             if "history" in keys:
-                continue  # unknown width: the user names the columns
-            cols = [c for a in keys for c in GRAN_LOCAL[a]]
+                names[f"c_{cid}[*]"] = "-"   # history and what follows it: width unknown here, ignored
         else:
             continue
         for k, name in enumerate(cols, 1):
@@ -215,6 +227,8 @@ def contact_law(script: dict | None, radius_p, radius_q, delta) -> tuple[dict, l
     if script is None or script["pair"] is None:
         return {}, ["no input script: k, α, μ from the command line or defaults"]
     style, where = script["pair"][0], f"{Path(script['source']).name} line"
+    if style == "gran":                          # LIGGGHTS
+        return _liggghts_law(script)
     a = np.sqrt(radius_p * radius_q / (radius_p + radius_q) * np.maximum(delta, 0.0))
     try:
         if style in ("gran/hooke/history", "gran/hooke", "gran/hertz/history"):
@@ -247,6 +261,46 @@ def contact_law(script: dict | None, radius_p, radius_q, delta) -> tuple[dict, l
     except (ValueError, IndexError):
         raise SceneError(f"{script['source']}: pair_coeff: cannot read the {style} parameters") from None
     return {}, [f"pair_style {style} not converted: give --k --alpha --mu"]
+
+
+def _liggghts_law(script: dict) -> tuple[dict, list]:
+    """LIGGGHTS `pair_style gran model hooke/stiffness tangential history`: F_n = k_n δ, F_t = k_t u_t, with k_n,
+    k_t and coefficientFriction from `fix property/global` (one value, or equal values for every type pair)."""
+    words, name = script["pair"], Path(script["source"]).name
+    model = words[words.index("model") + 1] if "model" in words[:-1] else None
+    tangential = words[words.index("tangential") + 1] if "tangential" in words[:-1] else None
+    notes = ["rolling friction in the script: contact moments are not converted (pair/gran/local's torque leaves "
+             "out the rolling friction torque)"] if "rolling_friction" in words else []
+    line = f"{name} line {script['pair_line']} (gran model {model} tangential {tangential})"
+    if model != "hooke/stiffness" or tangential != "history":
+        return {}, [f"{line}: not converted (only hooke/stiffness with tangential history): give --k --alpha --mu"] + notes
+    value = {}
+    for key in ("kn", "kt", "coefficientFriction"):
+        if key not in script["properties"]:
+            return {}, [f"{line}: no fix property/global {key}: give --k --alpha --mu"] + notes
+        words, number = script["properties"][key]
+        n = int(words[1]) ** 2 if words[0] == "peratomtypepair" and words[1:2] and words[1].isdigit() else None
+        cells = words[2:2 + n] if n else words[1:]
+        try:
+            numbers = np.array([float(c) for c in cells])
+        except ValueError:
+            bad = next(c for c in cells if not _is_number(c))
+            raise SceneError(f"{script['source']}: line {number}: {key}: not a number ({bad!r})") from None
+        if numbers.size == 0 or (n and numbers.size != n):
+            raise SceneError(f"{script['source']}: line {number}: {key}: expected {n or 'a'} value(s), got {numbers.size}")
+        if np.ptp(numbers) != 0:
+            return {}, [f"{name} line {number}: {key} differs between atom types: give --k --alpha --mu"] + notes
+        value[key] = (float(numbers[0]), f"{name} line {number} (fix property/global {key})")
+    (kn, kn_at), (kt, kt_at), (mu, mu_at) = value["kn"], value["kt"], value["coefficientFriction"]
+    return {"k": (kn, kn_at), "alpha": (kt / kn, f"{kt_at} / kn"), "mu": (mu, mu_at)}, notes
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 # ------------------------------------------------------------------------------------------------ reading
@@ -338,7 +392,8 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
     if columns:
         return columns_option(columns, width, str(path), " ".join(block.columns))
     known = compute_columns(script["computes"], (script["pair"] or [None])[0]) if script else {}
-    names = [c if c in CONTACT_NAMES else known.get(c) for c in block.columns]
+    names = [c if c in CONTACT_NAMES else known.get(c, known.get(re.sub(r"\[\d+\]$", "[*]", c)))
+             for c in block.columns]
     if "index" in block.columns:
         names[block.columns.index("index")] = "-"
     if None in names:
