@@ -28,7 +28,7 @@ import numpy as np
 
 from ..reading import SceneError
 from .build import Snapshot, branch_vectors
-from .columns import CONTACT_NAMES, columns_option, contact_forces, to_indices, unique_ids
+from .columns import CONTACT_NAMES, columns_option, contact_forces, contact_moments, to_indices, unique_ids
 from .text import read_block
 
 ATOM_ALIASES = {"xu": "x", "yu": "y", "zu": "z", "xs": "xs", "ys": "ys", "zs": "zs"}
@@ -40,7 +40,9 @@ GRAN_LOCAL = {"pos": ["-"] * 6, "vel": ["-"] * 6, "id": ["id1", "id2", "-"], "fo
               "history": None, "contactArea": ["-"], "delta": ["delta"], "heatFlux": ["-"],
               "contactPoint": ["cx", "cy", "cz"]}
 GRAN_LOCAL_DEFAULT = ("pos", "vel", "id", "force", "torque", "history", "contactArea")
-GRANULAR_P = {1: "ftx", 2: "fty", 3: "ftz", 10: "delx", 11: "dely", 12: "delz"}
+# pair granular single() (LAMMPS 2022): p1-p3 tangential force, p5-p7 rolling resistance force f_r, p9 twisting
+# torque (reported only at its sliding limit: not read), p10-p12 branch vector
+GRANULAR_P = {1: "ftx", 2: "fty", 3: "ftz", 5: "frx", 6: "fry", 7: "frz", 10: "delx", 11: "dely", 12: "delz"}
 
 
 def is_dump(path: Path) -> bool:
@@ -248,8 +250,12 @@ def contact_law(script: dict | None, radius_p, radius_q, delta) -> tuple[dict, l
             t = words.index("tangential")
             tangential, targs = words[t + 1], words[t + 2:]
             notes = []
-            if "rolling" in words or "twisting" in words:
-                notes.append("rolling/twisting resistance in the script: contact moments are not converted")
+            if "rolling" in words:
+                notes.append("rolling resistance: contact moments R_eff f_r × n from pair/local p5 p6 p7 where "
+                             "the local dump has them (else none); the rolling stiffness is not converted")
+            if "twisting" in words:
+                notes.append("twisting resistance: not converted (pair granular single() reports the twisting torque "
+                             "only at its sliding limit, so no dump holds it): the moment imbalance shows it")
             if normal not in ("hooke", "hertz") or tangential not in ("linear_history", "mindlin"):
                 return {}, [f"{line}: model {normal}/{tangential} not converted: give --k --alpha --mu"] + notes
             kt, mu = (float(targs[0]) if targs[0] != "NULL" else np.nan), float(targs[2])
@@ -336,6 +342,10 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
         if need not in col:
             raise SceneError(f"{cpath}: timestep {step}: {need}: no column (name the columns with --columns)")
     force, how = contact_forces(f"{cpath}: timestep {step}", col, dim)
+    if any(f"fr{a}" in col for a in "xyz"[:dim]) and not all(f"fr{a}" in col for a in "xyz"[:dim]):
+        missing = next(f"fr{a}" for a in "xyz"[:dim] if f"fr{a}" not in col)
+        raise SceneError(f"{cpath}: timestep {step}: {missing}: no column ({dim}D rolling resistance needs "
+                         f"{', '.join('fr' + a for a in 'xyz'[:dim])})")
     line = lambda row: f"{cpath}: line {cblock.first_line + row}"  # noqa: E731
     what = f"not in the atom dump at timestep {step}"
     p, q = (to_indices(ids, col[name], name, line, what) for name in ("id1", "id2"))
@@ -344,6 +354,8 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
     d = np.linalg.norm(branch, axis=1)
     delta = radius[p] + radius[q] - d
     touching = delta > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        moment = contact_moments(col, dim, branch / d[:, None], radius[p] * radius[q] / (radius[p] + radius[q]))
     apart = ~touching
     dropped = {"count": int(apart.sum()), "with_force": int(np.sum(apart & np.any(force != 0, axis=1))),
                "rule": "dropped: R_1 + R_2 − d ≤ 0 (pair/local lists neighbours that do not touch)"}
@@ -352,8 +364,11 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
     return Snapshot(
         source=f"{apath} + {cpath}", format="lammps", dim=dim, ids=ids, x=x[:, :dim], radius=radius, mass=mass,
         p=p[touching], q=q[touching], force=force[touching], lattice=lattice, law=law, frame=int(step),
+        moment=None if moment is None else moment[touching],
         frames=sorted(set(a_steps) & set(c_steps)),
         notes={"non_touching_pairs": dropped, "law_notes": notes, "dimension": dim, "forces_from": how,
+               "moments_from": "none" if moment is None else "mx my mz (m)" if "frx" not in col else
+               "rolling resistance f_r (pair/local p5 p6 p7): m = R_eff f_r × n on id1",
                "columns": dict(enumerate(names, 1))},
         particle_line=lambda i: f"{apath}: line {ablock.first_line + i}",
         contact_line=lambda c: f"{cpath}: line {cblock.first_line + rows[c]}")
