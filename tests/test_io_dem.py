@@ -22,8 +22,8 @@ def run(tmp_path_factory):
     return out
 
 
-def radii(run, dim, step, names):
-    text = (run / f"atoms{dim}d.dump").read_text().split(f"ITEM: TIMESTEP\n{step}\n")[1].split("ITEM: TIMESTEP")[0]
+def radii(run, dim, step, names, tag=""):
+    text = (run / f"atoms{dim}d{tag}.dump").read_text().split(f"ITEM: TIMESTEP\n{step}\n")[1].split("ITEM: TIMESTEP")[0]
     atoms = np.loadtxt(text.split("\n", 7)[7].splitlines())
     radius_of = dict(zip(atoms[:, 0].astype(int), atoms[:, 5]))
     return np.array([radius_of[int(n)] for n in names])
@@ -63,3 +63,24 @@ def test_settled_disks_cluster_dense_and_spheres_sparse(run):
     r3 = granstab.analyze(s3, method="sparse", k=4, max_sliding=4)
     assert any(w.startswith("sparse path") for w in r3.to_dict()["warnings"])
     assert max(r3.errors.values()) <= 1e-10
+
+
+@pytest.mark.dem
+def test_rolling_resistance_closes_the_moment_balance(run):
+    """in.spheres3d_rolling (pair granular `rolling sds`): the rolling resistance force of each contact (pair/local
+    p5 p6 p7) becomes its contact moment; with it the settled packing's moment imbalance is as small as its force
+    imbalance, without it (the same dump, those columns ignored) it is not."""
+    files = [run / "atoms3d_rolling.dump", run / "contacts3d_rolling.dump"]
+    rolled = load(files + [DEM / "in.spheres3d_rolling"], timestep=14000)
+    plain = load(files, timestep=14000, columns="id1,id2,fnx,fny,fnz,ftx,fty,ftz,delx,dely,delz,-,-,-",
+                 k=1000, alpha=0.5, mu=0.5)
+    with_m, without = rolled.report["imbalance"], plain.report["imbalance"]
+    assert with_m["force"]["median"] < 1e-6 and with_m["moment"]["median"] < 1e-6
+    assert without["moment"]["median"] > 1e-3 and without["moment"]["median"] > 1e4 * with_m["moment"]["median"]
+    s = rolled.scene
+    assert s.has_moments and not plain.scene.has_moments
+    check_contact_geometry(s, radii(run, "3", 14000, s.names, "_rolling"))
+    cluster = load(files + [DEM / "in.spheres3d_rolling"], timestep=14000, region="box:4,8,4,8,4,8").scene
+    assert cluster.n_particles >= 20 and cluster.has_moments
+    r = granstab.analyze(cluster, method="dense", max_sliding=8)
+    assert max(r.errors.values()) <= 1e-10

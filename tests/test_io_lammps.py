@@ -197,3 +197,51 @@ def test_masses_from_the_file_or_a_density_give_the_inertia_metric(tmp_path, cap
     assert main(["convert", str(bad), *map(str, inputs(2)[1:]), "--out", str(tmp_path / "x.json")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "bad.dump: line" in err and "mass: must be a positive number" in err
+
+
+ROLLING = [DATA / "atoms3d_rolling.dump", DATA / "contacts3d_rolling.dump",
+           ROOT / "examples" / "dem" / "in.spheres3d_rolling"]
+NO_ROLLING_COLUMNS = COLUMNS + ",-,-,-"   # the same dump with the rolling resistance columns (p5 p6 p7) ignored
+
+
+def torque_closure(scene, atoms):
+    """Per scene particle: |Σ (r × f + m) − LAMMPS's own torque (tqx tqy tqz)| over Σ(|r||f| + |m|)."""
+    row = {int(i): k for k, i in enumerate(atoms[:, 0])}
+    tq = atoms[[row[int(n)] for n in scene.names], 10:13]
+    total, scale = np.zeros((scene.n_particles, 3)), np.zeros(scene.n_particles)
+    for side, arm, sign in ((scene.p, scene.r_pq, 1.0), (scene.q, scene.r_qp, -1.0)):
+        np.add.at(total, side, np.cross(arm, sign * scene.force) + sign * scene.moment)
+        np.add.at(scale, side, np.linalg.norm(arm, axis=1) * np.linalg.norm(scene.force, axis=1)
+                  + np.linalg.norm(scene.moment, axis=1))
+    return np.linalg.norm(total - tq, axis=1) / scale
+
+
+def test_rolling_resistance_becomes_contact_moments():
+    """pair granular `rolling sds`: pair/local p5 p6 p7 = f_r, LAMMPS applies R_eff n_21 × f_r to atom 1
+    (n_21 from atom 2 to atom 1); granstab's m^pq on p = id1 with n^pq from p to q is R_eff f_r × n^pq."""
+    imp = load(ROLLING, timestep=14000)
+    s, rep = imp.scene, imp.report
+    assert s.has_moments and rep["moments_from"].startswith("rolling resistance")
+    assert any(note.startswith("rolling resistance") for note in rep["law_notes"])
+    atoms, local = raw_block(ROLLING[0], 14000), raw_block(ROLLING[1], 14000)
+    radius = dict(zip(atoms[:, 0].astype(int), atoms[:, 5]))
+    pairs = {(int(a), int(b)): k for k, (a, b) in enumerate(local[:, :2])}
+    names = np.array(s.names).astype(int)
+    rows = np.array([pairs[(a, b)] for a, b in zip(names[s.p].tolist(), names[s.q].tolist())])
+    r1, r2 = (np.array([radius[int(i)] for i in local[rows, k]]) for k in (0, 1))
+    n21 = local[rows, 8:11] / np.linalg.norm(local[rows, 8:11], axis=1)[:, None]   # p10-p12: x1 − x2
+    expected = (r1 * r2 / (r1 + r2))[:, None] * np.cross(n21, local[rows, 11:14])   # LAMMPS's torque on atom 1
+    assert np.abs(s.moment - expected).max() <= 1e-9 * np.abs(expected).max()   # dumped to 12 digits
+    # a particle whose contacts are all in the cut fixture: its contacts and moments give LAMMPS's torque on it
+    closed = torque_closure(s, atoms)
+    assert np.sum(closed < 1e-8) >= 10
+    plain = load(ROLLING[:2], timestep=14000, columns=NO_ROLLING_COLUMNS, k=1000, alpha=0.5, mu=0.5).scene
+    assert not plain.has_moments and np.sum(torque_closure(plain, atoms) < 1e-4) == 0
+
+
+def test_rolling_columns_need_every_component(tmp_path, capsys):
+    rc = main(["convert", str(ROLLING[0]), str(ROLLING[1]), "--columns", COLUMNS + ",frx,fry,-",
+               "--k", "1", "--out", str(tmp_path / "x.json")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err == (f"{ROLLING[1]}: timestep 14000: frz: no column (3D rolling resistance needs frx, "
+                               "fry, frz)"), err

@@ -1,6 +1,6 @@
 """Cut the small reader fixtures in tests/data/io/lammps/ from this folder's dumps (run.sh first): the atoms in a
 corner of the periodic cell that wraps around both boundaries, and the local-dump rows among them (neighbour pairs
-that do not touch included), at two timesteps.  python examples/dem/cut_fixture.py"""
+that do not touch included), at two timesteps (the rolling-resistance run: the last one).  python examples/dem/cut_fixture.py"""
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,8 @@ def keep_atoms(block, box):
 def main():
     OUT.mkdir(parents=True, exist_ok=True)
     for tag, steps, box in (("2d", (18000, 21000), ((30.0, 30.0), (6.0, 6.0))),
-                            ("3d", (12000, 14000), ((9.0, 9.0, 9.0), (2.5, 2.5, 2.5)))):
+                            ("3d", (12000, 14000), ((9.0, 9.0, 9.0), (2.5, 2.5, 2.5))),
+                            ("3d_rolling", (14000,), ((9.0, 9.0, 9.0), (2.5, 2.5, 2.5)))):
         atoms_out, local_out = [], []
         for ablock, cblock in zip(blocks(HERE / f"atoms{tag}.dump"), blocks(HERE / f"contacts{tag}.dump")):
             if int(ablock.split("\n")[1]) not in steps:

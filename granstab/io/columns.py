@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..reading import SceneError
+from ..vec import cross
 
 CONTACT_NAMES = {
     "id1", "id2",                 # the two particles (ids as in the particle file; a negative id2 is a wall)
@@ -14,6 +15,8 @@ CONTACT_NAMES = {
     "fn", "ft",                   # 2D magnitudes: f = −f_n n + f_t t, t = e3 × n (RigidLibrary's convention)
     "nx", "ny", "nz",             # unit normal from id1 to id2 (default: the centre line)
     "mx", "my", "mz", "m",        # contact moment on id1 (3D components, 2D scalar)
+    "frx", "fry", "frz",          # … or LAMMPS granular rolling resistance force f_r (pair/local p5 p6 p7):
+                                  #   moment R_eff f_r × n on id1, R_eff = R1 R2/(R1 + R2)
     "mobilised",                  # nonzero: at the Coulomb limit by the file's own test
     "kn", "kt", "mu",             # the file's contact law per contact: k = kn, α = kt/kn, μ
     "delx", "dely", "delz", "cx", "cy", "cz", "delta", "frame",   # read and checked or ignored
@@ -57,6 +60,18 @@ def contact_forces(where: str, col: dict, dim: int, normal=None):
         return -col["fn"][:, None] * normal + col.get("ft", np.zeros(len(normal)))[:, None] * t, \
             "f = −f_n n + f_t t, t = e3 × n"
     raise SceneError(f"{where}: fx: no force columns (fx fy [fz], fnx … + ftx …, or fn ft in 2D)")
+
+
+def contact_moments(col: dict, dim: int, normal=None, r_eff=None):
+    """m^pq on id1 (M, r) from mx my mz (2D: m), or from a rolling resistance force f_r: R_eff f_r × n (LAMMPS
+    pair granular applies R_eff n_21 × f_r to atom 1, n_21 from atom 2 to atom 1); None without such columns."""
+    if dim == 2 and "m" in col:
+        return col["m"][:, None]
+    if dim == 3 and all(f"m{a}" in col for a in "xyz"):
+        return np.stack([col[f"m{a}"] for a in "xyz"], axis=1)
+    if all(f"fr{a}" in col for a in "xyz"[:dim]) and normal is not None:
+        return r_eff[:, None] * cross(np.stack([col[f"fr{a}"] for a in "xyz"[:dim]], axis=1), normal)
+    return None
 
 
 def to_indices(ids: np.ndarray, values: np.ndarray, name: str, line_of_row, what: str) -> np.ndarray:

@@ -14,7 +14,9 @@ branch vectors (triclinic tilt: a sheared lattice). 2D when the script says `dim
 equal and fz = 0. The contact law comes from the script's pair_style/pair_coeff (granular hooke/hertz with
 linear_history or mindlin tangential, gran/hooke/history, gran/hertz/history) where it has one:
 Hookean k = k_n, α = k_t/k_n; Hertz k = dF/dδ = 1.5 k_n a with a = √(R_eff δ) (tangent stiffness at the
-current overlap), mindlin scales k_t by a (LAMMPS pair_granular documentation).
+current overlap), mindlin scales k_t by a (LAMMPS pair_granular documentation); LIGGGHTS `pair_style gran model
+hooke/stiffness tangential history` with kn, kt, coefficientFriction from `fix property/global`. pair/gran/local
+(LIGGGHTS) gives the force on id1 and lists touching pairs only (checked against Debian's liggghts 3.8.0).
 """
 from __future__ import annotations
 
@@ -26,14 +28,21 @@ import numpy as np
 
 from ..reading import SceneError
 from .build import Snapshot, branch_vectors
-from .columns import CONTACT_NAMES, columns_option, contact_forces, to_indices, unique_ids
+from .columns import CONTACT_NAMES, columns_option, contact_forces, contact_moments, to_indices, unique_ids
 from .text import read_block
 
 ATOM_ALIASES = {"xu": "x", "yu": "y", "zu": "z", "xs": "xs", "ys": "ys", "zs": "zs"}
+# LIGGGHTS compute pair/gran/local: its columns come in this order whatever the keyword order (3.8.0, checked on
+# Debian's liggghts); no keyword = pos vel id force torque history contactArea. `history` has as many columns as
+# the pair style keeps (3 for tangential history): the columns after it are ignored.
 GRAN_LOCAL = {"pos": ["-"] * 6, "vel": ["-"] * 6, "id": ["id1", "id2", "-"], "force": ["fx", "fy", "fz"],
               "force_normal": ["fnx", "fny", "fnz"], "force_tangential": ["ftx", "fty", "ftz"], "torque": ["-"] * 3,
-              "contactArea": ["-"], "delta": ["delta"], "heatFlux": ["-"], "contactPoint": ["cx", "cy", "cz"]}
-GRANULAR_P = {1: "ftx", 2: "fty", 3: "ftz", 10: "delx", 11: "dely", 12: "delz"}
+              "history": None, "contactArea": ["-"], "delta": ["delta"], "heatFlux": ["-"],
+              "contactPoint": ["cx", "cy", "cz"]}
+GRAN_LOCAL_DEFAULT = ("pos", "vel", "id", "force", "torque", "history", "contactArea")
+# pair granular single() (LAMMPS 2022): p1-p3 tangential force, p5-p7 rolling resistance force f_r, p9 twisting
+# torque (reported only at its sliding limit: not read), p10-p12 branch vector
+GRANULAR_P = {1: "ftx", 2: "fty", 3: "ftz", 5: "frx", 6: "fry", 7: "frz", 10: "delx", 11: "dely", 12: "delz"}
 
 
 def is_dump(path: Path) -> bool:
@@ -160,8 +169,11 @@ def read_script(path: Path) -> dict:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
-    variables, computes, info = {}, {}, {"dimension": None, "pair": None, "coeff": None, "source": str(path)}
-    for number, raw in enumerate(text.replace("&\n", " ").splitlines(), 1):
+    variables, computes, properties = {}, {}, {}
+    info = {"dimension": None, "pair": None, "coeff": None, "source": str(path), "properties": properties}
+    lines = text.splitlines()
+    starts = [n for n in range(1, len(lines) + 1) if n == 1 or not lines[n - 2].rstrip().endswith("&")]
+    for number, raw in zip(starts, re.sub(r"&[ \t\r]*\n", " ", text).splitlines()):   # & joins lines: 1st's number
         words = re.sub(r"\$\{(\w+)\}|\$(\w)", lambda m: variables.get(m.group(1) or m.group(2), m.group(0)),
                        raw.split("#", 1)[0]).split()
         if not words:
@@ -176,6 +188,8 @@ def read_script(path: Path) -> dict:
             info["pair"], info["pair_line"] = words[1:], number
         elif words[0] == "pair_coeff" and words[1:3] == ["*", "*"]:
             info["coeff"], info["coeff_line"] = words[3:], number
+        elif words[:1] == ["fix"] and words[3:4] == ["property/global"] and len(words) >= 7:
+            properties[words[4]] = (words[5:], number)    # LIGGGHTS: name peratomtype[pair] [n] values
     info["computes"] = computes
     return info
 
@@ -197,10 +211,10 @@ def compute_columns(computes: dict, pair_style: str | None) -> dict:
                 else:
                     cols.append("-")
         elif style == "pair/gran/local":
-            keys = [a for a in args if a in GRAN_LOCAL or a == "history"] or ["pos", "vel", "id", "force", "torque"]
+            keys = [k for k in GRAN_LOCAL if k in args] if args else GRAN_LOCAL_DEFAULT
+            cols = [c for a in keys[:keys.index("history") if "history" in keys else None] for c in GRAN_LOCAL[a]]
             if "history" in keys:
-                continue  # unknown width: the user names the columns
-            cols = [c for a in keys for c in GRAN_LOCAL[a]]
+                names[f"c_{cid}[*]"] = "-"   # history and what follows it: width unknown here, ignored
         else:
             continue
         for k, name in enumerate(cols, 1):
@@ -215,6 +229,8 @@ def contact_law(script: dict | None, radius_p, radius_q, delta) -> tuple[dict, l
     if script is None or script["pair"] is None:
         return {}, ["no input script: k, α, μ from the command line or defaults"]
     style, where = script["pair"][0], f"{Path(script['source']).name} line"
+    if style == "gran":                          # LIGGGHTS
+        return _liggghts_law(script)
     a = np.sqrt(radius_p * radius_q / (radius_p + radius_q) * np.maximum(delta, 0.0))
     try:
         if style in ("gran/hooke/history", "gran/hooke", "gran/hertz/history"):
@@ -234,8 +250,12 @@ def contact_law(script: dict | None, radius_p, radius_q, delta) -> tuple[dict, l
             t = words.index("tangential")
             tangential, targs = words[t + 1], words[t + 2:]
             notes = []
-            if "rolling" in words or "twisting" in words:
-                notes.append("rolling/twisting resistance in the script: contact moments are not converted")
+            if "rolling" in words:
+                notes.append("rolling resistance: contact moments R_eff f_r × n from pair/local p5 p6 p7 where "
+                             "the local dump has them (else none); the rolling stiffness is not converted")
+            if "twisting" in words:
+                notes.append("twisting resistance: not converted (pair granular single() reports the twisting torque "
+                             "only at its sliding limit, so no dump holds it): the moment imbalance shows it")
             if normal not in ("hooke", "hertz") or tangential not in ("linear_history", "mindlin"):
                 return {}, [f"{line}: model {normal}/{tangential} not converted: give --k --alpha --mu"] + notes
             kt, mu = (float(targs[0]) if targs[0] != "NULL" else np.nan), float(targs[2])
@@ -247,6 +267,46 @@ def contact_law(script: dict | None, radius_p, radius_q, delta) -> tuple[dict, l
     except (ValueError, IndexError):
         raise SceneError(f"{script['source']}: pair_coeff: cannot read the {style} parameters") from None
     return {}, [f"pair_style {style} not converted: give --k --alpha --mu"]
+
+
+def _liggghts_law(script: dict) -> tuple[dict, list]:
+    """LIGGGHTS `pair_style gran model hooke/stiffness tangential history`: F_n = k_n δ, F_t = k_t u_t, with k_n,
+    k_t and coefficientFriction from `fix property/global` (one value, or equal values for every type pair)."""
+    words, name = script["pair"], Path(script["source"]).name
+    model = words[words.index("model") + 1] if "model" in words[:-1] else None
+    tangential = words[words.index("tangential") + 1] if "tangential" in words[:-1] else None
+    notes = ["rolling friction in the script: contact moments are not converted (pair/gran/local's torque leaves "
+             "out the rolling friction torque)"] if "rolling_friction" in words else []
+    line = f"{name} line {script['pair_line']} (gran model {model} tangential {tangential})"
+    if model != "hooke/stiffness" or tangential != "history":
+        return {}, [f"{line}: not converted (only hooke/stiffness with tangential history): give --k --alpha --mu"] + notes
+    value = {}
+    for key in ("kn", "kt", "coefficientFriction"):
+        if key not in script["properties"]:
+            return {}, [f"{line}: no fix property/global {key}: give --k --alpha --mu"] + notes
+        words, number = script["properties"][key]
+        n = int(words[1]) ** 2 if words[0] == "peratomtypepair" and words[1:2] and words[1].isdigit() else None
+        cells = words[2:2 + n] if n else words[1:]
+        try:
+            numbers = np.array([float(c) for c in cells])
+        except ValueError:
+            bad = next(c for c in cells if not _is_number(c))
+            raise SceneError(f"{script['source']}: line {number}: {key}: not a number ({bad!r})") from None
+        if numbers.size == 0 or (n and numbers.size != n):
+            raise SceneError(f"{script['source']}: line {number}: {key}: expected {n or 'a'} value(s), got {numbers.size}")
+        if np.ptp(numbers) != 0:
+            return {}, [f"{name} line {number}: {key} differs between atom types: give --k --alpha --mu"] + notes
+        value[key] = (float(numbers[0]), f"{name} line {number} (fix property/global {key})")
+    (kn, kn_at), (kt, kt_at), (mu, mu_at) = value["kn"], value["kt"], value["coefficientFriction"]
+    return {"k": (kn, kn_at), "alpha": (kt / kn, f"{kt_at} / kn"), "mu": (mu, mu_at)}, notes
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 # ------------------------------------------------------------------------------------------------ reading
@@ -282,6 +342,10 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
         if need not in col:
             raise SceneError(f"{cpath}: timestep {step}: {need}: no column (name the columns with --columns)")
     force, how = contact_forces(f"{cpath}: timestep {step}", col, dim)
+    if any(f"fr{a}" in col for a in "xyz"[:dim]) and not all(f"fr{a}" in col for a in "xyz"[:dim]):
+        missing = next(f"fr{a}" for a in "xyz"[:dim] if f"fr{a}" not in col)
+        raise SceneError(f"{cpath}: timestep {step}: {missing}: no column ({dim}D rolling resistance needs "
+                         f"{', '.join('fr' + a for a in 'xyz'[:dim])})")
     line = lambda row: f"{cpath}: line {cblock.first_line + row}"  # noqa: E731
     what = f"not in the atom dump at timestep {step}"
     p, q = (to_indices(ids, col[name], name, line, what) for name in ("id1", "id2"))
@@ -290,6 +354,8 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
     d = np.linalg.norm(branch, axis=1)
     delta = radius[p] + radius[q] - d
     touching = delta > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        moment = contact_moments(col, dim, branch / d[:, None], radius[p] * radius[q] / (radius[p] + radius[q]))
     apart = ~touching
     dropped = {"count": int(apart.sum()), "with_force": int(np.sum(apart & np.any(force != 0, axis=1))),
                "rule": "dropped: R_1 + R_2 − d ≤ 0 (pair/local lists neighbours that do not touch)"}
@@ -298,8 +364,11 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
     return Snapshot(
         source=f"{apath} + {cpath}", format="lammps", dim=dim, ids=ids, x=x[:, :dim], radius=radius, mass=mass,
         p=p[touching], q=q[touching], force=force[touching], lattice=lattice, law=law, frame=int(step),
+        moment=None if moment is None else moment[touching],
         frames=sorted(set(a_steps) & set(c_steps)),
         notes={"non_touching_pairs": dropped, "law_notes": notes, "dimension": dim, "forces_from": how,
+               "moments_from": "none" if moment is None else "mx my mz (m)" if "frx" not in col else
+               "rolling resistance f_r (pair/local p5 p6 p7): m = R_eff f_r × n on id1",
                "columns": dict(enumerate(names, 1))},
         particle_line=lambda i: f"{apath}: line {ablock.first_line + i}",
         contact_line=lambda c: f"{cpath}: line {cblock.first_line + rows[c]}")
@@ -338,7 +407,8 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
     if columns:
         return columns_option(columns, width, str(path), " ".join(block.columns))
     known = compute_columns(script["computes"], (script["pair"] or [None])[0]) if script else {}
-    names = [c if c in CONTACT_NAMES else known.get(c) for c in block.columns]
+    names = [c if c in CONTACT_NAMES else known.get(c, known.get(re.sub(r"\[\d+\]$", "[*]", c)))
+             for c in block.columns]
     if "index" in block.columns:
         names[block.columns.index("index")] = "-"
     if None in names:

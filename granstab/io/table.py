@@ -16,7 +16,7 @@ import numpy as np
 
 from ..reading import SceneError
 from .build import Snapshot
-from .columns import CONTACT_NAMES, columns_option, contact_forces, to_indices, unique_ids
+from .columns import CONTACT_NAMES, columns_option, contact_forces, contact_moments, to_indices, unique_ids
 from .text import line_of, pick_frame, read_table
 
 SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
@@ -101,7 +101,10 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None) -> Sn
     if normal is not None:
         with np.errstate(invalid="ignore", divide="ignore"):
             normal = normal / np.linalg.norm(normal, axis=1)[:, None]
-    moment = _moments(ccol, dim)
+    with np.errstate(invalid="ignore", divide="ignore"):     # f_r columns: R_eff f_r × n (wall rows: unused)
+        branch = x[q] - x[p]
+        moment = contact_moments(ccol, dim, branch / np.linalg.norm(branch, axis=1)[:, None],
+                                 radius[p] * radius[q] / (radius[p] + radius[q]))
     wall_load, walls = _walls(wall, p, force, len(ids), ccol["id2"])
     rows = np.flatnonzero(~wall)
     law = _law(ccol, rows, cpath)
@@ -158,12 +161,6 @@ def _law(col, rows, path):
     return law
 
 
-def _moments(col, dim):
-    if dim == 2:
-        return col["m"][:, None] if "m" in col else None
-    if all(f"m{a}" in col for a in "xyz"):
-        return np.stack([col[f"m{a}"] for a in "xyz"], axis=1)
-    return None
 
 
 def _one_row_per_pair(p, q, force, normal, moment, mobilised):
