@@ -17,8 +17,8 @@ from granstab.scan.run import CHUNK, chunk_scene, cluster_row, scan_chunk
 
 TASK_OVERHEAD_S = 1e-3      # Dask's documented scheduler cost per task (order of magnitude), for the extrapolation
 OPTIONS = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32}
-QUICK = {"sizes": {2: 3000, 3: 600}, "sample": 128, "memory": (2000, 8000)}
-FULL = {"sizes": {2: 100_000, 3: 10_000}, "sample": 512, "memory": (10_000, 100_000)}
+QUICK = {"sizes": {2: 3000, 3: 600}, "sample": 128, "memory": (2000, 8000), "repeats": 1}
+FULL = {"sizes": {2: 100_000, 3: 10_000}, "sample": 512, "memory": (10_000, 100_000), "repeats": 3}
 
 
 def packing(dim: int, n: int):
@@ -45,14 +45,44 @@ def batched_vs_loop(scene, sample: int) -> dict:
             "batched_share": sum(r["path"] == "batched" for r in rows) / len(rows)}
 
 
-def whole_scan(scene, workers: int, device: str = "cpu") -> tuple[float, dict]:
+def whole_scan(scene, workers: int = 1, device: str = "cpu", scheduler: str | None = None) -> tuple[float, dict]:
     with tempfile.TemporaryDirectory() as out:
         t = time.perf_counter()
-        summary = scan(scene, out, workers=workers, figures=False, device=device)
+        summary = scan(scene, out, workers=workers, figures=False, device=device, scheduler=scheduler)
         seconds = time.perf_counter() - t
         rows = read_map(out)["clusters"]
         return seconds, {"summary": summary, "lambda_min": np.asarray(rows["lambda_min"]),
                          "verdict": list(rows["verdict"])}
+
+
+def scaling(scene, repeats: int) -> dict:
+    """Whole scans, medians of `repeats`: serially in this process; on a running local Dask cluster of 1 and of 2
+    worker processes (the scaling 1 → 2 workers: a cluster is started once, as a real one is); `--workers 2` with its
+    cluster's start-up included (what one command costs)."""
+    import dask
+    from dask.distributed import LocalCluster
+    from granstab.scan.run import WORKER_ENVIRON
+    serial, ref = whole_scan(scene)
+    times = {"serial": [serial]}
+    same = True
+    for workers in (1, 2):
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        with cluster:
+            for _ in range(repeats):
+                seconds, got = whole_scan(scene, scheduler=cluster.scheduler_address)
+                times.setdefault(f"dask{workers}", []).append(seconds)
+                same &= got["verdict"] == ref["verdict"]
+    for _ in range(repeats):
+        seconds, got = whole_scan(scene, workers=2)
+        times.setdefault("startup2", []).append(seconds)
+        same &= got["verdict"] == ref["verdict"]
+    for _ in range(repeats - 1):
+        times["serial"].append(whole_scan(scene)[0])
+    med = {key: statistics.median(value) for key, value in times.items()}
+    return {"summary": ref["summary"], "lambda_min": ref["lambda_min"], "verdict": ref["verdict"],
+            "seconds": med, "same_verdicts": same, "speedup_1_to_2": med["dask1"] / med["dask2"],
+            "speedup_serial_to_2": med["serial"] / med["startup2"]}
 
 
 def chunk_memory(n: int) -> float:
@@ -74,11 +104,12 @@ def run(quick: bool = False) -> dict:
         scene = packing(dim, n)
         row = {"dim": dim, "n_particles": scene.n_particles, "n_contacts": scene.n_contacts,
                "at_yield": int(scene.at_yield().sum()), **batched_vs_loop(scene, cfg["sample"])}
-        serial, a = whole_scan(scene, 1)
-        dask, b = whole_scan(scene, 2)
-        row.update(serial_s=serial, dask2_s=dask, speedup_2_workers=serial / dask,
-                   clusters_per_s_serial=scene.n_particles / serial, verdicts=a["summary"]["verdicts"],
-                   same_verdicts=a["verdict"] == b["verdict"])
+        a = scaling(scene, cfg["repeats"])
+        serial = a["seconds"]["serial"]
+        row.update(serial_s=serial, dask1_s=a["seconds"]["dask1"], dask2_s=a["seconds"]["dask2"],
+                   startup2_s=a["seconds"]["startup2"], speedup_1_to_2=a["speedup_1_to_2"],
+                   speedup_serial_to_2=a["speedup_serial_to_2"], clusters_per_s_serial=scene.n_particles / serial,
+                   verdicts=a["summary"]["verdicts"], same_verdicts_dask=a["same_verdicts"])
         if gpu_available():
             gpu, c = whole_scan(scene, 1, device="gpu")
             row["gpu"] = {"seconds": gpu, "clusters_per_s": scene.n_particles / gpu, "vs_cpu_serial": serial / gpu,
@@ -87,7 +118,8 @@ def run(quick: bool = False) -> dict:
                                                           / np.abs(a["lambda_min"])))}
         rows.append(row)
     memory = [{"n_particles": n, "peak_MB": chunk_memory(n)} for n in cfg["memory"]]
-    return {"rows": rows, "memory": memory, "extrapolation": _extrapolate(rows[0]), "gpu": gpu_available()}
+    return {"rows": rows, "memory": memory, "extrapolation": _extrapolate(rows[0]), "gpu": gpu_available(),
+            "repeats": cfg["repeats"]}
 
 
 def _extrapolate(row: dict) -> list[dict]:
@@ -113,20 +145,25 @@ def markdown(results: dict) -> str:
              "(`granstab/scan/batch.py`: their chunk scene cut out, then one stacked eigenproblem per cluster size, "
              "median of 3) and through a loop "
              "of `analyze` calls, one pass; the error is the largest relative difference of λ_min between the two. "
-             "**Whole scan**: every particle a centre, serially (`--workers 1`) and on a 2-worker local Dask cluster "
-             "(its start-up included), rows written to parquet. This 2-core machine is shared, so the 2-worker "
-             "ratio is a lower bound.", "",
+             "**Whole scan**: every particle a centre, rows written to parquet, medians of "
+             f"{results['repeats']}: serially in this process (`--workers 1`); on a running local Dask cluster of 1 "
+             "and of 2 single-threaded worker processes (`--scheduler`: the scaling 1 → 2 workers, the cluster "
+             "started once, as a real one is); `--workers 2` with its cluster's start-up included (one command). "
+             "This 2-core machine is shared and the client process needs a core too (cutting chunks, writing "
+             "parts), so the 2-worker ratios are lower bounds.", "",
              "| packing | particles | contacts (at yield) | batched / loop (clusters) | speed-up | error (verdicts) | "
-             "whole scan, serial | 2 workers | speed-up | clusters/s | verdicts |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "serial | Dask 1 worker | 2 workers | **1 → 2** | `--workers 2` (start-up incl.) | serial → it | "
+             "clusters/s | verdicts |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results["rows"]:
         lines.append(
             f"| {r['dim']}D random | {r['n_particles']:,} | {r['n_contacts']:,} ({r['at_yield']:,}) | "
             f"{r['batched_s']:.2f} s / {r['loop_s']:.1f} s ({r['clusters']}) | **{r['speedup']:.0f}×** | "
             f"{r['max_rel_diff']:.1e} ({'same' if r['same_verdicts'] else '**DIFFER**'}) | {r['serial_s']:.1f} s | "
-            f"{r['dask2_s']:.1f} s | {r['speedup_2_workers']:.2f}× | {r['clusters_per_s_serial']:.0f} | "
+            f"{r['dask1_s']:.1f} s | {r['dask2_s']:.1f} s | **{r['speedup_1_to_2']:.2f}×** | {r['startup2_s']:.1f} s | "
+            f"{r['speedup_serial_to_2']:.2f}× | {r['clusters_per_s_serial']:.0f} | "
             + ", ".join(f"{k} {v}" for k, v in r["verdicts"].items())
-            + ("" if r["same_verdicts"] else " (**differ between serial and Dask**)") + " |")
+            + ("" if r["same_verdicts_dask"] else " (**differ between serial and Dask**)") + " |")
     if results["gpu"]:
         lines += ["", "| packing | GPU whole scan | clusters/s | vs CPU serial | λ_min rel. diff (verdicts) |",
                   "|---|---|---|---|---|"]
