@@ -3,6 +3,9 @@ at R − δ/2 from each centre, curvature −1/(R − δ/2) of the parallel surf
 unordered pair), compression f·n < 0 or an elastic contact. `radius` is per scene particle; tolerances relative to the radii."""
 import numpy as np
 
+import granstab
+from granstab.io import load
+
 
 def check_contact_geometry(s, radius, rtol=1e-12):
     branch = s.x[s.q] - s.x[s.p]
@@ -27,3 +30,13 @@ def check_contact_geometry(s, radius, rtol=1e-12):
     tension = np.sum(s.force * s.normal, 1) >= 0                        # f_n <= 0: kept, elastic, reported
     assert all(np.asarray(s.state)[tension] == "elastic")
     return delta, tension
+
+
+def check_region_analyses(paths, region: str, min_particles: int):
+    """A cluster cut from the middle of a 3D packing by `region` analyses on the dense path with identity errors at
+    round-off (1e-10 relative) and at least its six rigid motions as zero eigenvalues of the loading branch."""
+    s = load(paths, region=region).scene
+    assert s.n_particles >= min_particles
+    result = granstab.analyze(s, method="dense", max_sliding=8)
+    assert max(result.errors.values()) <= 1e-10
+    assert result.branches[0].n_zero >= 6

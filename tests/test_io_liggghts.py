@@ -15,8 +15,7 @@ import pytest
 
 import granstab
 from granstab.cli import main
-from granstab.io import load
-from io_checks import check_contact_geometry
+from io_checks import check_contact_geometry, check_region_analyses
 
 LIGGGHTS = Path(__file__).parents[1] / "examples" / "liggghts"
 FIXTURE = Path(__file__).parent / "data" / "io" / "liggghts"
@@ -70,10 +69,8 @@ def check_liggghts_packing(folder, tmp_path, capsys):
     row = {(a, b): k for k, (a, b) in enumerate(contacts[:, :2].astype(int).tolist())}
     pick = np.array([row[(a, b)] for a, b in zip(names[scene.p].tolist(), names[scene.q].tolist())])
     assert np.abs(scene.force - f[pick]).max() <= 1e-5 * scale
-    s = load([folder / "atoms.dump", folder / "contacts.dump", SCRIPT], region="box:0.02,0.04,0.02,0.04,0.02,0.04").scene
-    assert s.n_particles >= 6
-    result = granstab.analyze(s, method="dense", max_sliding=8)
-    assert max(result.errors.values()) <= 1e-10 and result.branches[0].n_zero >= 6
+    check_region_analyses([folder / "atoms.dump", folder / "contacts.dump", SCRIPT],
+                          "box:0.02,0.04,0.02,0.04,0.02,0.04", 6)
     return report
 
 
