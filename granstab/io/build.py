@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..reading import SceneError
 from ..scene import Scene, build_scene
-from ..vec import cross
+from ..vec import cross, sum_at
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
@@ -114,7 +114,7 @@ def build(snap: Snapshot, opts: Options) -> Imported:
         raise SceneError(f"--length-scale: must be > 0, got {opts.length_scale}")
     _check_particles(snap)
     names = np.array([str(i) for i in snap.ids], dtype=object)
-    pair = np.char.add(np.char.add(names[snap.p].astype(str), "-"), names[snap.q].astype(str))
+    pair = Pairs(names, snap.p, snap.q)
     scale = opts.length_scale
     x = snap.x * scale
     radius = snap.radius * scale
@@ -162,7 +162,7 @@ def build(snap: Snapshot, opts: Options) -> Imported:
     title = f"{snap.format} {snap.source}" + ("" if snap.frame is None else f" frame {snap.frame}")
     mass, inertia, report["masses"] = _masses(snap, opts.density, radius)
     scene = build_scene(snap.dim, list(names[keep_p]), unwrapped[keep_p], arrays, title=title, source=snap.source,
-                        entries=[f"contact {s}" for s in pair[c]],
+                        entries=lambda k: f"contact {pair[c[k]]}",
                         **({} if mass is None else {"mass": mass[keep_p], "inertia": inertia[keep_p]}))
     report.update({
         "particles": {"in_file": len(x), "in_scene": int(keep_p.sum()), "outside_region": selection["particles"],
@@ -239,6 +239,20 @@ def _unit_normals(snap: Snapshot, pair) -> np.ndarray:
 
 def _names(values) -> list:
     return [str(v) for v in values]
+
+
+class Pairs:
+    """Contact names "id1-id2", made only for the contacts an error or the report names: a million of them cost
+    as much as the rest of the conversion. pairs[c]: one name; pairs[mask or indices]: a list."""
+
+    def __init__(self, names, p, q):
+        self.names, self.p, self.q = names, p, q
+
+    def __getitem__(self, which):
+        if np.ndim(which) == 0:
+            return f"{self.names[self.p[which]]}-{self.names[self.q[which]]}"
+        which = np.asarray(which)
+        return [self[c] for c in (np.flatnonzero(which) if which.dtype == bool else which)]
 
 
 def _stats(values) -> dict:
@@ -391,17 +405,16 @@ def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
     """Per particle |Σ f + wall| / Σ|f| and |Σ (r×f + m)| / Σ(|r||f| + |m|) over the file's contacts and forces."""
     N, d = snap.x.shape
     r = 1 if d == 2 else 3
-    net, torque = np.zeros((N, d)), np.zeros((N, r))
-    fscale, mscale = np.zeros(N), np.zeros(N)
     force = snap.force
     fmag = np.linalg.norm(force, axis=1)
     moment = np.zeros((len(force), r)) if snap.moment is None else snap.moment
     mmag = np.linalg.norm(moment, axis=1)
-    for side, sign, arm in ((snap.p, 1.0, arm_p), (snap.q, -1.0, arm_q)):
-        np.add.at(net, side, sign * force)
-        np.add.at(torque, side, cross(arm, sign * force) + sign * moment)
-        np.add.at(fscale, side, fmag)
-        np.add.at(mscale, side, np.linalg.norm(arm, axis=1) * fmag + mmag)
+    side = np.concatenate([snap.p, snap.q])        # p's contributions, then q's: the order np.add.at sums in
+    net = sum_at(side, np.concatenate([force, -force]), N)
+    torque = sum_at(side, np.concatenate([cross(arm_p, force) + moment, cross(arm_q, -force) - moment]), N)
+    fscale = sum_at(side, np.concatenate([fmag, fmag]), N)
+    mscale = sum_at(side, np.concatenate([np.linalg.norm(arm_p, axis=1) * fmag + mmag,
+                                           np.linalg.norm(arm_q, axis=1) * fmag + mmag]), N)
     if snap.wall_load is not None:
         net += snap.wall_load
         fscale += np.linalg.norm(snap.wall_load, axis=1)
