@@ -268,3 +268,23 @@ def test_timesteps_found_across_chunk_boundaries(monkeypatch, chunk, tmp_path):
             rows = raw[start:end].decode()
             assert rows.count("\n") == count and not rows.startswith("ITEM")
             assert raw[:start].count(b"\n") + 1 == line and raw[mark:start].count(b"\n") == 9
+
+
+def test_converting_shows_progress_when_asked(monkeypatch, capsys, tmp_path):
+    """Large inputs show load_scene's bar (files.ReadProgress) while converting: the dumps' bytes scanned, the
+    chosen timestep's rows parsed, then build and checks; tables likewise; nothing without progress."""
+    import granstab.files
+    monkeypatch.setattr(granstab.files, "PROGRESS_BYTES", 10)
+    plain = load(inputs(2))
+    shown = load(inputs(2), progress=True)
+    err = capsys.readouterr().err
+    assert "checks atoms2d.dump + contacts2d.dump + in.disks2d" in err and "B/s" in err
+    assert np.array_equal(shown.scene.force, plain.scene.force)
+    tables = ROOT / "tests" / "data" / "io" / "table"
+    load(tables, progress=True)
+    assert "checks contacts.csv + particles.csv" in capsys.readouterr().err
+    assert main(["convert", *map(str, inputs(2)), "--out", str(tmp_path / "s.npz"), "--progress"]) == 0
+    assert "checks atoms2d.dump" in capsys.readouterr().err
+    assert np.array_equal(granstab.load_scene(tmp_path / "s.npz").force, plain.scene.force)
+    load(inputs(2))
+    assert capsys.readouterr().err == ""

@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..reading import SceneError
 from ..scene import Scene, build_scene
-from ..vec import cross, sum_at
+from ..vec import sum_at
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
@@ -104,8 +104,11 @@ class Imported:
     frames: list | None
 
 
-def build(snap: Snapshot, opts: Options) -> Imported:
-    """Scene + validation report from a snapshot (see the module docstring for every convention)."""
+def build(snap: Snapshot, opts: Options, progress=None) -> Imported:
+    """Scene + validation report from a snapshot (see the module docstring for every convention); `progress`: a
+    files.ReadProgress, told the stages."""
+    if progress is not None:
+        progress.stage("build")
     if opts.geometry not in GEOMETRY:
         raise SceneError(f"--geometry: must be one of {', '.join(GEOMETRY)}, got {opts.geometry!r}")
     if opts.outside_cone not in OUTSIDE_CONE:
@@ -161,6 +164,8 @@ def build(snap: Snapshot, opts: Options) -> Imported:
     }
     title = f"{snap.format} {snap.source}" + ("" if snap.frame is None else f" frame {snap.frame}")
     mass, inertia, report["masses"] = _masses(snap, opts.density, radius)
+    if progress is not None:
+        progress.stage("checks")
     scene = build_scene(snap.dim, list(names[keep_p]), unwrapped[keep_p], arrays, title=title, source=snap.source,
                         entries=lambda k: f"contact {pair[c[k]]}",
                         **({} if mass is None else {"mass": mass[keep_p], "inertia": inertia[keep_p]}))
@@ -304,13 +309,17 @@ def _geometry(rule, rad_p, rad_q, d, e, normal, snap):
 
 
 def _curvature(kappa, normal):
-    """2D: κ t⊗t with t = e3 × n; 3D: κ (I − n⊗n) (a sphere's parallel surface)."""
+    """2D: κ t⊗t with t = e3 × n; 3D: κ (I − n⊗n) (a sphere's parallel surface). Computed in place (one
+    (M, d, d) array: the same operations in the same order as the plain expressions)."""
     d = normal.shape[1]
     if d == 2:
         t = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
-        return kappa[:, None, None] * t[:, :, None] * t[:, None, :]
-    proj = np.eye(3)[None] - normal[:, :, None] * normal[:, None, :]
-    return kappa[:, None, None] * proj
+        return (kappa[:, None] * t)[:, :, None] * t[:, None, :]                    # (κ t_i) t_j
+    out = normal[:, :, None] * normal[:, None, :]
+    np.subtract(0.0, out, out=out)
+    out[:, np.arange(3), np.arange(3)] += 1.0                                     # I − n⊗n: 0 − x, 1 + (0 − x)
+    out *= kappa[:, None, None]
+    return out
 
 
 # ------------------------------------------------------------------------------------------------ law, cone
@@ -411,7 +420,7 @@ def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
     mmag = np.linalg.norm(moment, axis=1)
     side = np.concatenate([snap.p, snap.q])        # p's contributions, then q's: the order np.add.at sums in
     net = sum_at(side, np.concatenate([force, -force]), N)
-    torque = sum_at(side, np.concatenate([cross(arm_p, force) + moment, cross(arm_q, -force) - moment]), N)
+    torque = sum_at(side, np.concatenate([_cross(arm_p, force) + moment, _cross(arm_q, -force) - moment]), N)
     fscale = sum_at(side, np.concatenate([fmag, fmag]), N)
     mscale = sum_at(side, np.concatenate([np.linalg.norm(arm_p, axis=1) * fmag + mmag,
                                            np.linalg.norm(arm_q, axis=1) * fmag + mmag]), N)
@@ -427,6 +436,15 @@ def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
             "force": _stats(np.linalg.norm(net[counted], axis=1) / fscale[counted]),
             "moment": _stats(np.linalg.norm(torque[counted], axis=1) / np.maximum(mscale[counted], 1e-300)),
             "scale": "|Σf| over Σ|f| of the particle; |Σ(r×f + m)| over Σ(|r||f| + |m|)"}
+
+
+def _cross(a, b):
+    """a × b (2D: the e3 component, (M, 1)) by components: vec.cross's values (its zeros' signs may differ; the
+    report takes norms) without its (M, 3, 3) matrices, 4× faster in 3D."""
+    if a.shape[1] == 2:
+        return (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])[:, None]
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
 
 
 # ------------------------------------------------------------------------------------------------ selection

@@ -13,8 +13,9 @@ from ..reading import SceneError
 WINDOW_BUFFER = 1 << 20   # bytes read at a time from a block of rows
 
 
-def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_rows=0) -> np.ndarray:
-    """Rows of numbers with `len(fields)` columns or more, as a float (rows, columns) array.
+def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_rows=0, progress=None) -> np.ndarray:
+    """Rows of numbers with `len(fields)` columns or more, as a float (rows, columns) array; `progress(n_bytes)` is
+    called as the file is read.
 
     `fields` names the leading columns (for messages); extra columns are kept. Raises SceneError
     "<file>: line L: <field>: <problem>" for a missing file, a non-number, a short row or a non-finite value."""
@@ -22,7 +23,11 @@ def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_ro
     try:
         with warnings.catch_warnings():  # an empty table is reported below, as one line
             warnings.simplefilter("ignore", UserWarning)
-            data = np.loadtxt(path, delimiter=delimiter, comments=comments, skiprows=skiprows, ndmin=2)
+            if progress is None:
+                data = np.loadtxt(path, delimiter=delimiter, comments=comments, skiprows=skiprows, ndmin=2)
+            else:
+                with _window(path, 0, path.stat().st_size, progress) as lines:
+                    data = np.loadtxt(lines, delimiter=delimiter, comments=comments, skiprows=skiprows, ndmin=2)
     except OSError as exc:
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
     except (ValueError, UnicodeDecodeError):
