@@ -309,16 +309,22 @@ def _geometry(rule, rad_p, rad_q, d, e, normal, snap):
 
 
 def _curvature(kappa, normal):
-    """2D: κ t⊗t with t = e3 × n; 3D: κ (I − n⊗n) (a sphere's parallel surface). Computed in place (one
-    (M, d, d) array: the same operations in the same order as the plain expressions)."""
-    d = normal.shape[1]
+    """2D: κ t⊗t with t = e3 × n; 3D: κ (I − n⊗n) (a sphere's parallel surface). Written entry by entry: numpy
+    broadcasts (M, d, 1) × (M, 1, d) slowly for d = 2, 3 (the same operations on each entry: the same numbers)."""
+    M, d = normal.shape
+    out = np.empty((M, d, d))
     if d == 2:
-        t = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
-        return (kappa[:, None] * t)[:, :, None] * t[:, None, :]                    # (κ t_i) t_j
-    out = normal[:, :, None] * normal[:, None, :]
-    np.subtract(0.0, out, out=out)
-    out[:, np.arange(3), np.arange(3)] += 1.0                                     # I − n⊗n: 0 − x, 1 + (0 − x)
-    out *= kappa[:, None, None]
+        t = (-normal[:, 1], normal[:, 0])
+        for i in range(2):
+            kt = kappa * t[i]                               # (κ t_i) t_j
+            for j in range(2):
+                np.multiply(kt, t[j], out=out[:, i, j])
+        return out
+    for i in range(3):
+        for j in range(3):
+            np.multiply(normal[:, i], normal[:, j], out=out[:, i, j])
+            np.subtract(1.0 if i == j else 0.0, out[:, i, j], out=out[:, i, j])     # I − n⊗n
+            out[:, i, j] *= kappa
     return out
 
 
