@@ -20,10 +20,10 @@ def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Sc
     Folders and other files (DEM snapshots, experiments) go to granstab.io.load with its defaults."""
     from .io import is_snapshot, load
     if is_snapshot(path):
-        return load(path).scene
+        return load(path, progress=progress).scene
     path = Path(path)
     source = str(path)
-    with _ReadProgress(path, progress) as bar:
+    with ReadProgress(path, progress) as bar:
         if path.suffix.lower() == ".npz":
             arrays = load_npz(path, source)
             bar.stage("checks")
@@ -53,19 +53,22 @@ def save_scene(scene: Scene, path) -> Path:
     return path
 
 
-class _ReadProgress:
-    """tqdm bar over a file's bytes, then its stages (optional dependency, only for files > PROGRESS_BYTES)."""
+class ReadProgress:
+    """tqdm bar over the bytes of a file (or of several: a snapshot's dumps or tables), then its stages (optional
+    dependency, only for inputs > PROGRESS_BYTES). Used by load_scene and granstab.io.load."""
 
-    def __init__(self, path: Path, enabled: bool):
-        self.bar = None
+    def __init__(self, paths, enabled: bool):
+        self.bar, self.label = None, ""
         if enabled:
+            paths = [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
             try:
-                size = path.stat().st_size
+                size = sum(p.stat().st_size for p in paths)
                 from tqdm.auto import tqdm
             except (OSError, ImportError):
                 return
             if size > PROGRESS_BYTES:
-                self.bar = tqdm(total=size, unit="B", unit_scale=True, desc=f"reading {path.name}", mininterval=0.5)
+                self.label = " + ".join(p.name for p in paths)
+                self.bar = tqdm(total=size, unit="B", unit_scale=True, desc=f"reading {self.label}", mininterval=0.5)
 
     def __enter__(self):
         return self
@@ -78,10 +81,14 @@ class _ReadProgress:
         if self.bar is not None:
             self.bar.update(n)
 
-    def stage(self, name: str) -> None:
+    def stage(self, name: str, total: int | None = None) -> None:
+        """The next stage; `total`: it reads that many bytes more (the bar starts again from 0)."""
         if self.bar is not None:
-            self.bar.set_description(f"{name} {self.bar.desc.split(' ', 1)[-1]}")
+            if total is not None:
+                self.bar.reset(total=total)
+            self.bar.set_description(f"{name} {self.label}")
             self.bar.refresh()
+
 
 
 def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:

@@ -18,7 +18,7 @@ from .fileformat import paused_gc
 from .reading import Reader, SceneError, describe, first, read_law, row_problem
 from .tables import ArrayTable, TextTable
 from .tolerances import COORDINATE_RATIO, DEFAULT, MAX_MAGNITUDE, MIN_SCALE, Tolerances
-from .vec import cross, rot_dim, tangent_basis
+from .vec import cross, rot_dim, sum_at, tangent_basis
 
 STATES = ("auto", "elastic", "sliding")
 LAW_KEYS = ("k", "alpha", "mu", "rolling_stiffness")
@@ -590,14 +590,12 @@ def _check_friction(scene: Scene, name) -> None:
 
 def equilibrium_loads(scene: Scene):
     """b^p = -Σ f^pq, w^p = -Σ (r^pq × f^pq + m^pq) over both sides of every contact (eq:equil1)."""
-    N, d, r = scene.n_particles, scene.dim, rot_dim(scene.dim)
-    b = np.zeros((N, d))
-    w = np.zeros((N, r))
+    N = scene.n_particles
     f = scene.force
-    np.add.at(b, scene.p, -f)
-    np.add.at(b, scene.q, f)
-    np.add.at(w, scene.p, -(cross(scene.r_pq, f) + scene.moment))
-    np.add.at(w, scene.q, -(cross(scene.r_qp, -f) - scene.moment))
+    side = np.concatenate([scene.p, scene.q])       # p's terms, then q's (sum_at: in this order, as np.add.at)
+    b = sum_at(side, np.concatenate([-f, f]), N)
+    w = sum_at(side, np.concatenate([-(cross(scene.r_pq, f) + scene.moment),
+                                     -(cross(scene.r_qp, -f) - scene.moment)]), N)
     return b, w
 
 
@@ -606,11 +604,10 @@ def _load_scales(scene: Scene):
     N = scene.n_particles
     fmag = np.linalg.norm(scene.force, axis=1)
     mmag = np.linalg.norm(scene.moment, axis=1)
-    fs = np.zeros(N)
-    ms = np.zeros(N)
-    for side, rr in ((scene.p, scene.r_pq), (scene.q, scene.r_qp)):
-        np.add.at(fs, side, fmag)
-        np.add.at(ms, side, np.linalg.norm(rr, axis=1) * fmag + mmag)
+    side = np.concatenate([scene.p, scene.q])
+    fs = sum_at(side, np.concatenate([fmag, fmag]), N)
+    ms = sum_at(side, np.concatenate([np.linalg.norm(scene.r_pq, axis=1) * fmag + mmag,
+                                      np.linalg.norm(scene.r_qp, axis=1) * fmag + mmag]), N)
     return fs, ms
 
 

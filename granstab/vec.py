@@ -61,3 +61,15 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
     t1 /= np.linalg.norm(t1, axis=-1, keepdims=True)
     t2 = np.cross(n, t1)
     return np.stack([t1, t2], axis=-1)
+
+
+def sum_at(index: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """np.add.at(np.zeros((n, ...)), index, values) by np.bincount, column by column: the same sums in the same
+    order (bit for bit), several times faster for 10⁵-10⁶ entries. values: (K,) or (K, w)."""
+    index = np.asarray(index, dtype=np.intp)
+    if values.ndim == 1:
+        return np.bincount(index, weights=values, minlength=n).astype(float, copy=False)
+    out = np.empty((n, values.shape[1]))
+    for k in range(values.shape[1]):
+        out[:, k] = np.bincount(index, weights=values[:, k], minlength=n)
+    return out

@@ -34,6 +34,17 @@ def test_quick_run_of_one_topic_writes_its_section_and_results(tmp_path):
     assert all(d[key] > 0 for d in scenes.values() for key in ("t_build", "t_analyze", "t_total"))
 
 
+def test_converting_checks_what_it_converts():
+    """The converting topic asserts that every converted scene reproduces its packing (contacts, forces, centres,
+    law); in quick mode at 10³ and 10⁴ contacts, 2D and 3D, LAMMPS dumps and tables."""
+    from benchmarks import converting
+    results = converting.run(quick=True)
+    assert {(r["dim"], r["format"]) for r in results["rows"]} == {(d, f) for d in (2, 3) for f in ("lammps", "table")}
+    assert all(r["check"]["ok"] and r["dropped_non_touching"] == (r["contact_rows"] - r["check"]["contacts"])
+               for r in results["rows"])
+    assert "## Converting DEM output" in converting.markdown(results)
+
+
 @pytest.mark.slow
 def test_quick_run_of_every_topic(tmp_path):
     """Every topic runs against the current core (a renamed core function breaks here, not in a release run) and

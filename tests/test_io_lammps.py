@@ -1,6 +1,7 @@
 """LAMMPS dumps (per-atom + pair/local contact dump + input script) on fixtures cut from examples/dem's run:
 a corner of the periodic cell, so that contacts wrap around both boundaries (examples/dem/cut_fixture.py)."""
 import io
+import re
 from pathlib import Path
 
 import numpy as np
@@ -245,3 +246,45 @@ def test_rolling_columns_need_every_component(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err == (f"{ROLLING[1]}: timestep 14000: frz: no column (3D rolling resistance needs frx, "
                                "fry, frz)"), err
+
+
+@pytest.mark.parametrize("chunk", [5, 14, 15, 16, 4096])
+def test_timesteps_found_across_chunk_boundaries(monkeypatch, chunk, tmp_path):
+    """The scan reads a dump in chunks: a chunk edge inside or next to an ITEM: TIMESTEP line finds every
+    timestep, its rows' first line and byte range as a scan of the whole file does; the rows in that range are
+    the timestep's rows (CRLF line ends included)."""
+    from granstab.io import lammps
+    crlf = tmp_path / "contacts2d.dump"
+    crlf.write_bytes((DATA / "contacts2d.dump").read_bytes().replace(b"\n", b"\r\n"))
+    for path in (DATA / "contacts2d.dump", DATA / "atoms3d.dump", crlf):
+        whole = [(b.timestep, b.count, b.first_line, b.start, b.end) for b in lammps.scan_dump(path)]
+        monkeypatch.setattr(lammps, "CHUNK", chunk)
+        assert [(b.timestep, b.count, b.first_line, b.start, b.end) for b in lammps.scan_dump(path)] == whole
+        monkeypatch.undo()
+        raw = path.read_bytes()
+        marks = [m.start() for m in re.finditer(rb"^ITEM: TIMESTEP", raw, re.M)]
+        assert [step for step, *_ in whole] == [int(raw[m:].split(b"\n")[1]) for m in marks]
+        for (step, count, line, start, end), mark in zip(whole, marks):
+            rows = raw[start:end].decode()
+            assert rows.count("\n") == count and not rows.startswith("ITEM")
+            assert raw[:start].count(b"\n") + 1 == line and raw[mark:start].count(b"\n") == 9
+
+
+def test_converting_shows_progress_when_asked(monkeypatch, capsys, tmp_path):
+    """Large inputs show load_scene's bar (files.ReadProgress) while converting: the dumps' bytes scanned, the
+    chosen timestep's rows parsed, then build and checks; tables likewise; nothing without progress."""
+    import granstab.files
+    monkeypatch.setattr(granstab.files, "PROGRESS_BYTES", 10)
+    plain = load(inputs(2))
+    shown = load(inputs(2), progress=True)
+    err = capsys.readouterr().err
+    assert "checks atoms2d.dump + contacts2d.dump + in.disks2d" in err and "B/s" in err
+    assert np.array_equal(shown.scene.force, plain.scene.force)
+    tables = ROOT / "tests" / "data" / "io" / "table"
+    load(tables, progress=True)
+    assert "checks contacts.csv + particles.csv" in capsys.readouterr().err
+    assert main(["convert", *map(str, inputs(2)), "--out", str(tmp_path / "s.npz"), "--progress"]) == 0
+    assert "checks atoms2d.dump" in capsys.readouterr().err
+    assert np.array_equal(granstab.load_scene(tmp_path / "s.npz").force, plain.scene.force)
+    load(inputs(2))
+    assert capsys.readouterr().err == ""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..files import ReadProgress
 from ..reading import SceneError
 from .build import GEOMETRY, OUTSIDE_CONE, Imported, Options, build
 from .report import format_report
@@ -40,14 +41,16 @@ def detect(paths: list[Path]) -> str:
     raise SceneError(f"{first}: format: not recognised (known: {', '.join(FORMATS)}); name it with --format")
 
 
-def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, **options) -> Imported:
+def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, progress: bool = False,
+         **options) -> Imported:
     """Read a snapshot (a file, a folder or several files) into a Scene with its validation report.
     A folder that is not a RigidLibrary layout stands for the files in it (one snapshot's dumps or tables).
 
     Options: k, alpha, mu (override the file's law), geometry ("centres" | "touching"), outside_cone
     ("sliding" | "project" | "elastic" | "error"), yield_rtol, length_scale (file length unit → scene unit),
     units (its name), region (ids, or {"box": [lo, hi, ...]} on scaled centres), keep_rattlers,
-    columns (formats with named columns)."""
+    columns (formats with named columns). progress: a bar on stderr while large files are read (LAMMPS dumps and
+    tables: bytes scanned and parsed), then the stages (build, checks), as load_scene(..., progress=True) shows."""
     paths = [Path(p) for p in ([path_or_paths] if isinstance(path_or_paths, (str, Path)) else path_or_paths)]
     if not paths:
         raise SceneError("granstab.io.load: no input")
@@ -66,20 +69,21 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, **op
     if options.get("columns") and fmt not in ("lammps", "table"):
         raise SceneError(f"--columns: the {fmt} format has fixed columns (only lammps and table name them)")
     which = frame if frame is not None else timestep
-    if fmt == "rigidlibrary-annulus":
-        snap = rigidlibrary.read_annulus(paths[0], which)
-    elif fmt == "rigidlibrary-datasim":
-        snap = rigidlibrary.read_datasim(paths[0], which)
-    elif fmt == "mercurydpm":
-        snap = mercury.read_mercury(paths, which)
-    elif fmt == "lammps":
-        snap = lammps.read_lammps(paths, which, options.get("columns"))
-    else:
-        snap = table.read_tables(paths, which, options.get("columns"))
-    if isinstance(options.get("region"), str):
-        options["region"] = parse_region(options["region"])
-    opts = Options(**{k: v for k, v in options.items() if k in OPTION_KEYS})
-    return build(snap, opts)
+    with ReadProgress(paths, progress) as bar:
+        if fmt == "rigidlibrary-annulus":
+            snap = rigidlibrary.read_annulus(paths[0], which)
+        elif fmt == "rigidlibrary-datasim":
+            snap = rigidlibrary.read_datasim(paths[0], which)
+        elif fmt == "mercurydpm":
+            snap = mercury.read_mercury(paths, which)
+        elif fmt == "lammps":
+            snap = lammps.read_lammps(paths, which, options.get("columns"), progress=bar)
+        else:
+            snap = table.read_tables(paths, which, options.get("columns"), progress=bar)
+        if isinstance(options.get("region"), str):
+            options["region"] = parse_region(options["region"])
+        opts = Options(**{k: v for k, v in options.items() if k in OPTION_KEYS})
+        return build(snap, opts, progress=bar)
 
 
 def parse_region(text: str):

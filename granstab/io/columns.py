@@ -75,13 +75,41 @@ def contact_moments(col: dict, dim: int, normal=None, r_eff=None):
 
 
 def to_indices(ids: np.ndarray, values: np.ndarray, name: str, line_of_row, what: str) -> np.ndarray:
-    """Particle indices of the ids in `values`; an id not in `ids` is a one-line error naming its line."""
+    """Particle indices of the ids in `values`; an id not in `ids` is a one-line error naming its line.
+    Integer ids in a compact range (DEM codes number particles 1..N) are looked up in a table, O(1) each;
+    others by binary search."""
+    table = _id_table(ids)
+    if table is not None:
+        lo, index = table
+        key = values - lo
+        inside = (key >= 0) & (key < len(index))
+        found = np.full(len(values), -1, np.int64)
+        found[inside] = index[key[inside].astype(np.int64)]
+        bad = np.flatnonzero(~inside | (found < 0) | (ids[np.maximum(found, 0)] != values))
+        if bad.size:
+            raise SceneError(f"{line_of_row(bad[0])}: {name}: unknown particle id {values[bad[0]]:g} ({what})")
+        return found
     order = np.argsort(ids)
     where = np.minimum(np.searchsorted(ids[order], values), len(ids) - 1)
     bad = np.flatnonzero(ids[order][where] != values)
     if bad.size:
         raise SceneError(f"{line_of_row(bad[0])}: {name}: unknown particle id {values[bad[0]]:g} ({what})")
     return order[where]
+
+
+def _id_table(ids: np.ndarray):
+    """(lowest id, index by id - lowest: -1 where no particle) for integer-valued ids whose range is at most a few
+    times their number; None otherwise."""
+    if len(ids) == 0 or ids.dtype.kind not in "iuf":
+        return None
+    lo, hi = ids.min(), ids.max()
+    if not (np.isfinite(lo) and np.isfinite(hi)) or hi - lo > 4 * len(ids) + 1024:
+        return None
+    if ids.dtype.kind == "f" and not np.array_equal(ids, np.floor(ids)):
+        return None
+    index = np.full(int(hi - lo) + 1, -1, np.int64)
+    index[(ids - lo).astype(np.int64)] = np.arange(len(ids))
+    return lo, index
 
 
 def unique_ids(ids: np.ndarray, line_of_row, what: str) -> None:

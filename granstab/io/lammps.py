@@ -29,7 +29,9 @@ import numpy as np
 from ..reading import SceneError
 from .build import Snapshot, branch_vectors
 from .columns import CONTACT_NAMES, columns_option, contact_forces, contact_moments, to_indices, unique_ids
-from .text import read_block
+from .text import read_window
+
+CHUNK = 1 << 23          # bytes per step of the scan for timesteps
 
 ATOM_ALIASES = {"xu": "x", "yu": "y", "zu": "z", "xs": "xs", "ys": "ys", "zs": "zs"}
 # LIGGGHTS compute pair/gran/local: its columns come in this order whatever the keyword order (3.8.0, checked on
@@ -55,7 +57,8 @@ def is_dump(path: Path) -> bool:
 
 @dataclass
 class Block:
-    """One timestep of a dump: header values and where its rows are."""
+    """One timestep of a dump: header values and where its rows are (bytes [start, end), from file line
+    `first_line`)."""
 
     timestep: int
     count: int
@@ -64,30 +67,65 @@ class Block:
     periodic: tuple
     columns: list
     kind: str                   # "ATOMS" or "ENTRIES"
-    text: str
+    start: int
+    end: int
     first_line: int
 
 
-def scan_dump(path: Path) -> list[Block]:
-    """Split a dump into timesteps (one loop per timestep, rows parsed later for the chosen one only)."""
+MARK = b"ITEM: TIMESTEP"
+HEADER_LINES = 25               # a timestep's header is read up to this many lines
+
+
+def scan_dump(path: Path, progress=None) -> list[Block]:
+    """Split a dump into timesteps: one pass over its bytes in chunks (C-speed searches for the ITEM: TIMESTEP
+    lines, newlines counted for line numbers; memory O(chunk), not the file), then each timestep's header. Rows
+    are parsed later, for the chosen timestep only (`rows`). `progress(n_bytes)` is called as bytes are read."""
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        with open(path, "rb") as fh:
+            starts, lines, size = _marks(fh, progress)
+            if not starts:
+                raise SceneError(f"{path}: line 1: ITEM: TIMESTEP: missing (not a LAMMPS dump)")
+            ends = starts[1:] + [size]
+            return [_header(path, fh, start, end, line) for start, end, line in zip(starts, ends, lines)]
     except OSError as exc:
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
-    starts = [m.start() for m in re.finditer(r"^ITEM: TIMESTEP", text, re.M)]
-    if not starts:
-        raise SceneError(f"{path}: line 1: ITEM: TIMESTEP: missing (not a LAMMPS dump)")
-    blocks, line = [], 1 + text.count("\n", 0, starts[0])
-    for k, start in enumerate(starts):
-        end = starts[k + 1] if k + 1 < len(starts) else len(text)
-        block = text[start:end]
-        blocks.append(_header(path, block, line))
-        line += block.count("\n")
-    return blocks
 
 
-def _header(path: Path, block: str, line: int) -> Block:
-    lines = block.split("\n", 24)
+def _marks(fh, progress=None):
+    """Byte offsets and 1-based line numbers of the lines that start with ITEM: TIMESTEP, and the file size."""
+    pattern = b"\n" + MARK
+    starts, lines = ([0], [1]) if fh.read(len(MARK)) == MARK else ([], [])
+    fh.seek(0)
+    tail, size, newlines = b"", 0, 0   # the last bytes read (a mark may straddle two chunks), bytes and "\n" so far
+    while chunk := fh.read(CHUNK):
+        if progress is not None:
+            progress(len(chunk))
+        buf = tail + chunk
+        base, before, counted = size - len(tail), newlines - tail.count(b"\n"), 0
+        i = buf.find(pattern)
+        while i >= 0:
+            before += buf.count(b"\n", counted, i + 1)
+            counted = i + 1
+            starts.append(base + i + 1)
+            lines.append(before + 1)
+            i = buf.find(pattern, i + 1)
+        size += len(chunk)
+        newlines += chunk.count(b"\n")
+        tail = buf[-(len(pattern) - 1):]
+    return starts, lines, size
+
+
+def _header(path: Path, fh, start: int, end: int, line: int) -> Block:
+    fh.seek(start)
+    lines, after, pos = [], [], start            # the header's lines (as str.split would give) and their ends
+    while len(lines) < HEADER_LINES and pos < end:
+        raw = fh.readline(end - pos)
+        pos += len(raw)
+        lines.append(raw.decode("utf-8", "replace").rstrip("\r\n"))
+        after.append(pos)
+        if pos == end and raw.endswith(b"\n") and len(lines) < HEADER_LINES:
+            lines.append("")
+            after.append(pos)
     values = {"tilt": np.zeros(3), "bounds": None, "periodic": (False, False, False)}
     i = 0
 
@@ -109,9 +147,8 @@ def _header(path: Path, block: str, line: int) -> Block:
             kind, _, cols = word.partition(" ")
             if "timestep" not in values or "count" not in values:
                 fail(kind, "header incomplete (TIMESTEP and NUMBER OF ... must come first)")
-            rest = block.split("\n", i + 1)[-1] if block.count("\n") > i else ""
             return Block(values["timestep"], values["count"], values["bounds"], values["tilt"], values["periodic"],
-                         cols.split(), kind, rest, line + i + 1)
+                         cols.split(), kind, after[i], end, line + i + 1)
         if i + 1 >= len(lines):
             fail(word.split()[0] if word else "ITEM", "file ends inside the header (truncated?)")
         if word == "TIMESTEP":
@@ -311,13 +348,15 @@ def _is_number(text: str) -> bool:
 
 # ------------------------------------------------------------------------------------------------ reading
 
-def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) -> Snapshot:
+def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, progress=None) -> Snapshot:
+    """The snapshot of one timestep; `progress`: a files.ReadProgress (bytes scanned, then the rows parsed)."""
+    update = None if progress is None else progress.update
     dumps = [p for p in paths if is_dump(p)]
     scripts = [p for p in paths if p not in dumps]
     if len(scripts) > 1:
         raise SceneError(f"{scripts[1]}: not a LAMMPS dump, and {scripts[0].name} is already the input script")
     script = read_script(scripts[0]) if scripts else None
-    indexed = [(p, scan_dump(p)) for p in dumps]
+    indexed = [(p, scan_dump(p, update)) for p in dumps]
     atoms = [(p, b) for p, b in indexed if b[0].kind == "ATOMS"]
     local = [(p, b) for p, b in indexed if b[0].kind == "ENTRIES"]
     if len(atoms) != 1 or len(local) != 1:
@@ -333,9 +372,11 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
             which = "mismatched atom/contact timesteps: " if timestep is None else ""
             raise SceneError(f"{path}: timestep {step}: timestep: {which}not in the file (it has {shown})")
     ablock, cblock = ablocks[a_steps.index(step)], cblocks[c_steps.index(step)]
-    ids, x, radius, mass, dim_hint = _atoms(apath, ablock)
+    if progress is not None:
+        progress.stage("parse", total=ablock.end - ablock.start + cblock.end - cblock.start)
+    ids, x, radius, mass, dim_hint = _atoms(apath, ablock, update)
     names = _contact_columns(cpath, cblock, columns, script)
-    data = read_block(cblock.text, cblock.first_line, cpath, names, cblock.count, "entries")
+    data = read_window(cpath, cblock.start, cblock.end, cblock.first_line, names, cblock.count, "entries", update)
     col = {name: data[:, k] for k, name in enumerate(names) if name != "-"}
     dim = script["dimension"] if script and script["dimension"] else dim_hint
     for need in ("id1", "id2"):
@@ -374,14 +415,14 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None) ->
         contact_line=lambda c: f"{cpath}: line {cblock.first_line + rows[c]}")
 
 
-def _atoms(path: Path, block: Block):
+def _atoms(path: Path, block: Block, progress=None):
     names = [ATOM_ALIASES.get(c, c) for c in block.columns]
     for need in ("id",):
         if need not in names:
             raise SceneError(f"{path}: timestep {block.timestep}: {need}: no column in ITEM: ATOMS")
     if "radius" not in names and "diameter" not in names:
         raise SceneError(f"{path}: timestep {block.timestep}: radius: no radius or diameter column in ITEM: ATOMS")
-    data = read_block(block.text, block.first_line, path, names, block.count, "atoms")
+    data = read_window(path, block.start, block.end, block.first_line, names, block.count, "atoms", progress)
     col = {name: data[:, k] for k, name in enumerate(names)}
     ids = col["id"].astype(np.int64)
     if np.any(ids != col["id"]):
@@ -392,7 +433,7 @@ def _atoms(path: Path, block: Block):
     if "x" in col:
         x = np.stack([col["x"], col["y"], col.get("z", np.zeros(len(ids)))], axis=1)
     elif "xs" in col and block.bounds is not None:
-        lat = lattice_of(Block(0, 0, block.bounds, block.tilt, (True,) * 3, [], "", "", 0), 3)
+        lat = lattice_of(Block(0, 0, block.bounds, block.tilt, (True,) * 3, [], "", 0, 0, 0), 3)
         lo = block.bounds[:, 0] - np.array([min(0.0, *block.tilt[:2], block.tilt[0] + block.tilt[1]),
                                             min(0.0, block.tilt[2]), 0.0])
         x = lo + np.stack([col["xs"], col["ys"], col.get("zs", np.zeros(len(ids)))], axis=1) @ lat

@@ -47,7 +47,9 @@ def is_table(path: Path) -> bool:
     return {"id1", "id2"} <= set(names) or {"id", "x", "y"} <= set(names)
 
 
-def read_tables(paths: list[Path], frame=None, columns: str | None = None) -> Snapshot:
+def read_tables(paths: list[Path], frame=None, columns: str | None = None, progress=None) -> Snapshot:
+    """The snapshot of one frame; `progress`: a files.ReadProgress (bytes parsed)."""
+    update = None if progress is None else progress.update
     kinds = {p: header(p) for p in paths}
     particle_files = [p for p, h in kinds.items() if {"id", "x", "y"} <= set(h[0])]
     contact_files = [p for p in paths if p not in particle_files]
@@ -72,8 +74,10 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None) -> Sn
             raise SceneError(f"{path}: line {line}: {need}: missing column")
     if not {"radius", "r", "diameter"} & set(pnames):
         raise SceneError(f"{ppath}: line {pline}: radius: missing column (radius, r or diameter)")
-    P = read_table(ppath, pnames, delimiter=pdelim, skiprows=pline, min_rows=1)
-    C = read_table(cpath, cnames, delimiter=cdelim, skiprows=cline)
+    if progress is not None:
+        progress.stage("parse")
+    P = read_table(ppath, pnames, delimiter=pdelim, skiprows=pline, min_rows=1, progress=update)
+    C = read_table(cpath, cnames, delimiter=cdelim, skiprows=cline, progress=update)
     pcol = {n: P[:, k] for k, n in enumerate(pnames)}
     ccol = {n: C[:, k] for k, n in enumerate(cnames) if n != "-"}
     prow, crow, frames, which = _frame_rows(ppath, cpath, pcol, ccol, frame)

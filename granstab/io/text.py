@@ -10,9 +10,12 @@ import numpy as np
 
 from ..reading import SceneError
 
+WINDOW_BUFFER = 1 << 20   # bytes read at a time from a block of rows
 
-def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_rows=0) -> np.ndarray:
-    """Rows of numbers with `len(fields)` columns or more, as a float (rows, columns) array.
+
+def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_rows=0, progress=None) -> np.ndarray:
+    """Rows of numbers with `len(fields)` columns or more, as a float (rows, columns) array; `progress(n_bytes)` is
+    called as the file is read.
 
     `fields` names the leading columns (for messages); extra columns are kept. Raises SceneError
     "<file>: line L: <field>: <problem>" for a missing file, a non-number, a short row or a non-finite value."""
@@ -20,7 +23,11 @@ def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_ro
     try:
         with warnings.catch_warnings():  # an empty table is reported below, as one line
             warnings.simplefilter("ignore", UserWarning)
-            data = np.loadtxt(path, delimiter=delimiter, comments=comments, skiprows=skiprows, ndmin=2)
+            if progress is None:
+                data = np.loadtxt(path, delimiter=delimiter, comments=comments, skiprows=skiprows, ndmin=2)
+            else:
+                with _window(path, 0, path.stat().st_size, progress) as lines:
+                    data = np.loadtxt(lines, delimiter=delimiter, comments=comments, skiprows=skiprows, ndmin=2)
     except OSError as exc:
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
     except (ValueError, UnicodeDecodeError):
@@ -97,12 +104,37 @@ def read_block(text: str, first_line: int, path, fields, rows: int, what: str) -
     """A block of `rows` whitespace-separated rows of len(fields) numbers starting at file line `first_line`
     (a dump's ATOMS/ENTRIES section), with one-line errors naming the line and field."""
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            data = np.loadtxt(io.StringIO(text), ndmin=2, comments=None)
+        data = _loadtxt(io.StringIO(text))
     except ValueError:
         scan_rows(enumerate(text.splitlines(), first_line), path, fields, comments=None)
         raise SceneError(f"{path}: line {first_line}: {what}: not a numeric table") from None
+    return _check_block(data, first_line, path, fields, rows, what)
+
+
+def read_window(path, start: int, end: int, first_line: int, fields, rows: int, what: str,
+                progress=None) -> np.ndarray:
+    """`read_block` of the bytes [start, end) of a file (a dump's ATOMS/ENTRIES rows), parsed by numpy.loadtxt
+    straight from the file: memory is that of the rows of this block, not of the file. `progress(n_bytes)` is
+    called as the bytes are read."""
+    try:
+        with _window(path, start, end, progress) as lines:
+            data = _loadtxt(lines)
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    except ValueError:
+        with _window(path, start, end) as lines:
+            scan_rows(enumerate(lines, first_line), path, fields, comments=None)
+        raise SceneError(f"{path}: line {first_line}: {what}: not a numeric table") from None
+    return _check_block(data, first_line, path, fields, rows, what)
+
+
+def _loadtxt(lines) -> np.ndarray:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return np.loadtxt(lines, ndmin=2, comments=None)
+
+
+def _check_block(data: np.ndarray, first_line: int, path, fields, rows: int, what: str) -> np.ndarray:
     if data.shape[0] != rows:
         raise SceneError(f"{path}: line {first_line + data.shape[0]}: {what}: {data.shape[0]} rows where the header "
                          f"says {rows} (truncated file?)")
@@ -115,6 +147,36 @@ def read_block(text: str, first_line: int, path, fields, rows: int, what: str) -
         raise SceneError(f"{path}: line {first_line + row}: {column_name(fields, col)}: not a finite number "
                          f"({data[row, col]})")
     return data
+
+
+class _Bytes(io.RawIOBase):
+    """The bytes [start, end) of a file as a raw stream (what a dump block's rows are), reporting progress."""
+
+    def __init__(self, path, start: int, end: int, progress=None):
+        self.fh = open(path, "rb", buffering=0)
+        self.fh.seek(start)
+        self.left, self.progress = end - start, progress
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        view = memoryview(buffer)[:max(0, min(len(buffer), self.left))]
+        n = self.fh.readinto(view) if len(view) else 0
+        self.left -= n
+        if self.progress is not None and n:
+            self.progress(n)
+        return n
+
+    def close(self) -> None:
+        self.fh.close()
+        super().close()
+
+
+def _window(path, start: int, end: int, progress=None) -> io.TextIOWrapper:
+    """Text lines of the bytes [start, end) of `path` (universal newlines, undecodable bytes replaced)."""
+    return io.TextIOWrapper(io.BufferedReader(_Bytes(path, start, end, progress), WINDOW_BUFFER), encoding="utf-8",
+                            errors="replace")
 
 
 def line_of(path, row: int, comments="#", skiprows=0) -> int:
