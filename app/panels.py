@@ -25,6 +25,7 @@ FRAME = 1 / 20            # s per animation frame
 MODES_PER_BRANCH = 24     # the mode picker lists the lowest non-rigid modes of each branch
 SEND_WAIT = 0.1          # s at most that the scene waits for the verdict to leave in a window of its own
 SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for (seconds of browser work per update)
+TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
 
 
 class ClientUI:
@@ -59,6 +60,9 @@ class ClientUI:
         self.client.scene.configure_default_lights(enabled=True, cast_shadow=False)
         gui = self.client.gui
         gui.configure_theme(control_width="large", show_share_button=False)
+        # hover hints: viser opens one above its input (below where no room), over the neighbouring inputs, so only
+        # the Metric menu, first in its tab, has one; labels and the text beside say the rest (viser 1.1 shows no
+        # hints on buttons)
         self.headline = gui.add_html("")
         self.message = gui.add_html("", visible=False)
         tabs = gui.add_tab_group()
@@ -68,27 +72,23 @@ class ClientUI:
             self.preset.on_update(lambda _: self.run(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(lambda _: self.run(self._upload))
-            self.path = gui.add_text("Open path", initial_value="", hint="a scene file, DEM snapshot or RigidLibrary "
-                                     "folder on the machine running the explorer (what `granstab analyze` reads)")
+            self.path = gui.add_text("Path on server", initial_value="")
             self.path.on_update(lambda _: self.run(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
             self.frame.on_update(lambda _: self.run(self._pick_frame))
-            self.analyse = gui.add_button("Analyse the whole packing", visible=False,
-                                          hint="large packings are drawn at once and analysed only on request")
+            self.analyse = gui.add_button("Analyse the whole packing", visible=False)
             self.analyse.on_click(lambda _: self.run(self._analyse))
             self.cluster_name = gui.add_text("Open cluster of", initial_value="", visible=False)
             self.cluster_name.on_update(lambda _: self.run(self._open_cluster, self.cluster_name.value.strip()))
-            self.back = gui.add_button("Back to the map", visible=False, hint="the scan map this cluster came from")
+            self.back = gui.add_button("Back to the map", visible=False)
             self.back.on_click(lambda _: self.run(self._back_to_map))
             self.sliders = {}
             for key, p in PARAMS.items():
-                # no hover hint: its tooltip covers the number box above (after a preset pick the pointer rests
-                # on a slider); what each slider is stands in the scene line below them
+                # what each slider is stands in the scene line below them
                 h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default)
                 h.on_update(lambda _: self.run(self._apply_sliders))
                 self.sliders[key] = h
-            self.reset = gui.add_button("Reset", visible=False,
-                                        hint="back to the start positions (a dragged pair: back to the ρ/r, f/(kr) sliders)")
+            self.reset = gui.add_button("Reset", visible=False)
             self.reset.on_click(lambda _: self.run(self._reset_poses))
             self.info = gui.add_markdown("")
         with tabs.add_tab("Verdict"):
@@ -97,8 +97,7 @@ class ClientUI:
                                                 "kinetic-energy metric (λ = ω², frequencies), for scenes with masses")
             self.metric.on_update(lambda _: self.run(self._set_metric))
             self.details = gui.add_markdown("")
-            check = gui.add_button("Check other metrics", hint="the verdict in L/10, 10L (and the inertia metric "
-                                   "where masses are known): about 3× the time of one analysis")
+            check = gui.add_button("Check other metrics")
             check.on_click(lambda _: self.run(self._check_metrics))
         with tabs.add_tab("Display"):
             self.show = {key: gui.add_checkbox(label, initial_value=True) for key, label in (
@@ -107,8 +106,7 @@ class ClientUI:
             self.force_scale = gui.add_slider("Arrow length ×", min=0.2, max=3.0, step=0.1, initial_value=1.0)
             for h in (*self.show.values(), self.force_scale):
                 h.on_update(lambda _: self.run(self._display))
-            self.camera_view = gui.add_dropdown("View", options=["top", "oblique"], initial_value="top",
-                                                hint="oblique: the λ⁽⁶⁾ height surface and 2D scenes seen from the side")
+            self.camera_view = gui.add_dropdown("View", options=[TOP, OBLIQUE], initial_value=TOP)
             self.camera_view.on_update(lambda _: self.run(self._set_camera))
             gui.add_button("Reset view").on_click(lambda _: self.run(self._set_camera))
         with tabs.add_tab("Export"):
@@ -148,9 +146,7 @@ class ClientUI:
                 self.contour = gui.add_plotly(contour_figure(self.session.field(), (
                     self.session.params["rho_r"], self.session.params["f_kr"])), aspect=1.15)
         with self.side.add_tab("Eigenmodes"):
-            self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True,
-                                                  hint=f"on by default up to {SPECTRUM_PARTICLES} particles: the plot "
-                                                       "costs the browser seconds on large scenes")
+            self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True)
             self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
             self._spectrum_default = None        # the scene size the checkbox default was last set for
             self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3, visible=False)
@@ -158,8 +154,8 @@ class ClientUI:
             self.mode_pick.on_update(lambda _: self.run(self._pick_mode))
             self.play = gui.add_checkbox("Play", initial_value=False)
             self.play.on_update(lambda _: self.run(self._toggle_play))
-            self.amplitude = gui.add_slider("Amplitude", min=0.0, max=0.6, step=0.01, initial_value=0.2,
-                                            hint="largest particle motion, in particle sizes")
+            self.amplitude = gui.add_slider("Amplitude (particle sizes)", min=0.0, max=0.6, step=0.01,
+                                            initial_value=0.2)
             self.speed = gui.add_slider("Speed (cycles/s)", min=0.1, max=2.0, step=0.1, initial_value=0.5)
             self.mode_info = gui.add_markdown("")
 
@@ -612,7 +608,7 @@ class ClientUI:
             c = 0.5 * (lo + hi)
             extent = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * 1.3))
             distance = 0.8 * extent + 0.5 * size
-            if self.camera_view.value == "oblique":      # from the front and above: heights become readable
+            if self.camera_view.value == OBLIQUE:        # from the front and above: heights become readable
                 self.client.camera.up_direction = (0.0, 0.0, 1.0)
                 self.client.camera.position = (float(c[0]), float(c[1]) - 0.8 * distance, 0.75 * distance)
             else:

@@ -180,7 +180,7 @@ ANNULUS = REPO.parent / "shared" / "data" / "rigidlibrary" / "DataAnnulus" / "10
 
 
 def test_open_a_real_packing_from_the_page(app, browser):
-    """A RigidLibrary annulus folder (1617 disks, 20 frames) typed into *Open path*: drawn as one point cloud, not
+    """A RigidLibrary annulus folder (1617 disks, 20 frames) typed into *Path on server*: drawn as one point cloud, not
     analysed until asked, its validation report shown, and a frame slider that reads another frame."""
     from app.browser import number_box
     folder = ANNULUS if ANNULUS.is_dir() else Path("/work/shared/data/rigidlibrary/DataAnnulus/10")
@@ -189,7 +189,7 @@ def test_open_a_real_packing_from_the_page(app, browser):
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
     ui = ui_of(app, page)
-    box = page.locator("input.mantine-TextInput-input:visible").first  # the only visible text box: Open path
+    box = page.locator("input.mantine-TextInput-input:visible").first  # the only visible text box: Path on server
     box.fill(str(folder))
     box.press("Enter")
     verdict_on_page(page, "not-analysed", timeout=120_000)
@@ -207,7 +207,7 @@ def test_open_a_real_packing_from_the_page(app, browser):
 
 
 def test_scan_map_in_the_page(app, browser, tmp_path):
-    """A scan folder typed into *Open path*: the packing coloured by the map (the planted sharp particle dark red),
+    """A scan folder typed into *Path on server*: the packing coloured by the map (the planted sharp particle dark red),
     its cluster opened by name (UNSTABLE, as the scan's row), and *Back to the map*."""
     import json as _json
 
@@ -222,7 +222,7 @@ def test_scan_map_in_the_page(app, browser, tmp_path):
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
     ui = ui_of(app, page)
-    box = page.locator("input.mantine-TextInput-input:visible").first  # Open path
+    box = page.locator("input.mantine-TextInput-input:visible").first  # Path on server
     box.fill(str(tmp_path / "scan"))
     box.press("Enter")
     verdict_on_page(page, "scan-map", timeout=120_000)
@@ -287,29 +287,103 @@ def _overlap(a, b) -> bool:
         a["y"] < b["y"] + b["height"] and b["y"] < a["y"] + a["height"]
 
 
-def test_no_tooltip_covers_a_number_box_after_a_preset_pick(browser):
-    """After picking a preset the pointer rests where the option was, over the controls: a slider's hover hint then
-    covered the number box above it (gear_packing: 'contact moment stiffness' over k). Every shipped preset but the
-    annulus frame (slow to draw; its own tests) is picked the way a user picks it; no visible tooltip may overlap a
-    visible input."""
+# every visible control (buttons, dropdowns, sliders, checkboxes, number and text boxes) and every visible input, each
+# with its box and a key: tag, role and label (a button's text, else its row's label: stable across remounts)
+_CONTROLS = """() => {
+  const shown = e => { const r = e.getBoundingClientRect();
+    return r.width > 0 && r.height > 0 && e.checkVisibility({visibilityProperty: true})
+      && r.bottom > 0 && r.top < innerHeight && r.right > 0 && r.left < innerWidth; };
+  const box = e => { const r = e.getBoundingClientRect(); return {x: r.x, y: r.y, width: r.width, height: r.height}; };
+  const label = e => { let row = e;
+    while (row && !row.querySelector("label")) row = row.parentElement;
+    return e.tagName === "BUTTON" ? e.innerText || e.getAttribute("aria-label") || "" : row ? row.innerText : ""; };
+  const key = e => [e.tagName, e.getAttribute("role") || e.type || "", label(e).split("\\n")[0]].join(" ");
+  const pick = sel => [...document.querySelectorAll(sel)].filter(shown).map(e => ({key: key(e), box: box(e)}));
+  return {controls: pick("button, input, textarea, select, [role=slider]"), inputs: pick("input, textarea, select")};
+}"""
+_TOOLTIPS = """() => [...document.querySelectorAll("[role=tooltip]")].filter(e => e.getBoundingClientRect().width > 0)
+  .map(e => { const r = e.getBoundingClientRect();
+              return {text: e.innerText, box: {x: r.x, y: r.y, width: r.width, height: r.height}}; })"""
+
+
+def _tooltips_of(page, control) -> list:
+    """Rest the pointer on `control` until a hint would open (viser: after 500 ms), read the open tooltips, move away.
+    The page runs on Playwright's clock: fast_forward jumps the delay, firing each due timer once (run_for would draw
+    every 3D frame in between: seconds on 143 disks); a few ms of real time let React render."""
+    b = control["box"]
+    page.mouse.move(b["x"] + b["width"] / 2, b["y"] + b["height"] / 2)
+    page.clock.fast_forward(600)
+    page.wait_for_timeout(20)
+    tips = page.evaluate(_TOOLTIPS)
+    rest = page.locator(".granstab-verdict").bounding_box()   # the verdict badge: no hint, and not the 3D view
+    page.mouse.move(rest["x"] + 5, rest["y"] + 5)                # (a move there raycasts every particle)
+    for _ in range(5):                                          # closed (its fade-out done) before the next
+        page.clock.fast_forward(400)
+        page.wait_for_timeout(20)
+        if not page.evaluate(_TOOLTIPS):
+            return tips
+    raise AssertionError(f"a tooltip stayed open after leaving {control['key']}")
+
+
+def _covered_inputs(page, hovered: dict) -> list:
+    """In each tab of both panels: every visible control hovered, every tooltip checked against every visible input.
+    A tooltip's box follows from its control's box and hint (the app never changes a hint), so each (control, box)
+    is hovered once over the whole test (`hovered`); the overlap check runs against each tab's own inputs."""
+    covered = []
+    for tab in page.get_by_role("tab").all():
+        name = tab.inner_text()
+        tab.click()
+        page.clock.fast_forward(300)
+        page.wait_for_timeout(100)
+        state = page.evaluate(_CONTROLS)
+        for control in state["controls"]:
+            seen = (control["key"], *(round(v) for v in control["box"].values()))
+            if seen not in hovered:
+                hovered[seen] = _tooltips_of(page, control)
+            covered += [(f"the hint of {control['key']} ({tip['text'][:40]!r}) covers {box['key']}", name)
+                        for tip in hovered[seen] for box in state["inputs"] if _overlap(tip["box"], box["box"])]
+    return covered
+
+
+def test_no_tooltip_covers_an_input(tmp_path):
+    """Hover hints must never cover an input: every shipped preset, picked from the page the way a user picks it
+    (the pointer then rests over the controls), every tab of both panels, every visible control hovered; no
+    tooltip's box may intersect a visible input's box. It failed on: the *Open path* hint over the preset box, the
+    *Amplitude* hint over the mode box, the *View* hint over the arrow-length number box (before those, a slider's
+    hint over the number box above it after a preset pick: gear_packing). A browser context of its own: Playwright's
+    clock (installed for a whole context) jumps the hover delays."""
+    from playwright.sync_api import sync_playwright
+
+    from app.browser import chromium
     from app.server import App
     every = App(host="127.0.0.1", port=0)                               # all of presets/
     errors: list[str] = []
     try:
-        page = open_page(browser, every, errors)
-        verdict_on_page(page, "unstable", timeout=60_000)
-        ui = ui_of(every, page)
-        names = [n for n in ui.session.presets() if n not in (ui.session.preset, "annulus_frame")]
-        for name in names:
-            page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-            page.get_by_role("option", name=name, exact=True).click()
-            wait_for(lambda: ui.session.preset == name, timeout=60, what=name)
-            page.wait_for_timeout(1500)                                  # a tooltip opens after a hover delay
-            tips = [t.bounding_box() for t in page.locator('[role="tooltip"]:visible').all()]
-            boxes = [b.bounding_box() for b in page.locator("input:visible").all()]
-            covered = [(t, b) for t in tips for b in boxes if t and b and _overlap(t, b)]
-            assert not covered, (name, covered)
-        assert len(names) >= 10 and "gear_packing" in names
-        close_page(page, errors, "app-preset-pick.png")
+        with sync_playwright() as pw:
+            ctx = chromium(pw, tmp_path / "profile")
+            try:
+                ctx.clock.install()
+                page = open_page(ctx, every, errors)
+                verdict_on_page(page, "unstable", timeout=60_000)
+                ui = ui_of(every, page)
+                # the slow page (143 disks) last: most of its controls sit where they were hovered already
+                names = sorted(ui.session.presets(), key=lambda n: n == "annulus_frame")
+                hovered: dict = {}
+                covered = {c: f"{names[0]}, {tab} tab" for c, tab in reversed(_covered_inputs(page, hovered))}
+                for name in names[1:]:
+                    page.get_by_role("tab", name="Scene").click()
+                    page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+                    page.get_by_role("option", name=name, exact=True).click()
+                    wait_for(lambda: ui.session.preset == name, timeout=60, what=name)
+                    page.wait_for_selector(f'.granstab-verdict[data-revision="{ui.session.revision}"]',
+                                           timeout=120_000)
+                    for c, tab in _covered_inputs(page, hovered):
+                        covered.setdefault(c, f"{name}, {tab} tab")
+                assert names[0] == "two_particle" and len(names) >= 12 and "gear_packing" in names
+                assert not covered, "\n".join(f"{where}: {c}" for c, where in covered.items())
+                page.close()
+                assert errors == []
+            finally:
+                ctx.close()
     finally:
         every.stop()
