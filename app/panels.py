@@ -8,6 +8,7 @@ message in the page; nothing a user does reaches the server as an exception.
 """
 from __future__ import annotations
 
+import base64
 import html
 import threading
 import time
@@ -16,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .field import field_picture
 from .params import PARAMS
 from .views import SceneView
 
@@ -48,7 +50,8 @@ class ClientUI:
         self._modes_of = None                     # the model whose modes are listed (selection kept within it)
         self.errors_shown = 0
         self._listening = False                   # a scene click callback is registered (scan map only)
-        self._shown: dict[str, float] = {}        # slider values the page shows (set by the user or written here)
+        self._shown: dict[str, object] = {}       # what the page shows, by slider key, "preset", "frame", "metric":
+                                                  # a user's entry or a value written here (see _show)
         self._build()
         self.run(self.refresh, camera=True)
 
@@ -119,37 +122,21 @@ class ClientUI:
                 self.exports[key].on_click(self._download(fn))
         self.legend = gui.add_markdown("")
 
-        self.side = None
-        self.side_kind = None
         self._build_side()
         gui.main_panel.dock_right()
         gui.main_panel.set_width(400)
 
     def _build_side(self) -> None:
-        """The side panel: the λ⁽⁶⁾ field tab only for the pair (no tab a scene does not use). It is docked BEFORE
-        its plots are added: docking remounts the panel's contents, and a plotly plot mounted before that leaves a
-        pending redraw on the discarded copy (the `_redrawFromAutoMarginCount` page error)."""
-        pair = self.session.kind == "two_particle"
-        if self.side is not None and self.side_kind == pair:
-            return
-        self._stop_play()
-        if self.side is not None:
-            self.side.remove()
+        """The left column: the λ⁽⁶⁾ field panel (shown for the pair only) above the Eigenmodes panel, built once and
+        never removed. Removing a panel right after its contents were written is a console error (the page applies a
+        batch's removals before its updates: "Tried to update non-existent component"), and unmounting a plotly
+        plot with a redraw pending the `_redrawFromAutoMarginCount` page error. Panels are docked BEFORE their plots
+        are added: docking remounts a panel's contents."""
         gui = self.client.gui
-        self.side, self.side_kind = gui.add_panel(), pair
+        self.side = gui.add_panel()
         self.side.dock_left()
         self.side.set_width(430)
-        self.field_note = self.contour = self._spectrum_json = None
-        if pair:
-            with self.side.add_tab("λ⁽⁶⁾ field"):
-                self.field_note = gui.add_markdown("")
-                self.contour = gui.add_plotly(contour_figure(self.session.field(), (
-                    self.session.params["rho_r"], self.session.params["f_kr"])), aspect=1.15)
-        with self.side.add_tab("Eigenmodes"):
-            self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True)
-            self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
-            self._spectrum_default = None        # the scene size the checkbox default was last set for
-            self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3, visible=False)
+        with self.side.add_tab("Eigenmodes"):               # the mode controls first: the plot is tall
             self.mode_pick = gui.add_dropdown("Mode", options=["(none)"], initial_value="(none)")
             self.mode_pick.on_update(lambda _: self.run(self._pick_mode))
             self.play = gui.add_checkbox("Play", initial_value=False)
@@ -158,6 +145,16 @@ class ClientUI:
                                             initial_value=0.2)
             self.speed = gui.add_slider("Speed (cycles/s)", min=0.1, max=2.0, step=0.1, initial_value=0.5)
             self.mode_info = gui.add_markdown("")
+            self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True)
+            self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
+            self._spectrum_default = None        # the scene size the checkbox default was last set for
+            self._spectrum_json = None
+            self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3, visible=False)
+        self.field_panel = gui.add_panel()
+        self.field_panel.dock_above(self.side)
+        with self.field_panel.add_tab("λ⁽⁶⁾ field"):
+            self.field_note = gui.add_markdown("")
+            self.contour = gui.add_html("")        # a picture, not a plotly plot: this panel comes and goes
 
     def _preset_option(self) -> str:
         options = self.session.presets()
@@ -200,16 +197,17 @@ class ClientUI:
     # --------------------------------------------------------------------------------------- callbacks
     def _apply_sliders(self) -> None:
         values = {key: self.sliders[key].value for key in self.session.used_params}
-        self._shown.update(values)              # what the page shows: not written back (see _sync_controls)
+        self._shown.update(values)              # what the page shows: not written back (see _show)
         if self.session.set_params(**values):
             self.refresh()
 
     def _set_metric(self) -> None:
+        self._shown["metric"] = self.metric.value
         if self.session.set_metric(self.metric.value):
             self.refresh()
 
     def _load_preset(self) -> None:
-        name = self.preset.value
+        name = self._shown["preset"] = self.preset.value
         if name == self.session.preset:
             return
         ok = self.session.load_preset(name)
@@ -232,6 +230,7 @@ class ClientUI:
 
     def _pick_frame(self) -> None:
         frames = getattr(self.session.model, "frames", None)
+        self._shown["frame"] = int(self.frame.value)
         if frames and self.session.set_frame(frames[int(self.frame.value) - 1]):
             self.refresh()
 
@@ -350,7 +349,6 @@ class ClientUI:
         """Write every handle from the session: the verdict first, sent on its own (what a slider move is for), then
         the scene (only the parts that changed are re-sent: SceneView keys each drawing by its data), plots and modes."""
         s = self.session
-        self._build_side()
         self._sync_controls()
         self._write_verdict()
         self._send_now()
@@ -397,22 +395,18 @@ class ClientUI:
                 options = [*options, s.preset]
             if tuple(self.preset.options) != tuple(options):
                 self.preset.options = options
-            if self.preset.value != s.preset:
-                self.preset.value = s.preset
+            self._show("preset", self.preset, s.preset)
             used = set(s.used_params)
             for key, h in self.sliders.items():
                 h.visible = key in used
-                # write a slider only when the session changed its value (a preset, a reset, a cleaned entry), never
-                # because the handle differs: it may already hold a newer entry whose callback is queued, and
-                # writing the older value back would drop that entry (seen under load: the last of quick entries lost)
-                if key in used and s.params[key] != self._shown.get(key):
-                    h.value = self._shown[key] = s.params[key]
+                if key in used:
+                    self._show(key, h, s.params[key])
             self.reset.visible = s.resettable
             frames = getattr(s.model, "frames", None)
             self.frame.visible = bool(frames) and len(frames) > 1
             if self.frame.visible:
                 self.frame.max = len(frames)
-                self.frame.value = frames.index(s.model.frame) + 1 if s.model.frame in frames else 1
+                self._show("frame", self.frame, frames.index(s.model.frame) + 1 if s.model.frame in frames else 1)
             self.analyse.visible = s.deferred
             on_map = s.kind == "scan_map"
             self.cluster_name.visible, self.back.visible = on_map, s.map is not None
@@ -423,9 +417,17 @@ class ClientUI:
                 else:
                     self.client.scene.remove_click_callback()
             self.metric.visible = len(s.metric_choices) > 1
-            if self.metric.value != s.metric:
-                self.metric.value = s.metric
-            self.show["surface"].visible = self.exports["contour"].visible = s.kind == "two_particle"
+            self._show("metric", self.metric, s.metric)
+            pair = s.kind == "two_particle"
+            self.show["surface"].visible = self.exports["contour"].visible = self.field_panel.visible = pair
+
+    def _show(self, key: str, handle, value) -> None:
+        """Write `value` into `handle` only when the session changed it (a preset, a reset, a cleaned entry, a file
+        opened), never because the handle differs: the handle may already hold a newer entry whose callback is queued,
+        and writing the older value back drops that entry (seen: the last of quick slider entries lost; a preset
+        picked right after another one reverted to the first)."""
+        if self._shown.get(key) != value:
+            handle.value = self._shown[key] = value
 
     def _write_verdict(self) -> None:
         s = self.session
@@ -520,14 +522,14 @@ class ClientUI:
     def _write_field(self) -> None:
         s = self.session
         field = s.field()
-        if field is None or self.contour is None:
+        if field is None:
             return
         lam, tol = s.rolling_eigenvalue(), s.zero_tolerance()
         now = ("" if lam is None else f" (λ⁽⁶⁾/k = 0 within the zero tolerance {tol:.0e})" if lam == 0
                else f" (λ⁽⁶⁾/k = {lam:.4g})")
         self.field_note.content = (f"Rolling eigenvalue λ⁽⁶⁾/k over (ρ/r, f/(kr)) at α = {field.alpha:g}; "
                                    f"★ = now{now}")
-        self.contour.figure = contour_figure(field, (s.params["rho_r"], s.params["f_kr"]))
+        self.contour.content = contour_html(field, (s.params["rho_r"], s.params["f_kr"]))
 
     def _write_modes(self) -> None:
         s = self.session
@@ -631,21 +633,19 @@ def _empty_figure():
     return go.Figure(layout=dict(margin=dict(l=10, r=10, t=10, b=10)))
 
 
-def contour_figure(field, mark):
-    """Plotly contour of λ⁽⁶⁾/k with the zero line and the current state (★)."""
-    import plotly.graph_objects as go
-    lim = float(np.abs(field.lam).max()) or 1.0
-    fig = go.Figure()
-    fig.add_trace(go.Contour(x=field.rho_r, y=field.f_kr, z=field.lam, colorscale="RdBu", zmin=-lim, zmax=lim,
-                             ncontours=20, line=dict(width=0.3), colorbar=dict(title="λ⁽⁶⁾/k", thickness=12),
-                             hovertemplate="ρ/r %{x:.2f}<br>f/(kr) %{y:.4f}<br>λ⁽⁶⁾/k %{z:.3g}<extra></extra>"))
-    fig.add_trace(go.Contour(x=field.rho_r, y=field.f_kr, z=field.lam, showscale=False, hoverinfo="skip",
-                             contours=dict(coloring="none", start=0, end=0, size=1), line=dict(color="black", width=2)))
-    fig.add_trace(go.Scatter(x=[mark[0]], y=[mark[1]], mode="markers", hoverinfo="skip",
-                             marker=dict(symbol="star", size=16, color="gold", line=dict(color="black", width=1))))
-    fig.update_layout(margin=dict(l=55, r=10, t=10, b=45), showlegend=False,
-                      xaxis_title="ρ/r", yaxis_title="f/(kr)")
-    return fig
+def contour_html(field, mark) -> str:
+    """The λ⁽⁶⁾/k contour as a picture (field.field_picture, drawn once per field) with the current state ★ placed
+    over it at `mark` = (ρ/r, f/(kr)) (within the field's grid: the sliders' ranges)."""
+    png, (x0, y0, x1, y1) = field_picture(field)
+    u = (mark[0] - field.rho_r[0]) / (field.rho_r[-1] - field.rho_r[0])
+    v = (mark[1] - field.f_kr[0]) / (field.f_kr[-1] - field.f_kr[0])
+    left, top = 100 * (x0 + u * (x1 - x0)), 100 * (1 - y0 - v * (y1 - y0))
+    return (f'<div class="granstab-contour" style="position:relative;margin:0 8px">'
+            f'<img alt="λ⁽⁶⁾/k over ρ/r and f/(kr)" style="width:100%;display:block" '
+            f'src="data:image/png;base64,{base64.b64encode(png).decode()}">'
+            f'<div class="granstab-star" style="position:absolute;left:{left:.2f}%;top:{top:.2f}%;'
+            'transform:translate(-50%,-52%);font-size:26px;line-height:1;color:gold;-webkit-text-stroke:1px black">'
+            '★</div></div>')
 
 
 def spectrum_figure(modes, hidden: int = 0):
