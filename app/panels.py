@@ -25,9 +25,13 @@ VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b
 DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
 FRAME = 1 / 20            # s per animation frame
 MODES_PER_BRANCH = 24     # the mode picker lists the lowest non-rigid modes of each branch
+TYPING_PAUSE = 0.6        # s a text box rests before what it names is opened
 SEND_WAIT = 0.1          # s at most that the scene waits for the verdict to leave in a window of its own
 SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for (seconds of browser work per update)
+SPECTRUM_ASPECT, BLANK_ASPECT = 1.3, 0.1    # height/width of the spectrum plot, and of the blank strip while it is off
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
+TWO_LINES = "line-height:1.3em;height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;" \
+            "-webkit-box-orient:vertical"                   # a headline line's box: two lines, whatever its text
 
 
 class ClientUI:
@@ -76,13 +80,13 @@ class ClientUI:
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(lambda _: self.run(self._upload))
             self.path = gui.add_text("Path on server", initial_value="")
-            self.path.on_update(lambda _: self.run(self._open_path))
+            self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
             self.frame.on_update(lambda _: self.run(self._pick_frame))
             self.analyse = gui.add_button("Analyse the whole packing", visible=False)
             self.analyse.on_click(lambda _: self.run(self._analyse))
             self.cluster_name = gui.add_text("Open cluster of", initial_value="", visible=False)
-            self.cluster_name.on_update(lambda _: self.run(self._open_cluster, self.cluster_name.value.strip()))
+            self.cluster_name.on_update(self._after_typing(lambda: self._open_cluster(self.cluster_name.value.strip())))
             self.back = gui.add_button("Back to the map", visible=False)
             self.back.on_click(lambda _: self.run(self._back_to_map))
             self.sliders = {}
@@ -149,7 +153,7 @@ class ClientUI:
             self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
             self._spectrum_default = None        # the scene size the checkbox default was last set for
             self._spectrum_json = None
-            self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3, visible=False)
+            self.spectrum = gui.add_plotly(_empty_figure(), aspect=SPECTRUM_ASPECT, visible=False)
         self.field_panel = gui.add_panel()
         self.field_panel.dock_above(self.side)
         with self.field_panel.add_tab("λ⁽⁶⁾ field"):
@@ -185,6 +189,21 @@ class ClientUI:
                 self.errors_shown += 1
                 self._show_message(f"{type(exc).__name__}: {' '.join(str(exc).split())}")
                 return None
+
+    def _after_typing(self, fn):
+        """An on_update for a text box (it reports every letter): `fn` runs, through `run`, once the text has rested
+        TYPING_PAUSE s, so a path typed letter by letter is opened once, not at every prefix (each one a red error,
+        some a folder to search or another file)."""
+        timer = None
+
+        def update(_):
+            nonlocal timer
+            if timer is not None:
+                timer.cancel()
+            timer = threading.Timer(TYPING_PAUSE, self.run, (fn,))
+            timer.daemon = True
+            timer.start()
+        return update
 
     def _show_message(self, text: str | None) -> None:
         self.message.content = (f'<div class="granstab-error" style="color:#b03a2e;font-weight:600;padding:2px 8px">'
@@ -420,6 +439,8 @@ class ClientUI:
             self._show("metric", self.metric, s.metric)
             pair = s.kind == "two_particle"
             self.show["surface"].visible = self.exports["contour"].visible = self.field_panel.visible = pair
+            self.show["shares"].visible = self.colours_by_mode        # a pair's two particles share a mode evenly
+            self.camera_view.visible = s.scene_dim == 2                # a 3D scene has one view: Reset view
 
     def _show(self, key: str, handle, value) -> None:
         """Write `value` into `handle` only when the session changed it (a preset, a reset, a cleaned entry, a file
@@ -436,30 +457,33 @@ class ClientUI:
         apart = s.scene is not None and s.scene.n_contacts == 0
         title = s.scene.title if s.scene is not None else str(s.preset)
         if s.deferred:
-            title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (*Analyse the whole packing*)"
+            title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (Analyse the whole packing)"
             verdict = "not analysed"
         if s.kind == "scan_map":
             title, verdict = f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map"
         if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
-        title = title if len(title) <= 90 else title[:87] + "…"
         reason = ("" if verdict in (None, "no contact", "not analysed", "scan map") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
         self.headline.content = (
             f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
             f'data-revision="{s.revision}" style="background:'
             f'{VERDICT_COLOR.get(verdict, "#555")};color:white;font-weight:700;font-size:1.35em;padding:4px 10px;'
             f'border-radius:6px;letter-spacing:0.05em">{(verdict or "no verdict").upper()}</div>'
-            f'<div style="font-style:italic;margin:4px 2px 0 2px">{html.escape(title)}</div>'
-            # two lines at most, always two lines tall: the controls below never jump when the reason wraps
-            f'<div title="{html.escape(reason)}" style="margin:2px 2px 4px 2px;font-size:0.92em;line-height:1.3em;'
-            f'height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;-webkit-box-orient:vertical">'
+            # title and reason: two lines at most, always two lines tall (the full text on hover): the controls
+            # below never jump when one of them wraps (a preset switch, a slider, a drag)
+            f'<div title="{html.escape(title)}" style="font-style:italic;margin:4px 2px 0 2px;{TWO_LINES}">'
+            f'{html.escape(title)}</div>'
+            f'<div title="{html.escape(reason)}" style="margin:2px 2px 4px 2px;font-size:0.92em;{TWO_LINES}">'
             f'{html.escape(reason)}</div>')
         self._show_message(s.error)
         note = r.get("notice")
         params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g} ({PARAMS[k].hint})" for k in s.used_params)
         report = getattr(s.model, "report", "")
+        drag = ("" if s.kind == "scan_map" else " Drag a particle by its arrows (the arc turns it): contacts and "
+                "forces follow the geometry." if s.draggable else " Its contacts are given in the file (points, "
+                "normals, curvatures, forces), not shapes: the particles cannot be dragged.")
         self.info.content = (f"{note}\n\n" if note else "") + (
-            f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene") + (
+            f"{s.kind.replace('_', ' ')} scene · {params}." if params else f"{s.kind} scene.") + drag + (
             f"\n\n**Import report**\n\n```\n{report}\n```" if report else "")
         if s.kind == "scan_map":
             self.details.content = (f"**Scan map.** {s.model.report}.\n\nColour: the fraction of the clusters "
@@ -542,7 +566,9 @@ class ClientUI:
         plot = bool(modes) and self.show_spectrum.value
         self.show_spectrum.visible = bool(modes)
         if plot:            # mounted when first needed, then never unmounted: unmounting a plot with a plotly redraw
-            self.spectrum.visible = True    # pending is the `_redrawFromAutoMarginCount` page error; empty when unused
+            self.spectrum.visible = True    # pending is the `_redrawFromAutoMarginCount` page error; a blank strip
+        if self.spectrum.visible:           # when unused (no empty axes)
+            self.spectrum.aspect = SPECTRUM_ASPECT if plot else BLANK_ASPECT
         keys: dict[str, tuple] = {}
         by_branch: dict[int, int] = {}
         for m in sorted((m for m in modes if m.label != "rigid"), key=lambda m: (m.branch, m.eigenvalue)):
@@ -572,11 +598,17 @@ class ClientUI:
         s = self.session
         if s.scene is None:
             return
-        on = m is not None and self.show["shares"].value and s.scene.n_particles > 2
+        on = m is not None and self.show["shares"].value and self.colours_by_mode
         names = [b.name for b in s.bodies()]
         index = {n: i for i, n in enumerate(s.scene.names)}
         shares = s.particle_shares(m)[[index[n] for n in names]] if on else None
         self.view.colour_particles(names, shares, s.map_colours)
+
+    @property
+    def colours_by_mode(self) -> bool:
+        """Whether particles can be coloured by their share of a mode: an analysed scene of more than two."""
+        s = self.session
+        return s.analysis is not None and s.scene.n_particles > 2
 
     def _describe_mode(self) -> None:
         m = self._current_mode()
@@ -629,8 +661,10 @@ class ClientUI:
 # ------------------------------------------------------------------------------------------ figures
 
 def _empty_figure():
+    """A blank figure: no axes, no grid (the spectrum plot while it is off)."""
     import plotly.graph_objects as go
-    return go.Figure(layout=dict(margin=dict(l=10, r=10, t=10, b=10)))
+    return go.Figure(layout=dict(margin=dict(l=0, r=0, t=0, b=0), xaxis=dict(visible=False),
+                                 yaxis=dict(visible=False), plot_bgcolor="rgba(0,0,0,0)"))
 
 
 def contour_html(field, mark) -> str:

@@ -28,7 +28,8 @@ SWITCHES = 6
 def app(tmp_path_factory):
     from app.server import App
     folder = tmp_path_factory.mktemp("presets")
-    for name in ("two_particle.toml", "ellipses_sharp.toml", "four_disk.toml", "annulus_frame.json"):
+    for name in ("two_particle.toml", "ellipses_sharp.toml", "four_disk.toml", "annulus_frame.json",
+                 "spheres_tetrahedron.toml"):
         shutil.copy(REPO / "presets" / name, folder)
     running = App(host="127.0.0.1", port=0, presets_dir=folder)
     yield running
@@ -176,6 +177,10 @@ def test_unstable_frame_shows_where_the_mode_lives(app, browser):
     # where the pair before it mounted one (unmounting a plot with a redraw pending is a page error)
     assert ui.show_spectrum.visible and not ui.show_spectrum.value
     assert not ui.spectrum.visible or len(ui.spectrum.figure.data) == 0
+    # and the plot the pair mounted is a blank strip, not empty axes (it showed a grid with ticks −1…1 and 0…4)
+    page.wait_for_function("() => { const p = document.querySelector('.js-plotly-plot');"
+                           " return p && p.getBoundingClientRect().height < 60; }", timeout=30_000)
+    assert page.locator(".js-plotly-plot .xtick, .js-plotly-plot .ytick").count() == 0
     assert colours[:, 1].min() < 60 and colours[:, 1].max() > 240      # a particle carrying it all, one at rest
     close_page(page, errors, "app-mode-share.png")
 
@@ -184,8 +189,9 @@ ANNULUS = REPO.parent / "shared" / "data" / "rigidlibrary" / "DataAnnulus" / "10
 
 
 def test_open_a_real_packing_from_the_page(app, browser):
-    """A RigidLibrary annulus folder (1617 disks, 20 frames) typed into *Path on server*: drawn as one point cloud, not
-    analysed until asked, its validation report shown, and a frame slider that reads another frame."""
+    """A RigidLibrary annulus folder (1617 disks, 20 frames) typed into *Path on server*: opened once, when typed (not
+    at every letter), drawn as one point cloud, not analysed until asked, its validation report shown, and a frame
+    slider that reads another frame."""
     from app.browser import number_box
     folder = ANNULUS if ANNULUS.is_dir() else Path("/work/shared/data/rigidlibrary/DataAnnulus/10")
     assert folder.is_dir(), f"the photoelastic annulus data are needed: {folder}"
@@ -193,10 +199,15 @@ def test_open_a_real_packing_from_the_page(app, browser):
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
     ui = ui_of(app, page)
+    opened = []                                   # every attempt to open something, as a user types the path
+    load = ui.session.load_preset
+    ui.session.load_preset = lambda name: opened.append(name) or load(name)
     box = page.locator("input.mantine-TextInput-input:visible").first  # the only visible text box: Path on server
-    box.fill(str(folder))
+    box.click()
+    page.keyboard.type(str(folder), delay=40)     # letter by letter: each one reaches the server
     box.press("Enter")
     verdict_on_page(page, "not-analysed", timeout=120_000)
+    assert opened == [str(folder)]                # once, not at every prefix (it was 37 attempts, each an error)
     s = ui.session
     assert s.scene.n_particles == 1617 and s.analysis is None and s.model.frame == 1
     page.get_by_text("Import report").wait_for(timeout=30_000)
@@ -329,6 +340,70 @@ def test_a_pick_made_while_another_loads_is_kept(app, browser, monkeypatch):
     ui.run(ui._load_preset)                                   # the second pick's callback, queued behind it
     assert ui.session.preset == "two_particle" and ui.preset.value == "two_particle"
     verdict_on_page(page, "unstable")
+    page.close()
+    assert errors == []
+
+
+def test_controls_stay_put(app, browser):
+    """The controls under the headline never move: the title and the reason each keep two lines whatever their text.
+    The preset box sat 23 px lower under a two-line title (four_disk, annulus_frame, gear_packing, hand_in_glove,
+    spheres_tetrahedron: y = 226 against 203 px on the pair)."""
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    preset = page.locator(f'[id="{ui.preset._impl.uuid}"]')
+
+    def settled():
+        with ui.lock:
+            revision = ui.session.revision
+        page.wait_for_selector(f'.granstab-verdict[data-revision="{revision}"]', timeout=60_000)
+        return preset.bounding_box()["y"]
+
+    where = {"two_particle": settled()}
+    with ui.lock:
+        pass
+    ui.view.nodes["q"].position = (1.98, 0.4, 0.0)               # a dragged pair: "(dragged)" lengthens the title
+    ui._on_drag("q", SimpleNamespace(phase="end"))
+    where["dragged pair"] = settled()
+    preset.click()
+    page.get_by_role("option", name="four_disk").click()
+    wait_for(lambda: ui.session.preset == "four_disk", timeout=60, what="four_disk")
+    where["four_disk"] = settled()
+    assert len(set(where.values())) == 1, where
+    page.close()
+    assert errors == []
+
+
+def test_display_controls_per_scene(app, browser):
+    """Only the display controls a scene uses: colouring by a mode needs more than two particles (the pair's two
+    always share it evenly: the checkbox did nothing there), the 2D view menu does nothing on a 3D scene; and the
+    scene line says whether particles can be dragged (contact-level scenes said nothing, their particles just did
+    not move)."""
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    seen = {}
+    for name in ("two_particle", "four_disk", "spheres_tetrahedron"):
+        if ui.session.preset != name:
+            page.get_by_role("tab", name="Scene").click()
+            page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+            page.get_by_role("option", name=name, exact=True).click()
+            wait_for(lambda: ui.session.preset == name, timeout=60, what=name)
+        with ui.lock:
+            revision = ui.session.revision
+        page.wait_for_selector(f'.granstab-verdict[data-revision="{revision}"]', timeout=60_000)
+        page.get_by_role("tab", name="Scene").click()
+        page.get_by_text("scene · ").wait_for(timeout=20_000)
+        dragging = (page.get_by_text("Drag a particle").count() == 1, page.get_by_text("cannot be dragged").count() == 1)
+        page.get_by_role("tab", name="Display").click()
+        page.get_by_text("Force arrows").wait_for(timeout=20_000)
+        labels = set(page.locator("label:visible").all_inner_texts())
+        seen[name] = ("Colour particles by the selected mode" in labels, "View" in labels, dragging)
+    assert seen == {"two_particle": (False, True, (True, False)),
+                    "four_disk": (True, True, (False, True)),
+                    "spheres_tetrahedron": (True, False, (False, True))}, seen
     page.close()
     assert errors == []
 
