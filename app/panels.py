@@ -19,7 +19,7 @@ import numpy as np
 
 from .field import field_picture
 from .params import PARAMS
-from .views import SceneView
+from .views import MESH_MAX, SceneView
 
 VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b", None: "#555555"}
 DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
@@ -28,6 +28,8 @@ MODES_PER_BRANCH = 24     # the mode picker lists the lowest non-rigid modes of 
 TYPING_PAUSE = 0.6        # s a text box rests before what it names is opened
 SEND_WAIT = 0.1          # s at most that the scene waits for the verdict to leave in a window of its own
 SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for (seconds of browser work per update)
+LINES_MAX = 5_000         # contacts: above this force lines and normals are off until asked for (seconds per frame
+                          # in a browser without a GPU: 10⁴ disks 0.38 s, 10⁵ disks 10 s)
 SPECTRUM_ASPECT, BLANK_ASPECT = 1.3, 0.1    # height/width of the spectrum plot, and of the blank strip while it is off
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
 TWO_LINES = "line-height:1.3em;height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;" \
@@ -54,6 +56,7 @@ class ClientUI:
         self._modes_of = None                     # the model whose modes are listed (selection kept within it)
         self.errors_shown = 0
         self._listening = False                   # a scene click callback is registered (scan map only)
+        self._lines_default = None                # the scene size class the force-line default was last set for
         self._shown: dict[str, object] = {}       # what the page shows, by slider key, "preset", "frame", "metric":
                                                   # a user's entry or a value written here (see _show)
         self._build()
@@ -236,6 +239,8 @@ class ClientUI:
     def _upload(self) -> None:
         up = self.upload.value
         ok = self.session.load_upload(up.name, up.content)
+        if not ok:      # viser says "File uploaded successfully." for every file: say beside it that this one is not open
+            self.client.add_notification("Not opened", self.session.error, color="red", auto_close_seconds=15)
         self.view.key = None
         self.refresh(camera=ok)
 
@@ -437,6 +442,11 @@ class ClientUI:
                     self.client.scene.remove_click_callback()
             self.metric.visible = len(s.metric_choices) > 1
             self._show("metric", self.metric, s.metric)
+            many = s.scene is not None and s.scene.n_contacts > LINES_MAX
+            if many != self._lines_default:           # a new size class: its default (lines off when many)
+                self._lines_default = many
+                for key in ("forces", "normals"):
+                    self.show[key].value = self.view.options[key] = not many
             pair = s.kind == "two_particle"
             self.show["surface"].visible = self.exports["contour"].visible = self.field_panel.visible = pair
             self.show["shares"].visible = self.colours_by_mode        # a pair's two particles share a mode evenly
@@ -534,14 +544,26 @@ class ClientUI:
         if self.session.kind == "scan_map":
             self.legend.content = ("**Legend** — particle colour: the share of the scanned clusters containing it that "
                                    "are unstable (white 0 → dark red 1; grey: in no cluster).")
-        elif legend["max_force"] > 0:
-            self.legend.content = (
-                f"**Legend** — {'lines' if legend.get('lines') else 'arrows'}: the contact force on each particle (pointing into it when compressive; "
-                f"red compressive, blue tensile, orange at the Coulomb limit); length {legend['arrow']:.2g}·size "
-                f"= largest |f| = {legend['max_force']:.3g}. Blue lines: normals n^pq. Purple arcs: osculating "
-                "circles (radius ρ at each contact). Dark stripe: a body axis (turns with the particle).")
-        else:
-            self.legend.content = "**Legend** — no contact force. Dark stripe: a body axis (turns with the particle)."
+            return
+        scene, o = self.session.scene, self.view.options     # what is drawn now, and only that
+        contacts = scene is not None and scene.n_contacts > 0
+        parts = []
+        if contacts and legend["max_force"] == 0:
+            parts.append("no contact force.")
+        elif contacts and o["forces"]:
+            parts.append(f"{'lines' if legend.get('lines') else 'arrows'}: the contact force on each particle "
+                         "(pointing into it when compressive; red compressive, blue tensile, orange at the Coulomb "
+                         f"limit); length {legend['arrow']:.2g}·size = largest |f| = {legend['max_force']:.3g}.")
+        if contacts and o["normals"]:
+            parts.append("Blue lines: normals n^pq.")
+        if contacts and o["osculating"] and scene.n_contacts <= MESH_MAX:
+            parts.append("Purple arcs: osculating circles (radius ρ at each contact).")
+        if scene is not None and scene.n_particles <= MESH_MAX:
+            parts.append("Dark stripe: a body axis (turns with the particle).")
+        if self._lines_default and not (o["forces"] or o["normals"]):
+            parts.append(f"Force lines and normals are off above {LINES_MAX:,} contacts (seconds per frame in a "
+                         "browser without a GPU): tick them under *Display*.")
+        self.legend.content = "**Legend** — " + " ".join(parts) if parts else ""
 
     def _write_field(self) -> None:
         s = self.session
@@ -564,7 +586,10 @@ class ClientUI:
             with self._quiet():
                 self.show_spectrum.value = not large
         plot = bool(modes) and self.show_spectrum.value
-        self.show_spectrum.visible = bool(modes)
+        for h in (self.show_spectrum, self.mode_pick, self.play, self.amplitude, self.speed):
+            h.visible = bool(modes)             # no analysis (a large packing, the scan map): nothing to pick or play
+        if not modes:
+            self._stop_play()
         if plot:            # mounted when first needed, then never unmounted: unmounting a plot with a plotly redraw
             self.spectrum.visible = True    # pending is the `_redrawFromAutoMarginCount` page error; a blank strip
         if self.spectrum.visible:           # when unused (no empty axes)
