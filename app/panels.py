@@ -493,7 +493,7 @@ class ClientUI:
                 "forces follow the geometry." if s.draggable else " Its contacts are given in the file (points, "
                 "normals, curvatures, forces), not shapes: the particles cannot be dragged.")
         self.info.content = (f"{note}\n\n" if note else "") + (
-            f"{s.kind.replace('_', ' ')} scene · {params}." if params else f"{s.kind} scene.") + drag + (
+            f"{s.kind.replace('_', ' ')} scene" + (f" · {params}." if params else ".")) + drag + (
             f"\n\n**Import report**\n\n```\n{report}\n```" if report else "")
         if s.kind == "scan_map":
             self.details.content = (f"**Scan map.** {s.model.report}.\n\nColour: the fraction of the clusters "
@@ -639,7 +639,13 @@ class ClientUI:
         m = self._current_mode()
         self._colour_by_mode(m)
         if m is None:
-            self.mode_info.content = "No mode to show." if self.session.analysis is not None else ""
+            s = self.session              # say why this panel is empty, and how to fill it
+            self.mode_info.content = (
+                "No mode to show." if s.analysis is not None else
+                "The scan map has no modes: open a particle's cluster (click it, or type its name under *Scene*) "
+                "for its eigenmodes." if s.kind == "scan_map" else
+                "Not analysed yet: *Analyse the whole packing* (under *Scene*) computes the modes." if s.deferred else
+                f"No analysis: {s.error}")
             return
         shares = ", ".join(f"{k} {v:.0%}" for k, v in m.shares.items() if v >= 0.005)
         way = {1: "consistent in +v only", -1: "consistent in -v only", 0: "consistent both ways",

@@ -65,6 +65,8 @@ def close_page(page, errors, shot: str) -> None:
     """Save the picture as `shot` in $GRANSTAB_APP_SHOTS when set (docs/ is made that way), close, no page error."""
     shots = os.environ.get("GRANSTAB_APP_SHOTS")
     if shots:
+        for close in page.locator("button.mantine-Notification-closeButton").all():    # viser's notices
+            close.click()
         page.wait_for_timeout(3000)
         page.screenshot(path=str(Path(shots) / shot))
     page.close()
@@ -214,6 +216,7 @@ def test_open_a_real_packing_from_the_page(app, browser):
     page.keyboard.type(str(folder), delay=40)     # letter by letter: each one reaches the server
     box.press("Enter")
     verdict_on_page(page, "not-analysed", timeout=120_000)
+    page.get_by_text("Not analysed yet: Analyse the whole packing").wait_for(timeout=30_000)   # the Eigenmodes panel
     assert opened == [str(folder)]                # once, not at every prefix (it was 37 attempts, each an error)
     s = ui.session
     assert s.scene.n_particles == 1617 and s.analysis is None and s.model.frame == 1
@@ -287,6 +290,7 @@ def test_scan_map_in_the_page(app, browser, scan_dir):
     box.press("Enter")
     verdict_on_page(page, "scan-map", timeout=120_000)
     page.get_by_text("click one (or type its name) for its cluster").wait_for(timeout=30_000)
+    page.get_by_text("The scan map has no modes").wait_for(timeout=30_000)      # the Eigenmodes panel says why
     assert ui.view.colours["p40"] == (176, 20, 20) and ui.view.colours["p00"] == (250, 250, 250)
     name = page.locator("input.mantine-TextInput-input:visible").nth(1)   # Open cluster of
     name.fill("p40")                      # a text box sends its value as it changes: the cluster opens, the box goes
