@@ -81,24 +81,46 @@ def lambda6_field(alpha: float, rolling: float, use_studies: bool = True) -> Fie
     return Field(RHO_R, F_KR, lam, alpha, rolling, "granstab.stiffness.contact_blocks (all grid points at once)")
 
 
-def field_png(field: Field, mark=None) -> bytes:
-    """The contour plot as PNG bytes (matplotlib, Agg), with the current (ρ/r, f/(kr)) marked."""
+def _contour(field: Field, size=(6, 4.5), dpi=120):
+    """Matplotlib figure and axes of the λ⁽⁶⁾/k contour: filled levels, the zero line (black), a colour bar."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4.5), dpi=120)
+    fig, ax = plt.subplots(figsize=size, dpi=dpi)
     lim = float(np.abs(field.lam).max()) or 1.0
     cs = ax.contourf(field.rho_r, field.f_kr, field.lam, levels=np.linspace(-lim, lim, 21), cmap="RdBu")
     ax.contour(field.rho_r, field.f_kr, field.lam, levels=[0.0], colors="k", linewidths=1.5)
     fig.colorbar(cs, ax=ax, label="λ⁽⁶⁾ / k")
-    if mark is not None:
-        ax.plot([mark[0]], [mark[1]], marker="*", color="gold", markeredgecolor="k", markersize=16)
     ax.set_xlabel("ρ/r")
     ax.set_ylabel("f/(kr)")
-    ax.set_title(f"rolling eigenvalue λ⁽⁶⁾, α = {field.alpha:g}, rolling stiffness = {field.rolling:g} kr²")
+    return fig, ax
+
+
+def _png(fig) -> bytes:
+    import matplotlib.pyplot as plt
     buf = io.BytesIO()
-    fig.tight_layout()
     fig.savefig(buf, format="png")
     plt.close(fig)
     return buf.getvalue()
+
+
+def field_png(field: Field, mark=None) -> bytes:
+    """The contour plot as PNG bytes (matplotlib, Agg), with the current (ρ/r, f/(kr)) marked."""
+    fig, ax = _contour(field)
+    if mark is not None:
+        ax.plot([mark[0]], [mark[1]], marker="*", color="gold", markeredgecolor="k", markersize=16)
+    ax.set_title(f"rolling eigenvalue λ⁽⁶⁾, α = {field.alpha:g}, rolling stiffness = {field.rolling:g} kr²")
+    fig.tight_layout()
+    return _png(fig)
+
+
+@lru_cache(maxsize=8)
+def field_picture(field: Field) -> tuple[bytes, tuple]:
+    """The contour without a mark, for the page, as PNG bytes and where its plot area lies in the picture: (left,
+    bottom, right, top) in fractions of the width and height (the page places the current-state ★ over it). Drawn
+    at twice the size the side panel shows it (≈ 410 px wide): sharp, with readable labels."""
+    fig, ax = _contour(field, size=(4.1, 3.4), dpi=200)
+    fig.tight_layout()
+    box = ax.get_position()
+    return _png(fig), (box.x0, box.y0, box.x1, box.y1)

@@ -8,6 +8,7 @@ message in the page; nothing a user does reaches the server as an exception.
 """
 from __future__ import annotations
 
+import base64
 import html
 import threading
 import time
@@ -16,15 +17,23 @@ from pathlib import Path
 
 import numpy as np
 
+from .field import field_picture
 from .params import PARAMS
-from .views import SceneView
+from .views import MESH_MAX, SceneView
 
 VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b", None: "#555555"}
 DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
 FRAME = 1 / 20            # s per animation frame
 MODES_PER_BRANCH = 24     # the mode picker lists the lowest non-rigid modes of each branch
+TYPING_PAUSE = 0.6        # s a text box rests before what it names is opened
 SEND_WAIT = 0.1          # s at most that the scene waits for the verdict to leave in a window of its own
 SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for (seconds of browser work per update)
+LINES_MAX = 5_000         # contacts: above this force lines and normals are off until asked for (seconds per frame
+                          # in a browser without a GPU: 10⁴ disks 0.38 s, 10⁵ disks 10 s)
+SPECTRUM_ASPECT, BLANK_ASPECT = 1.3, 0.1    # height/width of the spectrum plot, and of the blank strip while it is off
+TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
+TWO_LINES = "line-height:1.3em;height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;" \
+            "-webkit-box-orient:vertical"                   # a headline line's box: two lines, whatever its text
 
 
 class ClientUI:
@@ -47,7 +56,9 @@ class ClientUI:
         self._modes_of = None                     # the model whose modes are listed (selection kept within it)
         self.errors_shown = 0
         self._listening = False                   # a scene click callback is registered (scan map only)
-        self._shown: dict[str, float] = {}        # slider values the page shows (set by the user or written here)
+        self._lines_default = None                # the scene size class the force-line default was last set for
+        self._shown: dict[str, object] = {}       # what the page shows, by slider key, "preset", "frame", "metric":
+                                                  # a user's entry or a value written here (see _show)
         self._build()
         self.run(self.refresh, camera=True)
 
@@ -59,6 +70,9 @@ class ClientUI:
         self.client.scene.configure_default_lights(enabled=True, cast_shadow=False)
         gui = self.client.gui
         gui.configure_theme(control_width="large", show_share_button=False)
+        # hover hints: viser opens one above its input (below where no room), over the neighbouring inputs, so only
+        # the Metric menu, first in its tab, has one; labels and the text beside say the rest (viser 1.1 shows no
+        # hints on buttons)
         self.headline = gui.add_html("")
         self.message = gui.add_html("", visible=False)
         tabs = gui.add_tab_group()
@@ -68,27 +82,23 @@ class ClientUI:
             self.preset.on_update(lambda _: self.run(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(lambda _: self.run(self._upload))
-            self.path = gui.add_text("Open path", initial_value="", hint="a scene file, DEM snapshot or RigidLibrary "
-                                     "folder on the machine running the explorer (what `granstab analyze` reads)")
-            self.path.on_update(lambda _: self.run(self._open_path))
+            self.path = gui.add_text("Path on server", initial_value="")
+            self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
             self.frame.on_update(lambda _: self.run(self._pick_frame))
-            self.analyse = gui.add_button("Analyse the whole packing", visible=False,
-                                          hint="large packings are drawn at once and analysed only on request")
+            self.analyse = gui.add_button("Analyse the whole packing", visible=False)
             self.analyse.on_click(lambda _: self.run(self._analyse))
             self.cluster_name = gui.add_text("Open cluster of", initial_value="", visible=False)
-            self.cluster_name.on_update(lambda _: self.run(self._open_cluster, self.cluster_name.value.strip()))
-            self.back = gui.add_button("Back to the map", visible=False, hint="the scan map this cluster came from")
+            self.cluster_name.on_update(self._after_typing(lambda: self._open_cluster(self.cluster_name.value.strip())))
+            self.back = gui.add_button("Back to the map", visible=False)
             self.back.on_click(lambda _: self.run(self._back_to_map))
             self.sliders = {}
             for key, p in PARAMS.items():
-                # no hover hint: its tooltip covers the number box above (after a preset pick the pointer rests
-                # on a slider); what each slider is stands in the scene line below them
+                # what each slider is stands in the scene line below them
                 h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default)
                 h.on_update(lambda _: self.run(self._apply_sliders))
                 self.sliders[key] = h
-            self.reset = gui.add_button("Reset", visible=False,
-                                        hint="back to the start positions (a dragged pair: back to the ρ/r, f/(kr) sliders)")
+            self.reset = gui.add_button("Reset", visible=False)
             self.reset.on_click(lambda _: self.run(self._reset_poses))
             self.info = gui.add_markdown("")
         with tabs.add_tab("Verdict"):
@@ -97,8 +107,7 @@ class ClientUI:
                                                 "kinetic-energy metric (λ = ω², frequencies), for scenes with masses")
             self.metric.on_update(lambda _: self.run(self._set_metric))
             self.details = gui.add_markdown("")
-            check = gui.add_button("Check other metrics", hint="the verdict in L/10, 10L (and the inertia metric "
-                                   "where masses are known): about 3× the time of one analysis")
+            check = gui.add_button("Check other metrics")
             check.on_click(lambda _: self.run(self._check_metrics))
         with tabs.add_tab("Display"):
             self.show = {key: gui.add_checkbox(label, initial_value=True) for key, label in (
@@ -107,8 +116,7 @@ class ClientUI:
             self.force_scale = gui.add_slider("Arrow length ×", min=0.2, max=3.0, step=0.1, initial_value=1.0)
             for h in (*self.show.values(), self.force_scale):
                 h.on_update(lambda _: self.run(self._display))
-            self.camera_view = gui.add_dropdown("View", options=["top", "oblique"], initial_value="top",
-                                                hint="oblique: the λ⁽⁶⁾ height surface and 2D scenes seen from the side")
+            self.camera_view = gui.add_dropdown("View", options=[TOP, OBLIQUE], initial_value=TOP)
             self.camera_view.on_update(lambda _: self.run(self._set_camera))
             gui.add_button("Reset view").on_click(lambda _: self.run(self._set_camera))
         with tabs.add_tab("Export"):
@@ -121,47 +129,39 @@ class ClientUI:
                 self.exports[key].on_click(self._download(fn))
         self.legend = gui.add_markdown("")
 
-        self.side = None
-        self.side_kind = None
         self._build_side()
         gui.main_panel.dock_right()
         gui.main_panel.set_width(400)
 
     def _build_side(self) -> None:
-        """The side panel: the λ⁽⁶⁾ field tab only for the pair (no tab a scene does not use). It is docked BEFORE
-        its plots are added: docking remounts the panel's contents, and a plotly plot mounted before that leaves a
-        pending redraw on the discarded copy (the `_redrawFromAutoMarginCount` page error)."""
-        pair = self.session.kind == "two_particle"
-        if self.side is not None and self.side_kind == pair:
-            return
-        self._stop_play()
-        if self.side is not None:
-            self.side.remove()
+        """The left column: the λ⁽⁶⁾ field panel (shown for the pair only) above the Eigenmodes panel, built once and
+        never removed. Removing a panel right after its contents were written is a console error (the page applies a
+        batch's removals before its updates: "Tried to update non-existent component"), and unmounting a plotly
+        plot with a redraw pending the `_redrawFromAutoMarginCount` page error. Panels are docked BEFORE their plots
+        are added: docking remounts a panel's contents."""
         gui = self.client.gui
-        self.side, self.side_kind = gui.add_panel(), pair
+        self.side = gui.add_panel()
         self.side.dock_left()
         self.side.set_width(430)
-        self.field_note = self.contour = self._spectrum_json = None
-        if pair:
-            with self.side.add_tab("λ⁽⁶⁾ field"):
-                self.field_note = gui.add_markdown("")
-                self.contour = gui.add_plotly(contour_figure(self.session.field(), (
-                    self.session.params["rho_r"], self.session.params["f_kr"])), aspect=1.15)
-        with self.side.add_tab("Eigenmodes"):
-            self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True,
-                                                  hint=f"on by default up to {SPECTRUM_PARTICLES} particles: the plot "
-                                                       "costs the browser seconds on large scenes")
-            self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
-            self._spectrum_default = None        # the scene size the checkbox default was last set for
-            self.spectrum = gui.add_plotly(_empty_figure(), aspect=1.3, visible=False)
+        with self.side.add_tab("Eigenmodes"):               # the mode controls first: the plot is tall
             self.mode_pick = gui.add_dropdown("Mode", options=["(none)"], initial_value="(none)")
             self.mode_pick.on_update(lambda _: self.run(self._pick_mode))
             self.play = gui.add_checkbox("Play", initial_value=False)
             self.play.on_update(lambda _: self.run(self._toggle_play))
-            self.amplitude = gui.add_slider("Amplitude", min=0.0, max=0.6, step=0.01, initial_value=0.2,
-                                            hint="largest particle motion, in particle sizes")
+            self.amplitude = gui.add_slider("Amplitude (particle sizes)", min=0.0, max=0.6, step=0.01,
+                                            initial_value=0.2)
             self.speed = gui.add_slider("Speed (cycles/s)", min=0.1, max=2.0, step=0.1, initial_value=0.5)
             self.mode_info = gui.add_markdown("")
+            self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True)
+            self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
+            self._spectrum_default = None        # the scene size the checkbox default was last set for
+            self._spectrum_json = None
+            self.spectrum = gui.add_plotly(_empty_figure(), aspect=SPECTRUM_ASPECT, visible=False)
+        self.field_panel = gui.add_panel()
+        self.field_panel.dock_above(self.side)
+        with self.field_panel.add_tab("λ⁽⁶⁾ field"):
+            self.field_note = gui.add_markdown("")
+            self.contour = gui.add_html("")        # a picture, not a plotly plot: this panel comes and goes
 
     def _preset_option(self) -> str:
         options = self.session.presets()
@@ -193,6 +193,21 @@ class ClientUI:
                 self._show_message(f"{type(exc).__name__}: {' '.join(str(exc).split())}")
                 return None
 
+    def _after_typing(self, fn):
+        """An on_update for a text box (it reports every letter): `fn` runs, through `run`, once the text has rested
+        TYPING_PAUSE s, so a path typed letter by letter is opened once, not at every prefix (each one a red error,
+        some a folder to search or another file)."""
+        timer = None
+
+        def update(_):
+            nonlocal timer
+            if timer is not None:
+                timer.cancel()
+            timer = threading.Timer(TYPING_PAUSE, self.run, (fn,))
+            timer.daemon = True
+            timer.start()
+        return update
+
     def _show_message(self, text: str | None) -> None:
         self.message.content = (f'<div class="granstab-error" style="color:#b03a2e;font-weight:600;padding:2px 8px">'
                                 f"{html.escape(text)}</div>") if text else ""
@@ -204,16 +219,17 @@ class ClientUI:
     # --------------------------------------------------------------------------------------- callbacks
     def _apply_sliders(self) -> None:
         values = {key: self.sliders[key].value for key in self.session.used_params}
-        self._shown.update(values)              # what the page shows: not written back (see _sync_controls)
+        self._shown.update(values)              # what the page shows: not written back (see _show)
         if self.session.set_params(**values):
             self.refresh()
 
     def _set_metric(self) -> None:
+        self._shown["metric"] = self.metric.value
         if self.session.set_metric(self.metric.value):
             self.refresh()
 
     def _load_preset(self) -> None:
-        name = self.preset.value
+        name = self._shown["preset"] = self.preset.value
         if name == self.session.preset:
             return
         ok = self.session.load_preset(name)
@@ -223,6 +239,8 @@ class ClientUI:
     def _upload(self) -> None:
         up = self.upload.value
         ok = self.session.load_upload(up.name, up.content)
+        if not ok:      # viser says "File uploaded successfully." for every file: say beside it that this one is not open
+            self.client.add_notification("Not opened", self.session.error, color="red", auto_close_seconds=15)
         self.view.key = None
         self.refresh(camera=ok)
 
@@ -236,6 +254,7 @@ class ClientUI:
 
     def _pick_frame(self) -> None:
         frames = getattr(self.session.model, "frames", None)
+        self._shown["frame"] = int(self.frame.value)
         if frames and self.session.set_frame(frames[int(self.frame.value) - 1]):
             self.refresh()
 
@@ -354,7 +373,6 @@ class ClientUI:
         """Write every handle from the session: the verdict first, sent on its own (what a slider move is for), then
         the scene (only the parts that changed are re-sent: SceneView keys each drawing by its data), plots and modes."""
         s = self.session
-        self._build_side()
         self._sync_controls()
         self._write_verdict()
         self._send_now()
@@ -401,22 +419,18 @@ class ClientUI:
                 options = [*options, s.preset]
             if tuple(self.preset.options) != tuple(options):
                 self.preset.options = options
-            if self.preset.value != s.preset:
-                self.preset.value = s.preset
+            self._show("preset", self.preset, s.preset)
             used = set(s.used_params)
             for key, h in self.sliders.items():
                 h.visible = key in used
-                # write a slider only when the session changed its value (a preset, a reset, a cleaned entry), never
-                # because the handle differs: it may already hold a newer entry whose callback is queued, and
-                # writing the older value back would drop that entry (seen under load: the last of quick entries lost)
-                if key in used and s.params[key] != self._shown.get(key):
-                    h.value = self._shown[key] = s.params[key]
+                if key in used:
+                    self._show(key, h, s.params[key])
             self.reset.visible = s.resettable
             frames = getattr(s.model, "frames", None)
             self.frame.visible = bool(frames) and len(frames) > 1
             if self.frame.visible:
                 self.frame.max = len(frames)
-                self.frame.value = frames.index(s.model.frame) + 1 if s.model.frame in frames else 1
+                self._show("frame", self.frame, frames.index(s.model.frame) + 1 if s.model.frame in frames else 1)
             self.analyse.visible = s.deferred
             on_map = s.kind == "scan_map"
             self.cluster_name.visible, self.back.visible = on_map, s.map is not None
@@ -427,9 +441,24 @@ class ClientUI:
                 else:
                     self.client.scene.remove_click_callback()
             self.metric.visible = len(s.metric_choices) > 1
-            if self.metric.value != s.metric:
-                self.metric.value = s.metric
-            self.show["surface"].visible = self.exports["contour"].visible = s.kind == "two_particle"
+            self._show("metric", self.metric, s.metric)
+            many = s.scene is not None and s.scene.n_contacts > LINES_MAX
+            if many != self._lines_default:           # a new size class: its default (lines off when many)
+                self._lines_default = many
+                for key in ("forces", "normals"):
+                    self.show[key].value = self.view.options[key] = not many
+            pair = s.kind == "two_particle"
+            self.show["surface"].visible = self.exports["contour"].visible = self.field_panel.visible = pair
+            self.show["shares"].visible = self.colours_by_mode        # a pair's two particles share a mode evenly
+            self.camera_view.visible = s.scene_dim == 2                # a 3D scene has one view: Reset view
+
+    def _show(self, key: str, handle, value) -> None:
+        """Write `value` into `handle` only when the session changed it (a preset, a reset, a cleaned entry, a file
+        opened), never because the handle differs: the handle may already hold a newer entry whose callback is queued,
+        and writing the older value back drops that entry (seen: the last of quick slider entries lost; a preset
+        picked right after another one reverted to the first)."""
+        if self._shown.get(key) != value:
+            handle.value = self._shown[key] = value
 
     def _write_verdict(self) -> None:
         s = self.session
@@ -438,30 +467,33 @@ class ClientUI:
         apart = s.scene is not None and s.scene.n_contacts == 0
         title = s.scene.title if s.scene is not None else str(s.preset)
         if s.deferred:
-            title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (*Analyse the whole packing*)"
+            title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (Analyse the whole packing)"
             verdict = "not analysed"
         if s.kind == "scan_map":
             title, verdict = f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map"
         if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
-        title = title if len(title) <= 90 else title[:87] + "…"
         reason = ("" if verdict in (None, "no contact", "not analysed", "scan map") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
         self.headline.content = (
             f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
             f'data-revision="{s.revision}" style="background:'
             f'{VERDICT_COLOR.get(verdict, "#555")};color:white;font-weight:700;font-size:1.35em;padding:4px 10px;'
             f'border-radius:6px;letter-spacing:0.05em">{(verdict or "no verdict").upper()}</div>'
-            f'<div style="font-style:italic;margin:4px 2px 0 2px">{html.escape(title)}</div>'
-            # two lines at most, always two lines tall: the controls below never jump when the reason wraps
-            f'<div title="{html.escape(reason)}" style="margin:2px 2px 4px 2px;font-size:0.92em;line-height:1.3em;'
-            f'height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;-webkit-box-orient:vertical">'
+            # title and reason: two lines at most, always two lines tall (the full text on hover): the controls
+            # below never jump when one of them wraps (a preset switch, a slider, a drag)
+            f'<div title="{html.escape(title)}" style="font-style:italic;margin:4px 2px 0 2px;{TWO_LINES}">'
+            f'{html.escape(title)}</div>'
+            f'<div title="{html.escape(reason)}" style="margin:2px 2px 4px 2px;font-size:0.92em;{TWO_LINES}">'
             f'{html.escape(reason)}</div>')
         self._show_message(s.error)
         note = r.get("notice")
         params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g} ({PARAMS[k].hint})" for k in s.used_params)
         report = getattr(s.model, "report", "")
+        drag = ("" if s.kind == "scan_map" else " Drag a particle by its arrows (the arc turns it): contacts and "
+                "forces follow the geometry." if s.draggable else " Its contacts are given in the file (points, "
+                "normals, curvatures, forces), not shapes: the particles cannot be dragged.")
         self.info.content = (f"{note}\n\n" if note else "") + (
-            f"{s.kind.replace('_', ' ')} scene · {params}" if params else f"{s.kind} scene") + (
+            f"{s.kind.replace('_', ' ')} scene" + (f" · {params}." if params else ".")) + drag + (
             f"\n\n**Import report**\n\n```\n{report}\n```" if report else "")
         if s.kind == "scan_map":
             self.details.content = (f"**Scan map.** {s.model.report}.\n\nColour: the fraction of the clusters "
@@ -512,26 +544,38 @@ class ClientUI:
         if self.session.kind == "scan_map":
             self.legend.content = ("**Legend** — particle colour: the share of the scanned clusters containing it that "
                                    "are unstable (white 0 → dark red 1; grey: in no cluster).")
-        elif legend["max_force"] > 0:
-            self.legend.content = (
-                f"**Legend** — {'lines' if legend.get('lines') else 'arrows'}: the contact force on each particle (pointing into it when compressive; "
-                f"red compressive, blue tensile, orange at the Coulomb limit); length {legend['arrow']:.2g}·size "
-                f"= largest |f| = {legend['max_force']:.3g}. Blue lines: normals n^pq. Purple arcs: osculating "
-                "circles (radius ρ at each contact). Dark stripe: a body axis (turns with the particle).")
-        else:
-            self.legend.content = "**Legend** — no contact force. Dark stripe: a body axis (turns with the particle)."
+            return
+        scene, o = self.session.scene, self.view.options     # what is drawn now, and only that
+        contacts = scene is not None and scene.n_contacts > 0
+        parts = []
+        if contacts and legend["max_force"] == 0:
+            parts.append("no contact force.")
+        elif contacts and o["forces"]:
+            parts.append(f"{'lines' if legend.get('lines') else 'arrows'}: the contact force on each particle "
+                         "(pointing into it when compressive; red compressive, blue tensile, orange at the Coulomb "
+                         f"limit); length {legend['arrow']:.2g}·size = largest |f| = {legend['max_force']:.3g}.")
+        if contacts and o["normals"]:
+            parts.append("Blue lines: normals n^pq.")
+        if contacts and o["osculating"] and scene.n_contacts <= MESH_MAX:
+            parts.append("Purple arcs: osculating circles (radius ρ at each contact).")
+        if scene is not None and scene.n_particles <= MESH_MAX:
+            parts.append("Dark stripe: a body axis (turns with the particle).")
+        if self._lines_default and not (o["forces"] or o["normals"]):
+            parts.append(f"Force lines and normals are off above {LINES_MAX:,} contacts (seconds per frame in a "
+                         "browser without a GPU): tick them under *Display*.")
+        self.legend.content = "**Legend** — " + " ".join(parts) if parts else ""
 
     def _write_field(self) -> None:
         s = self.session
         field = s.field()
-        if field is None or self.contour is None:
+        if field is None:
             return
         lam, tol = s.rolling_eigenvalue(), s.zero_tolerance()
         now = ("" if lam is None else f" (λ⁽⁶⁾/k = 0 within the zero tolerance {tol:.0e})" if lam == 0
                else f" (λ⁽⁶⁾/k = {lam:.4g})")
         self.field_note.content = (f"Rolling eigenvalue λ⁽⁶⁾/k over (ρ/r, f/(kr)) at α = {field.alpha:g}; "
                                    f"★ = now{now}")
-        self.contour.figure = contour_figure(field, (s.params["rho_r"], s.params["f_kr"]))
+        self.contour.content = contour_html(field, (s.params["rho_r"], s.params["f_kr"]))
 
     def _write_modes(self) -> None:
         s = self.session
@@ -542,9 +586,14 @@ class ClientUI:
             with self._quiet():
                 self.show_spectrum.value = not large
         plot = bool(modes) and self.show_spectrum.value
-        self.show_spectrum.visible = bool(modes)
+        for h in (self.show_spectrum, self.mode_pick, self.play, self.amplitude, self.speed):
+            h.visible = bool(modes)             # no analysis (a large packing, the scan map): nothing to pick or play
+        if not modes:
+            self._stop_play()
         if plot:            # mounted when first needed, then never unmounted: unmounting a plot with a plotly redraw
-            self.spectrum.visible = True    # pending is the `_redrawFromAutoMarginCount` page error; empty when unused
+            self.spectrum.visible = True    # pending is the `_redrawFromAutoMarginCount` page error; a blank strip
+        if self.spectrum.visible:           # when unused (no empty axes)
+            self.spectrum.aspect = SPECTRUM_ASPECT if plot else BLANK_ASPECT
         keys: dict[str, tuple] = {}
         by_branch: dict[int, int] = {}
         for m in sorted((m for m in modes if m.label != "rigid"), key=lambda m: (m.branch, m.eigenvalue)):
@@ -574,17 +623,29 @@ class ClientUI:
         s = self.session
         if s.scene is None:
             return
-        on = m is not None and self.show["shares"].value and s.scene.n_particles > 2
+        on = m is not None and self.show["shares"].value and self.colours_by_mode
         names = [b.name for b in s.bodies()]
         index = {n: i for i, n in enumerate(s.scene.names)}
         shares = s.particle_shares(m)[[index[n] for n in names]] if on else None
         self.view.colour_particles(names, shares, s.map_colours)
 
+    @property
+    def colours_by_mode(self) -> bool:
+        """Whether particles can be coloured by their share of a mode: an analysed scene of more than two."""
+        s = self.session
+        return s.analysis is not None and s.scene.n_particles > 2
+
     def _describe_mode(self) -> None:
         m = self._current_mode()
         self._colour_by_mode(m)
         if m is None:
-            self.mode_info.content = "No mode to show." if self.session.analysis is not None else ""
+            s = self.session              # say why this panel is empty, and how to fill it
+            self.mode_info.content = (
+                "No mode to show." if s.analysis is not None else
+                "The scan map has no modes: open a particle's cluster (click it, or type its name under *Scene*) "
+                "for its eigenmodes." if s.kind == "scan_map" else
+                "Not analysed yet: *Analyse the whole packing* (under *Scene*) computes the modes." if s.deferred else
+                f"No analysis: {s.error}")
             return
         shares = ", ".join(f"{k} {v:.0%}" for k, v in m.shares.items() if v >= 0.005)
         way = {1: "consistent in +v only", -1: "consistent in -v only", 0: "consistent both ways",
@@ -612,7 +673,7 @@ class ClientUI:
             c = 0.5 * (lo + hi)
             extent = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * 1.3))
             distance = 0.8 * extent + 0.5 * size
-            if self.camera_view.value == "oblique":      # from the front and above: heights become readable
+            if self.camera_view.value == OBLIQUE:        # from the front and above: heights become readable
                 self.client.camera.up_direction = (0.0, 0.0, 1.0)
                 self.client.camera.position = (float(c[0]), float(c[1]) - 0.8 * distance, 0.75 * distance)
             else:
@@ -631,25 +692,25 @@ class ClientUI:
 # ------------------------------------------------------------------------------------------ figures
 
 def _empty_figure():
+    """A blank figure: no axes, no grid (the spectrum plot while it is off)."""
     import plotly.graph_objects as go
-    return go.Figure(layout=dict(margin=dict(l=10, r=10, t=10, b=10)))
+    return go.Figure(layout=dict(margin=dict(l=0, r=0, t=0, b=0), xaxis=dict(visible=False),
+                                 yaxis=dict(visible=False), plot_bgcolor="rgba(0,0,0,0)"))
 
 
-def contour_figure(field, mark):
-    """Plotly contour of λ⁽⁶⁾/k with the zero line and the current state (★)."""
-    import plotly.graph_objects as go
-    lim = float(np.abs(field.lam).max()) or 1.0
-    fig = go.Figure()
-    fig.add_trace(go.Contour(x=field.rho_r, y=field.f_kr, z=field.lam, colorscale="RdBu", zmin=-lim, zmax=lim,
-                             ncontours=20, line=dict(width=0.3), colorbar=dict(title="λ⁽⁶⁾/k", thickness=12),
-                             hovertemplate="ρ/r %{x:.2f}<br>f/(kr) %{y:.4f}<br>λ⁽⁶⁾/k %{z:.3g}<extra></extra>"))
-    fig.add_trace(go.Contour(x=field.rho_r, y=field.f_kr, z=field.lam, showscale=False, hoverinfo="skip",
-                             contours=dict(coloring="none", start=0, end=0, size=1), line=dict(color="black", width=2)))
-    fig.add_trace(go.Scatter(x=[mark[0]], y=[mark[1]], mode="markers", hoverinfo="skip",
-                             marker=dict(symbol="star", size=16, color="gold", line=dict(color="black", width=1))))
-    fig.update_layout(margin=dict(l=55, r=10, t=10, b=45), showlegend=False,
-                      xaxis_title="ρ/r", yaxis_title="f/(kr)")
-    return fig
+def contour_html(field, mark) -> str:
+    """The λ⁽⁶⁾/k contour as a picture (field.field_picture, drawn once per field) with the current state ★ placed
+    over it at `mark` = (ρ/r, f/(kr)) (within the field's grid: the sliders' ranges)."""
+    png, (x0, y0, x1, y1) = field_picture(field)
+    u = (mark[0] - field.rho_r[0]) / (field.rho_r[-1] - field.rho_r[0])
+    v = (mark[1] - field.f_kr[0]) / (field.f_kr[-1] - field.f_kr[0])
+    left, top = 100 * (x0 + u * (x1 - x0)), 100 * (1 - y0 - v * (y1 - y0))
+    return (f'<div class="granstab-contour" style="position:relative;margin:0 8px">'
+            f'<img alt="λ⁽⁶⁾/k over ρ/r and f/(kr)" style="width:100%;display:block" '
+            f'src="data:image/png;base64,{base64.b64encode(png).decode()}">'
+            f'<div class="granstab-star" style="position:absolute;left:{left:.2f}%;top:{top:.2f}%;'
+            'transform:translate(-50%,-52%);font-size:26px;line-height:1;color:gold;-webkit-text-stroke:1px black">'
+            '★</div></div>')
 
 
 def spectrum_figure(modes, hidden: int = 0):
