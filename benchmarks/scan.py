@@ -89,7 +89,7 @@ def chunk_memory(n: int) -> float:
     """Peak traced memory (MB) of one batched chunk of CHUNK clusters in an n-particle 2D packing (its chunk_scene
     and its rows: what a task holds)."""
     scene = packing(2, n)
-    centers = np.arange(CHUNK)
+    centers = np.arange(min(CHUNK, scene.n_particles))
     tracemalloc.start()
     scan_chunk(*chunk_scene(scene, centers, 1), OPTIONS)
     peak = tracemalloc.get_traced_memory()[1]
