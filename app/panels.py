@@ -55,6 +55,7 @@ class ClientUI:
         self._modes_of = None                     # the model whose modes are listed (selection kept within it)
         self.errors_shown = 0
         self._listening = False                   # a scene click callback is registered (scan map only)
+        self._picks = 0                           # presets picked and files uploaded (a typed path waits: _after_typing)
         self._lines_default = None                # the scene size class the force-line default was last set for
         self._shown: dict[str, object] = {}       # what the page shows, by slider key, "preset", "frame", "metric":
                                                   # a user's entry or a value written here (see _show)
@@ -78,9 +79,9 @@ class ClientUI:
         with tabs.add_tab("Scene"):
             self.preset = gui.add_dropdown("Preset", options=self.session.presets() or ["(none)"],
                                            initial_value=self._preset_option())
-            self.preset.on_update(lambda _: self.run(self._load_preset))
+            self.preset.on_update(self._picking(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
-            self.upload.on_upload(lambda _: self.run(self._upload))
+            self.upload.on_upload(self._picking(self._upload))
             self.path = gui.add_text("Path on server", initial_value="")
             self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
@@ -192,17 +193,28 @@ class ClientUI:
                 self._show_message(f"{type(exc).__name__}: {' '.join(str(exc).split())}")
                 return None
 
+    def _picking(self, fn):
+        """The callback of a control that picks a scene (preset, upload): counted as it arrives, before it waits
+        for the lock (a path typed before it then stays unopened: _after_typing), then run."""
+        def update(_):
+            if not self._echo():
+                self._picks += 1
+            self.run(fn)
+        return update
+
     def _after_typing(self, fn):
         """An on_update for a text box (it reports every letter): `fn` runs, through `run`, once the text has rested
         TYPING_PAUSE s, so a path typed letter by letter is opened once, not at every prefix (each one a red error,
-        some a folder to search or another file)."""
+        some a folder to search or another file); not at all if a preset was picked or a file uploaded meanwhile
+        (the last thing the user chose wins)."""
         timer = None
 
         def update(_):
             nonlocal timer
             if timer is not None:
                 timer.cancel()
-            timer = threading.Timer(TYPING_PAUSE, self.run, (fn,))
+            picks = self._picks
+            timer = threading.Timer(TYPING_PAUSE, lambda: self.run(fn) if self._picks == picks else None)
             timer.daemon = True
             timer.start()
         return update

@@ -235,9 +235,10 @@ def scan_dir(tmp_path_factory):
     """A scan of a 9×9 lattice with one planted sharp particle (p40): its cluster is unstable, the rest stable."""
     import json as _json
 
+    from test_scan import planted_lattice
+
     import granstab
     from granstab.scan import scan
-    from test_scan import planted_lattice
     folder = tmp_path_factory.mktemp("scan")
     scene, _ = planted_lattice(40, 0.4)
     packing = folder / "lattice.json"
@@ -328,8 +329,7 @@ def test_quick_switches_in_and_out_of_the_pair(app, browser, scan_dir):
             box.fill(value)
             box.press("Enter")
 
-    for i in range(SWITCHES):
-        pause = (0, 100, 250)[i % 3]           # ms between a switch and the next: the race needs its moment
+    for i, pause in enumerate((0, 100, 250)):   # ms between a switch and the next: the race needs its moment
         rho("0.7", "1.3")
         pick(("four_disk", "ellipses_sharp")[i % 2])
         page.wait_for_timeout(pause)
@@ -337,8 +337,9 @@ def test_quick_switches_in_and_out_of_the_pair(app, browser, scan_dir):
         page.wait_for_timeout(pause)
         rho("0.9", "2.1")
         path = page.locator("input.mantine-TextInput-input:visible").first      # Path on server
-        path.fill(str(scan_dir))
+        path.fill(f"{scan_dir}{'/' * (i % 2)}")      # the same folder spelled anew: the box holds last round's text
         path.press("Enter")
+        verdict_on_page(page, "scan-map", timeout=60_000)     # opened once the typing rests (0.6 s)
         page.wait_for_timeout(pause)
         pick("two_particle")
         page.wait_for_timeout(pause)
@@ -347,7 +348,8 @@ def test_quick_switches_in_and_out_of_the_pair(app, browser, scan_dir):
         ui.preset.value = ("four_disk", "ellipses_sharp")[i % 2]
         ui.preset.value = "two_particle"
         ui.sliders["rho_r"].value = 1.6 + 0.01 * i
-        ui.path.value = str(scan_dir)
+        ui.path._impl.value = str(scan_dir)              # a typed path, opened as its resting timer opens it
+        ui.run(ui._open_path)
         ui.preset.value = "two_particle"
     wait_for(lambda: ui.session.preset == "two_particle", timeout=60, what="the pair at the end")
     with ui.lock:                  # every queued switch has run: the page shows the last revision
@@ -381,6 +383,23 @@ def test_a_pick_made_while_another_loads_is_kept(app, browser, monkeypatch):
     ui.run(ui._load_preset)                                   # the second pick's callback, queued behind it
     assert ui.session.preset == "two_particle" and ui.preset.value == "two_particle"
     verdict_on_page(page, "unstable")
+    page.close()
+    assert errors == []
+
+
+def test_a_pick_after_typing_a_path_wins(app, browser, scan_dir):
+    """A path typed, then a preset picked before the typing has rested: the preset stays (the typed path used to
+    open 0.6 s later, over the user's later pick)."""
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    page.locator("input.mantine-TextInput-input:visible").first.fill(str(scan_dir))    # Path on server
+    page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+    page.get_by_role("option", name="four_disk").click()
+    wait_for(lambda: ui.session.preset == "four_disk", timeout=60, what="four_disk")
+    page.wait_for_timeout(1500)                                 # well past the typing pause
+    assert ui.session.preset == "four_disk"
     page.close()
     assert errors == []
 
@@ -431,7 +450,7 @@ def test_display_controls_per_scene(app, browser):
             page.get_by_role("tab", name="Scene").click()
             page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
             page.get_by_role("option", name=name, exact=True).click()
-            wait_for(lambda: ui.session.preset == name, timeout=60, what=name)
+            wait_for(lambda name=name: ui.session.preset == name, timeout=60, what=name)
         with ui.lock:
             revision = ui.session.revision
         page.wait_for_selector(f'.granstab-verdict[data-revision="{revision}"]', timeout=60_000)
@@ -577,7 +596,7 @@ def test_no_tooltip_covers_an_input(playwright, tmp_path):
             page.get_by_role("tab", name="Scene").click()
             page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
             page.get_by_role("option", name=name, exact=True).click()
-            wait_for(lambda: ui.session.preset == name, timeout=60, what=name)
+            wait_for(lambda name=name: ui.session.preset == name, timeout=60, what=name)
             page.wait_for_selector(f'.granstab-verdict[data-revision="{ui.session.revision}"]',
                                    timeout=120_000)
             for c, tab in _covered_inputs(page, hovered):
