@@ -31,7 +31,6 @@ from __future__ import annotations
 import statistics
 import tempfile
 import time
-import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +38,8 @@ import numpy as np
 import granstab.io
 from granstab import packings
 from granstab.files import save_scene
+
+from .reading import peak_bytes
 
 QUICK_SIZES = (1_000, 10_000)
 FULL_SIZES = (10_000, 100_000, 1_000_000)
@@ -58,15 +59,6 @@ def median_time(fn, budget: float = 2.0, most: int = 5) -> tuple[float, int, obj
         out = fn()
         times.append(time.perf_counter() - start)
     return statistics.median(times), len(times), out
-
-
-def peak_bytes(fn) -> int:
-    tracemalloc.start()
-    try:
-        fn()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
 
 
 # ------------------------------------------------------------------------------------------------ inputs
