@@ -102,8 +102,9 @@ def residual_norms(xp, A, lam, V):
     return xp.sqrt(xp.sum(R * R, axis=1))
 
 
-def eigh_stack(stack, device: str = "cpu", keep=None):
-    """Eigen-decompose a stack of symmetric matrices (L, n, n) on `device`, in chunks that fit it.
+def eigh_stack(stack, device: str = "cpu", keep=None, symmetric: bool = False):
+    """Eigen-decompose a stack of symmetric matrices (L, n, n) on `device`, in chunks that fit it (symmetrised first,
+    unless `symmetric`: the caller's matrices are exactly symmetric already).
 
     keep(xp, A, lam, V, start) → dict of device arrays: what to bring back per chunk (default: eigenvalues "lam",
     eigenvectors "V" and the per-pair residual norms "residual", see `residual_norms`). Returns a dict of numpy
@@ -118,7 +119,8 @@ def eigh_stack(stack, device: str = "cpu", keep=None):
     with be.threads(n):
         for start in range(0, L, size):
             A = be.asarray(stack[start:start + size])
-            A = 0.5 * (A + be.xp.swapaxes(A, 1, 2))
+            if not symmetric:
+                A = 0.5 * (A + be.xp.swapaxes(A, 1, 2))
             lam, V = be.xp.linalg.eigh(A)
             for key, value in keep(be.xp, A, lam, V, start).items():
                 parts.setdefault(key, []).append(be.to_host(value))

@@ -83,7 +83,7 @@ def batched_rows(scene: Scene, centers: np.ndarray, member_lists: list, options:
         sm = finalize(sm, errors, got["n_undetermined"], None)
         c, keep = centers[i], member_lists[i]
         row = {"center": scene.names[c], "members": [scene.names[j] for j in keep], "n_particles": len(keep),
-               "path": "batched"}
+               "path": got["path"]}
         rows[i] = summary_row(row, sm, n_contacts=got["n_contacts"], n_sliding=got["n_sliding"],
                               lambda_min=got["lambda_min"], eigen_residual=got["eigen_residual"],
                               rigid_leakage=got["rigid_leakage"], seconds=share)
