@@ -18,7 +18,7 @@ from granstab.scan.run import CHUNK, chunk_scene, cluster_row, scan_chunk
 TASK_OVERHEAD_S = 1e-3      # Dask's documented scheduler cost per task (order of magnitude), for the extrapolation
 OPTIONS = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32}
 QUICK = {"sizes": {2: 3000, 3: 600}, "sample": 128, "memory": (2000, 8000), "repeats": 1}
-FULL = {"sizes": {2: 100_000, 3: 10_000}, "sample": 512, "memory": (10_000, 100_000), "repeats": 3}
+FULL = {"sizes": {2: 100_000, 3: 10_000}, "sample": 512, "memory": (10_000, 100_000), "repeats": 5}
 
 
 def packing(dim: int, n: int):
@@ -42,7 +42,7 @@ def batched_vs_loop(scene, sample: int) -> dict:
     diff = max(abs(a["lambda_min"] - b["lambda_min"]) / abs(b["lambda_min"]) for a, b in zip(rows, ref))
     return {"clusters": sample, "batched_s": statistics.median(times), "loop_s": loop,
             "speedup": loop / statistics.median(times), "same_verdicts": same, "max_rel_diff": diff,
-            "batched_share": sum(r["path"] == "batched" for r in rows) / len(rows)}
+            "paths": {path: sum(r["path"] == path for r in rows) for path in sorted({r["path"] for r in rows})}}
 
 
 def whole_scan(scene, workers: int = 1, device: str = "cpu", scheduler: str | None = None) -> tuple[float, dict]:
@@ -56,29 +56,35 @@ def whole_scan(scene, workers: int = 1, device: str = "cpu", scheduler: str | No
 
 
 def scaling(scene, repeats: int) -> dict:
-    """Whole scans, medians of `repeats`: serially in this process; on a running local Dask cluster of 1 and of 2
-    worker processes (the scaling 1 → 2 workers: a cluster is started once, as a real one is); `--workers 2` with its
-    cluster's start-up included (what one command costs)."""
+    """Whole scans, medians of `repeats`: serially in this process and on running local Dask clusters of 1 and of 2
+    worker processes (the scaling 1 → 2 workers: each cluster started once and warmed by one untimed scan, as a real
+    one is), the three interleaved round by round so that a shared machine's load falls on all of them alike; then
+    `--workers 2` with its cluster's start-up included (what one command costs)."""
     import dask
     from dask.distributed import LocalCluster
     from granstab.scan.run import WORKER_ENVIRON
     serial, ref = whole_scan(scene)
     times = {"serial": [serial]}
     same = True
-    for workers in (1, 2):
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
-        with cluster:
-            for _ in range(repeats):
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
+        clusters = {w: LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None)
+                    for w in (1, 2)}
+    try:
+        for w, cluster in clusters.items():
+            same &= whole_scan(scene, scheduler=cluster.scheduler_address)[1]["verdict"] == ref["verdict"]
+        for _ in range(repeats):
+            for w, cluster in clusters.items():
                 seconds, got = whole_scan(scene, scheduler=cluster.scheduler_address)
-                times.setdefault(f"dask{workers}", []).append(seconds)
+                times.setdefault(f"dask{w}", []).append(seconds)
                 same &= got["verdict"] == ref["verdict"]
-    for _ in range(repeats):
+            times["serial"].append(whole_scan(scene)[0])
+    finally:
+        for cluster in clusters.values():
+            cluster.close()
+    for _ in range(max(1, repeats // 2)):
         seconds, got = whole_scan(scene, workers=2)
         times.setdefault("startup2", []).append(seconds)
         same &= got["verdict"] == ref["verdict"]
-    for _ in range(repeats - 1):
-        times["serial"].append(whole_scan(scene)[0])
     med = {key: statistics.median(value) for key, value in times.items()}
     return {"summary": ref["summary"], "lambda_min": ref["lambda_min"], "verdict": ref["verdict"],
             "seconds": med, "same_verdicts": same, "speedup_1_to_2": med["dask1"] / med["dask2"],
@@ -106,7 +112,8 @@ def run(quick: bool = False) -> dict:
                "at_yield": int(scene.at_yield().sum()), **batched_vs_loop(scene, cfg["sample"])}
         a = scaling(scene, cfg["repeats"])
         serial = a["seconds"]["serial"]
-        row.update(serial_s=serial, dask1_s=a["seconds"]["dask1"], dask2_s=a["seconds"]["dask2"],
+        row.update(serial_s=serial, scan_vs_loop=(row["loop_s"] / row["clusters"]) / (serial / scene.n_particles),
+                   dask1_s=a["seconds"]["dask1"], dask2_s=a["seconds"]["dask2"],
                    startup2_s=a["seconds"]["startup2"], speedup_1_to_2=a["speedup_1_to_2"],
                    speedup_serial_to_2=a["speedup_serial_to_2"], clusters_per_s_serial=scene.n_particles / serial,
                    verdicts=a["summary"]["verdicts"], same_verdicts_dask=a["same_verdicts"])
@@ -141,25 +148,31 @@ def _extrapolate(row: dict) -> list[dict]:
 def markdown(results: dict) -> str:
     lines = ["## The local scan: clusters per second (issue 10)", "",
              "`granstab scan` (rings = 1, metric L, max-sliding 8) on random packings with one contact in ~30 at "
-             "yield. **Batched against loop**: the same clusters (evenly spread centres) through the batched path "
-             "(`granstab/scan/batch.py`: their chunk scene cut out, then one stacked eigenproblem per cluster size, "
-             "median of 3) and through a loop "
-             "of `analyze` calls, one pass; the error is the largest relative difference of λ_min between the two. "
-             "**Whole scan**: every particle a centre, rows written to parquet, medians of "
-             f"{results['repeats']}: serially in this process (`--workers 1`); on a running local Dask cluster of 1 "
-             "and of 2 single-threaded worker processes (`--scheduler`: the scaling 1 → 2 workers, the cluster "
-             "started once, as a real one is); `--workers 2` with its cluster's start-up included (one command). "
-             "This 2-core machine is shared and the client process needs a core too (cutting chunks, writing "
-             "parts), so the 2-worker ratios are lower bounds.", "",
-             "| packing | particles | contacts (at yield) | batched / loop (clusters) | speed-up | error (verdicts) | "
-             "serial | Dask 1 worker | 2 workers | **1 → 2** | `--workers 2` (start-up incl.) | serial → it | "
-             "clusters/s | verdicts |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "yield. **The batched scan against a loop of `analyze`**: a loop of `analyze` calls (`cluster_row`: cut "
+             "the cluster, analyse it; one pass over evenly spread clusters) against (a) the same clusters as one "
+             "batched chunk (`granstab/scan/batch.py`: their chunk scene cut out, the stacked eigenproblems per "
+             "cluster size; median of 3; spread centres share few contacts, the batched path's worst case) and (b) "
+             "the whole serial scan below, per cluster (every particle a centre, rows written). The error is the "
+             "largest relative difference of λ_min between batched and loop; *paths*: how the sampled rows were "
+             "made (`batched`: eigenvectors and residual bounds; `batched-values`: no sliding contact, eigenvalues "
+             "only with a-priori bounds; `analyze`: handed back). **Whole scan**, medians of "
+             f"{results['repeats']}: serially in this process (`--workers 1`); on running local Dask clusters of 1 "
+             "and of 2 single-threaded worker processes (`--scheduler`: the scaling 1 → 2 workers; each cluster "
+             "started once and warmed by one untimed scan, as a real one is; serial, 1 and 2 workers interleaved "
+             "round by round so that the shared machine's load falls on all three alike); `--workers 2` with its "
+             "cluster's start-up included (one command). This 2-core machine is shared and the client process needs "
+             "some of a core too (cutting chunks, writing parts), so the 2-worker ratios are lower bounds.", "",
+             "| packing | particles | contacts (at yield) | loop of analyze (clusters) | (a) batched chunk | "
+             "(a) speed-up | **(b) scan vs loop** | error (verdicts) | paths (sample) | serial | Dask 1 worker | "
+             "2 workers | **1 → 2** | `--workers 2` (start-up incl.) | serial → it | clusters/s | verdicts |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results["rows"]:
         lines.append(
             f"| {r['dim']}D random | {r['n_particles']:,} | {r['n_contacts']:,} ({r['at_yield']:,}) | "
-            f"{r['batched_s']:.2f} s / {r['loop_s']:.1f} s ({r['clusters']}) | **{r['speedup']:.0f}×** | "
-            f"{r['max_rel_diff']:.1e} ({'same' if r['same_verdicts'] else '**DIFFER**'}) | {r['serial_s']:.1f} s | "
+            f"{r['loop_s']:.1f} s ({r['clusters']}) | {r['batched_s']:.2f} s | {r['speedup']:.1f}× | "
+            f"**{r['scan_vs_loop']:.1f}×** | "
+            f"{r['max_rel_diff']:.1e} ({'same' if r['same_verdicts'] else '**DIFFER**'}) | "
+            + ", ".join(f"{k} {v}" for k, v in r["paths"].items()) + f" | {r['serial_s']:.1f} s | "
             f"{r['dask1_s']:.1f} s | {r['dask2_s']:.1f} s | **{r['speedup_1_to_2']:.2f}×** | {r['startup2_s']:.1f} s | "
             f"{r['speedup_serial_to_2']:.2f}× | {r['clusters_per_s_serial']:.0f} | "
             + ", ".join(f"{k} {v}" for k, v in r["verdicts"].items())
