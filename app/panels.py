@@ -69,6 +69,7 @@ class ClientUI:
         self._shown: dict[str, object] = {}       # what the page shows, by slider key, "preset", "frame", "metric":
                                                   # a user's entry or a value written here (see _show)
         self._transfers: dict[str, str] = {}      # file name -> transfer uuid of the upload under way (_watch_uploads)
+        self._view_picked = False                 # the user chose a 2D view: kept over each scene's default view
         self._build()
         self.run(self.refresh, camera=True)
 
@@ -128,7 +129,7 @@ class ClientUI:
             for h in (*self.show.values(), self.force_scale):
                 h.on_update(lambda _: self.run(self._display))
             self.camera_view = gui.add_dropdown("View", options=[TOP, OBLIQUE], initial_value=TOP)
-            self.camera_view.on_update(lambda _: self.run(self._set_camera))
+            self.camera_view.on_update(self._pick_view)
             gui.add_button("Reset view").on_click(lambda _: self.run(self._set_camera))
         with tabs.add_tab("Export"):
             gui.add_markdown("Download the current scene (reloads to the same analysis), the analysis, the contour.")
@@ -257,6 +258,12 @@ class ClientUI:
         ok = self.session.load_preset(name)
         self.view.key = None
         self.refresh(camera=ok)
+
+    def _pick_view(self, _) -> None:
+        """The View menu: the user's choice, noted as it arrives (a scene opening meanwhile keeps it), then shown."""
+        if not self._echo():
+            self._view_picked = True
+        self.run(self._set_camera)
 
     def _upload(self) -> None:
         up = self.upload.value
@@ -462,6 +469,9 @@ class ClientUI:
         self._write_field()
         self._write_modes()
         if camera:
+            if not self._view_picked:       # the pair opens oblique: its λ⁽⁶⁾ height surface is flat seen from above
+                with self._quiet():
+                    self.camera_view.value = OBLIQUE if s.field() is not None else TOP
             self._set_camera()
 
     def _send_now(self) -> None:

@@ -493,6 +493,45 @@ def test_display_controls_per_scene(app, browser):
     assert errors == []
 
 
+def test_pair_opens_oblique_and_a_picked_view_stays(app, browser):
+    """The pair opens in the oblique view (its λ⁽⁶⁾ height surface is flat seen from above: it opened top-down), the
+    other 2D presets top-down; a view picked in the View menu is kept when the preset changes."""
+    from app.panels import OBLIQUE, TOP
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    menu = page.locator(f'[id="{ui.camera_view._impl.uuid}"]')
+
+    def pick(name):
+        page.get_by_role("tab", name="Scene").click()
+        page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+        page.get_by_role("option", name=name, exact=True).click()
+        wait_for(lambda: ui.session.preset == name, timeout=60, what=name)
+        with ui.lock:                          # its refresh, camera included, has run
+            revision = ui.session.revision
+        page.wait_for_selector(f'.granstab-verdict[data-revision="{revision}"]', timeout=60_000)
+        page.get_by_role("tab", name="Display").click()
+        menu.wait_for(timeout=20_000)
+        wait_for(lambda: menu.input_value() == ui.camera_view.value, what="the View menu on the page")
+        return ui.camera_view.value
+
+    page.get_by_role("tab", name="Display").click()
+    seen = {"opened on two_particle": menu.input_value()}
+    up = ui.client.camera.up_direction
+    for name in ("four_disk", "ellipses_sharp", "two_particle"):
+        seen[name] = pick(name)
+    assert seen == {"opened on two_particle": OBLIQUE, "four_disk": TOP, "ellipses_sharp": TOP,
+                    "two_particle": OBLIQUE}, seen
+    assert np.allclose(up, (0, 0, 1))                           # the oblique camera: z up, seen from the front
+    menu.click()
+    page.get_by_role("option", name=TOP, exact=True).click()     # the user's own choice
+    wait_for(lambda: ui._view_picked and ui.camera_view.value == TOP, what="the picked view")
+    assert (pick("four_disk"), pick("two_particle")) == (TOP, TOP)
+    page.close()
+    assert errors == []
+
+
 def test_two_tabs_are_independent(app, browser):
     """Two tabs on one server: a preset picked in one leaves the other's scene and verdict as they were."""
     errors: list[str] = []
