@@ -477,3 +477,20 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     assert s.analysis.summary["consistent_negative"] == row["consistent_negative"]
     assert s.back_to_map() and s.kind == "scan_map" and s.map is None
     assert not s.open_cluster("nope") and "no centre" in s.error
+
+
+def test_a_concave_side_is_drawn_as_a_socket():
+    """hand_in_glove: q's outline near the contact follows its concave circle of curvature (radius 1.002 about
+    (-0.002, 0)) on both sides of the contact, as drawn (q's mesh); it was a plain convex disk (radius 2 about (3, 0))
+    that touched p at one point. Tolerance 1e-12 r."""
+    from app.views import SceneView
+    s = Session("hand_in_glove")
+    view = SceneView(RecordingScene())
+    view.draw_particles(s)
+    (V, _), _ = view.api.sent["/particles/q/body/mesh"]
+    q = s.bodies()[1]
+    ring = V[(V[:, 2] > 0) & (np.abs(V[:, :2]).max(axis=1) > 0), :2] + q.x   # the top outline (not the centre), world
+    point, r = s.scene.point[0], 1.0
+    near = ring[np.linalg.norm(ring - point, axis=1) < 0.5 * r]
+    assert len(near) >= 10 and near[:, 1].min() < -0.3 * r and near[:, 1].max() > 0.3 * r
+    assert np.abs(np.linalg.norm(near - [-0.002, 0.0], axis=1) - 1.002).max() < 1e-12 * r
