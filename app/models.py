@@ -85,7 +85,7 @@ class TwoParticleModel:
         return [Body("p", "ellipse", axes, np.array([0.0, 0.0]), np.eye(2)),
                 Body("q", "ellipse", axes, np.array([2 * r, 0.0]), np.eye(2))]
 
-    def to_shapes(self, P: dict) -> "ShapeModel":
+    def to_shapes(self, P: dict) -> ShapeModel:
         """The same two ellipses as a shape model (what a drag turns the pair into): q sits at 2r - δ with the
         penalty overlap δ = f/k, so the pair keeps its force (a tensile force cannot be kept: δ = 0 then)."""
         a, b = self.bodies(P)[0].axes
@@ -96,7 +96,7 @@ class TwoParticleModel:
         return ShapeModel(dim=2, particles=particles, start=start, title=f"{self.title} (dragged)", length=self.r)
 
     @classmethod
-    def from_scene(cls, scene: granstab.Scene) -> "TwoParticleModel | None":
+    def from_scene(cls, scene: granstab.Scene) -> TwoParticleModel | None:
         """The pair if `scene` is the symmetric collinear two-particle example (else None), with its parameters."""
         if scene.dim != 2 or scene.n_particles != 2 or scene.n_contacts != 1:
             return None
@@ -148,8 +148,8 @@ class ShapeModel:
         return {**defaults(), **self.start}
 
     def _law(self, P: dict) -> dict:
-        return dict(k=P["k"], alpha=P["alpha"], mu=P["mu"], mobilised=P["mobilised"],
-                    rolling_stiffness=P["rolling"] * P["k"] * self.length ** 2, shear=self.shear, title=self.title)
+        return {"k": P["k"], "alpha": P["alpha"], "mu": P["mu"], "mobilised": P["mobilised"],
+                "rolling_stiffness": P["rolling"] * P["k"] * self.length ** 2, "shear": self.shear, "title": self.title}
 
     def build(self, P: dict) -> granstab.Scene:
         try:
@@ -185,7 +185,7 @@ class ShapeModel:
         self.particles = [(n, s, p) for (n, s, _), p in zip(self.particles, self.poses0)]
 
     @classmethod
-    def from_dict(cls, data: dict, source: str) -> "ShapeModel":
+    def from_dict(cls, data: dict, source: str) -> ShapeModel:
         """Read the shape format; validation (one-line SceneError) is granstab.shapes.shape_scene_from_dict's."""
         spec = shapes.read_shape_file(data, source=source)
         law = {**spec.law, "mobilised": spec.mobilised}
@@ -326,5 +326,14 @@ def load_model(path, frame=None):
     return model_from_dict(read_scene_file(path), str(path))
 
 
-__all__ = ["Body", "TwoParticleModel", "ShapeModel", "ContactModel", "model_for_scene", "model_from_dict", "load_model", "read_scene_file",
-           "contact_sockets"]
+__all__ = [
+    "Body",
+    "ContactModel",
+    "ShapeModel",
+    "TwoParticleModel",
+    "contact_sockets",
+    "load_model",
+    "model_for_scene",
+    "model_from_dict",
+    "read_scene_file",
+]

@@ -775,8 +775,8 @@ class ClientUI:
 def _empty_figure():
     """A blank figure: no axes, no grid (the spectrum plot while it is off)."""
     import plotly.graph_objects as go
-    return go.Figure(layout=dict(margin=dict(l=0, r=0, t=0, b=0), xaxis=dict(visible=False),
-                                 yaxis=dict(visible=False), plot_bgcolor="rgba(0,0,0,0)"))
+    return go.Figure(layout={"margin": {"l": 0, "r": 0, "t": 0, "b": 0}, "xaxis": {"visible": False},
+                            "yaxis": {"visible": False}, "plot_bgcolor": "rgba(0,0,0,0)"})
 
 
 def contour_html(field, mark) -> str:
@@ -815,16 +815,16 @@ def spectrum_figure(modes, hidden: int = 0):
         colors = ["#c0392b" if m.eigenvalue < 0 and m.consistent else "#2c3e50" for m in sel]
         fig.add_trace(go.Scatter(
             x=[f"branch {m.branch}" for m in sel], y=y, mode="markers", name=kind,
-            marker=dict(symbol=symbol, size=11, color=colors, line=dict(width=1.5, color=colors)),
+            marker={"symbol": symbol, "size": 11, "color": colors, "line": {"width": 1.5, "color": colors}},
             text=[f"λ = {m.eigenvalue:.5g}<br>{m.label}<br>{kind}" for m in sel],
             hovertemplate="%{text}<extra></extra>"))
     top = int(np.ceil(float(np.abs(slog(lam)).max()))) if lam.size else 1
     ticks = np.arange(-top, top + 1)
     if hidden:
         fig.add_annotation(text=f"lowest {len(modes)} shown, {hidden} higher left out", showarrow=False,
-                           xref="paper", yref="paper", x=1, y=1, xanchor="right", font=dict(size=10))
+                           xref="paper", yref="paper", x=1, y=1, xanchor="right", font={"size": 10})
     fig.update_layout(
-        margin=dict(l=60, r=10, t=10, b=30), legend=dict(orientation="h", y=1.08),
-        yaxis=dict(title="eigenvalue (signed log scale)", tickvals=ticks.tolist(),
-                   ticktext=[f"{np.sign(t) * eps * (10 ** abs(t) - 1):.1g}" for t in ticks], zeroline=True))
+        margin={"l": 60, "r": 10, "t": 10, "b": 30}, legend={"orientation": "h", "y": 1.08},
+        yaxis={"title": "eigenvalue (signed log scale)", "tickvals": ticks.tolist(),
+               "ticktext": [f"{np.sign(t) * eps * (10 ** abs(t) - 1):.1g}" for t in ticks], "zeroline": True})
     return fig

@@ -13,12 +13,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from helpers import FLAT_PAIR
 
 from app.field import lambda6_field
 from app.models import ContactModel, ShapeModel, TwoParticleModel, load_model
 from app.modes import label_mode
 from app.state import Session
-from helpers import FLAT_PAIR
 
 REPO = Path(__file__).resolve().parent.parent
 EPS = np.finfo(float).eps
@@ -335,7 +335,7 @@ def test_export_analysis_and_contour(pair):
 
 
 def test_failed_analysis_is_kept_as_a_message(pair, monkeypatch):
-    import app.state as state
+    from app import state
 
     def boom(scene, **options):
         raise RuntimeError("eigensolver exploded")
@@ -455,9 +455,10 @@ def test_inertia_metric_where_the_scene_has_masses():
 def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     """A scan folder opens as the map (no analysis of the packing); a click ray over the planted sharp particle
     opens its cluster, whose verdict and size are the scan row's; *Back to the map* returns."""
+    from test_scan import planted_lattice
+
     import granstab
     from granstab.scan import read_map, scan
-    from test_scan import planted_lattice
     scene, _ = planted_lattice(40, 0.4)
     packing = tmp_path / "lattice.json"
     packing.write_text(json.dumps(scene.to_dict()))
