@@ -8,7 +8,7 @@ Three kinds, each with `params_used`, `initial_params()`, `build(params) -> Scen
 - ShapeModel: disks/ellipses/spheres/ellipsoids at poses; contacts, normals, curvatures and forces come from the
   geometry (granstab.shapes); dragging changes the poses.
 - ContactModel: a contact-level scene file; the law parameters (μ, α, k, rolling) can be overridden, the geometry
-  is fixed (particles are drawn as disks/spheres through their contact points).
+  is fixed (particles are drawn as disks/spheres through their contact points; in 2D with a socket at a concave side).
 """
 from __future__ import annotations
 
@@ -27,13 +27,15 @@ from .params import defaults
 
 @dataclass(frozen=True)
 class Body:
-    """A particle to draw: kind "ellipse"|"disk" (2D) or "ellipsoid"|"sphere" (3D), semi-axes, pose x (d,), R (d, d)."""
+    """A particle to draw: kind "ellipse"|"disk" (2D) or "ellipsoid"|"sphere" (3D), semi-axes, pose x (d,), R (d, d);
+    2D `sockets`: its concave contact sides (contact_sockets), cut into the drawn outline (app.views.outline)."""
 
     name: str
     kind: str
     axes: tuple
     x: np.ndarray
     R: np.ndarray
+    sockets: tuple = ()
 
 
 # ------------------------------------------------------------------------------------------------ the pair
@@ -83,7 +85,7 @@ class TwoParticleModel:
         return [Body("p", "ellipse", axes, np.array([0.0, 0.0]), np.eye(2)),
                 Body("q", "ellipse", axes, np.array([2 * r, 0.0]), np.eye(2))]
 
-    def to_shapes(self, P: dict) -> "ShapeModel":
+    def to_shapes(self, P: dict) -> ShapeModel:
         """The same two ellipses as a shape model (what a drag turns the pair into): q sits at 2r - δ with the
         penalty overlap δ = f/k, so the pair keeps its force (a tensile force cannot be kept: δ = 0 then)."""
         a, b = self.bodies(P)[0].axes
@@ -94,7 +96,7 @@ class TwoParticleModel:
         return ShapeModel(dim=2, particles=particles, start=start, title=f"{self.title} (dragged)", length=self.r)
 
     @classmethod
-    def from_scene(cls, scene: granstab.Scene) -> "TwoParticleModel | None":
+    def from_scene(cls, scene: granstab.Scene) -> TwoParticleModel | None:
         """The pair if `scene` is the symmetric collinear two-particle example (else None), with its parameters."""
         if scene.dim != 2 or scene.n_particles != 2 or scene.n_contacts != 1:
             return None
@@ -146,8 +148,8 @@ class ShapeModel:
         return {**defaults(), **self.start}
 
     def _law(self, P: dict) -> dict:
-        return dict(k=P["k"], alpha=P["alpha"], mu=P["mu"], mobilised=P["mobilised"],
-                    rolling_stiffness=P["rolling"] * P["k"] * self.length ** 2, shear=self.shear, title=self.title)
+        return {"k": P["k"], "alpha": P["alpha"], "mu": P["mu"], "mobilised": P["mobilised"],
+                "rolling_stiffness": P["rolling"] * P["k"] * self.length ** 2, "shear": self.shear, "title": self.title}
 
     def build(self, P: dict) -> granstab.Scene:
         try:
@@ -183,7 +185,7 @@ class ShapeModel:
         self.particles = [(n, s, p) for (n, s, _), p in zip(self.particles, self.poses0)]
 
     @classmethod
-    def from_dict(cls, data: dict, source: str) -> "ShapeModel":
+    def from_dict(cls, data: dict, source: str) -> ShapeModel:
         """Read the shape format; validation (one-line SceneError) is granstab.shapes.shape_scene_from_dict's."""
         spec = shapes.read_shape_file(data, source=source)
         law = {**spec.law, "mobilised": spec.mobilised}
@@ -261,8 +263,28 @@ class ContactModel:
         fallback = np.median(radius[np.isfinite(radius)]) if np.isfinite(radius).any() else 1.0
         radius = np.where(np.isfinite(radius) & (radius > 0), radius, fallback)
         kind = "disk" if s.dim == 2 else "sphere"
-        return [Body(name, kind, (float(radius[i]),) * s.dim, s.x[i].copy(), np.eye(s.dim))
+        sockets = contact_sockets(s) if s.dim == 2 else {}
+        return [Body(name, kind, (float(radius[i]),) * s.dim, s.x[i].copy(), np.eye(s.dim), sockets.get(i, ()))
                 for i, name in enumerate(s.names)]
+
+
+def contact_sockets(scene: granstab.Scene) -> dict[int, tuple]:
+    """The concave sides of a 2D scene's contacts, by particle index: for each, (cx, cy, ρ, angle) — the circle of
+    curvature of its surface at the contact, radius ρ = 1/κ about a centre outside the particle (relative to the
+    particle's centre), and the direction (angle) from that centre to the contact point. κ = t·K·t along the contact
+    tangent t: < 0 convex, > 0 concave (as in app.views.circle_data); sides flatter than ρ = 10⁶ × the contact's
+    distance from the particle's centre are drawn flat. Vectorised over contacts: a packing has thousands."""
+    t = np.stack([-scene.normal[:, 1], scene.normal[:, 0]], axis=1)
+    out: dict[int, list] = {}
+    for index, K, r, sign in ((scene.p, scene.curvature_p, scene.r_pq, -1.0),
+                              (scene.q, scene.curvature_q, scene.r_qp, 1.0)):
+        kappa = np.einsum("ci,cij,cj->c", t, K, t)
+        for c in np.flatnonzero(kappa * np.linalg.norm(r, axis=1) > 1e-6):
+            rho = 1.0 / kappa[c]
+            centre = scene.point[c] - sign * rho * scene.normal[c] - scene.x[index[c]]
+            angle = np.arctan2(sign * scene.normal[c, 1], sign * scene.normal[c, 0])
+            out.setdefault(int(index[c]), []).append((float(centre[0]), float(centre[1]), float(rho), float(angle)))
+    return {i: tuple(v) for i, v in out.items()}
 
 
 def model_for_scene(scene: granstab.Scene):
@@ -304,4 +326,14 @@ def load_model(path, frame=None):
     return model_from_dict(read_scene_file(path), str(path))
 
 
-__all__ = ["Body", "TwoParticleModel", "ShapeModel", "ContactModel", "model_for_scene", "model_from_dict", "load_model", "read_scene_file"]
+__all__ = [
+    "Body",
+    "ContactModel",
+    "ShapeModel",
+    "TwoParticleModel",
+    "contact_sockets",
+    "load_model",
+    "model_for_scene",
+    "model_from_dict",
+    "read_scene_file",
+]

@@ -13,11 +13,19 @@ import html
 import threading
 import time
 from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
+from viser._messages import (
+    FileTransferPartAck,
+    FileTransferStartUpload,
+    NotificationProps,
+    NotificationUpdateMessage,
+)
 
 from .field import field_picture
 from .params import PARAMS
+from .state import MAX_UPLOAD
 from .views import MESH_MAX, SceneView
 
 VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b", None: "#555555"}
@@ -31,6 +39,7 @@ LINES_MAX = 5_000         # contacts: above this force lines and normals are off
                           # in a browser without a GPU: 10⁴ disks 0.38 s, 10⁵ disks 10 s)
 SPECTRUM_ASPECT, BLANK_ASPECT = 1.3, 0.1    # height/width of the spectrum plot, and of the blank strip while it is off
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
+REJECT_AGAIN = (0.3, 1.5)  # s: a refused upload's notice is sent again after these delays (see _reject_upload)
 TWO_LINES = "line-height:1.3em;height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;" \
             "-webkit-box-orient:vertical"                   # a headline line's box: two lines, whatever its text
 
@@ -59,6 +68,8 @@ class ClientUI:
         self._lines_default = None                # the scene size class the force-line default was last set for
         self._shown: dict[str, object] = {}       # what the page shows, by slider key, "preset", "frame", "metric":
                                                   # a user's entry or a value written here (see _show)
+        self._transfers: dict[str, str] = {}      # file name -> transfer uuid of the upload under way (_watch_uploads)
+        self._view_picked = False                 # the user chose a 2D view: kept over each scene's default view
         self._build()
         self.run(self.refresh, camera=True)
 
@@ -82,6 +93,7 @@ class ClientUI:
             self.preset.on_update(self._picking(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(self._picking(self._upload))
+            self._watch_uploads()
             self.path = gui.add_text("Path on server", initial_value="")
             self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
@@ -117,7 +129,7 @@ class ClientUI:
             for h in (*self.show.values(), self.force_scale):
                 h.on_update(lambda _: self.run(self._display))
             self.camera_view = gui.add_dropdown("View", options=[TOP, OBLIQUE], initial_value=TOP)
-            self.camera_view.on_update(lambda _: self.run(self._set_camera))
+            self.camera_view.on_update(self._pick_view)
             gui.add_button("Reset view").on_click(lambda _: self.run(self._set_camera))
         with tabs.add_tab("Export"):
             gui.add_markdown("Download the current scene (reloads to the same analysis), the analysis, the contour.")
@@ -247,13 +259,68 @@ class ClientUI:
         self.view.key = None
         self.refresh(camera=ok)
 
+    def _pick_view(self, _) -> None:
+        """The View menu: the user's choice, noted as it arrives (a scene opening meanwhile keeps it), then shown."""
+        if not self._echo():
+            self._view_picked = True
+        self.run(self._set_camera)
+
     def _upload(self) -> None:
         up = self.upload.value
+        transfer = self._transfers.pop(up.name)
         ok = self.session.load_upload(up.name, up.content)
-        if not ok:      # viser says "File uploaded successfully." for every file: say beside it that this one is not open
-            self.client.add_notification("Not opened", self.session.error, color="red", auto_close_seconds=15)
+        if not ok:
+            self._reject_upload(transfer, up.name, self.session.error)
         self.view.key = None
         self.refresh(camera=ok)
+
+    def _watch_uploads(self) -> None:
+        """See each upload of the *Open scene file* button start: note its transfer uuid (the id of viser's own
+        notice of it, which _reject_upload turns red), and refuse a file over MAX_UPLOAD before any part of it is
+        buffered. Relies on viser 1.1 internals: the client's GuiApi handles `FileTransferStartUpload` with
+        `_handle_file_transfer_start` registered on the client's websocket connection (wrapped here: unregistering
+        it fails loudly if that changes), which creates the upload state that `_handle_file_transfer_part` buffers
+        parts into (without it parts are dropped); the browser keeps the button disabled until a
+        `FileTransferPartAck` says all bytes arrived, and names its notice "upload-" + transfer uuid."""
+        connection = self.client._websock_connection
+        start = self.client.gui._handle_file_transfer_start
+        connection.unregister_handler(FileTransferStartUpload, start)
+
+        def started(client_id, message: FileTransferStartUpload) -> None:      # on viser's event loop: no waiting
+            if message.source_component_uuid != self.upload._impl.uuid:
+                start(client_id, message)
+            elif message.size_bytes > MAX_UPLOAD:       # no upload state: its parts are dropped as they arrive
+                connection.queue_message(FileTransferPartAck(      # all bytes "arrived": the button is enabled again
+                    source_component_uuid=message.source_component_uuid, transfer_uuid=message.transfer_uuid,
+                    transferred_bytes=message.size_bytes, total_bytes=message.size_bytes))
+                threading.Thread(target=self.run, args=(self._refuse_large, message), daemon=True).start()
+            else:
+                self._transfers[message.filename] = message.transfer_uuid
+                start(client_id, message)
+
+        connection.register_handler(FileTransferStartUpload, started)
+
+    def _refuse_large(self, message: FileTransferStartUpload) -> None:
+        self.session.refuse_large(message.filename, message.size_bytes)
+        self._show_message(self.session.error)
+        self._reject_upload(message.transfer_uuid, message.filename, self.session.error)
+
+    def _reject_upload(self, transfer: str, name: str, reason: str) -> None:
+        """Turn viser's notice of an upload, which says "File uploaded successfully." for every file, into a red "Not
+        opened" notice with the reason. The browser writes its text after each `FileTransferPartAck` in an effect
+        that may run after this update arrives (the last ack and this update can share a batch): the update is sent
+        again after each delay of REJECT_AGAIN, so the rejection has the last word (measured in headless Chromium on
+        the pair: the browser wrote its text 30-80 ms after the file was picked and overwrote an update sent at once
+        each time; the update sent 0.3 s later won)."""
+        update = NotificationUpdateMessage("upload-" + transfer, NotificationProps(
+            title=f"Not opened: {Path(name).name}", body=reason, loading=False, with_close_button=True,
+            auto_close_seconds=None, color="red"))
+        connection = self.client._websock_connection
+        connection.queue_message(update)
+        for delay in REJECT_AGAIN:
+            again = threading.Timer(delay, connection.queue_message, args=(update,))
+            again.daemon = True
+            again.start()
 
     def _open_path(self) -> None:
         path = self.path.value.strip()
@@ -402,6 +469,9 @@ class ClientUI:
         self._write_field()
         self._write_modes()
         if camera:
+            if not self._view_picked:       # the pair opens oblique: its λ⁽⁶⁾ height surface is flat seen from above
+                with self._quiet():
+                    self.camera_view.value = OBLIQUE if s.field() is not None else TOP
             self._set_camera()
 
     def _send_now(self) -> None:
@@ -705,8 +775,8 @@ class ClientUI:
 def _empty_figure():
     """A blank figure: no axes, no grid (the spectrum plot while it is off)."""
     import plotly.graph_objects as go
-    return go.Figure(layout=dict(margin=dict(l=0, r=0, t=0, b=0), xaxis=dict(visible=False),
-                                 yaxis=dict(visible=False), plot_bgcolor="rgba(0,0,0,0)"))
+    return go.Figure(layout={"margin": {"l": 0, "r": 0, "t": 0, "b": 0}, "xaxis": {"visible": False},
+                            "yaxis": {"visible": False}, "plot_bgcolor": "rgba(0,0,0,0)"})
 
 
 def contour_html(field, mark) -> str:
@@ -745,16 +815,16 @@ def spectrum_figure(modes, hidden: int = 0):
         colors = ["#c0392b" if m.eigenvalue < 0 and m.consistent else "#2c3e50" for m in sel]
         fig.add_trace(go.Scatter(
             x=[f"branch {m.branch}" for m in sel], y=y, mode="markers", name=kind,
-            marker=dict(symbol=symbol, size=11, color=colors, line=dict(width=1.5, color=colors)),
+            marker={"symbol": symbol, "size": 11, "color": colors, "line": {"width": 1.5, "color": colors}},
             text=[f"λ = {m.eigenvalue:.5g}<br>{m.label}<br>{kind}" for m in sel],
             hovertemplate="%{text}<extra></extra>"))
     top = int(np.ceil(float(np.abs(slog(lam)).max()))) if lam.size else 1
     ticks = np.arange(-top, top + 1)
     if hidden:
         fig.add_annotation(text=f"lowest {len(modes)} shown, {hidden} higher left out", showarrow=False,
-                           xref="paper", yref="paper", x=1, y=1, xanchor="right", font=dict(size=10))
+                           xref="paper", yref="paper", x=1, y=1, xanchor="right", font={"size": 10})
     fig.update_layout(
-        margin=dict(l=60, r=10, t=10, b=30), legend=dict(orientation="h", y=1.08),
-        yaxis=dict(title="eigenvalue (signed log scale)", tickvals=ticks.tolist(),
-                   ticktext=[f"{np.sign(t) * eps * (10 ** abs(t) - 1):.1g}" for t in ticks], zeroline=True))
+        margin={"l": 60, "r": 10, "t": 10, "b": 30}, legend={"orientation": "h", "y": 1.08},
+        yaxis={"title": "eigenvalue (signed log scale)", "tickvals": ticks.tolist(),
+               "ticktext": [f"{np.sign(t) * eps * (10 ** abs(t) - 1):.1g}" for t in ticks], "zeroline": True})
     return fig

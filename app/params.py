@@ -5,6 +5,7 @@ rolling stiffness in units of k r². k itself only scales every eigenvalue (the 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -21,7 +22,7 @@ class Param:
     def clean(self, value) -> float:
         """Clip to the range and round to the step's decimals (slider values carry float noise: 0.30000000000000004)."""
         value = float(value)
-        if value != value:  # nan
+        if math.isnan(value):
             raise ValueError(f"{self.label}: not a number")
         decimals = max(0, len(f"{self.step:.10f}".rstrip("0").split(".")[1]))
         return round(min(max(value, self.lo), self.hi), decimals + 2)

@@ -44,7 +44,7 @@ class App:
     def _connect(self, client) -> None:
         try:
             ui = ClientUI(client, Session(self.preset, self.presets_dir))
-        except Exception as exc:  # noqa: BLE001 — a broken page, not a broken server
+        except Exception as exc:  # a broken page, not a broken server
             client.gui.add_markdown(f"⚠️ the explorer failed to start for this tab: {type(exc).__name__}: {exc}")
             raise
         with self._lock:

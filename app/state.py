@@ -121,8 +121,7 @@ class Session:
         """Open a file sent from the page: size-guarded (MAX_UPLOAD bytes), read from a private temporary folder that
         is removed afterwards; the page sees only the file's own name, never the server's path."""
         name = Path(name).name or "upload"
-        if len(content) > MAX_UPLOAD:
-            self.error = f"{name}: rejected, {len(content) / 1e6:.1f} MB is over the {MAX_UPLOAD / 1e6:.0f} MB limit"
+        if self.refuse_large(name, len(content)):
             return False
         suffix = Path(name).suffix.lower()          # a snapshot's suffix picks its reader (granstab.io)
         with tempfile.TemporaryDirectory(prefix="granstab-upload-") as folder:
@@ -135,6 +134,13 @@ class Session:
         if ok:
             self.preset = f"{name} (opened)"
         return ok
+
+    def refuse_large(self, name: str, size: int) -> bool:
+        """Whether a file of `size` bytes is over MAX_UPLOAD; if so `error` says so, with the size and the limit."""
+        if size <= MAX_UPLOAD:
+            return False
+        self.error = f"{Path(name).name}: rejected, {size / 1e6:.1f} MB is over the {MAX_UPLOAD / 1e6:.0f} MB limit"
+        return True
 
     @property
     def kind(self) -> str:

@@ -67,16 +67,18 @@ def quat_matrix(q) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def extruded_ellipse(a: float, b: float, thickness: float, n: int = 96):
-    """Vertices (2n+2, 3) and faces of an ellipse of semi-axes a, b extruded along z by `thickness` (centred)."""
-    t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
-    ring = np.stack([a * np.cos(t), b * np.sin(t)], axis=1)
+def extruded_outline(ring: np.ndarray, thickness: float):
+    """Vertices (4n+2, 3) and faces of a closed outline (n, 2), counter-clockwise and star-shaped about the origin,
+    extruded along z by `thickness` (centred). The sides have vertices of their own: shared with the faces, their
+    smoothed normals shade a face's long thin triangles (a socket's rim) in stripes."""
+    n = len(ring)
     h = thickness / 2
-    V = np.concatenate([to3(ring, h), to3(ring, -h), [[0, 0, h], [0, 0, -h]]])
+    V = np.concatenate([to3(ring, h), to3(ring, -h), [[0, 0, h], [0, 0, -h]], to3(ring, h), to3(ring, -h)])
     i = np.arange(n)
     j = (i + 1) % n
     top = np.stack([np.full(n, 2 * n), i, j], axis=1)
     bottom = np.stack([np.full(n, 2 * n + 1), n + j, n + i], axis=1)
+    i, j = i + 2 * n + 2, j + 2 * n + 2
     side = np.concatenate([np.stack([i, n + i, n + j], axis=1), np.stack([i, n + j, j], axis=1)])
     return V, np.concatenate([top, bottom, side]).astype(np.uint32)
 
@@ -96,10 +98,68 @@ def ellipsoid(axes, n_lat: int = 24, n_lon: int = 48):
     return V, np.array(faces, dtype=np.uint32)
 
 
-def body_mesh(body, thickness: float):
+def body_mesh(body, thickness: float, size: float):
     if len(body.axes) == 2:
-        return extruded_ellipse(body.axes[0], body.axes[1], thickness)
+        return extruded_outline(outline(body, size), thickness)
     return ellipsoid(body.axes)
+
+
+def outline(body, size: float, n: int = 96) -> np.ndarray:
+    """A 2D particle's outline in body axes (counter-clockwise, star-shaped about its centre): its ellipse, with the
+    socket of each concave contact side (Body.sockets) cut in. Near such a contact the outline follows the socket's
+    circle over about ±1.2 size of arc (at most ±60°, and only where seen from the centre), the particle reaching
+    around its partner like a glove; elsewhere the ellipse, less what lies inside a socket circle."""
+    a, b = body.axes[0], body.axes[1]
+    arcs = [arc for arc in (socket_arc(*socket, size) for socket in body.sockets) if arc is not None]
+
+    def base(angle):                                 # the ellipse along each direction, cut back by the sockets
+        u = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        r = a * b / np.hypot(b * u[:, 0], a * u[:, 1])
+        for _, c, rho in arcs:                       # the ray t·u meets |y - c| = ρ at t = u·c ∓ √((u·c)² - c² + ρ²)
+            half = u @ c
+            disc = half ** 2 - (c @ c - rho ** 2)
+            t = half - np.sqrt(np.maximum(disc, 0.0))
+            r = np.where((disc >= 0) & (t > 0), np.minimum(r, t), r)
+        return r[:, None] * u
+
+    t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    theta = np.arctan2(b * np.sin(t), a * np.cos(t))     # evenly in the ellipse's parameter: its tips well drawn
+    keep = np.ones(n, bool)
+    points, angles, ranks = [], [], []
+    for arc, _, _ in arcs:
+        ang = np.arctan2(arc[:, 1], arc[:, 0])       # monotonic along the seen part of a circle
+        if np.angle(np.exp(1j * (ang[-1] - ang[0]))) < 0:
+            arc, ang = arc[::-1], ang[::-1]          # counter-clockwise
+        span = np.mod(ang[-1] - ang[0], 2 * np.pi)
+        keep &= np.mod(theta - ang[0], 2 * np.pi) > span     # the socket replaces the ellipse over its directions
+        ends = ang[[0, -1]]                          # radial sides: the ellipse, then the socket, then the ellipse
+        points += [base(ends[:1]), arc, base(ends[1:])]
+        angles += [ends[:1], ang, ends[1:]]
+        ranks += [[0], np.ones(len(ang)), [2]]
+    points.append(base(theta[keep]))
+    angles.append(theta[keep])
+    ranks.append(np.ones(keep.sum()))
+    order = np.lexsort((np.concatenate(ranks), np.mod(np.concatenate(angles), 2 * np.pi)))
+    return np.concatenate(points)[order]
+
+
+def socket_arc(cx: float, cy: float, rho: float, angle: float, size: float, m: int = 48):
+    """The drawn part of a socket (Body.sockets: its circle's centre c relative to the particle's centre, radius ρ,
+    direction from c to the contact): (points (m, 2) on the circle, c, ρ), or None where the particle's centre is
+    inside the circle or does not see the contact point. The arc spans ±1.2 size (at most ±60°) about the contact,
+    within 0.9 of the half-angle seen from the centre (the outline stays star-shaped about it)."""
+    c = np.array([cx, cy])
+    d = float(np.hypot(cx, cy))
+    if d <= rho:
+        return None
+    towards = np.arctan2(-cy, -cx)                   # from c to the particle's centre
+    seen = 0.9 * np.arccos(rho / d)
+    at = np.angle(np.exp(1j * (angle - towards)))    # the contact, relative to `towards`
+    half = min(np.pi / 3, 1.2 * size / rho)
+    if abs(at) >= seen:
+        return None
+    alpha = towards + np.linspace(max(at - half, -seen), min(at + half, seen), m)
+    return c + rho * np.stack([np.cos(alpha), np.sin(alpha)], axis=1), c, rho
 
 
 def osculating_arcs(points, centres, radii, normals_out, planes, size: float, n: int = 40) -> np.ndarray:
@@ -199,10 +259,10 @@ class SceneView:
             if body.name != skip and moved:          # unchanged poses are not re-sent
                 node.position = to3(body.x)
                 node.wxyz = wxyz(body.R)
-            mkey = (body.axes, round(size, 9))
+            mkey = (body.axes, body.sockets, round(size, 9))
             if self.mesh_keys.get(body.name) != mkey:
                 self.mesh_keys[body.name] = mkey
-                V, F = body_mesh(body, 0.15 * size)
+                V, F = body_mesh(body, 0.15 * size, size)
                 base = f"/particles/{body.name}/body"
                 self.meshes[body.name] = self.api.add_mesh_simple(
                     f"{base}/mesh", V, F, color=self.colours.get(body.name, PALETTE[i % len(PALETTE)]),

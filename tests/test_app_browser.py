@@ -19,6 +19,7 @@ import pytest
 from helpers import FLAT_PAIR
 
 from app.browser import CHROMIUM, FLAGS, number_box
+
 REPO = Path(__file__).resolve().parent.parent
 
 pytestmark = pytest.mark.browser

@@ -89,7 +89,7 @@ def test_no_page_error_over_many_loads(app, browser):
     assert errors == []
 
 
-def test_panels_labels_reset_and_uploads(app, browser, tmp_path):
+def test_panels_labels_and_reset(app, browser):
     errors: list[str] = []
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
@@ -142,15 +142,40 @@ def test_panels_labels_reset_and_uploads(app, browser, tmp_path):
     wait_for(lambda: s.kind == "two_particle", what="the pair back")
     assert ui.sliders["rho_r"].visible and s.params["rho_r"] == 0.5
 
-    # uploads: a rejected file names itself, never the server's temporary path
-    bad = tmp_path / "my_scene.toml"
-    bad.write_text("dim = = 2\n")
-    page.locator("input[type=file]").first.set_input_files(str(bad))
-    page.locator(".granstab-error").get_by_text("my_scene.toml").wait_for(timeout=20_000)
-    # viser's own notice says "File uploaded successfully." for every file: ours beside it says this one is not open
-    page.locator(".mantine-Notification-root").filter(has_text="Not opened").wait_for(timeout=20_000)
-    shown = page.locator(".granstab-error").inner_text()
-    assert "granstab-upload" not in shown and "/tmp" not in shown
+    page.close()
+    assert errors == []
+
+
+def test_rejected_uploads_say_why(app, browser, tmp_path):
+    """A file that cannot be opened (bad JSON) and one over MAX_UPLOAD, picked in the page's file chooser: viser's own
+    notice of each upload turns into a red "Not opened: NAME" with the reason (it said "File uploaded successfully."
+    for every file), the oversize file is refused as its upload starts (none of its parts buffered, never parsed),
+    the button works again, no server path shows, and a good file afterwards opens."""
+    from app.state import MAX_UPLOAD
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    s = ui.session
+    opened = []                                    # every file the session was asked to read
+    load = s.load_upload
+    s.load_upload = lambda name, content: opened.append(name) or load(name, content)
+    bad, big = tmp_path / "my_scene.json", tmp_path / "big_scene.json"
+    bad.write_text("{not json")
+    big.write_bytes(b" " * (MAX_UPLOAD + 1))
+    for path, reason in ((bad, "malformed JSON"), (big, "5.0 MB is over the 5 MB limit")):
+        page.locator("input[type=file]").first.set_input_files(str(path))
+        notice = page.locator(".mantine-Notification-root").filter(has_text=f"Not opened: {path.name}")
+        notice.filter(has_text=reason).wait_for(timeout=20_000)
+        page.locator(".granstab-error").filter(has_text=path.name).filter(has_text=reason).wait_for(timeout=20_000)
+        page.wait_for_timeout(2500)                # the browser's own "uploaded" text would have come back by now
+        assert notice.count() == 1 and page.get_by_text("File uploaded successfully").count() == 0
+        assert page.get_by_role("button", name="Open scene file").is_enabled()
+        shown = " ".join(page.locator(".mantine-Notification-root, .granstab-error").all_inner_texts())
+        assert "granstab-upload" not in shown and "/tmp" not in shown and str(tmp_path) not in shown
+        for close in page.locator("button.mantine-Notification-closeButton").all():
+            close.click()
+    assert opened == [bad.name] and ui.client.gui._current_file_upload_states == {}
     assert s.preset == "two_particle" and s.kind == "two_particle"         # the current scene stays
     good = tmp_path / "uploaded_flat.toml"
     good.write_text((REPO / "presets" / "two_particle_flat.toml").read_text())
@@ -464,6 +489,45 @@ def test_display_controls_per_scene(app, browser):
     assert seen == {"two_particle": (False, True, (True, False)),
                     "four_disk": (True, True, (False, True)),
                     "spheres_tetrahedron": (True, False, (False, True))}, seen
+    page.close()
+    assert errors == []
+
+
+def test_pair_opens_oblique_and_a_picked_view_stays(app, browser):
+    """The pair opens in the oblique view (its λ⁽⁶⁾ height surface is flat seen from above: it opened top-down), the
+    other 2D presets top-down; a view picked in the View menu is kept when the preset changes."""
+    from app.panels import OBLIQUE, TOP
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    menu = page.locator(f'[id="{ui.camera_view._impl.uuid}"]')
+
+    def pick(name):
+        page.get_by_role("tab", name="Scene").click()
+        page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+        page.get_by_role("option", name=name, exact=True).click()
+        wait_for(lambda: ui.session.preset == name, timeout=60, what=name)
+        with ui.lock:                          # its refresh, camera included, has run
+            revision = ui.session.revision
+        page.wait_for_selector(f'.granstab-verdict[data-revision="{revision}"]', timeout=60_000)
+        page.get_by_role("tab", name="Display").click()
+        menu.wait_for(timeout=20_000)
+        wait_for(lambda: menu.input_value() == ui.camera_view.value, what="the View menu on the page")
+        return ui.camera_view.value
+
+    page.get_by_role("tab", name="Display").click()
+    seen = {"opened on two_particle": menu.input_value()}
+    up = ui.client.camera.up_direction
+    for name in ("four_disk", "ellipses_sharp", "two_particle"):
+        seen[name] = pick(name)
+    assert seen == {"opened on two_particle": OBLIQUE, "four_disk": TOP, "ellipses_sharp": TOP,
+                    "two_particle": OBLIQUE}, seen
+    assert np.allclose(up, (0, 0, 1))                           # the oblique camera: z up, seen from the front
+    menu.click()
+    page.get_by_role("option", name=TOP, exact=True).click()     # the user's own choice
+    wait_for(lambda: ui._view_picked and ui.camera_view.value == TOP, what="the picked view")
+    assert (pick("four_disk"), pick("two_particle")) == (TOP, TOP)
     page.close()
     assert errors == []
 

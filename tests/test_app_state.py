@@ -13,12 +13,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from helpers import FLAT_PAIR
 
 from app.field import lambda6_field
 from app.models import ContactModel, ShapeModel, TwoParticleModel, load_model
 from app.modes import label_mode
 from app.state import Session
-from helpers import FLAT_PAIR
 
 REPO = Path(__file__).resolve().parent.parent
 EPS = np.finfo(float).eps
@@ -335,7 +335,7 @@ def test_export_analysis_and_contour(pair):
 
 
 def test_failed_analysis_is_kept_as_a_message(pair, monkeypatch):
-    import app.state as state
+    from app import state
 
     def boom(scene, **options):
         raise RuntimeError("eigensolver exploded")
@@ -455,9 +455,10 @@ def test_inertia_metric_where_the_scene_has_masses():
 def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     """A scan folder opens as the map (no analysis of the packing); a click ray over the planted sharp particle
     opens its cluster, whose verdict and size are the scan row's; *Back to the map* returns."""
+    from test_scan import planted_lattice
+
     import granstab
     from granstab.scan import read_map, scan
-    from test_scan import planted_lattice
     scene, _ = planted_lattice(40, 0.4)
     packing = tmp_path / "lattice.json"
     packing.write_text(json.dumps(scene.to_dict()))
@@ -477,3 +478,20 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     assert s.analysis.summary["consistent_negative"] == row["consistent_negative"]
     assert s.back_to_map() and s.kind == "scan_map" and s.map is None
     assert not s.open_cluster("nope") and "no centre" in s.error
+
+
+def test_a_concave_side_is_drawn_as_a_socket():
+    """hand_in_glove: q's outline near the contact follows its concave circle of curvature (radius 1.002 about
+    (-0.002, 0)) on both sides of the contact, as drawn (q's mesh); it was a plain convex disk (radius 2 about (3, 0))
+    that touched p at one point. Tolerance 1e-12 r."""
+    from app.views import SceneView
+    s = Session("hand_in_glove")
+    view = SceneView(RecordingScene())
+    view.draw_particles(s)
+    (V, _), _ = view.api.sent["/particles/q/body/mesh"]
+    q = s.bodies()[1]
+    ring = V[(V[:, 2] > 0) & (np.abs(V[:, :2]).max(axis=1) > 0), :2] + q.x   # the top outline (not the centre), world
+    point, r = s.scene.point[0], 1.0
+    near = ring[np.linalg.norm(ring - point, axis=1) < 0.5 * r]
+    assert len(near) >= 10 and near[:, 1].min() < -0.3 * r and near[:, 1].max() > 0.3 * r
+    assert np.abs(np.linalg.norm(near - [-0.002, 0.0], axis=1) - 1.002).max() < 1e-12 * r
