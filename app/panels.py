@@ -744,8 +744,9 @@ class ClientUI:
         s = self.session
         bodies = s.bodies()
         x = np.array([b.x for b in bodies])
-        size = s.size
-        lo, hi = x.min(axis=0) - 1.2 * size, x.max(axis=0) + 1.2 * size
+        reach = 1.2 * np.array([max(b.axes) for b in bodies])[:, None]   # each body by its own size (hand_in_glove's
+        size = s.size                                                     # q is larger than the mean)
+        lo, hi = (x - reach).min(axis=0), (x + reach).max(axis=0)
         span = float(np.max(hi - lo))
         self.client.camera.near, self.client.camera.far = 1e-3 * span, 1e2 * span   # packings in px or in m
         if s.scene_dim == 2:

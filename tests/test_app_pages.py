@@ -28,7 +28,7 @@ def app(tmp_path_factory):
     from app.server import App
     folder = tmp_path_factory.mktemp("presets")
     for name in ("two_particle.toml", "ellipses_sharp.toml", "four_disk.toml", "annulus_frame.json",
-                 "spheres_tetrahedron.toml"):
+                 "spheres_tetrahedron.toml", "hand_in_glove.toml"):
         shutil.copy(REPO / "presets" / name, folder)
     running = App(host="127.0.0.1", port=0, presets_dir=folder)
     yield running
@@ -528,6 +528,29 @@ def test_pair_opens_oblique_and_a_picked_view_stays(app, browser):
     page.get_by_role("option", name=TOP, exact=True).click()     # the user's own choice
     wait_for(lambda: ui._view_picked and ui.camera_view.value == TOP, what="the picked view")
     assert (pick("four_disk"), pick("two_particle")) == (TOP, TOP)
+    page.close()
+    assert errors == []
+
+
+def test_the_camera_frames_every_body_by_its_own_size(app, browser):
+    """hand_in_glove: q (radius 2) is larger than the mean size (1.5); the view is centred on the bodies' own extents
+    (x from -1.2 r_p to x_q + 1.2 r_q: centre 2.1 r_p) and far enough to hold them (q was cut by the side panel)."""
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    page.get_by_role("tab", name="Scene").click()
+    page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+    page.get_by_role("option", name="hand_in_glove", exact=True).click()
+    wait_for(lambda: ui.session.preset == "hand_in_glove", timeout=60, what="hand_in_glove")
+    with ui.lock:                                    # its refresh, camera included, has run
+        bodies = ui.session.bodies()
+        look_at, position = np.asarray(ui.client.camera.look_at), np.asarray(ui.client.camera.position)
+    lo = min(b.x[0] - 1.2 * max(b.axes) for b in bodies)
+    hi = max(b.x[0] + 1.2 * max(b.axes) for b in bodies)
+    assert (lo, hi) == pytest.approx((-1.2, 5.4), abs=1e-9)
+    assert look_at[0] == pytest.approx(0.5 * (lo + hi), abs=1e-6 * (hi - lo))
+    assert np.linalg.norm(position - look_at) >= 0.8 * (hi - lo)
     page.close()
     assert errors == []
 
