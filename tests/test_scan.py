@@ -19,7 +19,7 @@ from granstab.branches import RIGID
 from granstab.scan import extract, members, read_map, scan
 from granstab.backend import gpu_available, residual_norms
 from granstab.scan.clusters import CONTACT_FIELDS, subscene
-from granstab.scan.run import chunk_cut, chunk_table, cluster_row, scan_chunk
+from granstab.scan.run import chunk_cut, chunk_table, cluster_row, scan_chunk, taper
 
 ROOT = Path(__file__).resolve().parents[1]
 ANNULUS = ROOT / "presets" / "annulus_frame.json"
@@ -151,6 +151,16 @@ def test_gpu_batched_rows_equal_cpu():
         assert (a["path"], a["verdict"], a["consistent_negative"], a["consistent_positive"]) == \
             (b["path"], b["verdict"], b["consistent_negative"], b["consistent_positive"])
         assert abs(a["lambda_min"] - b["lambda_min"]) <= 1e-10 * abs(a["lambda_min"])
+
+
+def test_taper_cuts_the_last_chunks_and_keeps_every_centre_once():
+    """The Dask path's tail: the last `threads` chunks of 2048 in quarters of 512, the others untouched, every centre
+    once and in order (fewer chunks than threads: all of them are cut)."""
+    chunks = [np.arange(i, min(i + 2048, 10_000)) for i in range(0, 10_000, 2048)]
+    tapered = taper(chunks, threads=2)
+    assert [len(c) for c in tapered] == [2048, 2048, 2048] + [512] * 4 + [452] * 4
+    assert np.array_equal(np.concatenate(tapered), np.arange(10_000))
+    assert [len(c) for c in taper(chunks[:1], threads=8)] == [512] * 4
 
 
 def test_scan_of_a_small_scene_equals_analyze_of_the_scene(tmp_path):

@@ -26,14 +26,26 @@ def adjacency(scene: Scene) -> sp.csr_matrix:
 
 def members(scene: Scene, centers: np.ndarray, rings: int, graph: sp.csr_matrix | None = None) -> list[np.ndarray]:
     """Sorted particle indices of the cluster of every centre (indices), all centres at once by sparse products."""
+    X = _reach(scene, centers, rings, graph)
+    X.sort_indices()
+    return np.split(X.indices.astype(np.int64), X.indptr[1:-1])
+
+
+def union(scene: Scene, centers: np.ndarray, rings: int, graph: sp.csr_matrix | None = None) -> np.ndarray:
+    """Sorted particle indices of the clusters of `centers` together (a scan chunk's particles), without the
+    per-cluster lists."""
+    return np.unique(_reach(scene, centers, rings, graph).indices).astype(np.int64)
+
+
+def _reach(scene, centers, rings, graph) -> sp.csr_matrix:
+    """(len(centers), n) boolean: row i marks the particles within `rings` contact hops of centres[i]."""
     graph = adjacency(scene) if graph is None else graph
     centers = np.asarray(centers, dtype=np.int64)
     X = sp.csr_matrix((np.ones(len(centers), dtype=bool), (np.arange(len(centers)), centers)),
                       shape=(len(centers), scene.n_particles))
     for _ in range(rings):                 # one row a centre: the product's work is the clusters', not the packing's
         X = (X @ graph).astype(bool)
-    X.sort_indices()
-    return np.split(X.indices.astype(np.int64), X.indptr[1:-1])
+    return X
 
 
 def incidence(scene: Scene) -> sp.csr_matrix:
@@ -61,7 +73,7 @@ def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None
     contacts_of = incidence(scene) if contacts_of is None else contacts_of
     touching = np.unique(contacts_of[every].indices)
     p, q = np.searchsorted(every, scene.p[touching]), np.searchsorted(every, scene.q[touching])
-    free = np.isin(every, keep)
+    free = np.isin(every, keep) if hold.size else np.ones(len(every), dtype=bool)
     inside_p = every[np.minimum(p, len(every) - 1)] == scene.p[touching]
     inside_q = every[np.minimum(q, len(every) - 1)] == scene.q[touching]
     within = inside_p & inside_q

@@ -21,7 +21,8 @@ from ..scene import Scene, SceneError, build_scene
 from ..threads import blas_threads
 from ..verdicts import finalize, verdict_of
 from .batch import batchable, solve_chunk
-from .clusters import BOUNDARIES, adjacency, boundary_ring, cut, incidence, members, particle_index, subscene
+from .clusters import (BOUNDARIES, adjacency, boundary_ring, cut, incidence, members, particle_index, subscene,
+                       union)
 from .output import ScanOutput, rows_table
 
 CHUNK = 2048          # clusters per task: Dask's per-task cost (~10 ms a task in a worker, measured) stays small
@@ -107,8 +108,8 @@ def chunk_cut(scene: Scene, centers: np.ndarray, rings: int, graph=None, contact
     (every path of ≤ rings hops from c stays inside it), so a task carries its own small scene, never the packing,
     and the client only slices arrays. graph, contacts_of: clusters.adjacency(scene) and clusters.incidence(scene),
     if at hand (a scan makes them once: then cutting a chunk costs the chunk's size, not the packing's)."""
-    union = np.unique(np.concatenate(members(scene, centers, rings, graph)))
-    return Chunk(cut(scene, union, contacts_of=contacts_of), np.searchsorted(union, centers))
+    every = union(scene, centers, rings, graph)
+    return Chunk(cut(scene, every, contacts_of=contacts_of), np.searchsorted(every, centers))
 
 
 def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[Scene, np.ndarray]:
@@ -212,8 +213,8 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
             cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
                                    dashboard_address=None)
     graph, contacts_of = adjacency(scene), incidence(scene)
-    todo = iter(chunks)
     with Client(scheduler or cluster) as client:
+        todo = iter(taper(chunks, sum(client.nthreads().values())))
         def submit(part):
             return client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph, contacts_of), options,
                                  retries=3, pure=False)
@@ -234,6 +235,13 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
             fill()
     if cluster is not None:
         cluster.close()
+
+
+def taper(chunks: list, threads: int, pieces: int = 4) -> list:
+    """The last `threads` chunks cut in `pieces`: the scan's tail, where one worker computes the last chunk while the
+    others wait, is a fraction of a chunk (guided self-scheduling, in its simplest form)."""
+    cut_at = max(len(chunks) - max(threads, 1), 0)
+    return chunks[:cut_at] + [piece for part in chunks[cut_at:] for piece in np.array_split(part, pieces) if piece.size]
 
 
 def _progress(total: int):
