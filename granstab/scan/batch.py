@@ -37,7 +37,9 @@ from ..vec import rot_dim, rotate_matrix
 from ..verdicts import tally
 
 LENGTH_FACTORS = {"L": 1.0, "L/10": 0.1, "10L": 10.0}
-STACK_BYTES = 256 * 2 ** 20       # the branch matrices of one stacked solve (and their copies) on the host
+STACK_BYTES = {"cpu": 32 * 2 ** 20,   # the branch matrices of one stacked solve (and their copies) on the host: small
+               "gpu": 256 * 2 ** 20}  # enough for glibc to reuse its temporaries (> 32 MB each is a fresh mmap);
+                                     # a GPU wants large stacks
 
 
 def batchable(options: dict) -> bool:
@@ -69,16 +71,16 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
     factor = LENGTH_FACTORS[options["metric"]]
     for n in np.unique(sizes[ok]):
         group = np.flatnonzero(ok & (sizes == n))
-        for part in _split(group, n * scene.dof_per_particle, n_sliding):
+        for part in _split(group, n * scene.dof_per_particle, n_sliding, STACK_BYTES[options.get("device", "cpu")]):
             out.update(_solve_group(scene, blocks, parts, pairs, part, local, starts, int(n), factor, n_sliding,
                                     options.get("device", "cpu")))
     return out
 
 
-def _split(group: np.ndarray, nd: int, n_sliding: np.ndarray) -> list[np.ndarray]:
-    """Consecutive parts of a group whose branch matrices (8 copies of nd² doubles each) fit STACK_BYTES."""
+def _split(group: np.ndarray, nd: int, n_sliding: np.ndarray, budget: int) -> list[np.ndarray]:
+    """Consecutive parts of a group whose branch matrices (8 copies of nd² doubles each) fit `budget` bytes."""
     cost = 2.0 ** n_sliding[group] * 8 * 8 * nd * nd
-    cut = np.floor(np.cumsum(cost) / STACK_BYTES).astype(int)
+    cut = np.floor(np.cumsum(cost) / budget).astype(int)
     return [group[cut == c] for c in np.unique(cut)]
 
 

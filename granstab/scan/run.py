@@ -25,7 +25,8 @@ from .clusters import (BOUNDARIES, adjacency, boundary_ring, cut, incidence, mem
                        union)
 from .output import ScanOutput, rows_table
 
-CHUNK = 2048          # clusters per task: Dask's per-task cost (~10 ms a task in a worker, measured) stays small
+CHUNK = 4096          # clusters per task: Dask's per-task cost (~10 ms of a worker and ~10 ms of the client and
+                      # scheduler a task, measured) stays small; the stacks inside stay small (batch.STACK_BYTES)
 GPU_CHUNK = 16384     # on a GPU one stacked solve wants many clusters
 IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next ones already sent
 # Local workers' environment: one BLAS thread each, and NOT Dask's default MALLOC_TRIM_THRESHOLD_, which also turns
