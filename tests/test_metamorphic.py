@@ -31,8 +31,9 @@ from test_properties import packing_scenes
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESETS = sorted(p for p in (ROOT / "presets").iterdir() if p.name != "annulus_frame.json")
-SETTINGS = settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", "120")) // 10, deadline=None,
-                    suppress_health_check=[HealthCheck.too_slow])      # FUZZ_EXAMPLES as in test_fuzz.py
+# derandomized, as test_properties.py: CI replays the same examples (FUZZ_EXAMPLES as in test_fuzz.py)
+SETTINGS = settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", "120")) // 10, deadline=None, derandomize=True,
+                    suppress_health_check=[HealthCheck.too_slow])
 FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu",
           "rolling", "state")
 
@@ -108,8 +109,12 @@ def test_presets_keep_verdicts_under_rigid_motion_unit_change_and_relabelling(pa
 @SETTINGS
 @given(packing_scenes(), st.integers(0, 2**16), st.floats(-50, 50), st.sampled_from([1e-4, 0.1, 10.0, 1e5]))
 def test_random_packings_keep_verdicts(scene, seed, shift, unit):
+    """The shift is in particle sizes: translating by T rounds the stored geometry to ε·T, so T = 1 on disks of
+    r = 0.0019 perturbs r^pq by 2.4e-13 relative (a random draw found it: two exactly neutral rolling modes of the
+    disks, ρ = r, took that perturbation's signs); the verdicts' bounds cover the round-off of the data as given."""
     Q = rotation(scene.dim, seed=seed)
-    assert_same(scene, rigid(scene, Q, shift))
+    size = float(np.mean(np.linalg.norm(scene.point - scene.x[scene.p], axis=1)))
+    assert_same(scene, rigid(scene, Q, shift * size))
     assert_same(scene, change_unit(scene, unit))
     assert_same(scene, relabel(scene, seed))
 

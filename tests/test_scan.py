@@ -147,9 +147,9 @@ def test_gpu_batched_rows_equal_cpu():
     centers = np.arange(scene.n_particles)
     cpu = scan_chunk(scene, centers, {**SLIDING, "metric": "L", "device": "cpu"})
     gpu = scan_chunk(scene, centers, {**SLIDING, "metric": "L", "device": "gpu"})
-    for a, b in zip(cpu, gpu):
-        assert (a["path"], a["verdict"], a["consistent_negative"], a["consistent_positive"]) == \
-            (b["path"], b["verdict"], b["consistent_negative"], b["consistent_positive"])
+    for a, b in zip(cpu, gpu):               # no eigenvalues-only rows on a GPU (Jacobi: no a-priori bound)
+        assert (a["path"].replace("batched-values", "batched"), a["verdict"], a["consistent_negative"],
+                a["consistent_positive"]) == (b["path"], b["verdict"], b["consistent_negative"], b["consistent_positive"])
         assert abs(a["lambda_min"] - b["lambda_min"]) <= 1e-10 * abs(a["lambda_min"])
 
 
