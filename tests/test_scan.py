@@ -18,7 +18,7 @@ from granstab.accuracy import gamma, value_bounds, vector_bounds
 from granstab.branches import RIGID
 from granstab.scan import extract, members, read_map, scan
 from granstab.backend import gpu_available, residual_norms
-from granstab.scan.clusters import CONTACT_FIELDS, subscene
+from granstab.scan.clusters import CONTACT_FIELDS, boundary_ring, subscene
 from granstab.scan.run import chunk_cut, chunk_table, cluster_row, scan_chunk, taper
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,25 +79,29 @@ def test_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path):
 SLIDING = {"rings": 1, "max_sliding": 8, "sample_branches": 32}
 
 
-@pytest.mark.parametrize("dim, n, metric", [(2, 200, "L"), (2, 120, "10L"), (3, 80, "L")])
-def test_batched_rows_equal_analyze_per_cluster(dim, n, metric):
-    """The batched path (scan/batch.py) against `analyze` on every cluster's sub-scene (the loop it replaces), on
-    packings with contacts at yield: same counts, verdict, proof flags; λ_min within 1e-10·(the cluster's max |λ|);
-    eigen-residuals and rigid leakage at round-off (<= 1e-12, relative to the cluster's norm); clusters without
-    sliding contacts solved for eigenvalues only, their error the a-priori γ_{n²}‖|A|‖∞ (<= γ_{n²}√n relative to
-    max |λ| = ‖A‖₂)."""
+@pytest.mark.parametrize("dim, n, metric, boundary", [(2, 200, "L", "loads"), (2, 120, "10L", "loads"),
+                                                     (3, 80, "L", "loads"), (2, 200, "L", "fixed"),
+                                                     (3, 80, "L", "fixed")])
+def test_batched_rows_equal_analyze_per_cluster(dim, n, metric, boundary):
+    """The batched path (scan/batch.py) against `analyze` on every cluster's sub-scene (the loop it replaces; with
+    --boundary fixed its ring held), on packings with contacts at yield: same counts, verdict, proof flags; λ_min
+    within 1e-10·(the cluster's max |λ|); eigen-residuals and rigid leakage at round-off (<= 1e-12, relative to the
+    cluster's norm); clusters without sliding contacts solved for eigenvalues only, their error the a-priori
+    γ_{n²}‖|A|‖∞ (<= γ_{n²}√n relative to max |λ| = ‖A‖₂)."""
     scene = packings.random_packing(dim, n, n_sliding=n // 6, mobilised=0.5, seed=3)
     centers = np.arange(scene.n_particles)
-    options = {**SLIDING, "metric": metric}
+    options = {**SLIDING, "metric": metric, "boundary": boundary}
     rows = scan_chunk(scene, centers, options)
     paths = [r["path"] for r in rows]
     assert paths.count("batched") + paths.count("batched-values") >= 0.9 * len(rows)
     assert min(paths.count("batched"), paths.count("batched-values")) >= 0.1 * len(rows)
     assert max(r["n_sliding"] for r in rows if r["path"] == "batched") >= 3     # branches were enumerated
     assert all(r["n_sliding"] == 0 for r in rows if r["path"] == "batched-values")
-    for row, keep in zip(rows, members(scene, centers, 1)):
-        res = granstab.analyze(subscene(scene, keep), metric=metric)
+    for row, c, keep in zip(rows, centers, members(scene, centers, 1)):
+        hold = boundary_ring(scene, c, 1)[1] if boundary == "fixed" else None
+        res = granstab.analyze(subscene(scene, keep, hold=hold), metric=metric)
         scale = max(np.abs(b.stability_eigenvalues).max() for b in res.branches)
+        assert (row["n_contacts"], row["n_sliding"]) == (res.scene.n_contacts, int(np.sum(res.scene.at_yield())))
         for key in ("verdict", "sufficient", "consistent_negative", "consistent_positive", "n_branches"):
             assert row[key] == res.summary[key], (row["center"], key)
         assert row["insufficient_because"] == ",".join(res.summary["insufficient_because"])
@@ -317,7 +321,7 @@ def test_fixed_boundary_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path)
     for i, name in enumerate(names):
         res = granstab.analyze(extract(scene, name, boundary="fixed"), metric="L")
         scale = max(np.abs(b.stability_eigenvalues).max() for b in res.branches)
-        assert rows["path"][i] == "analyze" and rows["verdict"][i] == res.summary["verdict"]
+        assert rows["path"][i].startswith("batched") and rows["verdict"][i] == res.summary["verdict"]
         assert rows["consistent_positive"][i] == res.summary["consistent_positive"]
         assert abs(rows["lambda_min"][i] - lowest(res)) <= 1e-10 * scale
     with pytest.raises(granstab.SceneError, match="other options"):      # a resume may not mix boundaries

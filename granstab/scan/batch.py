@@ -21,7 +21,8 @@ The same numbers as `analyze(subscene, metric=...)` on the dense path, up to rou
 and the row's columns. Left out, because no row column uses them: the ℍ^i spectra (uniqueness, Type-2). Handed
 back to `analyze` (the caller's per-cluster path), unchanged: clusters whose branches need the eigenspace search
 of Appendix D (a repeated eigenvalue or a non-rigid zero), clusters over max_sliding (sampled branches), clusters
-without contacts, and metrics other than the L family.
+without contacts, and metrics other than the L family. With --boundary fixed the held ring's contacts count, its dofs
+are dropped (scattered to a row and column that is cut off), and there is no rigid motion and no projection.
 """
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ from ..stiffness import contact_blocks
 from ..tolerances import EPS
 from ..vec import rot_dim, rotate_matrix
 from ..verdicts import tally
+from .clusters import members
 
 LENGTH_FACTORS = {"L": 1.0, "L/10": 0.1, "10L": 10.0}
 STACK_BYTES = {"cpu": 32 * 2 ** 20,   # the branch matrices of one stacked solve (and their copies) on the host: small
@@ -43,8 +45,8 @@ STACK_BYTES = {"cpu": 32 * 2 ** 20,   # the branch matrices of one stacked solve
 
 
 def batchable(options: dict) -> bool:
-    """Whether the batched path serves these scan options (the L metric family; boundary loads)."""
-    return options["metric"] in LENGTH_FACTORS and options.get("boundary", "loads") == "loads"
+    """Whether the batched path serves these scan options (the L metric family, either boundary)."""
+    return options["metric"] in LENGTH_FACTORS
 
 
 def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -> dict:
@@ -52,16 +54,20 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
 
     Returns {position in centers: dict of row fields}. `scene` is best the chunk's own (run.chunk_scene): its contact
     blocks are all built. Clusters are grouped by particle count; each group is one stack of all its clusters'
-    branches (split to STACK_BYTES)."""
-    local = np.concatenate(member_lists)
-    sizes = np.array([len(m) for m in member_lists])
+    branches (split to STACK_BYTES). `--boundary fixed`: the ring beyond each cluster is held (clusters.extract):
+    its contacts with the cluster count, its dofs are dropped, and there is no rigid motion and no projection."""
+    fixed = options.get("boundary", "loads") == "fixed"
+    reached = members(scene, centers, options["rings"] + 1) if fixed else member_lists
+    local = np.concatenate(reached)
+    sizes = np.array([len(m) for m in reached])
     starts = np.r_[0, np.cumsum(sizes)[:-1]]
+    free = _free(local, sizes, member_lists, scene.n_particles) if fixed else np.ones(len(local), dtype=bool)
     blocks = contact_blocks(scene)
     geometric = blocks.blocks["Hg1"] + blocks.blocks["Hg2"] + blocks.blocks["Hg3"]
     parts = {"elastic": blocks.blocks["Hm"] + geometric,                 # H_el per contact, and the row sums of |Hm|,
              "rows_m": np.abs(blocks.blocks["Hm"]).sum(axis=2),         # |Hg| that bound ‖|Hm̃|‖∞, ‖|Hg̃|‖∞ (formation)
              "rows_g": np.abs(geometric).sum(axis=2)}
-    pairs = _cluster_contacts(scene, local, sizes)
+    pairs = _cluster_contacts(scene, local, sizes, free)
     pairs["sliding"] = scene.at_yield()[pairs["contact"]]
     n_contacts = np.bincount(pairs["cluster"], minlength=len(centers))
     n_sliding = np.bincount(pairs["cluster"], weights=pairs["sliding"],
@@ -69,12 +75,21 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
     ok = (n_contacts > 0) & (n_sliding <= options["max_sliding"])
     out = {}
     factor = LENGTH_FACTORS[options["metric"]]
-    for n in np.unique(sizes[ok]):
-        group = np.flatnonzero(ok & (sizes == n))
+    n_free = np.array([len(m) for m in member_lists])
+    for n in np.unique(n_free[ok]):
+        group = np.flatnonzero(ok & (n_free == n))
         for part in _split(group, n * scene.dof_per_particle, n_sliding, STACK_BYTES[options.get("device", "cpu")]):
             out.update(_solve_group(scene, blocks, parts, pairs, part, local, starts, int(n), factor, n_sliding,
-                                    options.get("device", "cpu")))
+                                    options.get("device", "cpu"), fixed))
     return out
+
+
+def _free(local: np.ndarray, sizes: np.ndarray, member_lists: list, N: int) -> np.ndarray:
+    """Which entries of `local` (the particles each cluster's contacts reach, sorted per cluster) are the cluster's
+    own (`member_lists`), not the held ring."""
+    keys = np.repeat(np.arange(len(sizes)), sizes) * N + local
+    own = np.repeat(np.arange(len(member_lists)), [len(m) for m in member_lists]) * N + np.concatenate(member_lists)
+    return np.isin(keys, own, assume_unique=True)
 
 
 def _split(group: np.ndarray, nd: int, n_sliding: np.ndarray, budget: int) -> list[np.ndarray]:
@@ -84,9 +99,10 @@ def _split(group: np.ndarray, nd: int, n_sliding: np.ndarray, budget: int) -> li
     return [group[cut == c] for c in np.unique(cut)]
 
 
-def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray) -> dict:
-    """Every (cluster, contact) with both particles in the cluster, with the particles' ranks in the cluster,
-    in cluster order and, within a cluster, in contact order (the order `subscene` keeps)."""
+def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray, free: np.ndarray) -> dict:
+    """Every (cluster, contact) with both particles in `local` and one at least `free`, with the particles' ranks
+    among the cluster's free particles (-1: held), in cluster order and, within a cluster, in contact order (the
+    order `subscene` keeps)."""
     G, N = len(sizes), sub.n_particles
     cluster = np.repeat(np.arange(G), sizes)
     X = sp.csr_matrix((np.ones(len(local)), (local, cluster)), shape=(N, G))
@@ -95,89 +111,82 @@ def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray) -> dict:
     contact = both.indices.astype(np.int64)
     owner = np.repeat(np.arange(G), np.diff(both.indptr))
     keys = cluster * N + local                                      # sorted: members are sorted per cluster
-    first = np.r_[0, np.cumsum(sizes)[:-1]]
+    counted = np.cumsum(free)
+    before = (counted - free)[np.r_[0, np.cumsum(sizes)[:-1]]]      # free entries before each cluster's first
+    rank_of = np.where(free, counted - 1 - np.repeat(before, sizes), -1)
 
     def rank(particle):
-        return np.searchsorted(keys, owner * N + particle) - first[owner]
+        return rank_of[np.searchsorted(keys, owner * N + particle)]
 
-    return {"cluster": owner, "contact": contact, "lp": rank(sub.p[contact]), "lq": rank(sub.q[contact])}
+    lp, lq = rank(sub.p[contact]), rank(sub.q[contact])
+    acts = (lp >= 0) | (lq >= 0)                                    # two held particles: no dof of the cluster
+    return {"cluster": owner[acts], "contact": contact[acts], "lp": lp[acts], "lq": lq[acts]}
 
 
-def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, device) -> dict:
-    """Row fields of the clusters `part` (all with n particles): see the module docstring."""
+def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, device, fixed) -> dict:
+    """Row fields of the clusters `part` (all with n free particles): see the module docstring. The held ring's
+    dofs (fixed) go to a last row and column that is dropped (`trash`)."""
     d, r = sub.dim, rot_dim(sub.dim)
     per = d + r
     nd = n * per
+    trash = nd + 1
     G = len(part)
     slot = np.full(len(n_sliding), -1)
     slot[part] = np.arange(G)
     sel = slot[pairs["cluster"]] >= 0
     g, m = slot[pairs["cluster"][sel]], pairs["contact"][sel]
-    idx = np.concatenate([pairs["lp"][sel, None] * per + np.arange(per),
-                          pairs["lq"][sel, None] * per + np.arange(per)], axis=1)      # (P, 2per) local dofs
+    idx = np.concatenate([np.where(pairs[side][sel, None] >= 0, pairs[side][sel, None] * per + np.arange(per), nd)
+                          for side in ("lp", "lq")], axis=1)                      # (P, 2per) local dofs, nd: held
 
     # metric: L = mean contact radius of the cluster (rigid.rotation_length), D = diag(1, 1/L) per particle
     radii = np.linalg.norm(sub.r_pq[m], axis=1) + np.linalg.norm(sub.r_qp[m], axis=1)
     L = np.bincount(g, weights=radii, minlength=G) / (2 * np.bincount(g, minlength=G))
     L = factor * np.where(L > 0, L, 1.0)
-    rotation = np.tile(np.r_[np.zeros(d), np.ones(r)].astype(bool), n)
-    dscale = np.where(rotation[None], 1.0 / L[:, None], 1.0)                         # (G, nd)
+    rotation = np.r_[np.tile(np.r_[np.zeros(d), np.ones(r)].astype(bool), n), False]
+    dscale = np.where(rotation[None], 1.0 / L[:, None], 1.0)                         # (G, nd + 1)
     Dp = dscale[g[:, None], idx]                                                     # (P, 2per)
 
-    flat = (g[:, None, None] * nd + idx[:, :, None]) * nd + idx[:, None, :]         # (P, 2per, 2per) → (G, nd, nd)
+    flat = (g[:, None, None] * trash + idx[:, :, None]) * trash + idx[:, None, :]   # (P, 2per, 2per) → (G, nd, nd)
     scaled = parts["elastic"][m] * Dp[:, :, None] * Dp[:, None, :]
-    H_el = np.bincount(flat.ravel(), weights=scaled.ravel(), minlength=G * nd * nd).reshape(G, nd, nd)
+    H_el = np.ascontiguousarray(np.bincount(flat.ravel(), weights=scaled.ravel(),
+                                            minlength=G * trash * trash).reshape(G, trash, trash)[:, :nd, :nd])
 
     def abs_norm(rows):            # ‖|Σ_c X̃_c|‖∞ <= max over rows of Σ_c (row sums of |X̃_c|): per contact, no matrices
-        sums = np.bincount((g[:, None] * nd + idx).ravel(), weights=(rows[m] * Dp * Dp.max(axis=1, keepdims=True)
-                                                                   ).ravel(), minlength=G * nd)
-        return sums.reshape(G, nd).max(axis=1)
+        sums = np.bincount((g[:, None] * trash + idx).ravel(), weights=(rows[m] * Dp * Dp.max(axis=1, keepdims=True)
+                                                                      ).ravel(), minlength=G * trash)
+        return sums.reshape(G, trash)[:, :nd].max(axis=1)
 
     # sliding factors A, S (G, nd, Ms) in the metric's dofs, the contacts in cluster order (eq:ContactF, eq:flow)
     slide = sel & pairs["sliding"]
     gs, ms = slot[pairs["cluster"][slide]], pairs["contact"][slide]
     col = _rank_within(gs)
     Ms = int(n_sliding[part].max())
-    A = np.zeros((G, nd, Ms))
-    S = np.zeros((G, nd, Ms))
+    A = np.zeros((G, trash, Ms))
+    S = np.zeros((G, trash, Ms))
     idx_s = idx[slide[sel]]
     Ds = Dp[slide[sel]]
     np.add.at(A, (gs[:, None], idx_s, col[:, None]), blocks.slide_left[ms] * Ds)
     np.add.at(S, (gs[:, None], idx_s, col[:, None]), blocks.slide_right[ms] * Ds)
-
-    # rigid motions about the centroid in scaled dofs (eq:dtrigid), C̃⁺ (eq:Moore1), the formation error
-    x = sub.x[np.concatenate([local[starts[c]:starts[c] + n] for c in part])].reshape(G, n, d)
-    C = np.zeros((G, n, per, r))
-    C[:, :, :d, :] = rotate_matrix((x - x.mean(axis=1, keepdims=True)).reshape(-1, d)).reshape(G, n, d, r)
-    C[:, :, d:, :] = L[:, None, None, None] * np.eye(r)
-    C = C.reshape(G, nd, r)
-    T = np.zeros((G, n, per, d))
-    T[:, :, :d, :] = np.eye(d)
-    R, _ = np.linalg.qr(np.concatenate([T.reshape(G, nd, d), C], axis=2))
-    Ct = np.swapaxes(C, 1, 2)
-    Cplus = np.linalg.solve(Ct @ C, Ct)
-    kappa = np.linalg.norm(C, axis=(1, 2)) * np.linalg.norm(Cplus, axis=(1, 2))
+    A, S = np.ascontiguousarray(A[:, :nd]), np.ascontiguousarray(S[:, :nd])
     scales = (abs_norm(parts["rows_m"]) + abs_norm(parts["rows_g"])
               + np.sum(np.linalg.norm(A, axis=1) * np.linalg.norm(S, axis=1), axis=1))
-    formation = (8 * EPS + 2 * gamma(nd) * kappa) * scales
     s_scale = np.linalg.norm(S, axis=1).max(axis=1, initial=0.0)
-    leak = H_el @ R - (H_el @ C) @ (Cplus @ R)
-    leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
 
-    # sym(𝓗^i) = sym(Pᵀ H_el P) + sym((PᵀA) diag(on) (PᵀS)ᵀ) with P = I − C C̃⁺, projected once per cluster
-    def project(M):                                                                  # Pᵀ M
-        return M - np.swapaxes(Cplus, 1, 2) @ (Ct @ M)
-
-    HP = project(H_el)
-    HP = HP - (HP @ C) @ Cplus
-    base = 0.5 * (HP + np.swapaxes(HP, 1, 2))
+    if fixed:                      # held by the ring: no rigid motion, P^nrr = I (eq:Pnrr), formation 8ε of the parts
+        formation, leakage, n_rigid = 8 * EPS * scales, np.zeros(G), 0
+        base = 0.5 * (H_el + np.swapaxes(H_el, 1, 2))
+        PA, PS = A, S
+    else:
+        x = sub.x[np.concatenate([local[starts[c]:starts[c] + n] for c in part])].reshape(G, n, d)
+        formation, leakage, base, PA, PS = _projected(H_el, A, S, x, L, scales)
+        n_rigid = d + r
     values_only = (n_sliding[part] == 0) & (device == "cpu")
     values, vectors = np.flatnonzero(values_only), np.flatnonzero(~values_only)
-    solved = [(values, _values(base[values], formation[values], nd, R.shape[2]))] if values.size else []
+    solved = [(values, _values(base[values], formation[values], nd, n_rigid))] if values.size else []
     if vectors.size:
-        solved.append((vectors, _vectors(base[vectors], project(A)[vectors], project(S)[vectors], S[vectors],
+        solved.append((vectors, _vectors(base[vectors], PA[vectors], PS[vectors], S[vectors],
                                n_sliding[part][vectors], formation[vectors], s_scale[vectors] * sub.tol.s_rtol,
-                               1e3 * EPS * s_scale[vectors], nd, R.shape[2], device)))
+                               1e3 * EPS * s_scale[vectors], nd, n_rigid, device)))
     owner = np.concatenate([which[got["owner"]] for which, got in solved])
     lam, bounds, codes, hinges, special, error = (np.concatenate([got[key] for _, got in solved])
                                                   for key in ("lam", "bounds", "codes", "hinges", "special", "error"))
@@ -204,6 +213,36 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
                        "n_undetermined": int(undetermined[i]), "n_contacts": int(n_contacts[i]),
                        "n_sliding": int(n_sliding[c]), "path": "batched-values" if values_only[i] else "batched"}
     return out
+
+
+def _projected(H_el, A, S, x, L, scales):
+    """The isolated cluster (--boundary loads): rigid motions about the centroid in scaled dofs (eq:dtrigid), C̃⁺
+    (eq:Moore1), the formation-error bound (accuracy.py), the rigid leakage of H_el, and sym(Pᵀ H_el P), PᵀA, PᵀS
+    with P = I − C C̃⁺ (eq:newstiffnesses), projected once per cluster."""
+    G, n, d = x.shape
+    nd = H_el.shape[1]
+    r = rot_dim(d)
+    per = d + r
+    C = np.zeros((G, n, per, r))
+    C[:, :, :d, :] = rotate_matrix((x - x.mean(axis=1, keepdims=True)).reshape(-1, d)).reshape(G, n, d, r)
+    C[:, :, d:, :] = L[:, None, None, None] * np.eye(r)
+    C = C.reshape(G, nd, r)
+    T = np.zeros((G, n, per, d))
+    T[:, :, :d, :] = np.eye(d)
+    R, _ = np.linalg.qr(np.concatenate([T.reshape(G, nd, d), C], axis=2))
+    Ct = np.swapaxes(C, 1, 2)
+    Cplus = np.linalg.solve(Ct @ C, Ct)
+    kappa = np.linalg.norm(C, axis=(1, 2)) * np.linalg.norm(Cplus, axis=(1, 2))
+    formation = (8 * EPS + 2 * gamma(nd) * kappa) * scales
+    leak = H_el @ R - (H_el @ C) @ (Cplus @ R)
+    leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
+
+    def project(M):                                                                  # Pᵀ M
+        return M - np.swapaxes(Cplus, 1, 2) @ (Ct @ M)
+
+    HP = project(H_el)
+    HP = HP - (HP @ C) @ Cplus
+    return formation, leakage, 0.5 * (HP + np.swapaxes(HP, 1, 2)), project(A), project(S)
 
 
 def _values(Hsym, formation, nd: int, n_rigid: int) -> dict:
