@@ -166,7 +166,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     cores; 1 = serial, in this process). metric: the projection metric of every cluster (see analyze).
     device: "cpu", "gpu" or "auto" for the stacked eigenproblems of the batched path (backend.py); chunk: clusters
     per task (default CHUNK, GPU_CHUNK on a GPU). boundary: "loads" (the isolated cluster) or "fixed" (the next ring
-    held fixed, analysed per cluster): see clusters.extract.
+    held fixed): see clusters.extract.
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
