@@ -125,11 +125,11 @@ def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray, free: np.ndarra
 
 def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, device, fixed) -> dict:
     """Row fields of the clusters `part` (all with n free particles): see the module docstring. The held ring's
-    dofs (fixed) go to a last row and column that is dropped (`trash`)."""
+    dofs (fixed) go to row and column nd of (nd + 1)-sized arrays, which are cut off (`padded`)."""
     d, r = sub.dim, rot_dim(sub.dim)
     per = d + r
     nd = n * per
-    trash = nd + 1
+    padded = nd + 1
     G = len(part)
     slot = np.full(len(n_sliding), -1)
     slot[part] = np.arange(G)
@@ -146,23 +146,23 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     dscale = np.where(rotation[None], 1.0 / L[:, None], 1.0)                         # (G, nd + 1)
     Dp = dscale[g[:, None], idx]                                                     # (P, 2per)
 
-    flat = (g[:, None, None] * trash + idx[:, :, None]) * trash + idx[:, None, :]   # (P, 2per, 2per) → (G, nd, nd)
+    flat = (g[:, None, None] * padded + idx[:, :, None]) * padded + idx[:, None, :]   # (P, 2per, 2per) → (G, nd, nd)
     scaled = parts["elastic"][m] * Dp[:, :, None] * Dp[:, None, :]
     H_el = np.ascontiguousarray(np.bincount(flat.ravel(), weights=scaled.ravel(),
-                                            minlength=G * trash * trash).reshape(G, trash, trash)[:, :nd, :nd])
+                                            minlength=G * padded * padded).reshape(G, padded, padded)[:, :nd, :nd])
 
     def abs_norm(rows):            # ‖|Σ_c X̃_c|‖∞ <= max over rows of Σ_c (row sums of |X̃_c|): per contact, no matrices
-        sums = np.bincount((g[:, None] * trash + idx).ravel(), weights=(rows[m] * Dp * Dp.max(axis=1, keepdims=True)
-                                                                      ).ravel(), minlength=G * trash)
-        return sums.reshape(G, trash)[:, :nd].max(axis=1)
+        sums = np.bincount((g[:, None] * padded + idx).ravel(), weights=(rows[m] * Dp * Dp.max(axis=1, keepdims=True)
+                                                                      ).ravel(), minlength=G * padded)
+        return sums.reshape(G, padded)[:, :nd].max(axis=1)
 
     # sliding factors A, S (G, nd, Ms) in the metric's dofs, the contacts in cluster order (eq:ContactF, eq:flow)
     slide = sel & pairs["sliding"]
     gs, ms = slot[pairs["cluster"][slide]], pairs["contact"][slide]
     col = _rank_within(gs)
     Ms = int(n_sliding[part].max())
-    A = np.zeros((G, trash, Ms))
-    S = np.zeros((G, trash, Ms))
+    A = np.zeros((G, padded, Ms))
+    S = np.zeros((G, padded, Ms))
     idx_s = idx[slide[sel]]
     Ds = Dp[slide[sel]]
     np.add.at(A, (gs[:, None], idx_s, col[:, None]), blocks.slide_left[ms] * Ds)
