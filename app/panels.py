@@ -267,7 +267,7 @@ class ClientUI:
 
     def _upload(self) -> None:
         up = self.upload.value
-        transfer = self._transfers.pop(up.name)
+        transfer = self._transfers.pop(up.name, None)     # None: its start was not seen (a second file of that name)
         ok = self.session.load_upload(up.name, up.content)
         if not ok:
             self._reject_upload(transfer, up.name, self.session.error)
@@ -305,13 +305,16 @@ class ClientUI:
         self._show_message(self.session.error)
         self._reject_upload(message.transfer_uuid, message.filename, self.session.error)
 
-    def _reject_upload(self, transfer: str, name: str, reason: str) -> None:
+    def _reject_upload(self, transfer: str | None, name: str, reason: str) -> None:
         """Turn viser's notice of an upload, which says "File uploaded successfully." for every file, into a red "Not
         opened" notice with the reason. The browser writes its text after each `FileTransferPartAck` in an effect
         that may run after this update arrives (the last ack and this update can share a batch): the update is sent
         again after each delay of REJECT_AGAIN, so the rejection has the last word (measured in headless Chromium on
         the pair: the browser wrote its text 30-80 ms after the file was picked and overwrote an update sent at once
         each time; the update sent 0.3 s later won)."""
+        if transfer is None:                            # no notice of viser's to turn: one of our own
+            self.client.add_notification(f"Not opened: {Path(name).name}", reason, color="red", auto_close_seconds=15)
+            return
         update = NotificationUpdateMessage("upload-" + transfer, NotificationProps(
             title=f"Not opened: {Path(name).name}", body=reason, loading=False, with_close_button=True,
             auto_close_seconds=None, color="red"))

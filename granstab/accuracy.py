@@ -63,13 +63,18 @@ def vector_bounds(lam: np.ndarray, residuals: np.ndarray, scale: float, formatio
     return np.sqrt(2.0) * residuals + gamma(n + 2) * (scale + np.abs(lam)) + formation
 
 
+def values_backward_error(scale, n: int):
+    """The a-priori bound of eigenvalues computed without eigenvectors: γ_{n²}‖|A|‖∞ (value_bounds)."""
+    return gamma(n * n) * scale
+
+
 def value_bounds(lam: np.ndarray, scale, formation, n: int) -> np.ndarray:
     """Bounds for eigenvalues computed WITHOUT eigenvectors (LAPACK syevd, jobz = 'N'; the scan's clusters without
     sliding contacts), a priori instead of from residuals: the Householder reduction to tridiagonal form and the
     implicit QL iteration are backward stable, the computed eigenvalues exact for A + E with ‖E‖₂ <= p(n) ε ‖A‖₂
     (LAPACK Users' Guide §4.7.1; Golub & Van Loan §8.3), and p(n) is taken as n² (γ_{n²}, with ‖A‖₂ <= ‖|A|‖∞ =
     scale): a wider bound than a residual's, so fewer signs are resolved, never a wrong one."""
-    return gamma(n * n) * scale + gamma(n + 2) * (scale + np.abs(lam)) + formation
+    return values_backward_error(scale, n) + gamma(n + 2) * (scale + np.abs(lam)) + formation
 
 
 def resolved_sign(lam: np.ndarray, bounds: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..accuracy import gamma, value_bounds, vector_bounds
+from ..accuracy import gamma, value_bounds, values_backward_error, vector_bounds
 from ..backend import backend, eigh_stack, residual_norms
 from ..branches import BOTH, RIGID, consistency
 from ..stiffness import contact_blocks
@@ -256,7 +256,7 @@ def _values(Hsym, formation, nd: int, n_rigid: int) -> dict:
     codes = np.where(zero, RIGID, BOTH).astype(np.int8)
     return {"owner": np.arange(len(Hsym)), "lam": lam, "bounds": bounds, "codes": codes,
             "hinges": np.zeros(lam.shape, dtype=bool), "special": _special(lam, bounds, zero, n_rigid),
-            "error": gamma(nd * nd) * scale[:, 0]}
+            "error": values_backward_error(scale[:, 0], nd)}
 
 
 def _vectors(base, PA, PS, S, n_sliding, formation, s_tol, s_floor, nd: int, n_rigid: int, device: str) -> dict:
