@@ -3,6 +3,7 @@ whole scans of a 10⁵-particle 2D and a 10⁴-particle 3D packing (serial, 2 Da
 sees one), the peak memory of a chunk at two packing sizes, and a 10⁶-particle extrapolation from these costs."""
 from __future__ import annotations
 
+import os
 import statistics
 import tempfile
 import time
@@ -13,13 +14,15 @@ import numpy as np
 from granstab import packings
 from granstab.backend import gpu_available
 from granstab.scan import members, read_map, scan
-from granstab.scan.run import CHUNK, chunk_scene, cluster_row, scan_chunk
+from granstab.scan.run import CHUNK, TASK_SECONDS, chunk_scene, cluster_row, scan_chunk
+from granstab.threads import blas_threads
 
 TASK_OVERHEAD_S = 10e-3     # client and scheduler CPU a task, measured here (a 10⁵ scan in 49 against 13 tasks:
                             # 1.15 against 0.80 s of the client process), for the extrapolation
 OPTIONS = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32}
-QUICK = {"sizes": {2: 3000, 3: 600}, "sample": 128, "memory": (2000, 8000), "repeats": 1}
-FULL = {"sizes": {2: 100_000, 3: 10_000}, "sample": 512, "memory": (10_000, 100_000), "repeats": 5}
+QUICK = {"sizes": {2: 3000, 3: 600}, "sample": 128, "memory": (2000, 8000), "repeats": 1, "plain_chunks": 1}
+FULL = {"sizes": {2: 100_000, 3: 10_000}, "sample": 512, "memory": (10_000, 100_000), "repeats": 5,
+        "plain_chunks": 8}
 
 
 def packing(dim: int, n: int):
@@ -60,23 +63,35 @@ def scaling(scene, repeats: int) -> dict:
     """Whole scans, medians of `repeats`: serially in this process and on running local Dask clusters of 1 and of 2
     worker processes (the scaling 1 → 2 workers: each cluster started once and warmed by one untimed scan, as a real
     one is), the three interleaved round by round so that a shared machine's load falls on all of them alike; then
-    `--workers 2` with its cluster's start-up included (what one command costs)."""
+    `--workers 2` with its cluster's start-up included (what one command costs).
+
+    The CPU seconds of each timed Dask scan are split into the workers' and this process's (the client, which on a
+    local cluster also runs the scheduler and the nannies): with them the best 1 → 2 ratio this machine allows is
+    `ceiling` = t(1 worker) / max(workers' CPU / 2, all CPU / cores) — the workers cannot finish sooner than that."""
     import dask
-    from dask.distributed import LocalCluster
+    from dask.distributed import Client, LocalCluster
     from granstab.scan.run import WORKER_ENVIRON
     serial, ref = whole_scan(scene)
     times = {"serial": [serial]}
+    cpu = {}
     same = True
     with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
         clusters = {w: LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None)
                     for w in (1, 2)}
     try:
+        pids = {}
         for w, cluster in clusters.items():
+            with Client(cluster) as client:
+                pids[w] = list(client.run(os.getpid).values())
             same &= whole_scan(scene, scheduler=cluster.scheduler_address)[1]["verdict"] == ref["verdict"]
         for _ in range(repeats):
             for w, cluster in clusters.items():
+                before = _cpu_seconds(pids[w])
                 seconds, got = whole_scan(scene, scheduler=cluster.scheduler_address)
+                after = _cpu_seconds(pids[w])
                 times.setdefault(f"dask{w}", []).append(seconds)
+                for key in after:
+                    cpu.setdefault(f"{key}{w}", []).append(after[key] - before[key])
                 same &= got["verdict"] == ref["verdict"]
             times["serial"].append(whole_scan(scene)[0])
     finally:
@@ -87,9 +102,47 @@ def scaling(scene, repeats: int) -> dict:
         times.setdefault("startup2", []).append(seconds)
         same &= got["verdict"] == ref["verdict"]
     med = {key: statistics.median(value) for key, value in times.items()}
+    cpu = {key: statistics.median(value) for key, value in cpu.items()}
+    cores = os.cpu_count() or 1
+    floor2 = max(cpu["workers2"] / 2, (cpu["workers2"] + cpu["client2"]) / cores)
     return {"summary": ref["summary"], "lambda_min": ref["lambda_min"], "verdict": ref["verdict"],
-            "seconds": med, "same_verdicts": same, "speedup_1_to_2": med["dask1"] / med["dask2"],
+            "seconds": med, "cpu": cpu, "cores": cores, "ceiling_1_to_2": med["dask1"] / floor2,
+            "same_verdicts": same, "speedup_1_to_2": med["dask1"] / med["dask2"],
             "speedup_serial_to_2": med["serial"] / med["startup2"]}
+
+
+def _cpu_seconds(worker_pids: list) -> dict:
+    """CPU seconds so far of the worker processes and of this process (all its threads: client, scheduler,
+    nannies)."""
+    import psutil
+    workers = sum(sum(psutil.Process(pid).cpu_times()[:2]) for pid in worker_pids)
+    return {"workers": workers, "client": time.process_time()}
+
+
+def plain_processes(scene, chunks: int = 8) -> dict:
+    """What the machine gives two processes, without Dask: the same `chunks` chunks computed by one process alone,
+    then by each of two at once (medians of 3). parallel = 2 · t(one) / t(two at once): 2.0 where two cores do not
+    slow each other (shared caches, memory bandwidth, a hyperthread pair)."""
+    import multiprocessing as mp
+    parts = [chunk_scene(scene, np.arange(i * CHUNK, (i + 1) * CHUNK) % scene.n_particles, 1)
+             for i in range(chunks)]
+    ctx = mp.get_context("spawn")
+    one, two = [], []
+    with ctx.Pool(2) as pool:
+        pool.map(_time_chunks, [parts[:1]] * 2)                                   # warm both processes
+        for _ in range(3):
+            one.append(pool.apply(_time_chunks, (parts,)))
+            two.append(max(pool.map(_time_chunks, [parts, parts], chunksize=1)))
+    return {"one_s": statistics.median(one), "two_s": statistics.median(two),
+            "parallel": 2 * statistics.median(one) / statistics.median(two)}
+
+
+def _time_chunks(parts) -> float:
+    t = time.perf_counter()
+    with blas_threads(1):
+        for chunk_scene_, centers in parts:
+            scan_chunk(chunk_scene_, centers, OPTIONS)
+    return time.perf_counter() - t
 
 
 def chunk_memory(n: int) -> float:
@@ -117,7 +170,8 @@ def run(quick: bool = False) -> dict:
                    dask1_s=a["seconds"]["dask1"], dask2_s=a["seconds"]["dask2"],
                    startup2_s=a["seconds"]["startup2"], speedup_1_to_2=a["speedup_1_to_2"],
                    speedup_serial_to_2=a["speedup_serial_to_2"], clusters_per_s_serial=scene.n_particles / serial,
-                   verdicts=a["summary"]["verdicts"], same_verdicts_dask=a["same_verdicts"])
+                   verdicts=a["summary"]["verdicts"], same_verdicts_dask=a["same_verdicts"], cpu=a["cpu"],
+                   ceiling_1_to_2=a["ceiling_1_to_2"])
         if gpu_available():
             gpu, c = whole_scan(scene, 1, device="gpu")
             row["gpu"] = {"seconds": gpu, "clusters_per_s": scene.n_particles / gpu, "vs_cpu_serial": serial / gpu,
@@ -127,7 +181,8 @@ def run(quick: bool = False) -> dict:
         rows.append(row)
     memory = [{"n_particles": n, "peak_MB": chunk_memory(n)} for n in cfg["memory"]]
     return {"rows": rows, "memory": memory, "extrapolation": _extrapolate(rows[0]), "gpu": gpu_available(),
-            "repeats": cfg["repeats"]}
+            "repeats": cfg["repeats"], "cores": os.cpu_count(),
+            "plain": plain_processes(packing(2, cfg["sizes"][2]), chunks=cfg["plain_chunks"])}
 
 
 def _extrapolate(row: dict) -> list[dict]:
@@ -138,12 +193,17 @@ def _extrapolate(row: dict) -> list[dict]:
     out = []
     for workers in (1, 16, 256):
         compute = n * per_cluster / workers
-        scheduling = n / CHUNK * TASK_OVERHEAD_S
+        scheduling = _tasks(n, per_cluster) * TASK_OVERHEAD_S
         reading = 9.0
         parts = {"compute": compute, "scheduling": scheduling, "reading": reading}
         out.append({"workers": workers, "minutes": (max(compute, scheduling) + reading) / 60,
                     "bottleneck": max(parts, key=parts.get), **parts})
     return out
+
+
+def _tasks(n: int, per_cluster: float) -> float:
+    """Dask tasks of a scan of n clusters (run.Guide): TASK_SECONDS[1] of compute each, at most CHUNK clusters."""
+    return max(n / CHUNK, n * per_cluster / TASK_SECONDS[1])
 
 
 def markdown(results: dict) -> str:
@@ -161,8 +221,7 @@ def markdown(results: dict) -> str:
              "and of 2 single-threaded worker processes (`--scheduler`: the scaling 1 → 2 workers; each cluster "
              "started once and warmed by one untimed scan, as a real one is; serial, 1 and 2 workers interleaved "
              "round by round so that the shared machine's load falls on all three alike); `--workers 2` with its "
-             "cluster's start-up included (one command). This 2-core machine is shared and the client process needs "
-             "some of a core too (cutting chunks, writing parts), so the 2-worker ratios are lower bounds.", "",
+             "cluster's start-up included (one command).", "",
              "| packing | particles | contacts (at yield) | loop of analyze (clusters) | (a) batched chunk | "
              "(a) speed-up | **(b) scan vs loop** | error (verdicts) | paths (sample) | serial | Dask 1 worker | "
              "2 workers | **1 → 2** | `--workers 2` (start-up incl.) | serial → it | clusters/s | verdicts |",
@@ -178,6 +237,21 @@ def markdown(results: dict) -> str:
             f"{r['speedup_serial_to_2']:.2f}× | {r['clusters_per_s_serial']:.0f} | "
             + ", ".join(f"{k} {v}" for k, v in r["verdicts"].items())
             + ("" if r["same_verdicts_dask"] else " (**differ between serial and Dask**)") + " |")
+    plain = results["plain"]
+    lines += ["", f"**What bounds 1 → 2 on this machine ({results['cores']} cores).** CPU seconds of one timed scan "
+              "(medians): the workers' processes, and this process's (the client, which on a local cluster also runs "
+              "the scheduler and the nannies). On a machine with no core to spare, the two workers cannot finish "
+              "before all that CPU is spent: *ceiling* = t(1 worker) / max(workers' CPU / 2, all CPU / cores), the "
+              "best ratio this machine allows. Two plain processes computing the same "
+              f"{plain['one_s']:.1f} s of chunks at once, without Dask: {plain['two_s']:.1f} s, a parallel "
+              f"efficiency of **{plain['parallel']:.2f}** of 2 (the cores themselves do not slow each other).", "",
+              "| packing | 1 worker: workers' CPU | client | 2 workers: workers' CPU | client | ceiling here | "
+              "measured |", "|---|---|---|---|---|---|---|"]
+    for r in results["rows"]:
+        c = r["cpu"]
+        lines.append(f"| {r['dim']}D, {r['n_particles']:,} | {c['workers1']:.1f} s | {c['client1']:.2f} s | "
+                     f"{c['workers2']:.1f} s | {c['client2']:.2f} s | {r['ceiling_1_to_2']:.2f}× | "
+                     f"{r['speedup_1_to_2']:.2f}× |")
     if results["gpu"]:
         lines += ["", "| packing | GPU whole scan | clusters/s | vs CPU serial | λ_min rel. diff (verdicts) |",
                   "|---|---|---|---|---|"]
@@ -194,7 +268,8 @@ def markdown(results: dict) -> str:
               + ", ".join(f"{m['peak_MB']:.0f} MB in a {m['n_particles']:,}-particle packing" for m in mem)
               + " — set by the chunk, not by the packing.", "",
               "A 10⁶-particle 2D scan extrapolated from the serial rate above (compute / workers, the client's and "
-              f"scheduler's ~{TASK_OVERHEAD_S * 1e3:.0f} ms a task (measured) for {CHUNK} clusters a task, reading an NPZ snapshot):", "",
+              f"scheduler's ~{TASK_OVERHEAD_S * 1e3:.0f} ms a task (measured) for tasks of "
+              f"{TASK_SECONDS[1]} s of compute, at most {CHUNK} clusters (`run.Guide`), reading an NPZ snapshot):", "",
               "| workers | compute | scheduling | reading | total | bottleneck |", "|---|---|---|---|---|---|"]
     for e in results["extrapolation"]:
         lines.append(f"| {e['workers']} | {e['compute']:.0f} s | {e['scheduling']:.0f} s | {e['reading']:.0f} s | "

@@ -19,7 +19,8 @@ from granstab.branches import RIGID
 from granstab.scan import extract, members, read_map, scan
 from granstab.backend import gpu_available, residual_norms
 from granstab.scan.clusters import CONTACT_FIELDS, boundary_ring, subscene
-from granstab.scan.run import chunk_cut, chunk_table, cluster_row, scan_chunk, taper
+from granstab.scan.run import (CHUNK, FIRST_TASK, TASK_SECONDS, Guide, chunk_cut, chunk_table, cluster_row,
+                               scan_chunk)
 
 ROOT = Path(__file__).resolve().parents[1]
 ANNULUS = ROOT / "presets" / "annulus_frame.json"
@@ -157,14 +158,37 @@ def test_gpu_batched_rows_equal_cpu():
         assert abs(a["lambda_min"] - b["lambda_min"]) <= 1e-10 * abs(a["lambda_min"])
 
 
-def test_taper_cuts_the_last_chunks_and_keeps_every_centre_once():
-    """The Dask path's tail: the last `threads` chunks of 2048 in quarters of 512, the others untouched, every centre
-    once and in order (fewer chunks than threads: all of them are cut)."""
-    chunks = [np.arange(i, min(i + 2048, 10_000)) for i in range(0, 10_000, 2048)]
-    tapered = taper(chunks, threads=2)
-    assert [len(c) for c in tapered] == [2048, 2048, 2048] + [512] * 4 + [452] * 4
-    assert np.array_equal(np.concatenate(tapered), np.arange(10_000))
-    assert [len(c) for c in taper(chunks[:1], threads=8)] == [512] * 4
+def _guided_sizes(guide, threads=2, cost=None):
+    """The sizes of a Guide's tasks to the end (every centre checked once and in order), `cost` seconds a cluster
+    reported after the first task."""
+    import pyarrow as pa
+    parts = [guide.next(threads)]
+    if cost is not None:
+        guide.measured(pa.table({"seconds": np.full(len(parts[0]), cost)}))
+    while (part := guide.next(threads)) is not None:
+        parts.append(part)
+    assert np.array_equal(np.concatenate(parts), guide.todo)
+    return [len(p) for p in parts]
+
+
+@pytest.mark.parametrize("cost", [2.0 ** -13, 2.0 ** -7, 2.0 ** -20])
+def test_guide_sizes_tasks_by_the_measured_cost_and_ends_in_small_ones(cost):
+    """Guided self-scheduling: FIRST_TASK clusters before a cluster's cost is known, then tasks of TASK_SECONDS of
+    measured compute (2D-like, 3D-like and a cost so small that CHUNK caps them), the centres left / (2 threads)
+    near the end, never growing again, every centre once."""
+    sizes = _guided_sizes(Guide(np.arange(100_000)), cost=cost)
+    least, most = (min(int(t / cost), CHUNK) for t in TASK_SECONDS)
+    assert sizes[0] == FIRST_TASK
+    assert max(sizes[1:]) == most and all(a >= b for a, b in zip(sizes[1:], sizes[2:]))
+    assert min(sizes[1:-1]) >= least and sizes[-1] <= max(least, 1)
+    assert sizes[-2] == least                          # the tail: the smallest affordable tasks
+
+
+def test_guide_with_a_fixed_chunk_keeps_it_and_shrinks_the_tail():
+    """At most the chunk, a quarter of what is left (2 threads), at least a quarter of the chunk: by hand,
+    10,000 → 2048; 7,952 → 1,988; 5,964 → 1,491; 4,473 → 1,119; 3,354 → 839; 2,515 → 629; then 512 to the end."""
+    assert _guided_sizes(Guide(np.arange(10_000), fixed=2048), threads=2) == [2048, 1988, 1491, 1119, 839, 629,
+                                                                                512, 512, 512, 350]
 
 
 def test_scan_of_a_small_scene_equals_analyze_of_the_scene(tmp_path):

@@ -25,8 +25,11 @@ from .clusters import (BOUNDARIES, adjacency, boundary_ring, cut, incidence, mem
                        union)
 from .output import ScanOutput, rows_table
 
-CHUNK = 4096          # clusters per task: Dask's per-task cost (~10 ms of a worker and ~10 ms of the client and
-                      # scheduler a task, measured) stays small; the stacks inside stay small (batch.STACK_BYTES)
+CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
+                      # (batch.STACK_BYTES)
+TASK_SECONDS = (0.05, 0.3)  # a Dask task's measured compute, least and most: Dask's per-task cost (~10 ms of a
+                      # worker and ~10 ms of the client and scheduler, measured) stays a few per cent of it
+FIRST_TASK = 64       # clusters of the first Dask tasks, before a cluster's cost is measured
 GPU_CHUNK = 16384     # on a GPU one stacked solve wants many clusters
 IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next ones already sent
 # Local workers' environment: one BLAS thread each, and NOT Dask's default MALLOC_TRIM_THRESHOLD_, which also turns
@@ -165,8 +168,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     scheduler: a Dask scheduler address (tcp://HOST:PORT); workers: local Dask workers (default: this machine's
     cores; 1 = serial, in this process). metric: the projection metric of every cluster (see analyze).
     device: "cpu", "gpu" or "auto" for the stacked eigenproblems of the batched path (backend.py); chunk: clusters
-    per task (default CHUNK, GPU_CHUNK on a GPU). boundary: "loads" (the isolated cluster) or "fixed" (the next ring
-    held fixed): see clusters.extract.
+    per task (default: CHUNK serially; on Dask sized by the measured cost of a cluster, `Guide`; GPU_CHUNK on a
+    GPU). boundary: "loads" (the isolated cluster) or "fixed" (the next ring held fixed): see clusters.extract.
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
@@ -176,15 +179,14 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
                "boundary": boundary}
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, source=scene.source)
-    chunk = chunk or (GPU_CHUNK if device == "gpu" else CHUNK)
+    chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
     chosen = select_centers(scene, centers)
     todo = chosen[~np.isin(np.asarray(scene.names, dtype=object)[chosen], list(out.done_centers()))]
-    chunks = [todo[i:i + chunk] for i in range(0, len(todo), chunk)]
     bar = _progress(len(todo)) if progress else None
     start = time.perf_counter()
-    if chunks:
+    if len(todo):
         run = _run_serial if (scheduler is None and (workers or os.cpu_count() or 1) <= 1) else _run_dask
-        run(scene, chunks, {**options, "device": device}, out, bar, scheduler=scheduler, workers=workers)
+        run(scene, todo, chunk, {**options, "device": device}, out, bar, scheduler=scheduler, workers=workers)
     if bar is not None:
         bar.close()
     summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo))
@@ -194,18 +196,20 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     return summary
 
 
-def _run_serial(scene, chunks, options, out, bar, **_):
+def _run_serial(scene, todo, chunk, options, out, bar, **_):
     graph, contacts_of = adjacency(scene), incidence(scene)
-    for part in chunks:
+    chunk = chunk or CHUNK
+    for at in range(0, len(todo), chunk):
+        part = todo[at:at + chunk]
         out.write(chunk_table(chunk_cut(scene, part, reach(options), graph, contacts_of), options))
         if bar is not None:
             bar.update(len(part))
 
 
-def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
-    """Chunks as Dask tasks, each with its own `Chunk` (rerun if a worker dies), results streamed to disk in the order
-    they finish. At most IN_FLIGHT tasks per worker thread are out at a time: the client cuts the next chunk while
-    the workers compute, and holds a few chunks, never all of them."""
+def _run_dask(scene, todo, chunk, options, out, bar, *, scheduler, workers):
+    """Tasks of centres cut by a `Guide`, each with its own `Chunk` (rerun if a worker dies), results streamed to
+    disk in the order they finish. At most IN_FLIGHT tasks per worker thread are out at a time: the client cuts the
+    next chunk while the workers compute, and holds a few chunks, never all of them."""
     import dask
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
@@ -214,23 +218,21 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
             cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
                                    dashboard_address=None)
     graph, contacts_of = adjacency(scene), incidence(scene)
+    guide = Guide(todo, chunk)
     with Client(scheduler or cluster) as client:
-        todo = iter(taper(chunks, sum(client.nthreads().values())))
-        def submit(part):
-            return client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph, contacts_of), options,
-                                 retries=3, pure=False)
-
         running = as_completed()
 
         def fill():                                     # the cluster's threads now (a real cluster may grow)
-            want = IN_FLIGHT * max(sum(client.nthreads().values()), 1)
-            while running.count() < want and (part := next(todo, None)) is not None:
-                running.add(submit(part))
+            threads = max(sum(client.nthreads().values()), 1)
+            while running.count() < IN_FLIGHT * threads and (part := guide.next(threads)) is not None:
+                running.add(client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph, contacts_of),
+                                          options, retries=3, pure=False))
 
         fill()
         for future in running:
             table = future.result()
             out.write(table)
+            guide.measured(table)
             if bar is not None:
                 bar.update(table.num_rows)
             fill()
@@ -238,11 +240,39 @@ def _run_dask(scene, chunks, options, out, bar, *, scheduler, workers):
         cluster.close()
 
 
-def taper(chunks: list, threads: int, pieces: int = 4) -> list:
-    """The last `threads` chunks cut in `pieces`: the scan's tail, where one worker computes the last chunk while the
-    others wait, is a fraction of a chunk (guided self-scheduling, in its simplest form)."""
-    cut_at = max(len(chunks) - max(threads, 1), 0)
-    return chunks[:cut_at] + [piece for part in chunks[cut_at:] for piece in np.array_split(part, pieces) if piece.size]
+class Guide:
+    """Guided self-scheduling of a scan's centres into Dask tasks: a task takes 1/(2·threads) of the centres left,
+    so that the scan ends in small tasks and no worker waits long for the last one; at least TASK_SECONDS[0] and at
+    most TASK_SECONDS[1] of compute by the measured cost of a cluster (the rows' seconds so far; FIRST_TASK clusters
+    before any is measured) and at most CHUNK clusters. `fixed`: at most that many clusters, at least a quarter of
+    it (an explicit chunk; a GPU's stacks want many clusters)."""
+
+    def __init__(self, todo: np.ndarray, fixed: int | None = None):
+        self.todo, self.fixed, self.at = todo, fixed, 0
+        self.rows, self.seconds = 0, 0.0
+
+    def measured(self, table) -> None:
+        """A finished task's rows (an Arrow table with a `seconds` column)."""
+        import pyarrow.compute as pc
+        self.rows += table.num_rows
+        self.seconds += pc.sum(table.column("seconds")).as_py() or 0.0
+
+    def next(self, threads: int) -> np.ndarray | None:
+        """The next task's centres (None when every centre has a task)."""
+        left = len(self.todo) - self.at
+        if left <= 0:
+            return None
+        if self.fixed:
+            least, most = max(self.fixed // 4, 1), self.fixed
+        elif self.rows and self.seconds > 0:
+            cost = self.seconds / self.rows
+            least, most = (min(max(int(t / cost), 1), CHUNK) for t in TASK_SECONDS)
+        else:
+            least = most = FIRST_TASK
+        size = min(max(-(-left // (2 * threads)), least), most)
+        part = self.todo[self.at:self.at + size]
+        self.at += len(part)
+        return part
 
 
 def _progress(total: int):
