@@ -36,7 +36,7 @@ def batched_vs_loop(scene, sample: int) -> dict:
     times = []
     for _ in range(3):
         t = time.perf_counter()
-        rows = scan_chunk(*chunk_scene(scene, centers, 1), OPTIONS)
+        rows = scan_chunk(*chunk_scene(scene, centers, 1), OPTIONS).to_pylist()
         times.append(time.perf_counter() - t)
     t = time.perf_counter()
     ref = [cluster_row(scene, c, keep, OPTIONS) for c, keep in zip(centers, members(scene, centers, 1))]

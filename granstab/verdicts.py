@@ -138,6 +138,34 @@ def verdict_of(counts: dict, notes: dict | None, n_branches: int, type2: bool = 
     return out
 
 
+KEYED = ("neg", "zero", "proven_zero", "inconsistent_negative", "unresolved_other", "non_finite")  # what a
+# row's verdict, reason and proof flags depend on (verdict_of, finalize), besides n_branches and the errors
+
+
+def verdict_columns(counts: dict, n_branches: np.ndarray, errors_finite: np.ndarray,
+                    n_undetermined: np.ndarray) -> dict:
+    """`verdict_of` then `finalize` (one metric) of many clusters, from their `tally` columns: evaluated once per
+    distinct input (verdict, reason and flags depend only on these), then spread over the clusters; the counts that
+    vary freely (consistent_positive, the zero margin) are each cluster's own."""
+    key = np.column_stack([np.asarray(counts[k], dtype=np.int64) for k in KEYED]
+                          + [n_branches, errors_finite, n_undetermined]).astype(np.int64)
+    distinct, inverse = np.unique(key, axis=0, return_inverse=True)
+    fields = ("verdict", "sufficient", "insufficient_because", "reason")
+    table = {field: [] for field in fields}
+    for row in distinct:
+        sm = verdict_of({**dict(zip(KEYED, row)), "pos": 0, "hinge": False, "margin": np.inf}, None,
+                        n_branches=int(row[-3]))
+        sm = finalize(sm, {"errors": 0.0 if row[-2] else np.nan}, int(row[-1]), None)
+        for field in fields:
+            table[field].append(",".join(sm[field]) if field == "insufficient_because" else sm[field])
+    spread = {field: np.array(values, dtype=bool if field == "sufficient" else object)[inverse.reshape(-1)]
+              for field, values in table.items()}
+    margin = np.asarray(counts["margin"], dtype=float)
+    return {**spread, "consistent_negative": np.asarray(counts["neg"], dtype=np.int64),
+            "consistent_positive": np.asarray(counts["pos"], dtype=np.int64),
+            "zero_margin": np.where(np.isfinite(margin), margin, np.nan)}
+
+
 def family_entry(metric, summary: dict) -> dict:
     """One metric's line of summary["metrics"] (issue 11)."""
     return {"metric": metric.name, "rotation_length": metric.rotation_length, "verdict": summary["verdict"],

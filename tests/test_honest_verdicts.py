@@ -167,3 +167,31 @@ def test_frame_in_micrometres_with_the_literal_metric_is_not_a_proof():
     literal = granstab.analyze(scene, metric="L", rotation_length=1.0)
     assert literal.summary["sufficient"] is False
     assert "unresolved_sign" in literal.summary["insufficient_because"] and literal.summary["zero_margin"] < 1
+
+
+def test_verdict_columns_equal_verdict_of_and_finalize_per_cluster():
+    """The scan's vectorised verdicts (verdicts.verdict_columns: one evaluation per distinct input, spread) against
+    verdict_of + finalize on every cluster alone, over every combination that changes the verdict or its proof:
+    negative, zero and proven-zero counts, hinges, inconsistent or unresolved eigenvalues, non-finite numbers,
+    undetermined rolling, non-finite error estimates; each field equal, margins each cluster's own."""
+    from granstab.verdicts import KEYED, finalize, verdict_columns, verdict_of
+    rng = np.random.default_rng(15)
+    n = 600
+    zero = rng.integers(0, 3, n)
+    counts = {"neg": rng.integers(0, 3, n) * (rng.random(n) < 0.4), "zero": zero,
+              "proven_zero": np.minimum(zero, rng.integers(0, 3, n)), "pos": rng.integers(0, 40, n),
+              **{k: rng.random(n) < 0.2 for k in ("hinge", "inconsistent_negative", "unresolved_other", "non_finite")},
+              "margin": np.where(rng.random(n) < 0.3, np.inf, 10.0 ** rng.uniform(-2, 12, n))}
+    n_branches, finite = 2 ** rng.integers(0, 4, n), rng.random(n) < 0.9
+    undetermined = rng.integers(0, 2, n) * (rng.random(n) < 0.2)
+    got = verdict_columns(counts, n_branches, finite, undetermined)
+    assert len(np.unique(np.column_stack([counts[k] for k in KEYED]), axis=0)) > 50     # many distinct inputs
+    for i in range(n):
+        sm = verdict_of({k: v[i] for k, v in counts.items()}, None, n_branches=int(n_branches[i]))
+        sm = finalize(sm, {"eigen_residual": 0.0 if finite[i] else np.nan, "rigid_leakage": 0.0},
+                      int(undetermined[i]), None)
+        for key in ("verdict", "sufficient", "reason", "consistent_negative", "consistent_positive"):
+            assert got[key][i] == sm[key], (i, key)
+        assert got["insufficient_because"][i] == ",".join(sm["insufficient_because"])
+        assert (np.isnan(got["zero_margin"][i]) if sm["zero_margin"] is None
+                else got["zero_margin"][i] == sm["zero_margin"])

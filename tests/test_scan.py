@@ -19,6 +19,7 @@ from granstab.branches import RIGID
 from granstab.scan import extract, members, read_map, scan
 from granstab.backend import gpu_available, residual_norms
 from granstab.scan.clusters import CONTACT_FIELDS, boundary_ring, subscene
+from granstab.scan.output import ROW_COLUMNS
 from granstab.scan.run import (CHUNK, FIRST_TASK, TASK_SECONDS, Guide, chunk_cut, chunk_table, cluster_row,
                                scan_chunk)
 
@@ -92,7 +93,7 @@ def test_batched_rows_equal_analyze_per_cluster(dim, n, metric, boundary):
     scene = packings.random_packing(dim, n, n_sliding=n // 6, mobilised=0.5, seed=3)
     centers = np.arange(scene.n_particles)
     options = {**SLIDING, "metric": metric, "boundary": boundary}
-    rows = scan_chunk(scene, centers, options)
+    rows = scan_chunk(scene, centers, options).to_pylist()
     paths = [r["path"] for r in rows]
     assert paths.count("batched") + paths.count("batched-values") >= 0.9 * len(rows)
     assert min(paths.count("batched"), paths.count("batched-values")) >= 0.1 * len(rows)
@@ -103,9 +104,11 @@ def test_batched_rows_equal_analyze_per_cluster(dim, n, metric, boundary):
         res = granstab.analyze(subscene(scene, keep, hold=hold), metric=metric)
         scale = max(np.abs(b.stability_eigenvalues).max() for b in res.branches)
         assert (row["n_contacts"], row["n_sliding"]) == (res.scene.n_contacts, int(np.sum(res.scene.at_yield())))
-        for key in ("verdict", "sufficient", "consistent_negative", "consistent_positive", "n_branches"):
+        for key in ("verdict", "sufficient", "consistent_negative", "consistent_positive", "n_branches", "reason"):
             assert row[key] == res.summary[key], (row["center"], key)
         assert row["insufficient_because"] == ",".join(res.summary["insufficient_because"])
+        margin = res.summary["zero_margin"]      # |λ|/bound: the batched bounds are its own, so the same side of 1
+        assert np.isnan(row["zero_margin"]) if margin is None else (row["zero_margin"] > 1) == (margin > 1)
         assert abs(row["lambda_min"] - lowest(res)) <= 1e-10 * scale
         nd = row["n_particles"] * scene.dof_per_particle
         assert row["eigen_residual"] <= (gamma(nd * nd) * np.sqrt(nd) if row["path"] == "batched-values" else 1e-12)
@@ -136,13 +139,17 @@ def test_clusters_that_need_the_eigenspace_search_go_to_analyze():
     scene = granstab.load_scene(ROOT / "presets" / "gear_packing.toml")
     centers = np.arange(scene.n_particles)
     options = {**SLIDING, "metric": "L"}
-    rows = scan_chunk(scene, centers, options)
+    table = scan_chunk(scene, centers, options)
+    rows = table.to_pylist()
     paths = [r["path"] for r in rows]
     assert 0 < paths.count("analyze") < len(rows)
+    assert table.column_names == list(ROW_COLUMNS) == list(cluster_row(scene, 0, [0, 1], options))
     for row, c, keep in zip(rows, centers, members(scene, centers, 1)):
         ref = cluster_row(scene, c, keep, options)
-        assert (row["verdict"], row["consistent_negative"], row["consistent_positive"]) == \
-            (ref["verdict"], ref["consistent_negative"], ref["consistent_positive"])
+        for key in ("center", "members", "n_particles", "n_contacts", "n_sliding", "branches", "n_branches",
+                    "consistent_negative", "consistent_positive", "verdict", "sufficient", "insufficient_because",
+                    "metric_robust", "reason"):
+            assert row[key] == ref[key], (row["center"], key)
 
 
 @pytest.mark.skipif(not gpu_available(), reason="no CuPy with a CUDA GPU here: the GPU backend is tested where one "
@@ -150,8 +157,8 @@ def test_clusters_that_need_the_eigenspace_search_go_to_analyze():
 def test_gpu_batched_rows_equal_cpu():
     scene = packings.random_packing(2, 300, n_sliding=50, mobilised=0.5, seed=4)
     centers = np.arange(scene.n_particles)
-    cpu = scan_chunk(scene, centers, {**SLIDING, "metric": "L", "device": "cpu"})
-    gpu = scan_chunk(scene, centers, {**SLIDING, "metric": "L", "device": "gpu"})
+    cpu = scan_chunk(scene, centers, {**SLIDING, "metric": "L", "device": "cpu"}).to_pylist()
+    gpu = scan_chunk(scene, centers, {**SLIDING, "metric": "L", "device": "gpu"}).to_pylist()
     for a, b in zip(cpu, gpu):               # no eigenvalues-only rows on a GPU (Jacobi: no a-priori bound)
         assert (a["path"].replace("batched-values", "batched"), a["verdict"], a["consistent_negative"],
                 a["consistent_positive"]) == (b["path"], b["verdict"], b["consistent_negative"], b["consistent_positive"])

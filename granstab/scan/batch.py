@@ -49,10 +49,12 @@ def batchable(options: dict) -> bool:
     return options["metric"] in LENGTH_FACTORS
 
 
-def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -> dict:
-    """Per batchable centre (index into `centers`) its row fields; the others are left to the caller.
+def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -> dict | None:
+    """The row fields of the batchable centres, as columns; the others are left to the caller.
 
-    Returns {position in centers: dict of row fields}. `scene` is best the chunk's own (run.chunk_scene): its contact
+    Returns {"position": index in `centers` of each solved cluster, "counts": its `tally` columns, then its
+    n_branches, lambda_min, eigen_residual, rigid_leakage, n_undetermined, n_contacts, n_sliding and values_only
+    (eigenvalues only: path batched-values)}, or None when none is batchable. `scene` is best the chunk's own (run.chunk_scene): its contact
     blocks are all built. Clusters are grouped by particle count; each group is one stack of all its clusters'
     branches (split to STACK_BYTES). `--boundary fixed`: the ring beyond each cluster is held (clusters.extract):
     its contacts with the cluster count, its dofs are dropped, and there is no rigid motion and no projection."""
@@ -73,14 +75,23 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
     n_sliding = np.bincount(pairs["cluster"], weights=pairs["sliding"],
                             minlength=len(centers)).astype(int)
     ok = (n_contacts > 0) & (n_sliding <= options["max_sliding"])
-    out = {}
+    solved = []
     factor = LENGTH_FACTORS[options["metric"]]
     n_free = np.array([len(m) for m in member_lists])
     for n in np.unique(n_free[ok]):
         group = np.flatnonzero(ok & (n_free == n))
         for part in _split(group, n * scene.dof_per_particle, n_sliding, STACK_BYTES[options.get("device", "cpu")]):
-            out.update(_solve_group(scene, blocks, parts, pairs, part, local, starts, int(n), factor, n_sliding,
-                                    options.get("device", "cpu"), fixed))
+            solved.append(_solve_group(scene, blocks, parts, pairs, part, local, starts, int(n), factor, n_sliding,
+                                       options.get("device", "cpu"), fixed))
+    return _concatenate(solved)
+
+
+def _concatenate(groups: list[dict]) -> dict | None:
+    """The groups' columns joined (the `counts` columns too); None when no cluster is batched."""
+    if not groups:
+        return None
+    out = {key: np.concatenate([g[key] for g in groups]) for key in groups[0] if key != "counts"}
+    out["counts"] = {key: np.concatenate([g["counts"][key] for g in groups]) for key in groups[0]["counts"]}
     return out
 
 
@@ -201,18 +212,13 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     residual = np.zeros(G)
     np.maximum.at(residual, owner, relative)
     undetermined = np.bincount(g, weights=blocks.rolling_undetermined[m], minlength=G).astype(int)
-    n_branches = np.bincount(owner, minlength=G)
-    n_contacts = np.bincount(g, minlength=G)
-    out = {}
-    for i, c in enumerate(part):
-        if bad[i]:
-            continue
-        out[int(c)] = {"counts": {k: v[i] for k, v in counts.items()}, "n_branches": int(n_branches[i]),
-                       "lambda_min": float(lam_min[i]) if np.isfinite(lam_min[i]) else np.nan,
-                       "eigen_residual": float(residual[i]), "rigid_leakage": float(leakage[i]),
-                       "n_undetermined": int(undetermined[i]), "n_contacts": int(n_contacts[i]),
-                       "n_sliding": int(n_sliding[c]), "path": "batched-values" if values_only[i] else "batched"}
-    return out
+    keep = ~bad
+    return {"position": part[keep], "counts": {k: v[keep] for k, v in counts.items()},
+            "n_branches": np.bincount(owner, minlength=G)[keep],
+            "lambda_min": np.where(np.isfinite(lam_min), lam_min, np.nan)[keep], "eigen_residual": residual[keep],
+            "rigid_leakage": leakage[keep], "n_undetermined": undetermined[keep],
+            "n_contacts": np.bincount(g, minlength=G)[keep], "n_sliding": n_sliding[part][keep],
+            "values_only": values_only[keep]}
 
 
 def _projected(H_el, A, S, x, L, scales):

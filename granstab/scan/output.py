@@ -14,6 +14,10 @@ import numpy as np
 from ..scene import Scene, SceneError
 
 FORMATS = ("parquet", "csv")
+ROW_COLUMNS = ("center", "members", "n_particles", "path", "n_contacts", "n_sliding", "branches", "n_branches",
+               "lambda_min", "consistent_negative", "consistent_positive", "verdict", "sufficient",
+               "insufficient_because", "metric_robust", "zero_margin", "eigen_residual", "rigid_leakage", "reason",
+               "seconds")     # a row of clusters.*, in order (run.summary_row)
 STRING_COLUMNS = ("center", "members", "path", "branches", "verdict", "insufficient_because", "reason", "name",
                   "own_verdict")
 
@@ -58,8 +62,7 @@ class ScanOutput:
         stay in Arrow (counted and compared there): the finish is serial, after the last chunk."""
         import pyarrow as pa
         import pyarrow.compute as pc
-        tables = self.tables or [rows_table([])]
-        clusters = pa.concat_tables(tables, promote_options="default")
+        clusters = concat_rows(self.tables)
         clusters = clusters.take(pa.array(first_rows(name_positions(scene, clusters.column("center")),
                                                       scene.n_particles)))
         write_table(clusters, self.path / f"clusters.{self.fmt}", self.fmt)
@@ -124,6 +127,22 @@ def rows_table(rows: list[dict]):
     import pyarrow as pa
     keys = rows[0] if rows else ("center", "members", "verdict", "branches", "seconds")
     return pa.table({key: pa.array([r[key] for r in rows], type=_arrow_type(key)) for key in keys})
+
+
+def columns_table(columns: dict):
+    """A chunk's rows given as columns (run.batched_columns: numpy arrays; members as (names, offsets)) as an
+    Arrow table like `rows_table`'s."""
+    import pyarrow as pa
+    names, offsets = columns["members"]
+    members = pa.ListArray.from_arrays(pa.array(offsets, type=pa.int32()), pa.array(names, type=pa.string()))
+    return pa.table({key: members if key == "members" else pa.array(columns[key], type=_arrow_type(key))
+                     for key in ROW_COLUMNS})
+
+
+def concat_rows(tables: list):
+    """Row tables (rows_table, columns_table) as one; none: an empty one."""
+    import pyarrow as pa
+    return pa.concat_tables(tables, promote_options="default") if tables else rows_table([])
 
 
 def _arrow_type(key: str):

@@ -19,11 +19,11 @@ from ..backend import backend
 from ..branches import RIGID
 from ..scene import Scene, SceneError, build_scene
 from ..threads import blas_threads
-from ..verdicts import finalize, verdict_of
+from ..verdicts import verdict_columns
 from .batch import batchable, solve_chunk
 from .clusters import (BOUNDARIES, adjacency, boundary_ring, cut, incidence, members, particle_index, subscene,
                        union)
-from .output import ScanOutput, rows_table
+from .output import ScanOutput, columns_table, concat_rows, rows_table
 
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
                       # (batch.STACK_BYTES)
@@ -75,24 +75,28 @@ def summary_row(row: dict, sm: dict, *, n_contacts: int, n_sliding: int, lambda_
             "seconds": seconds}
 
 
-def batched_rows(scene: Scene, centers: np.ndarray, member_lists: list, options: dict) -> dict:
-    """Rows of the clusters the batched path serves (batch.py), by position in `centers`; seconds are the chunk's
-    time shared equally."""
+def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, options: dict) -> dict | None:
+    """Columns of the rows that the batched path serves (batch.py), `position` their index in `centers` (None: no
+    cluster batched), vectorised over clusters (verdicts.verdict_columns); seconds: the chunk's time shared
+    equally."""
     start = time.perf_counter()
-    solved = solve_chunk(scene, centers, member_lists, options)
-    share = (time.perf_counter() - start) / max(len(solved), 1)
-    rows = {}
-    for i, got in solved.items():
-        sm = verdict_of(got["counts"], None, n_branches=got["n_branches"])
-        errors = {"eigen_residual": got["eigen_residual"], "rigid_leakage": got["rigid_leakage"]}
-        sm = finalize(sm, errors, got["n_undetermined"], None)
-        c, keep = centers[i], member_lists[i]
-        row = {"center": scene.names[c], "members": [scene.names[j] for j in keep], "n_particles": len(keep),
-               "path": got["path"]}
-        rows[i] = summary_row(row, sm, n_contacts=got["n_contacts"], n_sliding=got["n_sliding"],
-                              lambda_min=got["lambda_min"], eigen_residual=got["eigen_residual"],
-                              rigid_leakage=got["rigid_leakage"], seconds=share)
-    return rows
+    got = solve_chunk(scene, centers, member_lists, options)
+    if got is None or not len(got["position"]):
+        return None
+    position = got["position"]
+    errors_finite = np.isfinite(got["eigen_residual"]) & np.isfinite(got["rigid_leakage"])
+    verdicts = verdict_columns(got["counts"], got["n_branches"], errors_finite, got["n_undetermined"])
+    names = np.asarray(scene.names, dtype=object)
+    kept = [member_lists[i] for i in position]
+    sizes = np.array([len(m) for m in kept])
+    n = len(position)
+    return {"position": position, "center": names[centers[position]],
+            "members": (names[np.concatenate(kept)], np.r_[0, np.cumsum(sizes)]), "n_particles": sizes,
+            "path": np.where(got["values_only"], "batched-values", "batched").astype(object),
+            "n_contacts": got["n_contacts"], "n_sliding": got["n_sliding"], "branches": np.full(n, "all", object),
+            "n_branches": got["n_branches"], "lambda_min": got["lambda_min"], "metric_robust": np.full(n, None, object),
+            "eigen_residual": got["eigen_residual"], "rigid_leakage": got["rigid_leakage"], **verdicts,
+            "seconds": np.full(n, (time.perf_counter() - start) / n)}
 
 
 @dataclass(frozen=True)
@@ -127,21 +131,25 @@ def reach(options: dict) -> int:
     return options["rings"] + (options.get("boundary") == "fixed")
 
 
-def scan_chunk(scene: Scene, centers: np.ndarray, options: dict) -> list[dict]:
-    """Rows of a chunk of centres (indices into `scene`, best a `chunk_scene`): the unit of work of a Dask task. The
-    batched path (batch.py) takes what it can; `analyze` per cluster the rest (a partial cluster's branch sample is
-    seeded by its centre's name, so it does not depend on the chunking)."""
+def scan_chunk(scene: Scene, centers: np.ndarray, options: dict):
+    """Rows of a chunk of centres (indices into `scene`, best a `chunk_scene`) as an Arrow table, in the order of
+    `centers`: the unit of work of a Dask task. The batched path (batch.py) takes what it can; `analyze` per
+    cluster the rest (a partial cluster's branch sample is seeded by its centre's name, so it does not depend on
+    the chunking)."""
     member_lists = members(scene, centers, options["rings"])
     with blas_threads(1):
-        done = batched_rows(scene, centers, member_lists, options) if batchable(options) else {}
-        return [done[i] if i in done else cluster_row(scene, c, keep, options)
-                for i, (c, keep) in enumerate(zip(centers, member_lists))]
+        batched = batched_columns(scene, centers, member_lists, options) if batchable(options) else None
+        done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
+        rest = np.setdiff1d(np.arange(len(centers)), done)
+        rows = [cluster_row(scene, centers[i], member_lists[i], options) for i in rest]
+    tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
+    return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
 
 
 def chunk_table(chunk: Chunk, options: dict):
-    """The rows of a `Chunk` as an Arrow table (output.rows_table): the unit of work of the serial loop and of a Dask
-    task, so that the worker, not the client, builds the chunk's scene and the table."""
-    return rows_table(scan_chunk(chunk.scene(), chunk.centers, options))
+    """The rows of a `Chunk` (scan_chunk): the unit of work of the serial loop and of a Dask task, so that the
+    worker, not the client, builds the chunk's scene and the table."""
+    return scan_chunk(chunk.scene(), chunk.centers, options)
 
 
 def select_centers(scene: Scene, centers) -> np.ndarray:
