@@ -34,7 +34,15 @@ def members(scene: Scene, centers: np.ndarray, rings: int, graph: sp.csr_matrix 
 def union(scene: Scene, centers: np.ndarray, rings: int, graph: sp.csr_matrix | None = None) -> np.ndarray:
     """Sorted particle indices of the clusters of `centers` together (a scan chunk's particles), without the
     per-cluster lists."""
-    return np.unique(_reach(scene, centers, rings, graph).indices).astype(np.int64)
+    return _distinct(_reach(scene, centers, rings, graph).indices, scene.n_particles)
+
+
+def _distinct(indices: np.ndarray, n: int) -> np.ndarray:
+    """Sorted distinct values of `indices` (all in range(n)): a mark per value, no sort (a scan's client cuts every
+    chunk with it)."""
+    mark = np.zeros(n, dtype=bool)
+    mark[indices] = True
+    return np.flatnonzero(mark)
 
 
 def _reach(scene, centers, rings, graph) -> sp.csr_matrix:
@@ -71,7 +79,7 @@ def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None
     hold = np.zeros(0, dtype=np.int64) if hold is None else np.asarray(hold, dtype=np.int64)
     every = np.sort(np.concatenate([keep, hold]))
     contacts_of = incidence(scene) if contacts_of is None else contacts_of
-    touching = np.unique(contacts_of[every].indices)
+    touching = _distinct(contacts_of[every].indices, scene.n_contacts)
     p, q = np.searchsorted(every, scene.p[touching]), np.searchsorted(every, scene.q[touching])
     free = np.isin(every, keep) if hold.size else np.ones(len(every), dtype=bool)
     inside_p = every[np.minimum(p, len(every) - 1)] == scene.p[touching]
