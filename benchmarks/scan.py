@@ -49,10 +49,12 @@ def batched_vs_loop(scene, sample: int) -> dict:
             "paths": {path: sum(r["path"] == path for r in rows) for path in sorted({r["path"] for r in rows})}}
 
 
-def whole_scan(scene, workers: int = 1, device: str = "cpu", scheduler: str | None = None) -> tuple[float, dict]:
+def whole_scan(scene, workers: int = 1, device: str = "cpu", scheduler: str | None = None,
+               centers: str = "all") -> tuple[float, dict]:
     with tempfile.TemporaryDirectory() as out:
         t = time.perf_counter()
-        summary = scan(scene, out, workers=workers, figures=False, device=device, scheduler=scheduler)
+        summary = scan(scene, out, workers=workers, figures=False, device=device, scheduler=scheduler,
+                       centers=centers)
         seconds = time.perf_counter() - t
         rows = read_map(out)["clusters"]
         return seconds, {"summary": summary, "lambda_min": np.asarray(rows["lambda_min"]),
@@ -60,9 +62,10 @@ def whole_scan(scene, workers: int = 1, device: str = "cpu", scheduler: str | No
 
 
 def scaling(scene, repeats: int) -> dict:
-    """Whole scans, medians of `repeats`: serially in this process and on running local Dask clusters of 1 and of 2
-    worker processes (the scaling 1 → 2 workers: each cluster started once and warmed by one untimed scan, as a real
-    one is), the three interleaved round by round so that a shared machine's load falls on all of them alike; then
+    """Whole scans, medians of `repeats`: serially in this process and on local Dask clusters of 1 and of 2 worker
+    processes (the scaling 1 → 2 workers: each round starts the cluster, warms it by an untimed scan of every 8th
+    centre, as a running one is warm, times one scan and closes it, so that no idle cluster shares the cores), the
+    three interleaved round by round so that a shared machine's load falls on all of them alike; then
     `--workers 2` with its cluster's start-up included (what one command costs).
 
     The CPU seconds of each timed Dask scan are split into the workers' and this process's (the client, which on a
@@ -75,28 +78,21 @@ def scaling(scene, repeats: int) -> dict:
     times = {"serial": [serial]}
     cpu = {}
     same = True
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
-        clusters = {w: LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None)
-                    for w in (1, 2)}
-    try:
-        pids = {}
-        for w, cluster in clusters.items():
-            with Client(cluster) as client:
-                pids[w] = list(client.run(os.getpid).values())
-            same &= whole_scan(scene, scheduler=cluster.scheduler_address)[1]["verdict"] == ref["verdict"]
-        for _ in range(repeats):
-            for w, cluster in clusters.items():
-                before = _cpu_seconds(pids[w])
+    for _ in range(repeats):
+        for w in (1, 2):
+            with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), \
+                    LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+                with Client(cluster) as client:
+                    pids = list(client.run(os.getpid).values())
+                whole_scan(scene, scheduler=cluster.scheduler_address, centers="every:8")
+                before = _cpu_seconds(pids)
                 seconds, got = whole_scan(scene, scheduler=cluster.scheduler_address)
-                after = _cpu_seconds(pids[w])
-                times.setdefault(f"dask{w}", []).append(seconds)
-                for key in after:
-                    cpu.setdefault(f"{key}{w}", []).append(after[key] - before[key])
-                same &= got["verdict"] == ref["verdict"]
-            times["serial"].append(whole_scan(scene)[0])
-    finally:
-        for cluster in clusters.values():
-            cluster.close()
+                after = _cpu_seconds(pids)
+            times.setdefault(f"dask{w}", []).append(seconds)
+            for key in after:
+                cpu.setdefault(f"{key}{w}", []).append(after[key] - before[key])
+            same &= got["verdict"] == ref["verdict"]
+        times["serial"].append(whole_scan(scene)[0])
     for _ in range(max(1, repeats // 2)):
         seconds, got = whole_scan(scene, workers=2)
         times.setdefault("startup2", []).append(seconds)
@@ -218,9 +214,10 @@ def markdown(results: dict) -> str:
              "made (`batched`: eigenvectors and residual bounds; `batched-values`: no sliding contact, eigenvalues "
              "only with a-priori bounds; `analyze`: handed back). **Whole scan**, medians of "
              f"{results['repeats']}: serially in this process (`--workers 1`); on running local Dask clusters of 1 "
-             "and of 2 single-threaded worker processes (`--scheduler`: the scaling 1 → 2 workers; each cluster "
-             "started once and warmed by one untimed scan, as a real one is; serial, 1 and 2 workers interleaved "
-             "round by round so that the shared machine's load falls on all three alike); `--workers 2` with its "
+             "and of 2 single-threaded worker processes (`--scheduler`: the scaling 1 → 2 workers; each round starts "
+             "the cluster, warms it by an untimed scan of every 8th centre, as a running one is warm, times a scan and "
+             "closes it, so that no idle cluster shares the cores; serial, 1 and 2 workers interleaved round by "
+             "round so that the shared machine's load falls on all three alike); `--workers 2` with its "
              "cluster's start-up included (one command).", "",
              "| packing | particles | contacts (at yield) | loop of analyze (clusters) | (a) batched chunk | "
              "(a) speed-up | **(b) scan vs loop** | error (verdicts) | paths (sample) | serial | Dask 1 worker | "
