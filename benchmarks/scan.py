@@ -50,15 +50,18 @@ def batched_vs_loop(scene, sample: int) -> dict:
 
 
 def whole_scan(scene, workers: int = 1, device: str = "cpu", scheduler: str | None = None,
-               centers: str = "all") -> tuple[float, dict]:
+               centers: str = "all", worker_pids: tuple = ()) -> tuple[float, dict]:
+    """Seconds of one scan and its rows; with `worker_pids`, also the CPU seconds of the scan alone (_cpu_seconds)."""
     with tempfile.TemporaryDirectory() as out:
+        before = _cpu_seconds(worker_pids)
         t = time.perf_counter()
         summary = scan(scene, out, workers=workers, figures=False, device=device, scheduler=scheduler,
                        centers=centers)
         seconds = time.perf_counter() - t
+        after = _cpu_seconds(worker_pids)
         rows = read_map(out)["clusters"]
         return seconds, {"summary": summary, "lambda_min": np.asarray(rows["lambda_min"]),
-                         "verdict": list(rows["verdict"])}
+                         "verdict": list(rows["verdict"]), "cpu": {key: after[key] - before[key] for key in after}}
 
 
 def scaling(scene, repeats: int) -> dict:
@@ -85,12 +88,10 @@ def scaling(scene, repeats: int) -> dict:
                 with Client(cluster) as client:
                     pids = list(client.run(os.getpid).values())
                 whole_scan(scene, scheduler=cluster.scheduler_address, centers="every:8")
-                before = _cpu_seconds(pids)
-                seconds, got = whole_scan(scene, scheduler=cluster.scheduler_address)
-                after = _cpu_seconds(pids)
+                seconds, got = whole_scan(scene, scheduler=cluster.scheduler_address, worker_pids=pids)
             times.setdefault(f"dask{w}", []).append(seconds)
-            for key in after:
-                cpu.setdefault(f"{key}{w}", []).append(after[key] - before[key])
+            for key, value in got["cpu"].items():
+                cpu.setdefault(f"{key}{w}", []).append(value)
             same &= got["verdict"] == ref["verdict"]
         times["serial"].append(whole_scan(scene)[0])
     for _ in range(max(1, repeats // 2)):
@@ -110,9 +111,11 @@ def scaling(scene, repeats: int) -> dict:
 def _cpu_seconds(worker_pids: list) -> dict:
     """CPU seconds so far of the worker processes and of this process (all its threads: client, scheduler,
     nannies)."""
+    if not worker_pids:
+        return {}
     import psutil
-    workers = sum(sum(psutil.Process(pid).cpu_times()[:2]) for pid in worker_pids)
-    return {"workers": workers, "client": time.process_time()}
+    return {"workers": sum(sum(psutil.Process(pid).cpu_times()[:2]) for pid in worker_pids),
+            "client": time.process_time()}
 
 
 def plain_processes(scene, chunks: int = 8) -> dict:
