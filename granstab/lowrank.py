@@ -317,7 +317,7 @@ def fingerprint(xp, S) -> dict:
 def _plain_arrays(problem: Problem, h: dict) -> dict:
     """Per-chunk arrays of the plain branches' Branch fields: the rigid motions as exact zeros (code RIGID, error
     bound ‖E_i‖_F) sorted in with the reduced eigenvalues."""
-    L, k = h["lam"].shape
+    L = h["lam"].shape[0]
     r = problem.rigid.shape[1]
     lam = np.concatenate([np.zeros((L, r)), h["lam"]], axis=1)
     order = np.argsort(lam, axis=1, kind="stable")

@@ -78,7 +78,7 @@ def read_annulus(folder: Path, frame=None) -> Snapshot:
     q = np.where(id1 > id2, index["id2"], index["id1"])
     key = p.astype(np.int64) * len(ids) + q
     pick = np.lexsort(((id1 < id2), key))
-    uniq, first, counts = np.unique(key[pick], return_index=True, return_counts=True)
+    _, first, counts = np.unique(key[pick], return_index=True, return_counts=True)
     chosen = pick[first]
     duplicates = _compare_listings(key[pick], A[pick, 3:5], first, counts)
     # RigidLibrary's contact order: by the smaller id, then the larger

@@ -164,7 +164,7 @@ def uniqueness_table(result) -> list[dict]:
                 space = np.real(W[:, [j]])
             if space.shape[1] == 1:
                 v = space[:, 0] / np.linalg.norm(space[:, 0])
-                codes, hinges = test_codes(problem, b.mask[None], v[None, :, None])
+                codes, _ = test_codes(problem, b.mask[None], v[None, :, None])
                 code = int(codes[0, 0])
             else:
                 found = search_subspace(problem, b.mask, space)
