@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import pytest
 
 import granstab
@@ -20,8 +21,8 @@ from granstab.scan import extract, members, read_map, scan
 from granstab.backend import gpu_available, residual_norms
 from granstab.scan.clusters import CONTACT_FIELDS, boundary_ring, subscene
 from granstab.scan.output import ROW_COLUMNS
-from granstab.scan.run import (CHUNK, FIRST_TASK, TASK_SECONDS, Guide, chunk_cut, chunk_table, cluster_row,
-                               scan_chunk)
+from granstab.scan.run import (CHUNK, FIRST_TASK, TASK_SECONDS, Guide, chunk_cut, chunk_scene, chunk_table,
+                               cluster_row, reach, scan_chunk)
 
 ROOT = Path(__file__).resolve().parents[1]
 ANNULUS = ROOT / "presets" / "annulus_frame.json"
@@ -168,7 +169,6 @@ def test_gpu_batched_rows_equal_cpu():
 def _guided_sizes(guide, threads=2, cost=None):
     """The sizes of a Guide's tasks to the end (every centre checked once and in order), `cost` seconds a cluster
     reported after the first task."""
-    import pyarrow as pa
     parts = [guide.next(threads)]
     if cost is not None:
         guide.measured(pa.table({"seconds": np.full(len(parts[0]), cost)}))
@@ -196,6 +196,22 @@ def test_guide_with_a_fixed_chunk_keeps_it_and_shrinks_the_tail():
     10,000 → 2048; 7,952 → 1,988; 5,964 → 1,491; 4,473 → 1,119; 3,354 → 839; 2,515 → 629; then 512 to the end."""
     assert _guided_sizes(Guide(np.arange(10_000), fixed=2048), threads=2) == [2048, 1988, 1491, 1119, 839, 629,
                                                                                 512, 512, 512, 350]
+
+
+@pytest.mark.parametrize("dim, n, boundary", [(2, 300, "loads"), (3, 60, "loads"), (2, 300, "fixed")])
+def test_rows_are_the_same_bits_however_the_scan_is_chunked(dim, n, boundary):
+    """A cluster's row does not depend on which clusters share its task or stack (serial, Dask, resumed scans chunk
+    differently): chunks of 7 and of 41 clusters against one chunk, every number bit for bit, on packings with
+    sliding contacts (stacks of different widths)."""
+    scene = packings.random_packing(dim, n, n_sliding=n // 6, mobilised=0.5, seed=5)
+    centers = np.arange(scene.n_particles)
+    options = {**SLIDING, "metric": "L", "boundary": boundary}
+    whole = scan_chunk(*chunk_scene(scene, centers, reach(options)), options).drop(["seconds"])
+    assert max(whole.column("n_sliding").to_pylist()) >= 3
+    for size in (7, 41):
+        parts = [scan_chunk(*chunk_scene(scene, centers[i:i + size], reach(options)), options).drop(["seconds"])
+                 for i in range(0, len(centers), size)]
+        assert pa.concat_tables(parts).equals(whole), size
 
 
 def test_scan_of_a_small_scene_equals_analyze_of_the_scene(tmp_path):

@@ -82,7 +82,7 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
         group = np.flatnonzero(ok & (n_free == n))
         for part in _split(group, n * scene.dof_per_particle, n_sliding, STACK_BYTES[options.get("device", "cpu")]):
             solved.append(_solve_group(scene, blocks, parts, pairs, part, local, starts, int(n), factor, n_sliding,
-                                       options.get("device", "cpu"), fixed))
+                                       options["max_sliding"], options.get("device", "cpu"), fixed))
     return _concatenate(solved)
 
 
@@ -134,9 +134,14 @@ def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray, free: np.ndarra
     return {"cluster": owner[acts], "contact": contact[acts], "lp": lp[acts], "lq": lq[acts]}
 
 
-def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, device, fixed) -> dict:
+def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, width, device,
+                 fixed) -> dict:
     """Row fields of the clusters `part` (all with n free particles): see the module docstring. The held ring's
-    dofs (fixed) go to row and column nd of (nd + 1)-sized arrays, which are cut off (`padded`)."""
+    dofs (fixed) go to row and column nd of (nd + 1)-sized arrays, which are cut off (`padded`). The sliding
+    columns are as many as the stack's most; the rigid-rotation projection of A and S takes them padded to `width`
+    (max_sliding) whichever clusters share the stack, because the rounding of its products depended on the column
+    count (measured: BLAS kernels are picked by shape): a row is then the same bits however the scan is chunked
+    (serially, on any number of workers, resumed; tested)."""
     d, r = sub.dim, rot_dim(sub.dim)
     per = d + r
     nd = n * per
@@ -189,7 +194,9 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
         PA, PS = A, S
     else:
         x = sub.x[np.concatenate([local[starts[c]:starts[c] + n] for c in part])].reshape(G, n, d)
-        formation, leakage, base, PA, PS = _projected(H_el, A, S, x, L, scales)
+        wide = ((0, 0), (0, 0), (0, width - Ms if Ms else 0))      # see the docstring: the projection's products
+        formation, leakage, base, PA, PS = _projected(H_el, np.pad(A, wide), np.pad(S, wide), x, L, scales)
+        PA, PS = np.ascontiguousarray(PA[:, :, :Ms]), np.ascontiguousarray(PS[:, :, :Ms])
         n_rigid = d + r
     values_only = (n_sliding[part] == 0) & (device == "cpu")
     values, vectors = np.flatnonzero(values_only), np.flatnonzero(~values_only)
