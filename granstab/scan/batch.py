@@ -5,8 +5,9 @@ built once for the chunk (stiffness.py: a cluster's blocks are the packing's, si
 per contact, eq:Hg3 included), and every step after that is one array operation over all clusters of a size:
 
   scatter the blocks into H̃ = D H D (G, n, n) in the metric L of each cluster (its mean contact radius, rigid.py)
-  → rigid motions, C̃⁺ and the formation-error bound (accuracy.py) → every branch H^i = H_el + A diag(on) Sᵀ
-  (eq:ContactF) of every cluster → sym(𝓗^i) = sym(P H^i P) (eq:newstiffnesses) → stacked eigh on the backend
+  → rigid motions, C̃⁺, an orthonormal basis Q off them and the formation-error bound (accuracy.py) → every branch
+  H^i = H_el + A diag(on) Sᵀ (eq:ContactF) of every cluster → sym(Qᵀ 𝓗^i Q), which is sym(Pᵀ H^i P)
+  (eq:newstiffnesses) with its d + r rigid zeros taken out exactly (`_reduced`) → stacked eigh on the backend
   (backend.py: numpy, or CuPy with --device gpu) → per-eigenvalue bounds, consistency codes (Appendix D)
   → counts and verdicts per cluster (verdicts.tally, verdict_of).
 
@@ -138,10 +139,10 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
                  fixed) -> dict:
     """Row fields of the clusters `part` (all with n free particles): see the module docstring. The held ring's
     dofs (fixed) go to row and column nd of (nd + 1)-sized arrays, which are cut off (`padded`). The sliding
-    columns are as many as the stack's most; the rigid-rotation projection of A and S takes them padded to `width`
-    (max_sliding) whichever clusters share the stack, because the rounding of its products depended on the column
-    count (measured: BLAS kernels are picked by shape): a row is then the same bits however the scan is chunked
-    (serially, on any number of workers, resumed; tested)."""
+    factors A, S have `width` (max_sliding) columns whichever clusters share the stack, for every per-cluster
+    product and norm: their rounding depended on the column count (numpy and BLAS pick kernels by shape; one column
+    is another path), so a row is the same bits however the scan is chunked (serially, on any number of workers,
+    resumed; tested). The branches' work takes the stack's most columns only."""
     d, r = sub.dim, rot_dim(sub.dim)
     per = d + r
     nd = n * per
@@ -177,34 +178,34 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     gs, ms = slot[pairs["cluster"][slide]], pairs["contact"][slide]
     col = _rank_within(gs)
     Ms = int(n_sliding[part].max())
-    A = np.zeros((G, padded, Ms))
-    S = np.zeros((G, padded, Ms))
+    A = np.zeros((G, padded, width if Ms else 0))         # padded to max_sliding: see the docstring
+    S = np.zeros((G, padded, width if Ms else 0))
     idx_s = idx[slide[sel]]
     Ds = Dp[slide[sel]]
     np.add.at(A, (gs[:, None], idx_s, col[:, None]), blocks.slide_left[ms] * Ds)
     np.add.at(S, (gs[:, None], idx_s, col[:, None]), blocks.slide_right[ms] * Ds)
     A, S = np.ascontiguousarray(A[:, :nd]), np.ascontiguousarray(S[:, :nd])
     scales = (abs_norm(parts["rows_m"]) + abs_norm(parts["rows_g"])
-              + np.sum(np.linalg.norm(A, axis=1) * np.linalg.norm(S, axis=1), axis=1))
+              + _column_sum(np.linalg.norm(A, axis=1) * np.linalg.norm(S, axis=1)))
     s_scale = np.linalg.norm(S, axis=1).max(axis=1, initial=0.0)
 
     if fixed:                      # held by the ring: no rigid motion, P^nrr = I (eq:Pnrr), formation 8ε of the parts
-        formation, leakage, n_rigid = 8 * EPS * scales, np.zeros(G), 0
+        formation, leakage = 8 * EPS * scales, np.zeros(G)
         base = 0.5 * (H_el + np.swapaxes(H_el, 1, 2))
         PA, PS = A, S
-    else:
+    else:                          # off the rigid motions: QᵀH Q, QᵀA, QᵀS (_reduced)
         x = sub.x[np.concatenate([local[starts[c]:starts[c] + n] for c in part])].reshape(G, n, d)
-        wide = ((0, 0), (0, 0), (0, width - Ms if Ms else 0))      # see the docstring: the projection's products
-        formation, leakage, base, PA, PS = _projected(H_el, np.pad(A, wide), np.pad(S, wide), x, L, scales)
-        PA, PS = np.ascontiguousarray(PA[:, :, :Ms]), np.ascontiguousarray(PS[:, :, :Ms])
-        n_rigid = d + r
+        formation, leakage, base, PA, PS = _reduced(H_el, A, S, x, L, scales)
+    update = _update_norm(PA, PS)
+    PA, PS = np.ascontiguousarray(PA[:, :, :Ms]), np.ascontiguousarray(PS[:, :, :Ms])   # the branches' columns
+    dofs = base.shape[1]           # the dofs solved for: nd, or nd − (d + r) off the rigid motions
     values_only = (n_sliding[part] == 0) & (device == "cpu")
     values, vectors = np.flatnonzero(values_only), np.flatnonzero(~values_only)
-    solved = [(values, _values(base[values], formation[values], nd, n_rigid))] if values.size else []
+    solved = [(values, _values(base[values], formation[values], dofs))] if values.size else []
     if vectors.size:
-        solved.append((vectors, _vectors(base[vectors], PA[vectors], PS[vectors], S[vectors],
-                               n_sliding[part][vectors], formation[vectors], s_scale[vectors] * sub.tol.s_rtol,
-                               1e3 * EPS * s_scale[vectors], nd, n_rigid, device)))
+        solved.append((vectors, _vectors(base[vectors], PA[vectors], PS[vectors], update[vectors],
+                                         n_sliding[part][vectors], formation[vectors], s_scale[vectors] * sub.tol.s_rtol,
+                                         1e3 * EPS * s_scale[vectors], dofs, device)))
     owner = np.concatenate([which[got["owner"]] for which, got in solved])
     lam, bounds, codes, hinges, special, error = (np.concatenate([got[key] for _, got in solved])
                                                   for key in ("lam", "bounds", "codes", "hinges", "special", "error"))
@@ -212,7 +213,7 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
 
     bad = np.zeros(G, dtype=bool)
     np.logical_or.at(bad, owner, special)
-    flat_owner = np.repeat(owner, nd)
+    flat_owner = np.repeat(owner, dofs)
     counts = tally(lam.ravel(), bounds.ravel(), codes.ravel(), hinges.ravel(), flat_owner, G)
     lam_min = np.full(G, np.inf)
     np.minimum.at(lam_min, flat_owner, np.where(codes.ravel() != RIGID, lam.ravel(), np.inf))
@@ -228,10 +229,16 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
             "values_only": values_only[keep]}
 
 
-def _projected(H_el, A, S, x, L, scales):
-    """The isolated cluster (--boundary loads): rigid motions about the centroid in scaled dofs (eq:dtrigid), C̃⁺
-    (eq:Moore1), the formation-error bound (accuracy.py), the rigid leakage of H_el, and sym(Pᵀ H_el P), PᵀA, PᵀS
-    with P = I − C C̃⁺ (eq:newstiffnesses), projected once per cluster."""
+def _reduced(H_el, A, S, x, L, scales):
+    """The isolated cluster (--boundary loads) on the complement of its rigid motions: the rigid motions about the
+    centroid in scaled dofs (eq:dtrigid), an orthonormal basis Q of their complement (complete QR), and
+    sym(Qᵀ H_el Q), QᵀA, QᵀS. As Q ⟂ C, Qᵀ Pᵀ = Qᵀ for P = I − C C̃⁺ (eq:Moore1, eq:newstiffnesses): every branch's
+    sym(Qᵀ 𝓗^i Q) is sym(Pᵀ H^i P) with its d + r rigid zeros taken out exactly, as lowrank.py does for branches.
+
+    Formation bound: forming Qᵀ H Q (2γ_nd·nd of the parts' scale, Q orthonormal to γ_nd), plus a bound of the
+    coupling Qᵀ sym(𝓗^i) R to the rigid motions R that leaving them out neglects, over every branch (zero in exact
+    arithmetic: H T = 0, Tᵀ H = 0, Sᵀ T = 0 for translations T, P C = 0; Weyl: it moves no eigenvalue further).
+    Also the rigid leakage of H_el (reported as rigid_leakage)."""
     G, n, d = x.shape
     nd = H_el.shape[1]
     r = rot_dim(d)
@@ -242,23 +249,23 @@ def _projected(H_el, A, S, x, L, scales):
     C = C.reshape(G, nd, r)
     T = np.zeros((G, n, per, d))
     T[:, :, :d, :] = np.eye(d)
-    R, _ = np.linalg.qr(np.concatenate([T.reshape(G, nd, d), C], axis=2))
-    Ct = np.swapaxes(C, 1, 2)
+    basis, _ = np.linalg.qr(np.concatenate([T.reshape(G, nd, d), C], axis=2), mode="complete")
+    R, Q = basis[:, :, :per], basis[:, :, per:]
+    Ct, Qt = np.swapaxes(C, 1, 2), np.swapaxes(Q, 1, 2)
     Cplus = np.linalg.solve(Ct @ C, Ct)
-    kappa = np.linalg.norm(C, axis=(1, 2)) * np.linalg.norm(Cplus, axis=(1, 2))
-    formation = (8 * EPS + 2 * gamma(nd) * kappa) * scales
-    leak = H_el @ R - (H_el @ C) @ (Cplus @ R)
+    CR = C @ (Cplus @ R)
+    leak = H_el @ R - H_el @ CR
     leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
+    PR = R - CR                                                                      # P R; leak = H_el P R
+    coupling = 0.5 * (np.linalg.norm(leak, axis=(1, 2)) + np.linalg.norm(np.swapaxes(H_el, 1, 2) @ PR, axis=(1, 2))
+                      + _column_sum(np.linalg.norm(A, axis=1) * np.linalg.norm(np.swapaxes(S, 1, 2) @ PR, axis=2)
+                                    + np.linalg.norm(S, axis=1) * np.linalg.norm(np.swapaxes(A, 1, 2) @ PR, axis=2)))
+    formation = (8 * EPS + 2 * gamma(nd) * nd) * scales + coupling
+    HQ = Qt @ (H_el @ Q)
+    return formation, leakage, 0.5 * (HQ + np.swapaxes(HQ, 1, 2)), Qt @ A, Qt @ S
 
-    def project(M):                                                                  # Pᵀ M
-        return M - np.swapaxes(Cplus, 1, 2) @ (Ct @ M)
 
-    HP = project(H_el)
-    HP = HP - (HP @ C) @ Cplus
-    return formation, leakage, 0.5 * (HP + np.swapaxes(HP, 1, 2)), project(A), project(S)
-
-
-def _values(Hsym, formation, nd: int, n_rigid: int) -> dict:
+def _values(Hsym, formation, nd: int) -> dict:
     """Clusters without sliding contacts (one branch, every eigenpair consistent): eigenvalues only (LAPACK syevd
     without vectors, ~0.45× the cost of eigh at n ≈ 80), each with the a-priori bound of accuracy.value_bounds."""
     with backend("cpu").threads(nd):
@@ -268,13 +275,14 @@ def _values(Hsym, formation, nd: int, n_rigid: int) -> dict:
     zero = np.abs(lam) <= bounds
     codes = np.where(zero, RIGID, BOTH).astype(np.int8)
     return {"owner": np.arange(len(Hsym)), "lam": lam, "bounds": bounds, "codes": codes,
-            "hinges": np.zeros(lam.shape, dtype=bool), "special": _special(lam, bounds, zero, n_rigid),
+            "hinges": np.zeros(lam.shape, dtype=bool), "special": _special(lam, bounds, zero),
             "error": values_backward_error(scale[:, 0], nd)}
 
 
-def _vectors(base, PA, PS, S, n_sliding, formation, s_tol, s_floor, nd: int, n_rigid: int, device: str) -> dict:
-    """Every branch (enumerate_masks order) of the clusters `base` (sym(Pᵀ H_el P)), stacked eigh on the backend,
-    residual bounds (accuracy.vector_bounds) and consistency codes (Appendix D) from the S values."""
+def _vectors(base, PA, PS, update, n_sliding, formation, s_tol, s_floor, nd: int, device: str) -> dict:
+    """Every branch (enumerate_masks order) of the clusters `base` (sym(Qᵀ H_el Q), or sym(H_el) held), stacked
+    eigh on the backend, residual bounds (accuracy.vector_bounds) and consistency codes (Appendix D) from the S
+    values (PSᵀ y = Sᵀ Q y: those of the eigenvector in the cluster's dofs)."""
     Ms = PA.shape[2]
     owner, masks = _branch_masks(n_sliding, Ms)
     Hsym = base[owner]
@@ -283,9 +291,9 @@ def _vectors(base, PA, PS, S, n_sliding, formation, s_tol, s_floor, nd: int, n_r
         X = (PA[owner[loading]] * (masks[loading] == 1)[:, None, :]) @ np.swapaxes(PS[owner[loading]], 1, 2)
         X += np.swapaxes(X, 1, 2)
         Hsym[loading] += 0.5 * X
-    got = backend_eigh(Hsym, S[owner], device)
+    got = backend_eigh(Hsym, PS[owner], device)
     lam = got["lam"]
-    scale = (_abs_norm(base) + _update_norm(PA, PS))[owner]     # >= ‖|Hsym|‖∞ of every branch, without a pass
+    scale = (_abs_norm(base) + update)[owner]     # >= ‖|Hsym|‖∞ of every branch (update: _update_norm)
     bounds = vector_bounds(lam, got["residual"], scale[:, None], formation[owner, None], nd)
     zero = np.abs(lam) <= bounds
     codes, hinges = consistency(masks[:, :, None].astype(float), got["S"], s_tol[owner, None, None],
@@ -293,13 +301,13 @@ def _vectors(base, PA, PS, S, n_sliding, formation, s_tol, s_floor, nd: int, n_r
     codes[zero] = RIGID
     hinges[zero] = False
     return {"owner": owner, "lam": lam, "bounds": bounds, "codes": codes, "hinges": hinges,
-            "special": _special(lam, bounds, zero, n_rigid), "error": got["residual"].max(axis=1)}
+            "special": _special(lam, bounds, zero), "error": got["residual"].max(axis=1)}
 
 
-def _special(lam, bounds, zero, n_rigid: int) -> np.ndarray:
-    """Branches for Appendix D's eigenspace search (analyze): a repeated eigenvalue or a non-rigid zero."""
-    close = np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:]
-    return np.any(close & ~(zero[:, :-1] & zero[:, 1:]), axis=1) | (zero.sum(axis=1) > n_rigid)
+def _special(lam, bounds, zero) -> np.ndarray:
+    """Branches for Appendix D's eigenspace search (analyze): a repeated eigenvalue or a zero (the rigid motions are
+    out of the solved dofs: any zero is a non-rigid one)."""
+    return np.any(np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:], axis=1) | zero.any(axis=1)
 
 
 def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str) -> dict:
@@ -340,10 +348,19 @@ def _update_norm(a: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Per cluster an upper bound of ‖|½(a diag(on) sᵀ + s diag(on) aᵀ)|‖∞ over every on ∈ {0, 1}^Ms:
     ½ Σ_j (‖a_j‖∞ ‖s_j‖₁ + ‖s_j‖∞ ‖a_j‖₁) (a, s: (G, nd, Ms))."""
     a, s = np.abs(a), np.abs(s)
-    return 0.5 * np.sum(a.max(axis=1, initial=0.0) * s.sum(axis=1) + s.max(axis=1, initial=0.0) * a.sum(axis=1),
-                        axis=1)
+    return 0.5 * _column_sum(a.max(axis=1, initial=0.0) * s.sum(axis=1) + s.max(axis=1, initial=0.0) * a.sum(axis=1))
 
 
 def _abs_norm(H: np.ndarray) -> np.ndarray:
     """‖|H|‖∞ per matrix of a stack (accuracy.abs_norm_inf)."""
     return np.abs(H).sum(axis=-1).max(axis=-1) if H.shape[-1] else np.zeros(len(H))
+
+
+def _column_sum(values: np.ndarray) -> np.ndarray:
+    """Sum over the last axis (a stack's sliding columns), one column after the other: zero columns padded on
+    change no bit, whereas numpy's pairwise sum regroups the terms by the column count (from 8 on), so a row would
+    depend on which clusters share its stack."""
+    total = np.zeros(values.shape[:-1])
+    for j in range(values.shape[-1]):
+        total = total + values[..., j]
+    return total
