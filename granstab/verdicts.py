@@ -138,8 +138,9 @@ def verdict_of(counts: dict, notes: dict | None, n_branches: int, type2: bool = 
     return out
 
 
-KEYED = ("neg", "zero", "proven_zero", "inconsistent_negative", "unresolved_other", "non_finite")  # what a
-# row's verdict, reason and proof flags depend on (verdict_of, finalize), besides n_branches and the errors
+# the tally counts a row's verdict, reason and proof flags depend on (verdict_of, finalize), besides n_branches,
+# the errors' finiteness and undetermined rolling
+KEYED = ("neg", "zero", "proven_zero", "inconsistent_negative", "unresolved_other", "non_finite")
 
 
 def verdict_columns(counts: dict, n_branches: np.ndarray, errors_finite: np.ndarray,

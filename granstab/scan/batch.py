@@ -32,7 +32,7 @@ import scipy.sparse as sp
 
 from ..accuracy import gamma, value_bounds, values_backward_error, vector_bounds
 from ..backend import backend, eigh_stack, residual_norms
-from ..branches import BOTH, RIGID, consistency
+from ..branches import BOTH, consistency
 from ..stiffness import contact_blocks
 from ..tolerances import EPS
 from ..vec import rot_dim, rotate_matrix
@@ -55,10 +55,11 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
 
     Returns {"position": index in `centers` of each solved cluster, "counts": its `tally` columns, then its
     n_branches, lambda_min, eigen_residual, rigid_leakage, n_undetermined, n_contacts, n_sliding and values_only
-    (eigenvalues only: path batched-values)}, or None when none is batchable. `scene` is best the chunk's own (run.chunk_scene): its contact
-    blocks are all built. Clusters are grouped by particle count; each group is one stack of all its clusters'
-    branches (split to STACK_BYTES). `--boundary fixed`: the ring beyond each cluster is held (clusters.extract):
-    its contacts with the cluster count, its dofs are dropped, and there is no rigid motion and no projection."""
+    (eigenvalues only: path batched-values)}, or None when none is batchable. `scene` is best the chunk's own
+    (run.chunk_scene): its contact blocks are all built. Clusters are grouped by particle count; each group is one
+    stack of all its clusters' branches (split to STACK_BYTES). `--boundary fixed`: the ring beyond each cluster is
+    held (clusters.extract): its contacts with the cluster count, its dofs are dropped, and there is no rigid motion
+    and no projection."""
     fixed = options.get("boundary", "loads") == "fixed"
     reached = members(scene, centers, options["rings"] + 1) if fixed else member_lists
     local = np.concatenate(reached)
@@ -204,8 +205,9 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     solved = [(values, _values(base[values], formation[values], dofs))] if values.size else []
     if vectors.size:
         solved.append((vectors, _vectors(base[vectors], PA[vectors], PS[vectors], update[vectors],
-                                         n_sliding[part][vectors], formation[vectors], s_scale[vectors] * sub.tol.s_rtol,
-                                         1e3 * EPS * s_scale[vectors], dofs, device)))
+                                         n_sliding[part][vectors], formation[vectors],
+                                         s_scale[vectors] * sub.tol.s_rtol, 1e3 * EPS * s_scale[vectors], dofs,
+                                         device)))
     owner = np.concatenate([which[got["owner"]] for which, got in solved])
     lam, bounds, codes, hinges, special, error = (np.concatenate([got[key] for _, got in solved])
                                                   for key in ("lam", "bounds", "codes", "hinges", "special", "error"))
@@ -216,7 +218,7 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     flat_owner = np.repeat(owner, dofs)
     counts = tally(lam.ravel(), bounds.ravel(), codes.ravel(), hinges.ravel(), flat_owner, G)
     lam_min = np.full(G, np.inf)
-    np.minimum.at(lam_min, flat_owner, np.where(codes.ravel() != RIGID, lam.ravel(), np.inf))
+    np.minimum.at(lam_min, flat_owner, lam.ravel())
     residual = np.zeros(G)
     np.maximum.at(residual, owner, relative)
     undetermined = np.bincount(g, weights=blocks.rolling_undetermined[m], minlength=G).astype(int)
@@ -253,10 +255,9 @@ def _reduced(H_el, A, S, x, L, scales):
     R, Q = basis[:, :, :per], basis[:, :, per:]
     Ct, Qt = np.swapaxes(C, 1, 2), np.swapaxes(Q, 1, 2)
     Cplus = np.linalg.solve(Ct @ C, Ct)
-    CR = C @ (Cplus @ R)
-    leak = H_el @ R - H_el @ CR
+    PR = R - C @ (Cplus @ R)                                                         # P R (eq:newstiffnesses)
+    leak = H_el @ PR
     leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
-    PR = R - CR                                                                      # P R; leak = H_el P R
     coupling = 0.5 * (np.linalg.norm(leak, axis=(1, 2)) + np.linalg.norm(np.swapaxes(H_el, 1, 2) @ PR, axis=(1, 2))
                       + _column_sum(np.linalg.norm(A, axis=1) * np.linalg.norm(np.swapaxes(S, 1, 2) @ PR, axis=2)
                                     + np.linalg.norm(S, axis=1) * np.linalg.norm(np.swapaxes(A, 1, 2) @ PR, axis=2)))
@@ -272,10 +273,8 @@ def _values(Hsym, formation, nd: int) -> dict:
         lam = np.linalg.eigvalsh(Hsym)
     scale = _abs_norm(Hsym)[:, None]
     bounds = value_bounds(lam, scale, formation[:, None], nd)
-    zero = np.abs(lam) <= bounds
-    codes = np.where(zero, RIGID, BOTH).astype(np.int8)
-    return {"owner": np.arange(len(Hsym)), "lam": lam, "bounds": bounds, "codes": codes,
-            "hinges": np.zeros(lam.shape, dtype=bool), "special": _special(lam, bounds, zero),
+    return {"owner": np.arange(len(Hsym)), "lam": lam, "bounds": bounds, "codes": np.full(lam.shape, BOTH, np.int8),
+            "hinges": np.zeros(lam.shape, dtype=bool), "special": _special(lam, bounds),
             "error": values_backward_error(scale[:, 0], nd)}
 
 
@@ -295,19 +294,18 @@ def _vectors(base, PA, PS, update, n_sliding, formation, s_tol, s_floor, nd: int
     lam = got["lam"]
     scale = (_abs_norm(base) + update)[owner]     # >= ‖|Hsym|‖∞ of every branch (update: _update_norm)
     bounds = vector_bounds(lam, got["residual"], scale[:, None], formation[owner, None], nd)
-    zero = np.abs(lam) <= bounds
     codes, hinges = consistency(masks[:, :, None].astype(float), got["S"], s_tol[owner, None, None],
                                 s_floor[owner, None, None])                         # branches.Problem.s_tol, s_floor
-    codes[zero] = RIGID
-    hinges[zero] = False
     return {"owner": owner, "lam": lam, "bounds": bounds, "codes": codes, "hinges": hinges,
-            "special": _special(lam, bounds, zero), "error": got["residual"].max(axis=1)}
+            "special": _special(lam, bounds), "error": got["residual"].max(axis=1)}
 
 
-def _special(lam, bounds, zero) -> np.ndarray:
-    """Branches for Appendix D's eigenspace search (analyze): a repeated eigenvalue or a zero (the rigid motions are
-    out of the solved dofs: any zero is a non-rigid one)."""
-    return np.any(np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:], axis=1) | zero.any(axis=1)
+def _special(lam, bounds) -> np.ndarray:
+    """Branches for Appendix D's eigenspace search (analyze): a repeated eigenvalue or a zero within its bound (the
+    rigid motions are out of the solved dofs: any zero is a non-rigid one). Only clusters without either keep
+    their batched rows, so these need no rigid or zero codes."""
+    return (np.any(np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:], axis=1)
+            | np.any(np.abs(lam) <= bounds, axis=1))
 
 
 def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str) -> dict:
