@@ -5,8 +5,8 @@ orthogonal to the rigid modes, so λ⁽⁶⁾ = νᵀ sym(𝓗) ν = νᵀ H ν 
 (L = r).
 The field is computed for a normal contact force (no mobilised friction, as in the paper's figure) at the
 current α and rolling stiffness, in units of k. Without rolling stiffness the field is the batched one of
-granstab.studies.two_particle (the paper's own 6×6 matrices); with it, the core's per-contact blocks
-(granstab.stiffness.contact_blocks) give every grid point at once. tests/test_app_state.py checks that the two
+granstab.paper.two_particle (the paper's own 6×6 matrices); with it, the core's per-contact blocks
+(granstab.mechanics.stiffness.contact_blocks) give every grid point at once. tests/test_app_state.py checks that the two
 agree where both apply.
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 
 import granstab
-from granstab.stiffness import contact_blocks
+from granstab.mechanics.stiffness import contact_blocks
 
 RHO_R = np.round(np.arange(0.2, 3.0 + 1e-9, 0.05), 10)                 # (57,)
 F_KR = np.round(np.arange(-0.005, 0.02 + 1e-9, 0.0005), 10)             # (51,)
@@ -35,15 +35,15 @@ class Field:
 
 
 def _studies_field(alpha: float, rolling: float):
-    """The batched field of granstab.studies.two_particle, if it exists and fits this call (else None)."""
+    """The batched field of granstab.paper.two_particle, if it exists and fits this call (else None)."""
     try:
-        from granstab.studies import two_particle
+        from granstab.paper import two_particle
     except ImportError:
         return None
     fn = getattr(two_particle, "lambda6_field", None)
     if fn is None or rolling != 0.0:
         return None
-    return np.asarray(fn(RHO_R, F_KR, alpha=alpha)["lam6"]), "granstab.studies.two_particle.lambda6_field"
+    return np.asarray(fn(RHO_R, F_KR, alpha=alpha)["lam6"]), "granstab.paper.two_particle.lambda6_field"
 
 
 def _grid_scene(alpha: float, rolling: float, r: float = 1.0):
@@ -69,7 +69,7 @@ def lambda6_field(alpha: float, rolling: float, use_studies: bool = True) -> Fie
     """λ⁽⁶⁾/k on the (ρ/r, f/(kr)) grid for tangential/normal stiffness ratio α and rolling stiffness/(kr²).
 
     Every grid point is one contact of a single scene, so the core builds all per-contact H blocks at once
-    (granstab.stiffness.contact_blocks); λ⁽⁶⁾ = νᵀ H ν with ν = [0, 0, 1, 0, 0, -1]/√2 in each block (r = L = 1)."""
+    (granstab.mechanics.stiffness.contact_blocks); λ⁽⁶⁾ = νᵀ H ν with ν = [0, 0, 1, 0, 0, -1]/√2 in each block (r = L = 1)."""
     got = _studies_field(alpha, rolling) if use_studies else None
     if got is not None:
         lam, source = got
@@ -78,7 +78,7 @@ def lambda6_field(alpha: float, rolling: float, use_studies: bool = True) -> Fie
     H = sum(blocks[name] for name in ("Hg1", "Hg2", "Hg3", "Hm"))      # (M, 6, 6), r = 1
     nu = np.array([0, 0, 1.0, 0, 0, -1.0]) / np.sqrt(2)
     lam = np.einsum("i,mij,j->m", nu, H, nu).reshape(len(F_KR), len(RHO_R))
-    return Field(RHO_R, F_KR, lam, alpha, rolling, "granstab.stiffness.contact_blocks (all grid points at once)")
+    return Field(RHO_R, F_KR, lam, alpha, rolling, "granstab.mechanics.stiffness.contact_blocks (all grid points at once)")
 
 
 def _contour(field: Field, size=(6, 4.5), dpi=120):

@@ -6,7 +6,7 @@ Three kinds, each with `params_used`, `initial_params()`, `build(params) -> Scen
   are exactly those of eq:exampleH; the drawn particles are ellipses of semi-axis r along e1 and tip radius of
   curvature ρ (ρ = b²/a, so b = √(ρ r)): the shape follows the ρ/r slider.
 - ShapeModel: disks/ellipses/spheres/ellipsoids at poses; contacts, normals, curvatures and forces come from the
-  geometry (granstab.shapes); dragging changes the poses.
+  geometry (granstab.model.shapes); dragging changes the poses.
 - ContactModel: a contact-level scene file; the law parameters (μ, α, k, rolling) can be overridden, the geometry
   is fixed (particles are drawn as disks/spheres through their contact points; in 2D with a socket at a concave side).
 """
@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 import granstab
-from granstab import shapes
+from granstab.io import shapefile
+from granstab.model import shapes
 
 from .params import defaults
 
@@ -126,14 +127,14 @@ class TwoParticleModel:
 
 @dataclass
 class ShapeModel:
-    """Particles with shapes at poses; every contact quantity is derived from the geometry (granstab.shapes)."""
+    """Particles with shapes at poses; every contact quantity is derived from the geometry (granstab.model.shapes)."""
 
     dim: int
-    particles: list            # [(name, shape, (x, orientation))] as granstab.shapes.scene_from_shapes takes them
+    particles: list            # [(name, shape, (x, orientation))] as granstab.model.shapes.scene_from_shapes takes them
     start: dict = field(default_factory=dict)
     title: str = "shapes"
     length: float = 0.0        # the r of rolling stiffness/(kr²); default: mean bounding radius
-    shear: object = None       # 3D tangential-force direction (granstab.shapes.tangent_directions)
+    shear: object = None       # 3D tangential-force direction (granstab.model.shapes.tangent_directions)
     poses0: list = field(default_factory=list)
 
     kind = "shapes"
@@ -160,8 +161,8 @@ class ShapeModel:
             raise granstab.SceneError(" ".join(str(exc).split())) from None
 
     def to_dict(self, P: dict) -> dict:
-        """The shape scene file (granstab.shapes format) of the current poses and parameters."""
-        return shapes.shape_scene_to_dict(self.dim, self.particles, **self._law(P))
+        """The shape scene file (granstab.model.shapes format) of the current poses and parameters."""
+        return shapefile.shape_scene_to_dict(self.dim, self.particles, **self._law(P))
 
     def bodies(self, P: dict) -> list[Body]:
         out = []
@@ -186,7 +187,7 @@ class ShapeModel:
 
     @classmethod
     def from_dict(cls, data: dict, source: str) -> ShapeModel:
-        """Read the shape format; validation (one-line SceneError) is granstab.shapes.shape_scene_from_dict's."""
+        """Read the shape format; validation (one-line SceneError) is granstab.io.shapefile.shape_scene_from_dict's."""
         spec = shapes.read_shape_file(data, source=source)
         law = {**spec.law, "mobilised": spec.mobilised}
         start = {key: float(law[key]) for key in ("mu", "alpha", "k", "mobilised")}
@@ -247,7 +248,7 @@ class ContactModel:
         changed = [key for key in self.params_used if P[key] != start[key]]
         if not changed:
             return self.scene
-        data = self.scene.to_dict()
+        data = granstab.scene_to_dict(self.scene)
         for c in data["contacts"]:
             for key in changed:
                 c[LAW_PARAMS[key]] = P[key] if key != "rolling" else P[key] * P["k"] * self.length ** 2
@@ -308,7 +309,7 @@ def read_scene_file(path) -> dict:
 
 def model_from_dict(data, source: str):
     """The model of a parsed scene file: shape format → ShapeModel, contact level → pair or ContactModel."""
-    if shapes.is_shape_scene(data):
+    if shapefile.is_shape_scene(data):
         return ShapeModel.from_dict(data, source)
     return model_for_scene(granstab.scene_from_dict(data, source=source))
 

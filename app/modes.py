@@ -1,7 +1,7 @@
 """Eigenmodes for people: what each motion does at the contacts, and poses to animate it (no viser).
 
 A motion U = [du^p, dθ^p]_p (physical dofs, `Analysis.motion`) deforms contact c by δu_def (eq:dudef) and
-δθ_def (eq:dtdef), taken from the core's kinematic rows (granstab.stiffness.kinematics). Split
+δθ_def (eq:dtdef), taken from the core's kinematic rows (granstab.mechanics.stiffness.kinematics). Split
 δu_def into its normal part (indentation) and tangential part (shearing, or sliding where the branch has the
 contact sliding), and weigh δθ_def by the rotation length L (rolling). The label is the largest of the three
 summed squares; a rolling motion whose particle centres stay put (after the rigid part is removed) and that turns
@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from granstab.rigid import rotations, translations
-from granstab.stiffness import kinematics
-from granstab.vec import rot_dim
+from granstab.mechanics.rigid import rotations, translations
+from granstab.mechanics.stiffness import kinematics
+from granstab.model.vec import rot_dim
 
 # Relative thresholds, all dimensionless: shares of the summed squares of one unit motion.
 NO_DEFORMATION = 1e-10   # summed contact deformation below this × |U|² counts as none

@@ -1,7 +1,7 @@
 """The per-client session of the explorer: preset, parameters, poses, current Scene, last analysis, errors.
 
 Pure Python (no viser): the GUI callbacks call these methods and read the results, and the unit tests drive them
-directly. Every number comes from the core (granstab.analyze, granstab.shapes, granstab.stiffness); a failure of
+directly. Every number comes from the core (granstab.analyze, granstab.model.shapes, granstab.mechanics.stiffness); a failure of
 a preset, a scene or an analysis is caught here and kept as a one-line `error` — nothing raises to the caller
 except programming errors (an unknown parameter name). Not thread-safe: the GUI serialises calls with a lock.
 """
@@ -17,8 +17,8 @@ import numpy as np
 
 import granstab
 from granstab.analysis import analyze
-from granstab.branches import BOTH, MINUS, PLUS, RIGID
-from granstab.threads import blas_threads
+from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
+from granstab.solve.threads import blas_threads
 
 from .field import Field, field_png, lambda6_field
 from .models import Body, ShapeModel, TwoParticleModel, load_model
@@ -40,7 +40,7 @@ class Mode:
     branch: int
     index: int
     eigenvalue: float
-    code: int                  # granstab.branches: PLUS, MINUS, BOTH (consistent), INCONSISTENT, RIGID
+    code: int                  # granstab.mechanics.branches: PLUS, MINUS, BOTH (consistent), INCONSISTENT, RIGID
     label: str
     shares: dict
     hinges: bool
@@ -348,7 +348,7 @@ class Session:
             return "no (a single branch: no contact at yield)"
         if not hasattr(self.analysis, "problem"):
             return "not evaluated (the core's Analysis does not expose its problem)"
-        from granstab.verdicts import load_response
+        from granstab.mechanics.verdicts import load_response
         s = self.scene
         if s.fixed is not None:
             return "not evaluated (a scene held by fixed particles)"
@@ -442,7 +442,7 @@ class Session:
         if isinstance(self.model, ShapeModel):
             data = self.model.to_dict(self.params)
         elif self.scene is not None:
-            data = self.scene.to_dict()
+            data = granstab.scene_to_dict(self.scene)
         else:
             raise ValueError("no scene to export")
         return f"{Path(str(self.preset)).stem}-scene.json", json.dumps(data, indent=1, default=_json).encode()

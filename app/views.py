@@ -177,7 +177,7 @@ def osculating_arcs(points, centres, radii, normals_out, planes, size: float, n:
 def circle_data(scene, size: float):
     """Centres, radii, outward normals and tangents of the osculating circles of both sides of every contact
     (convex directions only: principal radii ρ = -1/κ > 0; flat or concave directions are skipped)."""
-    from granstab.vec import tangent_basis
+    from granstab.model.vec import tangent_basis
     pts, cen, rad, nout, tan = [], [], [], [], []
     T = tangent_basis(scene.normal)                                   # (M, d, d-1)
     for side, K, sign in (("p", scene.curvature_p, -1.0), ("q", scene.curvature_q, 1.0)):

@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from granstab import shapes, sparse
 from granstab.analysis import analyze
-from granstab.branches import RIGID
-from granstab.rigid import Projection, dof_scale, rotation_length, rotations
-from granstab.studies import two_particle as tp
+from granstab.mechanics.branches import RIGID
+from granstab.mechanics.rigid import Projection, dof_scale, rotation_length, rotations
+from granstab.model import shapes
+from granstab.paper import two_particle as tp
+from granstab.solve import sparse
 
 from .figures import save
 from .formatting import fmt_e, fmt_t, table

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.models import ShapeModel, TwoParticleModel
-from granstab import shapes
 from granstab.analysis import analyze
+from granstab.model import shapes
+from granstab_app.models import ShapeModel, TwoParticleModel
 
 from .formatting import fmt_t, table
 from .timing import timeit

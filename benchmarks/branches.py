@@ -8,14 +8,19 @@ import tracemalloc
 import numpy as np
 
 from granstab.analysis import analyze, build_problem
-from granstab.backend import gpu_available
-from granstab.branches import _branch, branch_matrices, enumerate_masks, solve_branches, test_codes
-from granstab.lowrank import SparseRitz, solve_branches_lowrank
-from granstab.packings import random_packing
-from granstab.rigid import rotation_length
-from granstab.sparse import lowest_modes, sparse_problem
-from granstab.stiffness import contact_blocks
-from granstab.threads import blas_threads
+from granstab.mechanics.branches import (
+    branch_matrices,
+    enumerate_masks,
+    test_codes,
+)
+from granstab.mechanics.rigid import rotation_length
+from granstab.mechanics.stiffness import contact_blocks
+from granstab.model.packings import random_packing
+from granstab.solve.dense import _branch, solve_branches
+from granstab.solve.device import gpu_available
+from granstab.solve.lowrank import SparseRitz, solve_branches_lowrank
+from granstab.solve.sparse import lowest_modes, sparse_problem
+from granstab.solve.threads import blas_threads
 
 from .formatting import fmt_e, fmt_long, fmt_t, progress, table
 from .machine import load_average, machine
@@ -167,7 +172,7 @@ def markdown(results: dict) -> str:
         "chunks in a thread pool on every core, one BLAS thread each; on a GPU, CuPy), the consistency codes are "
         "computed next to the eigenvectors, and only eigenvalues, codes and per-eigenvalue error bounds come back "
         "(eigenvectors on demand). Side by side on the same masks: the full stacked solve of "
-        "`branches.solve_branches` (eigh + eig + SVD of n × n per branch) and the old per-branch loop (one BLAS "
+        "`dense.solve_branches` (eigh + eig + SVD of n × n per branch) and the old per-branch loop (one BLAS "
         "thread), both timed on an evenly spread subset (size in brackets) and extrapolated to all branches. "
         "`error`: the largest eigenvalue difference from the full solve relative to max |λ|, in brackets in units "
         "of the two paths' summed per-eigenvalue bounds (≤ 1 means within them); codes: every consistency code "

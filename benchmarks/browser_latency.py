@@ -17,7 +17,7 @@ SETTLE = "() => new Promise(r => requestAnimationFrame(() => requestAnimationFra
 
 
 def _moves(page, ui, key, values, moves):
-    from app.browser import number_box
+    from granstab_app.browser import number_box
     box = number_box(page, ui.sliders[key])
     page_s, server_s = [], []
     for i in range(moves):
@@ -37,11 +37,11 @@ def _moves(page, ui, key, values, moves):
 def run(quick: bool = False) -> dict:
     from playwright.sync_api import sync_playwright
 
-    from app.server import App
+    from granstab_app.server import App
     moves = 4 if quick else 10
     out = {"moves": moves, "scenes": {}}
     with sync_playwright() as pw, tempfile.TemporaryDirectory() as profile:
-        from app.browser import chromium
+        from granstab_app.browser import chromium
         ctx = chromium(pw, profile)
         try:
             for name, (key, values) in SCENES.items():

@@ -3,7 +3,7 @@
 tables (particles.csv + contacts.csv), against numpy.loadtxt of the same contact file, side by side in one run;
 saving the converted scene as NPZ; peak memory per contact.
 
-Inputs are random packings (granstab.packings.random_packing, 2D and 3D) of about 10⁴…10⁶ contacts written the
+Inputs are random packings (granstab.model.packings.random_packing, 2D and 3D) of about 10⁴…10⁶ contacts written the
 way the readers expect them (README "Your own data"):
 
 - LAMMPS: `atoms.dump` (`id type x y z radius mass`, rows in a shuffled order as LAMMPS writes them), the local
@@ -36,8 +36,8 @@ from pathlib import Path
 import numpy as np
 
 import granstab.io
-from granstab import packings
-from granstab.files import save_scene
+from granstab.io.scenes import save_scene
+from granstab.model import packings
 
 from .reading import peak_bytes
 

@@ -1,13 +1,13 @@
 """λ⁽⁶⁾ of the symmetric pair over a 200 × 200 (ρ/r, f/(kr)) grid: batched closed forms and stacked 6 × 6
-eigenproblems (granstab.studies.two_particle) against a per-point numpy.linalg.eig loop and the bare formula."""
+eigenproblems (granstab.paper.two_particle) against a per-point numpy.linalg.eig loop and the bare formula."""
 from __future__ import annotations
 
 import time
 
 import numpy as np
 
-from granstab.studies import two_particle as tp
-from granstab.threads import blas_threads
+from granstab.paper import two_particle as tp
+from granstab.solve.threads import blas_threads
 
 from .formatting import fmt_e, fmt_t, table
 from .timing import once, timeit
@@ -90,7 +90,7 @@ def markdown(d: dict) -> str:
         "## λ⁽⁶⁾ field over a 200×200 grid",
         "",
         "λ⁽⁶⁾ (rolling mode) of the symmetric pair over 200 × 200 = 40 000 points of (ρ/r ∈ [0.2, 3], f/(kr) ∈ "
-        "[-0.005, 0.02]), α = 1, r = k = 1, using granstab.studies.two_particle (the batched field and closed forms "
+        "[-0.005, 0.02]), α = 1, r = k = 1, using granstab.paper.two_particle (the batched field and closed forms "
         "are that module's; the per-point loop is written here as the reference). Error = max |λ⁽⁶⁾ − f(ρ − r)| "
         "in units of k r². Every way runs on one BLAS thread (stacks of 6×6 problems).",
         "",

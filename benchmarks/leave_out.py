@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from granstab import sparse
 from granstab.analysis import analyze
-from granstab.packings import lattice, random_packing
-from granstab.scene import build_scene
-from granstab.stiffness import contact_blocks
+from granstab.mechanics.stiffness import contact_blocks
+from granstab.model.packings import lattice, random_packing
+from granstab.model.scene import build_scene
+from granstab.solve import sparse
 
 from .assembly import assemble_vectorised
 from .formatting import fmt_t, table

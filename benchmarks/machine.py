@@ -40,7 +40,7 @@ def machine() -> dict:
 
 def gpu_name() -> str:
     """The GPU CuPy sees (name, memory, CuPy version), or 'none'."""
-    from granstab.backend import gpu_available
+    from granstab.solve.device import gpu_available
     if not gpu_available():
         return "none"
     import cupy

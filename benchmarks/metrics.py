@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 import granstab
-from granstab import packings
+from granstab.model import packings
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,7 +1,7 @@
 """Reading scene files (issue 9, "Speed"): the column-wise reader against today's per-contact reader and
 numpy.loadtxt, side by side in one run, for JSON and the binary NPZ format; writing both; peak memory per contact.
 
-Scenes are 2D random packings (granstab.packings) of about 10³…10⁶ contacts. Times are medians over repeats
+Scenes are 2D random packings (granstab.model.packings) of about 10³…10⁶ contacts. Times are medians over repeats
 (one run where a single run takes seconds). Rows:
 
 - `load JSON (columns)`: granstab.load_scene on the .json file: read, scan, json.loads, column-wise checks.
@@ -26,11 +26,18 @@ from pathlib import Path
 import numpy as np
 
 import granstab
-from granstab import packings
-from granstab.files import load_scene, save_scene
-from granstab.reading import Reader, read_law
-from granstab.scene import CONTACT_KEYS, LAW_KEYS, PARTICLE_KEYS, STATES, TOP_KEYS, _base_law, build_scene, \
-    read_header, read_particles
+from granstab.io.entries import Reader, read_law
+from granstab.io.scenes import load_scene, save_scene
+from granstab.io.schema import (
+    CONTACT_KEYS,
+    PARTICLE_KEYS,
+    TOP_KEYS,
+    _base_law,
+    read_header,
+    read_particles,
+)
+from granstab.model import packings
+from granstab.model.scene import LAW_KEYS, STATES, build_scene
 
 QUICK_SIZES = (1_000, 10_000)
 FULL_SIZES = (10_000, 100_000, 1_000_000)
@@ -113,7 +120,7 @@ def previous_reader(data: dict, source: str = "<scene>"):
 
 def table_columns(scene) -> np.ndarray:
     """The contacts' numeric columns for numpy.loadtxt: p q point(2) normal(2) κp κq force(2) moment k α μ."""
-    scalar = granstab.scene.scene_arrays(scene)
+    scalar = granstab.io.schema.scene_arrays(scene)
     return np.column_stack([scene.p, scene.q, scene.point, scene.normal, scalar["contacts/curvature_p"],
                             scalar["contacts/curvature_q"], scene.force, scene.moment, scene.k, scene.alpha,
                             scene.mu])

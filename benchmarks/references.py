@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from granstab.analysis import build_problem
-from granstab.branches import branch_matrices
-from granstab.rigid import rotation_length, rotations, translations
-from granstab.stiffness import contact_blocks
+from granstab.mechanics.branches import branch_matrices
+from granstab.mechanics.rigid import rotation_length, rotations, translations
+from granstab.mechanics.stiffness import contact_blocks
 
 
 def dense_sym_calH(scene):

@@ -9,7 +9,7 @@ import sys
 import time
 from pathlib import Path
 
-from granstab.threads import blas_threads
+from granstab.solve.threads import blas_threads
 
 from . import TOPICS
 from .machine import load_average, machine

@@ -1,5 +1,5 @@
 """The sparse path's time and peak memory against N, 2D and 3D, one fresh subprocess per size
-(`benchmarks.scaling_child`), with what a dense n × n matrix and its eigh would cost."""
+(`granstab_bench.scaling_child`), with what a dense n × n matrix and its eigh would cost."""
 from __future__ import annotations
 
 import json
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from granstab.packings import random_packing
+from granstab.model.packings import random_packing
 
 from .figures import save
 from .formatting import fmt_long, fmt_t, progress, table
@@ -32,7 +32,7 @@ def child(dim: int, n: int, method: str, threads: int | None) -> dict:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     if threads:
         env.update(OMP_NUM_THREADS=str(threads), OPENBLAS_NUM_THREADS=str(threads))
-    proc = subprocess.run([sys.executable, "-m", "benchmarks.scaling_child", str(dim), str(n), method],
+    proc = subprocess.run([sys.executable, "-m", "granstab_bench.scaling_child", str(dim), str(n), method],
                           capture_output=True, text=True, timeout=1800, env=env, cwd=ROOT)
     if proc.returncode != 0:
         return {"dim": dim, "particles": n, "method": method, "failed": proc.stderr.strip().splitlines()[-1][:80]}

@@ -1,5 +1,5 @@
 """One size of the scaling benchmark in a fresh process, so that its peak memory is its own:
-`python -m benchmarks.scaling_child DIM N METHOD` prints one JSON line (times, memory, factor size, residual)."""
+`python -m granstab_bench.scaling_child DIM N METHOD` prints one JSON line (times, memory, factor size, residual)."""
 from __future__ import annotations
 
 import json
@@ -7,7 +7,8 @@ import resource
 import sys
 import time
 
-from granstab import packings, sparse
+from granstab.model import packings
+from granstab.solve import sparse
 
 
 def memory_kb(key: str) -> int:

@@ -11,11 +11,11 @@ import tracemalloc
 
 import numpy as np
 
-from granstab import packings
-from granstab.backend import gpu_available
+from granstab.model import packings
 from granstab.scan import members, read_map, scan
 from granstab.scan.run import CHUNK, TASK_SECONDS, chunk_scene, cluster_row, scan_chunk
-from granstab.threads import blas_threads
+from granstab.solve.device import gpu_available
+from granstab.solve.threads import blas_threads
 
 TASK_OVERHEAD_S = 10e-3     # client and scheduler CPU a task, measured here (a 10⁵ scan in 49 against 13 tasks:
                             # 1.15 against 0.80 s of the client process), for the extrapolation
@@ -76,6 +76,7 @@ def scaling(scene, repeats: int) -> dict:
     `ceiling` = t(1 worker) / max(workers' CPU / 2, all CPU / cores) — the workers cannot finish sooner than that."""
     import dask
     from dask.distributed import Client, LocalCluster
+
     from granstab.scan.run import WORKER_ENVIRON
     serial, ref = whole_scan(scene)
     times = {"serial": [serial]}

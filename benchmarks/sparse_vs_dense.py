@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from granstab import sparse
 from granstab.analysis import analyze
-from granstab.packings import random_packing
+from granstab.model.packings import random_packing
+from granstab.solve import sparse
 
 from .formatting import fmt_e, fmt_t, progress, table
 from .references import dense_lowest
@@ -60,7 +60,7 @@ def markdown(results: dict) -> str:
         "",
         f"The lowest k = {results['k']} non-rigid eigenpairs of sym(𝓗) (elastic branch) of random packings. Dense: "
         "`analyze(method=\"dense\")` (every branch, all spectra, ℍ, Type-2) and the bare alternative — dense "
-        "sym(𝓗) + `numpy.linalg.eigh`. Sparse: `granstab.sparse.lowest_modes` including its set-up (assembly, "
+        "sym(𝓗) + `numpy.linalg.eigh`. Sparse: `granstab.solve.sparse.lowest_modes` including its set-up (assembly, "
         "LU): shift-invert around σ ≈ 0⁻ with one sparse LDLᵀ-type LU and the rigid modes deflated by a low-rank "
         "correction, verified by Sylvester inertia; LOBPCG with the two-level preconditioner for comparison. "
         "Error = max |λ_sparse − λ_dense| / ‖Hs‖ over the k eigenvalues.",

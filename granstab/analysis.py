@@ -14,12 +14,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backends import METHODS, Timer, choose_backend
-from .branches import Problem, enumerate_masks, sample_masks
-from .metric import CHOICES, Metric, family, resolve
-from .scene import Scene, SceneError
-from .stiffness import ContactBlocks
-from .verdicts import family_entry, finalize, mark_partial, summarize
+from .mechanics.branches import Problem, enumerate_masks, sample_masks
+from .mechanics.metric import CHOICES, Metric, family, resolve
+from .mechanics.stiffness import ContactBlocks
+from .mechanics.verdicts import family_entry, finalize, mark_partial, summarize
+from .model.scene import Scene, SceneError
+from .solve.strategies import METHODS, Timer, choose_backend
 
 __all__ = ["Analysis", "METHODS", "analyze", "build_problem"]
 
@@ -112,7 +112,7 @@ def _branch_dict(b, inertia: bool) -> dict:
 
 def build_problem(scene: Scene, blocks: ContactBlocks, metric):
     """The dense problem in a metric (a Metric, or L as a number): (problem, parts); see backends.dense_problem."""
-    from .backends import assemble_parts, dense_problem
+    from .solve.strategies import assemble_parts, dense_problem
     if not isinstance(metric, Metric):
         metric = resolve(scene, "L", float(metric))
     parts = assemble_parts(scene, blocks)

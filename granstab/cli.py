@@ -13,13 +13,20 @@ from pathlib import Path
 import numpy as np
 
 from .analysis import analyze
-from .metric import CHOICES as METRIC_CHOICES
-from .branches import BOTH, MINUS, PLUS, RIGID
-from .budget import DENSE_ADVICE, SPARSE_ADVICE, OverBudget, deadline, estimate, refuse_over
-from .fileformat import paused_gc
-from .files import load_scene, save_scene
-from .scene import SceneError
-from .stiffness import MaskError, stiffness
+from .io.scenes import load_scene, save_scene, scene_to_dict
+from .io.syntax import paused_gc
+from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
+from .mechanics.metric import CHOICES as METRIC_CHOICES
+from .mechanics.stiffness import MaskError, stiffness
+from .model.scene import SceneError
+from .solve.budget import (
+    DENSE_ADVICE,
+    SPARSE_ADVICE,
+    OverBudget,
+    deadline,
+    estimate,
+    refuse_over,
+)
 
 
 class InputError(Exception):
@@ -151,7 +158,7 @@ def cmd_analyze(args) -> int:
     if args.rotation_length is not None and args.metric == "inertia":
         raise InputError("--rotation-length: the inertia metric has no rotation length (use --metric L, L/10, 10L "
                          "or family)")
-    from .backend import DeviceError
+    from .solve.device import DeviceError
     progress = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
     advice = [DENSE_ADVICE]
@@ -177,7 +184,7 @@ def refuse_unfinishable(scene, args, seconds_left: float | None) -> bool:
     """Refuse (one line, before any work) more sliding contacts than --max-sliding, and dense branch enumerations
     whose measured cost exceeds the time left of --timeout; each message says what to do. Returns whether the
     dense path will run."""
-    from .sparse import DENSE_MAX_DOF
+    from .solve.sparse import DENSE_MAX_DOF
     n_sliding = int(np.sum(scene.at_yield()))
     sampled = n_sliding > args.max_sliding
     if sampled and args.sample_branches is None:
@@ -193,14 +200,18 @@ def refuse_unfinishable(scene, args, seconds_left: float | None) -> bool:
 
 
 def cmd_reproduce(args) -> int:
-    from .report import reproduce
+    from .paper import reproduce
     reproduce(args.name, Path(args.out), root=args.root)
     return 0
 
 
 def cmd_bench(args) -> int:
-    from benchmarks.runner import TOPICS, run   # outside the core package; only this command needs it
-    from .backend import gpu_available
+    from granstab_bench.runner import (  # outside the core package; only this command needs it
+        TOPICS,
+        run,
+    )
+
+    from .solve.device import gpu_available
     unknown = sorted(set(args.only or ()) - set(TOPICS))
     if unknown:
         raise InputError(f"--only: unknown topic {unknown[0]!r} (choose from {', '.join(TOPICS)})")
@@ -249,7 +260,7 @@ def cmd_convert(args) -> int:
         save_scene(imported.scene, args.out)           # binary: 10⁶ contacts in a fraction of a second
     else:
         with paused_gc():
-            text = json.dumps(imported.scene.to_dict())
+            text = json.dumps(scene_to_dict(imported.scene))
         Path(args.out).write_text(text, encoding="utf-8")
     report = {**imported.report, "out": args.out}
     print(json.dumps(report) if args.json else format_report(report) + f"\nwrote {args.out}")
@@ -260,7 +271,7 @@ def cmd_extract(args) -> int:
     """The cluster of one particle as a scene file (issue 10): re-analyse, open in the app, check by hand."""
     from .scan import extract
     sub = extract(load_scene(args.input), args.center, rings=args.rings, boundary=args.boundary)
-    Path(args.out).write_text(json.dumps(sub.to_dict(), allow_nan=False), encoding="utf-8")
+    Path(args.out).write_text(json.dumps(scene_to_dict(sub), allow_nan=False), encoding="utf-8")
     held = "" if sub.fixed is None else f" ({int(sub.fixed.sum())} of them held fixed)"
     print(f"wrote {args.out}: {sub.n_particles} particles{held}, {sub.n_contacts} contacts")
     return 0
@@ -268,8 +279,8 @@ def cmd_extract(args) -> int:
 
 def cmd_scan(args) -> int:
     """Every local cluster of a packing → DIR/clusters, particles, summary.json, map (issue 10)."""
-    from .backend import DeviceError
     from .scan import scan
+    from .solve.device import DeviceError
     try:
         summary = scan(load_scene(args.input), args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
@@ -381,7 +392,7 @@ def build_parser() -> Parser:
                         "(branches: partial; a verdict only where they suffice) instead of refusing")
     p.add_argument("--method", choices=["auto", "dense", "sparse"], default="auto",
                    help="dense: every eigenpair and the uniqueness analysis; sparse: the lowest --k eigenpairs per "
-                        "branch without n_dof x n_dof matrices; auto: sparse above granstab.sparse.DENSE_MAX_DOF dofs")
+                        "branch without n_dof x n_dof matrices; auto: sparse above granstab.solve.sparse.DENSE_MAX_DOF dofs")
     p.add_argument("--k", type=count(1), default=6, help="eigenpairs per branch on the sparse path")
     p.add_argument("--progress", action="store_true",
                    help="progress bars with the time left on stderr (reading, branches; default when stderr is a "

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from granstab import shapes as gshapes
+from granstab.model import shapes as gshapes
 
 CSTEP = 1e-30
 NEWTON_ITERS = 6   # from the converged reference normal: quadratic convergence, 2-3 iterations reach round-off

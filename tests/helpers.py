@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 import granstab
-from granstab.vec import tangent_basis
+from granstab.model.vec import tangent_basis
 
 
 def random_cluster(dim: int, n_particles: int = 5, seed: int = 0, moments: bool = True, rolling: float = 0.0,

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from helpers import FLAT_PAIR
 
-from app.browser import CHROMIUM, FLAGS, number_box
+from granstab_app.browser import CHROMIUM, FLAGS, number_box
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -35,7 +35,7 @@ def presets(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def app(presets):
-    from app.server import App
+    from granstab_app.server import App
     running = App(host="127.0.0.1", port=0, presets_dir=presets)
     yield running
     running.stop()
@@ -124,7 +124,7 @@ def test_explorer_end_to_end(app, tmp_path):
             if close.count():
                 close.first.click()
             time.sleep(2.0)
-            shot = tmp_path / "app.png"
+            shot = tmp_path / "granstab_app.png"
             page.screenshot(path=str(shot))
         finally:
             ctx.close()

@@ -25,7 +25,7 @@ SWITCHES = 6
 
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
-    from app.server import App
+    from granstab_app.server import App
     folder = tmp_path_factory.mktemp("presets")
     for name in ("two_particle.toml", "ellipses_sharp.toml", "four_disk.toml", "annulus_frame.json",
                  "spheres_tetrahedron.toml", "hand_in_glove.toml"):
@@ -151,7 +151,7 @@ def test_rejected_uploads_say_why(app, browser, tmp_path):
     notice of each upload turns into a red "Not opened: NAME" with the reason (it said "File uploaded successfully."
     for every file), the oversize file is refused as its upload starts (none of its parts buffered, never parsed),
     the button works again, no server path shows, and a good file afterwards opens."""
-    from app.state import MAX_UPLOAD
+    from granstab_app.state import MAX_UPLOAD
     errors: list[str] = []
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
@@ -225,7 +225,7 @@ def test_open_a_real_packing_from_the_page(app, browser):
     """A RigidLibrary annulus folder (1617 disks, 20 frames) typed into *Path on server*: opened once, when typed (not
     at every letter), drawn as one point cloud, not analysed until asked, its validation report shown, and a frame
     slider that reads another frame."""
-    from app.browser import number_box
+    from granstab_app.browser import number_box
     folder = ANNULUS if ANNULUS.is_dir() else Path("/work/shared/data/rigidlibrary/DataAnnulus/10")
     assert folder.is_dir(), f"the photoelastic annulus data are needed: {folder}"
     errors: list[str] = []
@@ -267,7 +267,7 @@ def scan_dir(tmp_path_factory):
     folder = tmp_path_factory.mktemp("scan")
     scene, _ = planted_lattice(40, 0.4)
     packing = folder / "lattice.json"
-    packing.write_text(_json.dumps(scene.to_dict()))
+    packing.write_text(_json.dumps(granstab.scene_to_dict(scene)))
     scan(granstab.load_scene(packing), folder / "scan", workers=1, figures=False)
     return folder / "scan"
 
@@ -279,12 +279,13 @@ def test_a_large_packing_stays_responsive(app, browser, tmp_path):
     the page stopped answering clicks), Mode "(none)", Play and the sliders shown."""
     import json as _json
 
-    from app.panels import LINES_MAX
-    from granstab import packings
+    import granstab
+    from granstab.model import packings
+    from granstab_app.panels import LINES_MAX
     scene = packings.lattice(2, 100)
     assert scene.n_contacts > LINES_MAX
     path = tmp_path / "lattice-1e4.json"
-    path.write_text(_json.dumps(scene.to_dict()))
+    path.write_text(_json.dumps(granstab.scene_to_dict(scene)))
     errors: list[str] = []
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
@@ -338,7 +339,7 @@ def test_quick_switches_in_and_out_of_the_pair(app, browser, scan_dir):
     field note, the spectrum, the mode menu): the side panel was removed and rebuilt on every switch in or out of
     the pair, and the page applies a batch's removals before its updates. (Unmounting a plotly plot with a redraw
     pending is the `_redrawFromAutoMarginCount` page error.)"""
-    from app.browser import number_box
+    from granstab_app.browser import number_box
     errors: list[str] = []
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
@@ -496,7 +497,7 @@ def test_display_controls_per_scene(app, browser):
 def test_pair_opens_oblique_and_a_picked_view_stays(app, browser):
     """The pair opens in the oblique view (its λ⁽⁶⁾ height surface is flat seen from above: it opened top-down), the
     other 2D presets top-down; a view picked in the View menu is kept when the preset changes."""
-    from app.panels import OBLIQUE, TOP
+    from granstab_app.panels import OBLIQUE, TOP
     errors: list[str] = []
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
@@ -665,8 +666,8 @@ def test_no_tooltip_covers_an_input(playwright, tmp_path):
     *Amplitude* hint over the mode box, the *View* hint over the arrow-length number box (before those, a slider's
     hint over the number box above it after a preset pick: gear_packing). A browser context of its own: Playwright's
     clock (installed for a whole context) jumps the hover delays."""
-    from app.browser import chromium
-    from app.server import App
+    from granstab_app.browser import chromium
+    from granstab_app.server import App
     every = App(host="127.0.0.1", port=0)                               # all of presets/
     errors: list[str] = []
     ctx = chromium(playwright, tmp_path / "profile")

@@ -2,7 +2,7 @@
 
 Reference values are independent of the app: λ⁽⁶⁾ = f (ρ - r) and λ⁽⁴⁾ = 2k for the symmetric pair (docs/errata.md,
 Sec. 4.1), the sign pattern of the λ⁽⁶⁾ contour (it changes sign exactly on ρ/r = 1 and on f = 0), and the
-paper's own 6×6 matrices (granstab.studies.two_particle) for the field. Tolerances are relative to the scale of
+paper's own 6×6 matrices (granstab.paper.two_particle) for the field. Tolerances are relative to the scale of
 the numbers compared (k for eigenvalues, the field's max |λ|), at a few hundred eps.
 """
 from __future__ import annotations
@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from helpers import FLAT_PAIR
 
-from app.field import lambda6_field
-from app.models import ContactModel, ShapeModel, TwoParticleModel, load_model
-from app.modes import label_mode
-from app.state import Session
+from granstab_app.field import lambda6_field
+from granstab_app.models import ContactModel, ShapeModel, TwoParticleModel, load_model
+from granstab_app.modes import label_mode
+from granstab_app.state import Session
 
 REPO = Path(__file__).resolve().parent.parent
 EPS = np.finfo(float).eps
@@ -288,7 +288,7 @@ def test_current_state_matches_the_field(pair):
 
 
 def test_a_click_on_the_surface_finds_its_grid_point(pair):
-    from app.views import SceneView, ray_heightfield
+    from granstab_app.views import SceneView, ray_heightfield
     field = pair.field()
     place, _ = SceneView(None).field_frame(field, pair.size)
     Z = field.lam / np.abs(field.lam).max() * 0.8 * pair.size
@@ -335,7 +335,7 @@ def test_export_analysis_and_contour(pair):
 
 
 def test_failed_analysis_is_kept_as_a_message(pair, monkeypatch):
-    from app import state
+    from granstab_app import state
 
     def boom(scene, **options):
         raise RuntimeError("eigensolver exploded")
@@ -372,7 +372,7 @@ def test_current_state_ball_sits_on_the_cached_surface_for_every_rho(pair):
     from scipy.interpolate import RegularGridInterpolator
     """The surface is built once per field (cached) and the ball is placed on every update: both must use the
     same scale, or the ball drifts off the surface as ρ/r (hence the drawn particle size) grows past 1."""
-    from app.views import SceneView
+    from granstab_app.views import SceneView
     view = SceneView(RecordingScene())
     field = pair.field()
     view.draw_field(pair, field, (pair.params["rho_r"], pair.params["f_kr"], pair.rolling_eigenvalue()))
@@ -461,7 +461,7 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     from granstab.scan import read_map, scan
     scene, _ = planted_lattice(40, 0.4)
     packing = tmp_path / "lattice.json"
-    packing.write_text(json.dumps(scene.to_dict()))
+    packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
     scan(granstab.load_scene(packing), tmp_path / "scan", workers=1, figures=False)
     clusters = read_map(tmp_path / "scan")["clusters"]
     row = {k: v[list(clusters["center"]).index("p40")] for k, v in clusters.items()}
@@ -484,7 +484,7 @@ def test_a_concave_side_is_drawn_as_a_socket():
     """hand_in_glove: q's outline near the contact follows its concave circle of curvature (radius 1.002 about
     (-0.002, 0)) on both sides of the contact, as drawn (q's mesh); it was a plain convex disk (radius 2 about (3, 0))
     that touched p at one point. Tolerance 1e-12 r."""
-    from app.views import SceneView
+    from granstab_app.views import SceneView
     s = Session("hand_in_glove")
     view = SceneView(RecordingScene())
     view.draw_particles(s)

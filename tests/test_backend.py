@@ -9,13 +9,15 @@ import numpy as np
 import pytest
 
 import granstab
-from granstab import backend, packings, threads
-from granstab.accuracy import vector_bounds
 from granstab.analysis import build_problem
-from granstab.branches import enumerate_masks
-from granstab.lowrank import solve_branches_lowrank
-from granstab.rigid import rotation_length
-from granstab.stiffness import contact_blocks
+from granstab.mechanics.accuracy import vector_bounds
+from granstab.mechanics.branches import enumerate_masks
+from granstab.mechanics.rigid import rotation_length
+from granstab.mechanics.stiffness import contact_blocks
+from granstab.model import packings
+from granstab.solve import device as backend
+from granstab.solve import threads
+from granstab.solve.lowrank import solve_branches_lowrank
 
 GPU = pytest.mark.skipif(not backend.gpu_available(),
                          reason="no CuPy with a CUDA GPU here: the GPU backend is tested where one is present "
@@ -136,7 +138,7 @@ def test_gpu_preset_verdicts_equal_cpu(preset):
 def test_gpu_gram_floor_is_a_proven_and_tight_lower_bound():
     """lowrank.gram_floor on the GPU (Jacobi eigh + its own residual bound) and on the CPU (LAPACK eigvalsh): both
     at most the exact σ_min(H^i N)² (float64 SVD), and within 1e-10·‖G‖ of it."""
-    from granstab.lowrank import gram_floor, reduce
+    from granstab.solve.lowrank import gram_floor, reduce
     scene = packings.random_packing(2, 16, n_sliding=8, mobilised=0.3, seed=2)
     problem = build_problem(scene, contact_blocks(scene), rotation_length(scene))[0]
     red = reduce(problem)

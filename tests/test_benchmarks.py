@@ -5,13 +5,13 @@ import json
 
 import pytest
 
-from benchmarks import TOPICS
 from granstab.cli import main
+from granstab_bench import TOPICS
 
 
 @pytest.mark.parametrize("topic", TOPICS)
 def test_topic_has_run_and_markdown(topic):
-    module = importlib.import_module(f"benchmarks.{topic}")
+    module = importlib.import_module(f"granstab_bench.{topic}")
     assert callable(module.run) and callable(module.markdown)
     assert "quick" in module.run.__code__.co_varnames[:module.run.__code__.co_argcount]
 
@@ -37,7 +37,7 @@ def test_quick_run_of_one_topic_writes_its_section_and_results(tmp_path):
 def test_converting_checks_what_it_converts():
     """The converting topic asserts that every converted scene reproduces its packing (contacts, forces, centres,
     law); in quick mode at 10³ and 10⁴ contacts, 2D and 3D, LAMMPS dumps and tables."""
-    from benchmarks import converting
+    from granstab_bench import converting
     results = converting.run(quick=True)
     assert {(r["dim"], r["format"]) for r in results["rows"]} == {(d, f) for d in (2, 3) for f in ("lammps", "table")}
     assert all(r["check"]["ok"] and r["dropped_non_touching"] == (r["contact_rows"] - r["check"]["contacts"])

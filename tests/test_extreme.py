@@ -14,12 +14,13 @@ import numpy as np
 import pytest
 
 import granstab
-from granstab import packings, sparse
-from granstab.branches import MINUS, PLUS, RIGID
-from granstab.scene import SceneError
-from granstab.studies import sliding_contact
-from granstab.studies import two_particle as tp
-from granstab.tolerances import DEFAULT, EPS
+from granstab.mechanics.branches import MINUS, PLUS, RIGID
+from granstab.model import packings
+from granstab.model.scene import SceneError
+from granstab.model.tolerances import DEFAULT, EPS
+from granstab.paper import sliding_contact
+from granstab.paper import two_particle as tp
+from granstab.solve import sparse
 
 
 def pair_result(rho=0.5, f=0.01, alpha=1.0, k=1.0, rhoq=None, r=1.0):
@@ -167,7 +168,7 @@ def test_exactly_at_yield_and_a_hair_inside():
     with pytest.raises(SceneError, match="outside the friction cone"):
         yield_pair(1.0 + 1e-6)
     # the sliding branch's contact law, from the assembled Hm of the exact-yield pair
-    K = granstab.stiffness(yield_pair(1.0), mask=[1])
+    K = granstab.mechanics.stiffness(yield_pair(1.0), mask=[1])
     lam = np.linalg.eigvalsh(0.5 * (K.Hm[:2, :2] + K.Hm[:2, :2].T))
     assert np.abs(lam - sliding_contact.closed_form(0.5, 0.7)).max() <= 8 * EPS
 

@@ -33,8 +33,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import granstab
-from granstab import packings
 from granstab.cli import main
+from granstab.model import packings
 
 ROOT = Path(__file__).resolve().parent.parent
 CORPUS = ROOT / "tests" / "corpus"
@@ -198,7 +198,7 @@ def test_valid_scenes_at_the_ends_of_the_ranges_give_strict_json(tmp_path, scene
     assert rc == 0, err
 
 
-NPZ_SEEDS = [granstab.scene.scene_arrays(granstab.scene_from_dict(seed)) for seed in SEEDS]
+NPZ_SEEDS = [granstab.io.schema.scene_arrays(granstab.scene_from_dict(seed)) for seed in SEEDS]
 HOSTILE_ARRAYS = st.one_of(
     st.sampled_from([np.array(2.5), np.array([1.0, np.nan]), np.array([[1e300, 0.0]]), np.array(["x", "y"]),
                      np.zeros((0,)), np.zeros((2, 3, 4)), np.array([True, False]), np.array([-1, 7]),

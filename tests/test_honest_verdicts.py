@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import granstab
-from granstab.branches import RIGID, Branch, INCONSISTENT
-from granstab.scene import SceneError
-from granstab.verdicts import summarize
+from granstab.mechanics.branches import INCONSISTENT, RIGID, Branch
+from granstab.mechanics.verdicts import summarize
+from granstab.model.scene import SceneError
 
 PRESETS = Path(__file__).parents[1] / "presets"
 
@@ -174,7 +174,7 @@ def test_verdict_columns_equal_verdict_of_and_finalize_per_cluster():
     verdict_of + finalize on every cluster alone, over every combination that changes the verdict or its proof:
     negative, zero and proven-zero counts, hinges, inconsistent or unresolved eigenvalues, non-finite numbers,
     undetermined rolling, non-finite error estimates; each field equal, margins each cluster's own."""
-    from granstab.verdicts import KEYED, finalize, verdict_columns, verdict_of
+    from granstab.mechanics.verdicts import KEYED, finalize, verdict_columns, verdict_of
     rng = np.random.default_rng(15)
     n = 600
     zero = rng.integers(0, 3, n)

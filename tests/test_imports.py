@@ -1,5 +1,6 @@
-"""The rooms of the house (README, Design): no import cycles in the core, the core never imports the explorer
-(`app`, viser) nor the benchmarks, and only the CLI's reproduce command imports the report writers."""
+"""The rooms of the house (docs/design.md): arrows between rooms only go down, no import cycles in the core (lazy
+imports counted), the core never imports the explorer (`granstab_app`, viser) nor the benchmarks, and only the
+CLI's reproduce command imports the report writers."""
 from __future__ import annotations
 
 import ast
@@ -10,7 +11,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "granstab"
-FORBIDDEN = ("app", "viser", "benchmarks")          # top-level packages the core must never load
+FORBIDDEN = ("app", "granstab_app", "viser", "benchmarks", "granstab_bench")   # top-level packages the core never loads
+#: the rooms from the bottom up: a module may import its own room and the rooms before it, never one after it
+ROOMS = (("model",), ("io", "mechanics"), ("solve",), ("analysis",), ("__init__",), ("scan", "paper"), ("cli",),
+         ("__main__",))
+REPORT_WRITERS = ("granstab.paper.examples", "granstab.paper.markdown", "granstab.paper.figures")
 
 
 def module_name(path: Path) -> str:
@@ -94,10 +99,10 @@ def test_cycle_finder_finds_a_planted_cycle():
 
 def test_graph_sees_relative_and_lazy_imports():
     graph, eager = internal_graph(), internal_graph(lazy=False)
-    assert "granstab.reading" in eager["granstab.scene"]        # from .reading import ...
-    assert "granstab.scene" in eager["granstab.shapes"]
-    assert "granstab" in eager["granstab.studies.gear"]          # import granstab
-    assert "granstab.report" in graph["granstab.cli"] - eager["granstab.cli"]   # inside cmd_reproduce()
+    assert "granstab.model.errors" in eager["granstab.model.scene"]        # from .reading import ...
+    assert "granstab.model.scene" in eager["granstab.model.shapes"]
+    assert "granstab" in eager["granstab.paper.gear"]          # import granstab
+    assert "granstab.paper" in graph["granstab.cli"] - eager["granstab.cli"]   # inside cmd_reproduce()
 
 
 def test_no_import_cycles_among_module_level_imports():
@@ -105,28 +110,40 @@ def test_no_import_cycles_among_module_level_imports():
     assert find_cycle(internal_graph(lazy=False)) is None
 
 
-#: lazy imports that still close a cycle, each with the change that removes it (the test then fails until its entry
-#: goes): io's `--region ids:@scene.toml` reads the scene's names through files.load_scene, which itself hands
-#: snapshots to io (issue 9) — reading the names with the file parser alone would cut it
-KNOWN_LAZY_CYCLE_EDGES = {("granstab.io", "granstab.files")}
-
-
 def test_no_import_cycles_counting_lazy_imports():
     """An import inside a function that only dodges a cycle is still a cycle: two modules that need each other."""
-    graph = internal_graph()
-    for a, b in KNOWN_LAZY_CYCLE_EDGES:
-        assert b in graph[a] and find_cycle(graph) is not None, f"{a} -> {b} is gone: drop it from the known list"
-        graph[a] = graph[a] - {b}
-    assert find_cycle(graph) is None
+    assert find_cycle(internal_graph()) is None
+
+
+def room_of(module: str) -> int:
+    """The level of a module's room in ROOMS (granstab itself is the facade, `__init__`)."""
+    part = module.split(".")[1] if "." in module else "__init__"
+    return next(i for i, names in enumerate(ROOMS) if part in names)
+
+
+def test_every_module_lives_in_a_room():
+    assert {m.split(".")[1] for m in MODULES if "." in m} <= {n for names in ROOMS for n in names}
+
+
+def test_arrows_between_rooms_only_go_down():
+    """Lazy imports counted: a room never imports a room above it (the design document's picture)."""
+    up = sorted(f"{a} -> {b}" for a, targets in internal_graph().items() for b in targets
+                if room_of(b) > room_of(a))
+    assert not up, up
+
+
+def test_room_checker_sees_an_upward_arrow():
+    assert room_of("granstab.mechanics.branches") < room_of("granstab.solve.threads")
+    assert room_of("granstab.model.scene") < room_of("granstab.io.schema") == room_of("granstab.mechanics.rigid")
 
 
 def test_core_never_imports_report_or_benchmarks_statically():
     """Only the CLI (inside its command functions) may import the report writers; nothing imports benchmarks."""
     for name, path in MODULES.items():
-        if name == "granstab.cli" or name.startswith("granstab.report"):
+        if name == "granstab.cli" or name.startswith("granstab.paper"):
             continue
         imports = imported_modules(name, path)
-        assert not any(i == "granstab.report" or i.startswith("granstab.report.") for i in imports), name
+        assert not any(i in REPORT_WRITERS or i.endswith("_report") for i in imports), name
         assert not any(i.split(".")[0] in FORBIDDEN for i in imports), name
 
 

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from io_checks import check_contact_geometry
 
 import granstab
 from granstab.cli import main
 from granstab.io import load
-from io_checks import check_contact_geometry
 
 DEM = Path(__file__).parents[1] / "examples" / "dem"
 

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from io_checks import check_contact_geometry
 
 import granstab
 from granstab.cli import main
 from granstab.io import load
-from io_checks import check_contact_geometry
 
 ROOT = Path(__file__).parents[1]
 DATA = Path(__file__).parent / "data" / "io" / "lammps"
@@ -273,8 +273,8 @@ def test_timesteps_found_across_chunk_boundaries(monkeypatch, chunk, tmp_path):
 def test_converting_shows_progress_when_asked(monkeypatch, capsys, tmp_path):
     """Large inputs show load_scene's bar (files.ReadProgress) while converting: the dumps' bytes scanned, the
     chosen timestep's rows parsed, then build and checks; tables likewise; nothing without progress."""
-    import granstab.files
-    monkeypatch.setattr(granstab.files, "PROGRESS_BYTES", 10)
+    import granstab.io.scenes
+    monkeypatch.setattr(granstab.io.scenes, "PROGRESS_BYTES", 10)
     plain = load(inputs(2))
     shown = load(inputs(2), progress=True)
     err = capsys.readouterr().err

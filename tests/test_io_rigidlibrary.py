@@ -3,11 +3,11 @@ presets/annulus_frame.json is reproduced, DataSim's Lees–Edwards snapshot conv
 from pathlib import Path
 
 import numpy as np
+from io_checks import check_contact_geometry
 
 import granstab
 from granstab.cli import main
 from granstab.io import load
-from io_checks import check_contact_geometry
 
 ROOT = Path(__file__).parents[1]
 DATA = ROOT.parent / "shared" / "data"

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from io_checks import check_contact_geometry, check_region_analyses
 
 import granstab
 from granstab.cli import main
-from io_checks import check_contact_geometry, check_region_analyses
 
 YADE = Path(__file__).parents[1] / "examples" / "yade"
 FIXTURE = Path(__file__).parent / "data" / "io" / "yade"

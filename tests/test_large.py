@@ -1,4 +1,4 @@
-"""The sparse path (granstab.sparse) against dense eigh, and large scenes (granstab.packings).
+"""The sparse path (granstab.solve.sparse) against dense eigh, and large scenes (granstab.model.packings).
 
 Tolerance (why): both the sparse and the dense eigenvalues carry round-off of a few eps·‖Hs‖ per dof of
 accumulation; the documented bound is the core's zero tolerance, zero_factor·n·eps·‖Hs‖ (tolerances.py), which
@@ -9,10 +9,11 @@ import pytest
 import scipy.sparse as sp
 
 import granstab
-from granstab import packings, sparse
-from granstab.branches import BOTH, MINUS, PLUS, RIGID
-from granstab.stiffness import assemble, contact_blocks
-from granstab.tolerances import DEFAULT
+from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
+from granstab.mechanics.stiffness import assemble, contact_blocks
+from granstab.model import packings
+from granstab.model.tolerances import DEFAULT
+from granstab.solve import sparse
 
 
 def bound(spb) -> float:

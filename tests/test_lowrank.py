@@ -8,13 +8,15 @@ import numpy as np
 import pytest
 
 import granstab
-from granstab import packings, sparse
 from granstab.analysis import build_problem
-from granstab import branches
-from granstab.branches import RIGID, enumerate_masks, solve_branches
-from granstab.lowrank import LazyVectors, SparseRitz, solve_branches_lowrank
-from granstab.rigid import rotation_length
-from granstab.stiffness import contact_blocks
+from granstab.mechanics import branches
+from granstab.mechanics.branches import RIGID, enumerate_masks
+from granstab.mechanics.rigid import rotation_length
+from granstab.mechanics.stiffness import contact_blocks
+from granstab.model import packings
+from granstab.solve import sparse
+from granstab.solve.dense import solve_branches
+from granstab.solve.lowrank import LazyVectors, SparseRitz, solve_branches_lowrank
 
 
 def problem_of(scene):
@@ -53,8 +55,8 @@ def test_lowrank_branches_agree_with_the_full_path_within_their_bounds(name):
         assert (f.n_zero, f.uniqueness_n_zero) == (lo.n_zero, lo.uniqueness_n_zero)
     # the bounds are round-off small: backward error and leakage relative to ‖M_i‖
     assert info["backward_error"] <= 1e-13 and info["leakage"] <= 1e-13
-    summary = granstab.verdicts.summarize(full)
-    other = granstab.verdicts.summarize(low)
+    summary = granstab.mechanics.verdicts.summarize(full)
+    other = granstab.mechanics.verdicts.summarize(low)
     assert {k: v for k, v in summary.items() if k != "zero_margin"} == \
            {k: v for k, v in other.items() if k != "zero_margin"}
 
@@ -64,7 +66,7 @@ def test_vectors_on_demand_are_the_eigenvectors_their_codes_describe():
     problem, full, low, _ = both_paths(scene)
     plain = [b for b in low if isinstance(b.stability_vectors, LazyVectors)]
     assert len(plain) == len(low)
-    from granstab.branches import branch_matrices
+    from granstab.mechanics.branches import branch_matrices
     for b, f in zip(low, full):
         V = np.asarray(b.stability_vectors)
         _, _, Hsym = branch_matrices(problem, b.mask[None])
@@ -151,7 +153,7 @@ def test_sparse_analyze_uses_ritz_and_keeps_the_verdict():
 
 
 def test_analyze_takes_the_low_rank_path_from_min_branches_on():
-    from granstab.lowrank import MIN_BRANCHES
+    from granstab.solve.lowrank import MIN_BRANCHES
     scene = packings.random_packing(2, 16, n_sliding=10, mobilised=0.3, seed=1)
     assert 2 ** 10 >= MIN_BRANCHES
     fast = granstab.analyze(scene, device="auto")

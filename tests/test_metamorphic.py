@@ -22,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import rotation
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from test_properties import packing_scenes
 
 import granstab
-from helpers import rotation
-from test_properties import packing_scenes
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESETS = sorted(p for p in (ROOT / "presets").iterdir() if p.name != "annulus_frame.json")

@@ -5,16 +5,15 @@ Bounds: eigenvalues are compared within the sum of both sides' accuracy bounds (
 spectrum's scale for the independent computation (a generalized eigh of a different, equally well conditioned
 matrix)."""
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.linalg as sla
 
 import granstab
-from granstab.scene import SceneError
-from granstab.shapes import Disk, Sphere, scene_from_shapes
-
-from pathlib import Path
+from granstab.model.scene import SceneError
+from granstab.model.shapes import Disk, Sphere, scene_from_shapes
 
 PRESETS = Path(__file__).parents[1] / "presets"
 
@@ -154,7 +153,7 @@ def test_shape_scenes_carry_masses_and_contact_scenes_may_declare_them():
     sc = granstab.load_scene(PRESETS / "ellipses_sharp.toml")
     assert sc.mass == pytest.approx([np.pi * 0.5] * 2)                    # ρ π a b, ρ = 1
     assert sc.inertia[:, 0, 0] == pytest.approx(np.pi * 0.5 * 1.25 / 4)   # m (a² + b²) / 4
-    d = sc.to_dict()
+    d = granstab.scene_to_dict(sc)
     back = granstab.scene_from_dict(d)
     assert np.array_equal(back.mass, sc.mass) and np.array_equal(back.inertia, sc.inertia)
     bad = {**d, "particles": [{**d["particles"][0], "mass": -1.0}, d["particles"][1]]}
@@ -191,6 +190,7 @@ def test_cli_metric_option_and_json(capsys):
     """`granstab analyze --json`: the family by default (summary.metrics, metric_robust, per-eigenvalue accuracy);
     `--metric 10L` the single metric at ten times the default L; `--metric inertia` frequencies and growth rates."""
     import json
+
     from granstab.cli import main
     assert main(["analyze", str(PRESETS / "ellipsoid_trio.toml"), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
@@ -217,6 +217,7 @@ def test_rotated_ellipsoids_give_a_full_inertia_tensor_and_both_backends_agree()
     non-rigid pair) give the same inertia-metric spectrum within the accuracy bounds and the same verdict, and the
     mass-weighted rigid rotations are exact null vectors (leakage at round-off)."""
     import tomllib
+
     from scipy.spatial.transform import Rotation
     data = tomllib.loads((PRESETS / "ellipsoid_trio.toml").read_text())
     turn = Rotation.from_rotvec(0.3 * np.ones(3) / np.sqrt(3)).as_matrix()
@@ -264,7 +265,7 @@ def test_clustered_sparse_spectrum_falls_back_to_dense_in_bounded_time():
     DENSE_FALLBACK_MAX_DOF it now gets DENSE_FALLBACK_PATIENCE restarts, then the dense fallback (400 disks: 26 s).
     On a 150-disk chain, whichever of the two answers: the lowest eigenvalues equal the dense path's within
     1e-12·max|λ|."""
-    from granstab.branches import RIGID
+    from granstab.mechanics.branches import RIGID
     N = 150
     data = {"dim": 2, "particles": [{"name": f"p{i}", "x": [2.0 * i, 0.0]} for i in range(N)],
             "contacts": [{"p": f"p{i}", "q": f"p{i + 1}", "point": [2.0 * i + 1, 0.0], "normal": [1.0, 0.0],

@@ -1,7 +1,7 @@
 """Property-based tests (hypothesis) over random valid scenes: the exact identities of H hold to round-off, the
 sparse path agrees with the dense one, rigid motions of the whole scene change nothing, and no exception escapes.
 
-Scenes come from two independent generators: granstab.packings (lattice / random contact networks with forces at
+Scenes come from two independent generators: granstab.model.packings (lattice / random contact networks with forces at
 any level, sliding contacts, contact moments, rolling stiffness) and tests/helpers.random_cluster (fully connected
 clusters with off-centre normals). Bound for the identities: 1e-12 relative (they hold exactly; measured
 ≤ 1e-15; 1e-10 for the residual of the non-symmetric ℍ eigenproblem); for eigenvalues: zero_tol = 64·n·eps·‖A‖
@@ -10,14 +10,16 @@ clusters with off-centre normals). Bound for the identities: 1e-12 relative (the
 import json
 
 import numpy as np
+from helpers import random_cluster
+from helpers import scene as make_scene
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import granstab
-from granstab import packings, sparse
-from granstab.branches import RIGID, eigen_groups
-from granstab.tolerances import DEFAULT
-from helpers import random_cluster, scene as make_scene
+from granstab.mechanics.branches import RIGID, eigen_groups
+from granstab.model import packings
+from granstab.model.tolerances import DEFAULT
+from granstab.solve import sparse
 
 IDENTITIES = ("force_balance", "moment_balance", "rigid_leakage_parts", "rigid_leakage_H_translations",
               "rigid_leakage_modified", "projection_idempotence", "projection_symmetry", "equilibrium_residual",
@@ -65,7 +67,7 @@ def check_identities(res):
         bound = 1e-12
         if key == "eigen_residual_stability":
             # a vector chosen inside a group of eigenvalues whose accuracy intervals touch (the Appendix-D subspace
-            # search, grouped as branches._branch groups them: gaps <= δ_i + δ_i+1, up to 2·zero_tol) has a residual
+            # search, grouped as solve.dense._branch groups them: gaps <= δ_i + δ_i+1, up to 2·zero_tol) has a residual
             # up to the group's width
             width = 0.0
             for b in res.branches:

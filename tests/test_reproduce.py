@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from granstab import report
+from granstab import paper as report
 from granstab.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -14,15 +14,25 @@ import pyarrow as pa
 import pytest
 
 import granstab
-from granstab import packings
-from granstab.accuracy import gamma, value_bounds, vector_bounds
-from granstab.branches import RIGID
+from granstab.mechanics.accuracy import gamma, value_bounds, vector_bounds
+from granstab.mechanics.branches import RIGID
+from granstab.model import packings
 from granstab.scan import extract, members, read_map, scan
-from granstab.backend import gpu_available, residual_norms
 from granstab.scan.clusters import CONTACT_FIELDS, boundary_ring, subscene
 from granstab.scan.output import ROW_COLUMNS
-from granstab.scan.run import (CHUNK, FIRST_TASK, TASK_SECONDS, Guide, chunk_cut, chunk_scene, chunk_table,
-                               cluster_row, reach, scan_chunk)
+from granstab.scan.run import (
+    CHUNK,
+    FIRST_TASK,
+    TASK_SECONDS,
+    Guide,
+    chunk_cut,
+    chunk_scene,
+    chunk_table,
+    cluster_row,
+    reach,
+    scan_chunk,
+)
+from granstab.solve.device import gpu_available, residual_norms
 
 ROOT = Path(__file__).resolve().parents[1]
 ANNULUS = ROOT / "presets" / "annulus_frame.json"
@@ -340,7 +350,7 @@ def test_fixed_boundary_holds_the_next_ring_and_keeps_the_packing_stiffness():
     """--boundary fixed: the ring one contact beyond the cluster is held (no dofs, no rigid modes, no projection),
     and the stiffness on the cluster's dofs is exactly the packing's own H restricted to them (every contact of a
     cluster particle is in the sub-scene, eq:final1), at round-off relative to ‖H‖."""
-    from granstab.stiffness import stiffness
+    from granstab.mechanics.stiffness import stiffness
     scene = packings.random_packing(2, 80, n_sliding=10, mobilised=0.5, seed=5)
     center = 37
     sub = extract(scene, scene.names[center], rings=1, boundary="fixed")
@@ -377,7 +387,7 @@ def test_fixed_boundary_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path)
 
 @pytest.mark.parametrize("value, message", [(1, "must be true or false"), ("yes", "must be true or false")])
 def test_a_bad_fixed_flag_is_one_line_naming_the_particle(tmp_path, value, message):
-    data = extract(granstab.load_scene(ANNULUS), granstab.load_scene(ANNULUS).names[40], boundary="fixed").to_dict()
+    data = granstab.scene_to_dict(extract(granstab.load_scene(ANNULUS), granstab.load_scene(ANNULUS).names[40], boundary="fixed"))
     data["particles"][2]["fixed"] = value
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(data))
@@ -394,7 +404,7 @@ def test_a_bad_fixed_flag_is_one_line_naming_the_particle(tmp_path, value, messa
 def test_a_fixed_boundary_scan_map_opens_its_cluster_with_the_ring_held(tmp_path):
     """The explorer opens a cluster of a `--boundary fixed` scan as the scan analysed it: the ring held fixed, the
     same verdict; its modes animate with the held particles at rest and are not made rigid-free."""
-    from app.state import Session
+    from granstab_app.state import Session
     scene = granstab.load_scene(ANNULUS)
     name = scene.names[50]
     scan(scene, tmp_path, centers=name, boundary="fixed", workers=1, figures=False)

@@ -1,4 +1,4 @@
-"""Exact contact geometry of disks, ellipses, spheres and ellipsoids (granstab.shapes) and the shape format.
+"""Exact contact geometry of disks, ellipses, spheres and ellipsoids (granstab.model.shapes) and the shape format.
 
 Tolerances are relative to the particle size L ~ 1 (lengths) or to 1/ρ (curvatures): the overlap δ is a
 difference of O(L) lengths, so its absolute round-off is a few eps·L; everything else is at eps level.
@@ -11,9 +11,18 @@ from scipy.spatial.transform import Rotation
 
 import granstab
 from granstab import SceneError
-from granstab.shapes import (Disk, Ellipse, Ellipsoid, Sphere, contact_geometry, scene_from_shapes,
-                             shape_scene_from_dict, shape_scene_to_dict, shape_tensor, surface_curvature_at,
-                             rotation_matrix)
+from granstab.io.shapefile import shape_scene_from_dict, shape_scene_to_dict
+from granstab.model.shapes import (
+    Disk,
+    Ellipse,
+    Ellipsoid,
+    Sphere,
+    contact_geometry,
+    rotation_matrix,
+    scene_from_shapes,
+    shape_tensor,
+    surface_curvature_at,
+)
 
 EPS = np.finfo(float).eps
 TOL = 64 * EPS   # lengths (L ~ 1) and unit vectors; curvatures are compared relative to their scale

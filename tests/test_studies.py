@@ -1,4 +1,4 @@
-"""The studies of granstab.studies against the paper's numbers (Sec. 4), closed forms and the presets.
+"""The studies of granstab.paper against the paper's numbers (Sec. 4), closed forms and the presets.
 
 Tolerances are stated with their scale: round-off checks are relative to the matrix norm or to k (|λ| ≤ c·eps·‖·‖
 with c ≤ 100), counts are exact, and the path integration is compared with its quadrature error (Simpson, 61 points).
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import granstab
-from granstab.studies import four_disk, gear, sliding_contact, two_particle
+from granstab.paper import four_disk, gear, sliding_contact, two_particle
 
 PRESETS = Path(__file__).resolve().parent.parent / "presets"
 EPS = np.finfo(float).eps
@@ -124,7 +124,7 @@ def test_two_particle_presets(name, rho, verdict, lam6):
 def test_hand_in_glove_preset_geometric_stiffness_dominates():
     sc = granstab.load_scene(PRESETS / "hand_in_glove.toml")
     _same_scene(sc, two_particle.scene(1.0, 1.0, 0.01, rq=2.0, rhoq=-1.002, state="auto"))
-    K = granstab.stiffness(sc)
+    K = granstab.mechanics.stiffness(sc)
     H = two_particle.paper_stiffness(1.0, 1.0, 1.0, 2.0, 1.0, -1.002, 0.01)
     assert np.abs(K.H - H).max() <= 1e-12 * np.abs(H).max()
     ratio = np.linalg.norm(K.Hg1 + K.Hg2 + K.Hg3, 2) / np.linalg.norm(K.Hm, 2)

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..files import ReadProgress
-from ..reading import SceneError
+from ..model.errors import SceneError
+from . import generic as table
+from . import lammps, mercury, rigidlibrary
 from .build import GEOMETRY, OUTSIDE_CONE, Imported, Options, build
-from .report import format_report
-from . import lammps, mercury, rigidlibrary, table
+from .scenes import ReadProgress
+from .validation import format_report
 
 FORMATS = ("rigidlibrary-annulus", "rigidlibrary-datasim", "lammps", "mercurydpm", "table")
 OPTION_KEYS = {"k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol", "length_scale", "units", "region",
@@ -101,7 +102,7 @@ def parse_region(text: str):
         return [v for v in rest.split(",") if v]
     path = Path(rest[1:])
     if path.suffix.lower() in (".json", ".toml"):
-        from ..files import load_scene
+        from .scenes import load_scene
         return list(load_scene(path).names)
     try:
         return path.read_text(encoding="utf-8").replace(",", " ").split()

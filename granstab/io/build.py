@@ -33,9 +33,9 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from ..reading import SceneError
-from ..scene import Scene, build_scene
-from ..vec import sum_at
+from ..model.errors import SceneError
+from ..model.scene import Scene, build_scene
+from ..model.vec import sum_at
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")

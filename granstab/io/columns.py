@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..reading import SceneError
-from ..vec import cross
+from ..model.errors import SceneError
+from ..model.vec import cross
 
 CONTACT_NAMES = {
     "id1", "id2",                 # the two particles (ids as in the particle file; a negative id2 is a wall)

@@ -26,10 +26,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..reading import SceneError
+from ..model.errors import SceneError
 from .build import Snapshot, branch_vectors
-from .columns import CONTACT_NAMES, columns_option, contact_forces, contact_moments, to_indices, unique_ids
-from .text import read_window
+from .columns import (
+    CONTACT_NAMES,
+    columns_option,
+    contact_forces,
+    contact_moments,
+    to_indices,
+    unique_ids,
+)
+from .lines import read_window
 
 CHUNK = 1 << 23          # bytes per step of the scan for timesteps
 

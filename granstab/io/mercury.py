@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..reading import SceneError
+from ..model.errors import SceneError
 from .build import Snapshot
-from .text import read_block
+from .lines import read_block
 
 FSTAT_FIELDS = ("time", "i", "j", "cx", "cy", "cz", "delta", "delta_t", "fn", "ft", "nx", "ny", "nz", "tx", "ty",
                 "tz")

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..reading import SceneError
+from ..model.errors import SceneError
 from .build import Snapshot
-from .text import check_unique, integer_column, line_of, pick_frame, read_table
+from .lines import check_unique, integer_column, line_of, pick_frame, read_table
 
 ANNULUS_FILES = ("particle_positions.txt", "Adjacency_list.txt")
 POSITION_FIELDS = ("frame", "id", "x", "y", "r", "edge")

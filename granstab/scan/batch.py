@@ -30,13 +30,18 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..accuracy import gamma, value_bounds, values_backward_error, vector_bounds
-from ..backend import backend, eigh_stack, residual_norms
-from ..branches import BOTH, consistency
-from ..stiffness import contact_blocks
-from ..tolerances import EPS
-from ..vec import rot_dim, rotate_matrix
-from ..verdicts import tally
+from ..mechanics.accuracy import (
+    gamma,
+    value_bounds,
+    values_backward_error,
+    vector_bounds,
+)
+from ..mechanics.branches import BOTH, consistency
+from ..mechanics.stiffness import contact_blocks
+from ..mechanics.verdicts import tally
+from ..model.tolerances import EPS
+from ..model.vec import rot_dim, rotate_matrix
+from ..solve.device import backend, eigh_stack, residual_norms
 from .clusters import members
 
 LENGTH_FACTORS = {"L": 1.0, "L/10": 0.1, "10L": 10.0}

@@ -11,7 +11,7 @@ from operator import itemgetter
 import numpy as np
 import scipy.sparse as sp
 
-from ..scene import Scene, SceneError, build_scene
+from ..model.scene import Scene, SceneError, build_scene
 
 CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling")
 

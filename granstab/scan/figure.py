@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene import Scene
+from ..model.scene import Scene
 from .output import read_map
 
 

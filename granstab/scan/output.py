@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene import Scene, SceneError
+from ..model.scene import Scene, SceneError
 
 FORMATS = ("parquet", "csv")
 ROW_COLUMNS = ("center", "members", "n_particles", "path", "n_contacts", "n_sliding", "branches", "n_branches",

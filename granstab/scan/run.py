@@ -15,14 +15,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..analysis import analyze
-from ..backend import backend
-from ..branches import RIGID
-from ..scene import Scene, SceneError, build_scene
-from ..threads import blas_threads
-from ..verdicts import verdict_columns
+from ..mechanics.branches import RIGID
+from ..mechanics.verdicts import verdict_columns
+from ..model.scene import Scene, SceneError, build_scene
+from ..solve.device import backend
+from ..solve.threads import blas_threads
 from .batch import batchable, solve_chunk
-from .clusters import (BOUNDARIES, adjacency, boundary_ring, cut, incidence, members, particle_index, subscene,
-                       union)
+from .clusters import (
+    BOUNDARIES,
+    adjacency,
+    boundary_ring,
+    cut,
+    incidence,
+    members,
+    particle_index,
+    subscene,
+    union,
+)
 from .output import ScanOutput, columns_table, concat_rows, rows_table
 
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small

@@ -1,0 +1,196 @@
+"""Generic tables for every other code: one particle table and one contact table (CSV or whitespace, a header
+line naming the columns after any `#` comment lines), optionally many frames (a `frame` column in both).
+
+    particles: id x y [z] radius       (or r, or diameter; 3D when there is a z column)
+    contacts:  id1 id2 fx fy [fz]      (force on id1 by id2; or fnx … + ftx …; or fn ft in 2D with
+               [nx ny [nz]] [m | mx my mz] [mobilised]      f = −f_n n + f_t t, t = e3 × n)
+
+`columns` renames the contact table's columns in order (names as in granstab.io.columns.CONTACT_NAMES). A pair
+listed in both orders is one contact; the two rows must agree with Newton's third law (reported).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..model.errors import SceneError
+from .build import Snapshot
+from .columns import (
+    CONTACT_NAMES,
+    columns_option,
+    contact_forces,
+    contact_moments,
+    to_indices,
+    unique_ids,
+)
+from .lines import line_of, pick_frame, read_table
+
+SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
+PARTICLE_NAMES = {"id", "x", "y", "z", "radius", "r", "diameter", "frame"}
+
+
+def header(path: Path):
+    """(column names, delimiter, header line number): the first line that is neither blank nor a # comment."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for number, line in enumerate(fh, 1):
+                text = line.split("#", 1)[0].strip()
+                if text:
+                    delimiter = "," if "," in text else ("\t" if "\t" in text else None)
+                    return [c.strip() for c in text.split(delimiter)], delimiter, number
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    raise SceneError(f"{path}: line 1: header: empty file")
+
+
+def is_table(path: Path) -> bool:
+    if path.suffix.lower() not in SUFFIXES or not path.is_file():
+        return False
+    try:
+        names = header(path)[0]
+    except SceneError:
+        return False
+    return {"id1", "id2"} <= set(names) or {"id", "x", "y"} <= set(names)
+
+
+def read_tables(paths: list[Path], frame=None, columns: str | None = None, progress=None) -> Snapshot:
+    """The snapshot of one frame; `progress`: a files.ReadProgress (bytes parsed)."""
+    update = None if progress is None else progress.update
+    kinds = {p: header(p) for p in paths}
+    particle_files = [p for p, h in kinds.items() if {"id", "x", "y"} <= set(h[0])]
+    contact_files = [p for p in paths if p not in particle_files]
+    if len(contact_files) != 1 or len(particle_files) != 1:
+        raise SceneError(f"{paths[0]}: need one particle table (header id x y [z] radius) and one contact table "
+                         f"(header id1 id2 ...), got {len(particle_files)} and {len(contact_files)}")
+    ppath, cpath = particle_files[0], contact_files[0]
+    pnames, pdelim, pline = kinds[ppath]
+    cnames, cdelim, cline = kinds[cpath]
+    unknown = [c for c in pnames if c not in PARTICLE_NAMES]
+    if unknown:
+        raise SceneError(f"{ppath}: line {pline}: {unknown[0]}: unknown column (known: {', '.join(sorted(PARTICLE_NAMES))})")
+    if columns:
+        cnames = columns_option(columns, len(cnames), str(cpath), " ".join(cnames))
+    elif any(c not in CONTACT_NAMES for c in cnames):
+        bad = next(c for c in cnames if c not in CONTACT_NAMES)
+        raise SceneError(f"{cpath}: line {cline}: {bad}: unknown column: name the columns with --columns")
+    for need, names, path, line in (("id", pnames, ppath, pline), ("x", pnames, ppath, pline),
+                                    ("y", pnames, ppath, pline), ("id1", cnames, cpath, cline),
+                                    ("id2", cnames, cpath, cline)):
+        if need not in names:
+            raise SceneError(f"{path}: line {line}: {need}: missing column")
+    if not {"radius", "r", "diameter"} & set(pnames):
+        raise SceneError(f"{ppath}: line {pline}: radius: missing column (radius, r or diameter)")
+    if progress is not None:
+        progress.stage("parse")
+    P = read_table(ppath, pnames, delimiter=pdelim, skiprows=pline, min_rows=1, progress=update)
+    C = read_table(cpath, cnames, delimiter=cdelim, skiprows=cline, progress=update)
+    pcol = {n: P[:, k] for k, n in enumerate(pnames)}
+    ccol = {n: C[:, k] for k, n in enumerate(cnames) if n != "-"}
+    prow, crow, frames, which = _frame_rows(ppath, cpath, pcol, ccol, frame)
+    pcol = {n: v[prow] for n, v in pcol.items()}
+    ccol = {n: v[crow] for n, v in ccol.items()}
+    pline_of = lambda r: f"{ppath}: line {line_of(ppath, prow[r], skiprows=pline)}"  # noqa: E731
+    cline_of = lambda r: f"{cpath}: line {line_of(cpath, crow[r], skiprows=cline)}"  # noqa: E731
+    ids = pcol["id"]
+    unique_ids(ids, pline_of, "in one frame")
+    dim = 3 if "z" in pcol else 2
+    x = np.stack([pcol[a] for a in "xyz"[:dim]], axis=1)
+    radius = pcol.get("radius", pcol.get("r", pcol.get("diameter", np.zeros(0)) / 2))
+    what = "not in the particle table" + ("" if which is None else f" at frame {which:g}")
+    wall = ccol["id2"] < 0
+    p = to_indices(ids, ccol["id1"], "id1", cline_of, what)
+    q = np.where(wall, p, to_indices(ids, np.where(wall, ids[0], ccol["id2"]), "id2", cline_of, what))
+    normal = None
+    if "nx" in ccol:
+        normal = np.stack([ccol[f"n{a}"] for a in "xyz"[:dim]], axis=1)
+    elif "fn" in ccol and dim == 2:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            branch = x[q] - x[p]
+            normal = branch / np.linalg.norm(branch, axis=1)[:, None]
+    force, how = contact_forces(str(cpath), ccol, dim, normal)
+    if normal is not None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            normal = normal / np.linalg.norm(normal, axis=1)[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):     # f_r columns: R_eff f_r × n (wall rows: unused)
+        branch = x[q] - x[p]
+        moment = contact_moments(ccol, dim, branch / np.linalg.norm(branch, axis=1)[:, None],
+                                 radius[p] * radius[q] / (radius[p] + radius[q]))
+    wall_load, walls = _walls(wall, p, force, len(ids), ccol["id2"])
+    rows = np.flatnonzero(~wall)
+    law = _law(ccol, rows, cpath)
+    p, q, force, normal, moment, mobilised, keep, duplicates = _one_row_per_pair(
+        p[rows], q[rows], force[rows], None if normal is None else normal[rows],
+        None if moment is None else moment[rows], None if "mobilised" not in ccol else ccol["mobilised"][rows])
+    law = {k: (v[keep], where) for k, (v, where) in law.items()}
+    keep = rows[keep]
+    return Snapshot(source=f"{ppath} + {cpath}", format="table", dim=dim, ids=ids.astype(np.int64)
+                    if np.all(ids == np.round(ids)) else ids, x=x, radius=radius, p=p, q=q, force=force,
+                    normal=normal, moment=moment, mobilised=mobilised, wall_load=wall_load, law=law,
+                    frame=None if which is None else float(which), frames=frames,
+                    notes={"duplicates": duplicates, "forces_from": how, "walls": walls},
+                    particle_line=pline_of, contact_line=lambda c: cline_of(keep[c]))
+
+
+def _frame_rows(ppath, cpath, pcol, ccol, frame):
+    if "frame" not in pcol and "frame" not in ccol:
+        if frame is not None:
+            raise SceneError(f"{ppath}: frame {frame}: frame: the tables have no frame column")
+        return np.arange(len(pcol["id"])), np.arange(len(ccol["id1"])), None, None
+    if "frame" not in pcol or "frame" not in ccol:
+        path = cpath if "frame" not in ccol else ppath
+        raise SceneError(f"{path}: frame: missing column (the other table has one)")
+    which, frames = pick_frame(pcol["frame"], frame, ppath)
+    extra = np.setdiff1d(np.unique(ccol["frame"]), frames)
+    if extra.size:
+        raise SceneError(f"{cpath}: frame {extra[0]:g}: frame: not in {ppath.name} (mismatched files)")
+    return (np.flatnonzero(pcol["frame"] == which), np.flatnonzero(ccol["frame"] == which),
+            [float(f) for f in frames], which)
+
+
+def _walls(wall, p, force, n, id2):
+    """Rows with a negative id2 are forces on id1 by a wall: summed per particle, they are external loads."""
+    if not np.any(wall):
+        return None, "none in the file"
+    load = np.zeros((n, force.shape[1]))
+    np.add.at(load, p[wall], force[wall])
+    return load, {"wall_contacts": int(wall.sum()), "walls": int(np.unique(id2[wall]).size),
+                  "particles_touching": int(np.unique(p[wall]).size),
+                  "treatment": "wall forces become external loads on their particles (with the rest of the "
+                               "imbalance, b = −Σf over particle contacts)"}
+
+
+def _law(col, rows, path):
+    """k = kn, α = kt/kn, μ per contact where the table has those columns."""
+    law = {}
+    if "kn" in col:
+        law["k"] = (col["kn"][rows], f"{path.name} column kn")
+        if "kt" in col:
+            law["alpha"] = (col["kt"][rows] / col["kn"][rows], f"{path.name} columns kt/kn")
+    if "mu" in col:
+        law["mu"] = (col["mu"][rows], f"{path.name} column mu")
+    return law
+
+
+
+
+def _one_row_per_pair(p, q, force, normal, moment, mobilised):
+    """Pairs listed in both orders: keep the first row, check the second against Newton's third law."""
+    lo, hi = np.minimum(p, q), np.maximum(p, q)
+    key = lo.astype(np.int64) * (max(int(hi.max(initial=0)), 0) + 1) + hi
+    _, first, counts = np.unique(key, return_index=True, return_counts=True)
+    keep = np.sort(first)
+    report = {"pairs_listed_twice": int(np.sum(counts == 2)), "pairs_listed_more": int(np.sum(counts > 2))}
+    if np.any(counts > 1):
+        order = np.argsort(key, kind="stable")
+        sorted_key = key[order]
+        second = order[1:][sorted_key[1:] == sorted_key[:-1]]
+        partner = order[:-1][sorted_key[1:] == sorted_key[:-1]]
+        sign = np.where(p[second] == p[partner], 1.0, -1.0)[:, None]
+        diff = np.linalg.norm(force[second] - sign * force[partner], axis=1)
+        scale = np.maximum(np.linalg.norm(force[partner], axis=1), 1e-300)
+        report.update({"newton_third_law_largest_relative_misfit": float((diff / scale).max()),
+                       "kept": "the first row of each pair"})
+    pick = lambda a: None if a is None else a[keep]  # noqa: E731
+    mob = None if mobilised is None else mobilised[keep] != 0
+    return p[keep], q[keep], force[keep], pick(normal), pick(moment), mob, keep, report

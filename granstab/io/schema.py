@@ -1,0 +1,323 @@
+"""The contact-level scene format (README: Scene format) as a schema: parsed TOML/JSON dicts and NPZ arrays →
+`Scene`, column by column (vectorised), with one-line errors naming the entry and field; and back."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.errors import SceneError, describe, first
+from ..model.scene import LAW_DEFAULTS, LAW_KEYS, STATES, Scene, build_scene
+from ..model.tolerances import DEFAULT, Tolerances
+from ..model.vec import rot_dim, tangent_basis
+from .entries import ArrayTable, Reader, TextTable, read_law
+from .syntax import paused_gc
+
+TOP_KEYS = {"dim", "title", "defaults", "particles", "contacts"}
+PARTICLE_KEYS = {"name", "x", "load", "moment", "mass", "inertia", "fixed"}
+CONTACT_KEYS = {"p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state", *LAW_KEYS}
+
+
+
+def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
+    """Build and validate a Scene from the parsed contact-level file format (a dict); files.py dispatches."""
+    top, dim, title = read_header(data, source, TOP_KEYS)
+    law = read_law(Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, _base_law(dim))
+    if not isinstance(data.get("particles"), list) or not data["particles"]:
+        top.fail("particles", "must be a non-empty array of tables")
+    particles = TextTable(source, "particles", data["particles"], PARTICLE_KEYS)
+    contacts = TextTable(source, "contacts", data.get("contacts", []), CONTACT_KEYS)
+    return _scene_from_tables(dim, title, law, particles, contacts, source, tol)
+
+
+NPZ_META = ("dim", "title")
+
+
+def scene_arrays(scene: Scene) -> dict:
+    """The file format as whole arrays (NPZ): `particles/<field>` and `contacts/<field>` over the entries, the
+    same fields and units as the text format (2D curvatures and moments as scalars; p, q as 0-based particle
+    indices, which scene_from_arrays also accepts as names)."""
+    names = np.array(scene.names, dtype=str)
+    scalar = scene.dim == 2
+    out = {"dim": np.array(scene.dim), "title": np.array(scene.title, dtype=str),
+           "particles/name": names, "particles/x": scene.x, "particles/load": scene.load,
+           "particles/moment": scene.load_moment[:, 0] if scalar else scene.load_moment,
+           "contacts/p": scene.p, "contacts/q": scene.q, "contacts/point": scene.point,
+           "contacts/normal": scene.normal, "contacts/force": scene.force,
+           "contacts/moment": scene.moment[:, 0] if scalar else scene.moment,
+           "contacts/k": scene.k, "contacts/alpha": scene.alpha, "contacts/mu": scene.mu,
+           "contacts/rolling_stiffness": scene.rolling[:, 0, 0] if scalar else scene.rolling,
+           "contacts/state": np.array(scene.state, dtype=str).reshape(scene.n_contacts)}
+    for key in ("curvature_p", "curvature_q"):
+        K = getattr(scene, key)
+        out[f"contacts/{key}"] = _kappa(K, scene.normal) if scalar else K
+    if scene.fixed is not None:
+        out["particles/fixed"] = scene.fixed
+    if scene.mass is not None:
+        out["particles/mass"] = scene.mass
+        out["particles/inertia"] = scene.inertia[:, 0, 0] if scalar else scene.inertia
+    return out
+
+
+def _kappa(K: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """2D curvature tensors κ t⊗t back to κ = tᵀKt (M,)."""
+    t = tangent_basis(normal)[:, :, 0]
+    return np.einsum("mi,mij,mj->m", t, K, t)
+
+
+def scene_from_arrays(arrays: dict, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
+    """Build and validate a Scene from `scene_arrays`' dict (an .npz file): the same checks as the text format."""
+    allowed = {*NPZ_META, *(f"particles/{k}" for k in PARTICLE_KEYS), *(f"contacts/{k}" for k in CONTACT_KEYS)}
+    unknown = sorted(set(arrays) - allowed)
+    if unknown:
+        raise SceneError(f"{source}: {unknown[0]}: unknown array (allowed: {', '.join(sorted(allowed))})")
+    meta = {}
+    for key in NPZ_META:
+        value = arrays.get(key)
+        if value is not None and value.shape != ():
+            raise SceneError(f"{source}: {key}: must be a single value, got shape {value.shape}")
+        if value is not None:
+            meta[key] = value.item()
+    top, dim, title = read_header(meta, source, set(NPZ_META))
+
+    def table(prefix: str) -> ArrayTable:
+        cols = {key.split("/", 1)[1]: value for key, value in arrays.items() if key.startswith(prefix + "/")}
+        lengths = {key: len(value) if value.ndim else -1 for key, value in cols.items()}
+        n = lengths.get("name" if prefix == "particles" else "p", 0)
+        wrong = next((key for key, m in lengths.items() if m != n), None)
+        if wrong is not None:
+            raise SceneError(f"{source}: {prefix}/{wrong}: has {lengths[wrong]} rows, expected {n}")
+        return ArrayTable(source, prefix, cols, n)
+
+    particles, contacts = table("particles"), table("contacts")
+    if not len(particles):
+        top.fail("particles", "must be a non-empty array")
+    return _scene_from_tables(dim, title, _base_law(dim), particles, contacts, source, tol)
+
+
+def _base_law(dim: int) -> dict:
+    r = rot_dim(dim)
+    return {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((r, r))}
+
+
+def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Scene:
+    """The schema, column by column (vectorised): particles' names, positions and optional loads; contacts'
+    particles, geometry, forces, law and state. Errors name the first bad entry and its field."""
+    r = rot_dim(dim)
+    names = particles.strings("name")
+    index = dict(zip(names, range(len(names))))
+    if len(index) != len(names):
+        seen = {}
+        for i, name in enumerate(names):
+            if name in seen:
+                particles.label = lambda j: f"particles[{j}] ({names[j]!r})"
+                particles.fail(i, "name", f"duplicate particle name (also particles[{seen[name]}])")
+            seen[name] = i
+    particles.label = lambda j: f"particles[{j}] ({names[j]!r})"
+    x = particles.numbers("x", (dim,))
+    moment_shape = () if dim == 2 else (3,)
+    loads = (particles.numbers("load", (dim,), 0.0), particles.present("load"))
+    moments = (particles.numbers("moment", moment_shape, 0.0).reshape(-1, r), particles.present("moment"))
+    mass, inertia = _mass_columns(particles, dim, tol)
+    fixed = _fixed_column(particles)
+
+    M = len(contacts)
+    p, q = _particle_column(contacts, "p", names, index), _particle_column(contacts, "q", names, index)
+    contacts.label = lambda c: f"contacts[{c}] ({names[p[c]]}-{names[q[c]]})"
+    if np.any(p == q):
+        contacts.fail(first(p == q), "q", "a particle cannot touch itself (p = q)")
+    _check_unique_pairs(contacts, p, q, names)
+    normal = contacts.numbers("normal", (dim,))
+    norm = np.linalg.norm(normal, axis=1)
+    bad = np.abs(norm - 1.0) > tol.input_rtol
+    if bad.any():
+        c = first(bad)
+        contacts.fail(c, "normal", f"must be a unit vector, |n| = {norm[c]:.9g}")
+    arrays = {"p": p, "q": q, "point": contacts.numbers("point", (dim,)), "normal": normal,
+              "curvature_p": _curvature_column(contacts, "curvature_p", dim, normal, tol),
+              "curvature_q": _curvature_column(contacts, "curvature_q", dim, normal, tol),
+              "force": contacts.numbers("force", (dim,)),
+              "moment": contacts.numbers("moment", moment_shape, 0.0).reshape(M, r)}
+    for key, low, strict in (("k", 0.0, True), ("alpha", 0.0, True), ("mu", 0.0, False)):
+        values = contacts.numbers(key, (), law[key])
+        bad = values <= low if strict else values < low
+        if bad.any():
+            c = first(bad)
+            contacts.fail(c, key, f"must be {'>' if strict else '>='} 0, got {values[c]}")
+        arrays[key] = values
+    arrays["rolling"] = _rolling_column(contacts, dim, law["rolling_stiffness"])
+    state = contacts.strings("state", "auto")
+    wrong = set(state) - set(STATES)
+    if wrong:
+        c = state.index(sorted(wrong)[0])
+        contacts.fail(c, "state", f"must be one of {', '.join(STATES)}, got {state[c]!r}")
+    arrays["state"] = tuple(state)
+    return build_scene(dim, names, x, arrays, loads, moments, title=title, source=source, tol=tol,
+                       entries=contacts.label, particle_entries=particles.label, mass=mass, inertia=inertia,
+                       fixed=fixed)
+
+
+def _fixed_column(particles) -> np.ndarray | None:
+    """Optional `fixed` (true/false) of each particle: a support with no dofs (absent: false). None if none is."""
+    values, have = particles.raw("fixed")
+    flags = np.zeros(len(particles), bool)
+    if not have.any():
+        return None
+    given = np.asarray(values)
+    if given.dtype != bool or given.shape != (int(have.sum()),):
+        j = next((j for j, v in enumerate(values) if not isinstance(v, (bool, np.bool_))), 0)
+        particles.fail(int(np.flatnonzero(have)[j]), "fixed", f"must be true or false, got {describe(values[j])}")
+    flags[have] = given
+    if flags.all():
+        particles.fail(0, "fixed", "every particle is fixed: at least one must be free to move")
+    return flags if flags.any() else None
+
+
+def _particle_column(table, key: str, names: list, index: dict) -> np.ndarray:
+    """Particle indices of a contact's p or q: names (text and NPZ) or, in NPZ, 0-based indices into the particles
+    (what save_scene writes: no string work for 10⁶ contacts). An unknown particle names the contact."""
+    given, _ = table.raw(key)
+    if isinstance(given, np.ndarray) and given.dtype.kind in "iu":
+        if given.shape != (len(table),):
+            table.fail(None, key, f"must have shape ({len(table)},), got {given.shape}")
+        bad = (given < 0) | (given >= len(names))
+        if bad.any():
+            table.fail(first(bad), key, f"particle index {given[first(bad)]} is not in 0..{len(names) - 1}")
+        return given.astype(np.intp)
+    labels = table.strings(key)
+    found = list(map(index.get, labels))
+    if None in found:
+        c = found.index(None)
+        table.label = lambda i: f"{table.name}[{i}]"
+        table.fail(c, key, f"unknown particle {labels[c]!r}")
+    return np.array(found, dtype=np.intp).reshape(len(labels))
+
+
+def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, names: list) -> None:
+    """One contact per unordered pair: the first repeat (in file order) is an error naming both entries."""
+    if len(p) < 2:
+        return
+    key = np.minimum(p, q).astype(np.int64) * (max(p.max(), q.max()) + 1) + np.maximum(p, q)
+    order = np.argsort(key, kind="stable")
+    same = key[order][1:] == key[order][:-1]
+    if same.any():
+        later = order[1:][same]
+        c = int(later.min())
+        j = int(order[:-1][same][np.argmin(later)])
+        table.fail(c, "q", f"duplicate contact between {names[p[c]]!r} and {names[q[c]]!r} (also contacts[{j}])")
+
+
+def _curvature_column(table, key: str, dim: int, normal: np.ndarray, tol: Tolerances) -> np.ndarray:
+    """2D: scalar κ along t (convex < 0, κ = -1/ρ) → κ t⊗t; 3D: symmetric 3x3 with K·n = 0 (input_rtol·|K|)."""
+    if dim == 2:
+        t = tangent_basis(normal)[:, :, 0]
+        return table.numbers(key, ())[:, None, None] * (t[:, :, None] * t[:, None, :])
+    K = table.numbers(key, (3, 3))
+    scale = np.maximum(np.abs(K).max(axis=(1, 2), initial=0.0), 1e-300)
+    asym = np.abs(K - np.swapaxes(K, 1, 2)).max(axis=(1, 2), initial=0.0)
+    if np.any(asym > tol.input_rtol * scale):
+        table.fail(first(asym > tol.input_rtol * scale), key, "curvature tensor must be symmetric")
+    n = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+    Kn = np.linalg.norm(np.einsum("mij,mj->mi", K, n), axis=1)
+    if np.any(Kn > tol.input_rtol * scale):
+        c = first(Kn > tol.input_rtol * scale)
+        table.fail(c, key, f"curvature tensor must be tangent (K·n = 0), |K·n| = {Kn[c]:.3g}")
+    return K
+
+
+def _rolling_column(table, dim: int, default: np.ndarray) -> np.ndarray:
+    """M^pq per contact: a scalar (× I; >= 0) in 2D, a scalar or a 3x3 matrix in 3D; the defaults elsewhere."""
+    r = rot_dim(dim)
+    key = "rolling_stiffness"
+    matrix = table.matrix_form(key) if dim == 3 else np.zeros(len(table), bool)
+    scalar = table.present(key) & ~matrix
+    out = np.broadcast_to(default, (len(table), r, r)).copy()
+    if scalar.any():
+        value = table.numbers(key, (), 0.0, where=scalar)
+        if np.any(value < 0):
+            table.fail(first(value < 0), key, f"must be >= 0, got {value[first(value < 0)]}")
+        out[scalar] = value[scalar, None, None] * np.eye(r)
+    if matrix.any():
+        out[matrix] = table.numbers(key, (3, 3), 0.0, where=matrix)[matrix]
+    return out
+
+
+def _mass_columns(table, dim: int, tol: Tolerances):
+    """Optional `mass` (> 0) and `inertia` (2D: a number > 0; 3D: a symmetric positive definite 3x3 tensor in the
+    global frame) of every particle, or of none: (mass (N,), inertia (N, r, r)) or (None, None)."""
+    has_m, has_j = table.present("mass"), table.present("inertia")
+    if not (has_m.any() or has_j.any()):
+        return None, None
+    both = has_m & has_j
+    if not both.all():
+        i = first(~both)
+        table.fail(i, "mass" if not has_m[i] else "inertia",
+                   "missing: the inertia metric needs mass and inertia for every particle (or for none)")
+    mass = table.numbers("mass", ())
+    if np.any(mass <= 0):
+        table.fail(first(mass <= 0), "mass", f"must be positive, got {mass[first(mass <= 0)]:g}")
+    if dim == 2:
+        J = table.numbers("inertia", ())
+        if np.any(J <= 0):
+            table.fail(first(J <= 0), "inertia", f"must be positive, got {J[first(J <= 0)]:g}")
+        return mass, J.reshape(-1, 1, 1)
+    J = table.numbers("inertia", (3, 3))
+    asym = np.abs(J - np.swapaxes(J, 1, 2)).max(axis=(1, 2))
+    bad = asym > tol.input_rtol * np.abs(J).max(axis=(1, 2))
+    if bad.any():
+        table.fail(first(bad), "inertia", "must be a symmetric 3x3 tensor")
+    J = 0.5 * (J + np.swapaxes(J, 1, 2))
+    bad = np.linalg.eigvalsh(J).min(axis=1) <= 0
+    if bad.any():
+        table.fail(first(bad), "inertia", "must be positive definite")
+    return mass, J
+
+
+def read_header(data, source: str, allowed: set):
+    """The top-level table: its reader, dim (the integer 2 or 3, required) and title (optional)."""
+    top = Reader(source, "scene", data, allowed)
+    if "dim" not in data:
+        top.fail("dim", "missing (2 or 3)")
+    dim = data["dim"]
+    if type(dim) is not int or dim not in (2, 3):
+        top.fail("dim", f"must be the integer 2 or 3, got {describe(dim)}")
+    title = data.get("title", "")
+    if not isinstance(title, str):
+        top.fail("title", f"must be a string, got {describe(title)}")
+    return top, int(dim), title
+
+
+def read_particles(top: Reader, data: dict, allowed: set, read) -> list:
+    """The `particles` array of a shape scene (small): one table each, with a unique name; `read(rd, name)`
+    returns an entry's data."""
+    particles = data.get("particles")
+    if not isinstance(particles, list) or not particles:
+        top.fail("particles", "must be a non-empty array of tables")
+    out, index = [], {}
+    for i, item in enumerate(particles):
+        rd = Reader(top.source, f"particles[{i}]", item, allowed)
+        name = rd.text("name")
+        rd.entry = f"particles[{i}] ({name!r})"
+        if name in index:
+            rd.fail("name", f"duplicate particle name (also particles[{index[name]}])")
+        index[name] = i
+        out.append(read(rd, name))
+    return out
+
+
+def scene_to_dict(scene: Scene) -> dict:
+    """The scene in the file format (contact level); `scene_from_dict` reads it back to the same arrays.
+    Built column-wise from `scene_arrays` (numpy's tolist, then one zip per entry)."""
+    cols = scene_arrays(scene)
+    names = cols["particles/name"]
+    cols["contacts/p"], cols["contacts/q"] = names[scene.p], names[scene.q]      # the text format names them
+
+    def rows(prefix: str, keys: tuple) -> list:
+        return [dict(zip(keys, values)) for values in zip(*(cols[f"{prefix}/{k}"].tolist() for k in keys))]
+
+    particle_keys = (("name", "x", "load", "moment") + (("mass", "inertia") if scene.mass is not None else ())
+                     + (("fixed",) if scene.fixed is not None else ()))
+    with paused_gc():
+        return {"dim": scene.dim, "title": scene.title,
+                "particles": rows("particles", particle_keys),
+                "contacts": rows("contacts", ("p", "q", "point", "normal", "curvature_p", "curvature_q",
+                                              "force", "moment", "k", "alpha", "mu", "rolling_stiffness",
+                                              "state"))}

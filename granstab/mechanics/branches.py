@@ -1,0 +1,206 @@
+"""Loading branches of the sliding contacts and their consistent eigenmodes (Sec. 3, Appendix D).
+
+With Ms potentially sliding contacts there are 2^Ms branches; a mask has +1 (loading, sliding), -1 (unloading,
+elastic) for each of them and 0 for contacts not at yield. Branch i has H^i = H_el + Σ_{mask=+1} a ⊗ s (rank-one
+sliding terms, eq:ContactF), ℍ^i = H^i P^nrr and 𝓗^i = Pᵀ H^i P (eq:newstiffnesses). All branches are handled
+as one stacked array (in chunks), in the scaled dofs of rigid.py; from lowrank.MIN_BRANCHES branches on (or on a
+GPU) analyze() uses lowrank.py, which solves them as low-rank updates of the elastic problem and hands only the
+branches that need the per-branch code below (repeated eigenvalues, non-rigid zeros, Type-2) to solve.dense.solve_branches.
+
+Consistency (Appendix D): the test vector of a motion v is sign(S) per potentially sliding contact with
+S = g·δu_def (eq:flow) and |S| <= s_tol counted as 0; v is consistent if mask·test is all >= 0, -v if all <= 0,
+both if all 0. A repeated eigenvalue (or the non-rigid part of the zero eigenspace) has no preferred basis:
+there the whole eigenspace is searched for a consistent vector with a small linear program.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linprog
+
+from ..model.tolerances import EPS
+
+# codes of an eigenpair's consistency: vector_sign +1 / -1 / 0 (both), not consistent, rigid (trivial)
+PLUS, MINUS, BOTH, INCONSISTENT, RIGID = 1, -1, 0, 2, 3
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """Everything a branch needs, in scaled dofs: H_el (n, n), sliding factors A, S (n, Ms), projection, rigid basis."""
+
+    H_el: np.ndarray
+    A: np.ndarray
+    S: np.ndarray
+    projection: object
+    rigid: np.ndarray          # (n, n_rigid) orthonormal basis of all rigid motions
+    sliding: np.ndarray        # (Ms,) indices of the potentially sliding contacts
+    n_contacts: int
+    tol: object
+    formation_error: float = 0.0   # bound of ‖sym(𝓗) computed − exact‖₂ from forming it (accuracy.formation_error)
+    free: np.ndarray | None = None  # the scene's dofs these n are (Scene.free_dofs), None: all of them
+
+    @property
+    def s_tol(self) -> float:
+        """|S| <= s_tol counts as zero: s_rtol times the largest |s_c|, the scale of S for a unit motion."""
+        scale = np.linalg.norm(self.S, axis=0).max() if self.S.size else 0.0
+        return self.tol.s_rtol * scale
+
+    @property
+    def s_floor(self) -> float:
+        """Round-off level of S: below it an S is a structural zero, above it (and <= s_tol) a verdict 'hinges'."""
+        scale = np.linalg.norm(self.S, axis=0).max() if self.S.size else 0.0
+        return 1e3 * EPS * scale
+
+
+@dataclass(eq=False)
+class Branch:
+    """One loading branch: spectra of sym(𝓗^i) (stability) and ℍ^i (uniqueness), with consistency codes.
+
+    stability_vectors are unit columns in scaled dofs Ũ (physical motion U = D Ũ); codes[j] is the consistency of
+    eigenpair j (PLUS, MINUS, BOTH, INCONSISTENT, RIGID); hinges[j] is True where the verdict depends on an S
+    inside the tolerance band; type2 lists consistent non-rigid null vectors of ℍ^i (Type-2 non-uniqueness).
+    """
+
+    mask: np.ndarray
+    stability_eigenvalues: np.ndarray
+    stability_vectors: np.ndarray
+    codes: np.ndarray
+    hinges: np.ndarray
+    n_zero: int
+    zero_tol: float
+    uniqueness_eigenvalues: np.ndarray
+    uniqueness_n_zero: int
+    type2: list = field(default_factory=list)
+    residual_stability: float = 0.0
+    residual_uniqueness: float = 0.0
+    bounds: np.ndarray | None = None   # per stability eigenvalue: |λ_exact - λ| <= bounds[j] (accuracy.py)
+    negative_count: dict | None = None  # sparse path: negatives of sym(𝓗^i) (count, total?, inertia shift)
+
+    @property
+    def accuracy(self) -> np.ndarray:
+        """Per-eigenvalue error bounds (zero_tol for every eigenvalue where none were computed)."""
+        lam = self.stability_eigenvalues
+        return np.full(lam.shape, self.zero_tol) if self.bounds is None else self.bounds
+
+    def consistent(self) -> list[dict]:
+        """Consistent non-trivial eigenpairs: eigenvalue, vector_sign (+1, -1, 0 = both), hinges."""
+        out = []
+        for j in np.flatnonzero(np.isin(self.codes, (PLUS, MINUS, BOTH))):
+            out.append({"eigenvalue": float(self.stability_eigenvalues[j]), "vector_sign": int(self.codes[j]),
+                        "hinges_on_tolerance": bool(self.hinges[j]), "index": int(j)})
+        return out
+
+
+def enumerate_masks(sliding: np.ndarray, n_contacts: int) -> np.ndarray:
+    """All 2^Ms masks (L, M): ±1 on the potentially sliding contacts (branch 0 all +1), 0 elsewhere."""
+    Ms = len(sliding)
+    bits = (np.arange(2 ** Ms)[:, None] >> np.arange(Ms)[::-1]) & 1
+    masks = np.zeros((2 ** Ms, n_contacts), dtype=np.int8)
+    masks[:, sliding] = 1 - 2 * bits
+    return masks
+
+
+def branch_matrices(problem: Problem, masks: np.ndarray):
+    """Stacked H^i, ℍ^i and sym(𝓗^i) for masks (L, M): three (L, n, n) arrays."""
+    on = (masks[:, problem.sliding] == 1).astype(float)               # (L, Ms)
+    H = problem.H_el[None] + np.einsum("nm,lm,km->lnk", problem.A, on, problem.S)
+    HH = problem.projection.right(H)
+    HS = problem.projection.both(HH)
+    return H, HH, 0.5 * (HS + np.swapaxes(HS, 1, 2))
+
+
+def sample_masks(sliding: np.ndarray, n_contacts: int, n_sample: int, seed: int = 0) -> np.ndarray:
+    """The all-loading and all-unloading masks, then up to n_sample distinct seeded random ones (L, M), for Ms too
+    large to enumerate the 2^Ms branches."""
+    Ms = len(sliding)
+    rng = np.random.default_rng(seed)
+    signs = np.vstack([np.ones(Ms), -np.ones(Ms), rng.choice([-1.0, 1.0], size=(n_sample, Ms))]).astype(np.int8)
+    _, first = np.unique(signs, axis=0, return_index=True)
+    masks = np.zeros((len(first), n_contacts), dtype=np.int8)
+    masks[:, sliding] = signs[np.sort(first)]
+    return masks
+
+
+def test_codes(problem: Problem, masks: np.ndarray, V: np.ndarray):
+    """Appendix-D test of every column of V (L, n, k) against its branch mask: codes (L, k) and hinges (L, k)."""
+    return codes_from_s(problem, masks, np.einsum("nm,lnk->lmk", problem.S, V))
+
+
+def codes_from_s(problem: Problem, masks: np.ndarray, Svals: np.ndarray):
+    """`test_codes` from the S values (L, Ms, k) of the columns (S = g·δu_def of each sliding contact, eq:flow)."""
+    return consistency(masks[:, problem.sliding][:, :, None].astype(float), Svals, problem.s_tol, problem.s_floor)
+
+
+def consistency(m, Svals, s_tol, s_floor, xp=np):
+    """Appendix-D codes (L, k) and hinges (L, k) of columns with S values Svals (L, Ms, k) against branch masks m
+    (L, Ms, 1) (0 for contacts not at yield); s_tol, s_floor: scalars or per branch (L, 1, 1); xp: numpy or CuPy."""
+    test = xp.where(xp.abs(Svals) <= s_tol, 0.0, xp.sign(Svals))
+    prod = m * test
+    plus = xp.all(prod >= 0, axis=1)
+    minus = xp.all(prod <= 0, axis=1)
+    codes = xp.where(plus & minus, BOTH, xp.where(plus, PLUS, xp.where(minus, MINUS, INCONSISTENT)))
+    band = (xp.abs(Svals) <= s_tol) & (xp.abs(Svals) > s_floor) & (m != 0)
+    return codes.astype(np.int8), xp.any(band, axis=1)
+
+
+def search_subspace(problem: Problem, mask: np.ndarray, W: np.ndarray):
+    """A consistent unit vector in span(W) (n, k), or None: (vector, code, hinges).
+
+    Maximises the smallest mask_j·S_j over the box |c| <= 1 (a linear program); if that is not positive, a vector
+    with every S_j = 0 (consistent both ways) or with all mask_j·S_j >= 0 and some > 0 is looked for.
+    """
+    m = mask[problem.sliding].astype(float)
+    A = (problem.S.T @ W)[m != 0] * m[m != 0][:, None]               # rows m_j S_j(c)
+    k = W.shape[1]
+    if A.shape[0] == 0:
+        return _unit(W[:, 0]), BOTH, False
+    res = linprog(np.r_[np.zeros(k), -1.0], A_ub=np.c_[-A, np.ones(len(A))], b_ub=np.zeros(len(A)),
+                  bounds=[(-1, 1)] * k + [(None, 1)], method="highs")
+    if res.status == 0 and -res.fun > problem.s_tol:
+        return _finish(problem, mask, W @ res.x[:k])
+    _, sv, Vt = np.linalg.svd(A, full_matrices=True)
+    rank = int(np.sum(sv > problem.s_tol))
+    if rank < k:
+        return _finish(problem, mask, W @ Vt[rank])
+    res = linprog(-A.sum(axis=0), A_ub=-A, b_ub=np.zeros(len(A)), bounds=[(-1, 1)] * k, method="highs")
+    if res.status == 0 and -res.fun > problem.s_tol:
+        return _finish(problem, mask, W @ res.x)
+    return None
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def _finish(problem, mask, v):
+    v = _unit(v)
+    codes, hinges = test_codes(problem, mask[None], v[None, :, None])
+    code = int(codes[0, 0])
+    if code == INCONSISTENT:
+        return None
+    return v, code, bool(hinges[0, 0])
+
+
+def canonical_signs(V: np.ndarray) -> np.ndarray:
+    """Eigenvectors (..., n, k) with each column's largest-magnitude entry positive: LAPACK's sign choice varies
+    between builds, and the reported vector_sign (±v consistent) must not."""
+    idx = np.argmax(np.abs(V), axis=-2)[..., None, :]
+    return V * np.where(np.take_along_axis(V, idx, axis=-2) < 0, -1.0, 1.0)
+
+
+def eigen_groups(lam: np.ndarray, tol) -> list[np.ndarray]:
+    """Indices of runs of sorted eigenvalues closer than tol (repeated eigenvalues), including singletons; tol a
+    number or per-eigenvalue bounds (neighbours whose error intervals touch are one group)."""
+    tol = np.asarray(tol, dtype=float)
+    gap_tol = tol[:-1] + tol[1:] if tol.ndim else tol
+    breaks = np.flatnonzero(np.diff(lam) > gap_tol) + 1
+    return np.split(np.arange(len(lam)), breaks)
+
+
+def non_rigid_part(problem: Problem, W: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the part of span(W) outside the rigid motions."""
+    R = problem.rigid
+    Wp = W - R @ (R.T @ W)
+    U, sv, _ = np.linalg.svd(Wp, full_matrices=False)
+    return U[:, sv > 0.5]

@@ -1,0 +1,251 @@
+"""Incremental stiffness H = Hg1 + Hg2 + Hg3 + Hm (eq:final1), per contact and assembled.
+
+Each contact contributes a block over its local dofs U = [du^p, dθ^p, du^q, dθ^q] (n = 2(d + r): 6 in 2D,
+12 in 3D) with rows [db^p, dw^p, db^q, dw^q] (eq:piece). The blocks of all M contacts are built at once as
+(M, n, n) arrays from per-contact linear maps (…, rows, n):
+
+  kinematics (eq:dudef, eq:dtdef)   Bu: δu_def = du^q - du^p + dθ^q × r^qp - dθ^p × r^pq,  Bt: δθ_def
+  rolling    (eq:rolling)           δs^t t^pq = -(K^p+K^q)^+ [δθ_def × n - K^q·δu_def,t]  (qp: +K^p, same n)
+  contact point and normal          δr^pq = ½(δu_def·n)n + δs^t t (eq:dsn, eq:Drpq),  δn^pq = -K^p·δs^t t (eq:Dnpq)
+  force rotation (eq:Dfpq, eq:A3)   f × (δn × n) - ½(δθ_def·n) f × n  — with erratum 1, docs/errata.md: the qp rows use
+                                    (δθ^qp_def·n^qp) = (δθ_def·n), so both sides carry the same twirl term
+  statics A1 (eq:Matrix2)           force rows -δf, moment rows -(r × δf + δm)
+
+Hm = -A1 [F/M] B (eq:Hm), Hg2 = -A1 A2 (eq:equilibrium4), Hg1 from -δr × f (eq:Hg1), Hg3 from the corotation
+of the loads, dθ^p × b^p and dθ^p × w^p written per contact (eq:Hg3). A sliding contact changes Hm by a
+rank-one block a ⊗ s with s·U = S = g·δu_def (eq:flow), which the branch enumeration uses directly.
+Terms a scene does not need are not built: no twirl or moment-rotation blocks in 2D, no moment blocks without
+contact moments, no rolling-stiffness blocks without rolling stiffness.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..model.law import elastic_stiffness, sliding_direction, yield_normal
+from ..model.scene import Scene
+from ..model.vec import (
+    cross,
+    cross_matrix,
+    rot_dim,
+    rotate_matrix,
+    spin_matrix,
+    tangent_basis,
+)
+from .checks import identity_errors
+
+PARTS = ("Hg1", "Hg2", "Hg3", "Hm")
+
+
+@dataclass(frozen=True, eq=False)
+class ContactBlocks:
+    """Per-contact 12×12 (3D) or 6×6 (2D) blocks of every part, and where they go.
+
+    blocks[name]: (M, n, n) for name in Hg1, Hg2, Hg3, Hm (Hm elastic);
+    slide_left a, slide_right s: (M, n) — a sliding contact adds a ⊗ s to Hm, and S = s·U (eq:flow);
+    index: (M, n) global dof numbers; rolling_undetermined: (M,) bool, contacts whose K^p+K^q is singular on the
+    tangent plane (flat-on-flat or exact hand-in-glove) while carrying force: their rolling is not determined.
+    """
+
+    blocks: dict
+    slide_left: np.ndarray
+    slide_right: np.ndarray
+    index: np.ndarray
+    n_dof: int
+    rolling_undetermined: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Stiffness:
+    """H and its parts (dense arrays, or CSR matrices with sparse=True) with dof labels (eq:final1),
+    the residuals of H's exact identities (checks.py) and the wall time in seconds."""
+
+    H: object
+    Hm: object
+    Hg1: object
+    Hg2: object
+    Hg3: object
+    dofs: list
+    errors: dict
+    seconds: float
+
+
+def kinematics(scene: Scene):
+    """Bu (M, d, n) and Bt (M, r, n): contact deformations δu_def, δθ_def from local dofs (eq:dudef, eq:dtdef)."""
+    d, r, M = scene.dim, rot_dim(scene.dim), scene.n_contacts
+    n = 2 * (d + r)
+    Bu = np.zeros((M, d, n))
+    Bt = np.zeros((M, r, n))
+    Bu[:, :, :d] = -np.eye(d)
+    Bu[:, :, d:d + r] = -rotate_matrix(scene.r_pq)
+    Bu[:, :, d + r:2 * d + r] = np.eye(d)
+    Bu[:, :, 2 * d + r:] = rotate_matrix(scene.r_qp)
+    Bt[:, :, d:d + r] = -np.eye(r)
+    Bt[:, :, 2 * d + r:] = np.eye(r)
+    return Bu, Bt
+
+
+def tangent_curvatures(scene: Scene):
+    """Tangent-plane curvatures K^p, K^q (M, d, d) and the pseudo-inverse G = (K^p+K^q)^+ on the tangent plane.
+
+    The cut-off is scale-aware: eigenvalues of K^p+K^q below pinv_rtol·max(|K^p|, |K^q|) are dropped (Table 1,
+    erratum 4, docs/errata.md). Returns (Kp, Kq, G, cut) with cut (M,) True where an eigenvalue was dropped.
+    """
+    T = tangent_basis(scene.normal)                                   # (M, d, d-1)
+    Tt = np.swapaxes(T, 1, 2)
+    kp = Tt @ scene.curvature_p @ T
+    kq = Tt @ scene.curvature_q @ T
+    kp = 0.5 * (kp + np.swapaxes(kp, 1, 2))
+    kq = 0.5 * (kq + np.swapaxes(kq, 1, 2))
+    lam, V = np.linalg.eigh(kp + kq)                                  # (M, d-1)
+    scale = np.maximum(np.abs(np.linalg.eigvalsh(kp)).max(axis=1), np.abs(np.linalg.eigvalsh(kq)).max(axis=1))
+    keep = np.abs(lam) > scene.tol.pinv_rtol * scale[:, None]
+    inv = np.divide(1.0, lam, out=np.zeros_like(lam), where=keep)
+    TV = T @ V
+    G = (TV * inv[:, None, :]) @ np.swapaxes(TV, 1, 2)
+    return T @ kp @ Tt, T @ kq @ Tt, G, ~keep.all(axis=1)
+
+
+def _statics(r_side: np.ndarray, df: np.ndarray, dm) -> np.ndarray:
+    """Rows of one particle for contact forces δf (M, d, n) and moments δm (M, r, n): [-δf; -(r × δf + δm)]."""
+    moment = cross_matrix(r_side) @ df
+    if dm is not None:
+        moment = moment + dm
+    return -np.concatenate([df, moment], axis=1)
+
+
+def contact_blocks(scene: Scene) -> ContactBlocks:
+    """The (M, n, n) blocks of Hg1, Hg2, Hg3 and elastic Hm for all contacts, and the sliding rank-one factors."""
+    d, r, M = scene.dim, rot_dim(scene.dim), scene.n_contacts
+    n_loc = 2 * (d + r)
+    nrm, f = scene.normal, scene.force
+    Bu, Bt = kinematics(scene)
+    Kp, Kq, G, cut = tangent_curvatures(scene)
+    nn = nrm[:, :, None] * nrm[:, None, :]
+    Pt = np.eye(d) - nn
+
+    # rolling (eq:rolling), contact-point and normal increments (eq:Drpq, eq:dsn, eq:Dnpq)
+    twist = rotate_matrix(nrm) @ Bt                                   # δθ_def × n
+    du_t = Pt @ Bu
+    st_pq = -G @ (twist - Kq @ du_t)
+    st_qp = -G @ (twist + Kp @ du_t)
+    dr_pq = 0.5 * (nn @ Bu) + st_pq
+    dr_qp = -0.5 * (nn @ Bu) + st_qp
+    dn_pq = -Kp @ st_pq
+    dn_qp = -Kq @ st_qp
+
+    # force rotation with the contact frame (eq:Dfpq, eq:Dmpq, eq:A3 with erratum 1): f × (δn × n) = Cf·δn
+    Cf = np.sum(f * nrm, axis=1)[:, None, None] * np.eye(d) - nrm[:, :, None] * f[:, None, :]
+    df_pq, df_qp = Cf @ dn_pq, Cf @ dn_qp
+    dm_pq = dm_qp = None
+    if d == 3:
+        twirl = nrm[:, None, :] @ Bt                                  # (M, 1, n): δθ_def·n
+        df_twirl = -0.5 * cross(f, nrm)[:, :, None] * twirl
+        df_pq, df_qp = df_pq + df_twirl, df_qp + df_twirl
+        if scene.has_moments:
+            m = scene.moment
+            Cm = np.sum(m * nrm, axis=1)[:, None, None] * np.eye(3) - nrm[:, :, None] * m[:, None, :]
+            dm_twirl = -0.5 * cross(m, nrm)[:, :, None] * twirl
+            dm_pq, dm_qp = Cm @ dn_pq + dm_twirl, Cm @ dn_qp + dm_twirl
+    Hg2 = np.concatenate([_statics(scene.r_pq, df_pq, dm_pq), _statics(scene.r_qp, df_qp, dm_qp)], axis=1)
+
+    # mechanical stiffness, elastic branch (eq:Hm, eq:ContactF)
+    F = elastic_stiffness(nrm, scene.k, scene.alpha)
+    dfm = F @ Bu
+    dmm = scene.rolling @ Bt if scene.has_rolling else None
+    Hm = np.concatenate([_statics(scene.r_pq, dfm, dmm),
+                         _statics(scene.r_qp, -dfm, None if dmm is None else -dmm)], axis=1)
+
+    # first geometric stiffness: -δr^pq × f^pq on p and -δr^qp × f^qp on q (eq:Hg1)
+    Xf = cross_matrix(f)
+    Hg1 = np.zeros((M, n_loc, n_loc))
+    Hg1[:, d:d + r] = Xf @ dr_pq
+    Hg1[:, 2 * d + r:] = -Xf @ dr_qp
+
+    # third geometric stiffness: dθ^p × b^p, dθ^p × w^p per contact (eq:Hg3)
+    Hg3 = np.zeros((M, n_loc, n_loc))
+    tau_p = cross(scene.r_pq, f) + scene.moment
+    tau_q = -(cross(scene.r_qp, f) + scene.moment)
+    Hg3[:, :d, d:d + r] = -rotate_matrix(f)
+    Hg3[:, d:d + r, d:d + r] = -spin_matrix(tau_p, d)
+    Hg3[:, d + r:2 * d + r, 2 * d + r:] = rotate_matrix(f)
+    Hg3[:, 2 * d + r:, 2 * d + r:] = -spin_matrix(tau_q, d)
+
+    # sliding: F = F_el - h⊗g adds a ⊗ s with s = Bu^T g and a = A1 rows of [h; -h] (eq:ContactF)
+    h = sliding_direction(f, nrm)
+    g = yield_normal(h, nrm, scene.k, scene.alpha, scene.mu)
+    s = np.einsum("mdn,md->mn", Bu, g)
+    Xh_p = np.einsum("mrd,md->mr", cross_matrix(scene.r_pq), h)
+    Xh_q = np.einsum("mrd,md->mr", cross_matrix(scene.r_qp), h)
+    a = np.concatenate([h, Xh_p, -h, -Xh_q], axis=1)
+
+    per = d + r
+    local = np.arange(per)
+    index = np.concatenate([scene.p[:, None] * per + local, scene.q[:, None] * per + local], axis=1)
+    undetermined = cut & (np.linalg.norm(f, axis=1) > 0)
+    return ContactBlocks(blocks={"Hg1": Hg1, "Hg2": Hg2, "Hg3": Hg3, "Hm": Hm}, slide_left=a, slide_right=s,
+                         index=index, n_dof=scene.n_dof, rolling_undetermined=undetermined)
+
+
+def assemble(blocks: np.ndarray, p: np.ndarray, q: np.ndarray, per: int, n_dof: int) -> sp.csr_matrix:
+    """Scatter per-contact (M, 2·per, 2·per) blocks over [particle p, particle q] into CSR, summing duplicates.
+
+    One routine for every part, dense or sparse output (scikit-fem style), built at the level of per×per particle
+    blocks (4M of them instead of (2 per)² M scalars): one sort of the block keys, one segmented sum, BSR → CSR. (A counting-sort variant that
+    sums only the diagonal blocks was tried: faster below 10⁴ contacts, slower above, so this one is kept.)
+    """
+    M = len(p)
+    N = n_dof // per
+    if M == 0:
+        return sp.csr_matrix((n_dof, n_dof))
+    b = blocks.reshape(M, 2, per, 2, per).transpose(0, 1, 3, 2, 4).reshape(4 * M, per, per)
+    rows = np.stack([p, p, q, q], axis=1).reshape(-1).astype(np.int64)
+    cols = np.stack([p, q, p, q], axis=1).reshape(-1).astype(np.int64)
+    key = rows * N + cols
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    data = np.add.reduceat(b[order], starts, axis=0)
+    brow, bcol = np.divmod(key[starts], N)
+    indptr = np.r_[0, np.cumsum(np.bincount(brow, minlength=N))]
+    return sp.bsr_matrix((data, bcol, indptr), shape=(n_dof, n_dof)).tocsr()
+
+
+class MaskError(ValueError):
+    """A branch mask that does not fit the scene."""
+
+
+def sliding_mask(scene: Scene, mask) -> np.ndarray:
+    """Validate a branch mask (one entry per contact: +1 sliding, -1 or 0 elastic) and return the bool (M,)."""
+    mask = np.asarray(mask if mask is not None else np.zeros(scene.n_contacts), dtype=float)
+    if mask.shape != (scene.n_contacts,) or not np.all(np.isin(mask, (-1, 0, 1))):
+        raise MaskError(f"mask must have {scene.n_contacts} entries, each +1, -1 or 0")
+    sliding = mask == 1
+    bad = np.flatnonzero(sliding & ~scene.at_yield())
+    if bad.size:
+        raise MaskError(f"mask entry {bad[0]} is +1 but contact {bad[0]} is not at yield (Q < 0)")
+    return sliding
+
+
+def stiffness(scene: Scene, mask=None, sparse: bool = False, blocks: ContactBlocks | None = None) -> Stiffness:
+    """H = Hg1 + Hg2 + Hg3 + Hm (eq:final1) for the branch `mask` (+1 = sliding; default all elastic).
+
+    Dense numpy arrays by default, scipy.sparse CSR with sparse=True; both come from the same assembly.
+    """
+    start = time.perf_counter()
+    sliding = sliding_mask(scene, mask)
+    cb = blocks if blocks is not None else contact_blocks(scene)
+    hm_blocks = cb.blocks["Hm"]
+    if np.any(sliding):
+        hm_blocks = hm_blocks + sliding[:, None, None] * (cb.slide_left[:, :, None] * cb.slide_right[:, None, :])
+    per = scene.dof_per_particle
+    parts = {name: assemble(cb.blocks[name] if name != "Hm" else hm_blocks, scene.p, scene.q, per, cb.n_dof)
+             for name in PARTS}
+    parts["H"] = (parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]).tocsr()
+    errors = identity_errors(scene, parts)
+    if not sparse:
+        parts = {name: m.toarray() for name, m in parts.items()}
+    return Stiffness(dofs=scene.dofs(), errors=errors, seconds=time.perf_counter() - start, **parts)

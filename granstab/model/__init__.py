@@ -1,0 +1,7 @@
+"""The model: what a granular cluster is, before any mechanics.
+
+`scene` (particles and contacts as arrays, their checks), `shapes` (disks, ellipses, spheres, ellipsoids →
+contact-level data), `law` (the contact law of Sec. 2.6), `tolerances`, `errors` (`SceneError` and value checks),
+`vec` (cross products as batched matrices), `packings` (lattice and random packings for tests and benchmarks).
+Imports numpy and scipy only.
+"""

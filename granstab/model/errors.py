@@ -1,0 +1,78 @@
+"""Structural reading of scene files: one-line `SceneError`s naming file, entry and field, and the value checks
+(types, shapes, finite, within MAX_MAGNITUDE) shared by the table-at-a-time `Reader` (top level, defaults, shape
+entries) and the column-wise readers of tables.py. Imports neither scene.py nor shapes.py.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from .tolerances import MAX_MAGNITUDE
+
+
+class SceneError(ValueError):
+    """Invalid scene input; the message is the one line the CLI prints."""
+
+
+def one_line(text) -> str:
+    """Collapse whitespace and newlines (a parser's multi-line message) into one line."""
+    return " ".join(str(text).split())
+
+
+class DuplicateKeys(dict):
+    """A JSON object that had a key twice (`duplicate`); fileformat.parse_json makes one only when the key count
+    says there is one, and every reader rejects it naming the entry and the key."""
+
+    duplicate: str = ""
+
+
+def describe(value) -> str:
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def all_numbers(value) -> bool:
+    """True if every leaf is an int or float (not a bool, not a string that numpy would convert)."""
+    if isinstance(value, (list, tuple)):
+        return all(all_numbers(v) for v in value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def value_problem(value, shape: tuple) -> str | None:
+    """Why `value` is not a finite float array of `shape` (shape () is a scalar), or None."""
+    want = "a number" if shape == () else f"{'x'.join(map(str, shape))} numbers"
+    try:
+        arr = np.array(value, dtype=float)
+    except OverflowError:
+        return f"a number beyond float64's range ({magnitude_message(math.inf)})"
+    except (TypeError, ValueError):
+        return f"must be {want}, got {describe(value)}"
+    if arr.shape != shape or not all_numbers(value):
+        return f"must be {want}, got {describe(value)}"
+    if not np.all(np.isfinite(arr)):
+        return "must be finite (no nan or inf)"
+    return None
+
+
+def magnitude_message(value: float) -> str:
+    return (f"|value| = {value:.3g} exceeds {MAX_MAGNITUDE:.0e}: H and its checks multiply up to six input "
+            "numbers, which must stay below float64's 1.8e308 (change units)")
+
+
+def row_problem(arr: np.ndarray):
+    """(first row, message) of an (n, k) array with a non-finite entry or one above MAX_MAGNITUDE, or None."""
+    if arr.size == 0 or (arr.max() <= MAX_MAGNITUDE and arr.min() >= -MAX_MAGNITUDE):   # NaN fails both: looked at
+        return None                                                                     # below, as every offender
+    ok = np.abs(arr) <= MAX_MAGNITUDE
+    i = first(~ok.all(axis=1))
+    worst = np.abs(arr[i]).max()
+    return i, "must be finite (no nan or inf)" if not np.isfinite(worst) else magnitude_message(worst)
+
+
+def first(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])

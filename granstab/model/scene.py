@@ -1,0 +1,303 @@
+"""Scenes: particles and contact-level data (Sec. 2), read from a parsed file (files.py) and validated.
+
+A `Scene` holds arrays over particles (N) and contacts (M); d = dim, r = 1 (2D) or 3 (3D):
+x (N, d), load b (N, d), load_moment w (N, r); per contact p, q (M,), point (M, d),
+normal n^pq (M, d), curvature_p/q K (M, d, d) on the tangent plane (2D: κ t⊗t), force f^pq (M, d),
+moment m^pq (M, r), k, alpha, mu (M,), rolling M^pq (M, r, r) and state ("auto" | "elastic" | "sliding").
+
+Every invalid input raises `SceneError` with ONE line: "<file>: <entry>: <field>: <what is wrong>".
+Loads default to equilibrium, b^p = -Σ f^pq and w^p = -Σ (r^pq × f^pq + m^pq) (eq:equil1).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import SceneError, first, row_problem
+from .tolerances import COORDINATE_RATIO, DEFAULT, MAX_MAGNITUDE, MIN_SCALE, Tolerances
+from .vec import cross, rot_dim, sum_at
+
+STATES = ("auto", "elastic", "sliding")
+LAW_KEYS = ("k", "alpha", "mu", "rolling_stiffness")
+LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5, "rolling_stiffness": 0.0}
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """Contact-level description of a cluster (see module docstring for shapes)."""
+
+    dim: int
+    names: tuple
+    x: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    curvature_p: np.ndarray
+    curvature_q: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray
+    k: np.ndarray
+    alpha: np.ndarray
+    mu: np.ndarray
+    rolling: np.ndarray
+    state: tuple
+    load: np.ndarray
+    load_moment: np.ndarray
+    title: str = ""
+    source: str = "<scene>"
+    tol: Tolerances = field(default=DEFAULT)
+    mass: np.ndarray | None = None        # (N,) masses, for the inertia metric (metric.py); None: not known
+    inertia: np.ndarray | None = None     # (N, r, r) rotational inertia in the global frame
+    fixed: np.ndarray | None = None       # (N,) bool: particles held fixed (supports: no dofs, no rigid modes)
+
+    @property
+    def n_particles(self) -> int:
+        return len(self.names)
+
+    @property
+    def n_contacts(self) -> int:
+        return len(self.p)
+
+    @property
+    def dof_per_particle(self) -> int:
+        return self.dim + rot_dim(self.dim)
+
+    @property
+    def n_dof(self) -> int:
+        return self.n_particles * self.dof_per_particle
+
+    @property
+    def r_pq(self) -> np.ndarray:
+        """Radial vectors r^pq = contact point - x^p, (M, d)."""
+        return self.point - self.x[self.p]
+
+    @property
+    def r_qp(self) -> np.ndarray:
+        return self.point - self.x[self.q]
+
+    @property
+    def has_moments(self) -> bool:
+        return bool(np.any(self.moment != 0.0))
+
+    @property
+    def has_rolling(self) -> bool:
+        return bool(np.any(self.rolling != 0.0))
+
+    def tangential_force(self) -> np.ndarray:
+        """f^pq - (n·f^pq) n, (M, d)."""
+        fn = np.sum(self.force * self.normal, axis=1)
+        return self.force - fn[:, None] * self.normal
+
+    def yield_function(self) -> np.ndarray:
+        """Q^pq = |f_t| + μ f·n (eq:yield), (M,)."""
+        fn = np.sum(self.force * self.normal, axis=1)
+        return np.linalg.norm(self.tangential_force(), axis=1) + self.mu * fn
+
+    def has_sliding_direction(self) -> np.ndarray:
+        """|f_t| > yield_rtol·|f|: a tangential force that defines h = f_t/|f_t| (eq:Hdirection), (M,).
+
+        A smaller |f_t| is within the yield test's own tolerance of zero and its direction is round-off (a rigid
+        rotation of the scene turns an exact 0 into ~1e-16·|f|): treating it as a direction made the
+        classification, and so the number of branches and the verdict, depend on the frame."""
+        ft = np.linalg.norm(self.tangential_force(), axis=1)
+        return ft > self.tol.yield_rtol * np.linalg.norm(self.force, axis=1)
+
+    def at_yield(self) -> np.ndarray:
+        """Potentially sliding contacts (Appendix D mask ±1): state "sliding", or "auto" with Q = 0 within
+        yield_rtol·|f| and a tangential force to slide along (`has_sliding_direction`). Zero-force and
+        frictionless normal contacts have no sliding direction h (eq:Hdirection) and stay elastic."""
+        state = np.asarray(self.state)
+        scale = np.linalg.norm(self.force, axis=1)
+        auto = ((state == "auto") & (self.yield_function() >= -self.tol.yield_rtol * scale)
+                & self.has_sliding_direction())
+        return (state == "sliding") | auto
+
+    @property
+    def free_dofs(self) -> np.ndarray | None:
+        """Indices of the dofs of the particles not held fixed; None when no particle is fixed."""
+        if self.fixed is None:
+            return None
+        per = self.dof_per_particle
+        return (np.flatnonzero(~self.fixed)[:, None] * per + np.arange(per)).ravel()
+
+    def dofs(self) -> list[str]:
+        """Dof labels: particles in file order, translations then rotations (p.u1, p.u2, p.th3 …)."""
+        rot = ["th3"] if self.dim == 2 else ["th1", "th2", "th3"]
+        labels = [f"u{i + 1}" for i in range(self.dim)] + rot
+        return [f"{name}.{lab}" for name in self.names for lab in labels]
+
+
+
+def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="", source="<scene>",
+                tol: Tolerances = DEFAULT, entries=None, particle_entries=None, mass=None, inertia=None,
+                fixed=None) -> Scene:
+    """Assemble a Scene from arrays (programmatic use: presets, studies, the app) and run the range and
+    physical checks (vectorised); `mass` (N,) and `inertia` (N, r, r) are optional (the inertia metric); `fixed`
+    (N,) bool marks supports (particles without dofs).
+
+    `loads`/`load_moments`: None (equilibrium values for all), a list with None where the equilibrium value is
+    to be used, or a pair (values (N, ·), given (N,) bool). `entries` names contacts in error messages: a list
+    or a function c → name (default "contacts[c]"); `particle_entries` likewise for particles.
+    """
+    N = len(names)
+    r = rot_dim(dim)
+    contact_name = _namer(entries, "contacts")
+    particle_name = _namer(particle_entries, None) or (lambda i: f"particles[{i}] ({names[i]!r})")
+    base = Scene(dim=dim, names=tuple(names), x=np.asarray(x, float).reshape(N, dim), load=np.zeros((N, dim)),
+                 load_moment=np.zeros((N, r)), title=title, source=source, tol=tol, **arrays)
+    given_b, has_b = _given(loads, N, dim)
+    given_w, has_w = _given(load_moments, N, r)
+    check_ranges(base, contact_name, particle_name, (given_b, given_w))
+    _check_friction(base, contact_name)
+    b_eq, w_eq = equilibrium_loads(base)
+    f_scale, m_scale = _load_scales(base)
+    for given, has, eq, scale, key, what in ((given_b, has_b, b_eq, f_scale, "load", "|b + Σf|"),
+                                             (given_w, has_w, w_eq, m_scale, "moment", "|w + Σ(r×f + m)|")):
+        res = np.linalg.norm(given - eq, axis=1)
+        bad = has & (res > tol.input_rtol * (scale + np.linalg.norm(given, axis=1)))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise SceneError(f"{source}: {particle_name(i)}: {key}: does not balance the contact "
+                             f"{'forces' if key == 'load' else 'moments'} (residual {what} = {res[i]:.3g}, "
+                             f"expected {_fmt(eq[i])})")
+    load = np.where(has_b[:, None], given_b, b_eq)
+    load_moment = np.where(has_w[:, None], given_w, w_eq)
+    if mass is not None:
+        mass = np.asarray(mass, float).reshape(N)
+        inertia = np.asarray(inertia, float).reshape(N, r, r)
+    fixed = None if fixed is None or not np.any(fixed) else np.asarray(fixed, bool).reshape(N)
+    return Scene(dim=dim, names=tuple(names), x=base.x, load=load, load_moment=load_moment, title=title,
+                 source=source, tol=tol, mass=mass, inertia=inertia, fixed=fixed, **arrays)
+
+
+def _namer(entries, prefix):
+    if callable(entries):
+        return entries
+    if entries is not None:
+        return entries.__getitem__
+    return (lambda c: f"{prefix}[{c}]") if prefix else None
+
+
+def _given(values, N: int, width: int):
+    """Optional per-particle loads as (values (N, width), given (N,) bool) from None, a list with None, or a pair."""
+    if values is None:
+        return np.zeros((N, width)), np.zeros(N, bool)
+    if isinstance(values, tuple) and len(values) == 2 and isinstance(values[1], np.ndarray):
+        return np.asarray(values[0], float).reshape(N, width), np.asarray(values[1], bool).reshape(N)
+    has = np.array([v is not None for v in values], bool).reshape(N)
+    out = np.zeros((N, width))
+    for i in np.flatnonzero(has):
+        out[i] = np.asarray(values[i], float).reshape(width)
+    return out, has
+
+
+def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
+    """Every number finite with |v| <= MAX_MAGNITUDE; k and α >= MIN_SCALE; positions and contact points within
+    COORDINATE_RATIO mean contact radii of the origin (beyond it r^pq = point - x loses more than input_rtol to
+    rounding). The first offender is named with its entry and field."""
+    per_contact = {"point": scene.point, "normal": scene.normal, "curvature_p": scene.curvature_p,
+                   "curvature_q": scene.curvature_q, "force": scene.force, "moment": scene.moment, "k": scene.k,
+                   "alpha": scene.alpha, "mu": scene.mu, "rolling_stiffness": scene.rolling}
+    M = scene.n_contacts
+    for key, arr in per_contact.items():
+        _check_magnitude(_rows(arr, M), scene.source, contact_name, key)
+    for key, arr in (("x", scene.x), ("load", given[0] if given else None), ("moment", given[1] if given else None)):
+        if arr is not None:
+            _check_magnitude(_rows(arr, scene.n_particles), scene.source, particle_name, key)
+    for key, arr in (("k", scene.k), ("alpha", scene.alpha)):
+        small = (arr != 0) & (np.abs(arr) < MIN_SCALE)     # 0 is exact (alpha = 0: frictionless)
+        if small.any():
+            c = first(small)
+            raise SceneError(f"{scene.source}: {contact_name(c)}: {key}: {arr[c]:.3g} is below {MIN_SCALE:.0e} "
+                             "(change units: products with it underflow float64)")
+    if M == 0:
+        return
+    L = mean_contact_radius(scene)
+    if not MIN_SCALE <= L <= MAX_MAGNITUDE:
+        raise SceneError(f"{scene.source}: contacts: point: the mean contact radius {L:.3g} is outside "
+                         f"[{MIN_SCALE:.0e}, {MAX_MAGNITUDE:.0e}] (change units)")
+    limit = COORDINATE_RATIO * L
+    for key, arr, name in (("x", scene.x, particle_name), ("point", scene.point, contact_name)):
+        far = np.abs(arr).max(axis=1) > limit
+        if far.any():
+            i = first(far)
+            raise SceneError(f"{scene.source}: {name(i)}: {key}: {np.abs(arr[i]).max():.3g} is more than "
+                             f"{COORDINATE_RATIO:.0e} mean contact radii ({L:.3g}) from the origin: rounding "
+                             f"would cost r^pq = point - x more than input_rtol; move the scene near the origin")
+
+
+def mean_contact_radius(scene: Scene) -> float:
+    """The mean contact radius over |r^pq| and |r^qp| (1 for a scene without contacts): granstab's length scale."""
+    if scene.n_contacts == 0:
+        return 1.0
+    radii = np.concatenate([np.linalg.norm(scene.r_pq, axis=1), np.linalg.norm(scene.r_qp, axis=1)])
+    L = float(radii.mean())
+    return L if L > 0 else 1.0
+
+
+def _rows(arr, n: int) -> np.ndarray:
+    arr = np.asarray(arr, float)
+    return arr.reshape(n, int(np.prod(arr.shape[1:])))
+
+
+def _check_magnitude(arr: np.ndarray, source: str, name, key: str) -> None:
+    bad = row_problem(arr)
+    if bad is not None:
+        raise SceneError(f"{source}: {name(bad[0])}: {key}: {bad[1]}")
+
+
+def _fmt(v) -> str:
+    v = np.asarray(v).reshape(-1)
+    return "[" + ", ".join(f"{a:.6g}" for a in v) + "]" if v.size > 1 else f"{v[0]:.6g}"
+
+
+def _check_friction(scene: Scene, name) -> None:
+    """Forces outside the friction cone ("auto") and "sliding" contacts not at yield are errors."""
+    if scene.n_contacts == 0:
+        return
+    Q = scene.yield_function()
+    fmag = np.linalg.norm(scene.force, axis=1)
+    ft = np.linalg.norm(scene.tangential_force(), axis=1)
+    state = np.asarray(scene.state)
+    tol = scene.tol.yield_rtol * fmag
+    outside = np.flatnonzero((state == "auto") & (Q > tol))
+    if outside.size:
+        c = outside[0]
+        raise SceneError(f"{scene.source}: {name(c)}: force: outside the friction cone, Q = {Q[c]:.6g} > 0 "
+                         f"(|f_t| = {ft[c]:.6g}, μ|f_n| = {abs(Q[c] - ft[c]):.6g}); set state = \"elastic\" "
+                         "for a cohesive contact")
+    direction = scene.has_sliding_direction()
+    not_at_yield = np.flatnonzero((state == "sliding") & ((np.abs(Q) > tol) | ~direction))
+    if not_at_yield.size:
+        c = not_at_yield[0]
+        why = (f"no tangential force to slide along (|f_t| = {ft[c]:.3g} <= yield_rtol·|f|)" if not direction[c]
+               else f"Q = {Q[c]:.6g} ≠ 0")
+        raise SceneError(f"{scene.source}: {name(c)}: state: \"sliding\" but not at yield ({why})")
+
+
+def equilibrium_loads(scene: Scene):
+    """b^p = -Σ f^pq, w^p = -Σ (r^pq × f^pq + m^pq) over both sides of every contact (eq:equil1)."""
+    N = scene.n_particles
+    f = scene.force
+    side = np.concatenate([scene.p, scene.q])       # p's terms, then q's (sum_at: in this order, as np.add.at)
+    b = sum_at(side, np.concatenate([-f, f]), N)
+    w = sum_at(side, np.concatenate([-(cross(scene.r_pq, f) + scene.moment),
+                                     -(cross(scene.r_qp, -f) - scene.moment)]), N)
+    return b, w
+
+
+def _load_scales(scene: Scene):
+    """Σ|f| and Σ(|r||f| + |m|) over each particle's contacts: the scale of its load balance."""
+    N = scene.n_particles
+    fmag = np.linalg.norm(scene.force, axis=1)
+    mmag = np.linalg.norm(scene.moment, axis=1)
+    side = np.concatenate([scene.p, scene.q])
+    fs = sum_at(side, np.concatenate([fmag, fmag]), N)
+    ms = sum_at(side, np.concatenate([np.linalg.norm(scene.r_pq, axis=1) * fmag + mmag,
+                                      np.linalg.norm(scene.r_qp, axis=1) * fmag + mmag]), N)
+    return fs, ms
+
+
+__all__ = ["Scene", "SceneError", "build_scene", "equilibrium_loads"]

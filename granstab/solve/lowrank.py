@@ -1,0 +1,492 @@
+"""All 2^Ms loading branches as low-rank updates of the elastic problem, stacked on a backend (numpy or CuPy).
+
+Branch i has sym(𝓗^i) = P sym(H^i) P with H^i = H_el + Σ_{on} a_j s_jᵀ (eq:ContactF, eq:newstiffnesses). The
+rigid motions R (translations and rotations, orthonormal) are exact null vectors of every sym(𝓗^i) (Σ db^p = 0,
+s·T = 0, P C = 0), so in the orthonormal complement N of R (Nᵀ P = Nᵀ) every branch is the k × k matrix
+
+    M_i = Nᵀ sym(H^i) N = M_0 + ½ (a diag(on_i) sᵀ + s diag(on_i) aᵀ),   M_0 = Nᵀ sym(H_el) N, a = NᵀA, s = NᵀS,
+
+the elastic matrix plus a symmetric update of rank ≤ 2·(#loading contacts). The elastic part and the projected
+factors are computed once; each chunk of branches is one batched product and one stacked `eigh` on the backend.
+
+What is exact and what is bounded, per branch and eigenvalue (reported as `Branch.bounds`, accuracy.py's meaning):
+* The reduction is exact up to round-off: in the basis [N, R] the full matrix is [[M_i, E_iᵀ], [E_i, G_i]] with
+  E_i = Rᵀ sym(𝓗^i) N (the rigid leakage, zero in exact arithmetic); by Weyl, dropping it moves no eigenvalue by
+  more than ‖E_i‖₂ ≤ ‖E_i‖_F, which is computed per branch (also a low-rank update of E_0).
+* Each computed pair (λ, w) has residual r = ‖M_i w − λ w‖; the eigenvalues match one to one within √2 r
+  (accuracy.py, Kahan), plus the rounding of r itself and the formation error of the problem. The bound per
+  eigenvalue is that of accuracy.vector_bounds plus ‖E_i‖_F, whatever the backend's solver (LAPACK or Jacobi).
+* Eigenvalues whose bound keeps them off zero have a proven sign, so their counts are exact (Sylvester).
+* ℍ^i = H^i P has no non-rigid null vector when σ_min(H^i N) > its zero tolerance; σ_min(H^i N) ≥ λ_min(M_i)
+  (wᵀ M_i w = wᵀ NᵀH^iN w ≤ |w|·‖H^iN w‖), so a positive definite branch needs no SVD; the others get a lower bound
+  of σ_min² from the Gram matrix's eigenvalues less its rounding error.
+Branches with a repeated eigenvalue, a non-rigid zero or a possibly singular ℍ^i (which need the eigenspace search
+of Appendix D, or Type-2) are handed to `dense.solve_branches`, the full per-branch path, unchanged.
+
+What is kept per branch: eigenvalues, codes, hinges and error bounds (O(n)); the eigenvectors are recomputed on
+demand (`LazyVectors`), so memory does not grow with 2^Ms × n². ℍ^i spectra are not computed on this path (only
+its nullity), which is what makes it fast; the full path (`dense.solve_branches`) gives them.
+"""
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..mechanics.accuracy import resolved_sign, vector_bounds
+from ..mechanics.branches import RIGID, Branch, Problem, consistency
+from ..mechanics.verdicts import CONSISTENT, merge_tallies, tally
+from ..model.tolerances import EPS
+from .dense import solve_branches
+from .device import backend, residual_norms
+from .threads import cores
+
+GUARD = 6            # extra Ritz vectors carried by the sparse path's refinement (faster convergence of the kk)
+MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s)
+GPU_THREADS = 8       # chunks in flight on a GPU (each takes its share of the device memory, backend.chunk)
+
+
+@dataclass(frozen=True, eq=False)
+class Reduced:
+    """The branch-independent pieces in the rigid-free basis N (n, k): M0 (k, k), a, s (k, Ms); leakage pieces
+    E0 (r, k), alpha, beta (r, Ms) with E_i = E0 + ½(alpha on sᵀ + beta on aᵀ); ℍ pieces HN = H_el N (n, k) and
+    the per-contact norms |A_j| |s_j| for an upper bound of ‖H^i N‖."""
+
+    N: np.ndarray
+    M0: np.ndarray
+    a: np.ndarray
+    s: np.ndarray
+    E0: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    HN: np.ndarray
+    HN_norm: float
+    AS_norm: np.ndarray
+    n: int
+
+    @property
+    def k(self) -> int:
+        return self.N.shape[1]
+
+
+def reduce(problem: Problem) -> Reduced:
+    """M0, a, s and the leakage pieces of the module docstring, once per cluster."""
+    R = problem.rigid
+    n, r = R.shape
+    Q, _ = np.linalg.qr(R, mode="complete")
+    N = Q[:, r:]
+    Hsym = 0.5 * (problem.H_el + problem.H_el.T)
+    PR = problem.projection.apply(R)
+    HN = problem.H_el @ N
+    return Reduced(N=N, M0=_sym(N.T @ Hsym @ N), a=N.T @ problem.A, s=N.T @ problem.S, E0=PR.T @ Hsym @ N,
+                   alpha=PR.T @ problem.A, beta=PR.T @ problem.S, HN=HN, HN_norm=float(np.linalg.norm(HN, 2)),
+                   AS_norm=np.linalg.norm(problem.A, axis=0) * np.linalg.norm(N.T @ problem.S, axis=0), n=n)
+
+
+def _sym(M):
+    return 0.5 * (M + M.swapaxes(-1, -2))
+
+
+def sym_updates(a: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Per sliding contact j the flattened ½(a_j s_jᵀ + s_j a_jᵀ), (Ms, k·k): a branch's update is then the row
+    `on @ updates` (one GEMM for a whole stack)."""
+    m = 0.5 * (np.einsum("im,jm->mij", a, s) + np.einsum("im,jm->mij", s, a))
+    return m.reshape(a.shape[1], a.shape[0] * s.shape[0])
+
+
+def _updates(red: Reduced) -> tuple[np.ndarray, np.ndarray]:
+    """The updates of M (sym_updates(a, s)) and of E (½(alpha_j s_jᵀ + beta_j a_jᵀ), (Ms, r·k))."""
+    e = 0.5 * (np.einsum("im,jm->mij", red.alpha, red.s) + np.einsum("im,jm->mij", red.beta, red.a))
+    return sym_updates(red.a, red.s), e.reshape(len(e), red.E0.size)
+
+
+def stack(xp, M0, updates, on):
+    """M0 + (on @ updates) reshaped: (L, k, k) on the backend `xp`."""
+    k = M0.shape[0]
+    return xp.asarray(M0)[None] + xp.matmul(on, xp.asarray(updates)).reshape(-1, k, k)
+
+
+def branch_stack(xp, red: Reduced, on, updates=None):
+    """M_i (L, k, k) for on (L, Ms) ∈ {0, 1} on the backend `xp`: M0 + sym(a diag(on) sᵀ)."""
+    return stack(xp, red.M0, updates if updates is not None else _updates(red)[0], on)
+
+
+def leakage(xp, red: Reduced, on, updates=None):
+    """‖E_i‖_F (L,): the rigid leakage of each branch (module docstring)."""
+    dE = xp.asarray(updates if updates is not None else _updates(red)[1])
+    E = xp.asarray(red.E0.reshape(-1))[None] + xp.matmul(on, dE)
+    return xp.sqrt(xp.sum(E * E, axis=1))
+
+
+def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "cpu", chunk: int | None = None,
+                           on_branch=None, keep_all: bool = True):
+    """Every branch in `masks` (L, M): a list of `branches.Branch` in mask order, and info (device, unit round-off,
+    how many branches took the full path, the largest leakage and backward error relative to ‖M_i‖, the largest
+    residual_stability).
+
+    Plain branches come from the stacked reduced problems; the others from `solve_branches` (module docstring).
+    keep_all=False: only the branches a verdict rests on are returned — those with a consistent eigenpair of sign
+    ≤ 0 (resolved or not) or Type-2, and the branch with the lowest non-rigid eigenvalue — and info["tally"] holds
+    the counts over all L branches (verdicts.tally): memory no longer grows with 2^Ms.
+    """
+    be = backend(device)
+    xp = be.xp
+    red = reduce(problem)
+    n, k = red.n, red.k
+    L = len(masks)
+    info = {"device": be.name, "eps": be.eps, "full_path": 0, "leakage": 0.0, "backward_error": 0.0}
+    if k == 0 or L == 0:
+        out = solve_branches(problem, masks, on_branch=on_branch)
+        info["full_path"] = len(out)
+        return out, info
+    workers = cores() if be.name == "cpu" else min(GPU_THREADS, cores())
+    size = chunk or min(be.chunk(8.0 * (5 * k * k + 2 * n * k) * workers, L), -(-L // (2 * workers)))
+    dM, dE = (be.asarray(u) for u in _updates(red))
+    N = be.asarray(red.N)
+    s_t = be.asarray(red.s.T)
+
+    def solve(start):
+        """The stacked arithmetic of one chunk, in a thread pool: numpy releases the GIL, so CPU chunks run on every
+        core; on a GPU one chunk's host work overlaps the next chunk's device work."""
+        part = masks[start:start + size]
+        on_h = (part[:, problem.sliding] == 1).astype(float)
+        on = be.asarray(on_h)
+        M = branch_stack(xp, red, on, dM)
+        lam, W = xp.linalg.eigh(M)
+        W = W * full_signs(xp, N, W)[:, None, :]
+        Sv = xp.matmul(s_t[None], W)
+        m = be.asarray(part[:, problem.sliding])[:, :, None]
+        codes, hinges = consistency(m, Sv, problem.s_tol, problem.s_floor, xp)
+        got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE),
+               "scale": xp.max(xp.sum(xp.abs(M), axis=-1), axis=-1), "codes": codes, "hinges": hinges,
+               **fingerprint(xp, Sv)}
+        host = {key: be.to_host(v) for key, v in got.items()}          # O(L·k): the S values stay on the device
+        host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
+                                       problem.formation_error, k) + host["leak"][:, None]
+        return part, host, _special(problem, red, host, on_h, be), _plain_arrays(problem, host)
+
+    kept = Kept(keep_all)
+    info["residual_stability"] = 0.0
+    with be.threads(k), ThreadPoolExecutor(workers) as pool:
+        for start, (part, host, special, plain) in zip(range(0, L, size), pool.map(solve, range(0, L, size))):
+            with be.threads(n):
+                full = dict(zip(np.flatnonzero(special),
+                                solve_branches(problem, part[special]) if special.any() else []))
+            info["full_path"] += len(full)
+            norm = np.maximum(np.abs(host["lam"]).max(axis=1), 1e-300)
+            info["leakage"] = max(info["leakage"], float((host["leak"] / norm).max()))
+            info["backward_error"] = max(info["backward_error"], float((host["res"].max(axis=1) / norm).max()))
+            info["residual_stability"] = max([info["residual_stability"], float(plain["res"][~special].max(initial=0)),
+                                              *(b.residual_stability for b in full.values())])
+
+            def branch(i):
+                return full.get(i) or _plain(problem, red, part[i], {key: v[i] for key, v in plain.items()})
+
+            if keep_all or on_branch is not None:
+                for i in range(len(part)):
+                    b = branch(i)
+                    kept.add(start + i, b, plain, i, special[i])
+                    if on_branch is not None:
+                        on_branch(b)
+            else:
+                kept.add_chunk(start, branch, plain, special, full)
+    out = kept.branches()
+    if not keep_all:
+        info["tally"], info["n_branches"] = kept.tally, L
+    return out, info
+
+
+class Kept:
+    """The branches `solve_branches_lowrank` returns: all of them, or (keep_all False) those a verdict rests on and
+    the one with the lowest non-rigid eigenvalue, with the running `verdicts.tally` of every branch."""
+
+    def __init__(self, keep_all: bool):
+        self.keep_all, self.tally = keep_all, None
+        self.chosen: dict = {}
+        self.lowest = (np.inf, None)
+
+    def add(self, index: int, b: Branch, plain: dict, i: int, special: bool) -> None:
+        """One branch (every branch is made: keep_all, or a caller streaming them)."""
+        if self.keep_all:
+            self.chosen[index] = b
+            return
+        self._count([b.stability_eigenvalues], [b.accuracy], [b.codes], [b.hinges])
+        low = _lowest(b.stability_eigenvalues, b.codes)
+        if _worth(b.stability_eigenvalues, b.accuracy, b.codes) or b.type2:
+            self.chosen[index] = b
+        if low < self.lowest[0]:
+            self.lowest = (low, (index, b))
+
+    def add_chunk(self, start: int, branch, plain: dict, special: np.ndarray, full: dict) -> None:
+        """A chunk without making a Branch for the rows nobody keeps (vectorised over its plain rows)."""
+        rows = ~special
+        self._count([plain["lam"][rows].ravel()] + [b.stability_eigenvalues for b in full.values()],
+                    [plain["err"][rows].ravel()] + [b.accuracy for b in full.values()],
+                    [plain["codes"][rows].ravel()] + [b.codes for b in full.values()],
+                    [plain["hinges"][rows].ravel()] + [b.hinges for b in full.values()])
+        worth = _worth(plain["lam"], plain["err"], plain["codes"]) & rows
+        lows = _lowest(plain["lam"], plain["codes"])
+        for i, b in full.items():
+            worth[i] = _worth(b.stability_eigenvalues, b.accuracy, b.codes) or bool(b.type2)
+            lows[i] = _lowest(b.stability_eigenvalues, b.codes)
+        for i in np.flatnonzero(worth):
+            self.chosen[start + int(i)] = branch(int(i))
+        i = int(np.argmin(lows))
+        if lows[i] < self.lowest[0]:
+            self.lowest = (float(lows[i]), (start + i, self.chosen.get(start + i) or branch(i)))
+
+    def _count(self, lam, acc, codes, hinges) -> None:
+        lam, acc, codes, hinges = (np.concatenate(a) for a in (lam, acc, codes, hinges))
+        one = tally(lam, acc, codes, hinges.astype(bool), np.zeros(len(lam), dtype=np.int64), 1)
+        self.tally = merge_tallies(self.tally, {key: value[0] for key, value in one.items()})
+
+    def branches(self) -> list:
+        if self.lowest[1] is not None:
+            self.chosen.setdefault(*self.lowest[1])
+        return [self.chosen[i] for i in sorted(self.chosen)]
+
+
+def _worth(lam, acc, codes):
+    """A branch (row) with a consistent eigenpair of sign ≤ 0 within accuracy: what instability or neutrality rests
+    on (eq:instab, eq:neutral)."""
+    return np.any(np.isin(codes, CONSISTENT) & (resolved_sign(lam, acc) <= 0), axis=-1)
+
+
+def _lowest(lam, codes):
+    """The lowest non-rigid eigenvalue of a branch (row); inf if it has none."""
+    return np.min(np.where(codes != RIGID, lam, np.inf), axis=-1, initial=np.inf)
+
+
+def full_signs(xp, N, W):
+    """±1 per column (L, k): the sign that makes the largest-magnitude entry of the full eigenvector N w positive,
+    the convention of branches.canonical_signs, so both paths report the same vector_sign."""
+    V = xp.matmul(N[None], W)
+    idx = xp.argmax(xp.abs(V), axis=1)[:, None, :]
+    return xp.where(xp.take_along_axis(V, idx, axis=1)[:, 0, :] < 0, -1.0, 1.0)
+
+
+def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray, be) -> np.ndarray:
+    """Branches that need the full path: a non-rigid zero or a repeated eigenvalue within the accuracy bounds
+    (branches.py's rule), or an ℍ^i whose smallest singular value on N is not proven above its zero tolerance."""
+    lam, bounds = h["lam"], h["bounds"]
+    n = red.n
+    zero = np.any(np.abs(lam) <= bounds, axis=1)
+    repeated = np.any(np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:], axis=1)
+    upper = red.HN_norm + on @ red.AS_norm                            # ≥ ‖H^i N‖₂ = ‖ℍ^i‖₂
+    tol_u = problem.tol.zero_tol(1.0, n) * upper
+    lower = lam[:, 0] - bounds[:, 0]                                  # ≤ λ_min(M_i) ≤ σ_min(H^i N)
+    unsure = np.flatnonzero(~(zero | repeated) & (lower <= tol_u))
+    singular = np.zeros(len(lam), bool)
+    if unsure.size:
+        smin2, gmax = gram_floor(be, problem.A, red, on[unsure])
+        tol_g = problem.tol.zero_tol(1.0, n) * np.sqrt(np.maximum(gmax, 0.0))
+        singular[unsure] = smin2 <= tol_g ** 2
+    return zero | repeated | singular
+
+
+def gram_floor(be, A: np.ndarray, red: Reduced, on: np.ndarray):
+    """A lower bound of σ_min(H^i N)² and the largest eigenvalue of G = (H^i N)ᵀ(H^i N) per branch, on the backend.
+
+    G is formed to within 4nε‖H^i N‖_F² (γ_n per entry). Its smallest eigenvalue: on the CPU LAPACK's eigvalsh,
+    backward stable, whose error that term also covers; on a GPU (Jacobi, ~1e-14 relative) nothing is assumed of
+    the solver: eigh's own residual gives the bound (accuracy.vector_bounds, Kahan), as for every other eigenvalue.
+    """
+    xp, n = be.xp, red.n
+    X = be.asarray(red.HN)[None] + be.asarray(A)[None] * be.asarray(on)[:, None, :] @ be.asarray(red.s.T)
+    G = xp.swapaxes(X, 1, 2) @ X
+    fro2 = be.to_host(xp.sum(X * X, axis=(1, 2)))
+    if be.name == "cpu":
+        g = np.linalg.eigvalsh(G)
+        return g[:, 0] - 4 * n * EPS * fro2, g[:, -1]
+    g, Z = xp.linalg.eigh(G)
+    res = be.to_host(residual_norms(xp, G, g, Z)[:, 0])
+    scale = be.to_host(xp.max(xp.sum(xp.abs(G), axis=-1), axis=-1))
+    g0, gmax = be.to_host(g[:, 0]), be.to_host(g[:, -1])
+    return g0 - vector_bounds(g0, res, scale, 0.0, G.shape[-1]) - 4 * n * EPS * fro2, gmax
+
+
+def fingerprint(xp, S) -> dict:
+    """Per reduced column (L, k) the sliding contact with the largest |S| and that S's sign: what `LazyVectors` needs
+    to give a recomputed eigenvector the sign its consistency code was computed with."""
+    if S.shape[1] == 0:
+        return {"finger": xp.zeros(S.shape[::2], dtype=xp.int64), "sign": xp.ones(S.shape[::2])}
+    finger = xp.argmax(xp.abs(S), axis=1)
+    return {"finger": finger, "sign": xp.sign(xp.take_along_axis(S, finger[:, None, :], axis=1)[:, 0, :])}
+
+
+def _plain_arrays(problem: Problem, h: dict) -> dict:
+    """Per-chunk arrays of the plain branches' Branch fields: the rigid motions as exact zeros (code RIGID, error
+    bound ‖E_i‖_F) sorted in with the reduced eigenvalues."""
+    L = h["lam"].shape[0]
+    r = problem.rigid.shape[1]
+    lam = np.concatenate([np.zeros((L, r)), h["lam"]], axis=1)
+    order = np.argsort(lam, axis=1, kind="stable")
+    err = np.concatenate([np.broadcast_to(h["leak"][:, None] + problem.formation_error, (L, r)), h["bounds"]],
+                         axis=1)
+    codes = np.concatenate([np.full((L, r), RIGID, np.int8), h["codes"]], axis=1)
+    hinges = np.concatenate([np.zeros((L, r), bool), h["hinges"]], axis=1)
+    norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
+    res = (np.sqrt(2.0) * h["res"].max(axis=1, initial=0.0) + h["leak"]) / norm
+    take = lambda a: np.take_along_axis(a, order, axis=1)              # noqa: E731
+    return {"lam": take(lam), "err": take(err), "codes": take(codes), "hinges": take(hinges), "order": order,
+            "tol": err.max(axis=1), "res": res, "finger": h["finger"], "sign": h["sign"]}
+
+
+def _plain(problem: Problem, red: Reduced, mask, p: dict) -> Branch:
+    """A Branch from one row of `_plain_arrays`, eigenvectors recomputed on demand."""
+    r = problem.rigid.shape[1]
+    return Branch(mask=mask, stability_eigenvalues=p["lam"], stability_vectors=LazyVectors(
+                      problem, red, mask, p["order"], p["finger"], p["sign"]), codes=p["codes"], hinges=p["hinges"],
+                  n_zero=r, zero_tol=float(p["tol"]), uniqueness_eigenvalues=np.zeros(0, complex),
+                  uniqueness_n_zero=r, type2=[], residual_stability=float(p["res"]), residual_uniqueness=0.0,
+                  bounds=p["err"])
+
+
+class LazyVectors:
+    """The eigenvectors of a plain branch (n, n), computed when indexed: the branch's reduced matrix is solved
+    again (one k × k eigh) and each column's sign is set to the one its consistency code was computed with (the
+    sign of its largest S value: `finger` and `sign` per reduced column); the rigid columns are the orthonormal
+    rigid basis; `order` sorts the columns like the branch's eigenvalues."""
+
+    def __init__(self, problem, red, mask, order, finger, sign):
+        self.problem, self.red, self.mask = problem, red, mask
+        self.order, self.finger, self.sign = order, finger, sign
+
+    @property
+    def shape(self):
+        return (self.red.n, self.red.n)
+
+    def array(self) -> np.ndarray:
+        on = (self.mask[None, self.problem.sliding] == 1).astype(float)
+        with backend("cpu").threads(self.red.k):
+            _, W = np.linalg.eigh(branch_stack(np, self.red, on)[0])
+        if self.red.s.size:
+            flip = np.sign((self.red.s.T @ W)[self.finger, np.arange(W.shape[1])]) * self.sign
+            W = W * np.where(flip == 0, 1.0, flip)[None, :]
+        V = np.concatenate([self.problem.rigid, self.red.N @ W], axis=1)
+        return V[:, self.order]
+
+    def __array__(self, dtype=None, copy=None):
+        V = self.array()
+        return V if dtype is None else V.astype(dtype)
+
+    def __getitem__(self, index):
+        return self.array()[index]
+
+
+# ------------------------------------------------------------------------------------- the sparse path (sparse.py)
+
+def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
+    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): twice, B is
+    projected off X (block Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
+    only, no Householder QR of n × m); directions below `cut` are dropped."""
+    for _ in range(2):
+        B = B - X @ (X.T @ B)
+        B = B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+        s, U = np.linalg.eigh(_sym(B.T @ B))
+        keep = s > cut * max(s[-1], 1e-300)
+        B = B @ (U[:, keep] / np.sqrt(s[keep]))
+    return B
+
+
+class SparseRitz:
+    """The lowest eigenpairs of every branch of a large cluster from ONE elastic solve (granstab.solve.sparse).
+
+    Branch i's deflated operator is B_i = B_0 + U_i K_i U_iᵀ with U_i in span[A, S] (and the rigid modes). An
+    eigenvector of B_i with eigenvalue λ is v = -(B_0 - λ)⁻¹ U_i K_i U_iᵀ v: near the low end it lies in the span of
+    the lowest elastic modes and of (B_0 - σ)⁻¹[A, S], (B_0 - σ)⁻²[A, S] (a Taylor expansion of (B_0 - λ)⁻¹ about
+    σ). That space W (n × d, d = K + 4 Ms, orthonormal, rigid-free) is built once from the elastic shift-invert
+    solve and its sparse LU; every branch is then the d × d Rayleigh-Ritz problem Wᵀ B_i W = Wᵀ Hs W + a low-rank
+    update, stacked on the backend like the dense branches.
+
+    Exact: the number ν of eigenvalues below σ per branch (Sylvester/Haynsworth from the shared LU, sparse.Shifted).
+    Bounded: every Ritz value θ is an upper bound of its eigenvalue (Cauchy interlacing) and has an eigenvalue
+    within its residual ‖B_i v − θ v‖ (exact operator). A branch whose Ritz values below σ are fewer than ν, or whose
+    residuals exceed `rtol`·‖Hs‖, is solved again by shift-invert ARPACK with the same LU (sparse.lowest_modes).
+    """
+
+    def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 8, rtol: float = 1e-12, device: str = "cpu"):
+        from .sparse import lowest_modes
+        self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
+        elastic = lowest_modes(spb, k + extra, None, tol=tol)
+        self.factorization = elastic.info.get("factorization")
+        R = spb.R
+        blocks = [elastic.vectors]
+        if self.factorization is not None and spb.A.shape[1]:
+            Z = np.concatenate([spb.A, spb.S], axis=1)
+            for _ in range(2):
+                Z = self.factorization.solve(Z)
+                Z -= R @ (R.T @ Z)
+                Z /= np.maximum(np.linalg.norm(Z, axis=0), 1e-300)
+                blocks.append(Z)
+        W = np.concatenate(blocks, axis=1)
+        W -= R @ (R.T @ W)
+        U, sv, _ = np.linalg.svd(W, full_matrices=False)
+        self.W = U[:, sv > 1e-12 * sv[0]]
+        HW = spb.Hs @ self.W
+        self.M0 = _sym(self.W.T @ HW)
+        self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
+        self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
+        if self.factorization is not None:                             # (Hs - σI)⁻¹ of every column _lowrank uses
+            solve = self.factorization.solve
+            T = R[:, :spb.scene.dim]
+            self.solved = {"Q": solve(spb.Q), "HQ": solve(spb.Hs @ spb.Q), "T": solve(T), "A": solve(spb.A),
+                           "S": solve(spb.S)}
+        self.steps = 4
+
+    def modes(self, masks: np.ndarray, kk: int):
+        """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""
+        from .sparse import Shifted, _finish, _lowrank, lowest_modes, operator
+        spb = self.spb
+        be = backend(self.device)
+        on = (masks[:, spb.sliding] == 1).astype(float)
+        block = min(kk + GUARD, self.W.shape[1])
+        with be.threads(self.W.shape[1]):
+            _, Y = be.xp.linalg.eigh(stack(be.xp, self.M0, self.updates, be.asarray(on)))
+            Y = be.to_host(Y[:, :, :block])
+        fac = self.factorization
+        for i, mask in enumerate(masks):
+            if fac is None:
+                self.stats["arpack"] += 1
+                yield lowest_modes(spb, kk, mask, tol=self.tol)
+                continue
+            U, K = _lowrank(spb, on[i] == 1, spb.norm)
+            shifted = Shifted(fac, U, K, fac.sigma, fac.n_neg, Z=self._solved(on[i] == 1))
+            Bop = operator(spb, mask, spb.norm)
+            mask8 = np.asarray(mask, np.int8)
+            V = self.W @ Y[i]
+            for step in range(self.steps + 1):
+                modes = _finish(spb, Bop, np.zeros(block), V, mask8, fac.sigma, False, shifted.n_below, "ritz", {})
+                nu, found = shifted.n_below, int(np.sum(modes.eigenvalues < fac.sigma))
+                if nu is not None and nu == found < kk and modes.residuals[:kk].max() <= self.rtol:
+                    out = _finish(spb, Bop, np.zeros(kk), modes.vectors[:, :kk], mask8, fac.sigma, True, nu, "ritz",
+                                  {"factorization": fac, "basis": self.W.shape[1], "refinements": step})
+                    self.stats["ritz"] += 1
+                    yield out
+                    break
+                if step < self.steps:
+                    V = self._refine(spb, Bop, shifted, modes.vectors)
+            else:
+                self.stats["arpack"] += 1
+                yield lowest_modes(spb, kk, mask, factorization=fac, tol=self.tol)
+
+    def _solved(self, on: np.ndarray) -> np.ndarray:
+        """(Hs - σI)⁻¹ U for sparse._lowrank's U = [Q, Y, T, A_on, S_on] of a branch, by linearity from the solves
+        made once (Y = Hs Q + ½(A_on S_onᵀ Q + S_on A_onᵀ Q))."""
+        spb, z = self.spb, self.solved
+        A, S = spb.A[:, on], spb.S[:, on]
+        ZY = z["HQ"] + 0.5 * (z["A"][:, on] @ (S.T @ spb.Q) + z["S"][:, on] @ (A.T @ spb.Q))
+        return np.concatenate([z["Q"], ZY, z["T"], z["A"][:, on], z["S"][:, on]], axis=1)
+
+    def _refine(self, spb, Bop, shifted, V):
+        """Rayleigh-Ritz on span[W, V, (B - σ)⁻¹V, (B - σ)⁻²V] (block shift-invert with the branch's Woodbury
+        operator): as many of the lowest Ritz vectors as V has columns."""
+        Z1 = shifted.solve(V)
+        Z2 = shifted.solve(Z1)
+        basis = self.W
+        for block in (V, Z1, Z2):
+            basis = np.concatenate([basis, extend(np.concatenate([spb.R, basis], axis=1), block)], axis=1)
+        G = _sym(basis.T @ Bop.matmat(basis))
+        _, y = np.linalg.eigh(G)
+        return basis @ y[:, :V.shape[1]]

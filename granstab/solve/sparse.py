@@ -1,0 +1,693 @@
+"""The sparse path: the lowest eigenpairs of sym(𝓗^i) for large clusters (10⁴-10⁵ particles, 2D and 3D).
+
+Nothing of size n_dof × n_dof is ever formed. In the scaled dofs of rigid.py (Ũ = [du, L dθ]):
+
+  sym(𝓗^i) = P Hs^i P,   Hs^i = sym(H̃_el) + ½ Σ_{sliding} (a sᵀ + s aᵀ)   (eq:newstiffnesses, eq:ContactF)
+
+with P = I - Q Qᵀ (Q: orthonormal basis of the rigid rotations C̃, eq:Pnrr; P is the orthogonal projector because
+C⁺ = (CᵀC)⁻¹Cᵀ). Rigid translations T̂ and rotations Q are exact null vectors of P Hs P and span an invariant
+subspace, so the non-trivial spectrum is that of the DEFLATED operator
+
+  B = P Hs P + s (Q Qᵀ + T̂ T̂ᵀ) = Hs + U K Uᵀ,     U = [Q, Y, T̂, a_on, s_on],  Y = Hs Q,  rank ≤ 2r + d + 2Ms
+
+(the rigid modes are moved to s, an upper bound of ‖Hs‖). B is a sparse matrix plus a rank-≤(2r+d+2Ms)
+correction; it is applied as a LinearOperator. Its lowest eigenpairs come from one of two solvers:
+
+* shift-invert (default in 2D and for 3D up to LU_MAX_DOF_3D dofs): ARPACK (scipy.sparse.linalg.eigsh) around σ
+  slightly below 0, with (B - σI)⁻¹ applied by ONE sparse LU of Hs - σI (SuperLU in a geometric nested-dissection
+  order, diagonal pivots) and the Woodbury identity; the same LU serves every loading branch (the branches differ
+  only in the low-rank part). Verified by Sylvester's law of inertia: with diagonal pivots the LU is an LDLᵀ, so
+  the number of negative pivots is the number of eigenvalues of Hs below σ, and Haynsworth's inertia formula for
+  the low-rank update gives the number ν of eigenvalues of B below σ,
+      ν(B - σI) = ν(Hs - σI) + ν(-K⁻¹ - UᵀM⁻¹U) - ν(-K⁻¹).
+  When every eigenvalue below σ was found (always the case when ν = 0) the k returned eigenvalues are provably the
+  lowest k; otherwise σ is lowered below a Lanczos estimate of λ_min and the solve repeated. `Modes.verified`
+  says whether that check passed. Memory: the LU fill, ~n log n in 2D and ~n^{4/3} in 3D (`info["lu_nnz"]`).
+* LOBPCG (default for larger 3D scenes): scipy.sparse.linalg.lobpcg on B with the rigid modes as constraints and
+  the `TwoLevel` preconditioner (smoothed aggregation of per-aggregate rigid motions over the elastic Hm + τI,
+  block-Jacobi smoothing, a small coarse LU): memory O(contacts), 30-100 iterations, not inertia-verified; one
+  that does not converge is redone by shift-invert (up to LU_MAX_DOF_FALLBACK dofs).
+
+Eigenvalues are Rayleigh quotients of the exact operator, and residuals ‖Bv - λv‖/‖Hs‖ are reported per pair.
+
+Public API::
+
+    sp = sparse_problem(scene)                     # assembly (vectorised), scaling, rigid bases: set up once
+    modes = lowest_modes(sp, k=6, mask=None)       # lowest k non-rigid eigenpairs of sym(𝓗^mask)
+    analyze(scene, method="sparse", k=6)           # the same inside granstab.analyze (Analysis, verdicts);
+                                                   # method="auto" (default) uses it above DENSE_MAX_DOF dofs
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..mechanics.metric import Metric, default_length, length_metric
+from ..mechanics.rigid import Projection, rotations, translations
+from ..mechanics.stiffness import ContactBlocks, assemble, contact_blocks
+from ..model.scene import Scene
+from ..model.vec import rot_dim, rotate_matrix
+
+SMALL_DENSE = 48   # up to this many dofs lowest_modes uses a dense eigh of the operator (exact, instant)
+SIGMA_REL = 1e-6   # default shift σ = -SIGMA_REL · s (s = upper bound of ‖Hs‖): just below 0, above round-off
+
+
+# ------------------------------------------------------------------------------------------------ assembly
+
+CHUNK = 16384   # contacts per chunk of contact_blocks: temporaries stay ~10 MB, so the cost stays linear in M
+
+CONTACT_FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu",
+                  "rolling")
+
+
+def contact_chunks(scene: Scene, chunk: int = CHUNK):
+    """(slice, ContactBlocks of those contacts) over the scene's contacts in chunks (global dof indices)."""
+    import dataclasses
+
+    M = scene.n_contacts
+    if M <= chunk:
+        yield slice(0, M), contact_blocks(scene)
+        return
+    for start in range(0, M, chunk):
+        sl = slice(start, min(start + chunk, M))
+        sub = dataclasses.replace(scene, **{f: getattr(scene, f)[sl] for f in CONTACT_FIELDS},
+                                  state=scene.state[sl])
+        yield sl, contact_blocks(sub)
+
+
+@dataclass(frozen=True, eq=False)
+class SparseProblem:
+    """A scene set up for the sparse path, in scaled dofs Ũ = D⁻¹U (rigid.py). n = n_dof.
+
+    H: CSR scaled elastic H̃ (non-symmetric); Hs: CSR sym(H̃); Hm: CSR scaled elastic mechanical part (for the
+    preconditioner); A, S: (n, Ms) sliding factors (scaled, like branches.Problem); C: (n, r) scaled rotations;
+    Q: (n, r) and R: (n, d + r) orthonormal bases of the rigid rotations and of all rigid motions (translations
+    first); norm: upper bound of ‖Hs‖₂ (max absolute row sum, plus the sliding terms); local: stiffness.ContactBlocks without its (M, n_loc, n_loc) blocks.
+    """
+
+    scene: Scene
+    length: float | None
+    scale: np.ndarray | None
+    metric: Metric
+    H: sp.csr_matrix
+    Hs: sp.csr_matrix
+    Hm: sp.csr_matrix
+    A: np.ndarray
+    S: np.ndarray
+    sliding: np.ndarray
+    C: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    norm: float
+    local: ContactBlocks
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return self.H.shape[0]
+
+    @property
+    def n_rigid(self) -> int:
+        return self.R.shape[1]
+
+    @property
+    def projection(self) -> Projection:
+        return Projection.from_rotations(self.C)
+
+
+@dataclass(frozen=True, eq=False)
+class SparseParts:
+    """The metric-independent part of the sparse path (physical dofs): CSR H and Hm, sliding factors A, S (n, Ms),
+    the contacts' local data (ContactBlocks without blocks) and the timings of building them."""
+
+    H: sp.csr_matrix
+    Hm: sp.csr_matrix
+    A: np.ndarray
+    S: np.ndarray
+    sliding: np.ndarray
+    local: ContactBlocks
+    timings: dict
+
+
+def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
+    """H and its mechanical part as CSR from the contact blocks, computed in chunks of contacts and scattered once
+    (stiffness.assemble), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
+    t0 = time.perf_counter()
+    per = scene.dof_per_particle
+    M, n_loc = scene.n_contacts, 2 * per
+    total = np.empty((M, n_loc, n_loc))
+    mech = np.empty((M, n_loc, n_loc))
+    a = np.empty((M, n_loc))
+    s = np.empty((M, n_loc))
+    index = np.empty((M, n_loc), dtype=np.intp)
+    undetermined = np.zeros(M, bool)
+    for sl, cb in contact_chunks(scene, chunk):
+        b = cb.blocks
+        total[sl] = b["Hm"] + b["Hg1"] + b["Hg2"] + b["Hg3"]
+        mech[sl] = b["Hm"]
+        a[sl], s[sl], index[sl] = cb.slide_left, cb.slide_right, cb.index
+        undetermined[sl] = cb.rolling_undetermined
+    t1 = time.perf_counter()
+    H = assemble(total, scene.p, scene.q, per, scene.n_dof)
+    del total
+    Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
+    del mech
+    sliding = np.flatnonzero(scene.at_yield())
+    n, Ms = scene.n_dof, len(sliding)
+    A = np.zeros((n, Ms))
+    S = np.zeros((n, Ms))
+    if Ms:
+        rows = index[sliding]
+        cols = np.broadcast_to(np.arange(Ms)[:, None], rows.shape)
+        np.add.at(A, (rows, cols), a[sliding])
+        np.add.at(S, (rows, cols), s[sliding])
+    local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=n,
+                          rolling_undetermined=undetermined)
+    return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local,
+                       timings={"blocks": t1 - t0, "assembly": time.perf_counter() - t1})
+
+
+def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK, *,
+                   metric: Metric | None = None, parts: SparseParts | None = None) -> SparseProblem:
+    """The sparse problem in a metric's dofs (metric.py; default the L metric with `length`, itself defaulting to
+    the mean contact radius): H̃ = D H D and its mechanical part (sparse congruences, O(nnz)), sym(H̃), the scaled
+    sliding factors and the rigid bases. `parts` (sparse_parts) are shared by every metric of a family."""
+    if metric is None:
+        metric = length_metric(scene, length or default_length(scene), name="L")
+    parts = parts or sparse_parts(scene, chunk)
+    t1 = time.perf_counter()
+    D = metric.matrix()
+    H = (D @ parts.H @ D).tocsr()
+    Hm = (D @ parts.Hm @ D).tocsr()
+    Hs = ((H + H.T) * 0.5).tocsr()
+    A, S = np.asarray(D @ parts.A), np.asarray(D @ parts.S)
+    Ms = A.shape[1]
+    C = metric.rotations(scene)
+    Q, _ = np.linalg.qr(C)
+    T, _ = np.linalg.qr(metric.translations(scene))
+    R = np.concatenate([T, Q], axis=1)
+    norm = float(abs(Hs).sum(axis=1).max()) if Hs.nnz else 1.0
+    if Ms:
+        norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
+    return SparseProblem(scene=scene, length=metric.rotation_length, scale=metric.diagonal, metric=metric, H=H,
+                         Hs=Hs, Hm=Hm, A=A, S=S, sliding=parts.sliding, C=C, Q=Q, R=R, norm=max(norm, 1e-300),
+                         local=parts.local, timings={**parts.timings, "projection": time.perf_counter() - t1})
+
+
+
+# ------------------------------------------------------------------------------------------ the operator
+
+def _lowrank(sp_: SparseProblem, on: np.ndarray, shift: float):
+    """U (n, m) and K (m, m) with B = Hs + U K Uᵀ for the branch whose sliding contacts are `on` (bool, Ms)."""
+    Q = sp_.Q
+    r = Q.shape[1]
+    A, S = sp_.A[:, on], sp_.S[:, on]
+    Y = sp_.Hs @ Q + 0.5 * (A @ (S.T @ Q) + S @ (A.T @ Q))
+    G = Q.T @ Y
+    G = 0.5 * (G + G.T)
+    T = sp_.R[:, :sp_.scene.dim]
+    d, m = T.shape[1], A.shape[1]
+    U = np.concatenate([Q, Y, T, A, S], axis=1)
+    K = np.zeros((2 * r + d + 2 * m,) * 2)
+    I_r = np.eye(r)
+    K[:r, :r] = G + shift * I_r
+    K[:r, r:2 * r] = K[r:2 * r, :r] = -I_r
+    K[2 * r:2 * r + d, 2 * r:2 * r + d] = shift * np.eye(d)
+    o = 2 * r + d
+    K[o:o + m, o + m:] = K[o + m:, o:o + m] = 0.5 * np.eye(m)
+    return U, K
+
+
+@dataclass(eq=False)
+class Shifted:
+    """(B - σI)⁻¹ for one branch from the LU of Hs - σI and the Woodbury identity; the inertia of B - σI."""
+
+    lu: object
+    U: np.ndarray
+    K: np.ndarray
+    sigma: float
+    n_neg_M: int | None
+    Z: np.ndarray = None
+    cap: object = None
+    n_below: int | None = None
+
+    def __post_init__(self):
+        if self.Z is None:                                             # given: (Hs - σI)⁻¹U known (lowrank.py)
+            self.Z = self.lu.solve(self.U) if self.U.shape[1] else self.U
+        Kinv = np.linalg.inv(self.K) if self.K.size else self.K
+        Cap = Kinv + self.U.T @ self.Z
+        Cap = 0.5 * (Cap + Cap.T)
+        self.cap = sla.lu_factor(Cap) if Cap.size else None
+        if self.n_neg_M is not None:
+            pos_cap = int(np.sum(np.linalg.eigvalsh(Cap) > 0)) if Cap.size else 0
+            pos_K = int(np.sum(np.linalg.eigvalsh(self.K) > 0)) if self.K.size else 0
+            self.n_below = self.n_neg_M + pos_cap - pos_K
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        y = self.lu.solve(b)
+        if self.cap is None:
+            return y
+        return y - self.Z @ sla.lu_solve(self.cap, self.U.T @ y)
+
+
+def dissection_order(x: np.ndarray, p: np.ndarray, q: np.ndarray, leaf: int = 32) -> np.ndarray:
+    """Geometric nested dissection of the contact graph: a particle order (N,) with separators last.
+
+    Each part is split at the median of its longest extent; its separator is the set of particles on the lower
+    side with a contact across the cut. Fill of the LU ~ n log n in 2D, n^{4/3} in 3D (SuperLU's minimum degree
+    gives about twice as much fill on these graphs). Vectorised per level: O(M log N).
+    """
+    N = len(x)
+    side = np.zeros(N, np.int8)
+    order = []
+    stack = [(np.arange(N), np.asarray(p), np.asarray(q))]          # LIFO: left part, right part, separator
+    while stack:
+        item = stack.pop()
+        if item[1] is None:                                          # a separator
+            order.append(item[0])
+            continue
+        idx, ep, eq = item
+        if len(idx) <= leaf:
+            order.append(idx)
+            continue
+        xs = x[idx]
+        axis = int(np.argmax(xs.max(axis=0) - xs.min(axis=0)))
+        side[idx] = np.where(xs[:, axis] < np.median(xs[:, axis]), 1, 2)
+        if not (np.any(side[idx] == 1) and np.any(side[idx] == 2)):
+            side[idx] = 0
+            order.append(idx)
+            continue
+        cut = side[ep] != side[eq]
+        sep = np.unique(np.where(side[ep[cut]] == 1, ep[cut], eq[cut]))
+        side[sep] = 3
+        left, right = idx[side[idx] == 1], idx[side[idx] == 2]
+        in_left = (side[ep] == 1) & (side[eq] == 1)
+        in_right = (side[ep] == 2) & (side[eq] == 2)
+        side[idx] = 0
+        stack.append((sep, None, None))
+        stack.append((right, ep[in_right], eq[in_right]))
+        stack.append((left, ep[in_left], eq[in_left]))
+    return np.concatenate(order) if order else np.arange(N)
+
+
+class Factor:
+    """LU of Hs - σI in a nested-dissection order with diagonal pivots (SuperLU, symmetric mode): an LDLᵀ in
+    disguise. n_neg = number of negative pivots = eigenvalues of Hs below σ (None if SuperLU pivoted off the
+    diagonal, when the count is not an inertia); nnz = nonzeros of the factors."""
+
+    def __init__(self, sp_: SparseProblem, sigma: float):
+        scene = sp_.scene
+        per = scene.dof_per_particle
+        order = dissection_order(scene.x, scene.p, scene.q)
+        self.perm = (order[:, None] * per + np.arange(per)).reshape(-1)
+        self.inv = np.empty_like(self.perm)
+        self.inv[self.perm] = np.arange(len(self.perm))
+        M = (sp_.Hs - sigma * sp.identity(sp_.n, format="csr"))[self.perm][:, self.perm].tocsc()
+        self.lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        del M
+        self.sigma = sigma
+        self.nnz = int(self.lu.nnz)
+        self.n_neg = None
+        if np.array_equal(self.lu.perm_r, self.lu.perm_c):
+            self.n_neg = int(np.sum(self.lu.U.diagonal() < 0))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self.lu.solve(b[self.perm])[self.inv]
+
+
+def factor(sp_: SparseProblem, sigma: float) -> Factor:
+    """Sparse LDLᵀ-like factorisation of Hs - σI (see Factor)."""
+    return Factor(sp_, sigma)
+
+
+@dataclass(eq=False)
+class Modes:
+    """Lowest non-rigid eigenpairs of sym(𝓗^mask) from the sparse path.
+
+    eigenvalues (k,) ascending, in force/length (scaled dofs); vectors (n, k) unit columns in scaled dofs
+    (physical motion U = scale · Ũ); residuals (k,) ‖B v - λ v‖ / ‖Hs‖ with the exact operator; verified: the
+    inertia check proved these are the k lowest; n_below: eigenvalues found below σ (None if not counted).
+    """
+
+    eigenvalues: np.ndarray
+    vectors: np.ndarray
+    residuals: np.ndarray
+    mask: np.ndarray
+    sigma: float
+    verified: bool
+    n_below: int | None
+    method: str
+    info: dict
+
+
+def operator(sp_: SparseProblem, mask=None, shift: float | None = None) -> spla.LinearOperator:
+    """B = P Hs^i P + s R Rᵀ as a LinearOperator (never a dense matrix)."""
+    on = _on(sp_, mask)
+    U, K = _lowrank(sp_, on, sp_.norm if shift is None else shift)
+    Hs = sp_.Hs
+
+    def mv(x):
+        return Hs @ x + U @ (K @ (U.T @ x))
+
+    return spla.LinearOperator(Hs.shape, matvec=mv, matmat=mv, rmatvec=mv, dtype=float)
+
+
+def _on(sp_: SparseProblem, mask) -> np.ndarray:
+    Ms = len(sp_.sliding)
+    if mask is None:
+        return np.zeros(Ms, bool)
+    mask = np.asarray(mask)
+    if mask.shape != (sp_.scene.n_contacts,):
+        raise ValueError(f"mask must have {sp_.scene.n_contacts} entries")
+    return mask[sp_.sliding] == 1
+
+
+LU_MAX_DOF_FALLBACK = 300000   # a LOBPCG that does not converge is redone by shift-invert up to this size
+LU_MAX_DOF_3D = 30000   # method="auto": shift-invert (sparse LU) in 2D and up to this many dofs in 3D, else LOBPCG
+
+
+def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, tol: float = 0.0,
+                 method: str = "auto", maxiter: int | None = None, factorization=None,
+                 seed: int = 0) -> Modes:
+    """The k lowest eigenpairs of sym(𝓗^mask) off the rigid modes (see the module docstring).
+
+    problem: a SparseProblem or a Scene. mask: +1 sliding per contact (default: all elastic).
+    sigma: shift (default -1e-6 ‖Hs‖). tol: eigsh/lobpcg relative tolerance (0 = machine precision).
+    method: "shift-invert" (ARPACK + sparse LU, inertia-verified; the LU fill grows like n log n in 2D and
+    n^{4/3} in 3D), "lobpcg" (LOBPCG with the TwoLevel preconditioner: memory O(contacts), not verified; tol is
+    then the residual tolerance relative to ‖Hs‖, default 1e-8, which gives eigenvalues to ~1e-16 ‖Hs‖) or
+    "auto" (shift-invert in 2D and up to LU_MAX_DOF_3D dofs in 3D, LOBPCG above). factorization: (sigma, lu, n_neg) from an earlier call, reused across
+    branches. Returns Modes; info has the timings and the LU fill.
+    """
+    sp_ = problem if isinstance(problem, SparseProblem) else sparse_problem(problem)
+    n = sp_.n
+    k = int(max(0, min(k, n - sp_.n_rigid)))
+    mask_arr = np.zeros(sp_.scene.n_contacts, dtype=np.int8) if mask is None else np.asarray(mask, dtype=np.int8)
+    on = _on(sp_, mask)
+    shift = sp_.norm
+    info: dict = {}
+    if k <= 0:
+        return Modes(np.zeros(0), np.zeros((n, 0)), np.zeros(0), mask_arr, 0.0, True, 0, method, info)
+    rng = np.random.default_rng(seed)
+    v0 = rng.standard_normal(n)
+    v0 -= sp_.R @ (sp_.R.T @ v0)
+    Bop = operator(sp_, mask, shift)
+    if n <= SMALL_DENSE or k >= n - sp_.n_rigid - 1:
+        # a handful of dofs: ARPACK needs k < n - 1, and a dense eigh of B is exact and instant here
+        t = time.perf_counter()
+        B = Bop.matmat(np.eye(n))
+        lam, V = np.linalg.eigh(0.5 * (B + B.T))
+        lam, V = _drop_rigid(sp_, lam, V)
+        info["solve"] = time.perf_counter() - t
+        return _finish(sp_, Bop, lam[:k], V[:, :k], mask_arr, np.nan, True, None, "dense", info)
+    if method == "auto":
+        method = "shift-invert" if sp_.scene.dim == 2 or n <= LU_MAX_DOF_3D else "lobpcg"
+    if method == "lobpcg":
+        t = time.perf_counter()
+        lam, V = _lobpcg(sp_, Bop, k, tol, maxiter, rng, info)
+        info["solve"] = time.perf_counter() - t - info["setup"]
+        if info["converged"] or n > LU_MAX_DOF_FALLBACK:
+            return _finish(sp_, Bop, lam, V, mask_arr, np.nan, False, None, method, info)
+        info["fallback"] = "LOBPCG did not converge: shift-invert"      # then continue below
+        method = "shift-invert"
+    if method != "shift-invert":
+        raise ValueError(f"method must be 'auto', 'shift-invert' or 'lobpcg', got {method!r}")
+
+    U, K = _lowrank(sp_, on, shift)
+    sig = -SIGMA_REL * sp_.norm if sigma is None else float(sigma)
+    t = time.perf_counter()
+    if factorization is not None and factorization.sigma == sig:
+        fac = factorization
+    else:
+        fac = factor(sp_, sig)
+    info["factor"] = time.perf_counter() - t
+    info["lu_nnz"] = fac.nnz
+    info["factorization"] = fac
+    shifted = Shifted(fac, U, K, sig, fac.n_neg)
+    nu = shifted.n_below
+    t = time.perf_counter()
+    verified = False
+    if nu is not None and nu <= 4 * k + 20:
+        lam, V = _eigsh_near(shifted, Bop, n, k + nu, tol, maxiter, v0)
+        verified = int(np.sum(lam < sig)) >= nu
+    else:
+        lam = np.array([sig])
+    if not verified:
+        # some eigenvalues below σ were not reached (or the inertia is unknown): move σ below a Lanczos estimate
+        # of λ_min and solve again
+        try:
+            est = spla.eigsh(Bop, k=1, which="SA", tol=1e-3, v0=v0, return_eigenvectors=False,
+                             maxiter=max(1000, 20 * n))[0]
+        except spla.ArpackNoConvergence as exc:                     # fall back on the crude bound -‖Hs‖
+            est = float(np.min(exc.eigenvalues)) if len(exc.eigenvalues) else -sp_.norm
+        sig = min(lam.min(), est) - 0.05 * abs(min(lam.min(), est)) - SIGMA_REL * sp_.norm
+        t2 = time.perf_counter()
+        fac = factor(sp_, sig)
+        info["factor"] += time.perf_counter() - t2
+        info["factorization"] = fac
+        info["lu_nnz"] = fac.nnz
+        shifted = Shifted(fac, U, K, sig, fac.n_neg)
+        nu = shifted.n_below
+        lam, V = _eigsh_near(shifted, Bop, n, k + (nu or 0), tol, maxiter, v0)
+        verified = nu is not None and int(np.sum(lam < sig)) >= nu
+    info["solve"] = time.perf_counter() - t
+    return _finish(sp_, Bop, lam[:k], V[:, :k], mask_arr, sig, verified, nu, method, info)
+
+
+DENSE_FALLBACK_MAX_DOF = 4000   # ARPACK failures below this size are solved densely instead
+DENSE_FALLBACK_PATIENCE = 300   # ARPACK restarts allowed where the dense fallback exists (tightly clustered spectra,
+                                # e.g. a compressed chain in the L/10 metric, took > 3 min for 1,200 dofs otherwise)
+
+
+def _drop_rigid(sp_: SparseProblem, lam, V):
+    """Remove the n_rigid eigenpairs of B that lie in the rigid span (eigenvalue s) from a full spectrum."""
+    rigid_weight = np.linalg.norm(sp_.R.T @ V, axis=0)
+    keep = np.argsort(rigid_weight, kind="stable")[:V.shape[1] - sp_.n_rigid]
+    keep = np.sort(keep)
+    return lam[keep], V[:, keep]
+
+
+def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0):
+    """The kk eigenpairs of B nearest σ by shift-invert ARPACK. If ARPACK does not converge (clustered
+    eigenvalues at σ), retry with a larger Krylov space and a round-off tolerance; small problems (at most
+    DENSE_FALLBACK_MAX_DOF dofs, where ARPACK gets DENSE_FALLBACK_PATIENCE restarts) then fall back on a dense eigh
+    of B, large ones raise a RuntimeError that says so."""
+    kk = int(min(kk, n - 2))
+    if n <= DENSE_FALLBACK_MAX_DOF:         # a dense eigh of B costs seconds at most: do not wait longer for ARPACK
+        maxiter = min(maxiter or 10 * n, DENSE_FALLBACK_PATIENCE)
+    OPinv = spla.LinearOperator((n, n), matvec=shifted.solve, dtype=float)
+    wide = min(n - 1, max(4 * kk + 1, 40))
+    attempts = [dict(tol=tol), dict(tol=tol, ncv=wide), dict(tol=max(tol, 1e-12), ncv=wide)]
+    for options in attempts:
+        try:
+            lam, V = spla.eigsh(Bop, k=kk, sigma=shifted.sigma, which="LM", OPinv=OPinv, v0=v0,
+                                maxiter=maxiter, **options)
+            break
+        except spla.ArpackNoConvergence:
+            continue
+    else:
+        if n > DENSE_FALLBACK_MAX_DOF:
+            raise RuntimeError(f"shift-invert ARPACK did not converge for {kk} eigenpairs near σ = "
+                               f"{shifted.sigma:.3g} ({n} dofs); try method='lobpcg'")
+        B = Bop.matmat(np.eye(n))
+        lam, V = np.linalg.eigh(0.5 * (B + B.T))
+        near = np.sort(np.argsort(np.abs(lam - shifted.sigma), kind="stable")[:kk])
+        lam, V = lam[near], V[:, near]
+    order = np.argsort(lam)
+    return lam[order], V[:, order]
+
+
+def particle_blocks(A: sp.csr_matrix, per: int) -> np.ndarray:
+    """The per×per diagonal blocks (N, per, per) of a matrix over particle dofs."""
+    N = A.shape[0] // per
+    coo = A.tocoo()
+    same = coo.row // per == coo.col // per
+    blk = np.zeros((N, per, per))
+    np.add.at(blk, (coo.row[same] // per, coo.row[same] % per, coo.col[same] % per), coo.data[same])
+    return blk
+
+
+class TwoLevel:
+    """Smoothed-aggregation two-level preconditioner ≈ (Hs + τI)⁻¹ for LOBPCG, memory O(contacts).
+
+    Aggregates: particles binned into boxes of about `aggregate` particles. Coarse space: the d + r rigid motions
+    of each aggregate (in scaled dofs, about its centroid), smoothed once by damped block-Jacobi
+    (P = (I - ω D⁻¹A) P₀, ω = 4/(3ρ(D⁻¹A))); coarse matrix PᵀAP factorised by SuperLU. Smoother: damped
+    block-Jacobi on the particle blocks (|eigenvalues| floored, so it is positive definite). One symmetric V-cycle:
+    pre-smooth, coarse correction, post-smooth.
+    """
+
+    def __init__(self, sp_: SparseProblem, aggregate: int = 16, tau_rel: float = 1e-6):
+        scene = sp_.scene
+        d, r, N = scene.dim, rot_dim(scene.dim), scene.n_particles
+        per = d + r
+        n = sp_.n
+        # the elastic mechanical stiffness Hm = Bᵀ F B (eq:Hm) is positive semi-definite with the rigid motions
+        # as null space, so Hm + τI is SPD whatever the geometric terms do: the preconditioner stays SPD even for
+        # an unstable (indefinite) sym(𝓗)
+        A = (0.5 * (sp_.Hm + sp_.Hm.T) + tau_rel * sp_.norm * sp.identity(n, format="csr")).tocsr()
+        blk = particle_blocks(A, per)
+        lam_b, V_b = np.linalg.eigh(blk)
+        floor = 1e-6 * max(float(np.abs(lam_b).max()), 1e-300)
+        self.Dinv = (V_b / np.maximum(np.abs(lam_b), floor)[:, None, :]) @ np.swapaxes(V_b, 1, 2)
+        # aggregates: boxes of side h with ~aggregate particles each
+        x = scene.x
+        lo, hi = x.min(axis=0), x.max(axis=0)
+        h = max(float(np.prod(hi - lo + 1e-12) * aggregate / max(N, 1)) ** (1.0 / d), 1e-300)
+        cell = np.floor((x - lo) / h).astype(np.int64)
+        _, agg = np.unique(cell, axis=0, return_inverse=True)
+        agg = agg.reshape(-1)
+        n_agg = int(agg.max()) + 1
+        centre = np.zeros((n_agg, d))
+        np.add.at(centre, agg, x)
+        centre /= np.bincount(agg, minlength=n_agg)[:, None]
+        # tentative prolongator: rigid motions of each aggregate, rows (particle dofs), cols (aggregate modes)
+        loc = np.zeros((N, per, per))
+        loc[:, :d, :d] = np.eye(d)
+        loc[:, :d, d:] = rotate_matrix(x - centre[agg])
+        loc[:, d:, d:] = np.eye(r)
+        loc = np.linalg.solve(sp_.metric.blocks, loc)                  # D⁻¹: the metric's dofs
+        rows = np.broadcast_to((np.arange(N) * per)[:, None, None] + np.arange(per)[None, :, None], loc.shape)
+        cols = np.broadcast_to((agg * per)[:, None, None] + np.arange(per)[None, None, :], loc.shape)
+        P0 = sp.csr_matrix((loc.reshape(-1), (rows.reshape(-1), cols.reshape(-1))), shape=(n, n_agg * per))
+        # damped block-Jacobi smoothing of the prolongator; ρ(D⁻¹A) by power iteration
+        rng = np.random.default_rng(0)
+        v = rng.standard_normal(n)
+        rho = 1.0
+        for _ in range(15):
+            w = self._jacobi(A @ v)
+            rho = float(np.linalg.norm(w) / np.linalg.norm(v))
+            v = w / np.linalg.norm(w)
+        self.omega = 1.0 / rho
+        AP0 = (A @ P0).tocsr()
+        P = P0 - (4.0 / (3.0 * rho)) * self._jacobi_sparse(AP0, per)
+        self.P = P.tocsr()
+        Ac = (self.P.T @ (A @ self.P)).tocsc()
+        self.coarse = spla.splu(Ac)
+        self.A = A
+        self.n_coarse = Ac.shape[0]
+        self.nnz = int(A.nnz + self.P.nnz + self.coarse.nnz)
+
+    def _jacobi(self, b):
+        N, per = self.Dinv.shape[:2]
+        return (self.Dinv @ b.reshape(N, per, -1)).reshape(b.shape)
+
+    def _jacobi_sparse(self, S: sp.csr_matrix, per: int) -> sp.csr_matrix:
+        """D⁻¹ S for a sparse S: block-diagonal D⁻¹ as a BSR matrix times S."""
+        N = self.Dinv.shape[0]
+        Dinv = sp.bsr_matrix((self.Dinv, np.arange(N), np.arange(N + 1)), shape=(N * per, N * per))
+        return (Dinv @ S).tocsr()
+
+    def apply(self, b: np.ndarray) -> np.ndarray:
+        w = self.omega
+        x = w * self._jacobi(b)
+        res = b - self.A @ x
+        x = x + self.P @ self.coarse.solve(np.asarray(self.P.T @ res))
+        res = b - self.A @ x
+        return x + w * self._jacobi(res)
+
+
+def _lobpcg(sp_: SparseProblem, Bop, k, tol, maxiter, rng, info):
+    """LOBPCG on B with the rigid modes as constraints, preconditioned by TwoLevel: O(contacts) memory."""
+    import warnings as _w
+
+    t = time.perf_counter()
+    pre = TwoLevel(sp_)
+    info["setup"] = time.perf_counter() - t
+    info["coarse_dofs"] = pre.n_coarse
+    info["lu_nnz"] = pre.nnz
+    m = min(k + max(4, k // 2), sp_.n - sp_.n_rigid - 1)
+    X = rng.standard_normal((sp_.n, m))
+    X -= sp_.R @ (sp_.R.T @ X)
+    Mop = spla.LinearOperator(sp_.Hs.shape, matvec=pre.apply, matmat=pre.apply, dtype=float)
+    with _w.catch_warnings(record=True) as caught:
+        _w.simplefilter("always")
+        lam, V, hist = spla.lobpcg(Bop, X, M=Mop, Y=sp_.R, largest=False, tol=(tol or 1e-8) * sp_.norm,
+                                   maxiter=maxiter or 500, verbosityLevel=0, retLambdaHistory=True)
+    info["iterations"] = len(hist)
+    info["warnings"] = [str(c.message).split("\n")[0] for c in caught]
+    order = np.argsort(lam)[:k]
+    V = V[:, order]
+    res = np.linalg.norm(Bop.matmat(V) - V * lam[order], axis=0).max(initial=0.0)
+    info["converged"] = bool(res <= 10 * (tol or 1e-8) * sp_.norm)
+    return lam[order], V
+
+
+def _finish(sp_, Bop, lam, V, mask, sig, verified, nu, method, info) -> Modes:
+    V = V - sp_.R @ (sp_.R.T @ V)                                      # drop round-off along the rigid modes
+    V /= np.linalg.norm(V, axis=0)
+    BV = Bop.matmat(V)
+    lam = np.einsum("ij,ij->j", V, BV)                                 # Rayleigh quotients with the exact B
+    res = np.linalg.norm(BV - V * lam, axis=0) / sp_.norm
+    order = np.argsort(lam)
+    return Modes(eigenvalues=lam[order], vectors=V[:, order], residuals=res[order], mask=mask, sigma=sig,
+                 verified=bool(verified), n_below=nu, method=method, info=info)
+
+
+# ------------------------------------------------------------------------------------------------ errors
+
+def norm_estimate(A, iters: int = 30, seed: int = 0) -> float:
+    """‖A‖₂ of a sparse matrix (or operator) by power iteration on AᵀA (a lower bound, within a few %)."""
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal(A.shape[1])
+    x /= np.linalg.norm(x)
+    s = 0.0
+    for _ in range(iters):
+        y = A.T @ (A @ x)
+        s = np.sqrt(np.linalg.norm(y))
+        if s == 0:
+            return 0.0
+        x = y / np.linalg.norm(y)
+    return float(s)
+
+
+class _Applied:
+    """A part of H known only through its product with the rigid basis (what checks.identity_errors needs)."""
+
+    def __init__(self, value: np.ndarray):
+        self.value = value
+
+    def __matmul__(self, other):
+        return self.value
+
+
+def identity_errors(sp_: SparseProblem, chunk: int = CHUNK) -> dict:
+    """The identities of the dense path (granstab.mechanics.checks; Frobenius norms) without assembling the parts: H in
+    physical dofs from the scaled H̃, and Hg1, Hg2, Hm applied to the rigid basis contact by contact (chunked, then
+    scattered); plus the rigid leakage of ℍ = H̃ P on all rigid motions and the projection's own checks."""
+    from ..mechanics.checks import identity_errors as core_identities
+
+    scene = sp_.scene
+    Dinv = sp_.metric.inverse_matrix()
+    H = (Dinv @ sp_.H @ Dinv).tocsr()
+    rigid = np.concatenate([translations(scene), rotations(scene, 1.0)], axis=1)
+    applied = {name: np.zeros(rigid.shape) for name in ("Hg1", "Hg2", "Hm")}
+    for sl, cb in contact_chunks(scene, chunk):
+        local = rigid[cb.index]                                      # (m, n_loc, d + r)
+        for name, acc in applied.items():
+            contrib = cb.blocks[name] @ local
+            for j in range(rigid.shape[1]):
+                acc[:, j] += np.bincount(cb.index.reshape(-1), weights=contrib[:, :, j].reshape(-1),
+                                         minlength=scene.n_dof)
+    errs = core_identities(scene, {"H": H, **{k: _Applied(v) for k, v in applied.items()}})
+    proj = sp_.projection
+    R = sp_.R
+    HR = sp_.H @ R - (sp_.H @ proj.C) @ (proj.Cplus @ R)
+    errs["rigid_leakage_modified"] = float(np.abs(HR).max() / max(spla.norm(sp_.H), 1e-300))
+    errs.update(proj.errors())
+    return errs
+
+
+# ------------------------------------------------------------------------------------------- analyze()
+
+DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this many dofs, the sparse one above
+
+
+__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
+           "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
+           "operator", "sparse_parts", "sparse_problem"]
