@@ -3,7 +3,7 @@
 Public API::
 
     scene = granstab.load_scene("presets/two_particle.toml")   # or scene_from_dict / build_scene
-    K = granstab.mechanics.stiffness(scene, mask=None, sparse=False)     # H, Hm, Hg1, Hg2, Hg3, dofs
+    K = granstab.stiffness(scene, mask=None, sparse=False)     # H, Hm, Hg1, Hg2, Hg3, dofs
     result = granstab.analyze(scene)                           # branches, verdicts, errors, timings
     granstab.analyze(scene, metric="inertia")                 # one projection metric (default: the family)
     result.to_dict()                                           # the `granstab analyze --json` object

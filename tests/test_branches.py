@@ -89,8 +89,8 @@ def test_one_sliding_contact_has_two_branches_with_independent_consistency(dim):
 def test_sliding_branch_stiffness_is_the_rank_one_update():
     """Hm on the sliding branch equals -A1 [F_sliding] B assembled from eq:ContactF directly."""
     s = sliding_pair(2)
-    Hs = granstab.mechanics.stiffness(s, mask=[1]).Hm
-    He = granstab.mechanics.stiffness(s, mask=[-1]).Hm
+    Hs = granstab.stiffness(s, mask=[1]).Hm
+    He = granstab.stiffness(s, mask=[-1]).Hm
     F_el = contact_stiffness(s.normal, s.k, s.alpha, s.mu, s.force, np.array([False]))[0]
     F_sl = contact_stiffness(s.normal, s.k, s.alpha, s.mu, s.force, np.array([True]))[0]
     # for this pair δu_def = B U with B rows of eq:dudef; Hm = -A1 [F; -F] B with A1 of Appendix C
@@ -152,7 +152,7 @@ def test_load_response_recovers_a_consistent_motion():
     for _ in range(4):
         u0 = rng.standard_normal(s.n_dof)
         mask = np.where(independent_S(s, u0) > 0, 1, -1)
-        K = granstab.mechanics.stiffness(s, mask=mask)
+        K = granstab.stiffness(s, mask=mask)
         load = K.H @ (D * proj.apply(u0 / D))                       # physical d𝕓 = H P u0
         out = granstab.load_response(result, load)
         (mine,) = [sol for sol in out["solutions"] if sol["mask"] == mask.tolist()]

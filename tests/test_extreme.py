@@ -168,7 +168,7 @@ def test_exactly_at_yield_and_a_hair_inside():
     with pytest.raises(SceneError, match="outside the friction cone"):
         yield_pair(1.0 + 1e-6)
     # the sliding branch's contact law, from the assembled Hm of the exact-yield pair
-    K = granstab.mechanics.stiffness(yield_pair(1.0), mask=[1])
+    K = granstab.stiffness(yield_pair(1.0), mask=[1])
     lam = np.linalg.eigvalsh(0.5 * (K.Hm[:2, :2] + K.Hm[:2, :2].T))
     assert np.abs(lam - sliding_contact.closed_form(0.5, 0.7)).max() <= 8 * EPS
 

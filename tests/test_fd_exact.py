@@ -2,7 +2,7 @@
 
 Clusters of rigid ellipses (2D) and ellipsoids (3D) pressed together to an overlap δ = f/k (lengths in units
 of the particle size, ~1) from 1e-4 to 1e-1, with tangential forces (0.3 |f_n|) and, in one 3D cluster, a
-rolling stiffness. granstab.mechanics.stiffness(scene) is fed the contact data of granstab.model.shapes (parallel-curve
+rolling stiffness. granstab.stiffness(scene) is fed the contact data of granstab.model.shapes (parallel-curve
 curvature, docs/errata.md); the reference H_exact = ∂[b, w]/∂[u, θ] is a complex-step derivative (exact to round-off).
 
 Tolerances (why): H_exact and H both carry round-off of a few eps·‖H‖ (measured ≤ 6e-16 relative), so
@@ -69,7 +69,7 @@ def case(name, level):
     assert [(int(p), int(q)) for p, q in zip(scene.p, scene.q)] == pairs
     np.testing.assert_allclose(np.hypot.reduce(scene.force, axis=1), level * np.hypot(1, 0.3), rtol=0, atol=64 * EPS)
     cluster = cluster_from_scene(scene, parts, k_r=k_r)
-    return parts, scene, cluster, granstab.mechanics.stiffness(scene), stiffness_exact(cluster)
+    return parts, scene, cluster, granstab.stiffness(scene), stiffness_exact(cluster)
 
 
 def geometric(st):
@@ -118,7 +118,7 @@ def test_surface_curvature_leaves_an_error_of_order_f_over_k(name):
     ratios = []
     for level in LEVELS[:3]:
         parts, scene, _, _, H_exact = case(name, level)
-        ratios.append(rel_geometric_error(granstab.mechanics.stiffness(surface_curvature_scene(parts, scene)), H_exact) / level)
+        ratios.append(rel_geometric_error(granstab.stiffness(surface_curvature_scene(parts, scene)), H_exact) / level)
     ratios = np.array(ratios)
     assert np.all((0.1 <= ratios) & (ratios <= 10)), ratios
     assert np.ptp(ratios) <= 0.05 * ratios.mean(), ratios        # error / (f/k) constant: linear in f/k

@@ -31,5 +31,5 @@ def test_annulus_round_trips_through_the_scene_format(tmp_path):
     path = tmp_path / "again.json"
     path.write_text(json.dumps(granstab.scene_to_dict(scene)))
     again = granstab.load_scene(path)
-    H0, H1 = granstab.mechanics.stiffness(scene).H, granstab.mechanics.stiffness(again).H
+    H0, H1 = granstab.stiffness(scene).H, granstab.stiffness(again).H
     assert np.abs(H0 - H1).max() <= 1e-14 * np.abs(H0).max()

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from granstab import paper as report
+from granstab.paper.examples import NAMES
 from granstab.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -29,7 +30,7 @@ def regenerated(tmp_path_factory):
 
 
 def test_no_claim_differs(regenerated):
-    claims = [c for name in report.NAMES for c in regenerated["results"][name]["claims"]]
+    claims = [c for name in NAMES for c in regenerated["results"][name]["claims"]]
     assert len(claims) >= 24
     assert not [c["id"] for c in claims if "DIFFERS" in c["verdict"]]
     for c in claims:

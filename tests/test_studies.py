@@ -124,7 +124,7 @@ def test_two_particle_presets(name, rho, verdict, lam6):
 def test_hand_in_glove_preset_geometric_stiffness_dominates():
     sc = granstab.load_scene(PRESETS / "hand_in_glove.toml")
     _same_scene(sc, two_particle.scene(1.0, 1.0, 0.01, rq=2.0, rhoq=-1.002, state="auto"))
-    K = granstab.mechanics.stiffness(sc)
+    K = granstab.stiffness(sc)
     H = two_particle.paper_stiffness(1.0, 1.0, 1.0, 2.0, 1.0, -1.002, 0.01)
     assert np.abs(K.H - H).max() <= 1e-12 * np.abs(H).max()
     ratio = np.linalg.norm(K.Hg1 + K.Hg2 + K.Hg3, 2) / np.linalg.norm(K.Hm, 2)

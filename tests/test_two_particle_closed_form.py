@@ -33,7 +33,7 @@ def test_matches_eq_exampleH2(seed):
     rp, rq, pp, pq = rng.uniform(0.2, 5.0, 4)
     k, a = rng.uniform(0.1, 10.0), rng.uniform(0.05, 1.0)
     f = k * rp * rng.uniform(-0.01, 0.03)          # tension allowed: the contact is declared elastic
-    K = granstab.mechanics.stiffness(two_particle(rp, rq, pp, pq, k, a, f))
+    K = granstab.stiffness(two_particle(rp, rq, pp, pq, k, a, f))
     Hm, Hg = closed_form(rp, rq, pp, pq, k, a, f)
     scale_m = k * max(rp, rq, 1) ** 2                # entries of Hm are k, k r, k r²
     scale_g = abs(f) * max(rp, rq, pp, pq) ** 2 / (pp + pq)

@@ -182,11 +182,23 @@ def _finish(problem, mask, v):
     return v, code, bool(hinges[0, 0])
 
 
+SIGN_TIE = 1e-6   # entries within this relative distance of a column's largest magnitude count as tied for it
+
+
+def column_signs(V, xp=np):
+    """±1 per eigenvector column of V (..., n, k): the sign that makes the first of its largest-magnitude entries
+    positive, entries within SIGN_TIE of the largest counted as tied. LAPACK's sign choice varies between builds
+    and BLAS thread counts, and so does which of two entries equal by symmetry comes out larger at round-off; the
+    reported vector_sign (±v consistent) must not."""
+    mag = xp.abs(V)
+    tied = mag >= (1 - SIGN_TIE) * mag.max(axis=-2, keepdims=True)
+    idx = xp.argmax(tied, axis=-2)[..., None, :]
+    return xp.where(xp.take_along_axis(V, idx, axis=-2) < 0, -1.0, 1.0)
+
+
 def canonical_signs(V: np.ndarray) -> np.ndarray:
-    """Eigenvectors (..., n, k) with each column's largest-magnitude entry positive: LAPACK's sign choice varies
-    between builds, and the reported vector_sign (±v consistent) must not."""
-    idx = np.argmax(np.abs(V), axis=-2)[..., None, :]
-    return V * np.where(np.take_along_axis(V, idx, axis=-2) < 0, -1.0, 1.0)
+    """Eigenvectors (..., n, k) in the sign convention of `column_signs`."""
+    return V * column_signs(V)
 
 
 def eigen_groups(lam: np.ndarray, tol) -> list[np.ndarray]:

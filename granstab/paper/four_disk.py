@@ -360,7 +360,7 @@ def sliding_path(betas_deg=None, mu: float = PAPER["mu"], alpha: float = PAPER["
     rates, residuals, s_min, masks, work = [], [], [], [], {name: [] for name in names}
     for beta, bdeg in zip(betas, betas_deg):
         sc = scene(bdeg, mu, alpha, f_over_k, R, k)
-        K = granstab.mechanics.stiffness(sc, mask=[1, 1, 1, 1])
+        K = granstab.stiffness(sc, mask=[1, 1, 1, 1])
         rate = K.H @ path_motion(beta, R)
         bv, bh = loads(beta, f, mu)
         exact = np.concatenate([np.array([[0, -bh], [-bv, 0], [0, bh], [bv, 0]]), np.zeros((4, 1))], axis=1)

@@ -68,7 +68,7 @@ def scene_eigenvalues(mu: float, alpha: float, k: float = 1.0, dim: int = 2, see
     sc = granstab.scene_from_dict({"dim": dim, "particles": [{"name": "p", "x": [0.0] * dim},
                                                              {"name": "q", "x": n.tolist()}],
                                    "contacts": [contact]}, source="<sliding_contact>")
-    Hm = granstab.mechanics.stiffness(sc, mask=[1]).Hm[:dim, :dim]
+    Hm = granstab.stiffness(sc, mask=[1]).Hm[:dim, :dim]
     return np.linalg.eigvalsh(0.5 * (Hm + Hm.T))
 
 

@@ -310,7 +310,7 @@ def general_case_check(seed: int = 0, n: int = 20) -> float:
         rp, rq, pp, pq = rng.uniform(0.3, 3.0, 4)
         k, a = rng.uniform(0.5, 2.0), rng.uniform(0.2, 1.0)
         f = k * rp * rng.uniform(-0.005, 0.02)
-        K = granstab.mechanics.stiffness(scene(rp, pp, f, k, a, rq=rq, rhoq=pq))
+        K = granstab.stiffness(scene(rp, pp, f, k, a, rq=rq, rhoq=pq))
         H = paper_stiffness(k, a, rp, rq, pp, pq, f)
         worst = max(worst, float(np.abs(K.H - H).max() / np.abs(H).max()))
     return worst

@@ -130,7 +130,7 @@ def run(out: Path, tick, say) -> dict:
 def _hand_in_glove() -> dict:
     """hand_in_glove.toml, built by the study (tests check the preset file against the same builder)."""
     sc = two_particle.scene(1.0, 1.0, 0.01, rq=2.0, rhoq=-1.002, state="auto")
-    K = granstab.mechanics.stiffness(sc)
+    K = granstab.stiffness(sc)
     Hg = K.Hg1 + K.Hg2 + K.Hg3
     res = granstab.analyze(sc, metric="L", rotation_length=1.0)
     lam = res.branches[0].stability_eigenvalues

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mechanics.accuracy import resolved_sign, vector_bounds
-from ..mechanics.branches import RIGID, Branch, Problem, consistency
+from ..mechanics.branches import RIGID, Branch, Problem, column_signs, consistency
 from ..mechanics.verdicts import CONSISTENT, merge_tallies, tally
 from ..model.tolerances import EPS
 from .dense import solve_branches
@@ -259,11 +259,9 @@ def _lowest(lam, codes):
 
 
 def full_signs(xp, N, W):
-    """±1 per column (L, k): the sign that makes the largest-magnitude entry of the full eigenvector N w positive,
-    the convention of branches.canonical_signs, so both paths report the same vector_sign."""
-    V = xp.matmul(N[None], W)
-    idx = xp.argmax(xp.abs(V), axis=1)[:, None, :]
-    return xp.where(xp.take_along_axis(V, idx, axis=1)[:, 0, :] < 0, -1.0, 1.0)
+    """±1 per column (L, k): branches.column_signs of the full eigenvector N w, so that both paths report the same
+    vector_sign."""
+    return column_signs(xp.matmul(N[None], W), xp)[:, 0, :]
 
 
 def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray, be) -> np.ndarray:
