@@ -1,0 +1,79 @@
+"""The house's structure (docs/design.md): rooms as subpackages, short functions, installed names of our own, no
+tracked build artefacts. Import arrows between rooms are checked in test_imports.py."""
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MAX_TOP_MODULES = 10        # modules directly in granstab/: the facade, the CLI, the pipeline; the rest lives in rooms
+MAX_FUNCTION_LINES = 100    # a function longer than this does more than one thing
+MAX_TRACKED_BYTES = 2**20   # a larger tracked file is data or a build artefact (figures and test data stay below)
+ARTEFACTS = (".whl", ".egg", ".so", ".pyc", ".tar.gz", ".zip")
+
+
+def test_few_modules_directly_in_the_package():
+    top = sorted(p.name for p in (ROOT / "granstab").glob("*.py"))
+    assert len(top) <= MAX_TOP_MODULES, top
+
+
+def long_functions(paths) -> list[str]:
+    """`file:line name (n lines)` for every function or method over MAX_FUNCTION_LINES lines."""
+    out = []
+    for path in paths:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    out.append(f"{path}:{node.lineno} {node.name} ({n} lines)")
+    return out
+
+
+def test_no_function_longer_than_the_limit():
+    sources = [p for d in ("granstab", "app", "benchmarks", "tests") for p in sorted((ROOT / d).rglob("*.py"))]
+    assert len(sources) > 50
+    assert not long_functions(sources)
+
+
+def test_the_length_check_sees_a_long_function(tmp_path):
+    path = tmp_path / "long.py"
+    for extra, found in ((0, 0), (1, 1)):        # MAX_FUNCTION_LINES lines pass, one more is reported
+        body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES - 2 + extra))
+        path.write_text(f"def f():\n    \"\"\"Doc.\"\"\"\n{body}\n", encoding="utf-8")
+        assert len(long_functions([path])) == found
+
+
+def tracked_files() -> list[str]:
+    proc = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=False)
+    if proc.returncode:
+        pytest.fail(f"git ls-files failed in {ROOT}: {proc.stderr.decode().strip()}")
+    return [name for name in proc.stdout.decode().split("\0") if name]
+
+
+def test_no_tracked_build_artefacts_or_large_files():
+    names = tracked_files()
+    assert "pyproject.toml" in names and len(names) > 100
+    assert not [n for n in names if n.endswith(ARTEFACTS)]
+    large = [n for n in names if (ROOT / n).is_file() and (ROOT / n).stat().st_size > MAX_TRACKED_BYTES]
+    assert not large
+
+
+@pytest.mark.slow
+def test_the_wheel_claims_no_generic_top_level_names(tmp_path):
+    """Installed, the explorer and the benchmarks take names of their own: a user's own `app` or `benchmarks`
+    module must not collide with ours."""
+    proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
+                           "-w", str(tmp_path), str(ROOT)], capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    (wheel,) = tmp_path.glob("granstab-*.whl")
+    with zipfile.ZipFile(wheel) as zf:
+        tops = {name.split("/")[0] for name in zf.namelist() if not name.split("/")[0].endswith(".dist-info")}
+        entry_points = next(zf.read(n).decode() for n in zf.namelist() if n.endswith("entry_points.txt"))
+    assert tops == {"granstab", "granstab_app", "granstab_bench"}, tops
+    assert "granstab-app = granstab_app.server:main" in entry_points
+    assert "granstab = granstab.cli:main" in entry_points
