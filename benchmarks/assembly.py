@@ -66,11 +66,11 @@ def run(quick: bool = False) -> dict:
     for dim, target in sizes:
         scene = packing_with_contacts(dim, target)
         M = scene.n_contacts
-        t_vec, H = timeit(lambda: assemble_vectorised(scene), repeat=3 if M < 2e5 else 2, min_time=cfg["min_time"],
+        t_vec, H = timeit(lambda s=scene: assemble_vectorised(s), repeat=3 if M < 2e5 else 2, min_time=cfg["min_time"],
                           slow=cfg["slow"])
         t_core = None
         if M <= 1e5:
-            t_core, _ = timeit(lambda: stiffness(scene, sparse=True), repeat=3, min_time=cfg["min_time"],
+            t_core, _ = timeit(lambda s=scene: stiffness(s, sparse=True), repeat=3, min_time=cfg["min_time"],
                                slow=cfg["slow"])
         data[f"{dim}d"].append({"contacts": M, "t": t_vec, "t_core_stiffness": t_core, "nnz": int(H.nnz),
                                 "per_contact_us": 1e6 * t_vec / M})
@@ -79,8 +79,8 @@ def run(quick: bool = False) -> dict:
     loops = []                                            # the per-contact loop reference, side by side
     for dim in (2, 3):
         scene = packing_with_contacts(dim, cfg["loop_contacts"], seed=1)
-        t_loop, A = once(lambda: assemble_per_contact_loop(scene))
-        t_vec, B = timeit(lambda: assemble_vectorised(scene), repeat=5, min_time=cfg["min_time"], slow=cfg["slow"])
+        t_loop, A = once(lambda s=scene: assemble_per_contact_loop(s))
+        t_vec, B = timeit(lambda s=scene: assemble_vectorised(s), repeat=5, min_time=cfg["min_time"], slow=cfg["slow"])
         loops.append({"dim": dim, "contacts": scene.n_contacts, "t_loop": t_loop, "t_vec": t_vec,
                       "ratio": t_loop / t_vec, "max_rel_diff": float(abs(A - B).max() / abs(A).max())})
         bar.update()
