@@ -65,11 +65,13 @@ def headings(markdown: str) -> list[tuple[int, str]]:
 
 
 def run_line(meta: dict) -> str:
-    """The line under a section's heading: when, by which command, how long, on what, under which load."""
+    """The line under a section's heading: when, by which command, how long (None: not recorded), on what, under
+    which load."""
     m = meta["machine"]
     load = ("n/a" if meta["load_start"] is None else
             f"{meta['load_start']:.2f} at the start and {meta['load_end']:.2f} at the end")
-    return (f"Run {meta['date']} by `{meta['command']}` in {meta['seconds']:.0f} s"
+    seconds = "" if meta["seconds"] is None else f" in {meta['seconds']:.0f} s"
+    return (f"Run {meta['date']} by `{meta['command']}`{seconds}"
             f"{', QUICK (small sizes)' if meta['quick'] else ''} on {m['cpu']}, {m['cores']} CPUs, {m['memory']} "
             f"({m['os']}; Python {m['python']}, numpy {m['numpy']}, scipy {m['scipy']}, BLAS {m['blas']}, "
             f"{meta['blas_threads']}; GPU: {m.get('gpu', 'none')}). Load: 1-minute load average {load}, "

@@ -239,3 +239,11 @@ def test_document_reads_back_what_it_wrote(tmp_path):
     (tmp_path / "B.md").write_text(text)
     again = Document.read(tmp_path / "B.md", "cpu", static="## Static\n\ncode")
     assert again.blocks == doc.blocks and again.render(TOPICS) == text
+
+
+def test_run_line_without_a_recorded_run_time():
+    """Sections carried over from a run that recorded only its total time (the GPU run of 2026-11-24) say no time."""
+    from granstab_bench.document import run_line
+    meta = {**fake_meta("scan", "D"), "command": "granstab bench --device gpu"}
+    assert "by `granstab bench --device gpu` in 7 s on" in run_line(meta)
+    assert "by `granstab bench --device gpu` on Test CPU" in run_line({**meta, "seconds": None})
