@@ -45,11 +45,12 @@ def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Sc
     Returns
     -------
     Scene
+        Validated; of a snapshot the scene only (granstab.io.load also returns its validation report).
 
     Raises
     ------
     SceneError
-        One line naming the file, the entry and the field.
+        An unreadable file or a failed check, in one line naming the file, the entry and the field.
     """
     from . import is_snapshot, load
     if is_snapshot(path):
@@ -152,11 +153,12 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
     Returns
     -------
     Scene
+        Contact-level, or with the contacts the shapes make.
 
     Raises
     ------
     SceneError
-        One line naming the source, the entry and the field.
+        `data` breaks the format; the line names `source`, the entry and the field.
     """
     if is_shape_scene(data):
         return shape_scene_from_dict(data, source=source, tol=tol)

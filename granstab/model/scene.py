@@ -185,11 +185,12 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
     Returns
     -------
     Scene
+        With equilibrium loads wherever none were given.
 
     Raises
     ------
     SceneError
-        One line naming the source, the entry and the field.
+        A value out of range, a load that does not balance, an "auto" contact outside the friction cone: one line.
     """
     N = len(names)
     r = rot_dim(dim)
