@@ -243,3 +243,15 @@ def test_relative_links_point_at_files(doc):
         elif anchor and file.suffix == ".md" and anchor not in anchors(file):
             broken.append(target)
     assert not broken, f"{doc}: links to missing files or headings {broken}"
+
+
+REPO_PATH = re.compile(r"(?<![\w/.-])((?:granstab|app|benchmarks|tests|examples|presets|docs)/[\w/.-]*\w)")
+
+
+@pytest.mark.parametrize("doc", ["README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md"))])
+def test_repository_paths_named_in_the_docs_exist(doc):
+    """A module or file the docs name (`granstab/model/shapes.py`, `examples/dem/run.sh`, …) exists: a move
+    between rooms that leaves a doc behind fails here."""
+    named = set(REPO_PATH.findall((ROOT / doc).read_text(encoding="utf-8")))
+    missing = sorted(p for p in named if not (ROOT / p).exists())
+    assert not missing, f"{doc} names paths that do not exist: {missing}"
