@@ -123,28 +123,38 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
             device: str = "cpu", lowrank: bool | None = None, keep: str = "auto") -> Analysis:
-    """Analyse every loading branch of `scene` (Sec. 3, Appendix D).
+    """Analyse every loading branch of `scene`: spectra, consistent modes and verdicts (Sec. 3, Appendix D).
 
-    metric: "family" (default: the verdict in L/10, L, 10L and inertia where masses are known; spectra in L;
-    summary["metric_robust"], summary["metrics"]), or one of "L", "L/10", "10L", "inertia" (metric.py).
-    rotation_length: L of the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric);
-    `rotation_length_` is its deprecated old name.
-    max_sliding: refuse more than this many potentially sliding contacts (2^Ms branches), unless
-    sample_branches is given: then the all-loading, the all-unloading and that many seeded (`seed`) random other
-    branches are examined, summary["branches"] = "partial", and the verdict is a proof only where the unexamined
-    branches cannot change it (a consistent negative eigenvalue on any branch proves instability, eq:instab).
-    on_branch: called with each Branch of the primary metric as it is finished (streaming).
-    method: "dense" (every eigenpair of every branch, ℍ spectra, Type-2), "sparse" (the lowest k non-rigid
-    eigenpairs of sym(𝓗^i) per branch and its exact negative count, without any n_dof × n_dof matrix) or "auto"
-    (dense up to sparse.DENSE_MAX_DOF dofs, sparse above). Each backend says what it leaves out (`warnings`).
-    k: eigenpairs per branch on the sparse path. progress: a tqdm bar with time left over the branches of each
-    metric.
-    device: "cpu", "gpu" (CuPy, else backend.DeviceError) or "auto" for the stacked branch eigenproblems
-    (backend.py). lowrank: solve the branches as low-rank updates of the elastic problem (lowrank.py: no ℍ^i
-    spectra, eigenvectors on demand); None = from lowrank.MIN_BRANCHES branches on or on a GPU.
-    keep: "all" branches in the result, or "verdict": on the low-rank path only those the verdict rests on (a
-    consistent eigenpair of sign ≤ 0, Type-2) and the one with the lowest eigenvalue, the counts still over all, so
-    memory does not grow with 2^Ms; "auto" (default): "all" up to KEEP_ALL branches.
+    Parameters
+    ----------
+    scene : Scene
+        N particles, M contacts, n_dof = N·(d + r) dofs (d = dim; r = 1 rotation in 2D, 3 in 3D).
+    metric : {"family", "L", "L/10", "10L", "inertia"}
+        "family": the verdict in L/10, L, 10L and inertia where masses are known, spectra in L,
+        ``summary["metric_robust"]`` and ``summary["metrics"]``; otherwise that metric only.
+    rotation_length : float, optional
+        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's metric).
+    max_sliding, sample_branches, seed : int
+        More than `max_sliding` potentially sliding contacts (2^Ms branches) are refused unless `sample_branches`
+        is given: then the all-loading, all-unloading and that many seeded random branches are examined
+        (``summary["branches"] == "partial"``; a proof only of instability, eq:instab).
+    method, k : {"auto", "dense", "sparse"}, int
+        "dense": every eigenpair, ℍ^i spectra and Type-2 (eq:newstiffnesses); "sparse": the lowest `k`
+        eigenpairs of each sym(𝓗^i) and its exact negative count, no (n_dof, n_dof) matrix; "auto": dense up to
+        granstab.solve.sparse.DENSE_MAX_DOF dofs. `warnings` says what a method leaves out.
+    device, lowrank, keep : {"cpu", "gpu", "auto"}, bool or None, {"auto", "all", "verdict"}
+        Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
+        problem (None: from 2^10 branches on, or on a GPU); which branches the result keeps ("verdict": those the
+        verdict rests on; "auto": all up to KEEP_ALL).
+    on_branch, progress : callable or None, bool
+        Called with each `Branch` of the primary metric as it is finished; a bar with the time left.
+
+    Returns
+    -------
+    Analysis
+        ``branches``: `Branch` (``mask`` (M,), ``stability_eigenvalues`` (k,) of sym(𝓗^i), ``stability_vectors``
+        (n, k) scaled, ``accuracy`` (k,), ``codes`` (k,); n free dofs, k = n when dense); ``summary``: the verdict
+        (eq:stab, eq:neutral, eq:instab); ``errors``; ``timings`` (s); ``motion(v)`` (n_dof,); ``to_dict()``.
     """
     if rotation_length_ is not None:
         _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,

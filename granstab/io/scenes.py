@@ -1,6 +1,6 @@
 """Scene files: TOML, JSON and NPZ in (`load_scene`), JSON and NPZ out (`save_scene`), and the dispatch between the
-contact-level (scene.py) and shape-based (shapes.py) readers — the one place that knows both, so that neither
-imports the other. The syntax of each format lives in syntax.py, the schema in schema.py and shapefile.py.
+contact-level (schema.py) and shape-based (shapefile.py) formats — the one place that knows both, so that neither
+imports the other. The syntax of each file type lives in syntax.py. The formats: docs/formats.md.
 """
 from __future__ import annotations
 
@@ -29,10 +29,29 @@ from .syntax import (
 
 
 def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Scene:
-    """Read a scene file: TOML, JSON (same schema) or NPZ (`save_scene`'s binary form of it), chosen by the
-    suffix (.toml, .json, .npz). Raises SceneError with a one-line message naming the file.
-    progress: a bar on stderr while a large file is read, then its stages (parse, checks).
-    Folders and other files (DEM snapshots, experiments) go to granstab.io.load with its defaults."""
+    """Read a scene file (TOML, JSON or NPZ, by suffix) or a snapshot into a validated `Scene`.
+
+    Parameters
+    ----------
+    path : str or Path
+        A .toml or .json scene file (contact-level or shape-based, docs/formats.md), an .npz written by
+        `save_scene`, or a snapshot (a folder or another file: DEM output, experiments), which goes to
+        granstab.io.load with its defaults.
+    tol : Tolerances
+        Input tolerances of the checks.
+    progress : bool
+        A bar on stderr while a large file is read, then its stages (parse, checks).
+
+    Returns
+    -------
+    Scene
+        Validated; of a snapshot the scene only (granstab.io.load also returns its validation report).
+
+    Raises
+    ------
+    SceneError
+        An unreadable file or a failed check, in one line naming the file, the entry and the field.
+    """
     from . import is_snapshot, load
     if is_snapshot(path):
         return load(path, progress=progress).scene
@@ -55,8 +74,19 @@ def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Sc
 
 
 def save_scene(scene: Scene, path) -> Path:
-    """Write `scene` as .json (strict: no NaN/Infinity) or .npz (binary: the same fields as whole arrays, fast for
-    10⁵–10⁶ contacts); `load_scene` reads either back to the same arrays. Other suffixes are refused."""
+    """Write `scene` to `path` as .json (strict: no NaN/Infinity) or .npz (the same fields as whole arrays, fast
+    for 10⁵–10⁶ contacts); `load_scene` reads either back to the same arrays.
+
+    Returns
+    -------
+    Path
+        `path`.
+
+    Raises
+    ------
+    SceneError
+        Another suffix.
+    """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".npz":
@@ -107,10 +137,29 @@ class ReadProgress:
 
 
 def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
-    """Build and validate a Scene from the parsed file format (a dict).
+    """Build and validate a `Scene` from a parsed scene file (docs/formats.md).
 
-    A scene with no `contacts` whose particles carry a `shape` is shape-based: its contacts are derived from the
-    geometry (shapes.py); any other is contact-level (scene.py)."""
+    Parameters
+    ----------
+    data : dict
+        The file's content: ``dim``, ``particles`` (N entries) and ``contacts`` (M entries), optional ``title``
+        and ``defaults``. Without ``contacts`` and with a ``shape`` on every particle it is shape-based: the
+        contacts are derived from the geometry (granstab.model.shapes).
+    source : str
+        The name error messages give the input.
+    tol : Tolerances
+        Input tolerances of the checks.
+
+    Returns
+    -------
+    Scene
+        Contact-level, or with the contacts the shapes make.
+
+    Raises
+    ------
+    SceneError
+        `data` breaks the format; the line names `source`, the entry and the field.
+    """
     if is_shape_scene(data):
         return shape_scene_from_dict(data, source=source, tol=tol)
     return contact_scene_from_dict(data, source=source, tol=tol)

@@ -60,8 +60,20 @@ class ContactBlocks:
 
 @dataclass(frozen=True, eq=False)
 class Stiffness:
-    """H and its parts (dense arrays, or CSR matrices with sparse=True) with dof labels (eq:final1),
-    the residuals of H's exact identities (checks.py) and the wall time in seconds."""
+    """H = Hg1 + Hg2 + Hg3 + Hm (eq:final1) of one branch, with dof labels, error estimates and wall time.
+
+    Attributes
+    ----------
+    H, Hm, Hg1, Hg2, Hg3 : ndarray or scipy.sparse.csr_matrix, (n_dof, n_dof)
+        The stiffness (not symmetric in general) and its mechanical (eq:Hm) and geometric (eq:Hg1,
+        eq:equilibrium4, eq:Hg3) parts; rows and columns in `dofs` order.
+    dofs : list of str, (n_dof,)
+        Particle by particle, translations then rotations: "p.u1", "p.u2", "p.th3" (2D); "p.u1" … "p.th3" (3D).
+    errors : dict
+        Relative residuals of H's exact identities (granstab.mechanics.checks).
+    seconds : float
+        Wall time.
+    """
 
     H: object
     Hm: object
@@ -231,9 +243,29 @@ def sliding_mask(scene: Scene, mask) -> np.ndarray:
 
 
 def stiffness(scene: Scene, mask=None, sparse: bool = False, blocks: ContactBlocks | None = None) -> Stiffness:
-    """H = Hg1 + Hg2 + Hg3 + Hm (eq:final1) for the branch `mask` (+1 = sliding; default all elastic).
+    """H = Hg1 + Hg2 + Hg3 + Hm (eq:final1) of `scene` on one loading branch.
 
-    Dense numpy arrays by default, scipy.sparse CSR with sparse=True; both come from the same assembly.
+    Parameters
+    ----------
+    scene : Scene
+        N particles, M contacts; n_dof = N·(d + r) (d = dim; r = 1 rotation in 2D, 3 in 3D).
+    mask : array_like of int, (M,), optional
+        +1 where the contact slides (only contacts at yield, eq:yield), -1 or 0 where it sticks (eq:ContactF);
+        default: every contact elastic.
+    sparse : bool
+        CSR matrices instead of dense arrays; both come from the same assembly.
+    blocks : ContactBlocks, optional
+        The scene's contact blocks, if already computed (`contact_blocks`).
+
+    Returns
+    -------
+    Stiffness
+        ``H``, ``Hm``, ``Hg1``, ``Hg2``, ``Hg3`` (n_dof, n_dof), ``dofs``, ``errors``, ``seconds``.
+
+    Raises
+    ------
+    MaskError
+        A mask of the wrong length, or +1 on a contact that is not at yield.
     """
     start = time.perf_counter()
     sliding = sliding_mask(scene, mask)

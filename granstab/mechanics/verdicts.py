@@ -234,11 +234,23 @@ def _require_no_supports(analysis) -> None:
 
 
 def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
-    """Solve ℍ^i dU = d𝕓 on every branch (eq:problem) and keep the consistent solutions (Sec. 3.1).
+    """Solve ℍ^i dU = d𝕓 on every branch of `analysis` (eq:problem) and test each solution's consistency (Sec. 3.1).
 
-    load_increment: (n_dof,) objective increments [d𝕓, d𝕨] per particle. Type-1 non-uniqueness: two consistent
-    solutions on different branches that differ by more than a rigid motion. Solutions are physical motions with
-    the rigid part removed.
+    Parameters
+    ----------
+    analysis : Analysis
+        An analysis of a scene without fixed particles (its branches and metric are used).
+    load_increment : array_like, (n_dof,)
+        Objective load increments [d𝕓, d𝕨] particle by particle, in the order of ``scene.dofs()``.
+    rtol : float
+        A branch's least-squares solution counts only if its relative residual is at most rtol.
+
+    Returns
+    -------
+    dict
+        ``solutions``: per branch ``mask`` (M,), ``residual``, ``consistent``, ``hinges``, ``motion`` (n_dof,)
+        (physical, rigid part removed) and ``scaled`` (n_dof,); ``n_consistent``; ``type1_nonuniqueness``: two
+        consistent solutions on different branches that differ by more than a rigid motion.
     """
     _require_no_supports(analysis)
     problem = analysis.problem
@@ -262,8 +274,22 @@ def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
 
 
 def second_order_work(analysis, motion) -> dict:
-    """dUᵀ 𝓗^i dU for a motion dU on the branch its own S signs select (eq:newinner), split into geometric
-    (Hg1 + Hg2 + Hg3) and mechanical (Hm) parts; negative work means softening along dU (Sec. 3.2)."""
+    """Second-order work dUᵀ 𝓗^i dU of a motion on the branch its own S signs select (eq:newinner, eq:flow).
+
+    Parameters
+    ----------
+    analysis : Analysis
+        An analysis of a scene without fixed particles.
+    motion : array_like, (n_dof,)
+        A physical motion [du, dθ] particle by particle (e.g. ``analysis.motion(vector)``); its rigid rotation is
+        projected out (eq:Pnrr).
+
+    Returns
+    -------
+    dict
+        ``mask`` (M,) the branch, ``work`` = ``geometric`` (Hg1 + Hg2 + Hg3) + ``mechanical`` (Hm); negative work
+        means softening along the motion (Sec. 3.2).
+    """
     _require_no_supports(analysis)
     problem, scene = analysis.problem, analysis.scene
     metric = analysis.metric

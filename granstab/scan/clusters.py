@@ -117,12 +117,27 @@ BOUNDARIES = ("loads", "fixed")
 
 
 def extract(scene: Scene, center: str, rings: int = 1, boundary: str = "loads") -> Scene:
-    """The cluster of particle `center` with `rings` contact hops, as a scene of its own (`granstab extract`).
+    """The cluster of particle `center` as a scene of its own (`granstab extract`).
 
-    boundary "loads" (the paper's isolated cluster, Sec. 5): the forces of the cut contacts act as dead loads and
-    the rigid-rotation projection applies (eq:newstiffnesses) — can the cluster, pushed as its neighbours push it
-    now, deform unstably? "fixed": the next ring of particles is held fixed (supports, no rigid modes, no
-    projection) — can it deform unstably while its surroundings do not move (a stiffer, sufficient question)?"""
+    Parameters
+    ----------
+    scene : Scene
+        The packing.
+    center : str
+        The centre particle's name.
+    rings : int
+        Contact hops from the centre (>= 1); the cluster keeps every contact between two of its particles.
+    boundary : {"loads", "fixed"}
+        "loads" (the paper's isolated cluster, Sec. 5): the forces of the cut contacts act as dead loads and the
+        rigid-rotation projection applies (eq:newstiffnesses) — can the cluster, pushed as its neighbours push it
+        now, deform unstably? "fixed": the next ring of particles is held fixed (supports, no rigid modes, no
+        projection) — can it deform unstably while its surroundings do not move (a stiffer question)?
+
+    Returns
+    -------
+    Scene
+        Its particles and contacts in the packing's order, with ``fixed`` (N_c,) set for "fixed".
+    """
     if rings < 1:
         raise SceneError(f"{scene.source}: rings must be >= 1, got {rings}")
     if boundary not in BOUNDARIES:

@@ -201,7 +201,25 @@ def read_table(path: Path, fmt: str) -> dict:
 
 
 def read_map(out_dir) -> dict:
-    """A finished scan: {"clusters": columns, "particles": columns, "summary": summary.json} (the app's map)."""
+    """A finished scan, as the explorer reads its map.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The folder `scan` wrote.
+
+    Returns
+    -------
+    dict
+        ``clusters``: the columns of clusters.* (one entry a cluster: ``center``, ``members``, ``verdict``,
+        ``lambda_min``, …); ``particles``: the columns of particles.* (``name``, ``own_verdict``,
+        ``unstable_fraction``, ``n_clusters``); ``summary``: summary.json.
+
+    Raises
+    ------
+    SceneError
+        `out_dir` holds no finished scan.
+    """
     path = Path(out_dir)
     summary_file = path / "summary.json"
     if not summary_file.exists():

@@ -179,14 +179,33 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
          device: str = "cpu") -> dict:
-    """Analyse the cluster of every centre; write DIR/clusters.*, DIR/particles.*, DIR/summary.json and the map.
+    """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`.
 
-    Resumes: centres already in DIR (from an interrupted scan with the same options) are skipped.
-    scheduler: a Dask scheduler address (tcp://HOST:PORT); workers: local Dask workers (default: this machine's
-    cores; 1 = serial, in this process). metric: the projection metric of every cluster (see analyze).
-    device: "cpu", "gpu" or "auto" for the stacked eigenproblems of the batched path (backend.py); chunk: clusters
-    per task (default: CHUNK serially; on Dask sized by the measured cost of a cluster, `Guide`; GPU_CHUNK on a
-    GPU). boundary: "loads" (the isolated cluster) or "fixed" (the next ring held fixed): see clusters.extract.
+    Parameters
+    ----------
+    scene : Scene
+        The packing (N particles).
+    out_dir : str or Path
+        Output folder; centres already in it (an interrupted scan with the same options) are skipped.
+    rings, boundary : int, {"loads", "fixed"}
+        The cluster of a centre: `rings` contact hops; cut contacts as dead loads or the next ring held fixed
+        (`extract`).
+    centers : "all", "every:K", or names
+        Which particles are centres.
+    metric, max_sliding, sample_branches : str, int, int
+        As in `granstab.analyze`, for every cluster (default metric "L").
+    scheduler, workers, chunk, device : str, int, int, {"cpu", "gpu", "auto"}
+        A Dask scheduler address (tcp://HOST:PORT) or local workers (default: this machine's cores; 1 = serial,
+        in this process); clusters per task (default: sized by the measured cost of a cluster, `Guide`); where
+        the stacked eigenproblems run (granstab.solve.device).
+    progress, fmt, figures : bool, {"parquet", "csv"}, bool
+        A bar with the time left; the table format; whether to draw map.png/.svg and lambda_min.png/.svg.
+
+    Returns
+    -------
+    dict
+        summary.json: counts per verdict, time, clusters per second, the options. The folder also holds
+        clusters.* (one row a cluster) and particles.* (the map: ``unstable_fraction`` per particle).
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
