@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from .analysis import analyze
-from .io.scenes import load_scene, save_scene, scene_to_dict
+from .io import load_scene
+from .io.scenes import save_scene, scene_to_dict
 from .io.syntax import paused_gc
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.metric import CHOICES as METRIC_CHOICES
@@ -342,7 +343,7 @@ def add_convert(sub) -> None:
     p = sub.add_parser("convert", help="DEM snapshots / experimental frames → a contact-level scene (JSON)")
     p.add_argument("inputs", nargs="+", help="a folder or file(s) of one snapshot")
     p.add_argument("--out", required=True, help="scene file to write (JSON; NPZ when it ends in .npz)")
-    p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.FORMATS")
+    p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.formats()")
     p.add_argument("--progress", action="store_true",
                    help="a progress bar on stderr while large files are read (default when stderr is a terminal)")
     which = p.add_mutually_exclusive_group()

@@ -1,6 +1,6 @@
 """Scene files as data: TOML, JSON (with a nesting limit and no duplicate keys) and NPZ (binary), read and written.
 
-Only the syntax lives here; scene.py checks the schema and the physics. Every failure raises `SceneError`
+Only the syntax lives here; schema.py and shapefile.py check the schema, model/scene.py the physics. Every failure raises `SceneError`
 with ONE line naming the file (and the line where the syntax says it).
 
 JSON is parsed by the standard library's C parser after one vectorised pass over the bytes (numpy), which
@@ -23,7 +23,6 @@ from ..model.errors import DuplicateKeys, SceneError, one_line
 
 MAX_DEPTH = 10          # the schema nests at most 5 deep (scene → contacts → entry → 3x3 curvature rows)
 CHUNK = 1 << 23         # bytes per step of the structural scan (memory: a few times this, not the file)
-PROGRESS_BYTES = 1 << 25   # files larger than this show progress when asked
 
 
 # ------------------------------------------------------------------------------------------------- reading
