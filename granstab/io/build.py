@@ -17,7 +17,7 @@ the first particle, in the file's units); `build` turns it into a granstab Scene
   (|f_t| > μ f_n (1 + yield_rtol)) follows `outside_cone`: "sliding" (project onto the cone, mark at yield),
   "project" (project, treat as sticking: "elastic"), "elastic" (keep the force, "elastic") or "error".
   Contacts with f_n ≤ 0 and a force are "elastic" (tension is cohesion). Every change is counted and named.
-- **Masses** (for the inertia metric, metric.py): the file's per-particle masses, else `density` × volume
+- **Masses** (for the inertia metric, mechanics/metric.py): the file's per-particle masses, else `density` × volume
   (2D: disk area π R², 3D: sphere volume 4/3 π R³); moments of inertia of solid disks (½ m R²) and spheres
   (2/5 m R² I). Neither: the scene carries no masses and `--metric inertia` says so.
 - **Loads** follow the contact forces (scene rule b^p = −Σ f^pq): walls, contacts cut by a region or around a

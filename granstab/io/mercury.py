@@ -153,4 +153,5 @@ def read_mercury(paths: list[Path], timestep=None) -> Snapshot:
                     contact_line=lambda c: line_of_row(rows_pp[keep[c]]))
 
 
-register(Format("mercurydpm", sniff=is_mercury, read=lambda paths, request, progress: read_mercury(paths, request.frame)))
+register(Format("mercurydpm", sniff=is_mercury,
+                read=lambda paths, request, progress: read_mercury(paths, request.frame)))

@@ -29,7 +29,8 @@ def import_warnings(report: dict) -> list[str]:
     if outside["count"]:
         out.append(f"{outside['count']} contact(s) outside the friction cone ({100 * outside['fraction']:.1f} %"
                    + ("" if ratio is None else f", |f_t|/(μ f_n) up to {ratio:.4g}") + f"): {outside['action']}; "
-                   f"forces changed by up to {cone['largest_change_over_force']:.3g} of their size{_names(outside['names'])}")
+                   f"forces changed by up to {cone['largest_change_over_force']:.3g} of their size"
+                   f"{_names(outside['names'])}")
     if cone["at_yield_by_file_flag"]:
         out.append(f"{cone['at_yield_by_file_flag']} contact(s) inside the cone flagged fully mobilised by the file: "
                    "projected onto the cone, marked sliding")
