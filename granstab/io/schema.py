@@ -18,7 +18,7 @@ CONTACT_KEYS = {"p", "q", "point", "normal", "curvature_p", "curvature_q", "forc
 
 
 def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
-    """Build and validate a Scene from the parsed contact-level file format (a dict); files.py dispatches."""
+    """Build and validate a Scene from the parsed contact-level file format (a dict); scenes.py dispatches."""
     top, dim, title = read_header(data, source, TOP_KEYS)
     law = read_law(Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, _base_law(dim))
     if not isinstance(data.get("particles"), list) or not data["particles"]:
