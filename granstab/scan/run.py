@@ -16,7 +16,7 @@ import numpy as np
 
 from ..analysis import analyze
 from ..mechanics.branches import RIGID
-from ..mechanics.verdicts import verdict_columns
+from ..mechanics.verdicts import Verdict, verdict_columns
 from ..model.scene import Scene, SceneError, build_scene
 from ..solve.device import backend
 from ..solve.threads import blas_threads
@@ -65,22 +65,22 @@ def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> d
                 "eigen_residual": np.nan, "rigid_leakage": np.nan, "reason": " ".join(str(exc).split()),
                 "seconds": time.perf_counter() - start}
     lam = [b.stability_eigenvalues[b.codes != RIGID] for b in res.branches]
-    return summary_row(row, res.summary, n_contacts=sub.n_contacts, n_sliding=int(np.sum(sub.at_yield())),
+    return summary_row(row, res.verdict, n_contacts=sub.n_contacts, n_sliding=int(np.sum(sub.at_yield())),
                        lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
                        eigen_residual=res.errors["eigen_residual_stability"],
                        rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
 
 
-def summary_row(row: dict, sm: dict, *, n_contacts: int, n_sliding: int, lambda_min: float, eigen_residual: float,
-                rigid_leakage: float, seconds: float) -> dict:
-    """A row from an `analyze`-style summary (verdicts.py) and the cluster's numbers."""
+def summary_row(row: dict, v: Verdict, *, n_contacts: int, n_sliding: int, lambda_min: float,
+                eigen_residual: float, rigid_leakage: float, seconds: float) -> dict:
+    """A row from an `analyze` verdict (verdicts.py) and the cluster's numbers."""
     return {**row, "n_contacts": n_contacts, "n_sliding": n_sliding,
-            "branches": sm.get("branches", "all"), "n_branches": sm["n_branches"], "lambda_min": lambda_min,
-            "consistent_negative": sm["consistent_negative"], "consistent_positive": sm["consistent_positive"],
-            "verdict": sm["verdict"], "sufficient": sm["sufficient"],
-            "insufficient_because": ",".join(sm["insufficient_because"]), "metric_robust": sm["metric_robust"],
-            "zero_margin": np.nan if sm["zero_margin"] is None else sm["zero_margin"],
-            "eigen_residual": eigen_residual, "rigid_leakage": rigid_leakage, "reason": sm["reason"],
+            "branches": v.branches, "n_branches": v.n_branches, "lambda_min": lambda_min,
+            "consistent_negative": v.consistent_negative, "consistent_positive": v.consistent_positive,
+            "verdict": v.verdict, "sufficient": v.sufficient,
+            "insufficient_because": ",".join(v.insufficient_because), "metric_robust": v.metric_robust,
+            "zero_margin": np.nan if v.zero_margin is None else v.zero_margin,
+            "eigen_residual": eigen_residual, "rigid_leakage": rigid_leakage, "reason": v.reason,
             "seconds": seconds}
 
 
