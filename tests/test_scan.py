@@ -1,6 +1,7 @@
 """The local stability scan (issue 10): clusters, equality with analyze, partial branches, resume, Dask, the map."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -19,7 +20,7 @@ from granstab.mechanics.branches import RIGID
 from granstab.model import packings
 from granstab.scan import extract, members, read_map, scan
 from granstab.scan.clusters import CONTACT_FIELDS, boundary_ring, subscene
-from granstab.scan.output import ROW_COLUMNS
+from granstab.scan.rows import ROW_COLUMNS, Row, columns_table, rows_table, schema
 from granstab.scan.run import (
     CHUNK,
     FIRST_TASK,
@@ -154,13 +155,42 @@ def test_clusters_that_need_the_eigenspace_search_go_to_analyze():
     rows = table.to_pylist()
     paths = [r["path"] for r in rows]
     assert 0 < paths.count("analyze") < len(rows)
-    assert table.column_names == list(ROW_COLUMNS) == list(cluster_row(scene, 0, [0, 1], options))
+    assert table.schema == schema(Row) and table.column_names == list(ROW_COLUMNS)
     for row, c, keep in zip(rows, centers, members(scene, centers, 1)):
         ref = cluster_row(scene, c, keep, options)
         for key in ("center", "members", "n_particles", "n_contacts", "n_sliding", "branches", "n_branches",
                     "consistent_negative", "consistent_positive", "verdict", "sufficient", "insufficient_because",
                     "metric_robust", "reason"):
-            assert row[key] == ref[key], (row["center"], key)
+            assert row[key] == getattr(ref, key), (row["center"], key)
+
+
+def test_every_path_makes_rows_of_the_schema_derived_from_the_row_record(tmp_path):
+    """A row is defined once (rows.Row): its Arrow schema follows the record's field types, and the error row, an
+    `analyze` row and the batched columns all make tables of exactly that schema; columns that are not Row's fields
+    are refused; Parquet and CSV read back to the same rows and types."""
+    from granstab.scan.output import read_arrow, write_table
+    kinds = schema(Row)
+    assert kinds.names == list(ROW_COLUMNS) == [f.name for f in dataclasses.fields(Row)]
+    assert [str(kinds.field(k).type) for k in ("n_sliding", "lambda_min", "verdict", "sufficient", "metric_robust")] \
+        == ["int64", "double", "string", "bool", "bool"]
+    scene = granstab.load_scene(ANNULUS)
+    keep = members(scene, [3], 1)[0]
+    failed = cluster_row(scene, 3, keep, {**SLIDING, "metric": "inertia"})        # no masses: analyze refuses
+    assert (failed.verdict, failed.n_contacts, failed.sufficient) == ("error", -1, False) and "mass" in failed.reason
+    analyzed = cluster_row(scene, 3, keep, {**SLIDING, "metric": "L"})
+    batched = scan_chunk(scene, np.array([3, 50]), {**SLIDING, "metric": "L"})
+    assert analyzed.path == "analyze" and set(batched.column("path").to_pylist()) <= {"batched", "batched-values"}
+    table = pa.concat_tables([rows_table([failed, analyzed]), batched])
+    assert table.schema == kinds and table.num_rows == 4
+    with pytest.raises(ValueError, match="fields of Row"):
+        columns_table({key: None for key in ROW_COLUMNS if key != "reason"})
+    for fmt in ("parquet", "csv"):
+        write_table(table, tmp_path / f"rows.{fmt}", fmt)
+        back = read_arrow(tmp_path / f"rows.{fmt}", fmt, Row)
+        assert [f.type for f in back.schema] == [f.type for f in kinds], fmt
+        same = [a == b or a != a and b != b for x, y in zip(back.to_pylist(), table.to_pylist())
+                for a, b in zip(x.values(), y.values())]
+        assert all(same), fmt
 
 
 @pytest.mark.skipif(not gpu_available(), reason="no CuPy with a CUDA GPU here: the GPU backend is tested where one "

@@ -12,14 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from ..model.scene import Scene, SceneError
+from .rows import ParticleRow, Row, concat_rows, schema
 
 FORMATS = ("parquet", "csv")
-ROW_COLUMNS = ("center", "members", "n_particles", "path", "n_contacts", "n_sliding", "branches", "n_branches",
-               "lambda_min", "consistent_negative", "consistent_positive", "verdict", "sufficient",
-               "insufficient_because", "metric_robust", "zero_margin", "eigen_residual", "rigid_leakage", "reason",
-               "seconds")     # a row of clusters.*, in order (run.summary_row)
-STRING_COLUMNS = ("center", "members", "path", "branches", "verdict", "insufficient_because", "reason", "name",
-                  "own_verdict")
 
 
 class ScanOutput:
@@ -66,7 +61,7 @@ class ScanOutput:
         clusters = clusters.take(pa.array(first_rows(name_positions(scene, clusters.column("center")),
                                                       scene.n_particles)))
         write_table(clusters, self.path / f"clusters.{self.fmt}", self.fmt)
-        write_table(pa.table(particle_map(scene, clusters)), self.path / f"particles.{self.fmt}", self.fmt)
+        write_table(pa.table(particle_map(scene, clusters), schema=schema(ParticleRow)), self.path / f"particles.{self.fmt}", self.fmt)
         counts = clusters.column("verdict").value_counts().to_pylist()
         n = clusters.num_rows
         summary = {"source": scene.source, "n_particles": scene.n_particles, "n_contacts": scene.n_contacts,
@@ -121,41 +116,13 @@ def particle_map(scene: Scene, clusters) -> dict:
             "n_clusters": contains.astype(np.int64)}
 
 
-def rows_table(rows: list[dict]):
-    """A chunk's rows (dicts of run.summary_row's fields) as an Arrow table, member lists as lists of names. Made
-    where the chunk ran (a Dask worker), so that the client only writes it."""
-    import pyarrow as pa
-    keys = rows[0] if rows else ("center", "members", "verdict", "branches", "seconds")
-    return pa.table({key: pa.array([r[key] for r in rows], type=_arrow_type(key)) for key in keys})
-
-
-def columns_table(columns: dict):
-    """A chunk's rows given as columns (run.batched_columns: numpy arrays; members as (names, offsets)) as an
-    Arrow table like `rows_table`'s."""
-    import pyarrow as pa
-    names, offsets = columns["members"]
-    members = pa.ListArray.from_arrays(pa.array(offsets, type=pa.int32()), pa.array(names, type=pa.string()))
-    return pa.table({key: members if key == "members" else pa.array(columns[key], type=_arrow_type(key))
-                     for key in ROW_COLUMNS})
-
-
-def concat_rows(tables: list):
-    """Row tables (rows_table, columns_table) as one; none: an empty one."""
-    import pyarrow as pa
-    return pa.concat_tables(tables, promote_options="default") if tables else rows_table([])
-
-
-def _arrow_type(key: str):
-    import pyarrow as pa
-    return pa.list_(pa.string()) if key == "members" else pa.string() if key in STRING_COLUMNS else None
-
-
 def column(table, key: str) -> np.ndarray:
-    """A column as numpy: object arrays for strings and member lists (lists of names)."""
+    """A column as numpy: object arrays for strings and lists (member lists)."""
+    import pyarrow as pa
     values = table.column(key)
-    if key == "members":
+    if pa.types.is_list(values.type):
         return np.array(values.to_pylist() + [None], dtype=object)[:-1]
-    if key in STRING_COLUMNS:
+    if pa.types.is_string(values.type):
         return np.array(values.to_pylist(), dtype=object)
     return values.to_numpy(zero_copy_only=False)
 
@@ -163,40 +130,43 @@ def column(table, key: str) -> np.ndarray:
 def write_table(table, path: Path, fmt: str) -> None:
     """Parquet as it is (no dictionary pages: as small here, and 0.6× the time of a 10⁵-row table's); csv with the
     member lists joined by ';'."""
-    import pyarrow as pa
     if fmt == "parquet":
         import pyarrow.parquet as pq
         pq.write_table(table, path, use_dictionary=False)
         return
+    import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.csv as pcsv
-    if "members" in table.column_names:
-        table = table.set_column(table.column_names.index("members"), "members",
-                                 pc.binary_join(table.column("members"), ";"))
-    pcsv.write_csv(table.cast(pa.schema([pa.field(f.name, pa.string()) if pa.types.is_null(f.type) else f
-                                         for f in table.schema])), path)
+    for i, field in enumerate(table.schema):
+        if pa.types.is_list(field.type):
+            joined = pc.binary_join(table.column(i).cast(pa.list_(pa.string())), ";")
+            table = table.set_column(i, field.name, joined)
+    pcsv.write_csv(table, path)
 
 
-def read_arrow(path: Path, fmt: str):
-    """A table written by `write_table`, member lists as lists again."""
+def read_arrow(path: Path, fmt: str, record):
+    """A table written by `write_table` with the schema of `record` (rows.Row, rows.ParticleRow), member lists as
+    lists again."""
     import pyarrow as pa
     if fmt == "parquet":
         import pyarrow.parquet as pq
         return pq.read_table(path)
     import pyarrow.compute as pc
     import pyarrow.csv as pcsv
-    header = Path(path).open(encoding="utf-8").readline().strip().split(",")
-    types = {c.strip('"'): pa.string() for c in header if c.strip('"') in STRING_COLUMNS}
-    table = pcsv.read_csv(path, convert_options=pcsv.ConvertOptions(column_types=types, strings_can_be_null=False))
-    if "members" in table.column_names:
-        table = table.set_column(table.column_names.index("members"), "members",
-                                 pc.split_pattern(table.column("members"), ";"))
+    kinds = schema(record)
+    types = {f.name: pa.string() if pa.types.is_list(f.type) else f.type for f in kinds}
+    table = pcsv.read_csv(path, convert_options=pcsv.ConvertOptions(
+        column_types=types, null_values=[""], strings_can_be_null=False))
+    for i, field in enumerate(table.schema):
+        if pa.types.is_list(kinds.field(field.name).type):
+            table = table.set_column(i, field.name, pc.split_pattern(table.column(i), ";").cast(
+                kinds.field(field.name).type))
     return table
 
 
-def read_table(path: Path, fmt: str) -> dict:
+def read_table(path: Path, fmt: str, record) -> dict:
     """A table as a dict of numpy arrays (object arrays for strings and member lists)."""
-    table = read_arrow(path, fmt)
+    table = read_arrow(path, fmt, record)
     return {key: column(table, key) for key in table.column_names}
 
 
@@ -208,5 +178,5 @@ def read_map(out_dir) -> dict:
         raise SceneError(f"{out_dir}: not a finished scan (no summary.json)")
     summary = json.loads(summary_file.read_text(encoding="utf-8"))
     fmt = summary["options"]["format"]
-    return {"clusters": read_table(path / f"clusters.{fmt}", fmt),
-            "particles": read_table(path / f"particles.{fmt}", fmt), "summary": summary}
+    return {"clusters": read_table(path / f"clusters.{fmt}", fmt, Row),
+            "particles": read_table(path / f"particles.{fmt}", fmt, ParticleRow), "summary": summary}

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..analysis import analyze
 from ..mechanics.branches import RIGID
-from ..mechanics.verdicts import Verdict, verdict_columns
+from ..mechanics.verdicts import verdict_columns
 from ..model.scene import Scene, SceneError, build_scene
 from ..solve.device import backend
 from ..solve.threads import blas_threads
@@ -32,7 +32,8 @@ from .clusters import (
     subscene,
     union,
 )
-from .output import ScanOutput, columns_table, concat_rows, rows_table
+from .output import ScanOutput
+from .rows import Row, columns_table, concat_rows, rows_table
 
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
                       # (batch.STACK_BYTES)
@@ -47,47 +48,29 @@ IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next 
 WORKER_ENVIRON = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}
 
 
-def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> dict:
-    """One row of clusters.parquet from `analyze` on the cluster's sub-scene (errors become a row, never a lost
-    cluster)."""
+def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> Row:
+    """The row of a cluster from `analyze` on its sub-scene (errors become a row, never a lost cluster)."""
     start = time.perf_counter()
-    row = {"center": scene.names[center], "members": [scene.names[i] for i in keep], "n_particles": len(keep),
-           "path": "analyze"}
+    center_name, names = scene.names[center], [scene.names[i] for i in keep]
     try:
         hold = boundary_ring(scene, center, options["rings"])[1] if options.get("boundary") == "fixed" else None
         sub = subscene(scene, keep, hold=hold)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
                       sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()))
     except SceneError as exc:
-        return {**row, "n_contacts": -1, "n_sliding": -1, "branches": "none", "n_branches": 0,
-                "lambda_min": np.nan, "consistent_negative": -1, "consistent_positive": -1, "verdict": "error",
-                "sufficient": False, "insufficient_because": "error", "metric_robust": None, "zero_margin": np.nan,
-                "eigen_residual": np.nan, "rigid_leakage": np.nan, "reason": " ".join(str(exc).split()),
-                "seconds": time.perf_counter() - start}
+        return Row.failed(center_name, names, str(exc), time.perf_counter() - start)
     lam = [b.stability_eigenvalues[b.codes != RIGID] for b in res.branches]
-    return summary_row(row, res.verdict, n_contacts=sub.n_contacts, n_sliding=int(np.sum(sub.at_yield())),
-                       lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
-                       eigen_residual=res.errors["eigen_residual_stability"],
-                       rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
-
-
-def summary_row(row: dict, v: Verdict, *, n_contacts: int, n_sliding: int, lambda_min: float,
-                eigen_residual: float, rigid_leakage: float, seconds: float) -> dict:
-    """A row from an `analyze` verdict (verdicts.py) and the cluster's numbers."""
-    return {**row, "n_contacts": n_contacts, "n_sliding": n_sliding,
-            "branches": v.branches, "n_branches": v.n_branches, "lambda_min": lambda_min,
-            "consistent_negative": v.consistent_negative, "consistent_positive": v.consistent_positive,
-            "verdict": v.verdict, "sufficient": v.sufficient,
-            "insufficient_because": ",".join(v.insufficient_because), "metric_robust": v.metric_robust,
-            "zero_margin": np.nan if v.zero_margin is None else v.zero_margin,
-            "eigen_residual": eigen_residual, "rigid_leakage": rigid_leakage, "reason": v.reason,
-            "seconds": seconds}
+    return Row.analyzed(center_name, names, res.verdict, n_contacts=sub.n_contacts,
+                        n_sliding=int(np.sum(sub.at_yield())),
+                        lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
+                        eigen_residual=res.errors["eigen_residual_stability"],
+                        rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
 
 
 def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, options: dict) -> dict | None:
-    """Columns of the rows that the batched path serves (batch.py), `position` their index in `centers` (None: no
-    cluster batched), vectorised over clusters (verdicts.verdict_columns); seconds: the chunk's time shared
-    equally."""
+    """The rows that the batched path serves (batch.py) as columns, one per field of `Row` (rows.columns_table),
+    and `position`, their index in `centers` (None: no cluster batched); vectorised over clusters
+    (verdicts.verdict_columns); seconds: the chunk's time shared equally."""
     start = time.perf_counter()
     got = solve_chunk(scene, centers, member_lists, options)
     if got is None or not len(got["position"]):
