@@ -69,20 +69,17 @@ class ScanMapModel:
     def cluster(self, name: str) -> ContactModel:
         """The cluster whose centre is `name`, as the scan analysed it, its boundary included (a `fixed` scan holds
         the next ring fixed; one-line SceneError if it has none)."""
-        from granstab.scan import subscene
-        from granstab.scan.clusters import boundary_ring
+        from granstab.scan.clusters import cluster
         if name not in self.members:
             raise granstab.SceneError(f"{self.path}: particle {name!r} was no centre of this scan "
                                       f"({len(self.members)} centres)")
-        index = {n: i for i, n in enumerate(self.scene.names)}
-        keep = np.array(sorted(index[m] for m in self.members[name]))
+        center = self.scene.names.index(name)
         rings = self.summary["options"]["rings"]
         boundary = self.summary["options"].get("boundary", "loads")          # scans before --boundary: loads
-        hold = boundary_ring(self.scene, index[name], rings)[1] if boundary == "fixed" else None
-        sub = subscene(self.scene, keep, hold=hold, title=f"cluster of {name} ({rings} ring{'s' * (rings > 1)}, "
-                                                         f"boundary {boundary}) from scan {Path(self.path).name}")
+        sub = cluster(self.scene, center, rings, boundary, title=f"cluster of {name} ({rings} ring{'s' * (rings > 1)}, "
+                                                                 f"boundary {boundary}) from scan {Path(self.path).name}")
         return ContactModel(sub, report=f"cluster of particle {name}: its own verdict in the scan "
-                                        f"{self.own[index[name]] or '—'}; {len(keep)} particles")
+                                        f"{self.own[center] or '—'}; {len(self.members[name])} particles")
 
     def pick(self, origin, direction) -> str | None:
         """The particle under a click ray (2D: where the ray meets the plane z = 0; 3D: the centre nearest the

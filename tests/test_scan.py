@@ -193,6 +193,37 @@ def test_every_path_makes_rows_of_the_schema_derived_from_the_row_record(tmp_pat
         assert all(same), fmt
 
 
+@pytest.mark.parametrize("boundary", ["loads", "fixed"])
+def test_cluster_scenes_are_built_without_checking_again(monkeypatch, boundary):
+    """The scan's chunks and the clusters (clusters.cluster, used by the scan, extract and the app) are slices of a
+    scene checked where it was read: they are made without the scene checks (check_ranges, the friction check),
+    and equal bit for bit the scene that build_scene makes and checks from the same slices (loads at equilibrium)."""
+    import dataclasses as dc
+
+    import granstab.model.scene as model
+    from granstab.scan.clusters import cluster, cut
+    scene = packings.random_packing(2, 150, n_sliding=25, mobilised=0.5, seed=5)
+    centers = np.arange(0, scene.n_particles, 9)
+    hold = boundary_ring(scene, 40, 2)[1] if boundary == "fixed" else None
+    contact = ("p", "q", *CONTACT_FIELDS, "state")
+
+    def checked(fields):
+        return model.build_scene(**{k: v for k, v in fields.items() if k not in contact},
+                                 arrays={k: fields[k] for k in contact})
+
+    expected = [checked(cut(scene, members(scene, [40], 2)[0], hold=hold)), checked(chunk_cut(scene, centers, 1).fields)]
+    calls = []
+    for name in ("check_ranges", "_check_friction"):
+        monkeypatch.setattr(model, name, lambda *a, name=name: calls.append(name))
+    made = [cluster(scene, 40, 2, boundary), chunk_cut(scene, centers, 1).scene()]
+    assert calls == []
+    for a, b in zip(made, expected):
+        for f in dc.fields(a):
+            x, y = getattr(a, f.name), getattr(b, f.name)
+            assert (np.array_equal(x, y) and x.dtype == y.dtype) if isinstance(x, np.ndarray) else x == y, f.name
+    assert (made[0].fixed is not None) == (boundary == "fixed")
+
+
 @pytest.mark.skipif(not gpu_available(), reason="no CuPy with a CUDA GPU here: the GPU backend is tested where one "
                                                 "is present (pip install 'granstab[gpu]')")
 def test_gpu_batched_rows_equal_cpu():

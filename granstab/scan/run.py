@@ -17,19 +17,19 @@ import numpy as np
 from ..analysis import analyze
 from ..mechanics.branches import RIGID
 from ..mechanics.verdicts import verdict_columns
-from ..model.scene import Scene, SceneError, build_scene
+from ..model.scene import Scene, SceneError
 from ..solve.device import backend
 from ..solve.threads import blas_threads
 from .batch import batchable, solve_chunk
 from .clusters import (
     BOUNDARIES,
     adjacency,
-    boundary_ring,
+    cluster,
     cut,
     incidence,
     members,
     particle_index,
-    subscene,
+    piece,
     union,
 )
 from .output import ScanOutput
@@ -48,13 +48,13 @@ IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next 
 WORKER_ENVIRON = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}
 
 
-def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> Row:
-    """The row of a cluster from `analyze` on its sub-scene (errors become a row, never a lost cluster)."""
+def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict, graph=None) -> Row:
+    """The row of the cluster of `center` (its members `keep`) from `analyze` on its sub-scene (clusters.cluster;
+    errors become a row, never a lost cluster). graph: adjacency(scene), if at hand."""
     start = time.perf_counter()
     center_name, names = scene.names[center], [scene.names[i] for i in keep]
     try:
-        hold = boundary_ring(scene, center, options["rings"])[1] if options.get("boundary") == "fixed" else None
-        sub = subscene(scene, keep, hold=hold)
+        sub = cluster(scene, center, options["rings"], options.get("boundary", "loads"), graph=graph)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
                       sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()))
     except SceneError as exc:
@@ -93,14 +93,16 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
 
 @dataclass(frozen=True)
 class Chunk:
-    """A chunk of centres as it travels to a worker: `build_scene`'s arguments for the sub-scene of every particle of
-    their clusters (clusters.cut) and the centres' indices in it. A dataclass, so that Dask ships it whole instead of
-    walking its lists of names for futures (measured: 4.5 s of the client's time in a 10⁵-particle scan)."""
-    arguments: dict
+    """A chunk of centres as it travels to a worker: the fields of the sub-scene of every particle of their clusters
+    (clusters.cut: slices of the packing's arrays) and the centres' indices in it. The worker makes the scene
+    (clusters.piece) without checking again what was checked where the packing was read. A dataclass, so that Dask
+    ships it whole instead of walking its tuples for futures (measured: 4.5 s of the client's time in a
+    10⁵-particle scan)."""
+    fields: dict
     centers: np.ndarray
 
     def scene(self) -> Scene:
-        return build_scene(**self.arguments)
+        return piece(self.fields)
 
 
 def chunk_cut(scene: Scene, centers: np.ndarray, rings: int, graph=None, contacts_of=None) -> Chunk:
@@ -128,12 +130,13 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict):
     `centers`: the unit of work of a Dask task. The batched path (batch.py) takes what it can; `analyze` per
     cluster the rest (a partial cluster's branch sample is seeded by its centre's name, so it does not depend on
     the chunking)."""
-    member_lists = members(scene, centers, options["rings"])
+    graph = adjacency(scene)
+    member_lists = members(scene, centers, options["rings"], graph)
     with blas_threads(1):
         batched = batched_columns(scene, centers, member_lists, options) if batchable(options) else None
         done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
         rest = np.setdiff1d(np.arange(len(centers)), done)
-        rows = [cluster_row(scene, centers[i], member_lists[i], options) for i in rest]
+        rows = [cluster_row(scene, centers[i], member_lists[i], options, graph) for i in rest]
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
     return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
 
