@@ -27,7 +27,6 @@ from granstab.scan.run import (
     TASK_SECONDS,
     Guide,
     chunk_cut,
-    chunk_scene,
     chunk_table,
     cluster_row,
     reach,
@@ -80,7 +79,8 @@ def test_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path):
     names = [scene.names[i] for i in (3, 50, 99, 140)]
     scan(scene, tmp_path, centers=",".join(names), workers=1, figures=False)
     rows = read_map(tmp_path)["clusters"]
-    assert list(rows["center"]) == names
+    assert list(rows["center"]) == [3, 50, 99, 140]                   # indices into the packing
+    assert [list(m) for m in rows["members"]] == [list(m) for m in members(scene, [3, 50, 99, 140], 1)]
     for i, name in enumerate(names):
         res = granstab.analyze(extract(scene, name), metric="L")
         scale = max(np.abs(b.stability_eigenvalues).max() for b in res.branches)
@@ -211,7 +211,8 @@ def test_cluster_scenes_are_built_without_checking_again(monkeypatch, boundary):
         return model.build_scene(**{k: v for k, v in fields.items() if k not in contact},
                                  arrays={k: fields[k] for k in contact})
 
-    expected = [checked(cut(scene, members(scene, [40], 2)[0], hold=hold)), checked(chunk_cut(scene, centers, 1).fields)]
+    expected = [checked(cut(scene, members(scene, [40], 2)[0], hold=hold)),
+                checked(chunk_cut(scene, centers, 1).fields)]
     calls = []
     for name in ("check_ranges", "_check_friction"):
         monkeypatch.setattr(model, name, lambda *a, name=name: calls.append(name))
@@ -277,10 +278,10 @@ def test_rows_are_the_same_bits_however_the_scan_is_chunked(dim, n, boundary):
     scene = packings.random_packing(dim, n, n_sliding=n // 6, mobilised=0.5, seed=5)
     centers = np.arange(scene.n_particles)
     options = {**SLIDING, "metric": "L", "boundary": boundary}
-    whole = scan_chunk(*chunk_scene(scene, centers, reach(options)), options).drop(["seconds"])
+    whole = chunk_table(chunk_cut(scene, centers, reach(options)), options).drop(["seconds"])
     assert max(whole.column("n_sliding").to_pylist()) >= 3
     for size in (7, 41):
-        parts = [scan_chunk(*chunk_scene(scene, centers[i:i + size], reach(options)), options).drop(["seconds"])
+        parts = [chunk_table(chunk_cut(scene, centers[i:i + size], reach(options)), options).drop(["seconds"])
                  for i in range(0, len(centers), size)]
         assert pa.concat_tables(parts).equals(whole), size
 
@@ -317,8 +318,9 @@ def test_planted_unstable_cluster_is_found_and_nothing_far_away(tmp_path, rho_ov
     scene, planted = planted_lattice(40, rho_over_r)
     scan(scene, tmp_path, workers=1, figures=False)
     data = read_map(tmp_path)
-    verdict = dict(zip(data["clusters"]["center"], data["clusters"]["verdict"]))
+    verdict = dict(zip((scene.names[c] for c in data["clusters"]["center"]), data["clusters"]["verdict"]))
     fraction = np.asarray(data["particles"]["unstable_fraction"], dtype=float)
+    assert list(data["particles"]["name"]) == list(scene.names)
     assert list(data["particles"]["own_verdict"]) == [verdict[n] for n in scene.names]
     if rho_over_r > 1:
         assert set(verdict.values()) == {"stable"} and np.all(fraction == 0.0)
@@ -346,12 +348,12 @@ def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
     scene = granstab.load_scene(ANNULUS)
     options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads"}
     from granstab.scan.output import ScanOutput
-    out = ScanOutput(tmp_path, "csv", options, source=scene.source)
+    out = ScanOutput(tmp_path, "csv", options, scene)
     out.write(chunk_table(chunk_cut(scene, np.arange(0, 20), 1), options))              # what finished before the kill
     summary = scan(scene, tmp_path, centers="every:1", workers=1, fmt="csv", figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert summary["clusters_this_run"] == scene.n_particles - 20
-    assert list(rows["center"]) == list(scene.names)                  # each centre once, in scene order
+    assert list(rows["center"]) == list(range(scene.n_particles))     # each centre once, in scene order
     with pytest.raises(granstab.SceneError, match="other options"):
         scan(scene, tmp_path, rings=2, workers=1, fmt="csv", figures=False)
 
@@ -381,7 +383,7 @@ def test_two_dask_workers_give_the_serial_rows_and_survive_a_killed_worker(tmp_p
                 time.sleep(0.05)
             assert victim not in client.scheduler_info()["workers"]
     a, b = read_map(tmp_path / "serial")["clusters"], read_map(tmp_path / "dask")["clusters"]
-    assert list(b["center"]) == list(a["center"]) == list(scene.names)
+    assert list(b["center"]) == list(a["center"]) == list(range(scene.n_particles))
     for key in ("verdict", "consistent_negative", "consistent_positive", "n_contacts", "n_branches"):
         assert list(a[key]) == list(b[key]), key
     assert np.array_equal(a["lambda_min"], b["lambda_min"])
@@ -394,7 +396,7 @@ def test_cli_scan_and_extract_round_trip(tmp_path):
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     assert summary["clusters"] == len(range(0, 143, 20)) and (out / "map.png").stat().st_size > 10_000
-    name = read_map(out)["clusters"]["center"][2]
+    name = read_map(out)["particles"]["name"][read_map(out)["clusters"]["center"][2]]
     sub_file = tmp_path / "sub.json"
     proc = subprocess.run([sys.executable, "-m", "granstab", "extract", str(ANNULUS), "--center", name,
                            "--out", str(sub_file)], capture_output=True, text=True)
@@ -460,6 +462,49 @@ def test_a_bad_fixed_flag_is_one_line_naming_the_particle(tmp_path, value, messa
     path.write_text(json.dumps(data))
     with pytest.raises(granstab.SceneError, match="at least one must be free"):
         granstab.load_scene(path)
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "csv"])
+def test_a_copied_scan_folder_opens_without_the_packing_it_was_scanned_from(tmp_path, fmt):
+    """A scan folder keeps its packing (packing.npz) and names particles by their index in it: copied elsewhere, with
+    the scanned file and the original folder deleted, it opens with read_map/read_packing and in the explorer, with
+    the same clusters (each centre's members, by name, as `members` finds them in the original), and each cluster
+    the explorer opens has the verdict and the consistent counts of the scan's row."""
+    import shutil
+
+    from granstab.scan import read_packing
+    from granstab_app.scanmap import load_scan_map
+    from granstab_app.state import Session
+    scene, _ = planted_lattice(40, 0.4)
+    packing = tmp_path / "lattice.json"
+    packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
+    scanned = granstab.load_scene(packing)
+    scan(scanned, tmp_path / "scan", workers=1, fmt=fmt, figures=False)
+    centers = np.arange(scanned.n_particles)
+    expected = {scanned.names[c]: [scanned.names[m] for m in keep]
+                for c, keep in zip(centers, members(scanned, centers, 1))}
+    folder = tmp_path / "elsewhere" / "copy"
+    shutil.copytree(tmp_path / "scan", folder)
+    shutil.rmtree(tmp_path / "scan")
+    packing.unlink()
+    data, stored = read_map(folder), read_packing(folder)
+    names = data["particles"]["name"]
+    assert list(names) == list(stored.names) == list(scanned.names)
+    assert {names[c]: [names[m] for m in row]
+            for c, row in zip(data["clusters"]["center"], data["clusters"]["members"])} == expected
+    model = load_scan_map(folder)
+    assert {stored.names[c]: [stored.names[m] for m in row] for c, row in model.members.items()} == expected
+    rows = data["clusters"]
+    for i in (40, 0, 31, 49):                                      # the planted particle, a corner, neighbours
+        res = granstab.analyze(model.cluster(scanned.names[i]).scene, metric="L")
+        assert (res.verdict.verdict, res.verdict.consistent_negative, res.verdict.consistent_positive) \
+            == (rows["verdict"][i], rows["consistent_negative"][i], rows["consistent_positive"][i])
+    assert rows["verdict"][40] == "unstable"
+    s = Session(str(folder))
+    assert s.error is None and s.kind == "scan_map" and s.open_cluster(scanned.names[40]) and s.verdict == "unstable"
+    (folder / "packing.npz").unlink()
+    with pytest.raises(granstab.SceneError, match="no packing.npz"):
+        load_scan_map(folder)
 
 
 def test_a_fixed_boundary_scan_map_opens_its_cluster_with_the_ring_held(tmp_path):

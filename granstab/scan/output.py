@@ -1,7 +1,9 @@
-"""What a scan writes: one part file a finished chunk (Arrow IPC; streamed, so an interrupted scan resumes), then
-clusters.{parquet,csv} (one row a cluster), particles.{parquet,csv} (the per-particle map) and summary.json.
+"""What a scan writes: packing.npz (the scanned packing, so that the folder opens wherever it is copied), one part
+file a finished chunk (Arrow IPC; streamed, so an interrupted scan resumes), then clusters.{parquet,csv} (one row a
+cluster, rows.Row: centre and members as particle indices into the packing), particles.{parquet,csv} (the
+per-particle map, in the packing's order, with the names) and summary.json.
 
-Parquet through pyarrow (the `scan` extra); csv stores the member list as names joined by ';'.
+Parquet through pyarrow (the `scan` extra); csv stores the member list as indices joined by ';'.
 """
 from __future__ import annotations
 
@@ -11,23 +13,25 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.scenes import load_scene, save_scene
 from ..model.scene import Scene, SceneError
 from .rows import ParticleRow, Row, concat_rows, schema
 
 FORMATS = ("parquet", "csv")
+PACKING = "packing.npz"
 
 
 class ScanOutput:
-    """The scan directory: options.json (checked on resume), parts/ (streamed rows), the final tables. The parts are
-    kept in memory too (`tables`), so that `finish` does not read them back."""
+    """The scan directory: packing.npz, options.json (checked on resume), parts/ (streamed rows), the final tables.
+    The parts are kept in memory too (`tables`), so that `finish` does not read them back."""
 
-    def __init__(self, out_dir, fmt: str, options: dict, source: str):
+    def __init__(self, out_dir, fmt: str, options: dict, scene: Scene):
         if fmt not in FORMATS:
             raise SceneError(f"--format: one of {', '.join(FORMATS)}, got {fmt!r}")
         self.path, self.fmt = Path(out_dir), fmt
         self.parts = self.path / "parts"
         self.parts.mkdir(parents=True, exist_ok=True)
-        stated = {**options, "source": source, "format": fmt}
+        stated = {**options, "source": scene.source, "packing": PACKING, "format": fmt}
         saved = self.path / "options.json"
         if saved.exists():
             before = json.loads(saved.read_text(encoding="utf-8"))
@@ -35,13 +39,14 @@ class ScanOutput:
                 raise SceneError(f"{out_dir}: holds a scan with other options ({before}); resume with the same "
                                  "options or choose another --out")
         else:
+            _save_packing(scene, self.path / PACKING)             # before options.json: a scan folder has its packing
             saved.write_text(json.dumps(stated), encoding="utf-8")
         self.options = stated
         self.tables = [_feather().read_table(f) for f in sorted(self.parts.glob("*.arrow"))]   # an interrupted scan's
 
-    def done_centers(self) -> set[str]:
-        """Centres whose rows are already on disk (an interrupted scan)."""
-        return {str(c) for t in self.tables for c in t.column("center").to_pylist()}
+    def done_centers(self) -> np.ndarray:
+        """Centres (particle indices) whose rows are already on disk (an interrupted scan)."""
+        return np.concatenate([np.zeros(0, dtype=np.int64)] + [t.column("center").to_numpy() for t in self.tables])
 
     def write(self, table) -> None:
         """One chunk's rows (an Arrow table, `rows_table`) as a new part file, Arrow IPC whatever the final format
@@ -58,10 +63,10 @@ class ScanOutput:
         import pyarrow as pa
         import pyarrow.compute as pc
         clusters = concat_rows(self.tables)
-        clusters = clusters.take(pa.array(first_rows(name_positions(scene, clusters.column("center")),
-                                                      scene.n_particles)))
+        clusters = clusters.take(pa.array(first_rows(clusters.column("center").to_numpy(), scene.n_particles)))
         write_table(clusters, self.path / f"clusters.{self.fmt}", self.fmt)
-        write_table(pa.table(particle_map(scene, clusters), schema=schema(ParticleRow)), self.path / f"particles.{self.fmt}", self.fmt)
+        write_table(pa.table(particle_map(scene, clusters), schema=schema(ParticleRow)),
+                    self.path / f"particles.{self.fmt}", self.fmt)
         counts = clusters.column("verdict").value_counts().to_pylist()
         n = clusters.num_rows
         summary = {"source": scene.source, "n_particles": scene.n_particles, "n_contacts": scene.n_contacts,
@@ -88,24 +93,24 @@ def _feather():
     return pyarrow.feather
 
 
-def name_positions(scene: Scene, names) -> np.ndarray:
-    """Indices in the scene of an Arrow array of particle names (vectorised: pyarrow.compute.index_in)."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-    return pc.index_in(names, value_set=pa.array(scene.names, type=pa.string())).to_numpy(zero_copy_only=False)
+def _save_packing(scene: Scene, path: Path) -> None:
+    """The packing as NPZ (granstab.save_scene), written whole and then renamed: a killed scan leaves no torn file."""
+    tmp = path.with_name(f"{path.stem}-{uuid.uuid4().hex}.npz")
+    save_scene(scene, tmp)
+    tmp.rename(path)
 
 
 def particle_map(scene: Scene, clusters) -> dict:
-    """Per particle: the verdict of its own cluster ('' if it was no centre) and the fraction of the clusters
-    containing it that are unstable (NaN if none contains it). clusters: the Arrow table of the rows."""
+    """Per particle (rows.ParticleRow): the verdict of its own cluster ('' if it was no centre) and the fraction of
+    the clusters containing it that are unstable (NaN if none contains it). clusters: the Arrow table of the rows."""
     import pyarrow as pa
     import pyarrow.compute as pc
     verdict = clusters.column("verdict").combine_chunks()
     row_of = np.full(scene.n_particles, len(verdict), dtype=np.int64)      # a particle's own row; none: ''
-    row_of[name_positions(scene, clusters.column("center"))] = np.arange(len(verdict))
-    own = pc.take(pa.concat_arrays([verdict.cast(pa.string()), pa.array([""])]), pa.array(row_of))
+    row_of[clusters.column("center").to_numpy()] = np.arange(len(verdict))
+    own = pc.take(pa.concat_arrays([verdict, pa.array([""])]), pa.array(row_of))
     members = clusters.column("members")
-    flat = name_positions(scene, pc.list_flatten(members))
+    flat = pc.list_flatten(members).to_numpy()
     sizes = pc.list_value_length(members).to_numpy(zero_copy_only=False).astype(np.int64)
     contains = np.bincount(flat, minlength=scene.n_particles).astype(float)
     weight = np.repeat(pc.equal(verdict, "unstable").to_numpy(zero_copy_only=False), sizes).astype(float)
@@ -171,7 +176,9 @@ def read_table(path: Path, fmt: str, record) -> dict:
 
 
 def read_map(out_dir) -> dict:
-    """A finished scan: {"clusters": columns, "particles": columns, "summary": summary.json} (the app's map)."""
+    """A finished scan: {"clusters": columns, "particles": columns, "summary": summary.json} (the app's map).
+    Centres and members are particle indices into the scan's packing (`read_packing`); particles["name"] names
+    them."""
     path = Path(out_dir)
     summary_file = path / "summary.json"
     if not summary_file.exists():
@@ -180,3 +187,12 @@ def read_map(out_dir) -> dict:
     fmt = summary["options"]["format"]
     return {"clusters": read_table(path / f"clusters.{fmt}", fmt, Row),
             "particles": read_table(path / f"particles.{fmt}", fmt, ParticleRow), "summary": summary}
+
+
+def read_packing(out_dir) -> Scene:
+    """The packing a scan folder holds (packing.npz): the scene its rows' indices point into."""
+    path = Path(out_dir) / PACKING
+    if not path.is_file():
+        raise SceneError(f"{out_dir}: no {PACKING} (a scan folder written before scans kept their packing: "
+                         "run the scan again)")
+    return load_scene(path)

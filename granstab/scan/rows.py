@@ -12,12 +12,14 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Row:
-    """One cluster: its centre and members, the path that solved it ("analyze", "batched", "batched-values"), its
-    size, the verdict (verdicts.Verdict: counts, proof, reason; `metric_robust` None for one metric), the lowest
-    non-rigid stability eigenvalue over its branches, the error estimates and the seconds it took."""
+    """One cluster: its centre and members (particle indices into the scanned packing: the scan folder's
+    packing.npz, whose names particles.* lists in the same order), the path that solved it ("analyze", "batched",
+    "batched-values"), its size, the verdict (verdicts.Verdict: counts, proof, reason; `metric_robust` None for one
+    metric), the lowest non-rigid stability eigenvalue over its branches, the error estimates and the seconds it
+    took."""
 
-    center: str
-    members: list[str]
+    center: int
+    members: list[int]
     n_particles: int
     path: str
     n_contacts: int

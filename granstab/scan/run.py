@@ -48,29 +48,33 @@ IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next 
 WORKER_ENVIRON = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}
 
 
-def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict, graph=None) -> Row:
+def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict, graph=None, index=None) -> Row:
     """The row of the cluster of `center` (its members `keep`) from `analyze` on its sub-scene (clusters.cluster;
-    errors become a row, never a lost cluster). graph: adjacency(scene), if at hand."""
+    errors become a row, never a lost cluster). graph: adjacency(scene), if at hand; index: the packing's index of
+    each particle of `scene` (a chunk's; None: `scene` is the packing)."""
     start = time.perf_counter()
-    center_name, names = scene.names[center], [scene.names[i] for i in keep]
+    index = np.arange(scene.n_particles) if index is None else index
+    center_id, ids = int(index[center]), index[np.asarray(keep, dtype=np.int64)].tolist()
     try:
         sub = cluster(scene, center, options["rings"], options.get("boundary", "loads"), graph=graph)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
                       sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()))
     except SceneError as exc:
-        return Row.failed(center_name, names, str(exc), time.perf_counter() - start)
+        return Row.failed(center_id, ids, str(exc), time.perf_counter() - start)
     lam = [b.stability_eigenvalues[b.codes != RIGID] for b in res.branches]
-    return Row.analyzed(center_name, names, res.verdict, n_contacts=sub.n_contacts,
+    return Row.analyzed(center_id, ids, res.verdict, n_contacts=sub.n_contacts,
                         n_sliding=int(np.sum(sub.at_yield())),
                         lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
                         eigen_residual=res.errors["eigen_residual_stability"],
                         rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
 
 
-def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, options: dict) -> dict | None:
+def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, options: dict,
+                    index: np.ndarray) -> dict | None:
     """The rows that the batched path serves (batch.py) as columns, one per field of `Row` (rows.columns_table),
     and `position`, their index in `centers` (None: no cluster batched); vectorised over clusters
-    (verdicts.verdict_columns); seconds: the chunk's time shared equally."""
+    (verdicts.verdict_columns); seconds: the chunk's time shared equally. index: the packing's index of each
+    particle of `scene`."""
     start = time.perf_counter()
     got = solve_chunk(scene, centers, member_lists, options)
     if got is None or not len(got["position"]):
@@ -78,12 +82,11 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
     position = got["position"]
     errors_finite = np.isfinite(got["eigen_residual"]) & np.isfinite(got["rigid_leakage"])
     verdicts = verdict_columns(got["counts"], got["n_branches"], errors_finite, got["n_undetermined"])
-    names = np.asarray(scene.names, dtype=object)
     kept = [member_lists[i] for i in position]
     sizes = np.array([len(m) for m in kept])
     n = len(position)
-    return {"position": position, "center": names[centers[position]],
-            "members": (names[np.concatenate(kept)], np.r_[0, np.cumsum(sizes)]), "n_particles": sizes,
+    return {"position": position, "center": index[centers[position]],
+            "members": (index[np.concatenate(kept)], np.r_[0, np.cumsum(sizes)]), "n_particles": sizes,
             "path": np.where(got["values_only"], "batched-values", "batched").astype(object),
             "n_contacts": got["n_contacts"], "n_sliding": got["n_sliding"], "branches": np.full(n, "all", object),
             "n_branches": got["n_branches"], "lambda_min": got["lambda_min"], "metric_robust": np.full(n, None, object),
@@ -95,11 +98,13 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
 class Chunk:
     """A chunk of centres as it travels to a worker: the fields of the sub-scene of every particle of their clusters
     (clusters.cut: slices of the packing's arrays) and the centres' indices in it. The worker makes the scene
-    (clusters.piece) without checking again what was checked where the packing was read. A dataclass, so that Dask
-    ships it whole instead of walking its tuples for futures (measured: 4.5 s of the client's time in a
-    10⁵-particle scan)."""
+    (clusters.piece) without checking again what was checked where the packing was read; `particles` is the
+    packing's index of each of its particles (rows name particles by these). A dataclass, so that Dask ships it
+    whole instead of walking its tuples for futures (measured: 4.5 s of the client's time in a 10⁵-particle
+    scan)."""
     fields: dict
     centers: np.ndarray
+    particles: np.ndarray
 
     def scene(self) -> Scene:
         return piece(self.fields)
@@ -111,7 +116,7 @@ def chunk_cut(scene: Scene, centers: np.ndarray, rings: int, graph=None, contact
     and the client only slices arrays. graph, contacts_of: clusters.adjacency(scene) and clusters.incidence(scene),
     if at hand (a scan makes them once: then cutting a chunk costs the chunk's size, not the packing's)."""
     every = union(scene, centers, rings, graph)
-    return Chunk(cut(scene, every, contacts_of=contacts_of), np.searchsorted(every, centers))
+    return Chunk(cut(scene, every, contacts_of=contacts_of), np.searchsorted(every, centers), every)
 
 
 def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[Scene, np.ndarray]:
@@ -125,18 +130,20 @@ def reach(options: dict) -> int:
     return options["rings"] + (options.get("boundary") == "fixed")
 
 
-def scan_chunk(scene: Scene, centers: np.ndarray, options: dict):
-    """Rows of a chunk of centres (indices into `scene`, best a `chunk_scene`) as an Arrow table, in the order of
+def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.ndarray | None = None):
+    """Rows of a chunk of centres (indices into `scene`, best a chunk's scene) as an Arrow table, in the order of
     `centers`: the unit of work of a Dask task. The batched path (batch.py) takes what it can; `analyze` per
     cluster the rest (a partial cluster's branch sample is seeded by its centre's name, so it does not depend on
-    the chunking)."""
+    the chunking). particles: the packing's index of each particle of `scene` (None: `scene` is the packing), by
+    which the rows name centres and members."""
+    index = np.arange(scene.n_particles) if particles is None else np.asarray(particles, dtype=np.int64)
     graph = adjacency(scene)
     member_lists = members(scene, centers, options["rings"], graph)
     with blas_threads(1):
-        batched = batched_columns(scene, centers, member_lists, options) if batchable(options) else None
+        batched = batched_columns(scene, centers, member_lists, options, index) if batchable(options) else None
         done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
         rest = np.setdiff1d(np.arange(len(centers)), done)
-        rows = [cluster_row(scene, centers[i], member_lists[i], options, graph) for i in rest]
+        rows = [cluster_row(scene, centers[i], member_lists[i], options, graph, index) for i in rest]
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
     return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
 
@@ -144,7 +151,7 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict):
 def chunk_table(chunk: Chunk, options: dict):
     """The rows of a `Chunk` (scan_chunk): the unit of work of the serial loop and of a Dask task, so that the
     worker, not the client, builds the chunk's scene and the table."""
-    return scan_chunk(chunk.scene(), chunk.centers, options)
+    return scan_chunk(chunk.scene(), chunk.centers, options, chunk.particles)
 
 
 def select_centers(scene: Scene, centers) -> np.ndarray:
@@ -165,7 +172,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
          device: str = "cpu") -> dict:
-    """Analyse the cluster of every centre; write DIR/clusters.*, DIR/particles.*, DIR/summary.json and the map.
+    """Analyse the cluster of every centre; write DIR/packing.npz (the packing: the folder is self-contained),
+    DIR/clusters.* (centres and members as particle indices into it), DIR/particles.*, DIR/summary.json and the map.
 
     Resumes: centres already in DIR (from an interrupted scan with the same options) are skipped.
     scheduler: a Dask scheduler address (tcp://HOST:PORT); workers: local Dask workers (default: this machine's
@@ -181,10 +189,10 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
                "boundary": boundary}
     device = backend(device).name                                   # a missing GPU fails here, in one line
-    out = ScanOutput(out_dir, fmt, options, source=scene.source)
+    out = ScanOutput(out_dir, fmt, options, scene)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
     chosen = select_centers(scene, centers)
-    todo = chosen[~np.isin(np.asarray(scene.names, dtype=object)[chosen], list(out.done_centers()))]
+    todo = chosen[~np.isin(chosen, out.done_centers())]
     bar = _progress(len(todo)) if progress else None
     start = time.perf_counter()
     if len(todo):
