@@ -10,14 +10,14 @@ says whether it is metric-robust; the spectra shown are those of the primary met
 from __future__ import annotations
 
 import warnings as _warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .mechanics.branches import Problem, enumerate_masks, sample_masks
 from .mechanics.metric import CHOICES, Metric, family, resolve
 from .mechanics.stiffness import ContactBlocks
-from .mechanics.verdicts import family_entry, finalize, mark_partial, summarize
+from .mechanics.verdicts import Verdict, family_entry, finalize, mark_partial, summarize
 from .model.scene import Scene, SceneError
 from .solve.strategies import METHODS, Timer, choose_backend
 
@@ -29,18 +29,23 @@ KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would 
 
 @dataclass(eq=False)
 class Analysis:
-    """Result of `analyze`: branches, summary (verdicts), errors (relative, dimensionless), timings (s), in the
-    primary metric `metric` (metric.py)."""
+    """Result of `analyze`: branches, verdict (a `Verdict`; `summary` is its dict), errors (relative,
+    dimensionless), timings (s), in the primary metric `metric` (metric.py)."""
 
     scene: Scene
     problem: Problem
     metric: Metric
     branches: list
-    summary: dict
+    verdict: Verdict
     errors: dict
     timings: dict
     warnings: list = field(default_factory=list)
     backend: str = "dense"
+
+    @property
+    def summary(self) -> dict:
+        """The verdict as the `summary` object of `granstab analyze --json` (Verdict.to_dict)."""
+        return self.verdict.to_dict()
 
     @property
     def length(self) -> float | None:
@@ -195,24 +200,24 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                 branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
                                                 progress=progress, label=f"branches, metric {m.name}",
                                                 keep_all=keep_all)
-            summary = summarize(branches, notes)
-            entries[i] = family_entry(m, summary)
+            verdict = summarize(branches, notes)
+            entries[i] = family_entry(m, verdict)
             if main:
-                result = (m, problem, branches, summary, notes)
-        m, problem, branches, summary, notes = result
+                result = (m, problem, branches, verdict, notes)
+        m, problem, branches, verdict, notes = result
         with timer("errors"):
             errors = backend.errors(state, problem, branches)
         if "residual_stability" in notes:                                # over every branch, kept or not
             errors["eigen_residual_stability"] = max(errors["eigen_residual_stability"], notes["residual_stability"])
-        summary = finalize(summary, errors, int(np.sum(state.blocks.rolling_undetermined)), entries if metric == "family" else None)
+        verdict = finalize(verdict, errors, int(np.sum(state.blocks.rolling_undetermined)),
+                           entries if metric == "family" else None)
         if partial:
-            mark_partial(summary, len(masks), Ms)
-        summary["branches"] = "partial" if partial else "all"
-        summary["branches_kept"] = len(branches)
+            verdict = mark_partial(verdict, len(masks), Ms)
+        verdict = replace(verdict, branches_kept=len(branches))
     warnings = backend.curvature_warnings(state) + notes.get("warnings", [])
-    if len(branches) < summary["n_branches"]:
-        warnings.append(f"{len(branches)} of {summary['n_branches']} branches kept (keep='{keep}'): those with a "
+    if len(branches) < verdict.n_branches:
+        warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
                         "over all branches (keep='all' keeps every one)")
-    return Analysis(scene=scene, problem=problem, metric=m, branches=branches, summary=summary, errors=errors,
+    return Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
                     timings=timer.times, warnings=warnings, backend=backend.name)

@@ -464,7 +464,7 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
     scan(granstab.load_scene(packing), tmp_path / "scan", workers=1, figures=False)
     clusters = read_map(tmp_path / "scan")["clusters"]
-    row = {k: v[list(clusters["center"]).index("p40")] for k, v in clusters.items()}
+    row = {k: v[list(clusters["center"]).index(scene.names.index("p40"))] for k, v in clusters.items()}
     s = Session(str(tmp_path / "scan"))
     assert s.error is None and s.kind == "scan_map" and s.analysis is None and not s.deferred
     colours = s.map_colours
