@@ -171,7 +171,9 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     g, m = slot[pairs["cluster"][sel]], pairs["contact"][sel]
     idx = dof_index(pairs["lp"][sel], pairs["lq"][sel], per, held=nd)               # (P, 2per) local dofs, nd: held
 
-    # metric: L = mean contact radius of the cluster (rigid.rotation_length), D = diag(1, 1/L) per particle
+    # metric: L = mean contact radius of the cluster, D = diag(1, 1/L) per particle: rigid.rotation_length of the
+    # cluster, but summed per contact in cluster order, not by numpy's pairwise mean (one summation order for both
+    # would move the last bits of one path's rows)
     radii = np.linalg.norm(sub.r_pq[m], axis=1) + np.linalg.norm(sub.r_qp[m], axis=1)
     L = np.bincount(g, weights=radii, minlength=G) / (2 * np.bincount(g, minlength=G))
     L = factor * np.where(L > 0, L, 1.0)
