@@ -8,7 +8,18 @@ from helpers import random_cluster, scene
 from granstab.analysis import build_problem
 from granstab.mechanics.accuracy import abs_norm_inf, gamma
 from granstab.mechanics.assembly import assemble, dof_index, scatter_columns, sliding_factors, stack_blocks
-from granstab.mechanics.branches import enumerate_masks, sign_patterns
+from granstab.mechanics.branches import (
+    BOTH,
+    INCONSISTENT,
+    MINUS,
+    PLUS,
+    RIGID,
+    Problem,
+    enumerate_masks,
+    search_eigenspaces,
+    sign_patterns,
+)
+from granstab.mechanics.branches import test_codes as codes_of
 from granstab.mechanics.rigid import (
     Projection,
     dof_scale,
@@ -19,6 +30,7 @@ from granstab.mechanics.rigid import (
     translation_columns,
 )
 from granstab.mechanics.stiffness import contact_blocks
+from granstab.model.tolerances import DEFAULT
 from granstab.model.vec import rot_dim
 from granstab.scan import batch
 from granstab.solve import lowrank
@@ -205,3 +217,42 @@ def test_lowrank_reduces_with_the_batch_kernels(d):
     M0, a, s = on_complement(N, problem.H_el, problem.A, problem.S)
     for got, want in ((red.N, N), (red.M0, M0), (red.a, a), (red.s, s)):
         np.testing.assert_array_equal(got, want)
+
+
+def _search_problem():
+    """Three dofs, two sliding contacts (mask +1, +1): S of e0 is (1, -1) (inconsistent either way), of e1 (0, 0)
+    (a rigid-like motion: consistent both ways), of e2 (1, 1) (consistent as +v)."""
+    S = np.array([[1.0, -1.0], [0.0, 0.0], [1.0, 1.0]])
+    problem = Problem(H_el=np.zeros((3, 3)), A=np.zeros((3, 2)), S=S, projection=None, rigid=np.zeros((3, 0)),
+                      sliding=np.array([0, 1]), n_contacts=2, tol=DEFAULT)
+    return problem, np.array([1, 1], dtype=np.int8)
+
+
+def test_appendix_d_search_skips_a_run_that_holds_a_zero():
+    """A run of eigenvalues that touches a zero is not one eigenspace to search (the zero's vector may be rigid):
+    the negative eigenvalue keeps its own, inconsistent, code rather than a rigid vector's 'both'."""
+    problem, mask = _search_problem()
+    V = np.eye(3)
+    codes, hinges = (a[0].copy() for a in codes_of(problem, mask[None], V[None]))
+    codes[1] = RIGID
+    search_eigenspaces(problem, mask, np.array([-0.15, 0.0, 1.0]), np.full(3, 0.1), V, codes, hinges)
+    np.testing.assert_array_equal(codes, [INCONSISTENT, RIGID, PLUS])
+    np.testing.assert_array_equal(V, np.eye(3))
+
+
+def test_appendix_d_search_of_a_repeated_eigenvalue_and_of_the_null_space():
+    """A repeated eigenvalue (e0, e2 within their bounds) is searched as one eigenspace: its first slot gets a
+    consistent vector (+v: every m_j S_j >= 0), the other is INCONSISTENT; the null space likewise."""
+    problem, mask = _search_problem()
+    V = np.eye(3)[:, [0, 2, 1]]
+    codes, hinges = (a[0].copy() for a in codes_of(problem, mask[None], V[None]))
+    search_eigenspaces(problem, mask, np.array([0.5, 0.55, 2.0]), np.full(3, 0.1), V, codes, hinges)
+    assert codes[0] in (PLUS, MINUS, BOTH) and codes[1] == INCONSISTENT
+    s = problem.S.T @ V[:, 0] * (1 if codes[0] != MINUS else -1)
+    assert np.all(s >= -problem.s_tol) and abs(np.linalg.norm(V[:, 0]) - 1) <= 10 * EPS
+    W = np.eye(3)[:, [0, 1]]                                            # a two-dimensional non-rigid null space
+    V, codes = np.eye(3), np.array([INCONSISTENT, INCONSISTENT, PLUS], dtype=np.int8)
+    search_eigenspaces(problem, mask, np.array([0.0, 0.0, 2.0]), np.full(3, 0.1), V, codes, hinges,
+                       np.array([0, 1]), W)
+    assert codes[0] == BOTH and codes[1] == INCONSISTENT
+    np.testing.assert_allclose(np.abs(V[:, 0]), [0, 1, 0], atol=1e-12)   # the combination with every S = 0
