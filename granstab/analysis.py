@@ -1,9 +1,9 @@
 """`analyze(scene)`: every branch's spectra, consistent modes and verdicts, with error estimates and timings.
 
 One pipeline for every size and metric: scene → contact blocks (stiffness.py) → assembled problem → projection in
-a metric (metric.py: L-scaled or inertia) → all 2^Ms branches (an eigen backend, backends.py: dense LAPACK or
+a metric (metric.py: L-scaled or inertia) → all 2^Ms branches (an eigen method, solve/methods.py: dense LAPACK or
 sparse shift-invert/LOBPCG) → verdicts (verdicts.py) → result. The branch loop, the verdicts and the error
-reporting are written once; the backends differ only in the eigen step and say what they leave out. By default
+reporting are written once; the methods differ only in the eigen step and say what they leave out. By default
 the verdict is evaluated in the metric family L/10, L, 10L (and inertia where masses are known) and the summary
 says whether it is metric-robust; the spectra shown are those of the primary metric ("L", or the one asked for).
 """
@@ -16,10 +16,10 @@ import numpy as np
 
 from .mechanics.branches import Problem, enumerate_masks, sample_masks
 from .mechanics.metric import CHOICES, Metric, family, resolve
-from .mechanics.stiffness import ContactBlocks
+from .mechanics.stiffness import ContactBlocks, curvature_warnings
 from .mechanics.verdicts import Verdict, family_entry, finalize, mark_partial, summarize
 from .model.scene import Scene, SceneError
-from .solve.strategies import METHODS, Timer, choose_backend
+from .solve.methods import METHODS, Timer, choose_method
 
 __all__ = ["Analysis", "METHODS", "analyze", "build_problem"]
 
@@ -116,11 +116,11 @@ def _branch_dict(b, inertia: bool) -> dict:
 
 
 def build_problem(scene: Scene, blocks: ContactBlocks, metric):
-    """The dense problem in a metric (a Metric, or L as a number): (problem, parts); see backends.dense_problem."""
-    from .solve.strategies import assemble_parts, dense_problem
+    """The dense problem in a metric (a Metric, or L as a number): (problem, parts); see solve.methods.dense_problem."""
+    from .solve.methods import dense_parts, dense_problem
     if not isinstance(metric, Metric):
         metric = resolve(scene, "L", float(metric))
-    parts = assemble_parts(scene, blocks)
+    parts = dense_parts(scene, blocks)
     return dense_problem(scene, blocks, parts, metric), parts
 
 
@@ -138,7 +138,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         "family": the verdict in L/10, L, 10L and inertia where masses are known, spectra in L,
         ``summary["metric_robust"]`` and ``summary["metrics"]``; otherwise that metric only.
     rotation_length : float, optional
-        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's metric).
+        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's metric);
+        `rotation_length_` is its deprecated old name.
     max_sliding, sample_branches, seed : int
         More than `max_sliding` potentially sliding contacts (2^Ms branches) are refused unless `sample_branches`
         is given: then the all-loading, all-unloading and that many seeded random branches are examined
@@ -177,7 +178,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         raise ValueError("rotation_length: the inertia metric has no rotation length")
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
-    backend = choose_backend(scene, method, k, device, lowrank)
+    backend = choose_method(scene, method, k, device, lowrank)
     timer = Timer()
     with timer("total"):
         state = backend.prepare(scene, timer)
@@ -214,7 +215,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         if partial:
             verdict = mark_partial(verdict, len(masks), Ms)
         verdict = replace(verdict, branches_kept=len(branches))
-    warnings = backend.curvature_warnings(state) + notes.get("warnings", [])
+    warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", [])
     if len(branches) < verdict.n_branches:
         warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "

@@ -1,4 +1,4 @@
-"""The low-rank branch paths (granstab/lowrank.py) checked against the full solves they replace.
+"""The low-rank branch paths (granstab/solve/lowrank.py, ritz.py) checked against the full solves they replace.
 
 Dense: every branch's reduced (rigid-free) eigenproblem against the full stacked path of branches.py — same codes,
 same summary, eigenvalues within the sum of both paths' reported per-eigenvalue bounds. Sparse: the Ritz
@@ -18,7 +18,8 @@ from granstab.mechanics.stiffness import contact_blocks
 from granstab.model import packings
 from granstab.solve import sparse
 from granstab.solve.dense import solve_branches
-from granstab.solve.lowrank import LazyVectors, SparseRitz, solve_branches_lowrank
+from granstab.solve.lowrank import LazyVectors, solve_branches_lowrank
+from granstab.solve.ritz import SparseRitz
 
 
 def problem_of(scene):
