@@ -5,6 +5,7 @@
 turning the camera, which arrow keys on the handle do)."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -22,5 +23,8 @@ def chromium(playwright, profile_dir, width: int = 1600, height: int = 1000):
 
 
 def number_box(page, handle):
-    """The number input beside a viser slider (the slider root carries the handle's uuid as its id)."""
-    return page.locator(f'[id="{handle._impl.uuid}"]').locator("xpath=..").locator("input.mantine-NumberInput-input")
+    """The number input beside a viser slider, found by the slider's label (its public `label`; labels are unique in
+    the explorer): the nearest element around the label that holds a number input is the slider's row."""
+    label = page.locator("label").filter(has_text=re.compile(f"^{re.escape(handle.label)}$"))
+    row = label.locator("xpath=ancestor::div[.//input[contains(@class, 'mantine-NumberInput-input')]][1]")
+    return row.locator("input.mantine-NumberInput-input")

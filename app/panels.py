@@ -16,16 +16,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-from viser._messages import (
-    FileTransferPartAck,
-    FileTransferStartUpload,
-    NotificationProps,
-    NotificationUpdateMessage,
-)
 
 from .field import field_picture
 from .params import PARAMS
-from .state import MAX_UPLOAD
 from .views import MESH_MAX, SceneView
 
 VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b", None: "#555555"}
@@ -33,13 +26,12 @@ DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged
 FRAME = 1 / 20            # s per animation frame
 MODES_PER_BRANCH = 24     # the mode picker lists the lowest non-rigid modes of each branch
 TYPING_PAUSE = 0.6        # s a text box rests before what it names is opened
-SEND_WAIT = 0.1          # s at most that the scene waits for the verdict to leave in a window of its own
+SEND_PAUSE = 0.02         # s the scene waits after the verdict was flushed, for it to leave in a window of its own
 SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for (seconds of browser work per update)
 LINES_MAX = 5_000         # contacts: above this force lines and normals are off until asked for (seconds per frame
                           # in a browser without a GPU: 10⁴ disks 0.38 s, 10⁵ disks 10 s)
 SPECTRUM_ASPECT, BLANK_ASPECT = 1.3, 0.1    # height/width of the spectrum plot, and of the blank strip while it is off
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
-REJECT_AGAIN = (0.3, 1.5)  # s: a refused upload's notice is sent again after these delays (see _reject_upload)
 TWO_LINES = "line-height:1.3em;height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;" \
             "-webkit-box-orient:vertical"                   # a headline line's box: two lines, whatever its text
 
@@ -68,7 +60,6 @@ class ClientUI:
         self._lines_default = None                # the scene size class the force-line default was last set for
         self._shown: dict[str, object] = {}       # what the page shows, by slider key, "preset", "frame", "metric":
                                                   # a user's entry or a value written here (see _show)
-        self._transfers: dict[str, str] = {}      # file name -> transfer uuid of the upload under way (_watch_uploads)
         self._view_picked = False                 # the user chose a 2D view: kept over each scene's default view
         self._build()
         self.run(self.refresh, camera=True)
@@ -93,7 +84,6 @@ class ClientUI:
             self.preset.on_update(self._picking(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(self._picking(self._upload))
-            self._watch_uploads()
             self.path = gui.add_text("Path on server", initial_value="")
             self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
@@ -266,64 +256,15 @@ class ClientUI:
         self.run(self._set_camera)
 
     def _upload(self) -> None:
+        """Open the file sent from the page; one that cannot be opened (over MAX_UPLOAD: refused unread) gets a red
+        notice with the reason beside viser's own notice of the transfer (docs/viser-gaps.md: uploads)."""
         up = self.upload.value
-        transfer = self._transfers.pop(up.name, None)     # None: its start was not seen (a second file of that name)
         ok = self.session.load_upload(up.name, up.content)
         if not ok:
-            self._reject_upload(transfer, up.name, self.session.error)
+            self.client.add_notification(f"Not opened: {Path(up.name).name}", self.session.error, color="red",
+                                         with_close_button=True, auto_close_seconds=None)
         self.view.key = None
         self.refresh(camera=ok)
-
-    def _watch_uploads(self) -> None:
-        """See each upload of the *Open scene file* button start: note its transfer uuid (the id of viser's own
-        notice of it, which _reject_upload turns red), and refuse a file over MAX_UPLOAD before any part of it is
-        buffered. Relies on viser 1.1 internals: the client's GuiApi handles `FileTransferStartUpload` with
-        `_handle_file_transfer_start` registered on the client's websocket connection (wrapped here: unregistering
-        it fails loudly if that changes), which creates the upload state that `_handle_file_transfer_part` buffers
-        parts into (without it parts are dropped); the browser keeps the button disabled until a
-        `FileTransferPartAck` says all bytes arrived, and names its notice "upload-" + transfer uuid."""
-        connection = self.client._websock_connection
-        start = self.client.gui._handle_file_transfer_start
-        connection.unregister_handler(FileTransferStartUpload, start)
-
-        def started(client_id, message: FileTransferStartUpload) -> None:      # on viser's event loop: no waiting
-            if message.source_component_uuid != self.upload._impl.uuid:
-                start(client_id, message)
-            elif message.size_bytes > MAX_UPLOAD:       # no upload state: its parts are dropped as they arrive
-                connection.queue_message(FileTransferPartAck(      # all bytes "arrived": the button is enabled again
-                    source_component_uuid=message.source_component_uuid, transfer_uuid=message.transfer_uuid,
-                    transferred_bytes=message.size_bytes, total_bytes=message.size_bytes))
-                threading.Thread(target=self.run, args=(self._refuse_large, message), daemon=True).start()
-            else:
-                self._transfers[message.filename] = message.transfer_uuid
-                start(client_id, message)
-
-        connection.register_handler(FileTransferStartUpload, started)
-
-    def _refuse_large(self, message: FileTransferStartUpload) -> None:
-        self.session.refuse_large(message.filename, message.size_bytes)
-        self._show_message(self.session.error)
-        self._reject_upload(message.transfer_uuid, message.filename, self.session.error)
-
-    def _reject_upload(self, transfer: str | None, name: str, reason: str) -> None:
-        """Turn viser's notice of an upload, which says "File uploaded successfully." for every file, into a red "Not
-        opened" notice with the reason. The browser writes its text after each `FileTransferPartAck` in an effect
-        that may run after this update arrives (the last ack and this update can share a batch): the update is sent
-        again after each delay of REJECT_AGAIN, so the rejection has the last word (measured in headless Chromium on
-        the pair: the browser wrote its text 30-80 ms after the file was picked and overwrote an update sent at once
-        each time; the update sent 0.3 s later won)."""
-        if transfer is None:                            # no notice of viser's to turn: one of our own
-            self.client.add_notification(f"Not opened: {Path(name).name}", reason, color="red", auto_close_seconds=15)
-            return
-        update = NotificationUpdateMessage("upload-" + transfer, NotificationProps(
-            title=f"Not opened: {Path(name).name}", body=reason, loading=False, with_close_button=True,
-            auto_close_seconds=None, color="red"))
-        connection = self.client._websock_connection
-        connection.queue_message(update)
-        for delay in REJECT_AGAIN:
-            again = threading.Timer(delay, connection.queue_message, args=(update,))
-            again.daemon = True
-            again.start()
 
     def _open_path(self) -> None:
         path = self.path.value.strip()
@@ -478,17 +419,13 @@ class ClientUI:
             self._set_camera()
 
     def _send_now(self) -> None:
-        """Send what is queued (the verdict and the other panels' text) in a websocket window of its own, and wait
-        until it left (at most SEND_WAIT). The browser applies a window of GUI messages at once, but one that also
-        holds scene messages only at its next 3D frame: on a large scene in a software-rendered browser that kept
-        the new verdict waiting ≈ 0.5–1 s behind the particle colours of the same window. viser has no public call
-        for "sent": its per-client buffer keeps each connection's cursor (the last message taken into a window)."""
-        buffer = self.client._websock_connection.get_message_buffer()
-        last = buffer.message_counter - 1
+        """Send what is queued (the verdict and the other panels' text) in a websocket window of its own: flush, then
+        give viser's event loop SEND_PAUSE to take it before the scene's messages queue up. The browser applies a
+        window of GUI messages at once, but one that also holds scene messages only at its next 3D frame: on a large
+        scene in a software-rendered browser that kept the new verdict ≈ 0.5–1 s behind the particle colours of the
+        same window. viser has no public signal that a window left, so the pause is fixed (docs/viser-gaps.md)."""
         self.client.flush()
-        end = time.monotonic() + SEND_WAIT
-        while buffer.generator_cursors.get(self.client.client_id, last) < last and time.monotonic() < end:
-            time.sleep(0.002)
+        time.sleep(SEND_PAUSE)
 
     def _check_metrics(self) -> None:
         self.session.check_metrics()

@@ -34,8 +34,8 @@ def run(quick: bool = False) -> dict:
     for name, build in (("two-particle pair (6 dofs)", lambda: pair_model.build(P)),
                         ("50 disks, 2D (150 dofs)", lambda: shape_model.build(P50))):
         t_build, scene = timeit(build, repeat=reps, min_time=min_time)
-        t_an, res = timeit(lambda: analyze(scene), repeat=reps, min_time=min_time)
-        t_both, _ = timeit(lambda: analyze(build()), repeat=reps, min_time=min_time)
+        t_an, res = timeit(lambda s=scene: analyze(s), repeat=reps, min_time=min_time)
+        t_both, _ = timeit(lambda b=build: analyze(b()), repeat=reps, min_time=min_time)
         data[name] = {"t_build": t_build, "t_analyze": t_an, "t_total": t_both, "contacts": scene.n_contacts,
                       "timings": res.timings}
     return {"repeats": reps, "scenes": data}

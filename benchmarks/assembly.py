@@ -9,8 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 from matplotlib.figure import Figure
 
-from granstab.mechanics.assembly import assemble
-from granstab.mechanics.stiffness import contact_blocks, stiffness
+from granstab.mechanics.stiffness import assemble, contact_blocks, stiffness
 from granstab.model.packings import random_packing
 from granstab.solve.sparse import CHUNK, contact_chunks
 
@@ -50,7 +49,7 @@ def assemble_per_contact_loop(scene):
 
 def assemble_vectorised(scene, chunk=None):
     """contact_blocks over all contacts (in chunks of sparse.CHUNK) + one block-level scatter to CSR
-    (granstab.mechanics.assembly.assemble)."""
+    (granstab.mechanics.stiffness.assemble)."""
     M, n = scene.n_contacts, 2 * scene.dof_per_particle
     total = np.empty((M, n, n))
     for sl, cb in contact_chunks(scene, chunk or CHUNK):
@@ -67,11 +66,11 @@ def run(quick: bool = False) -> dict:
     for dim, target in sizes:
         scene = packing_with_contacts(dim, target)
         M = scene.n_contacts
-        t_vec, H = timeit(lambda scene=scene: assemble_vectorised(scene), repeat=3 if M < 2e5 else 2, min_time=cfg["min_time"],
+        t_vec, H = timeit(lambda s=scene: assemble_vectorised(s), repeat=3 if M < 2e5 else 2, min_time=cfg["min_time"],
                           slow=cfg["slow"])
         t_core = None
         if M <= 1e5:
-            t_core, _ = timeit(lambda scene=scene: stiffness(scene, sparse=True), repeat=3, min_time=cfg["min_time"],
+            t_core, _ = timeit(lambda s=scene: stiffness(s, sparse=True), repeat=3, min_time=cfg["min_time"],
                                slow=cfg["slow"])
         data[f"{dim}d"].append({"contacts": M, "t": t_vec, "t_core_stiffness": t_core, "nnz": int(H.nnz),
                                 "per_contact_us": 1e6 * t_vec / M})
@@ -80,8 +79,8 @@ def run(quick: bool = False) -> dict:
     loops = []                                            # the per-contact loop reference, side by side
     for dim in (2, 3):
         scene = packing_with_contacts(dim, cfg["loop_contacts"], seed=1)
-        t_loop, A = once(lambda scene=scene: assemble_per_contact_loop(scene))
-        t_vec, B = timeit(lambda scene=scene: assemble_vectorised(scene), repeat=5, min_time=cfg["min_time"], slow=cfg["slow"])
+        t_loop, A = once(lambda s=scene: assemble_per_contact_loop(s))
+        t_vec, B = timeit(lambda s=scene: assemble_vectorised(s), repeat=5, min_time=cfg["min_time"], slow=cfg["slow"])
         loops.append({"dim": dim, "contacts": scene.n_contacts, "t_loop": t_loop, "t_vec": t_vec,
                       "ratio": t_loop / t_vec, "max_rel_diff": float(abs(A - B).max() / abs(A).max())})
         bar.update()
@@ -122,7 +121,7 @@ def markdown(results: dict) -> str:
         "H = Hg1 + Hg2 + Hg3 + Hm as a CSR matrix: `contact_blocks` builds the (M, n, n) blocks of all contacts at "
         f"once (in chunks of {results['chunk']:,} contacts, so that its temporaries stay in cache and the cost per "
         "contact stays flat up to 10⁶ contacts), "
-        "`granstab.mechanics.assembly.assemble` scatters them at the level of particle blocks (one sort of 4M keys). "
+        "`granstab.mechanics.stiffness.assemble` scatters them at the level of particle blocks (one sort of 4M keys). "
         "The reference is a Python loop over contacts running the same kernel on one contact at a time.",
         "",
         table(["", "contacts", "per-contact loop", "vectorised", "speed-up", "max |ΔH|/|H|"], loop_rows),

@@ -24,7 +24,6 @@ from granstab.solve.sparse import lowest_modes, sparse_problem
 from granstab.solve.threads import blas_threads
 
 from .formatting import fmt_e, fmt_long, fmt_t, progress, table
-from .machine import load_average, machine
 from .timing import once, timeit
 
 QUICK = {"ms": (8, 10, 12), "full_max": 256, "loop_max": 64, "memory_ms": (8, 10), "worst_ms": 5,
@@ -138,7 +137,6 @@ def sparse_case(n_particles: int, ms: int, cfg: dict) -> dict:
 def run(quick: bool = False, device: str = "cpu") -> dict:
     """The cases of QUICK or FULL; device="gpu": only the dense cases (GPU config), each GPU beside CPU."""
     cfg = GPU if device == "gpu" else QUICK if quick else FULL
-    start = load_average()
     gpu_run = device == "gpu"
     bar = progress(len(cfg["ms"]) + (0 if gpu_run else len(cfg["memory_ms"]) + 2), "branches")
     cases = []
@@ -155,18 +153,12 @@ def run(quick: bool = False, device: str = "cpu") -> dict:
         sp = sparse_case(*cfg["sparse"], cfg)
         bar.update()
     bar.close()
-    return {"cases": cases, "memory": mem, "sparse": sp, "gpu": gpu_available(), "machine": machine(),
-            "load": [start, load_average()]}
+    return {"cases": cases, "memory": mem, "sparse": sp, "gpu": gpu_available()}
 
 
 def markdown(results: dict) -> str:
-    mc = results["machine"]
     lines = [
         "## Branch enumeration: low-rank updates of the elastic problem",
-        "",
-        f"Machine: {mc['cpu']}, {mc['cores']} cores, {mc['memory']}; numpy {mc['numpy']}, {mc['blas']}; GPU: "
-        f"{mc.get('gpu', 'none')}; load average {results['load'][0]} at the start, {results['load'][1]} at the end "
-        "(a shared machine: absolute times are noisy, the ratios are measured back to back).",
         "",
         "Every branch is the elastic matrix plus a rank-≤2m update, solved in the rigid-free basis "
         "(`granstab/lowrank.py`): one GEMM builds a chunk of branch matrices, one stacked `eigh` solves it (the "

@@ -1,4 +1,4 @@
-"""The machine a benchmark ran on: CPU, cores, memory, versions, BLAS, load average (a shared machine)."""
+"""The machine a benchmark ran on: CPU, cores, memory, versions, BLAS, GPU, and its load now (a shared machine)."""
 from __future__ import annotations
 
 import os
@@ -9,12 +9,12 @@ import numpy as np
 import scipy
 
 
-def load_average() -> str:
-    """1, 5 and 15 minute load averages."""
+def load_now() -> float | None:
+    """The 1-minute load average now (None where the system has none)."""
     try:
-        return " ".join(f"{v:.2f}" for v in os.getloadavg())
+        return os.getloadavg()[0]
     except OSError:
-        return "n/a"
+        return None
 
 
 def _first(path: str, key: str) -> str:

@@ -38,8 +38,8 @@ def run(quick: bool = False) -> dict:
     repeat = 3 if quick else 5
     rows = []
     for name, scene in _scenes(quick).items():
-        runs = _interleaved({"L": lambda: granstab.analyze(scene, metric="L"),
-                             "family": lambda: granstab.analyze(scene, metric="family")}, repeat)
+        runs = _interleaved({"L": lambda s=scene: granstab.analyze(s, metric="L"),
+                             "family": lambda s=scene: granstab.analyze(s, metric="family")}, repeat)
         (t_single, single), (t_family, family) = runs["L"], runs["family"]
         s = family.summary
         rows.append({

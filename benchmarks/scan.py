@@ -275,4 +275,6 @@ def markdown(results: dict) -> str:
     for e in results["extrapolation"]:
         lines.append(f"| {e['workers']} | {e['compute']:.0f} s | {e['scheduling']:.0f} s | {e['reading']:.0f} s | "
                      f"{e['minutes']:.1f} min | {e['bottleneck']} |")
+    lines += ["", "How the 1 → 2 ratio moved from run to run, and what is missing to 2: "
+              "[docs/bench/notes.md](docs/bench/notes.md#the-local-scan-1--2-workers-from-run-to-run)."]
     return "\n".join(lines) + "\n"

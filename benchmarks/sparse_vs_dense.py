@@ -27,17 +27,17 @@ def run(quick: bool = False) -> dict:
         scene = random_packing(dim, n, seed=2)
         nd = scene.n_dof
         rep = cfg["repeat"]
-        t_sp, modes = timeit(lambda: sparse.lowest_modes(sparse.sparse_problem(scene), k=K), repeat=rep,
+        t_sp, modes = timeit(lambda s=scene: sparse.lowest_modes(sparse.sparse_problem(s), k=K), repeat=rep,
                              min_time=cfg["min_time"])
-        t_lob, lob = timeit(lambda: sparse.lowest_modes(sparse.sparse_problem(scene), k=K, method="lobpcg"),
+        t_lob, lob = timeit(lambda s=scene: sparse.lowest_modes(sparse.sparse_problem(s), k=K, method="lobpcg"),
                             repeat=rep, min_time=cfg["min_time"])
         t_eigh = lam_d = None
         if nd <= cfg["eigh_max_dof"]:
-            t_eigh, lam_d = timeit(lambda: dense_lowest(scene, K), repeat=1 if nd > 1500 else rep, min_time=0.0)
+            t_eigh, lam_d = timeit(lambda s=scene: dense_lowest(s, K), repeat=1 if nd > 1500 else rep, min_time=0.0)
         t_an = None
         if ((dim == 2 and scene.n_particles <= cfg["dense_analyze_max"])
                 or (dim == 3 and nd <= cfg["dense_analyze_3d_dof"])):
-            t_an, _ = timeit(lambda: analyze(scene, method="dense"), repeat=1, min_time=0.0, warmup=0)
+            t_an, _ = timeit(lambda s=scene: analyze(s, method="dense"), repeat=1, min_time=0.0, warmup=0)
         norm = sparse.sparse_problem(scene).norm
         err = float(np.abs(modes.eigenvalues - lam_d).max() / norm) if lam_d is not None else None
         err_l = float(np.abs(lob.eigenvalues - lam_d).max() / norm) if lam_d is not None else None

@@ -216,10 +216,8 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from granstab_bench.runner import (  # outside the core package; only this command needs it
-        TOPICS,
-        run,
-    )
+    from granstab_bench.document import NotGenerated  # outside the core package; only this command needs it
+    from granstab_bench.runner import TOPICS, run
 
     from .solve.device import gpu_available
     unknown = sorted(set(args.only or ()) - set(TOPICS))
@@ -228,7 +226,10 @@ def cmd_bench(args) -> int:
     if args.device == "gpu" and not gpu_available():
         raise InputError("--device gpu: needs CuPy and a CUDA GPU (pip install 'granstab[gpu]'); without one the "
                          "CPU benchmarks are `granstab bench`")
-    run(quick=args.quick, out=Path(args.out), only=args.only, device=args.device)
+    try:
+        run(quick=args.quick, out=Path(args.out), only=args.only, device=args.device)
+    except NotGenerated as exc:
+        raise InputError(str(exc)) from None
     return 0
 
 
@@ -426,11 +427,15 @@ def build_parser() -> Parser:
     p.add_argument("--root", type=Path, default=None,
                    help="with 'all': also write REPRODUCTION.md at this repository root (links into --out)")
     p.set_defaults(run=cmd_reproduce)
-    p = sub.add_parser("bench", help="error against run time; writes BENCHMARKS.md and plots")
+    p = sub.add_parser("bench", help="error against run time; writes BENCHMARKS.md and plots",
+                       description="Every topic: writes BENCHMARKS.md whole (and docs/bench/). --only TOPIC: reruns "
+                                   "that topic and rewrites its section alone, each section with its own date, "
+                                   "machine and load.")
     p.add_argument("--quick", action="store_true", help="small sizes and few repeats (under a minute)")
     p.add_argument("--out", default=".")
     p.add_argument("--only", action="append", metavar="TOPIC",
-                   help="run only this topic (benchmarks.TOPICS; repeatable); BENCHMARKS.md then holds only these")
+                   help="rerun only this topic (repeatable; choose from granstab_bench.TOPICS): its section of the "
+                        "existing BENCHMARKS.md is rewritten, the others are kept byte for byte")
     p.add_argument("--device", choices=["cpu", "gpu"], default="cpu",
                    help="gpu: the GPU topics (branches, scan: GPU beside CPU) into BENCHMARKS-gpu.md")
     p.set_defaults(run=cmd_bench)

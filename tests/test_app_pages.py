@@ -147,19 +147,20 @@ def test_panels_labels_and_reset(app, browser):
 
 
 def test_rejected_uploads_say_why(app, browser, tmp_path):
-    """A file that cannot be opened (bad JSON) and one over MAX_UPLOAD, picked in the page's file chooser: viser's own
-    notice of each upload turns into a red "Not opened: NAME" with the reason (it said "File uploaded successfully."
-    for every file), the oversize file is refused as its upload starts (none of its parts buffered, never parsed),
-    the button works again, no server path shows, and a good file afterwards opens."""
+    """A file that cannot be opened (bad JSON) and one over MAX_UPLOAD, picked in the page's file chooser: each gets a
+    red "Not opened: NAME" notice with the reason, beside viser's own notice of the transfer (which says the bytes
+    arrived: viser's public API cannot change it, docs/viser-gaps.md); the oversize file is never parsed (refused
+    by its size once viser has buffered it: there is no public hook at the start of an upload), the button works
+    again, no server path shows, and a good file afterwards opens."""
     from granstab_app.state import MAX_UPLOAD
     errors: list[str] = []
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
     ui = ui_of(app, page)
     s = ui.session
-    opened = []                                    # every file the session was asked to read
-    load = s.load_upload
-    s.load_upload = lambda name, content: opened.append(name) or load(name, content)
+    parsed = []                                    # every file the session was asked to read
+    load = s.load_preset
+    s.load_preset = lambda path: parsed.append(Path(path).name) or load(path)
     bad, big = tmp_path / "my_scene.json", tmp_path / "big_scene.json"
     bad.write_text("{not json")
     big.write_bytes(b" " * (MAX_UPLOAD + 1))
@@ -168,14 +169,14 @@ def test_rejected_uploads_say_why(app, browser, tmp_path):
         notice = page.locator(".mantine-Notification-root").filter(has_text=f"Not opened: {path.name}")
         notice.filter(has_text=reason).wait_for(timeout=20_000)
         page.locator(".granstab-error").filter(has_text=path.name).filter(has_text=reason).wait_for(timeout=20_000)
-        page.wait_for_timeout(2500)                # the browser's own "uploaded" text would have come back by now
-        assert notice.count() == 1 and page.get_by_text("File uploaded successfully").count() == 0
+        page.wait_for_timeout(1000)
+        assert notice.count() == 1
         assert page.get_by_role("button", name="Open scene file").is_enabled()
         shown = " ".join(page.locator(".mantine-Notification-root, .granstab-error").all_inner_texts())
         assert "granstab-upload" not in shown and "/tmp" not in shown and str(tmp_path) not in shown
         for close in page.locator("button.mantine-Notification-closeButton").all():
             close.click()
-    assert opened == [bad.name] and ui.client.gui._current_file_upload_states == {}
+    assert parsed == [bad.name]
     assert s.preset == "two_particle" and s.kind == "two_particle"         # the current scene stays
     good = tmp_path / "uploaded_flat.toml"
     good.write_text((REPO / "presets" / "two_particle_flat.toml").read_text())
