@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.scenes import load_scene, save_scene
+from ..io import load_scene
+from ..io.scenes import save_scene
 from ..model.scene import Scene, SceneError
 from .rows import ParticleRow, Row, concat_rows, schema
 
