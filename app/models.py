@@ -188,7 +188,7 @@ class ShapeModel:
     @classmethod
     def from_dict(cls, data: dict, source: str) -> ShapeModel:
         """Read the shape format; validation (one-line SceneError) is granstab.io.shapefile.shape_scene_from_dict's."""
-        spec = shapes.read_shape_file(data, source=source)
+        spec = shapefile.read_shape_file(data, source=source)
         law = {**spec.law, "mobilised": spec.mobilised}
         start = {key: float(law[key]) for key in ("mu", "alpha", "k", "mobilised")}
         model = cls(dim=spec.dim, particles=spec.particles, title=spec.title, shear=spec.shear)
