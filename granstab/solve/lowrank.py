@@ -78,9 +78,9 @@ def reduce(problem: Problem) -> Reduced:
     Hsym = 0.5 * (problem.H_el + problem.H_el.T)
     PR = problem.projection.apply(R)
     HN = problem.H_el @ N
+    AS_norm = np.linalg.norm(problem.A, axis=0) * np.linalg.norm(s, axis=0)
     return Reduced(N=N, M0=M0, a=a, s=s, E0=PR.T @ Hsym @ N, alpha=PR.T @ problem.A, beta=PR.T @ problem.S, HN=HN,
-                   HN_norm=float(np.linalg.norm(HN, 2)), AS_norm=np.linalg.norm(problem.A, axis=0)
-                   * np.linalg.norm(s, axis=0), n=R.shape[0])
+                   HN_norm=float(np.linalg.norm(HN, 2)), AS_norm=AS_norm, n=R.shape[0])
 
 
 def sym_updates(a: np.ndarray, s: np.ndarray) -> np.ndarray:
