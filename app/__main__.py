@@ -1,4 +1,4 @@
-"""`python -m app`: the same as `granstab-app`."""
+"""`python -m granstab_app`: the same as `granstab-app`."""
 from .server import main
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
 """A finished scan (`granstab scan … --out DIR`) as a model of the explorer: the whole packing coloured by the
 per-particle map, and the cluster of any particle as a contact-level model of its own (no viser).
 
-The packing is re-read from the scan's `source` (as the scan's options.json states it: the path as given, else
-relative to the scan folder's parent); each cluster is the scan's own member list, cut out with
-`granstab.scan.subscene`, so the explorer shows exactly the cluster that the scan's row describes.
+The packing is the scan folder's own (packing.npz: a copied or moved folder opens as well); each cluster is cut
+from it by `granstab.scan.cluster`, the function the scan itself analysed, so the explorer shows exactly the
+cluster that the scan's row describes. Particles are indices inside; names appear only on screen.
 """
 from __future__ import annotations
 
@@ -38,7 +38,8 @@ def fraction_colours(fraction: np.ndarray) -> np.ndarray:
 @dataclass
 class ScanMapModel:
     """The scanned packing and its map: `fraction` (unstable_fraction per particle, NaN: in no cluster),
-    `own` (the verdict of each particle's own cluster, '' if it was no centre), `members` (centre → names)."""
+    `own` (the verdict of each particle's own cluster, '' if it was no centre), `members` (centre → member
+    particles, as indices into the packing)."""
 
     scene: granstab.Scene
     fraction: np.ndarray
@@ -69,20 +70,18 @@ class ScanMapModel:
     def cluster(self, name: str) -> ContactModel:
         """The cluster whose centre is `name`, as the scan analysed it, its boundary included (a `fixed` scan holds
         the next ring fixed; one-line SceneError if it has none)."""
-        from granstab.scan import subscene
-        from granstab.scan.clusters import boundary_ring
-        if name not in self.members:
+        from granstab.scan.clusters import cluster
+        center = self.scene.names.index(name) if name in self.scene.names else -1
+        if center not in self.members:
             raise granstab.SceneError(f"{self.path}: particle {name!r} was no centre of this scan "
                                       f"({len(self.members)} centres)")
-        index = {n: i for i, n in enumerate(self.scene.names)}
-        keep = np.array(sorted(index[m] for m in self.members[name]))
         rings = self.summary["options"]["rings"]
         boundary = self.summary["options"].get("boundary", "loads")          # scans before --boundary: loads
-        hold = boundary_ring(self.scene, index[name], rings)[1] if boundary == "fixed" else None
-        sub = subscene(self.scene, keep, hold=hold, title=f"cluster of {name} ({rings} ring{'s' * (rings > 1)}, "
-                                                         f"boundary {boundary}) from scan {Path(self.path).name}")
+        title = (f"cluster of {name} ({rings} ring{'s' * (rings > 1)}, boundary {boundary}) from scan "
+                 f"{Path(self.path).name}")
+        sub = cluster(self.scene, center, rings, boundary, title=title)
         return ContactModel(sub, report=f"cluster of particle {name}: its own verdict in the scan "
-                                        f"{self.own[index[name]] or '—'}; {len(keep)} particles")
+                                        f"{self.own[center] or '—'}; {len(self.members[center])} particles")
 
     def pick(self, origin, direction) -> str | None:
         """The particle under a click ray (2D: where the ray meets the plane z = 0; 3D: the centre nearest the
@@ -105,21 +104,16 @@ class ScanMapModel:
 
 
 def load_scan_map(path) -> ScanMapModel:
-    """The model of a scan folder; one-line SceneError when its packing cannot be found or read."""
-    from granstab.scan import read_map
+    """The model of a scan folder, its packing the folder's own; one-line SceneError when it cannot be read."""
+    from granstab.scan import read_map, read_packing
     path = Path(path)
     data = read_map(path)
-    source = Path(data["summary"]["options"]["source"])
-    where = next((p for p in (source, path.parent / source) if p.exists()), None)
-    if where is None:
-        raise granstab.SceneError(f"{path / 'options.json'}: source: the scanned packing {source} is not found "
-                                  "(open the scan from the folder it was run in)")
-    scene = granstab.load_scene(where)
+    scene = read_packing(path)
     particles = data["particles"]
     if list(particles["name"]) != list(scene.names):
-        raise granstab.SceneError(f"{path}: particles: the names do not match those of {where} (was it changed "
-                                  "since the scan?)")
+        raise granstab.SceneError(f"{path}: particles: the names do not match those of its packing (was the folder "
+                                  "changed since the scan?)")
     clusters = data["clusters"]
-    members = {str(c): [str(m) for m in row] for c, row in zip(clusters["center"], clusters["members"])}
+    members = {int(c): np.asarray(row, dtype=np.int64) for c, row in zip(clusters["center"], clusters["members"])}
     return ScanMapModel(scene, np.asarray(particles["unstable_fraction"], float),
                         np.asarray(particles["own_verdict"], dtype=object), members, data["summary"], str(path))

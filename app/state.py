@@ -310,8 +310,8 @@ class Session:
             return None
         start = time.perf_counter()
         with blas_threads(1):
-            family = analyze(self.scene, metric="family").summary
-        self.metrics = {"robust": bool(family["metric_robust"]), "metrics": family["metrics"],
+            family = analyze(self.scene, metric="family").verdict
+        self.metrics = {"robust": bool(family.metric_robust), "metrics": [e.to_dict() for e in family.metrics],
                         "time": time.perf_counter() - start, "revision": self.revision}
         return self.metrics
 
@@ -321,19 +321,19 @@ class Session:
 
     @property
     def verdict(self) -> str | None:
-        return None if self.analysis is None else self.analysis.summary["verdict"]
+        return None if self.analysis is None else self.analysis.verdict.verdict
 
     def report(self) -> dict:
         """What the verdict panel shows: verdict, reason, flags, counts, the largest error estimate, times."""
         if self.analysis is None:
             return {"verdict": None, "error": self.error, "elapsed": self.elapsed}
-        a, s = self.analysis, self.analysis.summary
+        a, s = self.analysis, self.analysis.verdict
         worst = max(a.errors.items(), key=lambda kv: kv[1]) if a.errors else ("", 0.0)
         return {
-            "verdict": s["verdict"], "reason": s["reason"], "sufficient": s["sufficient"],
-            "type2": s["type2_nonuniqueness"], "type1": self.type1(),
-            "hinges": s["hinges_on_tolerance"], "n_branches": s["n_branches"],
-            "counts": (s["consistent_positive"], s["consistent_zero"], s["consistent_negative"]),
+            "verdict": s.verdict, "reason": s.reason, "sufficient": s.sufficient,
+            "type2": s.type2_nonuniqueness, "type1": self.type1(),
+            "hinges": s.hinges_on_tolerance, "n_branches": s.n_branches,
+            "counts": (s.consistent_positive, s.consistent_zero, s.consistent_negative),
             "n_particles": self.scene.n_particles, "n_contacts": self.scene.n_contacts,
             "n_sliding": int(np.sum(self.scene.at_yield())), "worst_error": worst, "errors": a.errors,
             "analysis_time": a.timings.get("total", 0.0), "elapsed": self.elapsed, "warnings": a.warnings,

@@ -166,7 +166,7 @@ def osculating_arcs(points, centres, radii, normals_out, planes, size: float, n:
     """Line segments (K·n, 2, 3) of osculating arcs: circle of radius ρ about `centres` through `points`, in the
     plane spanned by the outward normal and `planes` (unit tangents), over an arc length of about ±1.2 size."""
     segs = []
-    for p, c, rho, nout, t in zip(points, centres, radii, normals_out, planes):
+    for _p, c, rho, nout, t in zip(points, centres, radii, normals_out, planes):
         half = min(0.8 * np.pi, 1.2 * size / rho)
         ang = np.linspace(-half, half, n)
         arc = c + rho * (np.cos(ang)[:, None] * nout + np.sin(ang)[:, None] * t)
@@ -180,7 +180,7 @@ def circle_data(scene, size: float):
     from granstab.model.vec import tangent_basis
     pts, cen, rad, nout, tan = [], [], [], [], []
     T = tangent_basis(scene.normal)                                   # (M, d, d-1)
-    for side, K, sign in (("p", scene.curvature_p, -1.0), ("q", scene.curvature_q, 1.0)):
+    for _side, K, sign in (("p", scene.curvature_p, -1.0), ("q", scene.curvature_q, 1.0)):
         Kt = np.swapaxes(T, 1, 2) @ K @ T
         lam, V = np.linalg.eigh(0.5 * (Kt + np.swapaxes(Kt, 1, 2)))
         for c in range(scene.n_contacts):
@@ -240,7 +240,7 @@ class SceneView:
             self.cloud = None
             self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
             self.key = key
-            for i, body in enumerate(bodies):
+            for body in bodies:
                 name = f"/particles/{body.name}"
                 if session.draggable:
                     node = self.api.add_transform_controls(

@@ -41,7 +41,7 @@ def exact_geometry():
 
 def projected_lowest(scene, H, k, length):
     """Lowest k non-rigid eigenvalues of P sym(D H D) P in scaled dofs, from a dense physical H (n × n)."""
-    D = dof_scale(scene, length)
+    D = dof_scale(scene.n_particles, scene.dim, length)
     Hs = D[:, None] * H * D[None, :]
     Hs = 0.5 * (Hs + Hs.T)
     C = rotations(scene, length)

@@ -18,7 +18,8 @@ from granstab.mechanics.stiffness import contact_blocks
 from granstab.model.packings import random_packing
 from granstab.solve.dense import _branch, solve_branches
 from granstab.solve.device import gpu_available
-from granstab.solve.lowrank import SparseRitz, solve_branches_lowrank
+from granstab.solve.lowrank import solve_branches_lowrank
+from granstab.solve.ritz import SparseRitz
 from granstab.solve.sparse import lowest_modes, sparse_problem
 from granstab.solve.threads import blas_threads
 

@@ -4,10 +4,10 @@ tables (particles.csv + contacts.csv), against numpy.loadtxt of the same contact
 saving the converted scene as NPZ; peak memory per contact.
 
 Inputs are random packings (granstab.model.packings.random_packing, 2D and 3D) of about 10⁴…10⁶ contacts written the
-way the readers expect them (README "Your own data"):
+way the readers expect them (docs/formats.md, LAMMPS):
 
 - LAMMPS: `atoms.dump` (`id type x y z radius mass`, rows in a shuffled order as LAMMPS writes them), the local
-  `contacts.dump` with the README's 11 columns (`c_ends[1] c_ends[2] c_pair[1]` … `c_pair[9]`: ids, the normal part
+  `contacts.dump` with the 11 columns of docs/formats.md (`c_ends[1] c_ends[2] c_pair[1]` … `c_pair[9]`: ids, the normal part
   of the force on id1, the tangential part, the branch vector), printed with `%.12g` as `dump_modify format float
   %.12g` does, plus one non-touching neighbour pair (zero force) for every ten contacts, as `pair/local` lists
   them; and `in.bench`, the input script that names the columns (`compute property/local`, `compute pair/local`)
@@ -95,7 +95,7 @@ def apart_pairs(scene, radius, rng) -> np.ndarray:
 
 
 def write_lammps(scene, radius, folder: Path, seed: int = 2) -> list[Path]:
-    """atoms.dump, contacts.dump and in.bench in the README's layout (module docstring); the paths."""
+    """atoms.dump, contacts.dump and in.bench in the layout of docs/formats.md (module docstring); the paths."""
     dim, N, M = scene.dim, scene.n_particles, scene.n_contacts
     rng = np.random.default_rng(seed)
     ids = np.arange(1, N + 1)
@@ -237,7 +237,7 @@ def markdown(results: dict) -> str:
     lines = ["## Converting DEM output", "",
              "`granstab.io.load` (what `granstab convert` runs: detect, parse, contacts from particles, geometry, "
              "law, cone, imbalance, scene checks, validation report) on random packings written as a LAMMPS "
-             "per-atom dump + local dump + input script (README's 11 columns, `%.12g`, one non-touching "
+             "per-atom dump + local dump + input script (the 11 columns of docs/formats.md, `%.12g`, one non-touching "
              "`pair/local` pair per ten contacts) and as the generic tables, against `numpy.loadtxt` of the same "
              "contact file without any check (the floor for parsing it), and saving the converted scene as NPZ. "
              "Medians of up to 5 runs (1 where a run takes seconds), seconds. *checked*: the converted scene has "

@@ -26,8 +26,9 @@ from pathlib import Path
 import numpy as np
 
 import granstab
+from granstab.io import load_scene
 from granstab.io.entries import Reader, read_law
-from granstab.io.scenes import load_scene, save_scene
+from granstab.io.scenes import save_scene
 from granstab.io.schema import (
     CONTACT_KEYS,
     PARTICLE_KEYS,

@@ -42,8 +42,8 @@ def batched_vs_loop(scene, sample: int) -> dict:
     ref = [cluster_row(scene, c, keep, OPTIONS) for c, keep in zip(centers, members(scene, centers, 1))]
     loop = time.perf_counter() - t
     same = all((a["verdict"], a["consistent_negative"], a["consistent_positive"]) ==
-               (b["verdict"], b["consistent_negative"], b["consistent_positive"]) for a, b in zip(rows, ref))
-    diff = max(abs(a["lambda_min"] - b["lambda_min"]) / abs(b["lambda_min"]) for a, b in zip(rows, ref))
+               (b.verdict, b.consistent_negative, b.consistent_positive) for a, b in zip(rows, ref))
+    diff = max(abs(a["lambda_min"] - b.lambda_min) / abs(b.lambda_min) for a, b in zip(rows, ref))
     return {"clusters": sample, "batched_s": statistics.median(times), "loop_s": loop,
             "speedup": loop / statistics.median(times), "same_verdicts": same, "max_rel_diff": diff,
             "paths": {path: sum(r["path"] == path for r in rows) for path in sorted({r["path"] for r in rows})}}

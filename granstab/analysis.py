@@ -1,25 +1,25 @@
 """`analyze(scene)`: every branch's spectra, consistent modes and verdicts, with error estimates and timings.
 
 One pipeline for every size and metric: scene → contact blocks (stiffness.py) → assembled problem → projection in
-a metric (metric.py: L-scaled or inertia) → all 2^Ms branches (an eigen backend, backends.py: dense LAPACK or
+a metric (metric.py: L-scaled or inertia) → all 2^Ms branches (an eigen method, solve/methods.py: dense LAPACK or
 sparse shift-invert/LOBPCG) → verdicts (verdicts.py) → result. The branch loop, the verdicts and the error
-reporting are written once; the backends differ only in the eigen step and say what they leave out. By default
+reporting are written once; the methods differ only in the eigen step and say what they leave out. By default
 the verdict is evaluated in the metric family L/10, L, 10L (and inertia where masses are known) and the summary
 says whether it is metric-robust; the spectra shown are those of the primary metric ("L", or the one asked for).
 """
 from __future__ import annotations
 
 import warnings as _warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .mechanics.branches import Problem, enumerate_masks, sample_masks
 from .mechanics.metric import CHOICES, Metric, family, resolve
-from .mechanics.stiffness import ContactBlocks
-from .mechanics.verdicts import family_entry, finalize, mark_partial, summarize
+from .mechanics.stiffness import ContactBlocks, curvature_warnings
+from .mechanics.verdicts import Verdict, family_entry, finalize, mark_partial, summarize
 from .model.scene import Scene, SceneError
-from .solve.strategies import METHODS, Timer, choose_backend
+from .solve.methods import METHODS, Timer, choose_method
 
 __all__ = ["Analysis", "METHODS", "analyze", "build_problem"]
 
@@ -29,18 +29,23 @@ KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would 
 
 @dataclass(eq=False)
 class Analysis:
-    """Result of `analyze`: branches, summary (verdicts), errors (relative, dimensionless), timings (s), in the
-    primary metric `metric` (metric.py)."""
+    """Result of `analyze`: branches, verdict (a `Verdict`; `summary` is its dict), errors (relative,
+    dimensionless), timings (s), in the primary metric `metric` (metric.py)."""
 
     scene: Scene
     problem: Problem
     metric: Metric
     branches: list
-    summary: dict
+    verdict: Verdict
     errors: dict
     timings: dict
     warnings: list = field(default_factory=list)
     backend: str = "dense"
+
+    @property
+    def summary(self) -> dict:
+        """The verdict as the `summary` object of `granstab analyze --json` (Verdict.to_dict)."""
+        return self.verdict.to_dict()
 
     @property
     def length(self) -> float | None:
@@ -111,11 +116,11 @@ def _branch_dict(b, inertia: bool) -> dict:
 
 
 def build_problem(scene: Scene, blocks: ContactBlocks, metric):
-    """The dense problem in a metric (a Metric, or L as a number): (problem, parts); see backends.dense_problem."""
-    from .solve.strategies import assemble_parts, dense_problem
+    """The dense problem in a metric (a Metric, or L as a number): (problem, parts); see solve.methods.dense_problem."""
+    from .solve.methods import dense_parts, dense_problem
     if not isinstance(metric, Metric):
         metric = resolve(scene, "L", float(metric))
-    parts = assemble_parts(scene, blocks)
+    parts = dense_parts(scene, blocks)
     return dense_problem(scene, blocks, parts, metric), parts
 
 
@@ -123,28 +128,39 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
             device: str = "cpu", lowrank: bool | None = None, keep: str = "auto") -> Analysis:
-    """Analyse every loading branch of `scene` (Sec. 3, Appendix D).
+    """Analyse every loading branch of `scene`: spectra, consistent modes and verdicts (Sec. 3, Appendix D).
 
-    metric: "family" (default: the verdict in L/10, L, 10L and inertia where masses are known; spectra in L;
-    summary["metric_robust"], summary["metrics"]), or one of "L", "L/10", "10L", "inertia" (metric.py).
-    rotation_length: L of the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric);
-    `rotation_length_` is its deprecated old name.
-    max_sliding: refuse more than this many potentially sliding contacts (2^Ms branches), unless
-    sample_branches is given: then the all-loading, the all-unloading and that many seeded (`seed`) random other
-    branches are examined, summary["branches"] = "partial", and the verdict is a proof only where the unexamined
-    branches cannot change it (a consistent negative eigenvalue on any branch proves instability, eq:instab).
-    on_branch: called with each Branch of the primary metric as it is finished (streaming).
-    method: "dense" (every eigenpair of every branch, ℍ spectra, Type-2), "sparse" (the lowest k non-rigid
-    eigenpairs of sym(𝓗^i) per branch and its exact negative count, without any n_dof × n_dof matrix) or "auto"
-    (dense up to sparse.DENSE_MAX_DOF dofs, sparse above). Each backend says what it leaves out (`warnings`).
-    k: eigenpairs per branch on the sparse path. progress: a tqdm bar with time left over the branches of each
-    metric.
-    device: "cpu", "gpu" (CuPy, else backend.DeviceError) or "auto" for the stacked branch eigenproblems
-    (backend.py). lowrank: solve the branches as low-rank updates of the elastic problem (lowrank.py: no ℍ^i
-    spectra, eigenvectors on demand); None = from lowrank.MIN_BRANCHES branches on or on a GPU.
-    keep: "all" branches in the result, or "verdict": on the low-rank path only those the verdict rests on (a
-    consistent eigenpair of sign ≤ 0, Type-2) and the one with the lowest eigenvalue, the counts still over all, so
-    memory does not grow with 2^Ms; "auto" (default): "all" up to KEEP_ALL branches.
+    Parameters
+    ----------
+    scene : Scene
+        N particles, M contacts, n_dof = N·(d + r) dofs (d = dim; r = 1 rotation in 2D, 3 in 3D).
+    metric : {"family", "L", "L/10", "10L", "inertia"}
+        "family": the verdict in L/10, L, 10L and inertia where masses are known, spectra in L,
+        ``summary["metric_robust"]`` and ``summary["metrics"]``; otherwise that metric only.
+    rotation_length : float, optional
+        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's metric);
+        `rotation_length_` is its deprecated old name.
+    max_sliding, sample_branches, seed : int
+        More than `max_sliding` potentially sliding contacts (2^Ms branches) are refused unless `sample_branches`
+        is given: then the all-loading, all-unloading and that many seeded random branches are examined
+        (``summary["branches"] == "partial"``; a proof only of instability, eq:instab).
+    method, k : {"auto", "dense", "sparse"}, int
+        "dense": every eigenpair, ℍ^i spectra and Type-2 (eq:newstiffnesses); "sparse": the lowest `k`
+        eigenpairs of each sym(𝓗^i) and its exact negative count, no (n_dof, n_dof) matrix; "auto": dense up to
+        granstab.solve.sparse.DENSE_MAX_DOF dofs. `warnings` says what a method leaves out.
+    device, lowrank, keep : {"cpu", "gpu", "auto"}, bool or None, {"auto", "all", "verdict"}
+        Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
+        problem (None: from 2^10 branches on, or on a GPU); which branches the result keeps ("verdict": those the
+        verdict rests on; "auto": all up to KEEP_ALL).
+    on_branch, progress : callable or None, bool
+        Called with each `Branch` of the primary metric as it is finished; a bar with the time left.
+
+    Returns
+    -------
+    Analysis
+        ``branches``: `Branch` (``mask`` (M,), ``stability_eigenvalues`` (k,) of sym(𝓗^i), ``stability_vectors``
+        (n, k) scaled, ``accuracy`` (k,), ``codes`` (k,); n free dofs, k = n when dense); ``summary``: the verdict
+        (eq:stab, eq:neutral, eq:instab); ``errors``; ``timings`` (s); ``motion(v)`` (n_dof,); ``to_dict()``.
     """
     if rotation_length_ is not None:
         _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
@@ -162,7 +178,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         raise ValueError("rotation_length: the inertia metric has no rotation length")
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
-    backend = choose_backend(scene, method, k, device, lowrank)
+    backend = choose_method(scene, method, k, device, lowrank)
     timer = Timer()
     with timer("total"):
         state = backend.prepare(scene, timer)
@@ -185,24 +201,24 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                 branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
                                                 progress=progress, label=f"branches, metric {m.name}",
                                                 keep_all=keep_all)
-            summary = summarize(branches, notes)
-            entries[i] = family_entry(m, summary)
+            verdict = summarize(branches, notes)
+            entries[i] = family_entry(m, verdict)
             if main:
-                result = (m, problem, branches, summary, notes)
-        m, problem, branches, summary, notes = result
+                result = (m, problem, branches, verdict, notes)
+        m, problem, branches, verdict, notes = result
         with timer("errors"):
             errors = backend.errors(state, problem, branches)
         if "residual_stability" in notes:                                # over every branch, kept or not
             errors["eigen_residual_stability"] = max(errors["eigen_residual_stability"], notes["residual_stability"])
-        summary = finalize(summary, errors, int(np.sum(state.blocks.rolling_undetermined)), entries if metric == "family" else None)
+        verdict = finalize(verdict, errors, int(np.sum(state.blocks.rolling_undetermined)),
+                           entries if metric == "family" else None)
         if partial:
-            mark_partial(summary, len(masks), Ms)
-        summary["branches"] = "partial" if partial else "all"
-        summary["branches_kept"] = len(branches)
-    warnings = backend.curvature_warnings(state) + notes.get("warnings", [])
-    if len(branches) < summary["n_branches"]:
-        warnings.append(f"{len(branches)} of {summary['n_branches']} branches kept (keep='{keep}'): those with a "
+            verdict = mark_partial(verdict, len(masks), Ms)
+        verdict = replace(verdict, branches_kept=len(branches))
+    warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", [])
+    if len(branches) < verdict.n_branches:
+        warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
                         "over all branches (keep='all' keeps every one)")
-    return Analysis(scene=scene, problem=problem, metric=m, branches=branches, summary=summary, errors=errors,
+    return Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
                     timings=timer.times, warnings=warnings, backend=backend.name)

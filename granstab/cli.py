@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from .analysis import analyze
-from .io.scenes import load_scene, save_scene, scene_to_dict
+from .io import load
+from .io.scenes import save_scene, scene_to_dict
 from .io.syntax import paused_gc
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.metric import CHOICES as METRIC_CHOICES
@@ -92,9 +93,16 @@ def require_finite(data, source: str) -> None:
                              "change units or check the data's magnitudes")
 
 
+def import_lines(loaded) -> list[str]:
+    """The import's warnings (projected forces, dropped rattlers, cut contacts, ...; none for a scene file) as
+    lines of a command's output."""
+    return [f"warning: import: {w}" for w in loaded.warnings]
+
+
 def cmd_stiffness(args) -> int:
     with strict_numerics(args.scene):
-        scene = load_scene(args.scene)
+        loaded = load(args.scene)
+    scene = loaded.scene
     mask = parse_mask(args.mask, scene.n_contacts) if args.mask else None
     try:
         with strict_numerics(scene.source):
@@ -104,8 +112,8 @@ def cmd_stiffness(args) -> int:
     if not all(np.isfinite(part).all() for part in (K.H, K.Hm, K.Hg1, K.Hg2, K.Hg3)):
         raise NumericalError(f"{scene.source}: H has non-finite entries (overflow): change units")
     np.savez(args.out, H=K.H, Hm=K.Hm, Hg1=K.Hg1, Hg2=K.Hg2, Hg3=K.Hg3, dofs=np.array(K.dofs))
-    print(f"wrote {args.out}: H {K.H.shape[0]}x{K.H.shape[1]} ({scene.n_particles} particles, "
-          f"{scene.n_contacts} contacts)")
+    print("\n".join([f"wrote {args.out}: H {K.H.shape[0]}x{K.H.shape[1]} ({scene.n_particles} particles, "
+                     f"{scene.n_contacts} contacts)", *import_lines(loaded)]))
     return 0
 
 
@@ -164,7 +172,8 @@ def cmd_analyze(args) -> int:
     advice = [DENSE_ADVICE]
     with deadline(args.timeout, args.scene, advice):
         with strict_numerics(args.scene):
-            scene = load_scene(args.scene, progress=progress)
+            loaded = load(args.scene, progress=progress)
+            scene = loaded.scene
             if not refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start)):
                 advice[0] = SPARSE_ADVICE
             try:
@@ -173,9 +182,10 @@ def cmd_analyze(args) -> int:
                                  method=args.method, k=args.k, progress=progress, device=args.device)
             except DeviceError as exc:
                 raise InputError(f"--device: {exc}") from None
-            data = result.to_dict()
+            data = {**result.to_dict(), "import": loaded.report}
             require_finite(data, scene.source)
-            text = json.dumps(data, allow_nan=False) if args.json else format_table(result, show_all=args.all)
+            text = json.dumps(data, allow_nan=False) if args.json else "\n".join(
+                [format_table(result, show_all=args.all), *import_lines(loaded)])
     print(text)
     return 0
 
@@ -247,23 +257,23 @@ def count(low: int):
 
 
 def cmd_convert(args) -> int:
-    """Snapshot(s) → contact-level scene JSON; prints the validation report (issue 9)."""
-    from .io import format_report, load
+    """Snapshot(s) (or a scene file) → contact-level scene JSON or NPZ; prints the validation report (issue 9)."""
+    from .io import format_report
 
     options = {key: getattr(args, key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
                                                    "length_scale", "units", "region", "columns", "density")
                if getattr(args, key) is not None}
     if args.keep_rattlers:
         options["keep_rattlers"] = True
-    imported = load(args.inputs, format=args.format, frame=args.frame, timestep=args.timestep,
-                    progress=args.progress or sys.stderr.isatty(), **options)
+    loaded = load(args.inputs, format=args.format, frame=args.frame, timestep=args.timestep,
+                  progress=args.progress or sys.stderr.isatty(), **options)
     if Path(args.out).suffix.lower() == ".npz":
-        save_scene(imported.scene, args.out)           # binary: 10⁶ contacts in a fraction of a second
+        save_scene(loaded.scene, args.out)             # binary: 10⁶ contacts in a fraction of a second
     else:
         with paused_gc():
-            text = json.dumps(scene_to_dict(imported.scene))
+            text = json.dumps(scene_to_dict(loaded.scene))
         Path(args.out).write_text(text, encoding="utf-8")
-    report = {**imported.report, "out": args.out}
+    report = {**loaded.report, "out": args.out}
     print(json.dumps(report) if args.json else format_report(report) + f"\nwrote {args.out}")
     return 0
 
@@ -271,10 +281,12 @@ def cmd_convert(args) -> int:
 def cmd_extract(args) -> int:
     """The cluster of one particle as a scene file (issue 10): re-analyse, open in the app, check by hand."""
     from .scan import extract
-    sub = extract(load_scene(args.input), args.center, rings=args.rings, boundary=args.boundary)
+    loaded = load(args.input)
+    sub = extract(loaded.scene, args.center, rings=args.rings, boundary=args.boundary)
     Path(args.out).write_text(json.dumps(scene_to_dict(sub), allow_nan=False), encoding="utf-8")
     held = "" if sub.fixed is None else f" ({int(sub.fixed.sum())} of them held fixed)"
-    print(f"wrote {args.out}: {sub.n_particles} particles{held}, {sub.n_contacts} contacts")
+    print("\n".join([f"wrote {args.out}: {sub.n_particles} particles{held}, {sub.n_contacts} contacts",
+                     *import_lines(loaded)]))
     return 0
 
 
@@ -282,16 +294,18 @@ def cmd_scan(args) -> int:
     """Every local cluster of a packing → DIR/clusters, particles, summary.json, map (issue 10)."""
     from .scan import scan
     from .solve.device import DeviceError
+    loaded = load(args.input)
     try:
-        summary = scan(load_scene(args.input), args.out, rings=args.rings, centers=args.centers, metric=args.metric,
+        summary = scan(loaded.scene, args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
                        device=args.device)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
-    print(json.dumps(summary, allow_nan=False) if args.json else
-          f"{summary['clusters']} clusters in {summary['seconds']:.1f} s: "
-          + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}")
+    print(json.dumps({**summary, "import": loaded.report}, allow_nan=False) if args.json else "\n".join(
+        [f"{summary['clusters']} clusters in {summary['seconds']:.1f} s: "
+         + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}",
+         *import_lines(loaded)]))
     return 0
 
 
@@ -343,7 +357,7 @@ def add_convert(sub) -> None:
     p = sub.add_parser("convert", help="DEM snapshots / experimental frames → a contact-level scene (JSON)")
     p.add_argument("inputs", nargs="+", help="a folder or file(s) of one snapshot")
     p.add_argument("--out", required=True, help="scene file to write (JSON; NPZ when it ends in .npz)")
-    p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.FORMATS")
+    p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.formats()")
     p.add_argument("--progress", action="store_true",
                    help="a progress bar on stderr while large files are read (default when stderr is a terminal)")
     which = p.add_mutually_exclusive_group()

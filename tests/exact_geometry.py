@@ -172,11 +172,11 @@ def _perturbations(cl: Cluster, steps):
     u = np.zeros((J, N, d), steps.dtype)
     th = np.zeros((J, N, r), steps.dtype)
     for j in range(J):
-        i, l = divmod(j, d + r)
-        if l < d:
-            u[j, i, l] = steps
+        i, comp = divmod(j, d + r)
+        if comp < d:
+            u[j, i, comp] = steps
         else:
-            th[j, i, l - d] = steps
+            th[j, i, comp - d] = steps
     return u, th
 
 

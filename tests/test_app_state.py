@@ -273,7 +273,7 @@ def test_field_changes_sign_exactly_on_rho_r_1_and_f_0(pair):
 def test_field_from_the_core_agrees_with_the_papers_matrices(alpha):
     studies = lambda6_field(alpha, 0.0)
     core = lambda6_field(alpha, 0.0, use_studies=False)
-    assert "studies" in studies.source and "contact_blocks" in core.source
+    assert "granstab.paper.two_particle" in studies.source and "contact_blocks" in core.source
     # round-off of an eigenvalue is relative to ‖H‖ ≈ 2k + 2αk(1 + r²) (λ⁽⁴⁾, λ⁽⁵⁾), not to |λ⁽⁶⁾| ≤ 0.04k
     norm_H = 2.0 + 2.0 * alpha * 2.0
     assert np.abs(studies.lam - core.lam).max() <= 100 * EPS * norm_H
@@ -464,7 +464,7 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
     scan(granstab.load_scene(packing), tmp_path / "scan", workers=1, figures=False)
     clusters = read_map(tmp_path / "scan")["clusters"]
-    row = {k: v[list(clusters["center"]).index("p40")] for k, v in clusters.items()}
+    row = {k: v[list(clusters["center"]).index(scene.names.index("p40"))] for k, v in clusters.items()}
     s = Session(str(tmp_path / "scan"))
     assert s.error is None and s.kind == "scan_map" and s.analysis is None and not s.deferred
     colours = s.map_colours

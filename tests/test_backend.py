@@ -1,4 +1,4 @@
-"""The array backend (granstab/backend.py) and the BLAS thread policy (granstab/threads.py).
+"""The array backend (granstab/solve/device.py) and the BLAS thread policy (granstab/solve/threads.py).
 
 The numpy path runs everywhere; the GPU tests need CuPy and a CUDA device and are skipped with that reason
 elsewhere (the only skip in the suite)."""

@@ -44,9 +44,11 @@ def independent_S(s, motion):
         p, q = s.p[c], s.q[c]
         rp, rq = s.r_pq[c], s.r_qp[c]
         if d == 2:
-            spin = lambda w, r: w[0] * np.array([-r[1], r[0]])
+            def spin(w, r):
+                return w[0] * np.array([-r[1], r[0]])
         else:
-            spin = lambda w, r: np.cross(w, r)
+            def spin(w, r):
+                return np.cross(w, r)
         dudef = du[q] - du[p] + spin(th[q], rq) - spin(th[p], rp)
         n, f = s.normal[c], s.force[c]
         ft = f - (f @ n) * n

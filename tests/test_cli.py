@@ -47,8 +47,10 @@ def test_analyze_json_contract(capsys):
     assert all(c["vector_sign"] in (1, -1, 0) for c in b["consistent"])
     assert d["summary"]["verdict"] == "unstable"
     assert abs(min(b["stability_eigenvalues"]) - 0.01 * (0.5 - 1)) <= 1e-15   # λ⁽⁶⁾ = f(ρ - r)/r² · k
+    assert d["import"] == {"source": str(PRESETS / "two_particle.toml"), "format": "scene-toml",
+                           "read_as": "scene file", "warnings": []}       # a scene file: read as written
     assert d == granstab.analyze(granstab.load_scene(PRESETS / "two_particle.toml")).to_dict() | {
-        "timings": d["timings"]}
+        "timings": d["timings"], "import": d["import"]}
 
 
 def test_readable_table_and_module_entry_point():
@@ -86,3 +88,67 @@ def test_readable_table_lists_the_lowest_eigenvalues_and_counts(capsys):
     line = next(x for x in capsys.readouterr().out.splitlines() if "sym(𝓗) eigenvalues" in x)
     assert "(all 429: 4 negative, 3 zero, 422 positive)" in line
     assert len(line.split("positive): ")[1].split(", ")) == 429 and "--all)" not in line
+
+
+ANNULUS = Path(__file__).parent / "data" / "io" / "annulus"       # two frames cut from RigidLibrary's DataAnnulus
+DATASIM = Path(__file__).parents[2] / "shared" / "data" / "rigidlibrary" / "DataSim"
+
+
+def annulus_rattlers(frame: int = 1) -> list[int]:
+    """The particles of the frame that no contact touches, read from the files without granstab."""
+    pos = np.loadtxt(ANNULUS / "particle_positions.txt", delimiter=",", ndmin=2)
+    adj = np.loadtxt(ANNULUS / "Adjacency_list.txt", delimiter=",", ndmin=2)
+    touched = set(adj[adj[:, 0] == frame, 1:3].astype(int).ravel())
+    return sorted(set(pos[pos[:, 0] == frame, 1].astype(int)) - touched)
+
+
+def test_analyze_of_a_snapshot_keeps_the_import_report(capsys):
+    """A real snapshot (RigidLibrary annulus frames): the table ends with the import's warnings (the rattlers it
+    dropped, counted here from the files), the JSON carries its report under "import" beside the analysis' keys,
+    unchanged; a scene file's table has no import warning."""
+    rattlers = annulus_rattlers()
+    loaded = granstab.load(ANNULUS)
+    assert main(["analyze", str(ANNULUS), "--metric", "L"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    imported = [x for x in lines if x.startswith("warning: import: ")]
+    assert imported == [f"warning: import: {w}" for w in loaded.warnings] and lines[-len(imported):] == imported
+    assert any(x.startswith(f"warning: import: {len(rattlers)} particle(s) without contacts (rattlers) dropped "
+                            f"({rattlers[0]}, {rattlers[1]},") for x in imported)
+    assert main(["analyze", str(ANNULUS), "--metric", "L", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["import"] == json.loads(json.dumps(loaded.report))
+    assert d["import"]["particles"]["dropped"] == [str(i) for i in rattlers]
+    assert any(w.startswith(f"{len(rattlers)} particle(s) without contacts") for w in d["import"]["warnings"])
+    expected = granstab.analyze(loaded.scene, metric="L").to_dict()
+    assert {k: v for k, v in d.items() if k not in ("import", "timings")} == json.loads(json.dumps(
+        {k: v for k, v in expected.items() if k != "timings"}))
+    assert main(["analyze", str(PRESETS / "two_particle.toml")]) == 0
+    assert "import" not in capsys.readouterr().out
+
+
+def test_every_command_that_reads_an_input_prints_the_import_warnings(tmp_path, capsys):
+    """stiffness, extract and scan read what analyze reads and print its import warnings after their own line;
+    scan --json adds the report as "import". DataSim (RigidLibrary's sheared periodic snapshot): rattlers dropped
+    (counted here from the files) and contacts cut at the seam of the cell."""
+    warned = [f"warning: import: {w}" for w in granstab.load(ANNULUS).warnings]
+    assert main(["stiffness", str(ANNULUS), "--out", str(tmp_path / "k.npz")]) == 0
+    assert capsys.readouterr().out.splitlines()[1:] == warned
+    assert main(["scan", str(ANNULUS), "--out", str(tmp_path / "scan"), "--workers", "1"]) == 0
+    assert capsys.readouterr().out.splitlines()[1:] == warned
+    assert main(["scan", str(ANNULUS), "--out", str(tmp_path / "scan"), "--workers", "1", "--json"]) == 0   # resumed
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["import"]["warnings"] == [w.removeprefix("warning: import: ") for w in warned]
+    assert summary["clusters"] == granstab.load(ANNULUS).scene.n_particles
+    assert main(["stiffness", str(PRESETS / "two_particle.toml"), "--out", str(tmp_path / "k2.npz")]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 1                     # a scene file: no warning
+    contacts = np.loadtxt(DATASIM / "Contact5000.dat", ndmin=2)
+    n_particles = len(np.loadtxt(DATASIM / "posinit.dat", ndmin=2))
+    rattlers = n_particles - len(np.unique(contacts[:, :2]))
+    assert main(["extract", str(DATASIM), "--center", "500", "--out", str(tmp_path / "c.json")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith(f"wrote {tmp_path / 'c.json'}: ")
+    assert any(x.startswith(f"warning: import: {rattlers} particle(s) without contacts (rattlers) dropped")
+               for x in lines[1:])
+    cut = granstab.load(DATASIM).report["contacts"]["cut_around_periodic_cell"]
+    assert cut > 0 and any(x.startswith(f"warning: import: {cut} contact(s) closing a loop around the periodic "
+                                        "cell cut") for x in lines[1:])

@@ -9,7 +9,7 @@ Tolerances (why): H_exact and H both carry round-off of a few eps·‖H‖ (meas
 ‖H - H_exact‖ ≤ 1e-12 ‖H‖. The geometric part Hg = Hg1 + Hg2 + Hg3 is only ~(f/k)‖H‖, so the same absolute
 round-off is eps/(f/k) relative to it — ≤ 1e-11 at f/k = 1e-4 (measured ≤ 5e-12); we require 1e-9 ‖Hg‖.
 """
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
@@ -59,7 +59,7 @@ CLUSTERS = {
 CASES = [(name, level) for name in CLUSTERS for level in LEVELS]
 
 
-@lru_cache(maxsize=None)
+@cache
 def case(name, level):
     """(particles, scene, exact cluster, granstab Stiffness, H_exact) for a cluster pressed to δ = level."""
     parts, pairs, k_r = CLUSTERS[name]

@@ -111,11 +111,12 @@ def test_partial_spectrum_with_an_inconsistent_lowest_mode_is_not_stable():
     complete spectrum is 'stable' but not sufficient (an inconsistent negative proves nothing, Sec. 3.2)."""
     b = _branch([0.0, 0.0, 0.0, -0.3], [RIGID, RIGID, RIGID, INCONSISTENT])
     partial = summarize([b], {"complete": False, "suggest_k": 28})
-    assert partial["verdict"] == "not determined" and partial["sufficient"] is False
-    assert partial["insufficient_because"] == ["partial_spectrum"] and partial["suggest_k"] == 28
-    assert "k >= 28" in partial["reason"]
+    assert partial.verdict == "not determined" and partial.sufficient is False
+    assert partial.insufficient_because == ("partial_spectrum",) and partial.suggest_k == 28
+    assert "k >= 28" in partial.reason and partial.to_dict()["suggest_k"] == 28
     full = summarize([b], {"complete": True})
-    assert full["verdict"] == "stable" and full["insufficient_because"] == ["inconsistent_negative"]
+    assert full.verdict == "stable" and full.insufficient_because == ("inconsistent_negative",)
+    assert "suggest_k" not in full.to_dict()
 
 
 def test_overflow_is_never_a_proof():
@@ -191,7 +192,33 @@ def test_verdict_columns_equal_verdict_of_and_finalize_per_cluster():
         sm = finalize(sm, {"eigen_residual": 0.0 if finite[i] else np.nan, "rigid_leakage": 0.0},
                       int(undetermined[i]), None)
         for key in ("verdict", "sufficient", "reason", "consistent_negative", "consistent_positive"):
-            assert got[key][i] == sm[key], (i, key)
-        assert got["insufficient_because"][i] == ",".join(sm["insufficient_because"])
-        assert (np.isnan(got["zero_margin"][i]) if sm["zero_margin"] is None
-                else got["zero_margin"][i] == sm["zero_margin"])
+            assert got[key][i] == getattr(sm, key), (i, key)
+        assert got["insufficient_because"][i] == ",".join(sm.insufficient_because)
+        assert (np.isnan(got["zero_margin"][i]) if sm.zero_margin is None
+                else got["zero_margin"][i] == sm.zero_margin)
+
+
+def test_the_verdict_is_a_frozen_record_that_each_step_refines_into_a_new_one():
+    """finalize, flag_undetermined and mark_partial return new Verdicts and leave their input as it was;
+    `sufficient` is True exactly when nothing is listed in insufficient_because; to_dict is the JSON summary."""
+    from granstab.mechanics.verdicts import finalize, flag_undetermined, mark_partial, verdict_of
+    counts = {"neg": 1, "zero": 0, "proven_zero": 0, "pos": 5, "hinge": False, "inconsistent_negative": False,
+              "unresolved_other": False, "non_finite": False, "margin": 3.0}
+    first = verdict_of(counts, None, n_branches=4)
+    before = first.to_dict()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        first.verdict = "stable"
+    flagged = flag_undetermined(first, 2)
+    assert first.to_dict() == before and first.sufficient and not flagged.sufficient
+    assert flagged.insufficient_because == ("rolling_undetermined",) and flagged.hinges_on_tolerance
+    assert flagged.reason.startswith(first.reason) and "2 loaded contact(s)" in flagged.reason
+    done = finalize(first, {"eigen_residual": np.nan}, 0, None)
+    assert done.insufficient_because == ("non_finite",) and "not finite" in done.reason
+    assert first.to_dict() == before
+    sampled = mark_partial(first, 10, 12)                       # a proven instability stands on a sample
+    assert sampled.sufficient and sampled.branches == "partial" and "10 of the 2^12" in sampled.reason
+    assert set(sampled.to_dict()["counts_are"].values()) == {"lower bounds"}
+    assert set(first.to_dict()["counts_are"].values()) == {"totals"}
+    weak = mark_partial(verdict_of({**counts, "neg": 0}, None, n_branches=4), 10, 12)
+    assert weak.verdict == "stable" and weak.insufficient_because == ("unexamined_branches",)
+    assert json.loads(json.dumps(done.to_dict(), allow_nan=False)) == done.to_dict()

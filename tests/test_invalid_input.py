@@ -10,8 +10,9 @@ import pytest
 
 import granstab
 from granstab.cli import main
+from granstab.io import load_scene
 from granstab.io import syntax as fileformat
-from granstab.io.scenes import load_scene, save_scene
+from granstab.io.scenes import save_scene
 from granstab.io.schema import scene_arrays
 from granstab.model import packings
 
@@ -269,7 +270,7 @@ def test_reading_progress_on_stderr(tmp_path, capsys, monkeypatch):
     """Files above PROGRESS_BYTES show a bar (bytes read, then the stages) when asked; nothing otherwise."""
     path = tmp_path / "s.json"
     path.write_text(json.dumps(tomllib.loads(GOOD)))
-    monkeypatch.setattr(granstab.io.scenes, "PROGRESS_BYTES", 10)
+    monkeypatch.setattr(granstab.io.progress, "PROGRESS_BYTES", 10)
     load_scene(path, progress=True)
     err = capsys.readouterr().err
     assert "checks s.json" in err and f"{path.stat().st_size}" in err

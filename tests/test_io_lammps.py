@@ -264,17 +264,17 @@ def test_timesteps_found_across_chunk_boundaries(monkeypatch, chunk, tmp_path):
         raw = path.read_bytes()
         marks = [m.start() for m in re.finditer(rb"^ITEM: TIMESTEP", raw, re.M)]
         assert [step for step, *_ in whole] == [int(raw[m:].split(b"\n")[1]) for m in marks]
-        for (step, count, line, start, end), mark in zip(whole, marks):
+        for (_step, count, line, start, end), mark in zip(whole, marks):
             rows = raw[start:end].decode()
             assert rows.count("\n") == count and not rows.startswith("ITEM")
             assert raw[:start].count(b"\n") + 1 == line and raw[mark:start].count(b"\n") == 9
 
 
 def test_converting_shows_progress_when_asked(monkeypatch, capsys, tmp_path):
-    """Large inputs show load_scene's bar (files.ReadProgress) while converting: the dumps' bytes scanned, the
+    """Large inputs show the reading bar (progress.ReadProgress) while converting: the dumps' bytes scanned, the
     chosen timestep's rows parsed, then build and checks; tables likewise; nothing without progress."""
-    import granstab.io.scenes
-    monkeypatch.setattr(granstab.io.scenes, "PROGRESS_BYTES", 10)
+    import granstab.io.progress
+    monkeypatch.setattr(granstab.io.progress, "PROGRESS_BYTES", 10)
     plain = load(inputs(2))
     shown = load(inputs(2), progress=True)
     err = capsys.readouterr().err

@@ -9,8 +9,9 @@ import pytest
 import scipy.sparse as sp
 
 import granstab
+from granstab.mechanics.assembly import assemble
 from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
-from granstab.mechanics.stiffness import assemble, contact_blocks
+from granstab.mechanics.stiffness import contact_blocks
 from granstab.model import packings
 from granstab.model.tolerances import DEFAULT
 from granstab.solve import sparse

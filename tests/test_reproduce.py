@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from granstab import paper as report
-from granstab.paper.examples import NAMES
 from granstab.cli import main
+from granstab.paper.examples import NAMES
 
 ROOT = Path(__file__).resolve().parent.parent
 COMMITTED = ROOT / "docs" / "reproduction"

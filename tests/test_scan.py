@@ -1,6 +1,7 @@
 """The local stability scan (issue 10): clusters, equality with analyze, partial branches, resume, Dask, the map."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -19,14 +20,13 @@ from granstab.mechanics.branches import RIGID
 from granstab.model import packings
 from granstab.scan import extract, members, read_map, scan
 from granstab.scan.clusters import CONTACT_FIELDS, boundary_ring, subscene
-from granstab.scan.output import ROW_COLUMNS
+from granstab.scan.rows import ROW_COLUMNS, Row, columns_table, rows_table, schema
 from granstab.scan.run import (
     CHUNK,
     FIRST_TASK,
     TASK_SECONDS,
     Guide,
     chunk_cut,
-    chunk_scene,
     chunk_table,
     cluster_row,
     reach,
@@ -79,7 +79,8 @@ def test_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path):
     names = [scene.names[i] for i in (3, 50, 99, 140)]
     scan(scene, tmp_path, centers=",".join(names), workers=1, figures=False)
     rows = read_map(tmp_path)["clusters"]
-    assert list(rows["center"]) == names
+    assert list(rows["center"]) == [3, 50, 99, 140]                   # indices into the packing
+    assert [list(m) for m in rows["members"]] == [list(m) for m in members(scene, [3, 50, 99, 140], 1)]
     for i, name in enumerate(names):
         res = granstab.analyze(extract(scene, name), metric="L")
         scale = max(np.abs(b.stability_eigenvalues).max() for b in res.branches)
@@ -154,13 +155,74 @@ def test_clusters_that_need_the_eigenspace_search_go_to_analyze():
     rows = table.to_pylist()
     paths = [r["path"] for r in rows]
     assert 0 < paths.count("analyze") < len(rows)
-    assert table.column_names == list(ROW_COLUMNS) == list(cluster_row(scene, 0, [0, 1], options))
+    assert table.schema == schema(Row) and table.column_names == list(ROW_COLUMNS)
     for row, c, keep in zip(rows, centers, members(scene, centers, 1)):
         ref = cluster_row(scene, c, keep, options)
         for key in ("center", "members", "n_particles", "n_contacts", "n_sliding", "branches", "n_branches",
                     "consistent_negative", "consistent_positive", "verdict", "sufficient", "insufficient_because",
                     "metric_robust", "reason"):
-            assert row[key] == ref[key], (row["center"], key)
+            assert row[key] == getattr(ref, key), (row["center"], key)
+
+
+def test_every_path_makes_rows_of_the_schema_derived_from_the_row_record(tmp_path):
+    """A row is defined once (rows.Row): its Arrow schema follows the record's field types, and the error row, an
+    `analyze` row and the batched columns all make tables of exactly that schema; columns that are not Row's fields
+    are refused; Parquet and CSV read back to the same rows and types."""
+    from granstab.scan.output import read_arrow, write_table
+    kinds = schema(Row)
+    assert kinds.names == list(ROW_COLUMNS) == [f.name for f in dataclasses.fields(Row)]
+    assert [str(kinds.field(k).type) for k in ("n_sliding", "lambda_min", "verdict", "sufficient", "metric_robust")] \
+        == ["int64", "double", "string", "bool", "bool"]
+    scene = granstab.load_scene(ANNULUS)
+    keep = members(scene, [3], 1)[0]
+    failed = cluster_row(scene, 3, keep, {**SLIDING, "metric": "inertia"})        # no masses: analyze refuses
+    assert (failed.verdict, failed.n_contacts, failed.sufficient) == ("error", -1, False) and "mass" in failed.reason
+    analyzed = cluster_row(scene, 3, keep, {**SLIDING, "metric": "L"})
+    batched = scan_chunk(scene, np.array([3, 50]), {**SLIDING, "metric": "L"})
+    assert analyzed.path == "analyze" and set(batched.column("path").to_pylist()) <= {"batched", "batched-values"}
+    table = pa.concat_tables([rows_table([failed, analyzed]), batched])
+    assert table.schema == kinds and table.num_rows == 4
+    with pytest.raises(ValueError, match="fields of Row"):
+        columns_table({key: None for key in ROW_COLUMNS if key != "reason"})
+    for fmt in ("parquet", "csv"):
+        write_table(table, tmp_path / f"rows.{fmt}", fmt)
+        back = read_arrow(tmp_path / f"rows.{fmt}", fmt, Row)
+        assert [f.type for f in back.schema] == [f.type for f in kinds], fmt
+        same = [a == b or a != a and b != b for x, y in zip(back.to_pylist(), table.to_pylist())
+                for a, b in zip(x.values(), y.values())]
+        assert all(same), fmt
+
+
+@pytest.mark.parametrize("boundary", ["loads", "fixed"])
+def test_cluster_scenes_are_built_without_checking_again(monkeypatch, boundary):
+    """The scan's chunks and the clusters (clusters.cluster, used by the scan, extract and the app) are slices of a
+    scene checked where it was read: they are made without the scene checks (check_ranges, the friction check),
+    and equal bit for bit the scene that build_scene makes and checks from the same slices (loads at equilibrium)."""
+    import dataclasses as dc
+
+    import granstab.model.scene as model
+    from granstab.scan.clusters import cluster, cut
+    scene = packings.random_packing(2, 150, n_sliding=25, mobilised=0.5, seed=5)
+    centers = np.arange(0, scene.n_particles, 9)
+    hold = boundary_ring(scene, 40, 2)[1] if boundary == "fixed" else None
+    contact = ("p", "q", *CONTACT_FIELDS, "state")
+
+    def checked(fields):
+        return model.build_scene(**{k: v for k, v in fields.items() if k not in contact},
+                                 arrays={k: fields[k] for k in contact})
+
+    expected = [checked(cut(scene, members(scene, [40], 2)[0], hold=hold)),
+                checked(chunk_cut(scene, centers, 1).fields)]
+    calls = []
+    for name in ("check_ranges", "_check_friction"):
+        monkeypatch.setattr(model, name, lambda *a, name=name: calls.append(name))
+    made = [cluster(scene, 40, 2, boundary), chunk_cut(scene, centers, 1).scene()]
+    assert calls == []
+    for a, b in zip(made, expected):
+        for f in dc.fields(a):
+            x, y = getattr(a, f.name), getattr(b, f.name)
+            assert (np.array_equal(x, y) and x.dtype == y.dtype) if isinstance(x, np.ndarray) else x == y, f.name
+    assert (made[0].fixed is not None) == (boundary == "fixed")
 
 
 @pytest.mark.skipif(not gpu_available(), reason="no CuPy with a CUDA GPU here: the GPU backend is tested where one "
@@ -216,10 +278,10 @@ def test_rows_are_the_same_bits_however_the_scan_is_chunked(dim, n, boundary):
     scene = packings.random_packing(dim, n, n_sliding=n // 6, mobilised=0.5, seed=5)
     centers = np.arange(scene.n_particles)
     options = {**SLIDING, "metric": "L", "boundary": boundary}
-    whole = scan_chunk(*chunk_scene(scene, centers, reach(options)), options).drop(["seconds"])
+    whole = chunk_table(chunk_cut(scene, centers, reach(options)), options).drop(["seconds"])
     assert max(whole.column("n_sliding").to_pylist()) >= 3
     for size in (7, 41):
-        parts = [scan_chunk(*chunk_scene(scene, centers[i:i + size], reach(options)), options).drop(["seconds"])
+        parts = [chunk_table(chunk_cut(scene, centers[i:i + size], reach(options)), options).drop(["seconds"])
                  for i in range(0, len(centers), size)]
         assert pa.concat_tables(parts).equals(whole), size
 
@@ -256,8 +318,9 @@ def test_planted_unstable_cluster_is_found_and_nothing_far_away(tmp_path, rho_ov
     scene, planted = planted_lattice(40, rho_over_r)
     scan(scene, tmp_path, workers=1, figures=False)
     data = read_map(tmp_path)
-    verdict = dict(zip(data["clusters"]["center"], data["clusters"]["verdict"]))
+    verdict = dict(zip((scene.names[c] for c in data["clusters"]["center"]), data["clusters"]["verdict"]))
     fraction = np.asarray(data["particles"]["unstable_fraction"], dtype=float)
+    assert list(data["particles"]["name"]) == list(scene.names)
     assert list(data["particles"]["own_verdict"]) == [verdict[n] for n in scene.names]
     if rho_over_r > 1:
         assert set(verdict.values()) == {"stable"} and np.all(fraction == 0.0)
@@ -285,12 +348,12 @@ def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
     scene = granstab.load_scene(ANNULUS)
     options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads"}
     from granstab.scan.output import ScanOutput
-    out = ScanOutput(tmp_path, "csv", options, source=scene.source)
+    out = ScanOutput(tmp_path, "csv", options, scene)
     out.write(chunk_table(chunk_cut(scene, np.arange(0, 20), 1), options))              # what finished before the kill
     summary = scan(scene, tmp_path, centers="every:1", workers=1, fmt="csv", figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert summary["clusters_this_run"] == scene.n_particles - 20
-    assert list(rows["center"]) == list(scene.names)                  # each centre once, in scene order
+    assert list(rows["center"]) == list(range(scene.n_particles))     # each centre once, in scene order
     with pytest.raises(granstab.SceneError, match="other options"):
         scan(scene, tmp_path, rings=2, workers=1, fmt="csv", figures=False)
 
@@ -320,7 +383,7 @@ def test_two_dask_workers_give_the_serial_rows_and_survive_a_killed_worker(tmp_p
                 time.sleep(0.05)
             assert victim not in client.scheduler_info()["workers"]
     a, b = read_map(tmp_path / "serial")["clusters"], read_map(tmp_path / "dask")["clusters"]
-    assert list(b["center"]) == list(a["center"]) == list(scene.names)
+    assert list(b["center"]) == list(a["center"]) == list(range(scene.n_particles))
     for key in ("verdict", "consistent_negative", "consistent_positive", "n_contacts", "n_branches"):
         assert list(a[key]) == list(b[key]), key
     assert np.array_equal(a["lambda_min"], b["lambda_min"])
@@ -333,7 +396,7 @@ def test_cli_scan_and_extract_round_trip(tmp_path):
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     assert summary["clusters"] == len(range(0, 143, 20)) and (out / "map.png").stat().st_size > 10_000
-    name = read_map(out)["clusters"]["center"][2]
+    name = read_map(out)["particles"]["name"][read_map(out)["clusters"]["center"][2]]
     sub_file = tmp_path / "sub.json"
     proc = subprocess.run([sys.executable, "-m", "granstab", "extract", str(ANNULUS), "--center", name,
                            "--out", str(sub_file)], capture_output=True, text=True)
@@ -399,6 +462,49 @@ def test_a_bad_fixed_flag_is_one_line_naming_the_particle(tmp_path, value, messa
     path.write_text(json.dumps(data))
     with pytest.raises(granstab.SceneError, match="at least one must be free"):
         granstab.load_scene(path)
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "csv"])
+def test_a_copied_scan_folder_opens_without_the_packing_it_was_scanned_from(tmp_path, fmt):
+    """A scan folder keeps its packing (packing.npz) and names particles by their index in it: copied elsewhere, with
+    the scanned file and the original folder deleted, it opens with read_map/read_packing and in the explorer, with
+    the same clusters (each centre's members, by name, as `members` finds them in the original), and each cluster
+    the explorer opens has the verdict and the consistent counts of the scan's row."""
+    import shutil
+
+    from granstab.scan import read_packing
+    from granstab_app.scanmap import load_scan_map
+    from granstab_app.state import Session
+    scene, _ = planted_lattice(40, 0.4)
+    packing = tmp_path / "lattice.json"
+    packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
+    scanned = granstab.load_scene(packing)
+    scan(scanned, tmp_path / "scan", workers=1, fmt=fmt, figures=False)
+    centers = np.arange(scanned.n_particles)
+    expected = {scanned.names[c]: [scanned.names[m] for m in keep]
+                for c, keep in zip(centers, members(scanned, centers, 1))}
+    folder = tmp_path / "elsewhere" / "copy"
+    shutil.copytree(tmp_path / "scan", folder)
+    shutil.rmtree(tmp_path / "scan")
+    packing.unlink()
+    data, stored = read_map(folder), read_packing(folder)
+    names = data["particles"]["name"]
+    assert list(names) == list(stored.names) == list(scanned.names)
+    assert {names[c]: [names[m] for m in row]
+            for c, row in zip(data["clusters"]["center"], data["clusters"]["members"])} == expected
+    model = load_scan_map(folder)
+    assert {stored.names[c]: [stored.names[m] for m in row] for c, row in model.members.items()} == expected
+    rows = data["clusters"]
+    for i in (40, 0, 31, 49):                                      # the planted particle, a corner, neighbours
+        res = granstab.analyze(model.cluster(scanned.names[i]).scene, metric="L")
+        assert (res.verdict.verdict, res.verdict.consistent_negative, res.verdict.consistent_positive) \
+            == (rows["verdict"][i], rows["consistent_negative"][i], rows["consistent_positive"][i])
+    assert rows["verdict"][40] == "unstable"
+    s = Session(str(folder))
+    assert s.error is None and s.kind == "scan_map" and s.open_cluster(scanned.names[40]) and s.verdict == "unstable"
+    (folder / "packing.npz").unlink()
+    with pytest.raises(granstab.SceneError, match="no packing.npz"):
+        load_scan_map(folder)
 
 
 def test_a_fixed_boundary_scan_map_opens_its_cluster_with_the_ring_held(tmp_path):

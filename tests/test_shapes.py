@@ -189,10 +189,12 @@ def test_objectivity_under_rigid_motion(sp, pp, sq, pq):
     dim = sp.dim
     if dim == 2:
         angle, G, shift = 0.9, rot2(0.9), np.array([0.3, -1.7])
-        move = lambda pose: (G @ np.asarray(pose[0], float) + shift, pose[1] + angle)
+        def move(pose):
+            return (G @ np.asarray(pose[0], float) + shift, pose[1] + angle)
     else:
         G, shift = rot3([0.7, -1.1, 0.4]), np.array([0.3, -1.7, 2.2])
-        move = lambda pose: (G @ np.asarray(pose[0], float) + shift, G @ rotation_matrix(3, pose[1]))
+        def move(pose):
+            return (G @ np.asarray(pose[0], float) + shift, G @ rotation_matrix(3, pose[1]))
     c = contact_geometry(sp, pp, sq, pq)
     m = contact_geometry(sp, move(pp), sq, move(pq))
     assert m.overlap == pytest.approx(c.overlap, abs=TOL)

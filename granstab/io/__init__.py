@@ -1,90 +1,122 @@
-"""Real packings in: DEM snapshots and experimental frames become contact-level scenes (issue 9).
+"""Everything in and out: scene files and real packings (DEM snapshots, experimental frames) through one loader.
 
-    imported = granstab.io.load("DataAnnulus/10", frame=1, geometry="touching", length_scale=0.027, units="cm")
-    imported.scene, imported.report, imported.frames
+    loaded = granstab.io.load("DataAnnulus/10", frame=1, geometry="touching", length_scale=0.027, units="cm")
+    loaded.scene, loaded.report, loaded.warnings, loaded.frames
+    granstab.io.load("presets/gear.toml").scene            # a scene file: report "read as a scene file", no warnings
 
-One module per source format turns files into a `Snapshot` (numpy-vectorised reading); `build.build` applies the
-conventions every format shares (contact point, normal, curvature, cone policy, loads: see build.py) and writes
-the validation report. `format="auto"` picks the reader from the files.
+Each reader module registers its formats (registry.py: a name, a sniff, a read): scene files (scenes.py: TOML,
+JSON, NPZ; contact-level and shape-based), RigidLibrary folders, LAMMPS dumps, MercuryDPM output and generic
+tables. `format="auto"` takes the one whose sniff accepts the paths; a snapshot reader's `Snapshot` goes through
+`build.build`, which applies the conventions every format shares (contact point, normal, curvature, cone policy,
+loads) and writes the validation report (validation.py).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..model.errors import SceneError
-from . import generic as table
-from . import lammps, mercury, rigidlibrary
-from .build import GEOMETRY, OUTSIDE_CONE, Imported, Options, build
-from .scenes import ReadProgress
+from ..model.scene import Scene
+from ..model.tolerances import DEFAULT, Tolerances
+from . import generic, lammps, mercury, rigidlibrary, scenes  # noqa: F401  (each registers its formats)
+from .build import GEOMETRY, OUTSIDE_CONE, Options, build
+from .progress import ReadProgress
+from .registry import Format, Loaded, Request, detect, formats, get, reads_folder, register
 from .validation import format_report
 
-FORMATS = ("rigidlibrary-annulus", "rigidlibrary-datasim", "lammps", "mercurydpm", "table")
 OPTION_KEYS = {"k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol", "length_scale", "units", "region",
                "keep_rattlers", "density"}
-
-
-def detect(paths: list[Path]) -> str:
-    """The format of `paths` from their names and layout; a one-line error if none fits."""
-    first = paths[0]
-    for path in paths:
-        if not path.exists():
-            raise SceneError(f"{path}: cannot read file (no such file or directory)")
-    if rigidlibrary.is_annulus(first):
-        return "rigidlibrary-annulus"
-    if rigidlibrary.is_datasim(first):
-        return "rigidlibrary-datasim"
-    if any(lammps.is_dump(p) for p in paths):
-        return "lammps"
-    if mercury.is_mercury(paths):
-        return "mercurydpm"
-    if all(table.is_table(p) for p in paths):
-        return "table"
-    raise SceneError(f"{first}: format: not recognised (known: {', '.join(FORMATS)}); name it with --format")
+SKIPPED_IN_FOLDERS = (".json", ".toml", ".npz", ".py", ".sh", ".md")   # a snapshot folder's other files
 
 
 def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, progress: bool = False,
-         **options) -> Imported:
-    """Read a snapshot (a file, a folder or several files) into a Scene with its validation report.
-    A folder that is not a RigidLibrary layout stands for the files in it (one snapshot's dumps or tables).
+         tol: Tolerances = DEFAULT, **options) -> Loaded:
+    """Read a scene file or a snapshot (a file, a folder or several files) into a Scene with its validation report.
 
-    Options: k, alpha, mu (override the file's law), geometry ("centres" | "touching"), outside_cone
-    ("sliding" | "project" | "elastic" | "error"), yield_rtol, length_scale (file length unit → scene unit),
-    units (its name), region (ids, or {"box": [lo, hi, ...]} on scaled centres), keep_rattlers,
-    columns (formats with named columns). progress: a bar on stderr while large files are read (LAMMPS dumps and
-    tables: bytes scanned and parsed), then the stages (build, checks), as load_scene(..., progress=True) shows."""
+    Parameters
+    ----------
+    path_or_paths : str, Path or list of them
+        A scene file (.toml, .json, .npz), or one snapshot's files or folder. A folder that no format reads
+        itself (RigidLibrary layouts do) stands for the files in it (one snapshot's dumps or tables).
+    format : str
+        "auto" (the registered format whose sniff accepts the paths) or a name of `formats()`.
+    frame, timestep : int or float, optional
+        The frame (or timestep, or time) of a snapshot with several; default the first.
+    progress : bool
+        A bar on stderr while large inputs are read (bytes scanned and parsed), then the stages.
+    tol : Tolerances
+        The scene checks' tolerances.
+    **options
+        Snapshots only: k, alpha, mu (override the file's law), geometry ("centres" | "touching"), outside_cone
+        ("sliding" | "project" | "elastic" | "error"), yield_rtol, length_scale (file length unit → scene unit),
+        units (its name), region (ids, {"box": [lo, hi, ...]} on scaled centres, or the --region text),
+        keep_rattlers, density, columns (formats with named columns).
+
+    Returns
+    -------
+    Loaded
+        scene; report (JSON-able; "warnings": what the import changed or assumed, none for a scene file);
+        frames (the frames the input holds, or None).
+    """
     paths = [Path(p) for p in ([path_or_paths] if isinstance(path_or_paths, (str, Path)) else path_or_paths)]
     if not paths:
         raise SceneError("granstab.io.load: no input")
-    if len(paths) == 1 and paths[0].is_dir() and not (rigidlibrary.is_annulus(paths[0])
-                                                      or rigidlibrary.is_datasim(paths[0])):
-        paths = sorted(p for p in paths[0].iterdir() if p.is_file() and not p.name.startswith(".")
-                       and p.suffix.lower() not in (".json", ".toml", ".npz", ".py", ".sh", ".md"))
-        if not paths:
-            raise SceneError(f"{path_or_paths}: no snapshot files in this folder")
     unknown = sorted(set(options) - OPTION_KEYS - {"columns"})
     if unknown:
         raise SceneError(f"granstab.io.load: unknown option {unknown[0]!r}")
-    fmt = detect(paths) if format == "auto" else format
-    if fmt not in FORMATS:
-        raise SceneError(f"--format: must be auto or one of {', '.join(FORMATS)}, got {fmt!r}")
-    if options.get("columns") and fmt not in ("lammps", "table"):
-        raise SceneError(f"--columns: the {fmt} format has fixed columns (only lammps and table name them)")
-    which = frame if frame is not None else timestep
+    chosen = None if format == "auto" else get(format)
+    if len(paths) == 1 and paths[0].is_dir() and not (chosen.folder if chosen else reads_folder(paths[0])):
+        paths = _files_in(paths[0])
+    fmt = chosen or get(detect(paths))
+    if options.get("columns") and not fmt.columns:
+        raise SceneError(f"--columns: the {fmt.name} format has fixed columns (only "
+                         f"{' and '.join(f.name for f in map(get, formats()) if f.columns)} name them)")
+    if fmt.scene_file and (options or frame is not None or timestep is not None):
+        given = next(iter(options), "frame" if frame is not None else "timestep")
+        raise SceneError(f"{paths[0]}: {given}: an option of snapshots; a scene file ({fmt.name}) is read as written")
+    request = Request(frame=frame if frame is not None else timestep, columns=options.pop("columns", None), tol=tol)
     with ReadProgress(paths, progress) as bar:
-        if fmt == "rigidlibrary-annulus":
-            snap = rigidlibrary.read_annulus(paths[0], which)
-        elif fmt == "rigidlibrary-datasim":
-            snap = rigidlibrary.read_datasim(paths[0], which)
-        elif fmt == "mercurydpm":
-            snap = mercury.read_mercury(paths, which)
-        elif fmt == "lammps":
-            snap = lammps.read_lammps(paths, which, options.get("columns"), progress=bar)
-        else:
-            snap = table.read_tables(paths, which, options.get("columns"), progress=bar)
+        read = fmt.read(paths, request, bar)
+        if fmt.scene_file:
+            return Loaded(read, {"source": str(paths[0]), "format": fmt.name, "read_as": "scene file",
+                                 "warnings": []})
         if isinstance(options.get("region"), str):
             options["region"] = parse_region(options["region"])
-        opts = Options(**{k: v for k, v in options.items() if k in OPTION_KEYS})
-        return build(snap, opts, progress=bar)
+        return build(read, Options(**options), progress=bar, tol=tol)
+
+
+def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Scene:
+    """Read a scene file (TOML, JSON or NPZ) or a snapshot into a validated `Scene`: the scene of `load(path)`.
+
+    Parameters
+    ----------
+    path : str or Path
+        A .toml or .json scene file (contact-level or shape-based, docs/formats.md), an .npz written by
+        `save_scene`, or a snapshot (a folder or another file: DEM output, experiments) read with the import's
+        defaults.
+    tol : Tolerances
+        Input tolerances of the checks.
+    progress : bool
+        A bar on stderr while a large file is read, then its stages (parse, checks).
+
+    Returns
+    -------
+    Scene
+        Validated; the import's validation report is dropped (`load` returns it too).
+
+    Raises
+    ------
+    SceneError
+        An unreadable file or a failed check, in one line naming the file, the entry and the field.
+    """
+    return load(path, progress=progress, tol=tol).scene
+
+
+def _files_in(folder: Path) -> list[Path]:
+    paths = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
+                   and p.suffix.lower() not in SKIPPED_IN_FOLDERS)
+    if not paths:
+        raise SceneError(f"{folder}: no snapshot files in this folder")
+    return paths
 
 
 def parse_region(text: str):
@@ -102,7 +134,6 @@ def parse_region(text: str):
         return [v for v in rest.split(",") if v]
     path = Path(rest[1:])
     if path.suffix.lower() in (".json", ".toml"):
-        from .scenes import load_scene
         return list(load_scene(path).names)
     try:
         return path.read_text(encoding="utf-8").replace(",", " ").split()
@@ -111,9 +142,10 @@ def parse_region(text: str):
 
 
 def is_snapshot(path) -> bool:
-    """True for inputs `granstab.load_scene` hands to `load`: folders, and files that are not scene files."""
+    """True for inputs that no scene-file format accepts (folders, DEM output, tables): `load` converts them."""
     path = Path(path)
-    return path.is_dir() or path.suffix.lower() not in (".toml", ".json", ".npz")
+    return not any(fmt.sniff([path]) for fmt in map(get, formats()) if fmt.scene_file)
 
 
-__all__ = ["FORMATS", "GEOMETRY", "OUTSIDE_CONE", "Imported", "detect", "format_report", "is_snapshot", "load", "parse_region"]
+__all__ = ["GEOMETRY", "OUTSIDE_CONE", "Format", "Loaded", "Request", "detect", "format_report", "formats",
+           "is_snapshot", "load", "load_scene", "parse_region", "register"]

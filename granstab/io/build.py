@@ -1,7 +1,8 @@
 """Contact-level scenes from particle snapshots: the conventions every reader shares.
 
 A reader hands over a `Snapshot` (particles with centres and radii, contacts as index pairs with the force on
-the first particle, in the file's units); `build` turns it into a granstab Scene and a validation report:
+the first particle, in the file's units); `build` turns it into a granstab Scene and a validation report (a
+`registry.Loaded`; validation.py lists its warnings and writes it as lines):
 
 - **Normal** n^pq: the file's normal where it has one, else the centre line from p to q (minimum image in
   periodic cells). Overlap δ = R_p + R_q − d, d the centre distance.
@@ -16,7 +17,7 @@ the first particle, in the file's units); `build` turns it into a granstab Scene
   (|f_t| > μ f_n (1 + yield_rtol)) follows `outside_cone`: "sliding" (project onto the cone, mark at yield),
   "project" (project, treat as sticking: "elastic"), "elastic" (keep the force, "elastic") or "error".
   Contacts with f_n ≤ 0 and a force are "elastic" (tension is cohesion). Every change is counted and named.
-- **Masses** (for the inertia metric, metric.py): the file's per-particle masses, else `density` × volume
+- **Masses** (for the inertia metric, mechanics/metric.py): the file's per-particle masses, else `density` × volume
   (2D: disk area π R², 3D: sphere volume 4/3 π R³); moments of inertia of solid disks (½ m R²) and spheres
   (2/5 m R² I). Neither: the scene carries no masses and `--metric inertia` says so.
 - **Loads** follow the contact forces (scene rule b^p = −Σ f^pq): walls, contacts cut by a region or around a
@@ -34,8 +35,11 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..model.errors import SceneError
-from ..model.scene import Scene, build_scene
+from ..model.scene import build_scene
+from ..model.tolerances import DEFAULT, Tolerances
 from ..model.vec import sum_at
+from .registry import Loaded
+from .validation import LAW_DEFAULT, import_warnings
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
@@ -95,18 +99,9 @@ class Options:
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5}
 
 
-@dataclass
-class Imported:
-    """The result of `granstab.io.load`: the scene, its validation report and the frames the input holds."""
-
-    scene: Scene
-    report: dict
-    frames: list | None
-
-
-def build(snap: Snapshot, opts: Options, progress=None) -> Imported:
+def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAULT) -> Loaded:
     """Scene + validation report from a snapshot (see the module docstring for every convention); `progress`: a
-    files.ReadProgress, told the stages."""
+    progress.ReadProgress, told the stages; `tol`: the scene checks' tolerances."""
     if progress is not None:
         progress.stage("build")
     if opts.geometry not in GEOMETRY:
@@ -131,7 +126,7 @@ def build(snap: Snapshot, opts: Options, progress=None) -> Imported:
     geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap)
     law, law_report = _law(snap, opts, len(d))
     force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
-    report = {"source": snap.source, "format": snap.format, "frame": snap.frame,
+    report = {"source": snap.source, "format": snap.format, "read_as": "snapshot", "frame": snap.frame,
               "frames_available": None if snap.frames is None else len(snap.frames)}
     arm_p = geom["rho_p"][:, None] * e
     imbalance = _imbalance(snap, arm_p, arm_p - branch)
@@ -167,7 +162,7 @@ def build(snap: Snapshot, opts: Options, progress=None) -> Imported:
     if progress is not None:
         progress.stage("checks")
     scene = build_scene(snap.dim, list(names[keep_p]), unwrapped[keep_p], arrays, title=title, source=snap.source,
-                        entries=lambda k: f"contact {pair[c[k]]}",
+                        tol=tol, entries=lambda k: f"contact {pair[c[k]]}",
                         **({} if mass is None else {"mass": mass[keep_p], "inertia": inertia[keep_p]}))
     report.update({
         "particles": {"in_file": len(x), "in_scene": int(keep_p.sum()), "outside_region": selection["particles"],
@@ -183,7 +178,8 @@ def build(snap: Snapshot, opts: Options, progress=None) -> Imported:
         "duplicates": snap.notes.get("duplicates", "none (one row per contact)"),
     })
     report.update({k: v for k, v in snap.notes.items() if k not in report})
-    return Imported(scene=scene, report=report, frames=snap.frames)
+    report["warnings"] = import_warnings(report)
+    return Loaded(scene=scene, report=report, frames=snap.frames)
 
 
 # ------------------------------------------------------------------------------------------------ checks
@@ -342,7 +338,7 @@ def _law(snap: Snapshot, opts: Options, M: int):
             if key == "k" and opts.length_scale != 1.0:  # force per file length → force per scene length
                 value, where = np.asarray(value) / opts.length_scale, f"{where}, / length scale"
         else:
-            value, where = LAW_DEFAULTS[key], "built-in default (not in the file)"
+            value, where = LAW_DEFAULTS[key], LAW_DEFAULT
         value = np.broadcast_to(np.asarray(value, float), (M,)).copy()
         low = 0.0 if key == "mu" else None
         bad = ~np.isfinite(value) | ((value < 0) if low == 0.0 else (value <= 0))

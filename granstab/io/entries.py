@@ -192,7 +192,8 @@ class ArrayTable:
 
 class Reader:
     """Structural checks of one small table (the top level, `defaults`, a shape entry), one-line errors naming
-    file, entry and field. Arrays of entries (particles, contacts) are read column-wise by tables.py instead."""
+    file, entry and field. Arrays of entries (particles, contacts) are read column-wise by TextTable and ArrayTable
+    instead."""
 
     def __init__(self, source: str, entry: str, data, allowed: set):
         self.source, self.entry, self.data = source, entry, data

@@ -25,6 +25,7 @@ from .columns import (
     unique_ids,
 )
 from .lines import line_of, pick_frame, read_table
+from .registry import Format, register
 
 SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
 PARTICLE_NAMES = {"id", "x", "y", "z", "radius", "r", "diameter", "frame"}
@@ -55,7 +56,7 @@ def is_table(path: Path) -> bool:
 
 
 def read_tables(paths: list[Path], frame=None, columns: str | None = None, progress=None) -> Snapshot:
-    """The snapshot of one frame; `progress`: a files.ReadProgress (bytes parsed)."""
+    """The snapshot of one frame; `progress`: a progress.ReadProgress (bytes parsed)."""
     update = None if progress is None else progress.update
     kinds = {p: header(p) for p in paths}
     particle_files = [p for p, h in kinds.items() if {"id", "x", "y"} <= set(h[0])]
@@ -194,3 +195,7 @@ def _one_row_per_pair(p, q, force, normal, moment, mobilised):
     pick = lambda a: None if a is None else a[keep]  # noqa: E731
     mob = None if mobilised is None else mobilised[keep] != 0
     return p[keep], q[keep], force[keep], pick(normal), pick(moment), mob, keep, report
+
+
+register(Format("table", sniff=lambda paths: all(is_table(p) for p in paths), columns=True,
+                read=lambda paths, request, progress: read_tables(paths, request.frame, request.columns, progress)))

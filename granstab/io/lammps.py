@@ -37,6 +37,7 @@ from .columns import (
     unique_ids,
 )
 from .lines import read_window
+from .registry import Format, register
 
 CHUNK = 1 << 23          # bytes per step of the scan for timesteps
 
@@ -356,7 +357,7 @@ def _is_number(text: str) -> bool:
 # ------------------------------------------------------------------------------------------------ reading
 
 def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, progress=None) -> Snapshot:
-    """The snapshot of one timestep; `progress`: a files.ReadProgress (bytes scanned, then the rows parsed)."""
+    """The snapshot of one timestep; `progress`: a progress.ReadProgress (bytes scanned, then the rows parsed)."""
     update = None if progress is None else progress.update
     dumps = [p for p in paths if is_dump(p)]
     scripts = [p for p in paths if p not in dumps]
@@ -464,3 +465,7 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
         raise SceneError(f"{path}: line {block.first_line - 1}: {unknown}: ambiguous column: name the columns with "
                          "--columns id1,id2,fx,fy,fz,... or give the input script as well")
     return names
+
+
+register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths), columns=True,
+                read=lambda paths, request, progress: read_lammps(paths, request.frame, request.columns, progress)))

@@ -22,6 +22,7 @@ import numpy as np
 from ..model.errors import SceneError
 from .build import Snapshot
 from .lines import read_block
+from .registry import Format, register
 
 FSTAT_FIELDS = ("time", "i", "j", "cx", "cy", "cz", "delta", "delta_t", "fn", "ft", "nx", "ny", "nz", "tx", "ty",
                 "tz")
@@ -150,3 +151,7 @@ def read_mercury(paths: list[Path], timestep=None) -> Snapshot:
                                                           "newton_third_law_largest_relative_misfit": misfit}},
                     particle_line=lambda k: f"{dpath}: line {first + k}",
                     contact_line=lambda c: line_of_row(rows_pp[keep[c]]))
+
+
+register(Format("mercurydpm", sniff=is_mercury,
+                read=lambda paths, request, progress: read_mercury(paths, request.frame)))

@@ -22,6 +22,7 @@ import numpy as np
 from ..model.errors import SceneError
 from .build import Snapshot
 from .lines import check_unique, integer_column, line_of, pick_frame, read_table
+from .registry import Format, register
 
 ANNULUS_FILES = ("particle_positions.txt", "Adjacency_list.txt")
 POSITION_FIELDS = ("frame", "id", "x", "y", "r", "edge")
@@ -193,3 +194,9 @@ def read_datasim(folder: Path, frame=None) -> Snapshot:
                     frame=frame, frames=steps, notes=notes,
                     particle_line=lambda i: f"{init_path}: line {line_of(init_path, i)}",
                     contact_line=lambda c: f"{con_path}: line {line_of(con_path, c)}")
+
+
+register(Format("rigidlibrary-annulus", sniff=lambda paths: is_annulus(paths[0]),
+                read=lambda paths, request, progress: read_annulus(paths[0], request.frame), folder=True))
+register(Format("rigidlibrary-datasim", sniff=lambda paths: is_datasim(paths[0]),
+                read=lambda paths, request, progress: read_datasim(paths[0], request.frame), folder=True))

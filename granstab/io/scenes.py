@@ -1,6 +1,7 @@
-"""Scene files: TOML, JSON and NPZ in (`load_scene`), JSON and NPZ out (`save_scene`), and the dispatch between the
-contact-level (scene.py) and shape-based (shapes.py) readers — the one place that knows both, so that neither
-imports the other. The syntax of each format lives in syntax.py, the schema in schema.py and shapefile.py.
+"""Scene files: TOML, JSON and NPZ in (the formats scene-toml, scene-json and scene-npz of the registry, read by
+`granstab.io.load`), JSON and NPZ out (`save_scene`), and the dispatch between the contact-level (schema.py) and
+shape-based (shapefile.py) schemas — the one place that knows both, so that neither imports the other. The syntax
+of each file type lives in syntax.py.
 """
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ from pathlib import Path
 from ..model.errors import SceneError
 from ..model.scene import Scene
 from ..model.tolerances import DEFAULT, Tolerances
+from .progress import ReadProgress
+from .registry import Format, Request, register
 from .schema import (
     contact_scene_from_dict,
     scene_arrays,
@@ -17,7 +20,6 @@ from .schema import (
 )
 from .shapefile import is_shape_scene, shape_scene_from_dict
 from .syntax import (
-    PROGRESS_BYTES,
     decode,
     load_npz,
     parse_json,
@@ -28,89 +30,61 @@ from .syntax import (
 )
 
 
-def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Scene:
-    """Read a scene file: TOML, JSON (same schema) or NPZ (`save_scene`'s binary form of it), chosen by the
-    suffix (.toml, .json, .npz). Raises SceneError with a one-line message naming the file.
-    progress: a bar on stderr while a large file is read, then its stages (parse, checks).
-    Folders and other files (DEM snapshots, experiments) go to granstab.io.load with its defaults."""
-    from . import is_snapshot, load
-    if is_snapshot(path):
-        return load(path, progress=progress).scene
-    path = Path(path)
+def read_scene_file(path: Path, syntax: str, tol: Tolerances, progress: ReadProgress) -> Scene:
+    """Read one scene file in `syntax` ("toml", "json" or "npz": `save_scene`'s binary form of the same schema) and
+    check it. Raises SceneError with a one-line message naming the file, entry and field. `progress`: told the
+    bytes read, then the stages (parse, checks)."""
     source = str(path)
-    with ReadProgress(path, progress) as bar:
-        if path.suffix.lower() == ".npz":
-            arrays = load_npz(path, source)
-            bar.stage("checks")
-            return scene_from_arrays(arrays, source=source, tol=tol)
-        raw = read_bytes(path, bar.update)
-        bar.stage("parse")
-        if path.suffix.lower() == ".json":
-            data = parse_json(raw, source)
-        else:
-            data = parse_toml(decode(raw, source), source)
-        del raw
-        bar.stage("checks")
-        return scene_from_dict(data, source=source, tol=tol)
+    if syntax == "npz":
+        arrays = load_npz(path, source)
+        progress.stage("checks")
+        return scene_from_arrays(arrays, source=source, tol=tol)
+    raw = read_bytes(path, progress.update)
+    progress.stage("parse")
+    data = parse_json(raw, source) if syntax == "json" else parse_toml(decode(raw, source), source)
+    del raw
+    progress.stage("checks")
+    return scene_from_dict(data, source=source, tol=tol)
+
+
+def _scene_format(syntax: str) -> Format:
+    """The registered format of one scene-file syntax: sniffed by the suffix of a single file."""
+    suffix = f".{syntax}"
+
+    def sniff(paths: list[Path]) -> bool:
+        return len(paths) == 1 and paths[0].suffix.lower() == suffix and not paths[0].is_dir()
+
+    def read(paths: list[Path], request: Request, progress: ReadProgress) -> Scene:
+        if len(paths) != 1:
+            raise SceneError(f"{paths[0]}: format scene-{syntax}: reads one scene file, got {len(paths)} inputs")
+        return read_scene_file(paths[0], syntax, request.tol, progress)
+
+    return register(Format(f"scene-{syntax}", sniff, read, scene_file=True))
+
+
+for _syntax in ("toml", "json", "npz"):
+    _scene_format(_syntax)
 
 
 def save_scene(scene: Scene, path) -> Path:
     """Write `scene` as .json (strict: no NaN/Infinity) or .npz (binary: the same fields as whole arrays, fast for
-    10⁵–10⁶ contacts); `load_scene` reads either back to the same arrays. Other suffixes are refused."""
+    10⁵–10⁶ contacts); `granstab.load_scene` reads either back to the same arrays. Other suffixes are refused."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".npz":
         write_npz(scene_arrays(scene), path)
     elif suffix == ".json":
-        write_json(scene_to_dict(scene), path)           # both pause the garbage collector (fileformat.paused_gc)
+        write_json(scene_to_dict(scene), path)           # both pause the garbage collector (syntax.paused_gc)
     else:
         raise SceneError(f"{path}: save_scene writes .json or .npz, not {suffix or 'a file without suffix'!r}")
     return path
-
-
-class ReadProgress:
-    """tqdm bar over the bytes of a file (or of several: a snapshot's dumps or tables), then its stages (optional
-    dependency, only for inputs > PROGRESS_BYTES). Used by load_scene and granstab.io.load."""
-
-    def __init__(self, paths, enabled: bool):
-        self.bar, self.label = None, ""
-        if enabled:
-            paths = [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
-            try:
-                size = sum(p.stat().st_size for p in paths)
-                from tqdm.auto import tqdm
-            except (OSError, ImportError):
-                return
-            if size > PROGRESS_BYTES:
-                self.label = " + ".join(p.name for p in paths)
-                self.bar = tqdm(total=size, unit="B", unit_scale=True, desc=f"reading {self.label}", mininterval=0.5)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        if self.bar is not None:
-            self.bar.close()
-
-    def update(self, n: int) -> None:
-        if self.bar is not None:
-            self.bar.update(n)
-
-    def stage(self, name: str, total: int | None = None) -> None:
-        """The next stage; `total`: it reads that many bytes more (the bar starts again from 0)."""
-        if self.bar is not None:
-            if total is not None:
-                self.bar.reset(total=total)
-            self.bar.set_description(f"{name} {self.label}")
-            self.bar.refresh()
-
 
 
 def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
     """Build and validate a Scene from the parsed file format (a dict).
 
     A scene with no `contacts` whose particles carry a `shape` is shape-based: its contacts are derived from the
-    geometry (shapes.py); any other is contact-level (scene.py)."""
+    geometry (shapefile.py, model/shapes.py); any other is contact-level (schema.py)."""
     if is_shape_scene(data):
         return shape_scene_from_dict(data, source=source, tol=tol)
     return contact_scene_from_dict(data, source=source, tol=tol)

@@ -1,4 +1,4 @@
-"""The contact-level scene format (README: Scene format) as a schema: parsed TOML/JSON dicts and NPZ arrays →
+"""The contact-level scene format (docs/formats.md) as a schema: parsed TOML/JSON dicts and NPZ arrays →
 `Scene`, column by column (vectorised), with one-line errors naming the entry and field; and back."""
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ CONTACT_KEYS = {"p", "q", "point", "normal", "curvature_p", "curvature_q", "forc
 
 
 def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
-    """Build and validate a Scene from the parsed contact-level file format (a dict); files.py dispatches."""
+    """Build and validate a Scene from the parsed contact-level file format (a dict); scenes.py dispatches."""
     top, dim, title = read_header(data, source, TOP_KEYS)
     law = read_law(Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, _base_law(dim))
     if not isinstance(data.get("particles"), list) or not data["particles"]:
@@ -304,8 +304,14 @@ def read_particles(top: Reader, data: dict, allowed: set, read) -> list:
 
 
 def scene_to_dict(scene: Scene) -> dict:
-    """The scene in the file format (contact level); `scene_from_dict` reads it back to the same arrays.
-    Built column-wise from `scene_arrays` (numpy's tolist, then one zip per entry)."""
+    """The scene as the contact-level file format (docs/formats.md): a dict of plain lists and numbers.
+
+    ``dim``, ``title``, ``particles`` (N dicts: ``name``, ``x`` (d,), ``load`` (d,), ``moment`` (a number in 2D,
+    (3,) in 3D) and, where known, ``mass``, ``inertia``, ``fixed``) and ``contacts`` (M dicts: ``p``, ``q`` (names),
+    ``point``, ``normal``, ``force`` (d,), ``curvature_p``, ``curvature_q`` (a number in 2D, (3, 3) in 3D),
+    ``moment``, ``k``, ``alpha``, ``mu``, ``rolling_stiffness``, ``state``); d = dim. `scene_from_dict` reads it
+    back to the same arrays. Built column-wise from `scene_arrays`.
+    """
     cols = scene_arrays(scene)
     names = cols["particles/name"]
     cols["contacts/p"], cols["contacts/q"] = names[scene.p], names[scene.q]      # the text format names them

@@ -1,4 +1,4 @@
-"""The shape-based scene format (README: Scene format): particles as disks, ellipses, spheres or ellipsoids with
+"""The shape-based scene format (docs/formats.md): particles as disks, ellipses, spheres or ellipsoids with
 poses, read into `model.shapes.scene_from_shapes`, and written back."""
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Scene files as data: TOML, JSON (with a nesting limit and no duplicate keys) and NPZ (binary), read and written.
 
-Only the syntax lives here; scene.py checks the schema and the physics. Every failure raises `SceneError`
-with ONE line naming the file (and the line where the syntax says it).
+Only the syntax lives here; schema.py and shapefile.py check the schema, model/scene.py the physics. Every failure
+raises `SceneError` with ONE line naming the file (and the line where the syntax says it).
 
 JSON is parsed by the standard library's C parser after one vectorised pass over the bytes (numpy), which
 finds the nesting depth (rejected beyond MAX_DEPTH instead of recursing into a RecursionError) and counts the
@@ -23,7 +23,6 @@ from ..model.errors import DuplicateKeys, SceneError, one_line
 
 MAX_DEPTH = 10          # the schema nests at most 5 deep (scene → contacts → entry → 3x3 curvature rows)
 CHUNK = 1 << 23         # bytes per step of the structural scan (memory: a few times this, not the file)
-PROGRESS_BYTES = 1 << 25   # files larger than this show progress when asked
 
 
 # ------------------------------------------------------------------------------------------------- reading
@@ -144,7 +143,7 @@ def structure(raw: bytes) -> tuple[int, int, int]:
 def count_keys(data) -> int:
     """Keys of the objects where the schema has objects: the top level, `defaults`, every particle (and its
     `shape`) and every contact. Any other object makes the count differ from the text's, which only costs the
-    second parse (scene.py then rejects it by type)."""
+    second parse (schema.py then rejects it by type)."""
     if not isinstance(data, dict):
         return -1
     n = len(data)

@@ -1,7 +1,9 @@
-"""The validation report of an import as readable lines (the dict itself is JSON-able)."""
+"""The validation report of an import (build.py writes the dict, which is JSON-able): its warnings, and the whole
+report as readable lines."""
 from __future__ import annotations
 
 NAMES_SHOWN = 8
+LAW_DEFAULT = "built-in default (not in the file)"    # the source of a law parameter neither file nor user gave
 
 
 def _names(names: list) -> str:
@@ -17,8 +19,54 @@ def _stats(s: dict, fmt: str = ".3g") -> str:
     return f"median {s['median']:{fmt}}, p95 {s['p95']:{fmt}}, max {s['max']:{fmt}}"
 
 
+def import_warnings(report: dict) -> list[str]:
+    """What the import changed in the file's data or assumed beyond it, one line each: forces moved onto the
+    friction cone, tension kept elastic, rattlers dropped, contacts cut around a periodic cell, gaps under the
+    centres rule, a law the file does not give, listings that disagree, pairs and columns left out."""
+    r, out = report, []
+    cone, co, pa, fo = r["cone"], r["contacts"], r["particles"], r["forces"]["fn_nonpositive"]
+    outside, ratio = cone["outside"], cone["largest_ratio_ft_over_mu_fn"]
+    if outside["count"]:
+        out.append(f"{outside['count']} contact(s) outside the friction cone ({100 * outside['fraction']:.1f} %"
+                   + ("" if ratio is None else f", |f_t|/(μ f_n) up to {ratio:.4g}") + f"): {outside['action']}; "
+                   f"forces changed by up to {cone['largest_change_over_force']:.3g} of their size"
+                   f"{_names(outside['names'])}")
+    if cone["at_yield_by_file_flag"]:
+        out.append(f"{cone['at_yield_by_file_flag']} contact(s) inside the cone flagged fully mobilised by the file: "
+                   "projected onto the cone, marked sliding")
+    if fo["with_force"]:
+        out.append(f"{fo['with_force']} contact(s) with f_n <= 0 carrying a force (tension): treated as elastic"
+                   f"{_names(fo['names'])}")
+    if pa["without_contacts_dropped"]:
+        out.append(f"{pa['without_contacts_dropped']} particle(s) without contacts (rattlers) dropped"
+                   f"{_names(pa['dropped'])}")
+    if co["cut_around_periodic_cell"]:
+        out.append(f"{co['cut_around_periodic_cell']} contact(s) closing a loop around the periodic cell cut: their "
+                   f"forces act as loads on both particles{_names(r['periodic']['cut_names'])}")
+    if r["geometry"]["rule"] == "centres" and r["geometry"]["gaps"]:
+        out.append(f"{r['geometry']['gaps']} contact(s) with a gap (centre distance > R_p + R_q): the centres rule "
+                   "puts their contact point in the gap (data whose radii do not match: --geometry touching)")
+    defaults = [f"{k} = {v['value']:g}" for k, v in r["law"].items() if v["source"] == LAW_DEFAULT]
+    if defaults:
+        out.append(f"law: {', '.join(defaults)}: not in the file, built-in default (give --k, --alpha, --mu)")
+    if isinstance(r["duplicates"], dict) and r["duplicates"].get("disagreeing_listings"):
+        out.append(f"{r['duplicates']['disagreeing_listings']} pair(s) listed twice with different forces: kept "
+                   f"{r['duplicates']['kept']}")
+    apart = r.get("non_touching_pairs", {})
+    if apart.get("with_force"):
+        out.append(f"{apart['with_force']} pair(s) with a force but no overlap dropped ({apart['rule']})")
+    left = r.get("left_out")
+    if left and left["largest_over_force"]:
+        out.append(f"left out: column {left['column']}, up to {left['largest_over_force']:.3g} of a contact force "
+                   f"({left['why']})")
+    return out
+
+
 def format_report(report: dict) -> str:
+    """The report as lines: a scene file's one line, a snapshot's every section, then its warnings."""
     r = report
+    if r["read_as"] == "scene file":
+        return f"{r['source']} ({r['format']}): read as a scene file, as written"
     frame = "" if r["frame"] is None else f", frame {r['frame']}"
     frames = "" if r["frames_available"] is None else f"; {r['frames_available']} frame(s) in the input"
     pa, co, cone, fo = r["particles"], r["contacts"], r["cone"], r["forces"]
@@ -54,4 +102,5 @@ def format_report(report: dict) -> str:
     for key in ("left_out",):
         if key in r:
             lines.append(f"left out: {r[key]}")
+    lines += [f"warning: {w}" for w in r["warnings"]]
     return "\n".join(lines)

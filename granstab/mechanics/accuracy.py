@@ -29,12 +29,14 @@ def gamma(m: int) -> float:
     return m * EPS / (1.0 - m * EPS)
 
 
-def abs_norm_inf(A) -> float:
-    """‖|A|‖∞: the largest absolute row sum of a dense (..., n, n) array or a sparse matrix (bounds ‖A‖₂ for
-    symmetric A)."""
+def abs_norm_inf(A, xp=np):
+    """‖|A|‖∞, the largest absolute row sum (bounds ‖A‖₂ for symmetric A): per matrix of a stack (..., n, n) → (...),
+    a number for one matrix (dense or sparse); xp: numpy or CuPy."""
     if sp.issparse(A):
         return float(abs(A).sum(axis=1).max()) if A.nnz else 0.0
-    return float(np.abs(A).sum(axis=-1).max()) if A.size else 0.0
+    if A.shape[-1] == 0 or A.shape[-2] == 0:
+        return xp.zeros(A.shape[:-2])[()]
+    return xp.abs(A).sum(axis=-1).max(axis=-1)
 
 
 def part_scales(mechanical, geometric, A: np.ndarray, S: np.ndarray) -> dict:
@@ -54,7 +56,7 @@ def eigen_bounds(Hsym: np.ndarray, lam: np.ndarray, V: np.ndarray, formation: fl
     """Per-eigenvalue bounds δ (L, n) and residual norms ‖r_j‖ (L, n) of stacked eigh results (module docstring)."""
     n = lam.shape[-1]
     res = np.linalg.norm(Hsym @ V - V * lam[..., None, :], axis=-2)
-    scale = np.abs(Hsym).sum(axis=-1).max(axis=-1) if n else np.zeros(lam.shape[:-1])
+    scale = abs_norm_inf(Hsym)
     return np.sqrt(2.0) * res + gamma(n + 2) * (scale[..., None] + np.abs(lam)) + formation, res
 
 

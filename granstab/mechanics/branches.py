@@ -1,11 +1,11 @@
 """Loading branches of the sliding contacts and their consistent eigenmodes (Sec. 3, Appendix D).
 
 With Ms potentially sliding contacts there are 2^Ms branches; a mask has +1 (loading, sliding), -1 (unloading,
-elastic) for each of them and 0 for contacts not at yield. Branch i has H^i = H_el + Σ_{mask=+1} a ⊗ s (rank-one
-sliding terms, eq:ContactF), ℍ^i = H^i P^nrr and 𝓗^i = Pᵀ H^i P (eq:newstiffnesses). All branches are handled
-as one stacked array (in chunks), in the scaled dofs of rigid.py; from lowrank.MIN_BRANCHES branches on (or on a
-GPU) analyze() uses lowrank.py, which solves them as low-rank updates of the elastic problem and hands only the
-branches that need the per-branch code below (repeated eigenvalues, non-rigid zeros, Type-2) to solve.dense.solve_branches.
+elastic) for each of them and 0 for contacts not at yield (`sign_patterns`: the branches of one cluster or of a
+stack of clusters). Branch i has H^i = H_el + Σ_{mask=+1} a ⊗ s (rank-one sliding terms, eq:ContactF),
+ℍ^i = H^i P^nrr and 𝓗^i = Pᵀ H^i P (eq:newstiffnesses), in the scaled dofs of rigid.py. The eigen solvers are in
+solve/ (dense.py, lowrank.py, sparse.py) and the scan's batch (scan/batch.py); what decides consistency is here,
+written once for all of them.
 
 Consistency (Appendix D): the test vector of a motion v is sign(S) per potentially sliding contact with
 S = g·δu_def (eq:flow) and |S| <= s_tol counted as 0; v is consistent if mask·test is all >= 0, -v if all <= 0,
@@ -42,15 +42,21 @@ class Problem:
 
     @property
     def s_tol(self) -> float:
-        """|S| <= s_tol counts as zero: s_rtol times the largest |s_c|, the scale of S for a unit motion."""
-        scale = np.linalg.norm(self.S, axis=0).max() if self.S.size else 0.0
-        return self.tol.s_rtol * scale
+        """|S| <= s_tol counts as zero (`s_limits`)."""
+        return s_limits(self.S, self.tol)[0]
 
     @property
     def s_floor(self) -> float:
-        """Round-off level of S: below it an S is a structural zero, above it (and <= s_tol) a verdict 'hinges'."""
-        scale = np.linalg.norm(self.S, axis=0).max() if self.S.size else 0.0
-        return 1e3 * EPS * scale
+        """Round-off level of S (`s_limits`)."""
+        return s_limits(self.S, self.tol)[1]
+
+
+def s_limits(S: np.ndarray, tol):
+    """(s_tol, s_floor) of the sliding factors S (..., n, Ms), per matrix of a stack: |S| <= s_tol counts as zero,
+    s_rtol times the largest ‖s_c‖ (the scale of S for a unit motion); below s_floor (1e3 ε of that scale) an S is a
+    structural zero, above it (and <= s_tol) a verdict 'hinges'."""
+    scale = np.linalg.norm(S, axis=-2).max(axis=-1, initial=0.0)
+    return tol.s_rtol * scale, 1e3 * EPS * scale
 
 
 @dataclass(eq=False)
@@ -92,12 +98,27 @@ class Branch:
         return out
 
 
+def sign_patterns(n_sliding: np.ndarray, width: int):
+    """The branches of a stack of clusters, cluster c with n_sliding[c] = Ms_c potentially sliding contacts: the
+    owner (B,) and the signs (B, width) of all 2^Ms_c branches of every cluster, ±1 on its first Ms_c columns and 0
+    after them; per cluster branch 0 is all loading (+1) and bit j of the branch number unloads column Ms_c - 1 - j."""
+    n_sliding = np.asarray(n_sliding)
+    owner = np.repeat(np.arange(len(n_sliding)), 2 ** n_sliding)
+    signs = np.zeros((len(owner), width), dtype=np.int8)
+    first = np.r_[0, np.cumsum(2 ** n_sliding)[:-1]]
+    for k in np.unique(n_sliding):
+        rows = (first[n_sliding == k][:, None] + np.arange(2 ** k)).ravel()
+        bits = (np.arange(2 ** k)[:, None] >> np.arange(k)[::-1]) & 1
+        signs[rows, :k] = np.tile(1 - 2 * bits, (int(np.sum(n_sliding == k)), 1))
+    return owner, signs
+
+
 def enumerate_masks(sliding: np.ndarray, n_contacts: int) -> np.ndarray:
-    """All 2^Ms masks (L, M): ±1 on the potentially sliding contacts (branch 0 all +1), 0 elsewhere."""
-    Ms = len(sliding)
-    bits = (np.arange(2 ** Ms)[:, None] >> np.arange(Ms)[::-1]) & 1
-    masks = np.zeros((2 ** Ms, n_contacts), dtype=np.int8)
-    masks[:, sliding] = 1 - 2 * bits
+    """All 2^Ms masks (L, M) of one scene: ±1 on the potentially sliding contacts (`sign_patterns`: branch 0 all
+    +1), 0 elsewhere."""
+    _, signs = sign_patterns([len(sliding)], len(sliding))
+    masks = np.zeros((len(signs), n_contacts), dtype=np.int8)
+    masks[:, sliding] = signs
     return masks
 
 
@@ -144,6 +165,14 @@ def consistency(m, Svals, s_tol, s_floor, xp=np):
     return codes.astype(np.int8), xp.any(band, axis=1)
 
 
+def needs_search(lam: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """Per branch (rows of sorted eigenvalues lam (..., n) with their bounds) whether Appendix D needs the
+    eigenspace search: a repeated eigenvalue (neighbours whose error intervals touch, `eigen_groups`) or a zero
+    within its bound; on the solved dofs of the rigid-free paths any zero is a non-rigid one."""
+    return (np.any(np.diff(lam, axis=-1) <= bounds[..., :-1] + bounds[..., 1:], axis=-1)
+            | np.any(np.abs(lam) <= bounds, axis=-1))
+
+
 def search_subspace(problem: Problem, mask: np.ndarray, W: np.ndarray):
     """A consistent unit vector in span(W) (n, k), or None: (vector, code, hinges).
 
@@ -167,6 +196,30 @@ def search_subspace(problem: Problem, mask: np.ndarray, W: np.ndarray):
     if res.status == 0 and -res.fun > problem.s_tol:
         return _finish(problem, mask, W @ res.x)
     return None
+
+
+def search_eigenspaces(problem: Problem, mask: np.ndarray, lam: np.ndarray, bounds: np.ndarray, V: np.ndarray,
+                       codes: np.ndarray, hinges: np.ndarray, null_slots=(), null_basis=None) -> None:
+    """Appendix D where eigenpairs cannot be tested one by one, in place on V (n, n_eig), codes and hinges: each run
+    of eigenvalues within each other's bounds (`eigen_groups`) without a zero is one eigenspace, searched for a
+    consistent vector (`search_subspace`: the run's first column gets it, the others are INCONSISTENT); then likewise
+    the non-rigid null space, whose orthonormal basis `null_basis` (n, k) is put in the columns `null_slots` (k,)."""
+    zero = np.abs(lam) <= bounds
+    for group in eigen_groups(lam, bounds):
+        if len(group) > 1 and not zero[group].any():
+            _take_consistent(problem, mask, V, codes, hinges, group, V[:, group])
+    if len(null_slots):
+        V[:, null_slots] = null_basis
+        _take_consistent(problem, mask, V, codes, hinges, null_slots, null_basis)
+
+
+def _take_consistent(problem, mask, V, codes, hinges, slots, W) -> None:
+    """The columns `slots` of V span(W): INCONSISTENT, unless `search_subspace` finds a consistent vector, which
+    then takes the first slot."""
+    codes[slots] = INCONSISTENT
+    found = search_subspace(problem, mask, W)
+    if found is not None:
+        V[:, slots[0]], codes[slots[0]], hinges[slots[0]] = found
 
 
 def _unit(v):

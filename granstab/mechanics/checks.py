@@ -2,7 +2,8 @@
 
 Σ_p db^p = 0 (force balance of the increments), Σ_p (x^p × db^p + dw^p + du^p × b^p) = 0 (moment balance,
 eq:equil1 differentiated), Hg1, Hg2 and Hm vanish on all rigid motions, H on translations. Each is reported
-relative to the Frobenius norm of H (moment balance also per unit length of the cluster).
+relative to the Frobenius norm of H (moment balance also per unit length of the cluster); so is the rigid leakage
+of ℍ = H P^nrr (eq:newstiffnesses), which is zero only up to the rounding of the projection.
 """
 from __future__ import annotations
 
@@ -40,6 +41,13 @@ def identity_errors(scene: Scene, parts: dict) -> dict:
                                      / norm),
         "rigid_leakage_H_translations": float(np.abs(np.asarray(H @ T)).max() / norm),
     }
+
+
+def modified_leakage(H, R: np.ndarray, projection) -> float:
+    """max |ℍ R| / ‖H‖_F for all rigid motions R (n, d + r): ℍ = H - (H C) C⁺ (eq:newstiffnesses) applied without
+    forming it, for a dense or sparse H and a rigid.Projection."""
+    HR = H @ R - (H @ projection.C) @ (projection.Cplus @ R)
+    return float(np.abs(HR).max(initial=0.0) / _norm(H))
 
 
 def equilibrium_residual(scene: Scene) -> float:

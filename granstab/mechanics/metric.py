@@ -21,7 +21,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..model.scene import Scene, SceneError
-from ..model.vec import rot_dim, rotate_matrix
+from ..model.vec import rot_dim
+from .rigid import dof_scale, rotation_columns, translation_columns
 from .rigid import rotation_length as default_length
 
 # the family evaluated by default: the name and the factor on the default L (None: the inertia metric)
@@ -95,24 +96,17 @@ class Metric:
 
     def rotations(self, scene: Scene) -> np.ndarray:
         """C̃ = D⁻¹ C (n, r): rigid rotations about `centre` (eq:dtrigid) in the metric's dofs."""
-        d, r, N = scene.dim, rot_dim(scene.dim), scene.n_particles
-        C = np.zeros((N, d + r, r))
-        C[:, :d, :] = rotate_matrix(scene.x - self.centre)
-        C[:, d:, :] = np.eye(r)
-        return self.scaled(C.reshape(N * (d + r), r))
+        return self.scaled(rotation_columns(scene.x, 1.0, self.centre))
 
     def translations(self, scene: Scene) -> np.ndarray:
         """T̃ = D⁻¹ T (n, d): rigid translations in the metric's dofs."""
-        d, r, N = scene.dim, rot_dim(scene.dim), scene.n_particles
-        T = np.zeros((N, d + r, d))
-        T[:, :d, :] = np.eye(d)
-        return self.scaled(T.reshape(N * (d + r), d))
+        return self.scaled(translation_columns(scene.n_particles, scene.dim))
 
 
 def length_metric(scene: Scene, length: float, name: str | None = None) -> Metric:
     """D = diag(1, 1/L) on every particle; rotations about the centroid."""
     d, r, N = scene.dim, rot_dim(scene.dim), scene.n_particles
-    per = np.diag(np.r_[np.ones(d), np.full(r, 1.0 / length)])
+    per = np.diag(dof_scale(1, d, length))
     centre = scene.x.mean(axis=0) if N else np.zeros(d)
     return Metric(name=name or f"L={length:.6g}", rotation_length=float(length),
                   blocks=np.broadcast_to(per, (N, d + r, d + r)).copy(), centre=centre)

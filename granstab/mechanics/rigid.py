@@ -22,29 +22,61 @@ from ..model.vec import rot_dim, rotate_matrix
 rotation_length = mean_contact_radius   # the default L of the scaled dofs [du, L dθ]
 
 
-def dof_scale(scene: Scene, length: float) -> np.ndarray:
-    """Diagonal of D = diag(1 for translations, 1/L for rotations): U = D Ũ. (n_dof,)"""
-    d, r = scene.dim, rot_dim(scene.dim)
-    per = np.concatenate([np.ones(d), np.full(r, 1.0 / length)])
-    return np.tile(per, scene.n_particles)
+def dof_scale(n: int, d: int, length) -> np.ndarray:
+    """Diagonal of D = diag(1 for translations, 1/L for rotations) of n particles in d dimensions, U = D Ũ:
+    (n_dof,) for one length, (..., n_dof) for a stack of them (...)."""
+    rotation = np.tile(np.r_[np.zeros(d), np.ones(rot_dim(d))].astype(bool), n)
+    return np.where(rotation, 1.0 / np.asarray(length, float)[..., None], 1.0)
+
+
+def translation_columns(n: int, d: int, lead: tuple = ()) -> np.ndarray:
+    """T (*lead, n_dof, d): rigid translations of n particles (the same in scaled and unscaled dofs)."""
+    r = rot_dim(d)
+    T = np.zeros((*lead, n, d + r, d))
+    T[..., :d, :] = np.eye(d)
+    return T.reshape(*lead, n * (d + r), d)
+
+
+def rotation_columns(x: np.ndarray, length=1.0, centre=None) -> np.ndarray:
+    """C̃ (..., n_dof, r): rigid rotations of the particles at x (..., n, d) about `centre` (..., d) (default their
+    centroid; eq:dtrigid), dθ̄ × x^p and dθ̄, in scaled dofs [du, L dθ] with L = `length` (...) (1: physical dofs)."""
+    *lead, n, d = x.shape
+    r = rot_dim(d)
+    centre = x.mean(axis=-2, keepdims=True) if centre is None else np.asarray(centre)[..., None, :]
+    C = np.zeros((*lead, n, d + r, r))
+    C[..., :d, :] = rotate_matrix((x - centre).reshape(-1, d)).reshape(*lead, n, d, r)
+    C[..., d:, :] = np.asarray(length, float)[..., None, None, None] * np.eye(r)
+    return C.reshape(*lead, n * (d + r), r)
 
 
 def rotations(scene: Scene, length: float = 1.0) -> np.ndarray:
-    """C̃ (n_dof, r): rigid rotations about the centroid (eq:dtrigid) in scaled dofs [du, L dθ]."""
-    d, r, N = scene.dim, rot_dim(scene.dim), scene.n_particles
-    xc = scene.x - scene.x.mean(axis=0)
-    C = np.zeros((N, d + r, r))
-    C[:, :d, :] = rotate_matrix(xc)                                  # dθ̄ × x^p
-    C[:, d:, :] = length * np.eye(r)
-    return C.reshape(N * (d + r), r)
+    """C̃ (n_dof, r) of a scene: rigid rotations about the centroid (eq:dtrigid) in scaled dofs [du, L dθ]."""
+    return rotation_columns(scene.x, length)
 
 
 def translations(scene: Scene) -> np.ndarray:
-    """T (n_dof, d): rigid translations (the same in scaled and unscaled dofs)."""
-    d, r, N = scene.dim, rot_dim(scene.dim), scene.n_particles
-    T = np.zeros((N, d + r, d))
-    T[:, :d, :] = np.eye(d)
-    return T.reshape(N * (d + r), d)
+    """T (n_dof, d) of a scene: rigid translations."""
+    return translation_columns(scene.n_particles, scene.dim)
+
+
+def rigid_basis(motions: np.ndarray, complement: bool = False):
+    """(R, N): an orthonormal basis R (..., n, m) of the rigid motions (..., n, m), [T, C] with the translations
+    first, from one Householder QR (R[..., :d] spans T, R[..., d:] the rotations C, which every metric of metric.py
+    makes orthogonal to T: rotations about the centroid, or the centre of mass in the inertia metric); with
+    complement=True N (..., n, n - m), an orthonormal basis of their complement (complete QR), else N is empty.
+    A stack of clusters gives the bits of each cluster alone."""
+    Q, _ = np.linalg.qr(motions, mode="complete" if complement else "reduced")
+    m = motions.shape[-1]
+    return Q[..., :m], Q[..., m:]
+
+
+def on_complement(N: np.ndarray, H: np.ndarray, *factors: np.ndarray) -> tuple:
+    """sym(Nᵀ H N) and Nᵀ F of each factor F (sliding factors A, S): a problem on the orthonormal basis N (..., n, k)
+    of the complement of the rigid motions, where every branch's sym(Nᵀ 𝓗^i N) = sym(Nᵀ H^i N) (Nᵀ P = Nᵀ for
+    P = I - C C̃⁺ and N ⟂ C, eq:Moore1, eq:newstiffnesses): the d + r rigid zeros taken out exactly."""
+    Nt = np.swapaxes(N, -1, -2)
+    HN = Nt @ (H @ N)
+    return (0.5 * (HN + np.swapaxes(HN, -1, -2)), *(Nt @ F for F in factors))
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,12 +87,14 @@ class Projection:
     Cplus: np.ndarray
 
     @classmethod
-    def from_rotations(cls, C: np.ndarray) -> "Projection":
-        """P^nrr of the rotations C (n, r); r = 0 (a cluster held by fixed particles): the identity."""
-        return cls(C=C, Cplus=np.linalg.solve(C.T @ C, C.T) if C.shape[1] else C.T.copy())
+    def from_rotations(cls, C: np.ndarray) -> Projection:
+        """P^nrr of the rotations C (..., n, r) (a stack of clusters too); r = 0 (a cluster held by fixed particles):
+        the identity."""
+        Ct = np.swapaxes(C, -1, -2)
+        return cls(C=C, Cplus=np.linalg.solve(Ct @ C, Ct) if C.shape[-1] else Ct.copy())
 
     def apply(self, v: np.ndarray) -> np.ndarray:
-        """P^nrr v for v (n,) or (n, k)."""
+        """P^nrr v for v (..., n) or (..., n, k)."""
         return v - self.C @ (self.Cplus @ v)
 
     def right(self, H) -> np.ndarray:
@@ -69,7 +103,7 @@ class Projection:
 
     def both(self, HP: np.ndarray) -> np.ndarray:
         """𝓗 = P^nrrᵀ ℍ = ℍ - C⁺ᵀ (Cᵀ ℍ) from ℍ; P is symmetric, so P^T = P (eq:newstiffnesses)."""
-        return HP - self.Cplus.T @ (self.C.T @ HP)
+        return HP - np.swapaxes(self.Cplus, -1, -2) @ (np.swapaxes(self.C, -1, -2) @ HP)
 
     def errors(self, rng: np.random.Generator | None = None) -> dict:
         """Idempotence ‖C⁺C - I‖ and symmetry |uᵀPv - vᵀPu| / (|u||v|) on random probes."""

@@ -1,4 +1,5 @@
-"""Incremental stiffness H = Hg1 + Hg2 + Hg3 + Hm (eq:final1), per contact and assembled.
+"""Incremental stiffness H = Hg1 + Hg2 + Hg3 + Hm (eq:final1): the contact blocks, and H of a branch assembled
+(assembly.py).
 
 Each contact contributes a block over its local dofs U = [du^p, dθ^p, du^q, dθ^q] (n = 2(d + r): 6 in 2D,
 12 in 3D) with rows [db^p, dw^p, db^q, dw^q] (eq:piece). The blocks of all M contacts are built at once as
@@ -23,7 +24,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..model.law import elastic_stiffness, sliding_direction, yield_normal
 from ..model.scene import Scene
@@ -35,9 +35,8 @@ from ..model.vec import (
     spin_matrix,
     tangent_basis,
 )
+from .assembly import assemble, dof_index
 from .checks import identity_errors
-
-PARTS = ("Hg1", "Hg2", "Hg3", "Hm")
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,10 +57,37 @@ class ContactBlocks:
     rolling_undetermined: np.ndarray
 
 
+def geometric(parts: dict):
+    """Hg = Hg1 + Hg2 + Hg3 (eq:final1) of a dict of parts: per-contact blocks or assembled matrices."""
+    return parts["Hg1"] + parts["Hg2"] + parts["Hg3"]
+
+
+def assemble_parts(scene: Scene, blocks: ContactBlocks, hm: np.ndarray | None = None) -> dict:
+    """Hg1, Hg2, Hg3, Hm and H = their sum (eq:final1) as CSR over the scene's dofs (assembly.assemble); `hm`: the
+    Hm blocks of a branch (default the elastic ones)."""
+    per = scene.dof_per_particle
+    parts = {name: assemble(hm if name == "Hm" and hm is not None else b, scene.p, scene.q, per, blocks.n_dof)
+             for name, b in blocks.blocks.items()}
+    parts["H"] = (geometric(parts) + parts["Hm"]).tocsr()
+    return parts
+
+
 @dataclass(frozen=True, eq=False)
 class Stiffness:
-    """H and its parts (dense arrays, or CSR matrices with sparse=True) with dof labels (eq:final1),
-    the residuals of H's exact identities (checks.py) and the wall time in seconds."""
+    """H = Hg1 + Hg2 + Hg3 + Hm (eq:final1) of one branch, with dof labels, error estimates and wall time.
+
+    Attributes
+    ----------
+    H, Hm, Hg1, Hg2, Hg3 : ndarray or scipy.sparse.csr_matrix, (n_dof, n_dof)
+        The stiffness (not symmetric in general) and its mechanical (eq:Hm) and geometric (eq:Hg1,
+        eq:equilibrium4, eq:Hg3) parts; rows and columns in `dofs` order.
+    dofs : list of str, (n_dof,)
+        Particle by particle, translations then rotations: "p.u1", "p.u2", "p.th3" (2D); "p.u1" … "p.th3" (3D).
+    errors : dict
+        Relative residuals of H's exact identities (granstab.mechanics.checks).
+    seconds : float
+        Wall time.
+    """
 
     H: object
     Hm: object
@@ -88,25 +114,66 @@ def kinematics(scene: Scene):
     return Bu, Bt
 
 
+def tangent_plane(scene: Scene):
+    """The contacts' tangent bases T (M, d, d-1), the curvatures K^p, K^q projected on the tangent plane and
+    symmetrised (M, d-1, d-1), and their scale max(|K^p|, |K^q|) (M,), the largest |eigenvalue| of either."""
+    T = tangent_basis(scene.normal)
+    Tt = np.swapaxes(T, 1, 2)
+    kp = Tt @ scene.curvature_p @ T
+    kq = Tt @ scene.curvature_q @ T
+    kp = 0.5 * (kp + np.swapaxes(kp, 1, 2))
+    kq = 0.5 * (kq + np.swapaxes(kq, 1, 2))
+    scale = np.maximum(np.abs(np.linalg.eigvalsh(kp)).max(axis=1), np.abs(np.linalg.eigvalsh(kq)).max(axis=1))
+    return T, kp, kq, scale
+
+
 def tangent_curvatures(scene: Scene):
     """Tangent-plane curvatures K^p, K^q (M, d, d) and the pseudo-inverse G = (K^p+K^q)^+ on the tangent plane.
 
     The cut-off is scale-aware: eigenvalues of K^p+K^q below pinv_rtol·max(|K^p|, |K^q|) are dropped (Table 1,
     erratum 4, docs/errata.md). Returns (Kp, Kq, G, cut) with cut (M,) True where an eigenvalue was dropped.
     """
-    T = tangent_basis(scene.normal)                                   # (M, d, d-1)
+    T, kp, kq, scale = tangent_plane(scene)
     Tt = np.swapaxes(T, 1, 2)
-    kp = Tt @ scene.curvature_p @ T
-    kq = Tt @ scene.curvature_q @ T
-    kp = 0.5 * (kp + np.swapaxes(kp, 1, 2))
-    kq = 0.5 * (kq + np.swapaxes(kq, 1, 2))
     lam, V = np.linalg.eigh(kp + kq)                                  # (M, d-1)
-    scale = np.maximum(np.abs(np.linalg.eigvalsh(kp)).max(axis=1), np.abs(np.linalg.eigvalsh(kq)).max(axis=1))
     keep = np.abs(lam) > scene.tol.pinv_rtol * scale[:, None]
     inv = np.divide(1.0, lam, out=np.zeros_like(lam), where=keep)
     TV = T @ V
     G = (TV * inv[:, None, :]) @ np.swapaxes(TV, 1, 2)
     return T @ kp @ Tt, T @ kq @ Tt, G, ~keep.all(axis=1)
+
+
+def conforming_ratio(scene: Scene) -> np.ndarray:
+    """Per contact: smallest |eigenvalue| of K^p + K^q on the tangent plane over max(|K^p|, |K^q|) (0 when both are
+    zero: flat-on-flat)."""
+    _, kp, kq, scale = tangent_plane(scene)
+    lam = np.abs(np.linalg.eigvalsh(kp + kq)).min(axis=1)
+    return np.divide(lam, scale, out=np.zeros_like(lam), where=scale > 0)
+
+
+CONFORMING_RATIO = 1e-6   # |K^p + K^q| below this times max(|K^p|, |K^q|): a nearly conforming contact (warned)
+
+
+def curvature_warnings(scene: Scene, blocks: ContactBlocks) -> list[str]:
+    """Warnings for contacts where the pseudo-inverse (K^p + K^q)^+ of eq:rolling decides the answer: exactly
+    singular (flat-on-flat, exact hand-in-glove; the cut-off drops the rolling) or nearly so (the rolling term
+    grows like 1/ratio and the answer is as sensitive to the curvature data)."""
+    out = []
+    bad = np.flatnonzero(blocks.rolling_undetermined)
+    if bad.size:
+        out.append(f"{bad.size} contact(s) (first: contacts[{bad[0]}]) have K^p + K^q singular on the "
+                   "tangent plane (flat-on-flat or exact hand-in-glove): rolling is undetermined there "
+                   "and the pseudo-inverse drops it; the identities below measure the consequence")
+    ratio = conforming_ratio(scene)
+    near = np.flatnonzero((ratio <= CONFORMING_RATIO) & ~blocks.rolling_undetermined
+                          & (np.linalg.norm(scene.force, axis=1) > 0))
+    if near.size:
+        c = near[np.argmin(ratio[near])]
+        out.append(f"{near.size} nearly conforming contact(s) (smallest |K^p + K^q| / max(|K^p|, |K^q|) = "
+                   f"{ratio[c]:.1e} at contacts[{c}], cut-off pinv_rtol = {scene.tol.pinv_rtol:.0e}): the rolling "
+                   "term scales like the inverse of that ratio, so the result is only as accurate as the "
+                   "curvature data relative to it")
+    return out
 
 
 def _statics(r_side: np.ndarray, df: np.ndarray, dm) -> np.ndarray:
@@ -182,36 +249,10 @@ def contact_blocks(scene: Scene) -> ContactBlocks:
     Xh_q = np.einsum("mrd,md->mr", cross_matrix(scene.r_qp), h)
     a = np.concatenate([h, Xh_p, -h, -Xh_q], axis=1)
 
-    per = d + r
-    local = np.arange(per)
-    index = np.concatenate([scene.p[:, None] * per + local, scene.q[:, None] * per + local], axis=1)
+    index = dof_index(scene.p, scene.q, d + r)
     undetermined = cut & (np.linalg.norm(f, axis=1) > 0)
     return ContactBlocks(blocks={"Hg1": Hg1, "Hg2": Hg2, "Hg3": Hg3, "Hm": Hm}, slide_left=a, slide_right=s,
                          index=index, n_dof=scene.n_dof, rolling_undetermined=undetermined)
-
-
-def assemble(blocks: np.ndarray, p: np.ndarray, q: np.ndarray, per: int, n_dof: int) -> sp.csr_matrix:
-    """Scatter per-contact (M, 2·per, 2·per) blocks over [particle p, particle q] into CSR, summing duplicates.
-
-    One routine for every part, dense or sparse output (scikit-fem style), built at the level of per×per particle
-    blocks (4M of them instead of (2 per)² M scalars): one sort of the block keys, one segmented sum, BSR → CSR. (A counting-sort variant that
-    sums only the diagonal blocks was tried: faster below 10⁴ contacts, slower above, so this one is kept.)
-    """
-    M = len(p)
-    N = n_dof // per
-    if M == 0:
-        return sp.csr_matrix((n_dof, n_dof))
-    b = blocks.reshape(M, 2, per, 2, per).transpose(0, 1, 3, 2, 4).reshape(4 * M, per, per)
-    rows = np.stack([p, p, q, q], axis=1).reshape(-1).astype(np.int64)
-    cols = np.stack([p, q, p, q], axis=1).reshape(-1).astype(np.int64)
-    key = rows * N + cols
-    order = np.argsort(key, kind="stable")
-    key = key[order]
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    data = np.add.reduceat(b[order], starts, axis=0)
-    brow, bcol = np.divmod(key[starts], N)
-    indptr = np.r_[0, np.cumsum(np.bincount(brow, minlength=N))]
-    return sp.bsr_matrix((data, bcol, indptr), shape=(n_dof, n_dof)).tocsr()
 
 
 class MaskError(ValueError):
@@ -231,9 +272,29 @@ def sliding_mask(scene: Scene, mask) -> np.ndarray:
 
 
 def stiffness(scene: Scene, mask=None, sparse: bool = False, blocks: ContactBlocks | None = None) -> Stiffness:
-    """H = Hg1 + Hg2 + Hg3 + Hm (eq:final1) for the branch `mask` (+1 = sliding; default all elastic).
+    """H = Hg1 + Hg2 + Hg3 + Hm (eq:final1) of `scene` on one loading branch.
 
-    Dense numpy arrays by default, scipy.sparse CSR with sparse=True; both come from the same assembly.
+    Parameters
+    ----------
+    scene : Scene
+        N particles, M contacts; n_dof = N·(d + r) (d = dim; r = 1 rotation in 2D, 3 in 3D).
+    mask : array_like of int, (M,), optional
+        +1 where the contact slides (only contacts at yield, eq:yield), -1 or 0 where it sticks (eq:ContactF);
+        default: every contact elastic.
+    sparse : bool
+        CSR matrices instead of dense arrays; both come from the same assembly (assembly.py).
+    blocks : ContactBlocks, optional
+        The scene's contact blocks, if already computed (`contact_blocks`).
+
+    Returns
+    -------
+    Stiffness
+        ``H``, ``Hm``, ``Hg1``, ``Hg2``, ``Hg3`` (n_dof, n_dof), ``dofs``, ``errors``, ``seconds``.
+
+    Raises
+    ------
+    MaskError
+        A mask of the wrong length, or +1 on a contact that is not at yield.
     """
     start = time.perf_counter()
     sliding = sliding_mask(scene, mask)
@@ -241,10 +302,7 @@ def stiffness(scene: Scene, mask=None, sparse: bool = False, blocks: ContactBloc
     hm_blocks = cb.blocks["Hm"]
     if np.any(sliding):
         hm_blocks = hm_blocks + sliding[:, None, None] * (cb.slide_left[:, :, None] * cb.slide_right[:, None, :])
-    per = scene.dof_per_particle
-    parts = {name: assemble(cb.blocks[name] if name != "Hm" else hm_blocks, scene.p, scene.q, per, cb.n_dof)
-             for name in PARTS}
-    parts["H"] = (parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]).tocsr()
+    parts = assemble_parts(scene, cb, hm_blocks)
     errors = identity_errors(scene, parts)
     if not sparse:
         parts = {name: m.toarray() for name, m in parts.items()}

@@ -8,6 +8,8 @@ the summary then says that stability is not proven instead of claiming it.
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, replace
+
 import numpy as np
 
 from .accuracy import resolved_sign
@@ -15,9 +17,75 @@ from .branches import BOTH, MINUS, PLUS, RIGID, branch_matrices, test_codes
 from .stiffness import stiffness
 
 CONSISTENT = (PLUS, MINUS, BOTH)
+COUNTS = ("consistent_positive", "consistent_negative", "consistent_zero")
+TOTALS, LOWER = "totals", "lower bounds"
 
 
-def summarize(branches, notes: dict | None = None) -> dict:
+@dataclass(frozen=True)
+class MetricVerdict:
+    """One metric's line of a family verdict (issue 11): `Verdict.metrics`."""
+
+    metric: str
+    rotation_length: float | None
+    verdict: str
+    sufficient: bool
+    consistent_positive: int
+    consistent_negative: int
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The verdict of one cluster (eq:stab, eq:neutral, eq:instab) with its reason and whether it is a proof.
+
+    `sufficient` is True exactly when `insufficient_because` is empty. `counts_are` says per count of COUNTS whether
+    it is a total or a lower bound; `suggest_k` is set where the sparse path's spectrum is partial. `metrics` and
+    `metric_robust` are the metric family's (empty and None for one metric). `to_dict()` is the `summary` object of
+    `granstab analyze --json`. A frozen record: the steps that refine it (`finalize`, `mark_partial`,
+    `flag_undetermined`) return new ones."""
+
+    verdict: str
+    reason: str
+    insufficient_because: tuple[str, ...]
+    consistent_positive: int
+    consistent_negative: int
+    consistent_zero: int
+    counts_are: tuple[tuple[str, str], ...]
+    type2_nonuniqueness: bool
+    hinges_on_tolerance: bool
+    n_branches: int
+    zero_margin: float | None
+    suggest_k: int | None = None
+    metrics: tuple[MetricVerdict, ...] = ()
+    metric_robust: bool | None = None
+    branches: str = "all"
+    branches_kept: int | None = None
+
+    @property
+    def sufficient(self) -> bool:
+        return not self.insufficient_because
+
+    def weaker(self, because: tuple[str, ...] = (), reason: str = "", **changes) -> Verdict:
+        """This verdict with more reasons why it is not a proof and `reason` appended to its reason."""
+        return replace(self, insufficient_because=self.insufficient_because + tuple(because),
+                       reason=self.reason + reason, **changes)
+
+    def to_dict(self) -> dict:
+        """The JSON summary (`granstab analyze --json`): lists for tuples, `suggest_k` only where it is set."""
+        out = {"verdict": self.verdict, "sufficient": self.sufficient,
+               "insufficient_because": list(self.insufficient_because), "reason": self.reason,
+               **{key: getattr(self, key) for key in COUNTS}, "counts_are": dict(self.counts_are),
+               "type2_nonuniqueness": self.type2_nonuniqueness, "hinges_on_tolerance": self.hinges_on_tolerance,
+               "n_branches": self.n_branches, "zero_margin": self.zero_margin}
+        if self.suggest_k is not None:
+            out["suggest_k"] = self.suggest_k
+        return {**out, "metrics": [e.to_dict() for e in self.metrics], "metric_robust": self.metric_robust,
+                "branches": self.branches, "branches_kept": self.branches_kept}
+
+
+def summarize(branches, notes: dict | None = None) -> Verdict:
     """Counts of consistent eigenvalues over all branches and the verdict with its reason (`tally`, `verdict_of`).
 
     `notes` from the backend: complete = False when negative eigenvalues may lie beyond the computed ones (sparse
@@ -80,9 +148,9 @@ def tally(lam, acc, codes, hinges, owner, n_groups: int) -> dict:
             "non_finite": any_(~(np.isfinite(lam) & np.isfinite(acc))), "margin": margin}
 
 
-def verdict_of(counts: dict, notes: dict | None, n_branches: int, type2: bool = False) -> dict:
-    """The summary of one cluster from its `tally` counts: verdict (eq:stab, eq:neutral, eq:instab), reason,
-    whether it is a proof (`sufficient`, `insufficient_because`) and the counts."""
+def verdict_of(counts: dict, notes: dict | None, n_branches: int, type2: bool = False) -> Verdict:
+    """The verdict of one cluster from its `tally` counts: verdict (eq:stab, eq:neutral, eq:instab), reason,
+    whether it is a proof (`insufficient_because`) and the counts."""
     notes = notes or {"complete": True}
     neg, zero, proven_zero = int(counts["neg"]), int(counts["zero"]), int(counts["proven_zero"])
     because = []
@@ -117,25 +185,13 @@ def verdict_of(counts: dict, notes: dict | None, n_branches: int, type2: bool = 
     if counts["non_finite"]:
         because.append("non_finite")
     margin = float(counts["margin"])
-    out = {
-        "verdict": verdict,
-        "sufficient": not because,
-        "insufficient_because": because,
-        "reason": reason,
-        "consistent_positive": int(counts["pos"]),
-        "consistent_negative": neg,
-        "consistent_zero": zero,
-        "counts_are": {"consistent_positive": "totals" if notes.get("full", complete) else "lower bounds",
-                       "consistent_negative": "totals" if complete else "lower bounds",
-                       "consistent_zero": "totals" if complete else "lower bounds"},
-        "type2_nonuniqueness": bool(type2),
-        "hinges_on_tolerance": bool(counts["hinge"]),
-        "n_branches": n_branches,
-        "zero_margin": None if not np.isfinite(margin) else margin,
-    }
-    if not complete:
-        out["suggest_k"] = notes.get("suggest_k")
-    return out
+    totals = (notes.get("full", complete), complete, complete)
+    return Verdict(verdict=verdict, reason=reason, insufficient_because=tuple(because),
+                   consistent_positive=int(counts["pos"]), consistent_negative=neg, consistent_zero=zero,
+                   counts_are=tuple((key, TOTALS if total else LOWER) for key, total in zip(COUNTS, totals)),
+                   type2_nonuniqueness=bool(type2), hinges_on_tolerance=bool(counts["hinge"]),
+                   n_branches=n_branches, zero_margin=None if not np.isfinite(margin) else margin,
+                   suggest_k=None if complete else notes.get("suggest_k"))
 
 
 # the tally counts a row's verdict, reason and proof flags depend on (verdict_of, finalize), besides n_branches,
@@ -154,11 +210,12 @@ def verdict_columns(counts: dict, n_branches: np.ndarray, errors_finite: np.ndar
     fields = ("verdict", "sufficient", "insufficient_because", "reason")
     table = {field: [] for field in fields}
     for row in distinct:
-        sm = verdict_of({**dict(zip(KEYED, row)), "pos": 0, "hinge": False, "margin": np.inf}, None,
-                        n_branches=int(row[-3]))
-        sm = finalize(sm, {"errors": 0.0 if row[-2] else np.nan}, int(row[-1]), None)
+        v = verdict_of({**dict(zip(KEYED, row)), "pos": 0, "hinge": False, "margin": np.inf}, None,
+                       n_branches=int(row[-3]))
+        v = finalize(v, {"errors": 0.0 if row[-2] else np.nan}, int(row[-1]), None)
         for field in fields:
-            table[field].append(",".join(sm[field]) if field == "insufficient_because" else sm[field])
+            value = getattr(v, field)
+            table[field].append(",".join(value) if field == "insufficient_because" else value)
     spread = {field: np.array(values, dtype=bool if field == "sufficient" else object)[inverse.reshape(-1)]
               for field, values in table.items()}
     margin = np.asarray(counts["margin"], dtype=float)
@@ -167,64 +224,54 @@ def verdict_columns(counts: dict, n_branches: np.ndarray, errors_finite: np.ndar
             "zero_margin": np.where(np.isfinite(margin), margin, np.nan)}
 
 
-def family_entry(metric, summary: dict) -> dict:
-    """One metric's line of summary["metrics"] (issue 11)."""
-    return {"metric": metric.name, "rotation_length": metric.rotation_length, "verdict": summary["verdict"],
-            "sufficient": summary["sufficient"], "consistent_positive": summary["consistent_positive"],
-            "consistent_negative": summary["consistent_negative"]}
+def family_entry(metric, verdict: Verdict) -> MetricVerdict:
+    """One metric's line of a family verdict (issue 11)."""
+    return MetricVerdict(metric=metric.name, rotation_length=metric.rotation_length, verdict=verdict.verdict,
+                         sufficient=verdict.sufficient, consistent_positive=verdict.consistent_positive,
+                         consistent_negative=verdict.consistent_negative)
 
 
-def finalize(summary: dict, errors: dict, n_undetermined: int, entries: list | None) -> dict:
-    """The summary's last word on sufficiency: non-finite error estimates, undetermined rolling (flag_undetermined)
-    and, over the metric family `entries`, whether verdict and counts are metric-robust; `sufficient` is True only
-    when `insufficient_because` is empty."""
-    because = summary["insufficient_because"]
-    if not all(np.isfinite(v) for v in errors.values()) and "non_finite" not in because:
-        because.append("non_finite")
-    flag_undetermined(summary, n_undetermined)
+def finalize(verdict: Verdict, errors: dict, n_undetermined: int, entries: list | None) -> Verdict:
+    """The verdict's last word on sufficiency: non-finite error estimates, undetermined rolling (flag_undetermined)
+    and, over the metric family `entries` (MetricVerdict), whether verdict and counts are metric-robust."""
+    if not all(np.isfinite(v) for v in errors.values()) and "non_finite" not in verdict.insufficient_because:
+        verdict = verdict.weaker(("non_finite",))
+    verdict = flag_undetermined(verdict, n_undetermined)
     if entries is not None:
         key = ("verdict", "consistent_positive", "consistent_negative")
-        summary["metrics"] = entries
-        summary["metric_robust"] = all(tuple(e[k] for k in key) == tuple(entries[0][k] for k in key)
-                                       for e in entries)
+        robust = all(tuple(getattr(e, k) for k in key) == tuple(getattr(entries[0], k) for k in key)
+                     for e in entries)
         # a contradiction: another metric PROVES a different verdict (one that only leaves the sign unresolved,
         # e.g. an eigenvalue scaled below its accuracy bound, is listed but contradicts nothing)
-        if any(e["verdict"] != summary["verdict"] and e["sufficient"] for e in entries):
-            because.append("metric_dependent")
-        if len({e["verdict"] for e in entries}) > 1:
-            summary["reason"] += ("; the verdict depends on the projection metric: "
-                                  + ", ".join(f"{e['metric']} {e['verdict']}" for e in entries))
-    else:
-        summary["metric_robust"] = None
-        summary["metrics"] = []
-    if "non_finite" in because:
-        summary["reason"] += "; NOT DETERMINED: some computed numbers are not finite (overflow)"
-    summary["sufficient"] = not because
-    return summary
+        contradicted = any(e.verdict != verdict.verdict and e.sufficient for e in entries)
+        depends = len({e.verdict for e in entries}) > 1
+        verdict = verdict.weaker(("metric_dependent",) if contradicted else (),
+                                 "; the verdict depends on the projection metric: "
+                                 + ", ".join(f"{e.metric} {e.verdict}" for e in entries) if depends else "",
+                                 metrics=tuple(entries), metric_robust=robust)
+    if "non_finite" in verdict.insufficient_because:
+        verdict = verdict.weaker(reason="; NOT DETERMINED: some computed numbers are not finite (overflow)")
+    return verdict
 
 
-def mark_partial(summary: dict, examined: int, Ms: int) -> dict:
+def mark_partial(verdict: Verdict, examined: int, Ms: int) -> Verdict:
     """A sample of the 2^Ms branches was examined: a proven instability stands (one consistent negative eigenvalue
     suffices, eq:instab); any other verdict could change on an unexamined branch."""
-    if not (summary["verdict"] == "unstable" and summary["sufficient"]):
-        summary["insufficient_because"].append("unexamined_branches")
-        summary["sufficient"] = False
-    summary["counts_are"] = {key: "lower bounds" for key in summary["counts_are"]}
-    summary["reason"] += f"; {examined} of the 2^{Ms} branches examined (a sample)"
-    return summary
+    proven = verdict.verdict == "unstable" and verdict.sufficient
+    return verdict.weaker(() if proven else ("unexamined_branches",),
+                          f"; {examined} of the 2^{Ms} branches examined (a sample)",
+                          counts_are=tuple((key, LOWER) for key, _ in verdict.counts_are), branches="partial")
 
 
-def flag_undetermined(summary: dict, n_bad: int) -> dict:
+def flag_undetermined(verdict: Verdict, n_bad: int) -> Verdict:
     """Where a loaded contact's rolling is undetermined (K^p + K^q singular: the pseudo-inverse cut-off decides),
-    the verdict is not a proof: sufficient = False, hinges_on_tolerance = True, and the reason says why."""
-    if n_bad:
-        summary["insufficient_because"].append("rolling_undetermined")
-        summary["sufficient"] = False
-        summary["hinges_on_tolerance"] = True
-        summary["reason"] += (f"; NOT DETERMINED: {n_bad} loaded contact(s) with K^p + K^q singular (flat-on-flat or "
-                              "exact hand-in-glove) — their rolling is undetermined and the verdict rests on the "
-                              "pseudo-inverse cut-off (pinv_rtol)")
-    return summary
+    the verdict is not a proof: insufficient because of it, hinges_on_tolerance = True, and the reason says why."""
+    if not n_bad:
+        return verdict
+    return verdict.weaker(("rolling_undetermined",),
+                          f"; NOT DETERMINED: {n_bad} loaded contact(s) with K^p + K^q singular (flat-on-flat or "
+                          "exact hand-in-glove) — their rolling is undetermined and the verdict rests on the "
+                          "pseudo-inverse cut-off (pinv_rtol)", hinges_on_tolerance=True)
 
 
 def _require_no_supports(analysis) -> None:
@@ -234,11 +281,23 @@ def _require_no_supports(analysis) -> None:
 
 
 def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
-    """Solve ℍ^i dU = d𝕓 on every branch (eq:problem) and keep the consistent solutions (Sec. 3.1).
+    """Solve ℍ^i dU = d𝕓 on every branch of `analysis` (eq:problem) and test each solution's consistency (Sec. 3.1).
 
-    load_increment: (n_dof,) objective increments [d𝕓, d𝕨] per particle. Type-1 non-uniqueness: two consistent
-    solutions on different branches that differ by more than a rigid motion. Solutions are physical motions with
-    the rigid part removed.
+    Parameters
+    ----------
+    analysis : Analysis
+        An analysis of a scene without fixed particles (its branches and metric are used).
+    load_increment : array_like, (n_dof,)
+        Objective load increments [d𝕓, d𝕨] particle by particle, in the order of ``scene.dofs()``.
+    rtol : float
+        A branch's least-squares solution counts only if its relative residual is at most rtol.
+
+    Returns
+    -------
+    dict
+        ``solutions``: per branch ``mask`` (M,), ``residual``, ``consistent``, ``hinges``, ``motion`` (n_dof,)
+        (physical, rigid part removed) and ``scaled`` (n_dof,); ``n_consistent``; ``type1_nonuniqueness``: two
+        consistent solutions on different branches that differ by more than a rigid motion.
     """
     _require_no_supports(analysis)
     problem = analysis.problem
@@ -262,8 +321,22 @@ def load_response(analysis, load_increment, rtol: float = 1e-8) -> dict:
 
 
 def second_order_work(analysis, motion) -> dict:
-    """dUᵀ 𝓗^i dU for a motion dU on the branch its own S signs select (eq:newinner), split into geometric
-    (Hg1 + Hg2 + Hg3) and mechanical (Hm) parts; negative work means softening along dU (Sec. 3.2)."""
+    """Second-order work dUᵀ 𝓗^i dU of a motion on the branch its own S signs select (eq:newinner, eq:flow).
+
+    Parameters
+    ----------
+    analysis : Analysis
+        An analysis of a scene without fixed particles.
+    motion : array_like, (n_dof,)
+        A physical motion [du, dθ] particle by particle (e.g. ``analysis.motion(vector)``); its rigid rotation is
+        projected out (eq:Pnrr).
+
+    Returns
+    -------
+    dict
+        ``mask`` (M,) the branch, ``work`` = ``geometric`` (Hg1 + Hg2 + Hg3) + ``mechanical`` (Hm); negative work
+        means softening along the motion (Sec. 3.2).
+    """
     _require_no_supports(analysis)
     problem, scene = analysis.problem, analysis.scene
     metric = analysis.metric

@@ -1,6 +1,6 @@
 """Structural reading of scene files: one-line `SceneError`s naming file, entry and field, and the value checks
 (types, shapes, finite, within MAX_MAGNITUDE) shared by the table-at-a-time `Reader` (top level, defaults, shape
-entries) and the column-wise readers of tables.py. Imports neither scene.py nor shapes.py.
+entries) and the column-wise readers of io/entries.py. Imports no other room but model.
 """
 from __future__ import annotations
 

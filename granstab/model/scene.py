@@ -1,4 +1,4 @@
-"""Scenes: particles and contact-level data (Sec. 2), read from a parsed file (files.py) and validated.
+"""Scenes: particles and contact-level data (Sec. 2), built from arrays and validated (the readers: granstab.io).
 
 A `Scene` holds arrays over particles (N) and contacts (M); d = dim, r = 1 (2D) or 3 (3D):
 x (N, d), load b (N, d), load_moment w (N, r); per contact p, q (M,), point (M, d),
@@ -25,7 +25,35 @@ LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5, "rolling_stiffness": 0.0}
 
 @dataclass(frozen=True, eq=False)
 class Scene:
-    """Contact-level description of a cluster (see module docstring for shapes)."""
+    """Contact-level description of a cluster: N particles, M contacts, d = dim, r = 1 (2D) or 3 (3D) rotations.
+
+    Attributes
+    ----------
+    dim : int
+        2 or 3.
+    names : tuple of str, (N,)
+        Particle names, unique.
+    x, load, load_moment : ndarray, (N, d), (N, d), (N, r)
+        Reference points and the external loads b, w (eq:equil1).
+    p, q : ndarray of int, (M,)
+        The two particles of each contact (indices into `names`).
+    point, normal, force : ndarray, (M, d)
+        Contact point, unit normal n^pq from p toward q, force f^pq on p by q (compression: f·n < 0).
+    curvature_p, curvature_q : ndarray, (M, d, d)
+        Surface curvature tensors K^p, K^q on the tangent plane (2D: κ t⊗t, convex κ < 0).
+    moment : ndarray, (M, r)
+        Contact moment m^pq on p by q.
+    k, alpha, mu : ndarray, (M,)
+        Contact law (eq:ContactF): normal stiffness, tangential/normal ratio, friction coefficient.
+    rolling : ndarray, (M, r, r)
+        Rolling stiffness M^pq (eq:constitutiveM).
+    state : tuple of str, (M,)
+        "auto" (the yield test decides), "elastic" or "sliding".
+    mass, inertia, fixed : ndarray or None, (N,), (N, r, r), (N,) bool
+        Masses and rotational inertia (the inertia metric), and particles held fixed (supports).
+    title, source, tol : str, str, Tolerances
+        A title, the name errors give the input, the tolerances it was checked with.
+    """
 
     dim: int
     names: tuple
@@ -133,13 +161,36 @@ class Scene:
 def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="", source="<scene>",
                 tol: Tolerances = DEFAULT, entries=None, particle_entries=None, mass=None, inertia=None,
                 fixed=None) -> Scene:
-    """Assemble a Scene from arrays (programmatic use: presets, studies, the app) and run the range and
-    physical checks (vectorised); `mass` (N,) and `inertia` (N, r, r) are optional (the inertia metric); `fixed`
-    (N,) bool marks supports (particles without dofs).
+    """Assemble a `Scene` from arrays and run the range and physical checks (vectorised).
 
-    `loads`/`load_moments`: None (equilibrium values for all), a list with None where the equilibrium value is
-    to be used, or a pair (values (N, ·), given (N,) bool). `entries` names contacts in error messages: a list
-    or a function c → name (default "contacts[c]"); `particle_entries` likewise for particles.
+    Parameters
+    ----------
+    dim : int
+        2 or 3; r = 1 or 3 rotations a particle.
+    names, x : sequence of str (N,), array_like (N, dim)
+        Particle names and reference points.
+    arrays : dict
+        The contact fields of `Scene`: ``p``, ``q`` (M,) int, ``point``, ``normal``, ``force`` (M, dim),
+        ``curvature_p``, ``curvature_q`` (M, dim, dim), ``moment`` (M, r), ``k``, ``alpha``, ``mu`` (M,),
+        ``rolling`` (M, r, r), ``state`` (M,) str.
+    loads, load_moments : None, list or (values, given)
+        External b (N, dim) and w (N, r): None for the equilibrium values (eq:equil1), a list with None where
+        the equilibrium value is meant, or values with a (N,) bool of those given; given ones must balance.
+    mass, inertia, fixed : array_like, optional
+        (N,) masses and (N, r, r) inertia tensors (the inertia metric); (N,) bool supports (no dofs).
+    title, source, tol, entries, particle_entries
+        Title; the input's name in errors; tolerances; contact and particle names for error messages (a list or
+        a function i → name; default "contacts[i]", "particles[i]").
+
+    Returns
+    -------
+    Scene
+        With equilibrium loads wherever none were given.
+
+    Raises
+    ------
+    SceneError
+        A value out of range, a load that does not balance, an "auto" contact outside the friction cone: one line.
     """
     N = len(names)
     r = rot_dim(dim)

@@ -14,9 +14,10 @@ NAME is one of two-particle, gear, four-disk, sliding-contact, all. Each runs it
 data only), writes CSV data (and an .npz with the full-precision arrays) and figures (PNG and SVG) into DIR,
 and returns a summary with the claims of Sec. 4 it checks: the paper's statement or number, ours, and a verdict.
 `all` also writes REPRODUCTION.md into DIR and, when `root` is given, a copy at that repository root whose links
-point into DIR. One module per example (run, steps, figures, its REPRODUCTION.md section), `markdown` the
-writer, `figures` the shared formats. matplotlib is imported in this package only (object-oriented API: no pyplot,
-no global backend switch); only the CLI's reproduce command imports it.
+point into DIR. Each `NAME_report` module has `run`, `steps`, its figures and its REPRODUCTION.md section;
+`examples` lists them in report order, `markdown` writes the file, `figures` holds the shared formats.
+matplotlib is imported by the reports and `figures` only (object-oriented API: no pyplot, no global backend
+switch); only the CLI's reproduce command imports them.
 """
 from __future__ import annotations
 

@@ -27,6 +27,7 @@ import types
 import numpy as np
 
 import granstab
+from granstab.mechanics.assembly import assemble
 from granstab.mechanics.branches import (
     BOTH,
     INCONSISTENT,
@@ -37,7 +38,7 @@ from granstab.mechanics.branches import (
     search_subspace,
     test_codes,
 )
-from granstab.mechanics.stiffness import assemble, contact_blocks
+from granstab.mechanics.stiffness import contact_blocks
 from granstab.model.tolerances import DEFAULT as DEFAULT_TOL
 from granstab.model.tolerances import Tolerances
 from granstab.solve.dense import solve_branches

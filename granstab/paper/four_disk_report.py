@@ -56,12 +56,22 @@ def run(out: Path, tick, say) -> dict:
     """The four-disk study and its sweeps → CSV data, two figures and claims 4.2-a … 4.2-k."""
     data = four_disk.study(progress=tick)
     clusters = four_disk.cluster_sweep()
-    data["metrics"] = granstab.analyze(four_disk.scene(**four_disk.PAPER)).summary["metrics"]   # issue 11
+    data["metrics"] = granstab.analyze(four_disk.scene(**four_disk.PAPER)).summary["metrics"]
     data["clusters"] = clusters
-    t, ut = data["totals"], data["uniqueness_totals"]
+    t = data["totals"]
     say(f"four-disk: 16 branches, zeros per branch {span(t['zeros_min'], t['zeros_max'])}, consistent non-zero "
         f"{t['consistent_nonzero']} ({t['positive']} positive, {t['negative']} negative); paper 4, 30 (21, 9)")
-    path = data["path"]
+    files = write_tables(data, out)
+    files += figure_four_disk_spectra(data, out)
+    files += figure_four_disk_path(data["path"], out)
+    tick()
+    data["ranges"] = {name: unchanged_range(vals, four_disk.PAPER.get(name, 1.0)) for name, vals in
+                      data["parameter_sweep"].items()}
+    return {"data": data, "claims": claims(data), "files": files}
+
+
+def write_tables(data: dict, out: Path) -> list[Path]:
+    """The study's data as five CSV files: branches, uniqueness, tolerance and parameter sweeps, the sliding path."""
     files = []
     rows = []
     for i, r in enumerate(data["stability"]):
@@ -82,7 +92,7 @@ def run(out: Path, tick, say) -> dict:
     rows += [["zero_factor", r["value"], r["zeros_min"], r["zeros_max"], r["consistent_nonzero"], r["positive"],
               r["negative"]] for r in data["tolerance_sweep"]["zero_factor"]]
     rows += [["cluster_gap", r["gap"], "", "", r["consistent_nonzero"], r["positive"], r["negative"]]
-             for r in clusters]
+             for r in data["clusters"]]
     files.append(write_csv(out / "four_disk_tolerance_sweep.csv", ["tolerance", "value", "zeros_min", "zeros_max",
                                                                     "consistent_nonzero", "positive", "negative"],
                             rows))
@@ -91,6 +101,7 @@ def run(out: Path, tick, say) -> dict:
     files.append(write_csv(out / "four_disk_parameter_sweep.csv", ["parameter", "value", "zeros_min", "zeros_max",
                                                                     "consistent_nonzero", "positive", "negative",
                                                                     "verdict"], rows))
+    path = data["path"]
     w = path["work"]
     files.append(write_csv(out / "four_disk_path.csv",
                             ["beta_deg", "bv_over_bh_closed", "bv_over_bh_core", "rate_residual", "S_min_relative",
@@ -99,13 +110,13 @@ def run(out: Path, tick, say) -> dict:
                             zip(path["beta_deg"], path["ratio_closed"], path["ratio_core"], path["rate_residual"],
                                 path["s_min_relative"], w["Hg1"], w["Hg2"], w["Hg3"], w["Hm"], w["total"],
                                 w["core_geometric"], w["core_mechanical"])))
-    files += figure_four_disk_spectra(data, out)
-    files += figure_four_disk_path(path, out)
-    tick()
+    return files
 
-    ranges = {name: unchanged_range(vals, four_disk.PAPER.get(name, 1.0)) for name, vals in
-              data["parameter_sweep"].items()}
-    data["ranges"] = ranges
+
+def claims(data: dict) -> list[dict]:
+    """Claims 4.2-a … 4.2-k: the paper's statements of Sec. 4.2 beside granstab's numbers."""
+    t, ut, path, ranges = data["totals"], data["uniqueness_totals"], data["path"], data["ranges"]
+    w = path["work"]
     sweep = data["tolerance_sweep"]["s_rtol"]
     good = [r["value"] for r in sweep if (r["consistent_nonzero"], r["positive"], r["negative"]) == (30, 21, 9)]
     zsweep = data["tolerance_sweep"]["zero_factor"]
@@ -117,7 +128,7 @@ def run(out: Path, tick, say) -> dict:
     ratio_err = float(np.max(np.abs(path["ratio_core"] / path["ratio_closed"] - 1)))
     wmax = float(np.max(np.abs(w["core_mechanical"])))
     wgeo = float(np.max(np.abs(np.array(w["core_geometric"]) / path["work_closed"] - 1)))
-    claims = [
+    return [
         claim("4.2-a", "Sec. 4.2", "all four contacts sliding: L = 2⁴ = 16 branches", "16",
               f"{len(data['stability'])} (four_disk.toml, all contacts at yield, Q = 0)", "reproduced"),
         claim("4.2-b", "Sec. 4.2", "each branch of sym(𝓗^i) has four zero eigenvalues (3 rigid + gear-like)", "4 each",
@@ -162,7 +173,6 @@ def run(out: Path, tick, say) -> dict:
               "extends", "4 to 6 zeros (erratum 5, docs/errata.md): the extra null vectors of ℍ^i are pure disk "
               "rotations, which only slide contacts that are on their sliding branch and so cost no force."),
     ]
-    return {"data": data, "claims": claims, "files": files}
 
 
 def figure_four_disk_spectra(data, out: Path) -> list[Path]:
@@ -237,9 +247,15 @@ def figure_four_disk_path(path, out: Path) -> list[Path]:
 def markdown(fd: dict, link) -> str:
     """REPRODUCTION.md, Sec. 4.2 four disks: the branch tables of sym(𝓗^i) and ℍ^i, the robustness of the
     count, the sliding path of Fig. 7c; `link(name)` is a figure's path."""
-    L, add = section()
     data = fd["data"]
-    t, ut, path = data["totals"], data["uniqueness_totals"], data["path"]
+    return "\n".join(stability_section(data, link) + uniqueness_section(data) + sweep_tables(data)
+                     + robust_findings(data) + path_section(data, link))
+
+
+def stability_section(data: dict, link) -> list[str]:
+    """The section's head, the scene and its loads, and the branches of sym(𝓗^i) (stability)."""
+    L, add = section()
+    t = data["totals"]
     bv, bh = data["loads"]
     add("## 4.2 Four-disk system (`granstab reproduce four-disk`)\n")
     add("`four_disk.toml`: disks of radius 1 at (0, 2 sin β), (-2 cos β, 0), (0, -2 sin β), (2 cos β, 0) (top, left, "
@@ -271,6 +287,13 @@ def markdown(fd: dict, link) -> str:
         f"{t['negative']}. "
         f"Verdict: **{data['summary']['verdict']}**. Identity residuals of the analysis: "
         f"{bound(max(data['errors'].values()))}.\n")
+    return L
+
+
+def uniqueness_section(data: dict) -> list[str]:
+    """The branches of ℍ^i (uniqueness): eigenvalues, consistent signs, Type-2 null vectors."""
+    L, add = section()
+    ut = data["uniqueness_totals"]
     add("### Branches of ℍ^i (uniqueness)\n")
     add("Eigenvalues of ℍ^i = H^i P^nrr with the same consistency test on their (real) eigenvectors; zeros are the "
         "nullity of ℍ^i from its singular values. `four_disk_uniqueness.csv` has every eigenvalue.\n")
@@ -287,6 +310,12 @@ def markdown(fd: dict, link) -> str:
         "(erratum 5, docs/errata.md). The null vectors beyond the rigid motions are pure disk rotations: a rotation "
         "that only slides contacts on their sliding branch produces no force (F^sliding·h = 0), so ℍ^i loses rank, while the "
         "Hg3/Hg2 couplings keep sym(𝓗^i) at four zeros.\n")
+    return L
+
+
+def sweep_tables(data: dict) -> list[str]:
+    """The robustness tables: totals across S and zero tolerances, the metric family, cluster gaps, parameters."""
+    L, add = section()
     add("### Robustness of the count\n")
     add("The count is sensitive (docs/errata.md). Totals (consistent non-zero, positive, negative) when one "
         "tolerance or parameter moves (`four_disk_tolerance_sweep.csv`, `four_disk_parameter_sweep.csv`):\n")
@@ -315,6 +344,13 @@ def markdown(fd: dict, link) -> str:
         add("| totals (zeros) | " + " | ".join(
             f"{r['consistent_nonzero']} ({r['positive']}/{r['negative']}) [{r['zeros_min']}]" for r in vals) + " |")
         add("")
+    return L
+
+
+def robust_findings(data: dict) -> list[str]:
+    """What is robust: the four zeros, the 9 negatives, the 21 positives and what moves them."""
+    L, add = section()
+    sw = data["tolerance_sweep"]
     mo = data["mechanical_only"]
     rb = data["robustness"]
     frag = [p for p in rb["geometric_split"] if p["sign"] in ("+v", "-v", "±v")]
@@ -360,6 +396,13 @@ def markdown(fd: dict, link) -> str:
            "changes the totals. " if weak_s and first_bad else "")
         + "With a small S tolerance, round-off zero tolerances and clusters kept separate, the paper's 30 = 21 + 9 "
         "is reproduced exactly, and it holds for " + "; ".join(lines) + ".\n")
+    return L
+
+
+def path_section(data: dict, link) -> list[str]:
+    """Fig. 7c: the sliding path's load ratio and second-order work against their closed forms."""
+    L, add = section()
+    path = data["path"]
     add("### Fig. 7c: continued sliding without rotation\n")
     add(f"![four-disk path]({link('four_disk_path.png')})\n")
     add("Along the path the disks do not rotate, the contacts keep sliding (S > 0 at all four: the all-sliding branch "
@@ -376,11 +419,11 @@ def markdown(fd: dict, link) -> str:
         f"{g(float(np.mean(w['core_geometric'])), 6)} (Hg2 {g(float(np.mean(w['Hg2'])), 6)}; Hg1 and Hg3 vanish for "
         f"a motion without rotation), mechanical {bound(float(np.max(np.abs(w['core_mechanical']))))}. As the paper "
         "says, no frictionally blocked energy is released: all of this softening is geometric.\n")
-    return "\n".join(L)
+    return L
 
 
 def metric_table(metrics: list) -> str:
-    """The four-disk totals across the projection metric family (issue 11), the paper's column (L = r = 1) marked."""
+    """The four-disk totals across the projection metric family, the paper's column (L = r = 1) marked."""
     head = " | ".join(f"**{e['metric']} = {g(e['rotation_length'])} (paper)**" if e["metric"] == "L" else
                       f"{e['metric']} = {g(e['rotation_length'])}" for e in metrics)
     rows = " | ".join(f"{e['consistent_positive'] + e['consistent_negative']} ({e['consistent_positive']}/"

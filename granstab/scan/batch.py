@@ -2,14 +2,16 @@
 
 `analyze` per cluster spends milliseconds on Python around a 21 × 21 eigenproblem. Here the contact blocks are
 built once for the chunk (stiffness.py: a cluster's blocks are the packing's, since every term of H is written
-per contact, eq:Hg3 included), and every step after that is one array operation over all clusters of a size:
+per contact, eq:Hg3 included), and every step after that is one array operation over all clusters of a size,
+with the kernels `analyze` uses for one cluster (mechanics/), given a leading batch axis:
 
-  scatter the blocks into H̃ = D H D (G, n, n) in the metric L of each cluster (its mean contact radius, rigid.py)
-  → rigid motions, C̃⁺, an orthonormal basis Q off them and the formation-error bound (accuracy.py) → every branch
-  H^i = H_el + A diag(on) Sᵀ (eq:ContactF) of every cluster → sym(Qᵀ 𝓗^i Q), which is sym(Pᵀ H^i P)
-  (eq:newstiffnesses) with its d + r rigid zeros taken out exactly (`_reduced`) → stacked eigh on the backend
-  (backend.py: numpy, or CuPy with --device gpu) → per-eigenvalue bounds, consistency codes (Appendix D)
-  → counts and verdicts per cluster (verdicts.tally, verdict_of).
+  scatter the blocks into H̃ = D H D (G, n, n) in the metric L of each cluster (its mean contact radius;
+  assembly.stack_blocks, rigid.dof_scale) → rigid motions, C̃⁺, an orthonormal basis Q off them (rigid.py) and the
+  formation-error bound (accuracy.py) → every branch H^i = H_el + A diag(on) Sᵀ (eq:ContactF, the masks of
+  branches.sign_patterns) of every cluster → sym(Qᵀ 𝓗^i Q), which is sym(Pᵀ H^i P) (eq:newstiffnesses) with its
+  d + r rigid zeros taken out exactly (rigid.on_complement) → stacked eigh on the device (solve/device.py: numpy,
+  or CuPy with --device gpu) → per-eigenvalue bounds, consistency codes (Appendix D) → counts and verdicts per
+  cluster (verdicts.tally, verdict_of).
 
 On the CPU a cluster without sliding contacts (one branch; every eigenpair consistent, so no eigenvector is
 needed) is solved for its eigenvalues only (`eigvalsh`, ~0.45× the cost of `eigh` at n ≈ 80), with the wider
@@ -23,7 +25,7 @@ and the row's columns. Left out, because no row column uses them: the ℍ^i spec
 back to `analyze` (the caller's per-cluster path), unchanged: clusters whose branches need the eigenspace search
 of Appendix D (a repeated eigenvalue or a non-rigid zero), clusters over max_sliding (sampled branches), clusters
 without contacts, and metrics other than the L family. With --boundary fixed the held ring's contacts count, its dofs
-are dropped (scattered to a row and column that is cut off), and there is no rigid motion and no projection.
+are dropped (numbered past the cluster's, assembly.dof_index), and there is no rigid motion and no projection.
 """
 from __future__ import annotations
 
@@ -31,16 +33,26 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..mechanics.accuracy import (
+    abs_norm_inf,
     gamma,
     value_bounds,
     values_backward_error,
     vector_bounds,
 )
-from ..mechanics.branches import BOTH, consistency
-from ..mechanics.stiffness import contact_blocks
+from ..mechanics.assembly import dof_index, scatter_columns, stack_blocks
+from ..mechanics.branches import BOTH, consistency, needs_search, s_limits, sign_patterns
+from ..mechanics.rigid import (
+    Projection,
+    dof_scale,
+    on_complement,
+    rigid_basis,
+    rotation_columns,
+    translation_columns,
+)
+from ..mechanics.stiffness import contact_blocks, geometric
 from ..mechanics.verdicts import tally
 from ..model.tolerances import EPS
-from ..model.vec import rot_dim, rotate_matrix
+from ..model.vec import rot_dim
 from ..solve.device import backend, eigh_stack, residual_norms
 from .clusters import members
 
@@ -72,10 +84,10 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
     starts = np.r_[0, np.cumsum(sizes)[:-1]]
     free = _free(local, sizes, member_lists, scene.n_particles) if fixed else np.ones(len(local), dtype=bool)
     blocks = contact_blocks(scene)
-    geometric = blocks.blocks["Hg1"] + blocks.blocks["Hg2"] + blocks.blocks["Hg3"]
-    parts = {"elastic": blocks.blocks["Hm"] + geometric,                 # H_el per contact, and the row sums of |Hm|,
+    hg = geometric(blocks.blocks)
+    parts = {"elastic": blocks.blocks["Hm"] + hg,                        # H_el per contact, and the row sums of |Hm|,
              "rows_m": np.abs(blocks.blocks["Hm"]).sum(axis=2),         # |Hg| that bound ‖|Hm̃|‖∞, ‖|Hg̃|‖∞ (formation)
-             "rows_g": np.abs(geometric).sum(axis=2)}
+             "rows_g": np.abs(hg).sum(axis=2)}
     pairs = _cluster_contacts(scene, local, sizes, free)
     pairs["sliding"] = scene.at_yield()[pairs["contact"]]
     n_contacts = np.bincount(pairs["cluster"], minlength=len(centers))
@@ -144,7 +156,7 @@ def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray, free: np.ndarra
 def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, width, device,
                  fixed) -> dict:
     """Row fields of the clusters `part` (all with n free particles): see the module docstring. The held ring's
-    dofs (fixed) go to row and column nd of (nd + 1)-sized arrays, which are cut off (`padded`). The sliding
+    dofs (fixed) are numbered nd, which the scatters drop (assembly.dof_index, stack_blocks). The sliding
     factors A, S have `width` (max_sliding) columns whichever clusters share the stack, for every per-cluster
     product and norm: their rounding depended on the column count (numpy and BLAS pick kernels by shape; one column
     is another path), so a row is the same bits however the scan is chunked (serially, on any number of workers,
@@ -152,48 +164,38 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     d, r = sub.dim, rot_dim(sub.dim)
     per = d + r
     nd = n * per
-    padded = nd + 1
     G = len(part)
     slot = np.full(len(n_sliding), -1)
     slot[part] = np.arange(G)
     sel = slot[pairs["cluster"]] >= 0
     g, m = slot[pairs["cluster"][sel]], pairs["contact"][sel]
-    idx = np.concatenate([np.where(pairs[side][sel, None] >= 0, pairs[side][sel, None] * per + np.arange(per), nd)
-                          for side in ("lp", "lq")], axis=1)                      # (P, 2per) local dofs, nd: held
+    idx = dof_index(pairs["lp"][sel], pairs["lq"][sel], per, held=nd)               # (P, 2per) local dofs, nd: held
 
-    # metric: L = mean contact radius of the cluster (rigid.rotation_length), D = diag(1, 1/L) per particle
+    # metric: L = mean contact radius of the cluster, D = diag(1, 1/L) per particle: rigid.rotation_length of the
+    # cluster, but summed per contact in cluster order, not by numpy's pairwise mean (one summation order for both
+    # would move the last bits of one path's rows)
     radii = np.linalg.norm(sub.r_pq[m], axis=1) + np.linalg.norm(sub.r_qp[m], axis=1)
     L = np.bincount(g, weights=radii, minlength=G) / (2 * np.bincount(g, minlength=G))
     L = factor * np.where(L > 0, L, 1.0)
-    rotation = np.r_[np.tile(np.r_[np.zeros(d), np.ones(r)].astype(bool), n), False]
-    dscale = np.where(rotation[None], 1.0 / L[:, None], 1.0)                         # (G, nd + 1)
+    dscale = np.concatenate([dof_scale(n, d, L), np.ones((G, 1))], axis=1)          # (G, nd + 1): 1 at held dof nd
     Dp = dscale[g[:, None], idx]                                                     # (P, 2per)
 
-    flat = (g[:, None, None] * padded + idx[:, :, None]) * padded + idx[:, None, :]   # (P, 2per, 2per) → (G, nd, nd)
-    scaled = parts["elastic"][m] * Dp[:, :, None] * Dp[:, None, :]
-    H_el = np.ascontiguousarray(np.bincount(flat.ravel(), weights=scaled.ravel(),
-                                            minlength=G * padded * padded).reshape(G, padded, padded)[:, :nd, :nd])
+    H_el = stack_blocks(parts["elastic"][m] * Dp[:, :, None] * Dp[:, None, :], g, idx, G, nd)   # (G, nd, nd)
 
     def abs_norm(rows):            # ‖|Σ_c X̃_c|‖∞ <= max over rows of Σ_c (row sums of |X̃_c|): per contact, no matrices
-        sums = np.bincount((g[:, None] * padded + idx).ravel(), weights=(rows[m] * Dp * Dp.max(axis=1, keepdims=True)
-                                                                      ).ravel(), minlength=G * padded)
-        return sums.reshape(G, padded)[:, :nd].max(axis=1)
+        return stack_blocks(rows[m] * Dp * Dp.max(axis=1, keepdims=True), g, idx, G, nd).max(axis=1)
 
     # sliding factors A, S (G, nd, Ms) in the metric's dofs, the contacts in cluster order (eq:ContactF, eq:flow)
     slide = sel & pairs["sliding"]
     gs, ms = slot[pairs["cluster"][slide]], pairs["contact"][slide]
     col = _rank_within(gs)
     Ms = int(n_sliding[part].max())
-    A = np.zeros((G, padded, width if Ms else 0))         # padded to max_sliding: see the docstring
-    S = np.zeros((G, padded, width if Ms else 0))
-    idx_s = idx[slide[sel]]
-    Ds = Dp[slide[sel]]
-    np.add.at(A, (gs[:, None], idx_s, col[:, None]), blocks.slide_left[ms] * Ds)
-    np.add.at(S, (gs[:, None], idx_s, col[:, None]), blocks.slide_right[ms] * Ds)
-    A, S = np.ascontiguousarray(A[:, :nd]), np.ascontiguousarray(S[:, :nd])
+    idx_s, Ds = idx[slide[sel]], Dp[slide[sel]]
+    A, S = (scatter_columns(f[ms] * Ds, gs, idx_s, col, G, nd, width if Ms else 0)   # max_sliding columns: docstring
+            for f in (blocks.slide_left, blocks.slide_right))
     scales = (abs_norm(parts["rows_m"]) + abs_norm(parts["rows_g"])
               + _column_sum(np.linalg.norm(A, axis=1) * np.linalg.norm(S, axis=1)))
-    s_scale = np.linalg.norm(S, axis=1).max(axis=1, initial=0.0)
+    s_tol, s_floor = s_limits(S, sub.tol)                  # branches.Problem.s_tol, s_floor
 
     if fixed:                      # held by the ring: no rigid motion, P^nrr = I (eq:Pnrr), formation 8ε of the parts
         formation, leakage = 8 * EPS * scales, np.zeros(G)
@@ -211,8 +213,7 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     if vectors.size:
         solved.append((vectors, _vectors(base[vectors], PA[vectors], PS[vectors], update[vectors],
                                          n_sliding[part][vectors], formation[vectors],
-                                         s_scale[vectors] * sub.tol.s_rtol, 1e3 * EPS * s_scale[vectors], dofs,
-                                         device)))
+                                         s_tol[vectors], s_floor[vectors], dofs, device)))
     owner = np.concatenate([which[got["owner"]] for which, got in solved])
     lam, bounds, codes, hinges, special, error = (np.concatenate([got[key] for _, got in solved])
                                                   for key in ("lam", "bounds", "codes", "hinges", "special", "error"))
@@ -238,9 +239,9 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
 
 def _reduced(H_el, A, S, x, L, scales):
     """The isolated cluster (--boundary loads) on the complement of its rigid motions: the rigid motions about the
-    centroid in scaled dofs (eq:dtrigid), an orthonormal basis Q of their complement (complete QR), and
-    sym(Qᵀ H_el Q), QᵀA, QᵀS. As Q ⟂ C, Qᵀ Pᵀ = Qᵀ for P = I − C C̃⁺ (eq:Moore1, eq:newstiffnesses): every branch's
-    sym(Qᵀ 𝓗^i Q) is sym(Pᵀ H^i P) with its d + r rigid zeros taken out exactly, as lowrank.py does for branches.
+    centroid in scaled dofs (eq:dtrigid), an orthonormal basis Q of their complement, and sym(Qᵀ H_el Q), QᵀA, QᵀS
+    (rigid.rigid_basis, rigid.on_complement, which lowrank.reduce calls for one cluster's branches): every branch's
+    sym(Qᵀ 𝓗^i Q) is sym(Pᵀ H^i P) with its d + r rigid zeros taken out exactly.
 
     Formation bound: forming Qᵀ H Q (2γ_nd·nd of the parts' scale, Q orthonormal to γ_nd), plus a bound of the
     coupling Qᵀ sym(𝓗^i) R to the rigid motions R that leaving them out neglects, over every branch (zero in exact
@@ -248,27 +249,16 @@ def _reduced(H_el, A, S, x, L, scales):
     Also the rigid leakage of H_el (reported as rigid_leakage)."""
     G, n, d = x.shape
     nd = H_el.shape[1]
-    r = rot_dim(d)
-    per = d + r
-    C = np.zeros((G, n, per, r))
-    C[:, :, :d, :] = rotate_matrix((x - x.mean(axis=1, keepdims=True)).reshape(-1, d)).reshape(G, n, d, r)
-    C[:, :, d:, :] = L[:, None, None, None] * np.eye(r)
-    C = C.reshape(G, nd, r)
-    T = np.zeros((G, n, per, d))
-    T[:, :, :d, :] = np.eye(d)
-    basis, _ = np.linalg.qr(np.concatenate([T.reshape(G, nd, d), C], axis=2), mode="complete")
-    R, Q = basis[:, :, :per], basis[:, :, per:]
-    Ct, Qt = np.swapaxes(C, 1, 2), np.swapaxes(Q, 1, 2)
-    Cplus = np.linalg.solve(Ct @ C, Ct)
-    PR = R - C @ (Cplus @ R)                                                         # P R (eq:newstiffnesses)
+    C = rotation_columns(x, L)
+    R, Q = rigid_basis(np.concatenate([translation_columns(n, d, (G,)), C], axis=2), complement=True)
+    PR = Projection.from_rotations(C).apply(R)                                      # P R (eq:newstiffnesses)
     leak = H_el @ PR
     leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
     coupling = 0.5 * (np.linalg.norm(leak, axis=(1, 2)) + np.linalg.norm(np.swapaxes(H_el, 1, 2) @ PR, axis=(1, 2))
                       + _column_sum(np.linalg.norm(A, axis=1) * np.linalg.norm(np.swapaxes(S, 1, 2) @ PR, axis=2)
                                     + np.linalg.norm(S, axis=1) * np.linalg.norm(np.swapaxes(A, 1, 2) @ PR, axis=2)))
     formation = (8 * EPS + 2 * gamma(nd) * nd) * scales + coupling
-    HQ = Qt @ (H_el @ Q)
-    return formation, leakage, 0.5 * (HQ + np.swapaxes(HQ, 1, 2)), Qt @ A, Qt @ S
+    return formation, leakage, *on_complement(Q, H_el, A, S)
 
 
 def _values(Hsym, formation, nd: int) -> dict:
@@ -276,10 +266,10 @@ def _values(Hsym, formation, nd: int) -> dict:
     without vectors, ~0.45× the cost of eigh at n ≈ 80), each with the a-priori bound of accuracy.value_bounds."""
     with backend("cpu").threads(nd):
         lam = np.linalg.eigvalsh(Hsym)
-    scale = _abs_norm(Hsym)[:, None]
+    scale = abs_norm_inf(Hsym)[:, None]
     bounds = value_bounds(lam, scale, formation[:, None], nd)
     return {"owner": np.arange(len(Hsym)), "lam": lam, "bounds": bounds, "codes": np.full(lam.shape, BOTH, np.int8),
-            "hinges": np.zeros(lam.shape, dtype=bool), "special": _special(lam, bounds),
+            "hinges": np.zeros(lam.shape, dtype=bool), "special": needs_search(lam, bounds),
             "error": values_backward_error(scale[:, 0], nd)}
 
 
@@ -288,7 +278,7 @@ def _vectors(base, PA, PS, update, n_sliding, formation, s_tol, s_floor, nd: int
     eigh on the backend, residual bounds (accuracy.vector_bounds) and consistency codes (Appendix D) from the S
     values (PSᵀ y = Sᵀ Q y: those of the eigenvector in the cluster's dofs)."""
     Ms = PA.shape[2]
-    owner, masks = _branch_masks(n_sliding, Ms)
+    owner, masks = sign_patterns(n_sliding, Ms)
     Hsym = base[owner]
     loading = np.flatnonzero((masks == 1).any(axis=1))
     if loading.size:                                # + ½(X + Xᵀ), X = a diag(on) sᵀ: exactly symmetric, as `base` is
@@ -297,20 +287,12 @@ def _vectors(base, PA, PS, update, n_sliding, formation, s_tol, s_floor, nd: int
         Hsym[loading] += 0.5 * X
     got = backend_eigh(Hsym, PS[owner], device)
     lam = got["lam"]
-    scale = (_abs_norm(base) + update)[owner]     # >= ‖|Hsym|‖∞ of every branch (update: _update_norm)
+    scale = (abs_norm_inf(base) + update)[owner]     # >= ‖|Hsym|‖∞ of every branch (update: _update_norm)
     bounds = vector_bounds(lam, got["residual"], scale[:, None], formation[owner, None], nd)
     codes, hinges = consistency(masks[:, :, None].astype(float), got["S"], s_tol[owner, None, None],
-                                s_floor[owner, None, None])                         # branches.Problem.s_tol, s_floor
+                                s_floor[owner, None, None])
     return {"owner": owner, "lam": lam, "bounds": bounds, "codes": codes, "hinges": hinges,
-            "special": _special(lam, bounds), "error": got["residual"].max(axis=1)}
-
-
-def _special(lam, bounds) -> np.ndarray:
-    """Branches for Appendix D's eigenspace search (analyze): a repeated eigenvalue or a zero within its bound (the
-    rigid motions are out of the solved dofs: any zero is a non-rigid one). Only clusters without either keep
-    their batched rows, so these need no rigid or zero codes."""
-    return (np.any(np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:], axis=1)
-            | np.any(np.abs(lam) <= bounds, axis=1))
+            "special": needs_search(lam, bounds), "error": got["residual"].max(axis=1)}
 
 
 def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str) -> dict:
@@ -326,19 +308,6 @@ def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str) -> dict:
     return eigh_stack(Hsym, device=be.name, keep=keep, symmetric=True)
 
 
-def _branch_masks(n_sliding: np.ndarray, Ms: int):
-    """Owner (B,) and masks (B, Ms) of all 2^Ms_c branches of every cluster, padded with 0 (enumerate_masks order:
-    branch 0 all loading)."""
-    owner = np.repeat(np.arange(len(n_sliding)), 2 ** n_sliding)
-    masks = np.zeros((len(owner), Ms), dtype=np.int8)
-    first = np.r_[0, np.cumsum(2 ** n_sliding)[:-1]]
-    for k in np.unique(n_sliding):
-        rows = (first[n_sliding == k][:, None] + np.arange(2 ** k)).ravel()
-        bits = (np.arange(2 ** k)[:, None] >> np.arange(k)[::-1]) & 1
-        masks[rows, :k] = np.tile(1 - 2 * bits, (int(np.sum(n_sliding == k)), 1))
-    return owner, masks
-
-
 def _rank_within(groups: np.ndarray) -> np.ndarray:
     """0, 1, 2, ... within each run of equal values of a sorted array."""
     if groups.size == 0:
@@ -352,11 +321,6 @@ def _update_norm(a: np.ndarray, s: np.ndarray) -> np.ndarray:
     ½ Σ_j (‖a_j‖∞ ‖s_j‖₁ + ‖s_j‖∞ ‖a_j‖₁) (a, s: (G, nd, Ms))."""
     a, s = np.abs(a), np.abs(s)
     return 0.5 * _column_sum(a.max(axis=1, initial=0.0) * s.sum(axis=1) + s.max(axis=1, initial=0.0) * a.sum(axis=1))
-
-
-def _abs_norm(H: np.ndarray) -> np.ndarray:
-    """‖|H|‖∞ per matrix of a stack (accuracy.abs_norm_inf)."""
-    return np.abs(H).sum(axis=-1).max(axis=-1) if H.shape[-1] else np.zeros(len(H))
 
 
 def _column_sum(values: np.ndarray) -> np.ndarray:

@@ -6,12 +6,14 @@ so the forces of the contacts cut at its rim act as external loads: the paper's 
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from operator import itemgetter
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..model.scene import Scene, SceneError, build_scene
+from ..model.scene import Scene, SceneError, equilibrium_loads
+from ..model.vec import rot_dim
 
 CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling")
 
@@ -68,13 +70,22 @@ def subscene(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray |
 
     hold: further particles (indices) held fixed around them (`--boundary fixed`): the contacts between a kept and a
     held particle are added, those between two held ones are not (they would act on no dof)."""
-    return build_scene(**cut(scene, keep, title, hold))
+    return piece(cut(scene, keep, title, hold))
+
+
+def piece(fields: dict) -> Scene:
+    """The Scene of `cut`'s fields with its loads at equilibrium (eq:equil1: the forces of the cut contacts act as
+    loads). Not checked again: every value is a slice of a scene that was checked where it was read."""
+    n, r = len(fields["names"]), rot_dim(fields["dim"])
+    bare = Scene(**fields, load=np.zeros((n, fields["dim"])), load_moment=np.zeros((n, r)))
+    load, load_moment = equilibrium_loads(bare)
+    return replace(bare, load=load, load_moment=load_moment)
 
 
 def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None = None,
         contacts_of: sp.csr_matrix | None = None) -> dict:
-    """`build_scene`'s arguments for `subscene(scene, keep, title, hold)`: slices of the scene's arrays only, so that
-    a scan's client cuts a chunk cheaply and the worker that runs it builds (and checks) the scene. contacts_of:
+    """The fields of `subscene(scene, keep, title, hold)` but its loads (`piece` makes the scene): slices of the
+    scene's arrays only, so that a scan's client cuts a chunk cheaply and ships arrays. contacts_of:
     `incidence(scene)`, if at hand (then the work is of the size of the cut, not of the scene)."""
     hold = np.zeros(0, dtype=np.int64) if hold is None else np.asarray(hold, dtype=np.int64)
     every = np.sort(np.concatenate([keep, hold]))
@@ -87,15 +98,15 @@ def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None
     within = inside_p & inside_q
     within[within] &= free[p[within]] | free[q[within]]
     c = touching[within]
-    arrays = {name: getattr(scene, name)[c] for name in CONTACT_FIELDS}
-    arrays.update(p=p[within], q=q[within],
-                  state=tuple(itemgetter(*c)(scene.state)) if len(c) > 1 else tuple(scene.state[i] for i in c))
+    fields = {name: getattr(scene, name)[c] for name in CONTACT_FIELDS}
     names = itemgetter(*every)(scene.names) if len(every) > 1 else (scene.names[every[0]],)
-    mass = None if scene.mass is None else scene.mass[every]
-    inertia = None if scene.inertia is None else scene.inertia[every]
     fixed = ~free | (False if scene.fixed is None else scene.fixed[every])
-    return {"dim": scene.dim, "names": list(names), "x": scene.x[every], "arrays": arrays, "title": title,
-            "source": scene.source, "tol": scene.tol, "mass": mass, "inertia": inertia, "fixed": fixed}
+    fields.update(p=p[within], q=q[within], dim=scene.dim, names=tuple(names), x=scene.x[every], title=title,
+                  state=tuple(itemgetter(*c)(scene.state)) if len(c) > 1 else tuple(scene.state[i] for i in c),
+                  source=scene.source, tol=scene.tol, fixed=fixed if fixed.any() else None,
+                  mass=None if scene.mass is None else scene.mass[every],
+                  inertia=None if scene.inertia is None else scene.inertia[every])
+    return fields
 
 
 def boundary_ring(scene: Scene, center: int, rings: int, graph: sp.csr_matrix | None = None):
@@ -103,6 +114,29 @@ def boundary_ring(scene: Scene, center: int, rings: int, graph: sp.csr_matrix | 
     holds)."""
     inner, outer = members(scene, [center], rings, graph)[0], members(scene, [center], rings + 1, graph)[0]
     return inner, np.setdiff1d(outer, inner)
+
+
+BOUNDARIES = ("loads", "fixed")
+
+
+def cluster(scene: Scene, center: int, rings: int = 1, boundary: str = "loads", title: str = "",
+            graph: sp.csr_matrix | None = None) -> Scene:
+    """The cluster of particle `center` (an index) with `rings` contact hops, as a scene of its own: the one cluster
+    function of the scan, `extract` and the app.
+
+    boundary "loads" (the paper's isolated cluster, Sec. 5): the forces of the cut contacts act as dead loads and
+    the rigid-rotation projection applies (eq:newstiffnesses) — can the cluster, pushed as its neighbours push it
+    now, deform unstably? "fixed": the next ring of particles is held fixed (supports, no rigid modes, no
+    projection) — can it deform unstably while its surroundings do not move (a stiffer, sufficient question)?
+    graph: adjacency(scene), if at hand."""
+    if rings < 1:
+        raise SceneError(f"{scene.source}: rings must be >= 1, got {rings}")
+    if boundary not in BOUNDARIES:
+        raise SceneError(f"{scene.source}: boundary must be one of {', '.join(BOUNDARIES)}, got {boundary!r}")
+    if boundary == "fixed":
+        inner, ring = boundary_ring(scene, center, rings, graph)
+        return subscene(scene, inner, title=title, hold=ring)
+    return subscene(scene, members(scene, [center], rings, graph)[0], title=title)
 
 
 def particle_index(scene: Scene, name: str) -> int:
@@ -113,23 +147,27 @@ def particle_index(scene: Scene, name: str) -> int:
         raise SceneError(f"{scene.source}: no particle named {name!r} (names are as in the scene)") from None
 
 
-BOUNDARIES = ("loads", "fixed")
-
-
 def extract(scene: Scene, center: str, rings: int = 1, boundary: str = "loads") -> Scene:
-    """The cluster of particle `center` with `rings` contact hops, as a scene of its own (`granstab extract`).
+    """The cluster of particle `center` as a scene of its own (`granstab extract`).
 
-    boundary "loads" (the paper's isolated cluster, Sec. 5): the forces of the cut contacts act as dead loads and
-    the rigid-rotation projection applies (eq:newstiffnesses) — can the cluster, pushed as its neighbours push it
-    now, deform unstably? "fixed": the next ring of particles is held fixed (supports, no rigid modes, no
-    projection) — can it deform unstably while its surroundings do not move (a stiffer, sufficient question)?"""
-    if rings < 1:
-        raise SceneError(f"{scene.source}: rings must be >= 1, got {rings}")
-    if boundary not in BOUNDARIES:
-        raise SceneError(f"{scene.source}: boundary must be one of {', '.join(BOUNDARIES)}, got {boundary!r}")
-    c = particle_index(scene, center)
+    Parameters
+    ----------
+    scene : Scene
+        The packing.
+    center : str
+        The centre particle's name.
+    rings : int
+        Contact hops from the centre (>= 1); the cluster keeps every contact between two of its particles.
+    boundary : {"loads", "fixed"}
+        "loads" (the paper's isolated cluster, Sec. 5): the forces of the cut contacts act as dead loads and the
+        rigid-rotation projection applies (eq:newstiffnesses) — can the cluster, pushed as its neighbours push it
+        now, deform unstably? "fixed": the next ring of particles is held fixed (supports, no rigid modes, no
+        projection) — can it deform unstably while its surroundings do not move (a stiffer question)?
+
+    Returns
+    -------
+    Scene
+        Its particles and contacts in the packing's order, with ``fixed`` (N_c,) set for "fixed".
+    """
     title = f"cluster of {center} ({rings} ring{'s' * (rings > 1)}, boundary {boundary}) in {scene.source}"
-    if boundary == "fixed":
-        inner, ring = boundary_ring(scene, c, rings)
-        return subscene(scene, inner, title=title, hold=ring)
-    return subscene(scene, members(scene, [c], rings)[0], title=title)
+    return cluster(scene, particle_index(scene, center), rings, boundary, title=title)

@@ -17,22 +17,23 @@ import numpy as np
 from ..analysis import analyze
 from ..mechanics.branches import RIGID
 from ..mechanics.verdicts import verdict_columns
-from ..model.scene import Scene, SceneError, build_scene
+from ..model.scene import Scene, SceneError
 from ..solve.device import backend
 from ..solve.threads import blas_threads
 from .batch import batchable, solve_chunk
 from .clusters import (
     BOUNDARIES,
     adjacency,
-    boundary_ring,
+    cluster,
     cut,
     incidence,
     members,
     particle_index,
-    subscene,
+    piece,
     union,
 )
-from .output import ScanOutput, columns_table, concat_rows, rows_table
+from .output import ScanOutput
+from .rows import Row, columns_table, concat_rows, rows_table
 
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
                       # (batch.STACK_BYTES)
@@ -47,47 +48,33 @@ IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next 
 WORKER_ENVIRON = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}
 
 
-def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict) -> dict:
-    """One row of clusters.parquet from `analyze` on the cluster's sub-scene (errors become a row, never a lost
-    cluster)."""
+def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict, graph=None, index=None) -> Row:
+    """The row of the cluster of `center` (its members `keep`) from `analyze` on its sub-scene (clusters.cluster;
+    errors become a row, never a lost cluster). graph: adjacency(scene), if at hand; index: the packing's index of
+    each particle of `scene` (a chunk's; None: `scene` is the packing)."""
     start = time.perf_counter()
-    row = {"center": scene.names[center], "members": [scene.names[i] for i in keep], "n_particles": len(keep),
-           "path": "analyze"}
+    index = np.arange(scene.n_particles) if index is None else index
+    center_id, ids = int(index[center]), index[np.asarray(keep, dtype=np.int64)].tolist()
     try:
-        hold = boundary_ring(scene, center, options["rings"])[1] if options.get("boundary") == "fixed" else None
-        sub = subscene(scene, keep, hold=hold)
+        sub = cluster(scene, center, options["rings"], options.get("boundary", "loads"), graph=graph)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
                       sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()))
     except SceneError as exc:
-        return {**row, "n_contacts": -1, "n_sliding": -1, "branches": "none", "n_branches": 0,
-                "lambda_min": np.nan, "consistent_negative": -1, "consistent_positive": -1, "verdict": "error",
-                "sufficient": False, "insufficient_because": "error", "metric_robust": None, "zero_margin": np.nan,
-                "eigen_residual": np.nan, "rigid_leakage": np.nan, "reason": " ".join(str(exc).split()),
-                "seconds": time.perf_counter() - start}
+        return Row.failed(center_id, ids, str(exc), time.perf_counter() - start)
     lam = [b.stability_eigenvalues[b.codes != RIGID] for b in res.branches]
-    return summary_row(row, res.summary, n_contacts=sub.n_contacts, n_sliding=int(np.sum(sub.at_yield())),
-                       lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
-                       eigen_residual=res.errors["eigen_residual_stability"],
-                       rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
+    return Row.analyzed(center_id, ids, res.verdict, n_contacts=sub.n_contacts,
+                        n_sliding=int(np.sum(sub.at_yield())),
+                        lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
+                        eigen_residual=res.errors["eigen_residual_stability"],
+                        rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
 
 
-def summary_row(row: dict, sm: dict, *, n_contacts: int, n_sliding: int, lambda_min: float, eigen_residual: float,
-                rigid_leakage: float, seconds: float) -> dict:
-    """A row from an `analyze`-style summary (verdicts.py) and the cluster's numbers."""
-    return {**row, "n_contacts": n_contacts, "n_sliding": n_sliding,
-            "branches": sm.get("branches", "all"), "n_branches": sm["n_branches"], "lambda_min": lambda_min,
-            "consistent_negative": sm["consistent_negative"], "consistent_positive": sm["consistent_positive"],
-            "verdict": sm["verdict"], "sufficient": sm["sufficient"],
-            "insufficient_because": ",".join(sm["insufficient_because"]), "metric_robust": sm["metric_robust"],
-            "zero_margin": np.nan if sm["zero_margin"] is None else sm["zero_margin"],
-            "eigen_residual": eigen_residual, "rigid_leakage": rigid_leakage, "reason": sm["reason"],
-            "seconds": seconds}
-
-
-def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, options: dict) -> dict | None:
-    """Columns of the rows that the batched path serves (batch.py), `position` their index in `centers` (None: no
-    cluster batched), vectorised over clusters (verdicts.verdict_columns); seconds: the chunk's time shared
-    equally."""
+def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, options: dict,
+                    index: np.ndarray) -> dict | None:
+    """The rows that the batched path serves (batch.py) as columns, one per field of `Row` (rows.columns_table),
+    and `position`, their index in `centers` (None: no cluster batched); vectorised over clusters
+    (verdicts.verdict_columns); seconds: the chunk's time shared equally. index: the packing's index of each
+    particle of `scene`."""
     start = time.perf_counter()
     got = solve_chunk(scene, centers, member_lists, options)
     if got is None or not len(got["position"]):
@@ -95,12 +82,11 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
     position = got["position"]
     errors_finite = np.isfinite(got["eigen_residual"]) & np.isfinite(got["rigid_leakage"])
     verdicts = verdict_columns(got["counts"], got["n_branches"], errors_finite, got["n_undetermined"])
-    names = np.asarray(scene.names, dtype=object)
     kept = [member_lists[i] for i in position]
     sizes = np.array([len(m) for m in kept])
     n = len(position)
-    return {"position": position, "center": names[centers[position]],
-            "members": (names[np.concatenate(kept)], np.r_[0, np.cumsum(sizes)]), "n_particles": sizes,
+    return {"position": position, "center": index[centers[position]],
+            "members": (index[np.concatenate(kept)], np.r_[0, np.cumsum(sizes)]), "n_particles": sizes,
             "path": np.where(got["values_only"], "batched-values", "batched").astype(object),
             "n_contacts": got["n_contacts"], "n_sliding": got["n_sliding"], "branches": np.full(n, "all", object),
             "n_branches": got["n_branches"], "lambda_min": got["lambda_min"], "metric_robust": np.full(n, None, object),
@@ -110,14 +96,18 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
 
 @dataclass(frozen=True)
 class Chunk:
-    """A chunk of centres as it travels to a worker: `build_scene`'s arguments for the sub-scene of every particle of
-    their clusters (clusters.cut) and the centres' indices in it. A dataclass, so that Dask ships it whole instead of
-    walking its lists of names for futures (measured: 4.5 s of the client's time in a 10⁵-particle scan)."""
-    arguments: dict
+    """A chunk of centres as it travels to a worker: the fields of the sub-scene of every particle of their clusters
+    (clusters.cut: slices of the packing's arrays) and the centres' indices in it. The worker makes the scene
+    (clusters.piece) without checking again what was checked where the packing was read; `particles` is the
+    packing's index of each of its particles (rows name particles by these). A dataclass, so that Dask ships it
+    whole instead of walking its tuples for futures (measured: 4.5 s of the client's time in a 10⁵-particle
+    scan)."""
+    fields: dict
     centers: np.ndarray
+    particles: np.ndarray
 
     def scene(self) -> Scene:
-        return build_scene(**self.arguments)
+        return piece(self.fields)
 
 
 def chunk_cut(scene: Scene, centers: np.ndarray, rings: int, graph=None, contacts_of=None) -> Chunk:
@@ -126,7 +116,7 @@ def chunk_cut(scene: Scene, centers: np.ndarray, rings: int, graph=None, contact
     and the client only slices arrays. graph, contacts_of: clusters.adjacency(scene) and clusters.incidence(scene),
     if at hand (a scan makes them once: then cutting a chunk costs the chunk's size, not the packing's)."""
     every = union(scene, centers, rings, graph)
-    return Chunk(cut(scene, every, contacts_of=contacts_of), np.searchsorted(every, centers))
+    return Chunk(cut(scene, every, contacts_of=contacts_of), np.searchsorted(every, centers), every)
 
 
 def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tuple[Scene, np.ndarray]:
@@ -140,17 +130,20 @@ def reach(options: dict) -> int:
     return options["rings"] + (options.get("boundary") == "fixed")
 
 
-def scan_chunk(scene: Scene, centers: np.ndarray, options: dict):
-    """Rows of a chunk of centres (indices into `scene`, best a `chunk_scene`) as an Arrow table, in the order of
+def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.ndarray | None = None):
+    """Rows of a chunk of centres (indices into `scene`, best a chunk's scene) as an Arrow table, in the order of
     `centers`: the unit of work of a Dask task. The batched path (batch.py) takes what it can; `analyze` per
     cluster the rest (a partial cluster's branch sample is seeded by its centre's name, so it does not depend on
-    the chunking)."""
-    member_lists = members(scene, centers, options["rings"])
+    the chunking). particles: the packing's index of each particle of `scene` (None: `scene` is the packing), by
+    which the rows name centres and members."""
+    index = np.arange(scene.n_particles) if particles is None else np.asarray(particles, dtype=np.int64)
+    graph = adjacency(scene)
+    member_lists = members(scene, centers, options["rings"], graph)
     with blas_threads(1):
-        batched = batched_columns(scene, centers, member_lists, options) if batchable(options) else None
+        batched = batched_columns(scene, centers, member_lists, options, index) if batchable(options) else None
         done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
         rest = np.setdiff1d(np.arange(len(centers)), done)
-        rows = [cluster_row(scene, centers[i], member_lists[i], options) for i in rest]
+        rows = [cluster_row(scene, centers[i], member_lists[i], options, graph, index) for i in rest]
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
     return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
 
@@ -158,7 +151,7 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict):
 def chunk_table(chunk: Chunk, options: dict):
     """The rows of a `Chunk` (scan_chunk): the unit of work of the serial loop and of a Dask task, so that the
     worker, not the client, builds the chunk's scene and the table."""
-    return scan_chunk(chunk.scene(), chunk.centers, options)
+    return scan_chunk(chunk.scene(), chunk.centers, options, chunk.particles)
 
 
 def select_centers(scene: Scene, centers) -> np.ndarray:
@@ -179,14 +172,35 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
          device: str = "cpu") -> dict:
-    """Analyse the cluster of every centre; write DIR/clusters.*, DIR/particles.*, DIR/summary.json and the map.
+    """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
+    (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
+    it), particles.*, summary.json and the map.
 
-    Resumes: centres already in DIR (from an interrupted scan with the same options) are skipped.
-    scheduler: a Dask scheduler address (tcp://HOST:PORT); workers: local Dask workers (default: this machine's
-    cores; 1 = serial, in this process). metric: the projection metric of every cluster (see analyze).
-    device: "cpu", "gpu" or "auto" for the stacked eigenproblems of the batched path (backend.py); chunk: clusters
-    per task (default: CHUNK serially; on Dask sized by the measured cost of a cluster, `Guide`; GPU_CHUNK on a
-    GPU). boundary: "loads" (the isolated cluster) or "fixed" (the next ring held fixed): see clusters.extract.
+    Parameters
+    ----------
+    scene : Scene
+        The packing (N particles).
+    out_dir : str or Path
+        Output folder; centres already in it (an interrupted scan with the same options) are skipped.
+    rings, boundary : int, {"loads", "fixed"}
+        The cluster of a centre: `rings` contact hops; cut contacts as dead loads or the next ring held fixed
+        (`extract`).
+    centers : "all", "every:K", or names
+        Which particles are centres.
+    metric, max_sliding, sample_branches : str, int, int
+        As in `granstab.analyze`, for every cluster (default metric "L").
+    scheduler, workers, chunk, device : str, int, int, {"cpu", "gpu", "auto"}
+        A Dask scheduler address (tcp://HOST:PORT) or local workers (default: this machine's cores; 1 = serial,
+        in this process); clusters per task (default: sized by the measured cost of a cluster, `Guide`); where
+        the stacked eigenproblems run (granstab.solve.device).
+    progress, fmt, figures : bool, {"parquet", "csv"}, bool
+        A bar with the time left; the table format; whether to draw map.png/.svg and lambda_min.png/.svg.
+
+    Returns
+    -------
+    dict
+        summary.json: counts per verdict, time, clusters per second, the options. The folder also holds
+        clusters.* (one row a cluster) and particles.* (the map: ``unstable_fraction`` per particle).
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
@@ -195,10 +209,10 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
                "boundary": boundary}
     device = backend(device).name                                   # a missing GPU fails here, in one line
-    out = ScanOutput(out_dir, fmt, options, source=scene.source)
+    out = ScanOutput(out_dir, fmt, options, scene)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
     chosen = select_centers(scene, centers)
-    todo = chosen[~np.isin(np.asarray(scene.names, dtype=object)[chosen], list(out.done_centers()))]
+    todo = chosen[~np.isin(chosen, out.done_centers())]
     bar = _progress(len(todo)) if progress else None
     start = time.perf_counter()
     if len(todo):

@@ -2,8 +2,9 @@
 the time asked, and a deadline that stops work that runs over (`granstab analyze --timeout`).
 
 The dense path solves, per branch, an n×n symmetric eigenproblem, a non-symmetric one and an SVD, and forms
-projections and residuals with a few matrix products (branches.py), batched over the 2^Ms branches. Their cost is measured here on this machine, on a stack of random matrices of the
-same size (up to MEASURE_DIM; larger sizes scale as n³), so the estimate follows the machine it runs on.
+projections and residuals with a few matrix products (dense.py, mechanics/branches.py), batched over the 2^Ms
+branches. Their cost is measured here on this machine, on a stack of random matrices of the same size (up to
+MEASURE_DIM; larger sizes scale as n³), so the estimate follows the machine it runs on.
 """
 from __future__ import annotations
 

@@ -7,14 +7,13 @@ import numpy as np
 
 from ..mechanics.accuracy import eigen_bounds
 from ..mechanics.branches import (
-    INCONSISTENT,
     RIGID,
     Branch,
     Problem,
     branch_matrices,
     canonical_signs,
-    eigen_groups,
     non_rigid_part,
+    search_eigenspaces,
     search_subspace,
     test_codes,
 )
@@ -126,25 +125,10 @@ def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> 
     codes = codes.copy()
     hinges = hinges.copy()
     zero = np.flatnonzero(np.abs(lam) <= bounds)
-    for group in eigen_groups(lam, bounds):
-        if group[0] in zero or len(group) == 1:
-            continue
-        found = search_subspace(problem, mask, V[:, group])
-        codes[group] = INCONSISTENT
-        if found is not None:
-            V[:, group[0]], codes[group[0]], hinges[group[0]] = found
-    if zero.size:
-        extra = non_rigid_part(problem, V[:, zero])
-        n_extra = extra.shape[1]
-        codes[zero] = RIGID
-        hinges[zero] = False
-        if n_extra:
-            slots = zero[len(zero) - n_extra:]
-            V[:, slots] = extra
-            codes[slots] = INCONSISTENT
-            found = search_subspace(problem, mask, extra)
-            if found is not None:
-                V[:, slots[0]], codes[slots[0]], hinges[slots[0]] = found
+    extra = non_rigid_part(problem, V[:, zero]) if zero.size else V[:, :0]   # the non-rigid null space, last
+    codes[zero] = RIGID
+    hinges[zero] = False
+    search_eigenspaces(problem, mask, lam, bounds, V, codes, hinges, zero[len(zero) - extra.shape[1]:], extra)
     order = np.argsort(mu.real, kind="stable")
     sv, Vt = svd if svd is not None else np.linalg.svd(HH)[1:]
     norm_u = max(sv.max(), 1e-300)

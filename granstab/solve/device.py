@@ -1,7 +1,7 @@
 """One array namespace for the stacked eigenproblems (numpy on the CPU, CuPy on a GPU).
 
 The two places where granstab solves many small symmetric eigenproblems — the 2^Ms loading branches of a cluster
-(lowrank.py) and the clusters of a scan — write their stacked arithmetic against `backend.xp` (array-API style:
+(lowrank.py, ritz.py) and the clusters of a scan (scan/batch.py) — write their stacked arithmetic against `backend.xp` (array-API style:
 `xp.linalg.eigh`, `xp.matmul`, ...), so the same code runs on numpy or on CuPy. The rest of the core stays
 numpy/scipy. CuPy is the optional extra `.[gpu]` (cupy-cuda12x; `.[gpu-cuda13]`: cupy-cuda13x); `device="gpu"`
 without it is a one-line error.

@@ -34,15 +34,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanics.accuracy import resolved_sign, vector_bounds
-from ..mechanics.branches import RIGID, Branch, Problem, column_signs, consistency
+from ..mechanics.accuracy import abs_norm_inf, resolved_sign, vector_bounds
+from ..mechanics.branches import RIGID, Branch, Problem, column_signs, consistency, needs_search
+from ..mechanics.rigid import on_complement, rigid_basis
 from ..mechanics.verdicts import CONSISTENT, merge_tallies, tally
 from ..model.tolerances import EPS
 from .dense import solve_branches
 from .device import backend, residual_norms
 from .threads import cores
 
-GUARD = 6            # extra Ritz vectors carried by the sparse path's refinement (faster convergence of the kk)
 MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s)
 GPU_THREADS = 8       # chunks in flight on a GPU (each takes its share of the device memory, backend.chunk)
 
@@ -73,19 +73,14 @@ class Reduced:
 def reduce(problem: Problem) -> Reduced:
     """M0, a, s and the leakage pieces of the module docstring, once per cluster."""
     R = problem.rigid
-    n, r = R.shape
-    Q, _ = np.linalg.qr(R, mode="complete")
-    N = Q[:, r:]
+    _, N = rigid_basis(R, complement=True)
+    M0, a, s = on_complement(N, problem.H_el, problem.A, problem.S)
     Hsym = 0.5 * (problem.H_el + problem.H_el.T)
     PR = problem.projection.apply(R)
     HN = problem.H_el @ N
-    return Reduced(N=N, M0=_sym(N.T @ Hsym @ N), a=N.T @ problem.A, s=N.T @ problem.S, E0=PR.T @ Hsym @ N,
-                   alpha=PR.T @ problem.A, beta=PR.T @ problem.S, HN=HN, HN_norm=float(np.linalg.norm(HN, 2)),
-                   AS_norm=np.linalg.norm(problem.A, axis=0) * np.linalg.norm(N.T @ problem.S, axis=0), n=n)
-
-
-def _sym(M):
-    return 0.5 * (M + M.swapaxes(-1, -2))
+    AS_norm = np.linalg.norm(problem.A, axis=0) * np.linalg.norm(s, axis=0)
+    return Reduced(N=N, M0=M0, a=a, s=s, E0=PR.T @ Hsym @ N, alpha=PR.T @ problem.A, beta=PR.T @ problem.S, HN=HN,
+                   HN_norm=float(np.linalg.norm(HN, 2)), AS_norm=AS_norm, n=R.shape[0])
 
 
 def sym_updates(a: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -159,7 +154,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
         m = be.asarray(part[:, problem.sliding])[:, :, None]
         codes, hinges = consistency(m, Sv, problem.s_tol, problem.s_floor, xp)
         got = {"lam": lam, "res": residual_norms(xp, M, lam, W), "leak": leakage(xp, red, on, dE),
-               "scale": xp.max(xp.sum(xp.abs(M), axis=-1), axis=-1), "codes": codes, "hinges": hinges,
+               "scale": abs_norm_inf(M, xp), "codes": codes, "hinges": hinges,
                **fingerprint(xp, Sv)}
         host = {key: be.to_host(v) for key, v in got.items()}          # O(L·k): the S values stay on the device
         host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
@@ -180,7 +175,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
             info["residual_stability"] = max([info["residual_stability"], float(plain["res"][~special].max(initial=0)),
                                               *(b.residual_stability for b in full.values())])
 
-            def branch(i):
+            def branch(i, full=full, part=part, plain=plain):
                 return full.get(i) or _plain(problem, red, part[i], {key: v[i] for key, v in plain.items()})
 
             if keep_all or on_branch is not None:
@@ -266,21 +261,20 @@ def full_signs(xp, N, W):
 
 def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray, be) -> np.ndarray:
     """Branches that need the full path: a non-rigid zero or a repeated eigenvalue within the accuracy bounds
-    (branches.py's rule), or an ℍ^i whose smallest singular value on N is not proven above its zero tolerance."""
+    (branches.needs_search), or an ℍ^i whose smallest singular value on N is not proven above its zero tolerance."""
     lam, bounds = h["lam"], h["bounds"]
     n = red.n
-    zero = np.any(np.abs(lam) <= bounds, axis=1)
-    repeated = np.any(np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:], axis=1)
+    search = needs_search(lam, bounds)
     upper = red.HN_norm + on @ red.AS_norm                            # ≥ ‖H^i N‖₂ = ‖ℍ^i‖₂
     tol_u = problem.tol.zero_tol(1.0, n) * upper
     lower = lam[:, 0] - bounds[:, 0]                                  # ≤ λ_min(M_i) ≤ σ_min(H^i N)
-    unsure = np.flatnonzero(~(zero | repeated) & (lower <= tol_u))
+    unsure = np.flatnonzero(~search & (lower <= tol_u))
     singular = np.zeros(len(lam), bool)
     if unsure.size:
         smin2, gmax = gram_floor(be, problem.A, red, on[unsure])
         tol_g = problem.tol.zero_tol(1.0, n) * np.sqrt(np.maximum(gmax, 0.0))
         singular[unsure] = smin2 <= tol_g ** 2
-    return zero | repeated | singular
+    return search | singular
 
 
 def gram_floor(be, A: np.ndarray, red: Reduced, on: np.ndarray):
@@ -299,7 +293,7 @@ def gram_floor(be, A: np.ndarray, red: Reduced, on: np.ndarray):
         return g[:, 0] - 4 * n * EPS * fro2, g[:, -1]
     g, Z = xp.linalg.eigh(G)
     res = be.to_host(residual_norms(xp, G, g, Z)[:, 0])
-    scale = be.to_host(xp.max(xp.sum(xp.abs(G), axis=-1), axis=-1))
+    scale = be.to_host(abs_norm_inf(G, xp))
     g0, gmax = be.to_host(g[:, 0]), be.to_host(g[:, -1])
     return g0 - vector_bounds(g0, res, scale, 0.0, G.shape[-1]) - 4 * n * EPS * fro2, gmax
 
@@ -371,120 +365,3 @@ class LazyVectors:
 
     def __getitem__(self, index):
         return self.array()[index]
-
-
-# ------------------------------------------------------------------------------------- the sparse path (sparse.py)
-
-def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
-    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): twice, B is
-    projected off X (block Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
-    only, no Householder QR of n × m); directions below `cut` are dropped."""
-    for _ in range(2):
-        B = B - X @ (X.T @ B)
-        B = B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)
-        s, U = np.linalg.eigh(_sym(B.T @ B))
-        keep = s > cut * max(s[-1], 1e-300)
-        B = B @ (U[:, keep] / np.sqrt(s[keep]))
-    return B
-
-
-class SparseRitz:
-    """The lowest eigenpairs of every branch of a large cluster from ONE elastic solve (granstab.solve.sparse).
-
-    Branch i's deflated operator is B_i = B_0 + U_i K_i U_iᵀ with U_i in span[A, S] (and the rigid modes). An
-    eigenvector of B_i with eigenvalue λ is v = -(B_0 - λ)⁻¹ U_i K_i U_iᵀ v: near the low end it lies in the span of
-    the lowest elastic modes and of (B_0 - σ)⁻¹[A, S], (B_0 - σ)⁻²[A, S] (a Taylor expansion of (B_0 - λ)⁻¹ about
-    σ). That space W (n × d, d = K + 4 Ms, orthonormal, rigid-free) is built once from the elastic shift-invert
-    solve and its sparse LU; every branch is then the d × d Rayleigh-Ritz problem Wᵀ B_i W = Wᵀ Hs W + a low-rank
-    update, stacked on the backend like the dense branches.
-
-    Exact: the number ν of eigenvalues below σ per branch (Sylvester/Haynsworth from the shared LU, sparse.Shifted).
-    Bounded: every Ritz value θ is an upper bound of its eigenvalue (Cauchy interlacing) and has an eigenvalue
-    within its residual ‖B_i v − θ v‖ (exact operator). A branch whose Ritz values below σ are fewer than ν, or whose
-    residuals exceed `rtol`·‖Hs‖, is solved again by shift-invert ARPACK with the same LU (sparse.lowest_modes).
-    """
-
-    def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 8, rtol: float = 1e-12, device: str = "cpu"):
-        from .sparse import lowest_modes
-        self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
-        elastic = lowest_modes(spb, k + extra, None, tol=tol)
-        self.factorization = elastic.info.get("factorization")
-        R = spb.R
-        blocks = [elastic.vectors]
-        if self.factorization is not None and spb.A.shape[1]:
-            Z = np.concatenate([spb.A, spb.S], axis=1)
-            for _ in range(2):
-                Z = self.factorization.solve(Z)
-                Z -= R @ (R.T @ Z)
-                Z /= np.maximum(np.linalg.norm(Z, axis=0), 1e-300)
-                blocks.append(Z)
-        W = np.concatenate(blocks, axis=1)
-        W -= R @ (R.T @ W)
-        U, sv, _ = np.linalg.svd(W, full_matrices=False)
-        self.W = U[:, sv > 1e-12 * sv[0]]
-        HW = spb.Hs @ self.W
-        self.M0 = _sym(self.W.T @ HW)
-        self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
-        self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
-        if self.factorization is not None:                             # (Hs - σI)⁻¹ of every column _lowrank uses
-            solve = self.factorization.solve
-            T = R[:, :spb.scene.dim]
-            self.solved = {"Q": solve(spb.Q), "HQ": solve(spb.Hs @ spb.Q), "T": solve(T), "A": solve(spb.A),
-                           "S": solve(spb.S)}
-        self.steps = 4
-
-    def modes(self, masks: np.ndarray, kk: int):
-        """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""
-        from .sparse import Shifted, _finish, _lowrank, lowest_modes, operator
-        spb = self.spb
-        be = backend(self.device)
-        on = (masks[:, spb.sliding] == 1).astype(float)
-        block = min(kk + GUARD, self.W.shape[1])
-        with be.threads(self.W.shape[1]):
-            _, Y = be.xp.linalg.eigh(stack(be.xp, self.M0, self.updates, be.asarray(on)))
-            Y = be.to_host(Y[:, :, :block])
-        fac = self.factorization
-        for i, mask in enumerate(masks):
-            if fac is None:
-                self.stats["arpack"] += 1
-                yield lowest_modes(spb, kk, mask, tol=self.tol)
-                continue
-            U, K = _lowrank(spb, on[i] == 1, spb.norm)
-            shifted = Shifted(fac, U, K, fac.sigma, fac.n_neg, Z=self._solved(on[i] == 1))
-            Bop = operator(spb, mask, spb.norm)
-            mask8 = np.asarray(mask, np.int8)
-            V = self.W @ Y[i]
-            for step in range(self.steps + 1):
-                modes = _finish(spb, Bop, np.zeros(block), V, mask8, fac.sigma, False, shifted.n_below, "ritz", {})
-                nu, found = shifted.n_below, int(np.sum(modes.eigenvalues < fac.sigma))
-                if nu is not None and nu == found < kk and modes.residuals[:kk].max() <= self.rtol:
-                    out = _finish(spb, Bop, np.zeros(kk), modes.vectors[:, :kk], mask8, fac.sigma, True, nu, "ritz",
-                                  {"factorization": fac, "basis": self.W.shape[1], "refinements": step})
-                    self.stats["ritz"] += 1
-                    yield out
-                    break
-                if step < self.steps:
-                    V = self._refine(spb, Bop, shifted, modes.vectors)
-            else:
-                self.stats["arpack"] += 1
-                yield lowest_modes(spb, kk, mask, factorization=fac, tol=self.tol)
-
-    def _solved(self, on: np.ndarray) -> np.ndarray:
-        """(Hs - σI)⁻¹ U for sparse._lowrank's U = [Q, Y, T, A_on, S_on] of a branch, by linearity from the solves
-        made once (Y = Hs Q + ½(A_on S_onᵀ Q + S_on A_onᵀ Q))."""
-        spb, z = self.spb, self.solved
-        A, S = spb.A[:, on], spb.S[:, on]
-        ZY = z["HQ"] + 0.5 * (z["A"][:, on] @ (S.T @ spb.Q) + z["S"][:, on] @ (A.T @ spb.Q))
-        return np.concatenate([z["Q"], ZY, z["T"], z["A"][:, on], z["S"][:, on]], axis=1)
-
-    def _refine(self, spb, Bop, shifted, V):
-        """Rayleigh-Ritz on span[W, V, (B - σ)⁻¹V, (B - σ)⁻²V] (block shift-invert with the branch's Woodbury
-        operator): as many of the lowest Ritz vectors as V has columns."""
-        Z1 = shifted.solve(V)
-        Z2 = shifted.solve(Z1)
-        basis = self.W
-        for block in (V, Z1, Z2):
-            basis = np.concatenate([basis, extend(np.concatenate([spb.R, basis], axis=1), block)], axis=1)
-        G = _sym(basis.T @ Bop.matmat(basis))
-        _, y = np.linalg.eigh(G)
-        return basis @ y[:, :V.shape[1]]

@@ -47,9 +47,14 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..mechanics import checks
+from ..mechanics.accuracy import resolved_sign, vector_bounds
+from ..mechanics.assembly import assemble, sliding_factors, stack_blocks
+from ..mechanics.branches import RIGID, Branch, Problem, search_eigenspaces, test_codes
+from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
-from ..mechanics.rigid import Projection, rotations, translations
-from ..mechanics.stiffness import ContactBlocks, assemble, contact_blocks
+from ..mechanics.rigid import Projection, rigid_basis, rotations, translations
+from ..mechanics.stiffness import ContactBlocks, contact_blocks, geometric
 from ..model.scene import Scene
 from ..model.vec import rot_dim, rotate_matrix
 
@@ -86,8 +91,9 @@ class SparseProblem:
 
     H: CSR scaled elastic H̃ (non-symmetric); Hs: CSR sym(H̃); Hm: CSR scaled elastic mechanical part (for the
     preconditioner); A, S: (n, Ms) sliding factors (scaled, like branches.Problem); C: (n, r) scaled rotations;
-    Q: (n, r) and R: (n, d + r) orthonormal bases of the rigid rotations and of all rigid motions (translations
-    first); norm: upper bound of ‖Hs‖₂ (max absolute row sum, plus the sliding terms); local: stiffness.ContactBlocks without its (M, n_loc, n_loc) blocks.
+    R: (n, d + r) orthonormal basis of all rigid motions (translations first, rigid.rigid_basis) and Q = R[:, d:]
+    (n, r) that of the rotations; norm: upper bound of ‖Hs‖₂ (max absolute row sum, plus the sliding terms);
+    local: stiffness.ContactBlocks without its (M, n_loc, n_loc) blocks.
     """
 
     scene: Scene
@@ -136,7 +142,7 @@ class SparseParts:
 
 def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     """H and its mechanical part as CSR from the contact blocks, computed in chunks of contacts and scattered once
-    (stiffness.assemble), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
+    (assembly.assemble), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
     t0 = time.perf_counter()
     per = scene.dof_per_particle
     M, n_loc = scene.n_contacts, 2 * per
@@ -148,7 +154,7 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     undetermined = np.zeros(M, bool)
     for sl, cb in contact_chunks(scene, chunk):
         b = cb.blocks
-        total[sl] = b["Hm"] + b["Hg1"] + b["Hg2"] + b["Hg3"]
+        total[sl] = b["Hm"] + geometric(b)
         mech[sl] = b["Hm"]
         a[sl], s[sl], index[sl] = cb.slide_left, cb.slide_right, cb.index
         undetermined[sl] = cb.rolling_undetermined
@@ -158,16 +164,9 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
     del mech
     sliding = np.flatnonzero(scene.at_yield())
-    n, Ms = scene.n_dof, len(sliding)
-    A = np.zeros((n, Ms))
-    S = np.zeros((n, Ms))
-    if Ms:
-        rows = index[sliding]
-        cols = np.broadcast_to(np.arange(Ms)[:, None], rows.shape)
-        np.add.at(A, (rows, cols), a[sliding])
-        np.add.at(S, (rows, cols), s[sliding])
-    local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=n,
+    local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=scene.n_dof,
                           rolling_undetermined=undetermined)
+    A, S = sliding_factors(local, sliding)
     return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local,
                        timings={"blocks": t1 - t0, "assembly": time.perf_counter() - t1})
 
@@ -188,9 +187,8 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     A, S = np.asarray(D @ parts.A), np.asarray(D @ parts.S)
     Ms = A.shape[1]
     C = metric.rotations(scene)
-    Q, _ = np.linalg.qr(C)
-    T, _ = np.linalg.qr(metric.translations(scene))
-    R = np.concatenate([T, Q], axis=1)
+    R, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))
+    Q = R[:, scene.dim:]                                                # spans C, which is orthogonal to T
     norm = float(abs(Hs).sum(axis=1).max()) if Hs.nnz else 1.0
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
@@ -237,7 +235,7 @@ class Shifted:
     n_below: int | None = None
 
     def __post_init__(self):
-        if self.Z is None:                                             # given: (Hs - σI)⁻¹U known (lowrank.py)
+        if self.Z is None:                                             # given: (Hs - σI)⁻¹U known (ritz.py)
             self.Z = self.lu.solve(self.U) if self.U.shape[1] else self.U
         Kinv = np.linalg.inv(self.K) if self.K.size else self.K
         Cap = Kinv + self.U.T @ self.Z
@@ -629,6 +627,51 @@ def _finish(sp_, Bop, lam, V, mask, sig, verified, nu, method, info) -> Modes:
                  verified=bool(verified), n_below=nu, method=method, info=info)
 
 
+# ------------------------------------------------------------------------------------------ branches
+
+def sparse_branch(problem: Problem, spb, modes, mask, k: int):
+    """A branches.Branch from the k+1 lowest modes: rigid modes first in the basis, per-eigenvalue accuracy bounds
+    (accuracy.py), consistency codes, the subspace search of Appendix D on repeated and non-rigid zero eigenvalues
+    (branches.search_eigenspaces, as the dense path) and the negative count of sym(𝓗^i) (`negative_count`: count, total = whether every
+    negative eigenvalue is among the computed ones, below = the shift σ of the inertia count)."""
+    n = spb.n
+    lam_k, V_k = modes.eigenvalues, modes.vectors
+    res_k = modes.residuals * spb.norm                                  # absolute residual norms
+    bounds_k = vector_bounds(lam_k, res_k, spb.norm, problem.formation_error, n)
+    cut = len(lam_k) > k and k > 0 and lam_k[k] - lam_k[k - 1] <= bounds_k[k] + bounds_k[k - 1]
+    top = (lam_k[k], bounds_k[k]) if len(lam_k) > k else (np.inf, 0.0)
+    lam_k, V_k, bounds_k = lam_k[:k], V_k[:, :k], bounds_k[:k]
+    n_rigid = spb.n_rigid
+    lam = np.r_[np.zeros(n_rigid), lam_k]
+    bounds = np.r_[np.full(n_rigid, problem.formation_error), bounds_k]
+    V = np.concatenate([spb.R, V_k], axis=1)
+    order = np.argsort(lam, kind="stable")
+    lam, V, bounds = lam[order], V[:, order], bounds[order]
+    rigid = order < n_rigid
+    codes, hinges = test_codes(problem, np.asarray(mask)[None], V[None])
+    codes, hinges = codes[0].copy(), hinges[0].copy()
+    codes[rigid] = RIGID
+    hinges[rigid] = False
+    zero = np.abs(lam) <= bounds
+    extra = np.flatnonzero(zero & ~rigid)
+    search_eigenspaces(problem, mask, lam, bounds, V, codes, hinges, extra, V[:, extra])
+    signs = resolved_sign(lam_k, bounds_k)
+    # every negative eigenvalue is among the computed ones when the next one (k+1) is resolved positive, or when
+    # the inertia count below σ is covered and nothing between σ and the bound is left uncomputed
+    total = bool(top[0] > top[1]) or k >= n - n_rigid
+    count = int(np.sum(signs < 0))
+    if modes.n_below is not None and modes.verified:
+        count = max(count, int(modes.n_below))
+    res = float(modes.residuals[:k].max(initial=0.0)) if k else 0.0
+    b = Branch(mask=np.asarray(mask), stability_eigenvalues=lam, stability_vectors=V, codes=codes, hinges=hinges,
+               n_zero=int(zero.sum()), zero_tol=float(bounds.max(initial=0.0)),
+               uniqueness_eigenvalues=np.zeros(0, complex), uniqueness_n_zero=-1, type2=[],
+               residual_stability=res, residual_uniqueness=0.0, bounds=bounds,
+               negative_count={"count": count, "total": total,
+                               "below": float(modes.sigma) if np.isfinite(modes.sigma) else None})
+    return b, bool(cut)
+
+
 # ------------------------------------------------------------------------------------------------ errors
 
 def norm_estimate(A, iters: int = 30, seed: int = 0) -> float:
@@ -660,25 +703,21 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK) -> dict:
     """The identities of the dense path (granstab.mechanics.checks; Frobenius norms) without assembling the parts: H in
     physical dofs from the scaled H̃, and Hg1, Hg2, Hm applied to the rigid basis contact by contact (chunked, then
     scattered); plus the rigid leakage of ℍ = H̃ P on all rigid motions and the projection's own checks."""
-    from ..mechanics.checks import identity_errors as core_identities
-
     scene = sp_.scene
     Dinv = sp_.metric.inverse_matrix()
     H = (Dinv @ sp_.H @ Dinv).tocsr()
     rigid = np.concatenate([translations(scene), rotations(scene, 1.0)], axis=1)
     applied = {name: np.zeros(rigid.shape) for name in ("Hg1", "Hg2", "Hm")}
-    for sl, cb in contact_chunks(scene, chunk):
+    for _, cb in contact_chunks(scene, chunk):
         local = rigid[cb.index]                                      # (m, n_loc, d + r)
+        owner = np.zeros(len(cb.index), dtype=np.intp)
         for name, acc in applied.items():
             contrib = cb.blocks[name] @ local
             for j in range(rigid.shape[1]):
-                acc[:, j] += np.bincount(cb.index.reshape(-1), weights=contrib[:, :, j].reshape(-1),
-                                         minlength=scene.n_dof)
-    errs = core_identities(scene, {"H": H, **{k: _Applied(v) for k, v in applied.items()}})
+                acc[:, j] += stack_blocks(contrib[:, :, j], owner, cb.index, 1, scene.n_dof)[0]
+    errs = checks.identity_errors(scene, {"H": H, **{k: _Applied(v) for k, v in applied.items()}})
     proj = sp_.projection
-    R = sp_.R
-    HR = sp_.H @ R - (sp_.H @ proj.C) @ (proj.Cplus @ R)
-    errs["rigid_leakage_modified"] = float(np.abs(HR).max() / max(spla.norm(sp_.H), 1e-300))
+    errs["rigid_leakage_modified"] = modified_leakage(sp_.H, sp_.R, proj)
     errs.update(proj.errors())
     return errs
 
@@ -690,4 +729,4 @@ DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this m
 
 __all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
            "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
-           "operator", "sparse_parts", "sparse_problem"]
+           "operator", "sparse_branch", "sparse_parts", "sparse_problem"]

@@ -1,14 +1,16 @@
-"""The eigen step of the pipeline (analysis.py) as backends with one interface; each says what it leaves out.
+"""The eigen step of the pipeline (analysis.py) as two methods with one interface; each says what it leaves out.
 
-    state = backend.prepare(scene, timer)          # contact blocks, assembled parts (shared by every metric)
-    problem = backend.problem(state, metric)       # the projection in a metric (metric.py)
-    branches, notes = backend.solve(problem, masks, on_branch=None, progress=False, label="branches")
-    errors = backend.errors(state, problem, branches)
+    state = method.prepare(scene, timer)           # contact blocks, assembled parts (shared by every metric)
+    problem = method.problem(state, metric)        # the projection in a metric (mechanics/metric.py)
+    branches, notes = method.solve(problem, masks, on_branch=None, progress=False, label="branches")
+    errors = method.errors(state, problem, branches)
 
-* `DenseBackend`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (branches.py).
-* `SparseBackend`: per branch the lowest k non-rigid eigenpairs of sym(𝓗^i) and the exact number of its negative
-  eigenvalues from Sylvester's law of inertia (sparse.py); no n_dof × n_dof matrix. It leaves out ℍ^i
-  (uniqueness, Type-2) and the eigenpairs above the k lowest: counts beyond them are labelled lower bounds.
+* `DenseMethod`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (dense.py), or from
+  lowrank.MIN_BRANCHES branches on the low-rank updates of the elastic problem (lowrank.py).
+* `SparseMethod`: per branch the lowest k non-rigid eigenpairs of sym(𝓗^i) and the exact number of its negative
+  eigenvalues from Sylvester's law of inertia (sparse.py; several branches as Ritz updates, ritz.py); no
+  n_dof × n_dof matrix. It leaves out ℍ^i (uniqueness, Type-2) and the eigenpairs above the k lowest: counts beyond
+  them are labelled lower bounds.
 """
 from __future__ import annotations
 
@@ -18,27 +20,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanics.accuracy import (
-    formation_error,
-    part_scales,
-    resolved_sign,
-    vector_bounds,
-)
-from ..mechanics.branches import (
-    INCONSISTENT,
-    RIGID,
-    Branch,
-    Problem,
-    eigen_groups,
-    search_subspace,
-    test_codes,
-)
-from ..mechanics.checks import equilibrium_residual, identity_errors
+from ..mechanics.accuracy import formation_error, part_scales
+from ..mechanics.assembly import sliding_factors
+from ..mechanics.branches import Problem
+from ..mechanics.checks import equilibrium_residual, identity_errors, modified_leakage
 from ..mechanics.metric import Metric
-from ..mechanics.rigid import Projection
-from ..mechanics.stiffness import ContactBlocks, assemble, contact_blocks
+from ..mechanics.rigid import Projection, rigid_basis
+from ..mechanics.stiffness import ContactBlocks, assemble_parts, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
-from ..model.vec import tangent_basis
 from .dense import solve_branches
 
 METHODS = ("auto", "dense", "sparse")
@@ -69,8 +58,8 @@ class State:
     parts: dict | None = None
 
 
-def choose_backend(scene: Scene, method: str, k: int, device: str = "cpu", lowrank: bool | None = None):
-    """"dense", "sparse" or "auto" (sparse above sparse.DENSE_MAX_DOF dofs); device and lowrank: see DenseBackend."""
+def choose_method(scene: Scene, method: str, k: int, device: str = "cpu", lowrank: bool | None = None):
+    """"dense", "sparse" or "auto" (sparse above sparse.DENSE_MAX_DOF dofs); device and lowrank: see DenseMethod."""
     from .device import backend
     from .sparse import DENSE_MAX_DOF
     backend(device)                                                   # an unusable device fails before any work
@@ -78,8 +67,8 @@ def choose_backend(scene: Scene, method: str, k: int, device: str = "cpu", lowra
         if scene.fixed is not None:
             raise SceneError(f"{scene.source}: fixed particles are supported on the dense path only (at most "
                              f"{DENSE_MAX_DOF} dofs; method='dense')")
-        return SparseBackend(k, device=device)
-    return DenseBackend(device, lowrank)
+        return SparseMethod(k, device=device)
+    return DenseMethod(device, lowrank)
 
 
 def _progress_bar(total: int, desc: str = "branches"):
@@ -100,20 +89,10 @@ def _require_finite(scene: Scene, value: float) -> None:
 
 # ------------------------------------------------------------------------------------------------ dense
 
-def assemble_parts(scene: Scene, blocks: ContactBlocks) -> dict:
+def dense_parts(scene: Scene, blocks: ContactBlocks) -> dict:
     """Hg1, Hg2, Hg3, Hm and H as CSR (physical dofs), and the sliding factors A, S (n, Ms) (eq:ContactF)."""
-    parts = {name: assemble(blocks.blocks[name], scene.p, scene.q, scene.dof_per_particle, blocks.n_dof)
-             for name in blocks.blocks}
-    parts["H"] = (parts["Hg1"] + parts["Hg2"] + parts["Hg3"] + parts["Hm"]).tocsr()
-    sliding = np.flatnonzero(scene.at_yield())
-    n = scene.n_dof
-    A = np.zeros((n, len(sliding)))
-    S = np.zeros((n, len(sliding)))
-    rows = blocks.index[sliding]                                      # (Ms, n_loc)
-    cols = np.broadcast_to(np.arange(len(sliding))[:, None], rows.shape)
-    np.add.at(A, (rows, cols), blocks.slide_left[sliding])
-    np.add.at(S, (rows, cols), blocks.slide_right[sliding])
-    parts["A"], parts["S"] = A, S
+    parts = assemble_parts(scene, blocks)
+    parts["A"], parts["S"] = sliding_factors(blocks, np.flatnonzero(scene.at_yield()))
     return parts
 
 
@@ -124,33 +103,25 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     H_el = metric.congruence(parts["H"])
     _require_finite(scene, float(np.abs(H_el).sum()) if H_el.size else 0.0)
     A, S = D @ parts["A"], D @ parts["S"]
-    geometric = parts["Hg1"] + parts["Hg2"] + parts["Hg3"]
-    mechanical, geometric = D @ parts["Hm"] @ D, D @ geometric @ D
+    mechanical, Hg = D @ parts["Hm"] @ D, D @ geometric(parts) @ D
     free = scene.free_dofs
     if free is None:
         C = metric.rotations(scene)
-        rigid, _ = np.linalg.qr(np.concatenate([metric.translations(scene), C], axis=1))
+        rigid, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))
     else:                          # held by fixed particles: their dofs dropped, no rigid motion, no projection
         H_el, A, S = H_el[np.ix_(free, free)], A[free], S[free]
-        mechanical, geometric = mechanical[free][:, free], geometric[free][:, free]
+        mechanical, Hg = mechanical[free][:, free], Hg[free][:, free]
         C = rigid = np.zeros((len(free), 0))
     projection = Projection.from_rotations(C)
-    scales = part_scales(mechanical, geometric, A, S)
+    scales = part_scales(mechanical, Hg, A, S)
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
                    formation_error=formation_error(scales, C, projection.Cplus), free=free)
 
 
-def modified_leakage(problem: Problem) -> float:
-    """‖ℍ R‖ / ‖H‖ for all rigid motions R: ℍ = H - (H C) C⁺ applied without forming it (eq:newstiffnesses)."""
-    H, R, proj = problem.H_el, problem.rigid, problem.projection
-    HR = H @ R - (H @ proj.C) @ (proj.Cplus @ R)
-    return float(np.abs(HR).max(initial=0.0) / max(np.linalg.norm(H), 1e-300))
-
-
-class DenseBackend:
-    """Every eigenpair of every branch (branches.solve_branches); leaves nothing out. From lowrank.MIN_BRANCHES
-    branches on, or when `device` resolves to a GPU (backend.py), the branches are solved as low-rank updates of
+class DenseMethod:
+    """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. From lowrank.MIN_BRANCHES
+    branches on, or when `device` resolves to a GPU (device.py), the branches are solved as low-rank updates of
     the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
     branches it solves (their ℍ^i nullity is proven instead) and says so."""
 
@@ -163,7 +134,7 @@ class DenseBackend:
         with timer("blocks"):
             blocks = contact_blocks(scene)
         with timer("assembly"):
-            parts = assemble_parts(scene, blocks)
+            parts = dense_parts(scene, blocks)
         return State(scene=scene, sliding=np.flatnonzero(scene.at_yield()), blocks=blocks, parts=parts)
 
     def problem(self, state: State, metric: Metric) -> Problem:
@@ -204,15 +175,12 @@ class DenseBackend:
 
     def errors(self, state: State, problem: Problem, branches) -> dict:
         errors = identity_errors(state.scene, state.parts)
-        errors["rigid_leakage_modified"] = modified_leakage(problem)
+        errors["rigid_leakage_modified"] = modified_leakage(problem.H_el, problem.rigid, problem.projection)
         errors.update(problem.projection.errors())
         errors["equilibrium_residual"] = equilibrium_residual(state.scene)
         errors["eigen_residual_stability"] = max(b.residual_stability for b in branches)
         errors["eigen_residual_uniqueness"] = max(b.residual_uniqueness for b in branches)
         return errors
-
-    def curvature_warnings(self, state: State) -> list[str]:
-        return curvature_warnings(state.scene, state.blocks)
 
 
 # ------------------------------------------------------------------------------------------------ sparse
@@ -228,7 +196,7 @@ class SparseBranchProblem:
         return getattr(self.core, name)
 
 
-class SparseBackend:
+class SparseMethod:
     """Lowest k eigenpairs and the exact negative count per branch (sparse.py). Leaves out: ℍ^i (uniqueness
     eigenvalues empty, uniqueness_n_zero = -1, no Type-2, no eigen_residual_uniqueness) and the eigenpairs above
     the k lowest (consistent counts over them are lower bounds; the summary says so and suggests a k)."""
@@ -260,6 +228,7 @@ class SparseBackend:
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
               label: str = "branches", keep_all: bool = True):
+        from .sparse import sparse_branch
         spb, k = problem.sp, self.k
         bar = _progress_bar(len(masks), f"{label} (sparse)") if progress else None
         branches, unverified, cut, ritz = [], 0, 0, 0
@@ -282,7 +251,7 @@ class SparseBackend:
             "uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated"]}
         if ritz:
             notes["warnings"].append(f"{ritz} of {len(branches)} branches as Ritz updates of one elastic solve "
-                                     "(lowrank.SparseRitz: count below σ exact by inertia, residuals ≤ 1e-12·‖Hs‖), "
+                                     "(ritz.SparseRitz: count below σ exact by inertia, residuals ≤ 1e-12·‖Hs‖), "
                                      "the others by shift-invert")
         if unverified:
             notes["warnings"].append(f"{unverified} branch(es): the inertia check could not prove that the computed "
@@ -296,11 +265,11 @@ class SparseBackend:
         return branches, notes
 
     def _modes(self, spb, masks, kk: int):
-        """Modes of every branch: several branches as low-rank updates of one elastic solve (lowrank.SparseRitz,
+        """Modes of every branch: several branches as low-rank updates of one elastic solve (ritz.SparseRitz,
         verified per branch, shift-invert ARPACK where that fails), a single one by shift-invert directly."""
         from .sparse import lowest_modes
         if len(masks) > 1:
-            from .lowrank import SparseRitz
+            from .ritz import SparseRitz
             yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)
             return
         yield lowest_modes(spb, kk, masks[0], tol=self.tol)
@@ -311,103 +280,3 @@ class SparseBackend:
         errors["equilibrium_residual"] = equilibrium_residual(state.scene)
         errors["eigen_residual_stability"] = max(b.residual_stability for b in branches)
         return errors
-
-    def curvature_warnings(self, state: State) -> list[str]:
-        return curvature_warnings(state.scene, state.blocks)
-
-
-def sparse_branch(problem: Problem, spb, modes, mask, k: int):
-    """A branches.Branch from the k+1 lowest modes: rigid modes first in the basis, per-eigenvalue accuracy bounds
-    (accuracy.py), consistency codes, the subspace search of Appendix D on repeated and non-rigid zero eigenvalues
-    (as dense._branch does) and the negative count of sym(𝓗^i) (`negative_count`: count, total = whether every
-    negative eigenvalue is among the computed ones, below = the shift σ of the inertia count)."""
-    n = spb.n
-    lam_k, V_k = modes.eigenvalues, modes.vectors
-    res_k = modes.residuals * spb.norm                                  # absolute residual norms
-    bounds_k = vector_bounds(lam_k, res_k, spb.norm, problem.formation_error, n)
-    cut = len(lam_k) > k and k > 0 and lam_k[k] - lam_k[k - 1] <= bounds_k[k] + bounds_k[k - 1]
-    top = (lam_k[k], bounds_k[k]) if len(lam_k) > k else (np.inf, 0.0)
-    lam_k, V_k, bounds_k = lam_k[:k], V_k[:, :k], bounds_k[:k]
-    n_rigid = spb.n_rigid
-    lam = np.r_[np.zeros(n_rigid), lam_k]
-    bounds = np.r_[np.full(n_rigid, problem.formation_error), bounds_k]
-    V = np.concatenate([spb.R, V_k], axis=1)
-    order = np.argsort(lam, kind="stable")
-    lam, V, bounds = lam[order], V[:, order], bounds[order]
-    rigid = order < n_rigid
-    codes, hinges = test_codes(problem, np.asarray(mask)[None], V[None])
-    codes, hinges = codes[0].copy(), hinges[0].copy()
-    codes[rigid] = RIGID
-    hinges[rigid] = False
-    zero = np.abs(lam) <= bounds
-    for group in eigen_groups(lam, bounds):
-        if len(group) == 1 or np.any(zero[group]):
-            continue
-        found = search_subspace(problem, mask, V[:, group])
-        codes[group] = INCONSISTENT
-        if found is not None:
-            V[:, group[0]], codes[group[0]], hinges[group[0]] = found
-    extra = np.flatnonzero(zero & ~rigid)
-    if extra.size:
-        codes[extra] = INCONSISTENT
-        found = search_subspace(problem, mask, V[:, extra])
-        if found is not None:
-            V[:, extra[0]], codes[extra[0]], hinges[extra[0]] = found
-    signs = resolved_sign(lam_k, bounds_k)
-    # every negative eigenvalue is among the computed ones when the next one (k+1) is resolved positive, or when
-    # the inertia count below σ is covered and nothing between σ and the bound is left uncomputed
-    total = bool(top[0] > top[1]) or k >= n - n_rigid
-    count = int(np.sum(signs < 0))
-    if modes.n_below is not None and modes.verified:
-        count = max(count, int(modes.n_below))
-    res = float(modes.residuals[:k].max(initial=0.0)) if k else 0.0
-    b = Branch(mask=np.asarray(mask), stability_eigenvalues=lam, stability_vectors=V, codes=codes, hinges=hinges,
-               n_zero=int(zero.sum()), zero_tol=float(bounds.max(initial=0.0)),
-               uniqueness_eigenvalues=np.zeros(0, complex), uniqueness_n_zero=-1, type2=[],
-               residual_stability=res, residual_uniqueness=0.0, bounds=bounds,
-               negative_count={"count": count, "total": total,
-                               "below": float(modes.sigma) if np.isfinite(modes.sigma) else None})
-    return b, bool(cut)
-
-
-# ----------------------------------------------------------------------------------- input warnings
-
-CONFORMING_RATIO = 1e-6   # |K^p + K^q| below this times max(|K^p|, |K^q|): a nearly conforming contact (warned)
-
-
-def curvature_warnings(scene: Scene, blocks: ContactBlocks) -> list[str]:
-    """Warnings for contacts where the pseudo-inverse (K^p + K^q)^+ of eq:rolling decides the answer: exactly
-    singular (flat-on-flat, exact hand-in-glove; the cut-off drops the rolling) or nearly so (the rolling term
-    grows like 1/ratio and the answer is as sensitive to the curvature data)."""
-    out = []
-    bad = np.flatnonzero(blocks.rolling_undetermined)
-    if bad.size:
-        out.append(f"{bad.size} contact(s) (first: contacts[{bad[0]}]) have K^p + K^q singular on the "
-                   "tangent plane (flat-on-flat or exact hand-in-glove): rolling is undetermined there "
-                   "and the pseudo-inverse drops it; the identities below measure the consequence")
-    ratio = conforming_ratio(scene)
-    near = np.flatnonzero((ratio <= CONFORMING_RATIO) & ~blocks.rolling_undetermined
-                          & (np.linalg.norm(scene.force, axis=1) > 0))
-    if near.size:
-        c = near[np.argmin(ratio[near])]
-        out.append(f"{near.size} nearly conforming contact(s) (smallest |K^p + K^q| / max(|K^p|, |K^q|) = "
-                   f"{ratio[c]:.1e} at contacts[{c}], cut-off pinv_rtol = {scene.tol.pinv_rtol:.0e}): the rolling "
-                   "term scales like the inverse of that ratio, so the result is only as accurate as the "
-                   "curvature data relative to it")
-    return out
-
-
-def conforming_ratio(scene: Scene) -> np.ndarray:
-    """Per contact: smallest |eigenvalue| of K^p + K^q on the tangent plane over max(|K^p|, |K^q|) (inf when
-    both are zero is reported as 0: flat-on-flat)."""
-    if scene.n_contacts == 0:
-        return np.zeros(0)
-    T = tangent_basis(scene.normal)
-    Tt = np.swapaxes(T, 1, 2)
-    kp = Tt @ scene.curvature_p @ T
-    kq = Tt @ scene.curvature_q @ T
-    kp = 0.5 * (kp + np.swapaxes(kp, 1, 2))
-    kq = 0.5 * (kq + np.swapaxes(kq, 1, 2))
-    lam = np.abs(np.linalg.eigvalsh(kp + kq)).min(axis=1)
-    scale = np.maximum(np.abs(np.linalg.eigvalsh(kp)).max(axis=1), np.abs(np.linalg.eigvalsh(kq)).max(axis=1))
-    return np.divide(lam, scale, out=np.zeros_like(lam), where=scale > 0)

@@ -1,0 +1,100 @@
+"""The formats granstab reads, and the record every read returns.
+
+Each reader module registers its formats when it is imported (as MDAnalysis's readers do): a name, a `sniff`
+that says from the paths alone whether they hold that format, and a `read`. `granstab.io` imports every reader,
+so that `granstab.io.load` finds them all here; this module imports none of them (they import it).
+
+    register(Format("lammps", sniff=..., read=...))
+    detect([Path("atoms.dump"), Path("contacts.dump")])        # "lammps": the one format whose sniff says yes
+
+A scene file's `read` gives the Scene itself; a snapshot's gives a `build.Snapshot`, which build.py turns into a
+Scene and its validation report.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..model.errors import SceneError
+from ..model.scene import Scene
+from ..model.tolerances import DEFAULT, Tolerances
+
+
+@dataclass(frozen=True)
+class Loaded:
+    """What `granstab.io.load` read: the scene, its validation report (a JSON-able dict whose "warnings" lists
+    what the import changed or assumed; a scene file's has none) and the frames the input holds (None: one)."""
+
+    scene: Scene
+    report: dict
+    frames: list | None = None
+
+    @property
+    def warnings(self) -> list[str]:
+        return self.report["warnings"]
+
+
+@dataclass(frozen=True)
+class Request:
+    """What a read is asked for beyond the paths: the frame (or timestep, or time), the --columns mapping and the
+    tolerances of the scene checks."""
+
+    frame: object = None
+    columns: str | None = None
+    tol: Tolerances = DEFAULT
+
+
+@dataclass(frozen=True)
+class Format:
+    """One readable format. sniff(paths) -> bool; read(paths, request, progress) -> Scene (scene_file) or
+    build.Snapshot; `folder`: it reads a folder itself (a folder of any other format stands for its files);
+    `columns`: it takes --columns."""
+
+    name: str
+    sniff: Callable[[list[Path]], bool]
+    read: Callable
+    scene_file: bool = False
+    folder: bool = False
+    columns: bool = False
+
+
+_FORMATS: dict[str, Format] = {}
+
+
+def register(fmt: Format) -> Format:
+    """Add a format (its sniff must not accept what another's accepts: detection refuses ambiguous input)."""
+    if fmt.name in _FORMATS or fmt.name == "auto":
+        raise ValueError(f"format {fmt.name!r} is registered already")
+    _FORMATS[fmt.name] = fmt
+    return fmt
+
+
+def formats() -> tuple[str, ...]:
+    """The registered format names, in detection order."""
+    return tuple(_FORMATS)
+
+
+def get(name: str) -> Format:
+    """The format called `name`; a one-line error listing the registered names if there is none."""
+    if name not in _FORMATS:
+        raise SceneError(f"--format: must be auto or one of {', '.join(_FORMATS)}, got {name!r}")
+    return _FORMATS[name]
+
+
+def reads_folder(path: Path) -> bool:
+    """Whether a format reads the folder `path` itself (else the folder stands for the files in it)."""
+    return any(fmt.folder and fmt.sniff([path]) for fmt in _FORMATS.values())
+
+
+def detect(paths: list[Path]) -> str:
+    """The format of `paths`: the registered one whose sniff accepts them; a one-line error if none or several do."""
+    for path in paths:
+        if not path.exists():
+            raise SceneError(f"{path}: cannot read file (no such file or directory)")
+    found = [fmt.name for fmt in _FORMATS.values() if fmt.sniff(paths)]
+    if len(found) > 1:
+        raise SceneError(f"{paths[0]}: format: ambiguous ({', '.join(found)}); name it with --format")
+    if not found:
+        raise SceneError(f"{paths[0]}: format: not recognised (known: {', '.join(_FORMATS)}); name it with --format")
+    return found[0]

@@ -1,0 +1,129 @@
+"""The lowest eigenpairs of every branch of a large cluster from ONE elastic sparse solve (`SparseRitz`): the sparse
+path's counterpart of lowrank.py, a Rayleigh-Ritz problem per branch on a basis built once, verified by inertia
+(sparse.py) and refined, or redone by shift-invert, where that fails."""
+from __future__ import annotations
+
+import numpy as np
+
+from .device import backend
+from .lowrank import stack, sym_updates
+from .sparse import Shifted, _finish, _lowrank, lowest_modes, operator
+
+GUARD = 6            # extra Ritz vectors carried by the refinement (faster convergence of the kk lowest)
+
+
+def _sym(M):
+    return 0.5 * (M + M.swapaxes(-1, -2))
+
+
+def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
+    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): twice, B is
+    projected off X (block Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
+    only, no Householder QR of n × m); directions below `cut` are dropped."""
+    for _ in range(2):
+        B = B - X @ (X.T @ B)
+        B = B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+        s, U = np.linalg.eigh(_sym(B.T @ B))
+        keep = s > cut * max(s[-1], 1e-300)
+        B = B @ (U[:, keep] / np.sqrt(s[keep]))
+    return B
+
+
+class SparseRitz:
+    """The lowest eigenpairs of every branch of a large cluster from ONE elastic solve (granstab.solve.sparse).
+
+    Branch i's deflated operator is B_i = B_0 + U_i K_i U_iᵀ with U_i in span[A, S] (and the rigid modes). An
+    eigenvector of B_i with eigenvalue λ is v = -(B_0 - λ)⁻¹ U_i K_i U_iᵀ v: near the low end it lies in the span of
+    the lowest elastic modes and of (B_0 - σ)⁻¹[A, S], (B_0 - σ)⁻²[A, S] (a Taylor expansion of (B_0 - λ)⁻¹ about
+    σ). That space W (n × d, d = K + 4 Ms, orthonormal, rigid-free) is built once from the elastic shift-invert
+    solve and its sparse LU; every branch is then the d × d Rayleigh-Ritz problem Wᵀ B_i W = Wᵀ Hs W + a low-rank
+    update, stacked on the backend like the dense branches.
+
+    Exact: the number ν of eigenvalues below σ per branch (Sylvester/Haynsworth from the shared LU, sparse.Shifted).
+    Bounded: every Ritz value θ is an upper bound of its eigenvalue (Cauchy interlacing) and has an eigenvalue
+    within its residual ‖B_i v − θ v‖ (exact operator). A branch whose Ritz values below σ are fewer than ν, or whose
+    residuals exceed `rtol`·‖Hs‖, is solved again by shift-invert ARPACK with the same LU (sparse.lowest_modes).
+    """
+
+    def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 8, rtol: float = 1e-12, device: str = "cpu"):
+        self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
+        elastic = lowest_modes(spb, k + extra, None, tol=tol)
+        self.factorization = elastic.info.get("factorization")
+        R = spb.R
+        blocks = [elastic.vectors]
+        if self.factorization is not None and spb.A.shape[1]:
+            Z = np.concatenate([spb.A, spb.S], axis=1)
+            for _ in range(2):
+                Z = self.factorization.solve(Z)
+                Z -= R @ (R.T @ Z)
+                Z /= np.maximum(np.linalg.norm(Z, axis=0), 1e-300)
+                blocks.append(Z)
+        W = np.concatenate(blocks, axis=1)
+        W -= R @ (R.T @ W)
+        U, sv, _ = np.linalg.svd(W, full_matrices=False)
+        self.W = U[:, sv > 1e-12 * sv[0]]
+        HW = spb.Hs @ self.W
+        self.M0 = _sym(self.W.T @ HW)
+        self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
+        self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
+        if self.factorization is not None:                             # (Hs - σI)⁻¹ of every column _lowrank uses
+            solve = self.factorization.solve
+            T = R[:, :spb.scene.dim]
+            self.solved = {"Q": solve(spb.Q), "HQ": solve(spb.Hs @ spb.Q), "T": solve(T), "A": solve(spb.A),
+                           "S": solve(spb.S)}
+        self.steps = 4
+
+    def modes(self, masks: np.ndarray, kk: int):
+        """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""
+        spb = self.spb
+        be = backend(self.device)
+        on = (masks[:, spb.sliding] == 1).astype(float)
+        block = min(kk + GUARD, self.W.shape[1])
+        with be.threads(self.W.shape[1]):
+            _, Y = be.xp.linalg.eigh(stack(be.xp, self.M0, self.updates, be.asarray(on)))
+            Y = be.to_host(Y[:, :, :block])
+        fac = self.factorization
+        for i, mask in enumerate(masks):
+            if fac is None:
+                self.stats["arpack"] += 1
+                yield lowest_modes(spb, kk, mask, tol=self.tol)
+                continue
+            U, K = _lowrank(spb, on[i] == 1, spb.norm)
+            shifted = Shifted(fac, U, K, fac.sigma, fac.n_neg, Z=self._solved(on[i] == 1))
+            Bop = operator(spb, mask, spb.norm)
+            mask8 = np.asarray(mask, np.int8)
+            V = self.W @ Y[i]
+            for step in range(self.steps + 1):
+                modes = _finish(spb, Bop, np.zeros(block), V, mask8, fac.sigma, False, shifted.n_below, "ritz", {})
+                nu, found = shifted.n_below, int(np.sum(modes.eigenvalues < fac.sigma))
+                if nu is not None and nu == found < kk and modes.residuals[:kk].max() <= self.rtol:
+                    out = _finish(spb, Bop, np.zeros(kk), modes.vectors[:, :kk], mask8, fac.sigma, True, nu, "ritz",
+                                  {"factorization": fac, "basis": self.W.shape[1], "refinements": step})
+                    self.stats["ritz"] += 1
+                    yield out
+                    break
+                if step < self.steps:
+                    V = self._refine(spb, Bop, shifted, modes.vectors)
+            else:
+                self.stats["arpack"] += 1
+                yield lowest_modes(spb, kk, mask, factorization=fac, tol=self.tol)
+
+    def _solved(self, on: np.ndarray) -> np.ndarray:
+        """(Hs - σI)⁻¹ U for sparse._lowrank's U = [Q, Y, T, A_on, S_on] of a branch, by linearity from the solves
+        made once (Y = Hs Q + ½(A_on S_onᵀ Q + S_on A_onᵀ Q))."""
+        spb, z = self.spb, self.solved
+        A, S = spb.A[:, on], spb.S[:, on]
+        ZY = z["HQ"] + 0.5 * (z["A"][:, on] @ (S.T @ spb.Q) + z["S"][:, on] @ (A.T @ spb.Q))
+        return np.concatenate([z["Q"], ZY, z["T"], z["A"][:, on], z["S"][:, on]], axis=1)
+
+    def _refine(self, spb, Bop, shifted, V):
+        """Rayleigh-Ritz on span[W, V, (B - σ)⁻¹V, (B - σ)⁻²V] (block shift-invert with the branch's Woodbury
+        operator): as many of the lowest Ritz vectors as V has columns."""
+        Z1 = shifted.solve(V)
+        Z2 = shifted.solve(Z1)
+        basis = self.W
+        for block in (V, Z1, Z2):
+            basis = np.concatenate([basis, extend(np.concatenate([spb.R, basis], axis=1), block)], axis=1)
+        G = _sym(basis.T @ Bop.matmat(basis))
+        _, y = np.linalg.eigh(G)
+        return basis @ y[:, :V.shape[1]]
