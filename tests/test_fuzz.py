@@ -154,7 +154,7 @@ def hostile_files(draw) -> str:
     return text
 
 
-@settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", "120")), deadline=None, database=None,
+@settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", "120")), deadline=None, database=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                  HealthCheck.function_scoped_fixture])
 @given(text=hostile_files())
@@ -187,6 +187,7 @@ def extreme_valid_scenes(draw):
 
 
 @settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", "120")) // 3, deadline=None, database=None,
+          derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(scene=extreme_valid_scenes(), suffix=st.sampled_from([".json", ".npz"]))
 def test_valid_scenes_at_the_ends_of_the_ranges_give_strict_json(tmp_path, scene, suffix):
