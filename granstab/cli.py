@@ -172,7 +172,7 @@ def cmd_analyze(args) -> int:
     advice = [DENSE_ADVICE]
     with deadline(args.timeout, args.scene, advice):
         with strict_numerics(args.scene):
-            loaded = load(args.scene, progress=progress)
+            loaded = load(args.scene, progress=progress, **periodic_options(args))
             scene = loaded.scene
             if not refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start)):
                 advice[0] = SPARSE_ADVICE
@@ -265,6 +265,7 @@ def cmd_convert(args) -> int:
                if getattr(args, key) is not None}
     if args.keep_rattlers:
         options["keep_rattlers"] = True
+    options.update(periodic_options(args))
     loaded = load(args.inputs, format=args.format, frame=args.frame, timestep=args.timestep,
                   progress=args.progress or sys.stderr.isatty(), **options)
     if Path(args.out).suffix.lower() == ".npz":
@@ -281,7 +282,7 @@ def cmd_convert(args) -> int:
 def cmd_extract(args) -> int:
     """The cluster of one particle as a scene file (issue 10): re-analyse, open in the app, check by hand."""
     from .scan import extract
-    loaded = load(args.input)
+    loaded = load(args.input, **periodic_options(args))
     sub = extract(loaded.scene, args.center, rings=args.rings, boundary=args.boundary)
     Path(args.out).write_text(json.dumps(scene_to_dict(sub), allow_nan=False), encoding="utf-8")
     held = "" if sub.fixed is None else f" ({int(sub.fixed.sum())} of them held fixed)"
@@ -294,7 +295,7 @@ def cmd_scan(args) -> int:
     """Every local cluster of a packing → DIR/clusters, particles, summary.json, map (issue 10)."""
     from .scan import scan
     from .solve.device import DeviceError
-    loaded = load(args.input)
+    loaded = load(args.input, **periodic_options(args))
     try:
         summary = scan(loaded.scene, args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
@@ -307,6 +308,24 @@ def cmd_scan(args) -> int:
          + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}",
          *import_lines(loaded)]))
     return 0
+
+
+def periodic_arguments(p, cell: bool = False) -> None:
+    """The periodic-cell import options of a command that reads snapshots (io/build.py: Options)."""
+    p.add_argument("--no-periodic", dest="periodic", action="store_false",
+                   help="a periodic snapshot as a free cluster: cut the contacts across the cell's seam (their "
+                        "forces become loads) instead of keeping them with their images")
+    if cell:
+        p.add_argument("--cell", help="the periodic cell of tables without one: the rows a_1 … a_d "
+                                      "(e.g. 20,0,5,20 in 2D) or an orthogonal box (20,20)")
+
+
+def periodic_options(args) -> dict:
+    """--no-periodic / --cell as load() options (none given: none, so that scene files take them too)."""
+    options = {} if args.periodic else {"periodic": False}
+    if getattr(args, "cell", None) is not None:
+        options["cell"] = args.cell
+    return options
 
 
 def boundary_argument(p) -> None:
@@ -322,6 +341,7 @@ def add_scan(sub) -> None:
     p.add_argument("--rings", type=int, default=1, help="contact hops from the centre (default 1)")
     boundary_argument(p)
     p.add_argument("--out", required=True, help="scene file to write (JSON)")
+    periodic_arguments(p)
     p.set_defaults(run=cmd_extract)
     p = sub.add_parser("scan", help="local stability scan: every cluster of a packing, as a map")
     p.add_argument("input", help="any scene or snapshot that analyze reads")
@@ -341,6 +361,7 @@ def add_scan(sub) -> None:
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
     p.add_argument("--json", action="store_true", help="print summary.json")
+    periodic_arguments(p)
     p.set_defaults(run=cmd_scan)
 
 
@@ -381,6 +402,7 @@ def add_convert(sub) -> None:
                         "metric")
     p.add_argument("--columns", help="what each column is, e.g. id1,id2,fx,fy,fz (formats with named columns)")
     p.add_argument("--keep-rattlers", action="store_true", help="keep particles without contacts")
+    periodic_arguments(p, cell=True)
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.set_defaults(run=cmd_convert)
 
@@ -420,6 +442,7 @@ def build_parser() -> Parser:
                         "auto: the GPU when CuPy sees one")
     p.add_argument("--all", action="store_true", help="list every eigenvalue in the table (default: the lowest "
                    f"{TABLE_LOWEST} per branch and the counts)")
+    periodic_arguments(p)
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
     p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])

@@ -62,6 +62,16 @@ def import_warnings(report: dict) -> list[str]:
     return out
 
 
+def _periodic_line(pe: dict) -> str:
+    """The periodic cell and which treatment was used: seam contacts kept with their images, or cut."""
+    cell = "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in pe["lattice"]) + "]"
+    if pe["periodic"]:
+        return (f"periodic: {pe.get('kind', 'cell')} {cell}: periodic scene, {pe['seam_contacts']} seam contact(s) "
+                f"kept with their images{_names(pe['seam_names'])}; {pe['treatment']}")
+    return (f"periodic: {pe.get('kind', 'cell')} {cell}: {pe['contacts_cut']} contact(s) cut"
+            f"{_names(pe['cut_names'])}; {pe['treatment']}")
+
+
 def format_report(report: dict) -> str:
     """The report as lines: a scene file's one line, a snapshot's every section, then its warnings."""
     r = report
@@ -96,9 +106,7 @@ def format_report(report: dict) -> str:
         f" ({imb['scale']})",
     ]
     if r.get("periodic"):
-        pe = r["periodic"]
-        lines.append(f"periodic: {pe.get('kind', 'cell')}, {pe['contacts_cut']} contacts cut{_names(pe['cut_names'])}"
-                     f"; {pe['treatment']}")
+        lines.append(_periodic_line(r["periodic"]))
     for key in ("left_out",):
         if key in r:
             lines.append(f"left out: {r[key]}")

@@ -54,7 +54,7 @@ from ..mechanics.verdicts import tally
 from ..model.tolerances import EPS
 from ..model.vec import rot_dim
 from ..solve.device import backend, eigh_stack, residual_norms
-from .clusters import members
+from .clusters import lattice_offset, members, unwrap
 
 LENGTH_FACTORS = {"L": 1.0, "L/10": 0.1, "10L": 10.0}
 STACK_BYTES = {"cpu": 32 * 2 ** 20,   # the branch matrices of one stacked solve (and their copies) on the host: small
@@ -90,18 +90,19 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
              "rows_g": np.abs(hg).sum(axis=2)}
     pairs = _cluster_contacts(scene, local, sizes, free)
     pairs["sliding"] = scene.at_yield()[pairs["contact"]]
+    positions, wraps = (None, False) if fixed else _positions(scene, centers, local, sizes, pairs)
     n_contacts = np.bincount(pairs["cluster"], minlength=len(centers))
     n_sliding = np.bincount(pairs["cluster"], weights=pairs["sliding"],
                             minlength=len(centers)).astype(int)
-    ok = (n_contacts > 0) & (n_sliding <= options["max_sliding"])
+    ok = (n_contacts > 0) & (n_sliding <= options["max_sliding"]) & ~wraps
     solved = []
     factor = LENGTH_FACTORS[options["metric"]]
     n_free = np.array([len(m) for m in member_lists])
     for n in np.unique(n_free[ok]):
         group = np.flatnonzero(ok & (n_free == n))
         for part in _split(group, n * scene.dof_per_particle, n_sliding, STACK_BYTES[options.get("device", "cpu")]):
-            solved.append(_solve_group(scene, blocks, parts, pairs, part, local, starts, int(n), factor, n_sliding,
-                                       options["max_sliding"], options.get("device", "cpu"), fixed))
+            solved.append(_solve_group(scene, blocks, parts, pairs, part, positions, starts, int(n), factor,
+                                       n_sliding, options["max_sliding"], options.get("device", "cpu"), fixed))
     return _concatenate(solved)
 
 
@@ -120,6 +121,24 @@ def _free(local: np.ndarray, sizes: np.ndarray, member_lists: list, N: int) -> n
     keys = np.repeat(np.arange(len(sizes)), sizes) * N + local
     own = np.repeat(np.arange(len(member_lists)), [len(m) for m in member_lists]) * N + np.concatenate(member_lists)
     return np.isin(keys, own, assume_unique=True)
+
+
+def _positions(sub, centers: np.ndarray, local: np.ndarray, sizes: np.ndarray, pairs: dict):
+    """The particles' positions of every cluster (`local`, the clusters' members one after the other); in a periodic
+    chunk each cluster unwrapped from its centre along its contacts (clusters.unwrap, as `subscene` does), so that
+    its rigid rotations are those of the extracted cluster. Also which clusters wrap around the cell: they are left
+    to `analyze` (whose error names them)."""
+    x = sub.x[local]
+    if sub.cell is None:
+        return x, np.zeros(len(sizes), dtype=bool)
+    N = sub.n_particles
+    starts = np.r_[0, np.cumsum(sizes)[:-1]]
+    keys = np.repeat(np.arange(len(sizes)), sizes) * N + local
+    roots = np.searchsorted(keys, np.arange(len(sizes)) * N + centers)
+    start = starts[pairs["cluster"]]
+    shift, loops = unwrap(len(local), start + pairs["lp"], start + pairs["lq"], sub.image[pairs["contact"]], roots)
+    wraps = np.bincount(pairs["cluster"], weights=loops, minlength=len(sizes)) > 0
+    return x + lattice_offset(shift, sub.cell), wraps
 
 
 def _split(group: np.ndarray, nd: int, n_sliding: np.ndarray, budget: int) -> list[np.ndarray]:
@@ -153,7 +172,7 @@ def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray, free: np.ndarra
     return {"cluster": owner[acts], "contact": contact[acts], "lp": lp[acts], "lq": lq[acts]}
 
 
-def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, width, device,
+def _solve_group(sub, blocks, parts, pairs, part, positions, starts, n, factor, n_sliding, width, device,
                  fixed) -> dict:
     """Row fields of the clusters `part` (all with n free particles): see the module docstring. The held ring's
     dofs (fixed) are numbered nd, which the scatters drop (assembly.dof_index, stack_blocks). The sliding
@@ -202,7 +221,7 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
         base = 0.5 * (H_el + np.swapaxes(H_el, 1, 2))
         PA, PS = A, S
     else:                          # off the rigid motions: QᵀH Q, QᵀA, QᵀS (_reduced)
-        x = sub.x[np.concatenate([local[starts[c]:starts[c] + n] for c in part])].reshape(G, n, d)
+        x = positions[np.concatenate([np.arange(starts[c], starts[c] + n) for c in part])].reshape(G, n, d)
         formation, leakage, base, PA, PS = _reduced(H_el, A, S, x, L, scales)
     update = _update_norm(PA, PS)
     PA, PS = np.ascontiguousarray(PA[:, :, :Ms]), np.ascontiguousarray(PS[:, :, :Ms])   # the branches' columns

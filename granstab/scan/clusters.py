@@ -3,6 +3,11 @@
 The cluster of a centre particle c with N rings is c, every particle within N contact hops of c, and every contact
 between two of them. Its loads are the scene format's equilibrium defaults (b^p = -Σ f^pq, w^p = -Σ (r×f + m)),
 so the forces of the contacts cut at its rim act as external loads: the paper's isolated cluster.
+
+In a periodic packing (a scene with a cell) a cluster at the seam keeps every contact with its minimum-image
+geometry: its particles are unwrapped along its contacts from the centre (`unwrap`: each particle moved by a
+lattice vector to sit next to the copy its contact names), so that the cluster is an ordinary scene, without a
+cell. A scan's chunk stays periodic (`cut`); its batch unwraps each cluster with the same `unwrap`.
 """
 from __future__ import annotations
 
@@ -15,7 +20,8 @@ import scipy.sparse as sp
 from ..model.scene import Scene, SceneError, equilibrium_loads
 from ..model.vec import rot_dim
 
-CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling")
+CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling",
+                  "image")
 
 
 def adjacency(scene: Scene) -> sp.csr_matrix:
@@ -65,12 +71,67 @@ def incidence(scene: Scene) -> sp.csr_matrix:
                          shape=(scene.n_particles, M))
 
 
-def subscene(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None = None) -> Scene:
+def subscene(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None = None,
+             center: int | None = None) -> Scene:
     """The sub-scene of the particles `keep` (indices) and every contact between two of them, with equilibrium loads.
 
     hold: further particles (indices) held fixed around them (`--boundary fixed`): the contacts between a kept and a
-    held particle are added, those between two held ones are not (they would act on no dof)."""
-    return piece(cut(scene, keep, title, hold))
+    held particle are added, those between two held ones are not (they would act on no dof). In a periodic scene the
+    cluster is unwrapped from `center` (an index; default keep[0]) and has no cell (module docstring)."""
+    fields = cut(scene, keep, title, hold)
+    if scene.cell is not None:
+        every = np.sort(np.concatenate([keep, [] if hold is None else hold])).astype(np.int64)
+        fields = unwrapped(fields, scene.cell, int(np.searchsorted(every, keep[0] if center is None else center)))
+    return piece(fields)
+
+
+def unwrap(n: int, p: np.ndarray, q: np.ndarray, image: np.ndarray, roots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Integer lattice shifts s (n, d) that put every particle reachable from `roots` next to its neighbours along
+    the contacts p → q's copy (x^q + image @ cell): s_q = s_p + image, breadth first (the first contact of the
+    contact order that reaches a particle places it). Also the contacts that close a loop around the cell
+    (image + s_p − s_q ≠ 0: the cluster wraps around it). Any number of clusters at once (roots: one a cluster,
+    particles numbered across them)."""
+    shift = np.zeros((n, image.shape[1]), dtype=np.int64)
+    known = np.zeros(n, dtype=bool)
+    known[roots] = True
+    while True:
+        forward, backward = known[p] & ~known[q], known[q] & ~known[p]
+        if not (forward.any() or backward.any()):
+            break
+        target = np.concatenate([q[forward], p[backward]])
+        value = np.concatenate([shift[p[forward]] + image[forward], shift[q[backward]] - image[backward]])
+        order = np.concatenate([np.flatnonzero(forward), np.flatnonzero(backward)])
+        first = np.lexsort((order, target))
+        placed = first[np.r_[True, target[first][1:] != target[first][:-1]]]
+        shift[target[placed]] = value[placed]
+        known[target[placed]] = True
+    loops = np.any(image + shift[p] - shift[q] != 0, axis=1)
+    return shift, loops
+
+
+def lattice_offset(shift: np.ndarray, cell: np.ndarray) -> np.ndarray:
+    """shift @ cell, (n, d), written out term by term: the same bits for a particle however many are shifted
+    together (a matrix product's kernel, and so its rounding, may change with the row count)."""
+    offset = np.zeros((len(shift), cell.shape[1]))
+    for i in range(cell.shape[0]):
+        offset = offset + shift[:, i:i + 1] * cell[i]
+    return offset
+
+
+def unwrapped(fields: dict, cell: np.ndarray, root: int) -> dict:
+    """`cut`'s fields of one cluster of a periodic scene as a cluster without a cell: positions and contact points
+    moved by the lattice shifts of `unwrap` from particle `root` (a local index), images zero. A cluster that wraps
+    around the cell (a contact closing a loop) is a one-line error."""
+    shift, loops = unwrap(len(fields["x"]), fields["p"], fields["q"], fields["image"], np.array([root]))
+    if loops.any():
+        c = int(np.flatnonzero(loops)[0])
+        names = fields["names"]
+        raise SceneError(f"{fields['source']}: cluster of {names[root]}: contact {names[fields['p'][c]]}-"
+                         f"{names[fields['q'][c]]}: image: the cluster wraps around the periodic cell (the contact "
+                         "closes a loop around it): use fewer rings")
+    offset = lattice_offset(shift, cell)
+    return {**fields, "x": fields["x"] + offset, "point": fields["point"] + offset[fields["p"]],
+            "image": np.zeros_like(fields["image"]), "cell": None}
 
 
 def piece(fields: dict) -> Scene:
@@ -102,6 +163,7 @@ def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None
     names = itemgetter(*every)(scene.names) if len(every) > 1 else (scene.names[every[0]],)
     fixed = ~free | (False if scene.fixed is None else scene.fixed[every])
     fields.update(p=p[within], q=q[within], dim=scene.dim, names=tuple(names), x=scene.x[every], title=title,
+                  cell=scene.cell,
                   state=tuple(itemgetter(*c)(scene.state)) if len(c) > 1 else tuple(scene.state[i] for i in c),
                   source=scene.source, tol=scene.tol, fixed=fixed if fixed.any() else None,
                   mass=None if scene.mass is None else scene.mass[every],
@@ -135,8 +197,8 @@ def cluster(scene: Scene, center: int, rings: int = 1, boundary: str = "loads", 
         raise SceneError(f"{scene.source}: boundary must be one of {', '.join(BOUNDARIES)}, got {boundary!r}")
     if boundary == "fixed":
         inner, ring = boundary_ring(scene, center, rings, graph)
-        return subscene(scene, inner, title=title, hold=ring)
-    return subscene(scene, members(scene, [center], rings, graph)[0], title=title)
+        return subscene(scene, inner, title=title, hold=ring, center=center)
+    return subscene(scene, members(scene, [center], rings, graph)[0], title=title, center=center)
 
 
 def particle_index(scene: Scene, name: str) -> int:
