@@ -11,6 +11,7 @@ from matplotlib.figure import Figure
 
 from granstab.mechanics.stiffness import assemble, contact_blocks, stiffness
 from granstab.model.packings import random_packing
+from granstab.model.scene import CONTACT_FIELDS
 from granstab.solve.sparse import CHUNK, contact_chunks
 
 from .figures import save
@@ -20,8 +21,6 @@ from .timing import once, slope, timeit
 QUICK = {"sizes_2d": (1e3, 3e3, 1e4), "sizes_3d": (1e3, 3e3), "loop_contacts": 300, "min_time": 0.0, "slow": 0.2}
 FULL = {"sizes_2d": (1e3, 3e3, 1e4, 3e4, 1e5, 3e5, 1e6), "sizes_3d": (1e3, 3e3, 1e4, 3e4, 1e5, 3e5),
         "loop_contacts": 10000, "min_time": 0.5, "slow": 60.0}    # a call slower than `slow` s is timed once
-CONTACT_FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu",
-                  "rolling")
 
 
 def packing_with_contacts(dim: int, contacts: float, seed: int = 0):

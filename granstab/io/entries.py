@@ -241,15 +241,15 @@ class Reader:
 
 
 def read_law(rd: Reader, dim: int, base: dict) -> dict:
-    """k, alpha, mu (k, alpha > 0, mu >= 0) and rolling_stiffness (scalar × I or 3x3) of an entry, defaults `base`."""
+    """k, alpha, mu (k > 0; alpha, mu >= 0: alpha = 0 or mu = 0 is frictionless) and rolling_stiffness (scalar × I or 3x3) of an entry, defaults `base`."""
     r = rot_dim(dim)
     k = rd.number("k", base["k"])
     alpha = rd.number("alpha", base["alpha"])
     mu = rd.number("mu", base["mu"])
     if k <= 0:
         rd.fail("k", f"must be > 0, got {k}")
-    if alpha <= 0:
-        rd.fail("alpha", f"must be > 0, got {alpha}")
+    if alpha < 0:
+        rd.fail("alpha", f"must be >= 0, got {alpha}")
     if mu < 0:
         rd.fail("mu", f"must be >= 0, got {mu}")
     rolling = base["rolling_stiffness"]

@@ -5,15 +5,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.errors import SceneError, describe, first
+from ..model.periodic import check_cell, check_images
 from ..model.scene import LAW_DEFAULTS, LAW_KEYS, STATES, Scene, build_scene
 from ..model.tolerances import DEFAULT, Tolerances
 from ..model.vec import rot_dim, tangent_basis
 from .entries import ArrayTable, Reader, TextTable, read_law
 from .syntax import paused_gc
 
-TOP_KEYS = {"dim", "title", "defaults", "particles", "contacts"}
+TOP_KEYS = {"dim", "title", "cell", "defaults", "particles", "contacts"}
 PARTICLE_KEYS = {"name", "x", "load", "moment", "mass", "inertia", "fixed"}
-CONTACT_KEYS = {"p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state", *LAW_KEYS}
+CONTACT_KEYS = {"p", "q", "image", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state",
+                *LAW_KEYS}
 
 
 
@@ -25,10 +27,11 @@ def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEF
         top.fail("particles", "must be a non-empty array of tables")
     particles = TextTable(source, "particles", data["particles"], PARTICLE_KEYS)
     contacts = TextTable(source, "contacts", data.get("contacts", []), CONTACT_KEYS)
-    return _scene_from_tables(dim, title, law, particles, contacts, source, tol)
+    return _scene_from_tables(dim, title, law, particles, contacts, source, tol, data.get("cell"))
 
 
 NPZ_META = ("dim", "title")
+NPZ_CELL = "cell"   # (d, d) array, only in a periodic scene
 
 
 def scene_arrays(scene: Scene) -> dict:
@@ -46,6 +49,9 @@ def scene_arrays(scene: Scene) -> dict:
            "contacts/k": scene.k, "contacts/alpha": scene.alpha, "contacts/mu": scene.mu,
            "contacts/rolling_stiffness": scene.rolling[:, 0, 0] if scalar else scene.rolling,
            "contacts/state": np.array(scene.state, dtype=str).reshape(scene.n_contacts)}
+    if scene.cell is not None:
+        out[NPZ_CELL] = scene.cell
+        out["contacts/image"] = scene.image
     for key in ("curvature_p", "curvature_q"):
         K = getattr(scene, key)
         out[f"contacts/{key}"] = _kappa(K, scene.normal) if scalar else K
@@ -65,7 +71,8 @@ def _kappa(K: np.ndarray, normal: np.ndarray) -> np.ndarray:
 
 def scene_from_arrays(arrays: dict, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
     """Build and validate a Scene from `scene_arrays`' dict (an .npz file): the same checks as the text format."""
-    allowed = {*NPZ_META, *(f"particles/{k}" for k in PARTICLE_KEYS), *(f"contacts/{k}" for k in CONTACT_KEYS)}
+    allowed = {*NPZ_META, NPZ_CELL, *(f"particles/{k}" for k in PARTICLE_KEYS),
+               *(f"contacts/{k}" for k in CONTACT_KEYS)}
     unknown = sorted(set(arrays) - allowed)
     if unknown:
         raise SceneError(f"{source}: {unknown[0]}: unknown array (allowed: {', '.join(sorted(allowed))})")
@@ -90,7 +97,7 @@ def scene_from_arrays(arrays: dict, source: str = "<scene>", tol: Tolerances = D
     particles, contacts = table("particles"), table("contacts")
     if not len(particles):
         top.fail("particles", "must be a non-empty array")
-    return _scene_from_tables(dim, title, _base_law(dim), particles, contacts, source, tol)
+    return _scene_from_tables(dim, title, _base_law(dim), particles, contacts, source, tol, arrays.get(NPZ_CELL))
 
 
 def _base_law(dim: int) -> dict:
@@ -98,9 +105,10 @@ def _base_law(dim: int) -> dict:
     return {**LAW_DEFAULTS, "rolling_stiffness": np.zeros((r, r))}
 
 
-def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Scene:
+def _scene_from_tables(dim, title, law, particles, contacts, source, tol, cell=None) -> Scene:
     """The schema, column by column (vectorised): particles' names, positions and optional loads; contacts'
-    particles, geometry, forces, law and state. Errors name the first bad entry and its field."""
+    particles, images, geometry, forces, law and state; the cell (periodic scenes). Errors name the first bad
+    entry and its field."""
     r = rot_dim(dim)
     names = particles.strings("name")
     index = dict(zip(names, range(len(names))))
@@ -122,9 +130,13 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Sce
     M = len(contacts)
     p, q = _particle_column(contacts, "p", names, index), _particle_column(contacts, "q", names, index)
     contacts.label = lambda c: f"contacts[{c}] ({names[p[c]]}-{names[q[c]]})"
-    if np.any(p == q):
-        contacts.fail(first(p == q), "q", "a particle cannot touch itself (p = q)")
-    _check_unique_pairs(contacts, p, q, names)
+    image = contacts.numbers("image", (dim,), 0.0) if contacts.present("image").any() else None
+    cell = check_cell(cell, dim, source, tol)
+    image = None if image is None else check_images(image, M, dim, cell, source, contacts.label)
+    itself = (p == q) if image is None else (p == q) & ~np.any(image != 0, axis=1)
+    if np.any(itself):
+        contacts.fail(first(itself), "q", "a particle cannot touch itself (p = q) but across the cell (an image)")
+    _check_unique_pairs(contacts, p, q, names, image)
     normal = contacts.numbers("normal", (dim,))
     norm = np.linalg.norm(normal, axis=1)
     bad = np.abs(norm - 1.0) > tol.input_rtol
@@ -136,7 +148,7 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Sce
               "curvature_q": _curvature_column(contacts, "curvature_q", dim, normal, tol),
               "force": contacts.numbers("force", (dim,)),
               "moment": contacts.numbers("moment", moment_shape, 0.0).reshape(M, r)}
-    for key, low, strict in (("k", 0.0, True), ("alpha", 0.0, True), ("mu", 0.0, False)):
+    for key, low, strict in (("k", 0.0, True), ("alpha", 0.0, False), ("mu", 0.0, False)):
         values = contacts.numbers(key, (), law[key])
         bad = values <= low if strict else values < low
         if bad.any():
@@ -152,7 +164,7 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol) -> Sce
     arrays["state"] = tuple(state)
     return build_scene(dim, names, x, arrays, loads, moments, title=title, source=source, tol=tol,
                        entries=contacts.label, particle_entries=particles.label, mass=mass, inertia=inertia,
-                       fixed=fixed)
+                       fixed=fixed, cell=cell, image=image)
 
 
 def _fixed_column(particles) -> np.ndarray | None:
@@ -191,13 +203,21 @@ def _particle_column(table, key: str, names: list, index: dict) -> np.ndarray:
     return np.array(found, dtype=np.intp).reshape(len(labels))
 
 
-def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, names: list) -> None:
-    """One contact per unordered pair: the first repeat (in file order) is an error naming both entries."""
+def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, names: list, image=None) -> None:
+    """One contact per unordered pair and image (q's image seen from p; p's image seen from q is its negative):
+    the first repeat (in file order) is an error naming both entries."""
     if len(p) < 2:
         return
-    key = np.minimum(p, q).astype(np.int64) * (max(p.max(), q.max()) + 1) + np.maximum(p, q)
-    order = np.argsort(key, kind="stable")
-    same = key[order][1:] == key[order][:-1]
+    swap = p > q
+    rows = [np.minimum(p, q).astype(np.int64), np.maximum(p, q).astype(np.int64)]
+    if image is not None:
+        seen = np.where(swap[:, None], -image, image)
+        lead = np.take_along_axis(seen, np.argmax(seen != 0, axis=1)[:, None], axis=1)
+        seen = np.where((p == q)[:, None] & (lead < 0), -seen, seen)     # a self-contact: e and -e are one
+        rows += list(seen.T)
+    order = np.lexsort(rows[::-1])
+    key = np.stack(rows, axis=1)[order]
+    same = np.all(key[1:] == key[:-1], axis=1)
     if same.any():
         later = order[1:][same]
         c = int(later.min())
@@ -309,7 +329,8 @@ def scene_to_dict(scene: Scene) -> dict:
     ``dim``, ``title``, ``particles`` (N dicts: ``name``, ``x`` (d,), ``load`` (d,), ``moment`` (a number in 2D,
     (3,) in 3D) and, where known, ``mass``, ``inertia``, ``fixed``) and ``contacts`` (M dicts: ``p``, ``q`` (names),
     ``point``, ``normal``, ``force`` (d,), ``curvature_p``, ``curvature_q`` (a number in 2D, (3, 3) in 3D),
-    ``moment``, ``k``, ``alpha``, ``mu``, ``rolling_stiffness``, ``state``); d = dim. `scene_from_dict` reads it
+    ``moment``, ``k``, ``alpha``, ``mu``, ``rolling_stiffness``, ``state``, and ``image`` (d,) in a periodic
+    scene, which also has ``cell`` (d, d)); d = dim. `scene_from_dict` reads it
     back to the same arrays. Built column-wise from `scene_arrays`.
     """
     cols = scene_arrays(scene)
@@ -319,11 +340,13 @@ def scene_to_dict(scene: Scene) -> dict:
     def rows(prefix: str, keys: tuple) -> list:
         return [dict(zip(keys, values)) for values in zip(*(cols[f"{prefix}/{k}"].tolist() for k in keys))]
 
+    contact_keys = ("p", "q") + (("image",) if scene.cell is not None else ()) + (
+        "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling_stiffness",
+        "state")
     particle_keys = (("name", "x", "load", "moment") + (("mass", "inertia") if scene.mass is not None else ())
                      + (("fixed",) if scene.fixed is not None else ()))
     with paused_gc():
-        return {"dim": scene.dim, "title": scene.title,
-                "particles": rows("particles", particle_keys),
-                "contacts": rows("contacts", ("p", "q", "point", "normal", "curvature_p", "curvature_q",
-                                              "force", "moment", "k", "alpha", "mu", "rolling_stiffness",
-                                              "state"))}
+        out = {"dim": scene.dim, "title": scene.title}
+        if scene.cell is not None:
+            out["cell"] = scene.cell.tolist()
+        return {**out, "particles": rows("particles", particle_keys), "contacts": rows("contacts", contact_keys)}

@@ -220,7 +220,7 @@ def contact_blocks(scene: Scene) -> ContactBlocks:
     Hg2 = np.concatenate([_statics(scene.r_pq, df_pq, dm_pq), _statics(scene.r_qp, df_qp, dm_qp)], axis=1)
 
     # mechanical stiffness, elastic branch (eq:Hm, eq:ContactF)
-    F = elastic_stiffness(nrm, scene.k, scene.alpha)
+    F = elastic_stiffness(nrm, scene.k, scene.alpha, scene.mu)
     dfm = F @ Bu
     dmm = scene.rolling @ Bt if scene.has_rolling else None
     Hm = np.concatenate([_statics(scene.r_pq, dfm, dmm),

@@ -4,6 +4,9 @@ A `Scene` holds arrays over particles (N) and contacts (M); d = dim, r = 1 (2D) 
 x (N, d), load b (N, d), load_moment w (N, r); per contact p, q (M,), point (M, d),
 normal n^pq (M, d), curvature_p/q K (M, d, d) on the tangent plane (2D: κ t⊗t), force f^pq (M, d),
 moment m^pq (M, r), k, alpha, mu (M,), rolling M^pq (M, r, r) and state ("auto" | "elastic" | "sliding").
+A periodic scene also has `cell` (d, d), the lattice vectors a_i as rows, and per contact `image` (M, d) integers:
+q's copy sits at x^q + Σ_i image_i a_i (`Scene.q_copy`); the branch vector b^pq runs from x^p to that copy and r^qp
+is measured from it, so every formula written with r^pq, r^qp holds for seam contacts unchanged.
 
 Every invalid input raises `SceneError` with ONE line: "<file>: <entry>: <field>: <what is wrong>".
 Loads default to equilibrium, b^p = -Σ f^pq and w^p = -Σ (r^pq × f^pq + m^pq) (eq:equil1).
@@ -15,10 +18,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import SceneError, first, row_problem
+from .periodic import check_cell, check_images, check_points, image_offset
 from .tolerances import COORDINATE_RATIO, DEFAULT, MAX_MAGNITUDE, MIN_SCALE, Tolerances
 from .vec import cross, rot_dim, sum_at
 
 STATES = ("auto", "elastic", "sliding")
+CONTACT_FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu",
+                  "rolling", "image")     # the per-contact arrays (state, a tuple, besides): slice them together
 LAW_KEYS = ("k", "alpha", "mu", "rolling_stiffness")
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5, "rolling_stiffness": 0.0}
 
@@ -79,6 +85,38 @@ class Scene:
     mass: np.ndarray | None = None        # (N,) masses, for the inertia metric (metric.py); None: not known
     inertia: np.ndarray | None = None     # (N, r, r) rotational inertia in the global frame
     fixed: np.ndarray | None = None       # (N,) bool: particles held fixed (supports: no dofs, no rigid modes)
+    cell: np.ndarray | None = None        # (d, d) lattice vectors as rows; None: not periodic
+    image: np.ndarray | None = None       # (M, d) int: q's copy is x^q + image @ cell; None → zeros
+
+    def __post_init__(self):
+        if self.image is None:
+            object.__setattr__(self, "image", np.zeros((len(self.p), self.dim), dtype=np.int64))
+
+    @property
+    def periodic(self) -> bool:
+        return self.cell is not None
+
+    @property
+    def volume(self) -> float:
+        """det(cell): the cell's area (2D) or volume (3D); a scene without a cell has none (ValueError)."""
+        if self.cell is None:
+            raise ValueError(f"{self.source}: the scene has no cell, so no volume")
+        return float(np.linalg.det(self.cell))
+
+    @property
+    def offset(self) -> np.ndarray:
+        """image @ cell: where q's copy sits relative to x^q, (M, d) (zeros without a cell)."""
+        return image_offset(self.image, self.cell)
+
+    @property
+    def q_copy(self) -> np.ndarray:
+        """x^q + image @ cell: the copy of q each contact touches, (M, d)."""
+        return self.x[self.q] + self.offset
+
+    @property
+    def branch(self) -> np.ndarray:
+        """Branch vectors b^pq = q's copy - x^p, (M, d)."""
+        return self.q_copy - self.x[self.p]
 
     @property
     def n_particles(self) -> int:
@@ -103,7 +141,8 @@ class Scene:
 
     @property
     def r_qp(self) -> np.ndarray:
-        return self.point - self.x[self.q]
+        """Radial vectors r^qp = contact point - q's copy (x^q + image @ cell), (M, d)."""
+        return self.point - self.q_copy
 
     @property
     def has_moments(self) -> bool:
@@ -160,7 +199,7 @@ class Scene:
 
 def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="", source="<scene>",
                 tol: Tolerances = DEFAULT, entries=None, particle_entries=None, mass=None, inertia=None,
-                fixed=None) -> Scene:
+                fixed=None, cell=None, image=None) -> Scene:
     """Assemble a `Scene` from arrays and run the range and physical checks (vectorised).
 
     Parameters
@@ -178,6 +217,9 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
         the equilibrium value is meant, or values with a (N,) bool of those given; given ones must balance.
     mass, inertia, fixed : array_like, optional
         (N,) masses and (N, r, r) inertia tensors (the inertia metric); (N,) bool supports (no dofs).
+    cell, image : array_like, optional
+        (dim, dim) lattice vectors as rows (a periodic scene) and (M, dim) integer images of q per contact (default
+        zeros): q's copy is x^q + image @ cell (model/periodic.py checks them and the contact points).
     title, source, tol, entries, particle_entries
         Title; the input's name in errors; tolerances; contact and particle names for error messages (a list or
         a function i → name; default "contacts[i]", "particles[i]").
@@ -196,11 +238,14 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
     r = rot_dim(dim)
     contact_name = _namer(entries, "contacts")
     particle_name = _namer(particle_entries, None) or (lambda i: f"particles[{i}] ({names[i]!r})")
+    cell = check_cell(cell, dim, source, tol)
+    image = check_images(image, len(arrays["p"]), dim, cell, source, contact_name)
     base = Scene(dim=dim, names=tuple(names), x=np.asarray(x, float).reshape(N, dim), load=np.zeros((N, dim)),
-                 load_moment=np.zeros((N, r)), title=title, source=source, tol=tol, **arrays)
+                 load_moment=np.zeros((N, r)), title=title, source=source, tol=tol, cell=cell, image=image, **arrays)
     given_b, has_b = _given(loads, N, dim)
     given_w, has_w = _given(load_moments, N, r)
     check_ranges(base, contact_name, particle_name, (given_b, given_w))
+    check_points(base, contact_name)
     _check_friction(base, contact_name)
     b_eq, w_eq = equilibrium_loads(base)
     f_scale, m_scale = _load_scales(base)
@@ -220,7 +265,8 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
         inertia = np.asarray(inertia, float).reshape(N, r, r)
     fixed = None if fixed is None or not np.any(fixed) else np.asarray(fixed, bool).reshape(N)
     return Scene(dim=dim, names=tuple(names), x=base.x, load=load, load_moment=load_moment, title=title,
-                 source=source, tol=tol, mass=mass, inertia=inertia, fixed=fixed, **arrays)
+                 source=source, tol=tol, mass=mass, inertia=inertia, fixed=fixed, cell=cell, image=image,
+                 **arrays)
 
 
 def _namer(entries, prefix):

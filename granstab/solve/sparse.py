@@ -55,7 +55,7 @@ from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
 from ..mechanics.rigid import Projection, rigid_basis, rotations, translations
 from ..mechanics.stiffness import ContactBlocks, contact_blocks, geometric
-from ..model.scene import Scene
+from ..model.scene import CONTACT_FIELDS, Scene
 from ..model.vec import rot_dim, rotate_matrix
 
 SMALL_DENSE = 48   # up to this many dofs lowest_modes uses a dense eigh of the operator (exact, instant)
@@ -66,8 +66,7 @@ SIGMA_REL = 1e-6   # default shift σ = -SIGMA_REL · s (s = upper bound of ‖H
 
 CHUNK = 16384   # contacts per chunk of contact_blocks: temporaries stay ~10 MB, so the cost stays linear in M
 
-CONTACT_FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu",
-                  "rolling")
+
 
 
 def contact_chunks(scene: Scene, chunk: int = CHUNK):
