@@ -271,9 +271,11 @@ def test_lammps_periodic_shear_run_keeps_every_contact(sheared, step):
     atoms, local = dump_rows(files[0], step), dump_rows(files[1], step)
     radius = dict(zip(atoms[:, 0].astype(int), atoms[:, 5]))
     # the touching pairs counted from the dump: R_1 + R_2 > |x_1 − x_2| with LAMMPS's own minimum-image branch
-    # vector (pair/local p10 p11 p12); every one of them is a scene contact, none is cut at the seam
+    # vector (pair/local p10 p11 p12; a neighbour pair that does not touch has all its values 0); every one of them
+    # is a scene contact, none is cut at the seam
     r1, r2 = (np.array([radius[i] for i in local[:, k].astype(int)]) for k in (0, 1))
-    touching = r1 + r2 - np.linalg.norm(local[:, 8:10], axis=1) > 0
+    d = np.linalg.norm(local[:, 8:10], axis=1)
+    touching = (d > 0) & (r1 + r2 - d > 0)
     assert s.n_contacts == touching.sum() == rep["contacts"]["in_file"] and rep["contacts"]["in_scene"] == s.n_contacts
     assert rep["contacts"]["cut_around_periodic_cell"] == 0 and rep["periodic"]["seam_contacts"] >= 10
     # the cell: side 14.9, tilt xy = erate · t · L_y (engineering shear rate from step 7000, dt 0.004)

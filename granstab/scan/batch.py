@@ -90,7 +90,8 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
              "rows_g": np.abs(hg).sum(axis=2)}
     pairs = _cluster_contacts(scene, local, sizes, free)
     pairs["sliding"] = scene.at_yield()[pairs["contact"]]
-    positions, wraps = (None, False) if fixed else _positions(scene, centers, local, sizes, pairs)
+    positions, wraps = ((None, np.zeros(len(centers), dtype=bool)) if fixed
+                        else _positions(scene, centers, local, sizes, pairs))
     n_contacts = np.bincount(pairs["cluster"], minlength=len(centers))
     n_sliding = np.bincount(pairs["cluster"], weights=pairs["sliding"],
                             minlength=len(centers)).astype(int)

@@ -20,8 +20,7 @@ import scipy.sparse as sp
 from ..model.scene import Scene, SceneError, equilibrium_loads
 from ..model.vec import rot_dim
 
-CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling",
-                  "image")
+CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling")
 
 
 def adjacency(scene: Scene) -> sp.csr_matrix:
@@ -159,7 +158,7 @@ def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None
     within = inside_p & inside_q
     within[within] &= free[p[within]] | free[q[within]]
     c = touching[within]
-    fields = {name: getattr(scene, name)[c] for name in CONTACT_FIELDS}
+    fields = {name: getattr(scene, name)[c] for name in CONTACT_FIELDS + ("image",)}
     names = itemgetter(*every)(scene.names) if len(every) > 1 else (scene.names[every[0]],)
     fixed = ~free | (False if scene.fixed is None else scene.fixed[every])
     fields.update(p=p[within], q=q[within], dim=scene.dim, names=tuple(names), x=scene.x[every], title=title,
