@@ -214,8 +214,11 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                            entries if metric == "family" else None)
         if partial:
             verdict = mark_partial(verdict, len(masks), Ms)
-        verdict = replace(verdict, branches_kept=len(branches))
+        verdict = replace(verdict, branches_kept=len(branches), free_spins=getattr(problem, "free_spins", 0))
     warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", [])
+    if getattr(problem, "free_spins", 0):
+        warnings.append(f"{problem.free_spins} free spin(s): rotation dofs no contact feels (frictionless round "
+                        "particles), set aside like the rigid motions: zero modes, neither neutral nor unstable")
     if len(branches) < verdict.n_branches:
         warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
