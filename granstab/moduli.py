@@ -10,7 +10,7 @@ elastic bordered matrix serves every right-hand side and, through Woodbury, ever
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -238,32 +238,32 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     volume, sigma = scene.volume, stress(scene)
     Q = stress_work(sigma)
     Ms = len(sliding)
-    masks = _named_masks(sliding, scene.n_contacts)
-    branches = tuple(_branch(name, mk, mk[sliding] == 1, solver, parts, volume, Q) for name, mk in masks)
-    direction = None
-    if strain is not None:
-        direction = _direction(scene, strain, sliding, max_sliding, sample_branches, seed, solver, parts, volume, Q,
-                               branches[0])
+    partial = Ms > max_sliding
+    masks = (sample_masks(sliding, scene.n_contacts, sample_branches, seed) if partial
+             else enumerate_masks(sliding, scene.n_contacts))
+    every = [_branch("tangent", mk, mk[sliding] == 1, solver, parts, volume, Q) for mk in masks]
+    signs = masks[:, sliding]
+    named = [("elastic", int(np.flatnonzero(np.all(signs == -1, axis=1))[0]))]
+    if Ms:
+        named.append(("all loading", int(np.flatnonzero(np.all(signs == 1, axis=1))[0])))
+    branches = tuple(replace(every[i], name=name) for name, i in named)
+    s_tol = s_limits(np.vstack([solver.S, parts.S_cell]), scene.tol)[0]
+    direction = None if strain is None else _direction(scene, strain, sliding, every, s_tol, partial)
     zero = {**_zero_modes(scene, untouched), "mechanisms": solver.mechanisms}
-    errors = _errors(scene, sigma, branches)
-    notes = _notes(scene, Ms, zero)
     return Moduli(dim=scene.dim, volume=volume, stress=sigma, branches=branches, zero_modes=zero,
-                  verdicts=_verdicts(branches, Ms), errors=errors, seconds=time.perf_counter() - start,
-                  direction=direction, notes=notes)
+                  verdicts=_verdicts(every, sliding, s_tol, partial), errors=_errors(scene, sigma, every),
+                  seconds=time.perf_counter() - start, direction=direction, notes=_notes(scene, Ms, zero))
 
 
-def _named_masks(sliding, M):
-    """("elastic", all -1) and, with potentially sliding contacts, ("all loading", all +1); masks (M,) int8."""
-    elastic = np.zeros(M, dtype=np.int8)
-    elastic[sliding] = -1
-    if not len(sliding):
-        return [("elastic", elastic)]
-    loading = np.zeros(M, dtype=np.int8)
-    loading[sliding] = 1
-    return [("elastic", elastic), ("all loading", loading)]
+def _consistent(branch, sliding, e: np.ndarray, s_tol: float) -> bool:
+    """Whether strain direction e (Mandel) is consistent with the branch (Appendix D): mask·sign(S) >= 0 on every
+    potentially sliding contact, S = (S_cellᵀ - Sᵀ X^i) e, |S| <= s_tol counted as 0."""
+    Sv = branch.s_values @ e
+    sign = np.where(np.abs(Sv) <= s_tol, 0, np.sign(Sv))
+    return bool(np.all(branch.mask[sliding] * sign >= 0))
 
 
-def _direction(scene, strain, sliding, max_sliding, n_sample, seed, solver, parts, volume, Q, elastic):
+def _direction(scene, strain, sliding, every, s_tol, partial):
     """The branches consistent with a strain direction ε (Appendix D): mask·sign(S(ε)) >= 0 on every potentially
     sliding contact, S(ε) = (S_cellᵀ - Sᵀ X^i) ε; their directional moduli ε̂·C^i·ε̂ (ε̂ = ε/|ε|)."""
     d = scene.dim
@@ -273,23 +273,11 @@ def _direction(scene, strain, sliding, max_sliding, n_sample, seed, solver, part
     e = np.einsum("aij,ij->a", mandel_basis(d), eps)
     eps, e = eps / np.linalg.norm(e), e / np.linalg.norm(e)            # |ε| (Frobenius) = |e| (Mandel)
     Ms = len(sliding)
-    partial = Ms > max_sliding
-    masks = (sample_masks(sliding, scene.n_contacts, n_sample, seed) if partial
-             else enumerate_masks(sliding, scene.n_contacts))
-    s_tol = s_limits(np.vstack([solver.S, parts.S_cell]), scene.tol)[0]
-    found, values = [], []
-    for mk in masks:
-        b = elastic if not Ms or np.all(mk[sliding] == -1) else \
-            _branch("tangent", mk, mk[sliding] == 1, solver, parts, volume, Q)
-        Sv = b.s_values @ e
-        sign = np.where(np.abs(Sv) <= s_tol, 0, np.sign(Sv))
-        value = float(e @ b.mandel @ e)
-        values.append(value)
-        if np.all(mk[sliding] * sign >= 0):
-            found.append({"mask": [int(v) for v in mk], "modulus": value,
-                          "fixed_stress_modulus": float(e @ b.fixed_stress @ e), "C": b.C.tolist()})
+    values = [float(e @ b.mandel @ e) for b in every]
+    found = [{"mask": [int(v) for v in b.mask], "modulus": value, "fixed_stress_modulus": float(e @ b.fixed_stress @ e),
+              "C": b.C.tolist()} for b, value in zip(every, values) if _consistent(b, sliding, e, s_tol)]
     out = {"strain": eps.tolist(), "consistent": found,
-           "n_branches": len(masks), "enumerated": not partial, "unique": len(found) == 1 and not partial}
+           "n_branches": len(every), "enumerated": not partial, "unique": len(found) == 1 and not partial}
     if not found:
         out["note"] = ("no branch is consistent with this strain direction: the cell cannot follow it "
                        "quasi-statically on any branch examined")
@@ -298,7 +286,7 @@ def _direction(scene, strain, sliding, max_sliding, n_sample, seed, solver, part
                        "the cell's response (Appendix D)")
     if partial:
         out["range"] = [min(values), max(values)]
-        out["note"] = (f"{Ms} potentially sliding contacts: {len(masks)} of 2^{Ms} branches examined (all loading, "
+        out["note"] = (f"{Ms} potentially sliding contacts: {len(every)} of 2^{Ms} branches examined (all loading, "
                        "all unloading and seeded random ones); `range` is over them, a sample, not a bound")
     return out
 
@@ -325,25 +313,34 @@ def _errors(scene: Scene, sigma: np.ndarray, branches) -> dict:
             "load_residual": load}
 
 
-def _verdicts(branches, Ms: int) -> dict:
-    """Fixed cell: the particles' stability (`granstab analyze`) answers it, the moduli do not enter. Fixed
-    stress: sym(C^i - Q) positive definite on every branch examined is stable; a negative eigenvalue on the
-    elastic branch of a scene without sliding contacts is unstable (a conservative cell)."""
-    lam = np.concatenate([b.fixed_stress_eigenvalues for b in branches])
-    scale = max(max(np.abs(b.mandel).max() for b in branches), 1e-300)
-    tol = 1e3 * EPS * scale + max(b.residual for b in branches) * scale
-    if Ms == 0:
-        verdict = "stable" if lam.min() > tol else "unstable" if lam.min() < -tol else "neutral"
-        proven = verdict != "neutral"
+def _verdicts(every, sliding, s_tol: float, partial: bool) -> dict:
+    """Fixed cell: `granstab analyze` of the scene answers it (the particles move, the cell is held). Fixed stress
+    (eq:stab, eq:instab for the cell): sym(C^i - Q) positive definite on every branch proves stability; a negative
+    eigenvalue whose strain direction is consistent with its branch (`_consistent`) proves instability; a zero one
+    so consistent (within the tolerance) neutrality; anything else is not determined."""
+    scale = max(max(np.abs(b.mandel).max() for b in every), 1e-300)
+    tol = (1e3 * EPS + max(b.residual for b in every)) * scale
+    lam_min, unstable, neutral = np.inf, False, False
+    for b in every:
+        lam, V = np.linalg.eigh(0.5 * (b.fixed_stress + b.fixed_stress.T))
+        lam_min = min(lam_min, float(lam[0]))
+        for j in np.flatnonzero(lam <= tol):
+            ok = _consistent(b, sliding, V[:, j], s_tol) or _consistent(b, sliding, -V[:, j], s_tol)
+            unstable |= ok and lam[j] < -tol
+            neutral |= ok and lam[j] >= -tol
+    if unstable:
+        verdict, proof = "unstable", True
+    elif lam_min > tol:
+        verdict, proof = "stable", not partial
+    elif neutral:
+        verdict, proof = "neutral", True
     else:
-        verdict = "stable" if lam.min() > tol else "not determined"
-        proven = False
-    return {"fixed_cell": "answered by `granstab analyze` of the scene (particles move, the cell is held)",
-            "fixed_stress": {"verdict": verdict, "min_eigenvalue": float(lam.min()), "tolerance": tol,
-                             "sufficient": bool(proven and Ms == 0) or (verdict == "stable" and Ms == 0),
-                             "note": ("the cell under constant Cauchy stress: sym(C - Q) on the branches "
-                                      "examined (elastic" + (", all loading" if Ms else "") + "); valid when the "
-                                      "particles are stable at fixed cell")}}
+        verdict, proof = "not determined", False
+    return {"fixed_cell": "answered by `granstab analyze` of the scene (the particles move, the cell is held)",
+            "fixed_stress": {"verdict": verdict, "sufficient": proof, "min_eigenvalue": lam_min, "tolerance": tol,
+                             "n_branches": len(every), "all_branches": not partial,
+                             "note": "the cell under constant Cauchy stress: sym(C^i - Q) on every branch examined; "
+                                     "it assumes the particles are stable at fixed cell"}}
 
 
 def _notes(scene: Scene, Ms: int, zero: dict) -> tuple:
