@@ -219,7 +219,8 @@ def format_moduli(result, scene) -> str:
     fs = result.verdicts["fixed_stress"]
     lines.append(f"fixed stress: {fs['verdict'].upper()} ({'proven' if fs['sufficient'] else 'not proven'}; "
                  f"min eigenvalue {fs['min_eigenvalue']:.4g}, tolerance {fs['tolerance']:.1e}, "
-                 f"{fs['n_branches']} branch(es)); fixed cell: {result.verdicts['fixed_cell']}")
+                 f"{fs['n_branches']} branch(es)); fixed cell: {result.verdicts['fixed_cell']['verdict'].upper()} "
+                 "(sym(H), elastic branch; granstab analyze for every branch)")
     z = result.zero_modes
     lines.append(f"zero modes: {z['translations']} translations, {z['free_spins']} free spins, {z['rattlers']} "
                  f"rattlers, {z['mechanisms']} mechanisms")

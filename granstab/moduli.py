@@ -150,6 +150,8 @@ class _Solver:
         """X = H^i⁺ Ξ^i for the branch whose loading contacts are `on` (bool (Ms,))."""
         m = parts.B.shape[0]
         Ao, So = self.A[:, on], self.S[:, on]
+        if not len(self.keep):                                        # nothing but the cell moves
+            return np.zeros((0, m))
         if self.lu is None:
             H = self.H.toarray() + Ao @ So.T
             return np.linalg.pinv(H, rcond=PINV_RTOL) @ (parts.Xi[self.keep] + Ao @ parts.S_cell[:, on].T)
@@ -162,14 +164,21 @@ class _Solver:
         return X
 
 
+def _inf_norm(H) -> float:
+    """‖H‖∞ of a sparse matrix (0 for an empty one)."""
+    return float(abs(H).sum(axis=1).max()) if H.shape[0] else 0.0
+
+
 def _factor(scene: Scene, H, untouched: np.ndarray, A, S) -> _Solver:
     """The solver on the dofs some contact touches: sparse LU of the bordered system, or the dense fallback."""
     keep = np.flatnonzero(~untouched)
     T = translations(scene)[keep]
     Hk = H[keep][:, keep].tocsr()
     A, S = A[keep], S[keep]
+    if not len(keep):
+        return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim)
     bordered = sp.bmat([[Hk, sp.csr_matrix(T)], [sp.csr_matrix(T.T), None]], format="csc")
-    scale = max(float(abs(Hk).sum(axis=1).max()), 1e-300)
+    scale = max(_inf_norm(Hk), 1e-300)
     try:
         lu = spla.splu(bordered)
         singular = float(np.abs(lu.U.diagonal()).min()) < PIVOT_RTOL * scale
@@ -192,7 +201,7 @@ def _branch(name, mask, on, solver, parts, volume, Q) -> CellBranch:
     Xi = parts.Xi[solver.keep] + Ao @ parts.S_cell[:, on].T
     X = solver.response(parts, on)
     HX = solver.H @ X + Ao @ (So.T @ X)
-    norm = float(abs(solver.H).sum(axis=1).max()) + float(np.abs(Ao).sum(axis=1).max(initial=0.0)
+    norm = _inf_norm(solver.H) + float(np.abs(Ao).sum(axis=1).max(initial=0.0)
                                                           * np.abs(So).sum(axis=0).max(initial=0.0))
     residual = float(np.abs(HX - Xi).max(initial=0.0) / max(norm * np.abs(X).max(initial=0.0)
                                                               + np.abs(Xi).max(initial=0.0), 1e-300))
@@ -231,7 +240,7 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     sliding = np.flatnonzero(scene.at_yield())
     A, S = sliding_factors(blocks, sliding)
     parts = cell_parts(scene, blocks, sliding)
-    scale = max(float(abs(H).sum(axis=1).max()), 1e-300)
+    scale = max(_inf_norm(H), 1e-300)
     untouched = np.zeros(scene.n_dof, bool)
     untouched[untouched_dofs(H, parts.Xi, parts.Xi_left.T, A, S, scale=scale)] = True
     solver = _factor(scene, H, untouched, A, S)
@@ -251,7 +260,8 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     direction = None if strain is None else _direction(scene, strain, sliding, every, s_tol, partial)
     zero = {**_zero_modes(scene, untouched), "mechanisms": solver.mechanisms}
     return Moduli(dim=scene.dim, volume=volume, stress=sigma, branches=branches, zero_modes=zero,
-                  verdicts=_verdicts(every, sliding, s_tol, partial), errors=_errors(scene, sigma, every),
+                  verdicts=_verdicts(every, sliding, s_tol, partial, _asymmetry(solver, parts), _held(solver)),
+                  errors=_errors(scene, sigma, every),
                   seconds=time.perf_counter() - start, direction=direction, notes=_notes(scene, Ms, zero))
 
 
@@ -296,7 +306,7 @@ def _zero_modes(scene: Scene, untouched: np.ndarray) -> dict:
     particles that have stiff translations) and rattlers (particles none of whose dofs any contact touches)."""
     d, r = scene.dim, rot_dim(scene.dim)
     per = untouched.reshape(scene.n_particles, d + r)
-    rattler = per.all(axis=1)
+    rattler = per.all(axis=1) & ~per.all()          # all untouched: a one-particle lattice, its translations rigid
     spins = int(per[~rattler, d:].sum())
     return {"translations": d, "free_spins": spins, "rattlers": int(rattler.sum()),
             "rattler_dofs": int(per[rattler].size),
@@ -313,11 +323,48 @@ def _errors(scene: Scene, sigma: np.ndarray, branches) -> dict:
             "load_residual": load}
 
 
-def _verdicts(every, sliding, s_tol: float, partial: bool) -> dict:
+def _asymmetry(solver, parts) -> float:
+    """max(|H - Hᵀ|, |Ξ - Ξ'ᵀ|, |B - Bᵀ|) / max|[[H, Ξ], [Ξ', B]]| of the elastic branch (0 for a conservative law)."""
+    H = solver.H.toarray() if len(solver.keep) <= DENSE_MAX else solver.H
+    Xi, left = parts.Xi[solver.keep], parts.Xi_left[:, solver.keep]
+    biggest = abs(H).max() if H.size else 0.0
+    skew = abs(H - H.T).max() if H.size else 0.0
+    scale = max(float(biggest), float(np.abs(Xi).max(initial=0.0)), float(np.abs(parts.B).max()), 1e-300)
+    return max(float(skew), float(np.abs(Xi - left.T).max(initial=0.0)),
+               float(np.abs(parts.B - parts.B.T).max())) / scale
+
+
+SYMMETRIC_RTOL = 1e-12   # an extended matrix this close to symmetric is a conservative one (its Schur complement
+#                          is the minimum of the second-order work over the particles' motions)
+
+
+def _held(solver) -> dict:
+    """The particles at fixed cell, elastic branch, conservative view: the eigenvalues of sym(H) on the dofs some
+    contact touches, the d translations (exact zeros) set aside; dense, so only up to DENSE_MAX dofs. `granstab
+    analyze` gives the full answer (every branch, consistency, error bounds)."""
+    if len(solver.keep) > DENSE_MAX:
+        return {"verdict": "not computed", "note": f"more than {DENSE_MAX} dofs: run granstab analyze"}
+    H = solver.H.toarray()
+    lam = np.linalg.eigvalsh(0.5 * (H + H.T))
+    tol = 1e3 * EPS * max(float(np.abs(lam).max(initial=0.0)), 1e-300) * max(len(lam), 1)
+    rest = np.delete(lam, np.argsort(np.abs(lam))[:solver.d])
+    if not rest.size:
+        return {"verdict": "stable", "min_eigenvalue": None, "tolerance": tol,
+                "note": "nothing but the translations moves at fixed cell"}
+    low = float(rest.min())
+    return {"verdict": "stable" if low > tol else "unstable" if low < -tol else "neutral", "min_eigenvalue": low,
+            "tolerance": tol, "note": "sym(H) of the elastic branch without the translations (granstab analyze: "
+                                      "every branch, consistency and error bounds)"}
+
+
+def _verdicts(every, sliding, s_tol: float, partial: bool, asymmetry: float, held: dict) -> dict:
     """Fixed cell: `granstab analyze` of the scene answers it (the particles move, the cell is held). Fixed stress
-    (eq:stab, eq:instab for the cell): sym(C^i - Q) positive definite on every branch proves stability; a negative
-    eigenvalue whose strain direction is consistent with its branch (`_consistent`) proves instability; a zero one
-    so consistent (within the tolerance) neutrality; anything else is not determined."""
+    (eq:stab, eq:instab for the cell): V ε·(C^i - Q)·ε is the second-order work of the motion [-X^i ε, ε] that
+    keeps the particles in equilibrium. A negative one whose strain is consistent with its branch (`_consistent`)
+    proves instability, a zero one so consistent neutrality. sym(C^i - Q) positive definite on every branch proves
+    stability only for a symmetric extended matrix (no sliding, conservative geometry: the Schur complement is then
+    the minimum over the particles' motions) and with the particles stable at fixed cell; otherwise it is reported
+    as not proven."""
     scale = max(max(np.abs(b.mandel).max() for b in every), 1e-300)
     tol = (1e3 * EPS + max(b.residual for b in every)) * scale
     lam_min, unstable, neutral = np.inf, False, False
@@ -331,16 +378,18 @@ def _verdicts(every, sliding, s_tol: float, partial: bool) -> dict:
     if unstable:
         verdict, proof = "unstable", True
     elif lam_min > tol:
-        verdict, proof = "stable", not partial
+        verdict, proof = "stable", (not partial and len(sliding) == 0 and asymmetry <= SYMMETRIC_RTOL
+                                    and held["verdict"] == "stable")
     elif neutral:
         verdict, proof = "neutral", True
     else:
         verdict, proof = "not determined", False
-    return {"fixed_cell": "answered by `granstab analyze` of the scene (the particles move, the cell is held)",
+    return {"fixed_cell": held,
             "fixed_stress": {"verdict": verdict, "sufficient": proof, "min_eigenvalue": lam_min, "tolerance": tol,
-                             "n_branches": len(every), "all_branches": not partial,
+                             "n_branches": len(every), "all_branches": not partial, "asymmetry": asymmetry,
                              "note": "the cell under constant Cauchy stress: sym(C^i - Q) on every branch examined; "
-                                     "it assumes the particles are stable at fixed cell"}}
+                                     "a proof of stability needs a symmetric extended matrix and the particles "
+                                     "stable at fixed cell (granstab analyze)"}}
 
 
 def _notes(scene: Scene, Ms: int, zero: dict) -> tuple:

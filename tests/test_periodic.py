@@ -341,3 +341,54 @@ def test_stress_work_term_and_fixed_stress_verdict():
 def test_moduli_refuse_a_scene_without_cell():
     with pytest.raises(granstab.SceneError, match="moduli need a periodic scene"):
         moduli(granstab.load_scene("presets/two_particle.toml"))
+
+
+def one_disk_cell(a: float = 0.99, k: float = 1.0):
+    """One frictionless disk of diameter 1 in a square cell of side a < 1: it touches its own images along x and
+    y (overlap δ = 1 - a, force f = kδ). Closed forms (V = a²): C_xxxx = C_yyyy = k, C_xxyy = 0, Mandel shear
+    C_(xy)(xy) = -f/a (the compressed contacts' transverse -f/a, no normal stretch); σ = -(f/a) I."""
+    f = k * (1.0 - a)
+    normal = np.eye(2)
+    t = np.c_[-normal[:, 1], normal[:, 0]]
+    K = -(2 / a) * t[:, :, None] * t[:, None, :]
+    arrays = {"p": np.array([0, 0]), "q": np.array([0, 0]), "point": 0.5 * a * normal, "normal": normal,
+              "curvature_p": K, "curvature_q": K.copy(), "force": -f * normal, "moment": np.zeros((2, 1)),
+              "k": np.full(2, k), "alpha": np.zeros(2), "mu": np.zeros(2), "rolling": np.zeros((2, 1, 1)),
+              "state": ("auto", "auto")}
+    return build_scene(2, ["d"], np.zeros((1, 2)), arrays, cell=a * np.eye(2), image=np.eye(2, dtype=int),
+                       source="one disk"), f
+
+
+def test_one_disk_cell_closed_form_stable_held_unstable_at_fixed_stress():
+    """The square lattice as a one-disk cell: C and σ equal the closed forms to round-off; held (fixed cell) it is
+    stable — nothing can move but the translations and the spin — while at fixed stress C - Q has the shear
+    eigenvalue -f/a - p = -2f/a < 0 along a consistent (frictionless: always) strain: unstable, proven."""
+    a = 0.99
+    scene, f = one_disk_cell(a)
+    result = moduli(scene)
+    expect = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -f / a]])
+    assert np.abs(result.mandel - expect).max() < 1e-14
+    assert np.abs(result.stress + (f / a) * np.eye(2)).max() < 1e-16
+    assert result.zero_modes == {**result.zero_modes, "free_spins": 1, "rattlers": 0, "mechanisms": 0}
+    fixed_stress = result.verdicts["fixed_stress"]
+    assert fixed_stress["verdict"] == "unstable" and fixed_stress["sufficient"]
+    assert fixed_stress["min_eigenvalue"] == pytest.approx(-2 * f / a, rel=1e-12)
+    assert result.verdicts["fixed_cell"]["verdict"] == "stable"
+
+
+def test_cli_moduli_table_json_and_errors(tmp_path, capsys):
+    from granstab.cli import main
+    scene, f = one_disk_cell()
+    path = tmp_path / "cell.json"
+    granstab.save_scene(scene, path)
+    assert main(["moduli", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "stress σ (tension positive)" in out and "fixed stress: UNSTABLE (proven" in out
+    assert main(["moduli", str(path), "--json", "--strain", "0,1,1,0"]) == 0
+    data = __import__("json").loads(capsys.readouterr().out)
+    assert np.allclose(np.array(data["C"]), moduli(scene).C, rtol=0, atol=1e-15)
+    assert data["direction"]["consistent"][0]["modulus"] == pytest.approx(-f / 0.99, rel=1e-12)
+    assert main(["moduli", "presets/two_particle.toml"]) == 2
+    assert "moduli need a periodic scene" in capsys.readouterr().err
+    assert main(["moduli", str(path), "--strain", "1,2,3"]) == 2
+    assert capsys.readouterr().err.strip() == "--strain: 4 numbers expected (a 2x2 tensor row by row), got 3"
