@@ -12,6 +12,7 @@ Public API (each function's docstring gives its parameters and array shapes; N p
     result.to_dict()                                           # the `granstab analyze --json` object
     granstab.second_order_work(result, motion)                 # dUᵀ𝓗dU of a motion (n_dof,)
     granstab.load_response(result, load_increment)             # ℍ^i dU = d𝕓 on every branch: Type-1 non-uniqueness
+    m = granstab.moduli(periodic_scene)                        # C (d,d,d,d), stress, bulk, shear, branches, verdicts
 
 The notation and the paper's equations: docs/equations.md.
 """
@@ -22,6 +23,7 @@ from .mechanics.stiffness import Stiffness, stiffness
 from .mechanics.verdicts import load_response, second_order_work
 from .model.scene import Scene, SceneError, build_scene
 from .model.tolerances import Tolerances
+from .moduli import CellBranch, Moduli, moduli
 
-__all__ = ["Analysis", "Loaded", "Scene", "SceneError", "Stiffness", "Tolerances", "analyze", "build_scene", "load",
-           "load_response", "load_scene", "save_scene", "scene_from_dict", "scene_to_dict", "second_order_work", "stiffness"]
+__all__ = ["Analysis", "CellBranch", "Loaded", "Moduli", "Scene", "SceneError", "Stiffness", "Tolerances", "analyze", "build_scene", "load",
+           "load_response", "load_scene", "moduli", "save_scene", "scene_from_dict", "scene_to_dict", "second_order_work", "stiffness"]

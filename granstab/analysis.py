@@ -115,6 +115,12 @@ def _branch_dict(b, inertia: bool) -> dict:
     return out
 
 
+def _spin_warning(problem) -> list[str]:
+    spins = getattr(problem, "free_spins", 0)
+    return [f"{spins} free spin(s): rotation dofs no contact feels (frictionless round particles), set aside like "
+            "the rigid motions: zero modes, neither neutral nor unstable"] if spins else []
+
+
 def build_problem(scene: Scene, blocks: ContactBlocks, metric):
     """The dense problem in a metric (a Metric, or L as a number): (problem, parts); see solve.methods.dense_problem."""
     from .solve.methods import dense_parts, dense_problem
@@ -214,8 +220,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                            entries if metric == "family" else None)
         if partial:
             verdict = mark_partial(verdict, len(masks), Ms)
-        verdict = replace(verdict, branches_kept=len(branches))
-    warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", [])
+        verdict = replace(verdict, branches_kept=len(branches), free_spins=getattr(problem, "free_spins", 0))
+    warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", []) + _spin_warning(problem)
     if len(branches) < verdict.n_branches:
         warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "

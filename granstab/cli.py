@@ -20,6 +20,7 @@ from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.metric import CHOICES as METRIC_CHOICES
 from .mechanics.stiffness import MaskError, stiffness
 from .model.scene import SceneError
+from .moduli import moduli
 from .solve.budget import (
     DENSE_ADVICE,
     SPARSE_ADVICE,
@@ -187,6 +188,70 @@ def cmd_analyze(args) -> int:
             text = json.dumps(data, allow_nan=False) if args.json else "\n".join(
                 [format_table(result, show_all=args.all), *import_lines(loaded)])
     print(text)
+    return 0
+
+
+def format_moduli(result, scene) -> str:
+    """A readable report of a Moduli result: stress, C in Voigt-like index pairs, isotropic summaries, the branches'
+    eigenvalues (fixed cell and fixed stress), the direction's consistent branches, zero modes, errors, time."""
+    d = result.dim
+    pairs = [(i, i) for i in range(d)] + ([(0, 1)] if d == 2 else [(1, 2), (0, 2), (0, 1)])
+    axes = "xyz"
+    label = [axes[i] + axes[j] for i, j in pairs]
+    C = result.C
+    lines = [f"{scene.title or scene.source}: {d}D periodic, {scene.n_particles} particles, {scene.n_contacts} "
+             f"contacts, volume {result.volume:.6g}",
+             "stress σ (tension positive): " + "; ".join(" ".join(f"{v: .6g}" for v in row) for row in result.stress)
+             + f"   (pressure {result.pressure:.6g})",
+             "C_ijkl (elastic branch)  " + "  ".join(f"{lab:>11}" for lab in label)]
+    for (i, j), lab in zip(pairs, label):
+        lines.append(f"  {lab:>22}  " + "  ".join(f"{C[i, j, k, m]:11.5g}" for k, m in pairs))
+    lines.append(f"bulk {result.bulk:.6g}, shear {result.shear:.6g} (isotropic averages)")
+    for b in result.branches:
+        lines.append(f"branch {b.name}: eigenvalues of sym(C) " + ", ".join(f"{v:.5g}" for v in b.eigenvalues)
+                     + "; at fixed stress sym(C - Q) " + ", ".join(f"{v:.5g}" for v in b.fixed_stress_eigenvalues))
+    if result.direction is not None:
+        found = result.direction["consistent"]
+        lines.append(f"strain direction: {len(found)} consistent branch(es) of {result.direction['n_branches']}"
+                     + "".join(f"; modulus {c['modulus']:.6g}" for c in found))
+        if "note" in result.direction:
+            lines.append(f"  {result.direction['note']}")
+    fs = result.verdicts["fixed_stress"]
+    lines.append(f"fixed stress: {fs['verdict'].upper()} ({'proven' if fs['sufficient'] else 'not proven'}; "
+                 f"min eigenvalue {fs['min_eigenvalue']:.4g}, tolerance {fs['tolerance']:.1e}, "
+                 f"{fs['n_branches']} branch(es)); fixed cell: {result.verdicts['fixed_cell']['verdict'].upper()} "
+                 "(sym(H), elastic branch; granstab analyze for every branch)")
+    z = result.zero_modes
+    lines.append(f"zero modes: {z['translations']} translations, {z['free_spins']} free spins, {z['rattlers']} "
+                 f"rattlers, {z['mechanisms']} mechanisms")
+    lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in result.errors.items())
+                 + f"; time {1e3 * result.seconds:.1f} ms")
+    lines += [f"note: {n}" for n in result.notes]
+    return "\n".join(lines)
+
+
+def parse_strain(text: str | None, dim: int):
+    """--strain: d·d numbers separated by commas or blanks (row by row), or None."""
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise InputError(f"--strain: numbers expected, got {text!r}") from None
+    if len(values) != dim * dim:
+        raise InputError(f"--strain: {dim * dim} numbers expected (a {dim}x{dim} tensor row by row), got {len(values)}")
+    return np.array(values).reshape(dim, dim)
+
+
+def cmd_moduli(args) -> int:
+    with strict_numerics(args.scene):
+        loaded = load(args.scene)
+        scene = loaded.scene
+        result = moduli(scene, strain=parse_strain(args.strain, scene.dim), max_sliding=args.max_sliding)
+        data = {**result.to_dict(), "import": loaded.report}
+        require_finite(data, scene.source)
+    print(json.dumps(data, allow_nan=False) if args.json else "\n".join([format_moduli(result, scene),
+                                                                          *import_lines(loaded)]))
     return 0
 
 
@@ -444,6 +509,15 @@ def build_parser() -> Parser:
                    f"{TABLE_LOWEST} per branch and the counts)")
     periodic_arguments(p)
     p.set_defaults(run=cmd_analyze)
+    p = sub.add_parser("moduli", help="elastic moduli, stress and stability at fixed stress of a periodic packing")
+    p.add_argument("scene")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument("--strain", default=None,
+                   help="a strain direction, d·d numbers row by row (e.g. '0,1,1,0'): the branches consistent "
+                        "with it and their tangent moduli")
+    p.add_argument("--max-sliding", type=count(0), default=12,
+                   help="enumerate the 2^Ms branches up to this many potentially sliding contacts (beyond: a sample)")
+    p.set_defaults(run=cmd_moduli)
     p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
     p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])
     p.add_argument("--out", required=True)

@@ -39,6 +39,7 @@ class Problem:
     tol: object
     formation_error: float = 0.0   # bound of ‖sym(𝓗) computed − exact‖₂ from forming it (accuracy.formation_error)
     free: np.ndarray | None = None  # the scene's dofs these n are (Scene.free_dofs), None: all of them
+    free_spins: int = 0             # rotation dofs no contact feels (rigid.untouched_dofs), set aside with the rigid ones
 
     @property
     def s_tol(self) -> float:

@@ -1,7 +1,8 @@
 """Error estimates of H from exact identities that hold for every motion (Sec. 2.3), in O(nnz) work.
 
 Σ_p db^p = 0 (force balance of the increments), Σ_p (x^p × db^p + dw^p + du^p × b^p) = 0 (moment balance,
-eq:equil1 differentiated), Hg1, Hg2 and Hm vanish on all rigid motions, H on translations. Each is reported
+eq:equil1 differentiated; not in a periodic scene, which has no rigid rotation), Hg1, Hg2 and Hm vanish on all
+rigid motions, H on translations. Each is reported
 relative to the Frobenius norm of H (moment balance also per unit length of the cluster); so is the rigid leakage
 of ℍ = H P^nrr (eq:newstiffnesses), which is zero only up to the rounding of the projection.
 """
@@ -29,14 +30,15 @@ def identity_errors(scene: Scene, parts: dict) -> dict:
     rigid = np.concatenate([T, C], axis=1)
     d, per = scene.dim, scene.dof_per_particle
     L = np.zeros((scene.n_particles, C.shape[1], per))
-    L[:, :, :d] = -cross_matrix(scene.load)                          # du^p × b^p = -b^p × du^p
-    L = np.transpose(L, (1, 0, 2)).reshape(C.shape[1], -1)
+    if C.shape[1]:                                                    # none in a periodic scene
+        L[:, :, :d] = -cross_matrix(scene.load)                      # du^p × b^p = -b^p × du^p
+    L = np.transpose(L, (1, 0, 2)).reshape(C.shape[1], scene.n_dof)
     size = max(float(np.abs(scene.x - scene.x.mean(axis=0)).max()), rotation_length(scene))
     HT = np.asarray(H.T @ T)
     HC = np.asarray(H.T @ C).T
     return {
         "force_balance": float(np.abs(HT).max() / norm),
-        "moment_balance": float(np.abs(HC + L).max() / (norm * size)),
+        "moment_balance": float(np.abs(HC + L).max(initial=0.0) / (norm * size)),
         "rigid_leakage_parts": float(max(np.abs(np.asarray(parts[k] @ rigid)).max() for k in ("Hg1", "Hg2", "Hm"))
                                      / norm),
         "rigid_leakage_H_translations": float(np.abs(np.asarray(H @ T)).max() / norm),

@@ -95,7 +95,10 @@ class Metric:
         return out
 
     def rotations(self, scene: Scene) -> np.ndarray:
-        """C̃ = D⁻¹ C (n, r): rigid rotations about `centre` (eq:dtrigid) in the metric's dofs."""
+        """C̃ = D⁻¹ C (n, r): rigid rotations about `centre` (eq:dtrigid) in the metric's dofs; (n, 0) for a periodic
+        scene, whose only rigid motions are the d translations (a rotation does not carry the images along)."""
+        if scene.periodic:
+            return np.zeros((scene.n_dof, 0))
         return self.scaled(rotation_columns(scene.x, 1.0, self.centre))
 
     def translations(self, scene: Scene) -> np.ndarray:

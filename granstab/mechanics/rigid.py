@@ -50,13 +50,45 @@ def rotation_columns(x: np.ndarray, length=1.0, centre=None) -> np.ndarray:
 
 
 def rotations(scene: Scene, length: float = 1.0) -> np.ndarray:
-    """C̃ (n_dof, r) of a scene: rigid rotations about the centroid (eq:dtrigid) in scaled dofs [du, L dθ]."""
+    """C̃ (n_dof, r) of a scene: rigid rotations about the centroid (eq:dtrigid) in scaled dofs [du, L dθ]; none,
+    (n_dof, 0), in a periodic scene: a rotation is not compatible with the images, only the d translations are rigid."""
+    if scene.periodic:
+        return np.zeros((scene.n_dof, 0))
     return rotation_columns(scene.x, length)
 
 
 def translations(scene: Scene) -> np.ndarray:
     """T (n_dof, d) of a scene: rigid translations."""
     return translation_columns(scene.n_particles, scene.dim)
+
+
+def untouched_dofs(H, *factors: np.ndarray, scale: float, dofs: np.ndarray | None = None) -> np.ndarray:
+    """The dofs (indices) whose row and column of H (dense or sparse) and whose rows of every factor (A, S, Ξ, …)
+    are zero within 64 eps·`scale`: motions no contact feels — the free spins of frictionless disks and spheres
+    (F = k n⊗n, a round surface turning in place), particles without contacts. `dofs` (bool mask) limits the
+    search (e.g. to rotation dofs)."""
+    tiny = 64 * np.finfo(float).eps * scale
+    if hasattr(H, "tocsr"):
+        A = abs(H.tocsr())
+        rows = np.maximum(A.max(axis=1).toarray().ravel(), A.max(axis=0).toarray().ravel())
+    else:
+        rows = np.maximum(np.abs(H).max(axis=1, initial=0.0), np.abs(H).max(axis=0, initial=0.0))
+    for F in factors:
+        rows = np.maximum(rows, np.abs(F).max(axis=1, initial=0.0))
+    quiet = rows <= tiny
+    return np.flatnonzero(quiet if dofs is None else quiet & dofs)
+
+
+def rotation_dofs(n_particles: int, dim: int) -> np.ndarray:
+    """(n_dof,) bool: True on the rotation dofs."""
+    return np.tile(np.r_[np.zeros(dim), np.ones(rot_dim(dim))].astype(bool), n_particles)
+
+
+def unit_columns(n: int, index: np.ndarray) -> np.ndarray:
+    """(n, len(index)) columns e_j."""
+    out = np.zeros((n, len(index)))
+    out[index, np.arange(len(index))] = 1.0
+    return out
 
 
 def rigid_basis(motions: np.ndarray, complement: bool = False):

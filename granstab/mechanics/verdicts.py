@@ -62,6 +62,7 @@ class Verdict:
     metric_robust: bool | None = None
     branches: str = "all"
     branches_kept: int | None = None
+    free_spins: int = 0
 
     @property
     def sufficient(self) -> bool:
@@ -82,7 +83,7 @@ class Verdict:
         if self.suggest_k is not None:
             out["suggest_k"] = self.suggest_k
         return {**out, "metrics": [e.to_dict() for e in self.metrics], "metric_robust": self.metric_robust,
-                "branches": self.branches, "branches_kept": self.branches_kept}
+                "branches": self.branches, "branches_kept": self.branches_kept, "free_spins": self.free_spins}
 
 
 def summarize(branches, notes: dict | None = None) -> Verdict:

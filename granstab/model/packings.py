@@ -14,7 +14,12 @@ compressive forces inside the friction cone, loads from equilibrium (eq:equil1, 
   curvature of the local radius (times `curvature_ratio`), random force magnitudes and mobilised friction.
   It is valid contact-level data, not a mechanically relaxed packing (no relaxation is run).
 
-Both accept `f_over_k` (normal force / (k r)), `mobilised` (|f_t| / μ f_n, in [0, 1)), `n_sliding` (that many
+* `jammed(dim, n, phi)`: a jammed frictionless periodic packing of harmonic bidisperse disks/spheres
+  (U = ½k(s - r)², s the centre distance, r the sum of the radii) in a square/cubic (or sheared) cell at packing
+  fraction phi, relaxed to force balance at round-off (L-BFGS, then Newton), rattlers removed; its contacts carry
+  images across the cell (model/periodic.py). Test fixtures and examples of periodic scenes.
+
+`lattice` and `random_packing` accept `f_over_k` (normal force / (k r)), `mobilised` (|f_t| / μ f_n, in [0, 1)), `n_sliding` (that many
 contacts put exactly at yield: 2^n_sliding loading branches), `moments` (contact moments as a fraction of
 f r; 0 = none), `rolling` (rolling stiffness / (k r²)), `seed`.
 """
@@ -160,4 +165,110 @@ def _scene(dim, x, arrays, title, tol) -> Scene:
     return build_scene(dim, names, x, arrays, title=title, source=title, tol=tol)
 
 
-__all__ = ["lattice", "lattice_sites", "neighbour_pairs", "random_packing"]
+def harmonic_contacts(x: np.ndarray, radius: np.ndarray, cell: np.ndarray, k: float = 1.0):
+    """Overlapping pairs of disks/spheres (x (N, d), radius (N,)) in the periodic `cell` under the minimum image:
+    (p, q, image, branch b (P, d), distance s (P,), overlap δ (P,)); q's copy is x^q + image @ cell."""
+    N, d = x.shape
+    p, q = np.triu_indices(N, 1)
+    inv = np.linalg.inv(cell)
+    frac = (x[q] - x[p]) @ inv
+    image = -np.round(frac).astype(np.int64)
+    b = (frac + image) @ cell
+    s = np.linalg.norm(b, axis=1)
+    delta = radius[p] + radius[q] - s
+    on = delta > 0
+    return p[on], q[on], image[on], b[on], s[on], delta[on]
+
+
+def _harmonic_force_balance(x, radius, cell, k):
+    """Energy U = Σ ½kδ², its gradient (N, d) and the translational Hessian (N d, N d) of the harmonic pairs."""
+    N, d = x.shape
+    p, q, _, b, s, delta = harmonic_contacts(x, radius, cell, k)
+    n = b / s[:, None]
+    f = (k * delta)[:, None] * n                                       # the force on q by p
+    grad = np.zeros((N, d))
+    np.add.at(grad, p, f)
+    np.add.at(grad, q, -f)
+    block = k * n[:, :, None] * n[:, None, :] - (k * delta / s)[:, None, None] * (np.eye(d) - n[:, :, None] * n[:, None, :])
+    H = np.zeros((N, d, N, d))
+    for a, c, sign in ((p, p, 1), (q, q, 1), (p, q, -1), (q, p, -1)):
+        np.add.at(H, (a, slice(None), c), sign * block)
+    return 0.5 * k * float(delta @ delta), grad, H.reshape(N * d, N * d)
+
+
+def _relax(x, radius, cell, k, newton: int = 8):
+    """Minimise the harmonic energy at fixed cell: L-BFGS, then Newton steps to force balance at round-off. One
+    BLAS thread (threadpoolctl, where installed): L-BFGS's many tiny BLAS calls are 20x slower with a thread pool."""
+    from contextlib import nullcontext
+
+    from scipy.optimize import minimize
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:                                                 # pragma: no cover - optional
+        threadpool_limits = None
+
+    shape = x.shape
+
+    def fun(v):
+        U, g, _ = _harmonic_force_balance(v.reshape(shape), radius, cell, k)
+        return U, g.ravel()
+
+    with threadpool_limits(1) if threadpool_limits else nullcontext():
+        x = minimize(fun, x.ravel(), jac=True, method="L-BFGS-B",
+                     options={"maxiter": 20000, "gtol": 1e-10, "ftol": 0.0}).x.reshape(shape)
+    for _ in range(newton):
+        _, g, H = _harmonic_force_balance(x, radius, cell, k)
+        x = x - np.linalg.lstsq(H, g.ravel(), rcond=1e-12)[0].reshape(shape)
+    return x
+
+
+def jammed(dim: int = 2, n: int = 32, phi: float | None = None, *, k: float = 1.0, ratio: float = 1.4,
+           shear: float = 0.0, seed: int = 0, tol: Tolerances = DEFAULT) -> Scene:
+    """A jammed frictionless periodic packing of harmonic disks (2D) or spheres (3D), see the module docstring.
+
+    n bidisperse particles (half of radius 0.5, half 0.5·ratio) at packing fraction `phi` (default 0.90 in 2D,
+    0.70 in 3D; jamming is near 0.84 and 0.64) in a cell [[L, 0], [shear·L, L]] (3D: the third row tilted along x),
+    relaxed, rattlers (fewer than d + 1 contacts) removed and the rest relaxed again. The contacts have μ = 0 and
+    α = 0 (F = k n⊗n), forces -kδ n, the contact point midway through the overlap, the curvatures of circles about
+    each centre through it (-1/|r^pq|, -1/|r^qp|), and images across the cell."""
+    phi = phi if phi is not None else (0.90 if dim == 2 else 0.70)
+    rng = np.random.default_rng(seed)
+    radius = np.where(np.arange(n) < n // 2, 0.5, 0.5 * ratio)
+    ball = np.pi * radius ** 2 if dim == 2 else 4.0 / 3.0 * np.pi * radius ** 3
+    side = (ball.sum() / phi) ** (1.0 / dim)
+    cell = side * np.eye(dim)
+    cell[-1, 0] = shear * side
+    x = _relax(rng.uniform(0, 1, (n, dim)) @ cell, radius, cell, k)
+    while True:
+        p, q, *_ = harmonic_contacts(x, radius, cell, k)
+        count = np.bincount(np.r_[p, q], minlength=len(x))
+        keep = count >= dim + 1
+        if keep.all():
+            break
+        x, radius = _relax(x[keep], radius[keep], cell, k), radius[keep]
+    x = x - np.floor(x @ np.linalg.inv(cell)) @ cell                  # inside the cell
+    return _harmonic_scene(dim, x, radius, cell, k, tol)
+
+
+def _harmonic_scene(dim, x, radius, cell, k, tol) -> Scene:
+    p, q, image, b, s, delta = harmonic_contacts(x, radius, cell, k)
+    M = len(p)
+    n = b / s[:, None]
+    point = x[p] + (radius[p] - 0.5 * delta)[:, None] * n
+    T = tangent_basis(n)
+    P = T @ np.swapaxes(T, 1, 2)
+    rho_p, rho_q = radius[p] - 0.5 * delta, radius[q] - 0.5 * delta
+    r = rot_dim(dim)
+    arrays = {"p": p.astype(np.intp), "q": q.astype(np.intp), "point": point, "normal": n,
+              "curvature_p": -P / rho_p[:, None, None], "curvature_q": -P / rho_q[:, None, None],
+              "force": -(k * delta)[:, None] * n, "moment": np.zeros((M, r)), "k": np.full(M, float(k)),
+              "alpha": np.zeros(M), "mu": np.zeros(M), "rolling": np.zeros((M, r, r)), "state": ("auto",) * M}
+    volume = float(np.linalg.det(cell))
+    pressure = -float(np.einsum("mi,mi->", arrays["force"], b)) / (dim * volume)
+    title = f"jammed harmonic {dim}D packing, {len(x)} particles, {M} contacts, pressure {pressure:.3g} k"
+    N = len(x)
+    names = [f"p{i}" for i in range(N)]
+    return build_scene(dim, names, x, arrays, title=title, source=title, tol=tol, cell=cell, image=image)
+
+
+__all__ = ["harmonic_contacts", "jammed", "lattice", "lattice_sites", "neighbour_pairs", "random_packing"]

@@ -97,3 +97,34 @@ def check_points(scene, contact_name) -> None:
             raise SceneError(f"{scene.source}: {contact_name(c)}: point: nearer another copy of {side} than the one "
                              f"image {scene.image[c].tolist()} names ({other[c].min():.6g} < "
                              f"{np.linalg.norm(r[c]):.6g}): check the image")
+
+
+def tile(scene, reps) -> object:
+    """The periodic `scene` repeated reps_i times along each lattice vector (a supercell with rows reps_i a_i):
+    particle p of copy t sits at x^p + t @ cell, and a contact (p, q, image e) of copy t touches q's copy
+    t + e, folded into the supercell with the image floor((t + e) / reps). The same packing, N·Π reps particles."""
+    from dataclasses import replace
+
+    if scene.cell is None:
+        raise ValueError(f"{scene.source}: tile needs a periodic scene (a cell)")
+    d = scene.dim
+    reps = np.broadcast_to(np.asarray(reps, dtype=np.int64), (d,))
+    copies = np.array(list(itertools.product(*(range(r) for r in reps))), dtype=np.int64)   # (T, d)
+    T, N, M = len(copies), scene.n_particles, scene.n_contacts
+    flat = lambda t: np.ravel_multi_index(tuple(t.T), tuple(reps))                          # noqa: E731
+    shift = copies @ scene.cell                                                              # (T, d)
+    target = copies[:, None, :] + scene.image[None]                                          # (T, M, d)
+    new_image, where = np.divmod(target, reps)
+    contact = {key: np.tile(getattr(scene, key), (T,) + (1,) * (getattr(scene, key).ndim - 1))
+               for key in ("normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling")}
+    names = tuple(f"{name}@{'.'.join(map(str, t))}" for t in copies for name in scene.names)
+    per_particle = lambda a: None if a is None else np.tile(a, (T,) + (1,) * (a.ndim - 1))  # noqa: E731
+    return replace(scene, names=names, x=(scene.x[None] + shift[:, None]).reshape(T * N, d),
+                   p=(flat(copies)[:, None] * N + scene.p[None]).ravel(),
+                   q=(flat(where.reshape(-1, d)).reshape(T, M) * N + scene.q[None]).ravel(),
+                   point=(scene.point[None] + shift[:, None]).reshape(T * M, d), image=new_image.reshape(T * M, d),
+                   state=tuple(scene.state) * T, load=per_particle(scene.load),
+                   load_moment=per_particle(scene.load_moment), mass=per_particle(scene.mass),
+                   inertia=per_particle(scene.inertia), fixed=per_particle(scene.fixed),
+                   cell=reps[:, None] * scene.cell, title=f"{scene.title} tiled {'x'.join(map(str, reps))}",
+                   **contact)

@@ -25,7 +25,7 @@ from ..mechanics.assembly import sliding_factors
 from ..mechanics.branches import Problem
 from ..mechanics.checks import equilibrium_residual, identity_errors, modified_leakage
 from ..mechanics.metric import Metric
-from ..mechanics.rigid import Projection, rigid_basis
+from ..mechanics.rigid import Projection, rigid_basis, rotation_dofs, unit_columns, untouched_dofs
 from ..mechanics.stiffness import ContactBlocks, assemble_parts, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
 from .dense import solve_branches
@@ -105,8 +105,11 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     A, S = D @ parts["A"], D @ parts["S"]
     mechanical, Hg = D @ parts["Hm"] @ D, D @ geometric(parts) @ D
     free = scene.free_dofs
+    spins = np.zeros(0, dtype=np.intp)
     if free is None:
-        C = metric.rotations(scene)
+        spins = untouched_dofs(H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300),
+                               dofs=rotation_dofs(scene.n_particles, scene.dim))
+        C = np.concatenate([metric.rotations(scene), unit_columns(len(H_el), spins)], axis=1)
         rigid, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))
     else:                          # held by fixed particles: their dofs dropped, no rigid motion, no projection
         H_el, A, S = H_el[np.ix_(free, free)], A[free], S[free]
@@ -116,7 +119,7 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     scales = part_scales(mechanical, Hg, A, S)
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
-                   formation_error=formation_error(scales, C, projection.Cplus), free=free)
+                   formation_error=formation_error(scales, C, projection.Cplus), free=free, free_spins=len(spins))
 
 
 class DenseMethod:
