@@ -14,6 +14,8 @@ import time
 
 import viser
 
+from granstab.solve.threads import cap_process
+
 from .panels import ClientUI
 from .state import DEFAULT_PRESET, Session
 
@@ -27,6 +29,7 @@ class App:
         self.presets_dir = presets_dir
         self.uis: dict[int, ClientUI] = {}
         self._lock = threading.Lock()
+        cap_process(1)     # many small sessions at once: a BLAS pool per call only waits for a core on a busy machine
         self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, control_width="large")
         self.server.on_client_connect(self._connect)
