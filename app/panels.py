@@ -86,7 +86,7 @@ class ClientUI:
             self.preset.on_update(self._picking(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(self._picking(self._upload))
-            self.path = gui.add_text("Path on server", initial_value="")
+            self.path = gui.add_text("Path on server", initial_value="", disabled=not self.session.typed_paths)
             self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
             self.frame.on_update(lambda _: self.run(self._pick_frame))
@@ -291,7 +291,7 @@ class ClientUI:
         path = self.path.value.strip()
         if not path or path == self.session.preset:
             return
-        ok = self.session.load_preset(path)
+        ok = self.session.open_typed(path)
         self.view.key = None
         self.refresh(camera=ok)
 

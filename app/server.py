@@ -1,6 +1,6 @@
 """`granstab-app`: the viser server, one session (state + GUI + scene) per browser tab.
 
-    granstab-app [--preset NAME_OR_FILE] [--host 127.0.0.1] [--port 8080]
+    granstab-app [--preset NAME_OR_FILE] [--host 127.0.0.1] [--port 8080] [--data-root DIR]
 
 Each connection gets its own `Session` (app/state.py) and `ClientUI` (app/panels.py) built on client.gui /
 client.scene, so several tabs each have their own state. The server binds 127.0.0.1 unless told otherwise.
@@ -13,12 +13,14 @@ import gc
 import sys
 import threading
 import time
+from pathlib import Path
 
 import viser
 
 from granstab.solve.threads import cap_process
 
 from .panels import ClientUI
+from .paths import is_loopback
 from .state import DEFAULT_PRESET, Session
 
 
@@ -26,12 +28,13 @@ class App:
     """The running explorer: the viser server and the per-client UIs (`uis`, keyed by client id)."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, preset: str = DEFAULT_PRESET, presets_dir=None,
-                 verbose: bool = False):
+                 verbose: bool = False, data_root=None):
         self.preset = preset
         self.presets_dir = presets_dir
+        self.data_root = data_root                  # typed paths: confined to it (app/paths.py)
+        self.typed_paths = is_loopback(host) or data_root is not None
         self.uis: dict[int, ClientUI] = {}
         self._lock = threading.Lock()
-        cap_process(1)     # many small sessions at once: a BLAS pool per call only waits for a core on a busy machine
         self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, control_width="large")
         self.server.on_client_connect(self._connect)
@@ -48,7 +51,7 @@ class App:
 
     def _connect(self, client) -> None:
         try:
-            ui = ClientUI(client, Session(self.preset, self.presets_dir))
+            ui = ClientUI(client, Session(self.preset, self.presets_dir, self.data_root, self.typed_paths))
         except Exception as exc:  # a broken page, not a broken server
             client.gui.add_markdown(f"⚠️ the explorer failed to start for this tab: {type(exc).__name__}: {exc}")
             raise
@@ -94,6 +97,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                     help="preset name (file stem in presets/) or path to a scene file (default: %(default)s)")
     ap.add_argument("--host", default="127.0.0.1", help="address to bind (default: %(default)s)")
     ap.add_argument("--port", type=int, default=8080, help="port; a busy port is replaced by the next free one")
+    ap.add_argument("--data-root", metavar="DIR", default=None,
+                    help="paths typed into the page are read inside DIR only (no '..', no link out); without it a "
+                         "server bound beyond 127.0.0.1 turns typed paths off")
     return ap.parse_args(argv)
 
 
@@ -104,7 +110,11 @@ def main(argv=None) -> int:
         print(f"granstab-app: {probe.error}", file=sys.stderr)
         if probe.preset != args.preset and str(args.preset) != DEFAULT_PRESET:
             return 2
-    app = App(args.host, args.port, args.preset)
+    cap_process(1)     # many small sessions at once: a BLAS pool per call only waits for a core on a busy machine
+    if args.data_root is not None and not Path(args.data_root).is_dir():
+        print(f"granstab-app: --data-root: {args.data_root}: not a folder", file=sys.stderr)
+        return 2
+    app = App(args.host, args.port, args.preset, data_root=args.data_root)
     print(f"granstab explorer running at {app.url}  (Ctrl+C to stop)", flush=True)
     try:
         while True:
