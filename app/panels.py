@@ -49,6 +49,8 @@ class ClientUI:
         self._quiet_thread: int | None = None   # the thread writing handles: its own echo callbacks are ignored
         self._last_drag = 0.0
         self._closed = False
+        self.released = threading.Event()         # set by the server once a closed tab's memory is handed back
+        self._timers: set[threading.Timer] = set()    # typing pauses pending (cancelled on close)
         self._player: threading.Thread | None = None
         self._mode_keys: dict[str, tuple] = {}
         self._spectrum_json = None
@@ -84,7 +86,7 @@ class ClientUI:
             self.preset.on_update(self._picking(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(self._picking(self._upload))
-            self.path = gui.add_text("Path on server", initial_value="")
+            self.path = gui.add_text("Path on server", initial_value="", disabled=not self.session.typed_paths)
             self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
             self.frame.on_update(lambda _: self.run(self._pick_frame))
@@ -215,9 +217,18 @@ class ClientUI:
             nonlocal timer
             if timer is not None:
                 timer.cancel()
+                self._timers.discard(timer)
+            if self._closed:
+                return
             picks = self._picks
-            timer = threading.Timer(TYPING_PAUSE, lambda: self.run(fn) if self._picks == picks else None)
+
+            def fire():
+                self._timers.discard(mine)
+                if self._picks == picks:
+                    self.run(fn)
+            timer = mine = threading.Timer(TYPING_PAUSE, fire)
             timer.daemon = True
+            self._timers.add(timer)
             timer.start()
         return update
 
@@ -227,7 +238,17 @@ class ClientUI:
         self.message.visible = bool(text)
 
     def close(self) -> None:
+        """The tab is gone: nothing runs for it any more. Pending typing pauses are cancelled, the animation thread
+        ends (joined), a callback running now finishes first (the lock); its state is then unreferenced."""
         self._closed = True
+        for timer in list(self._timers):
+            timer.cancel()
+        self._timers.clear()
+        player = self._player
+        if player is not None and player is not threading.current_thread():
+            player.join(timeout=5.0)
+        with self.lock:
+            self._player = None
 
     # --------------------------------------------------------------------------------------- callbacks
     def _apply_sliders(self) -> None:
@@ -270,7 +291,7 @@ class ClientUI:
         path = self.path.value.strip()
         if not path or path == self.session.preset:
             return
-        ok = self.session.load_preset(path)
+        ok = self.session.open_typed(path)
         self.view.key = None
         self.refresh(camera=ok)
 

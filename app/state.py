@@ -24,6 +24,7 @@ from .field import Field, field_png, lambda6_field
 from .models import Body, ShapeModel, TwoParticleModel, load_model
 from .modes import label_mode, mode_offsets, rotation_matrix
 from .params import PARAMS
+from .paths import PathRefused, folder_choice, typed_path
 from .scanmap import fraction_colours, is_scan_dir, load_scan_map
 
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
@@ -63,8 +64,10 @@ def one_line(exc: BaseException) -> str:
 class Session:
     """State of one browser tab. `error` is None or the one-line message of the last failure."""
 
-    def __init__(self, preset: str | None = None, presets_dir=None):
+    def __init__(self, preset: str | None = None, presets_dir=None, data_root=None, typed_paths: bool = True):
         self.presets_dir = Path(presets_dir) if presets_dir else PRESETS_DIR
+        self.data_root = Path(data_root) if data_root else None   # typed paths: read inside it (app/paths.py)
+        self.typed_paths = typed_paths or self.data_root is not None
         self.preset: str | None = None
         self.model = None
         self.params: dict[str, float] = {}
@@ -116,6 +119,23 @@ class Session:
         self.notice = None
         self.recompute()
         return self.error is None
+
+    def open_typed(self, text: str) -> bool:
+        """Open what was typed into *Path on server*: a preset name, or a path under the server's policy
+        (app/paths.py: off beyond loopback without a data root, else confined to it); a folder that is neither a scan
+        nor a snapshot is named as a folder with its scene files, never tried file by file."""
+        name = text.strip()
+        if any((self.presets_dir / f"{name}{suffix}").is_file() for suffix in (".toml", ".json")):
+            return self.load_preset(name)
+        try:
+            path = typed_path(name, self.data_root, self.typed_paths)
+        except PathRefused as exc:
+            self.error = str(exc)
+            return False
+        if path.is_dir() and not opens_as_folder(path):
+            self.error = folder_choice(path)
+            return False
+        return self.load_preset(str(path))
 
     def load_upload(self, name: str, content: bytes) -> bool:
         """Open a file sent from the page: size-guarded (MAX_UPLOAD bytes), read from a private temporary folder that
@@ -463,6 +483,24 @@ class Session:
         if field is None:
             raise ValueError("the λ⁽⁶⁾ contour exists for the two-particle pair only")
         return "lambda6-contour.png", field_png(field, (self.params["rho_r"], self.params["f_kr"]))
+
+
+def opens_as_folder(folder: Path, most: int = 64) -> bool:
+    """Whether a folder opens whole: a scan, a folder a format reads itself (RigidLibrary), or a snapshot whose files
+    (at most `most`, those granstab.io.load would take) one format reads together (a LAMMPS run's dumps)."""
+    from granstab.io import SKIPPED_IN_FOLDERS
+    from granstab.io.registry import detect, reads_folder
+    if is_scan_dir(folder) or reads_folder(folder):
+        return True
+    files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
+                   and p.suffix.lower() not in SKIPPED_IN_FOLDERS)
+    if not files or len(files) > most:
+        return False
+    try:
+        detect(files)
+    except (granstab.SceneError, OSError):
+        return False
+    return True
 
 
 def _json(value):
