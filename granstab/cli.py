@@ -305,10 +305,19 @@ def cmd_scan(args) -> int:
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     print(json.dumps({**summary, "import": loaded.report}, allow_nan=False) if args.json else "\n".join(
-        [f"{summary['clusters']} clusters in {summary['seconds']:.1f} s: "
-         + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}",
-         *import_lines(loaded)]))
+        [*scan_lines(summary, args.out), *import_lines(loaded)]))
     return 0
+
+
+def scan_lines(summary: dict, out) -> list[str]:
+    """A scan's readable output: clusters, time and verdicts (and, resumed, how many an interrupted run had kept),
+    then where it ran and why (the default's rule: granstab/scan/workers.py)."""
+    kept = summary.get("resumed", 0)
+    resumed = (f" (resumed: {kept} already in the folder, {summary['clusters_this_run']} analysed now)"
+               if kept else "")
+    return [f"{summary['clusters']} clusters{resumed} in {summary['seconds']:.1f} s: "
+            + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {out}",
+            f"ran {summary['workers']['where']} ({summary['workers']['why']})"]
 
 
 def input_argument(p, dest: str) -> None:
@@ -349,7 +358,9 @@ def add_scan(sub) -> None:
                    help="clusters with more sliding contacts examine a sample of their branches (branches: partial)")
     p.add_argument("--sample-branches", type=int, default=32, help="random branches examined beyond max-sliding")
     p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (tcp://HOST:8786)")
-    p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: all cores; 1: serial)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local Dask workers (1: in this process; default: by the work's measured size, the idle "
+                        "cores and the load, said in the output; docs/scan.md)")
     p.add_argument("--format", choices=["parquet", "csv"], default="parquet")
     p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
@@ -500,7 +511,9 @@ def main(argv=None) -> int:
         print(" ".join(str(exc).split()), file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
-        print(" ".join(interrupted_line(exc, command).split()), file=sys.stderr)
+        line = " ".join(interrupted_line(exc, command).split())
+        exc.__traceback__ = None           # the interrupted frames go now: a progress bar in them closes before
+        print(line, file=sys.stderr)       # the line, which stays the last one
         return EXIT_INTERRUPTED
     except BrokenPipeError:                # the reader stopped reading (`| head`): a quiet exit, as if finished
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # nothing more to flush at exit

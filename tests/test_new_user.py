@@ -5,8 +5,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -157,3 +159,165 @@ def test_small_shares_keep_their_significant_digits(fraction, text):
     share that is neither."""
     from granstab.io.validation import percent
     assert percent(fraction) == text
+
+
+# ------------------------------------------------------------------------------------------------ Ctrl-C, resume
+
+def packing_file(tmp_path, n: int, n_sliding: int, seed: int = 1) -> Path:
+    from granstab.io.scenes import save_scene
+    from granstab.model import packings
+    path = tmp_path / f"packing{n}.npz"
+    save_scene(packings.random_packing(2, n, n_sliding=n_sliding, seed=seed), path)
+    return path
+
+
+def interrupt_when(proc, ready, timeout: float = 120) -> tuple[str, str]:
+    """Ctrl-C as a terminal sends it (SIGINT to the process group: the command and any workers it started) once
+    `ready()` holds; then the command's (stdout, stderr)."""
+    deadline = time.monotonic() + timeout
+    while not ready() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert proc.poll() is None, "the command finished before it could be interrupted: make its work larger"
+    os.killpg(proc.pid, signal.SIGINT)
+    return proc.communicate(timeout=timeout)
+
+
+def started(*args) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "granstab", *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=ENV, start_new_session=True)
+
+
+def one_interrupt_line(err: str, what: str) -> str:
+    """The interruption's line: the last on stderr, no traceback; any other line is a progress bar's."""
+    lines = [x for x in err.replace("\r", "\n").splitlines() if x.strip()]
+    assert "Traceback" not in err and "Error" not in err, err
+    assert lines and lines[-1].startswith(f"granstab {what}: interrupted (Ctrl-C)"), err
+    assert [x for x in lines if "%|" not in x] == lines[-1:], err      # text mode reads a bar's \r as \n
+    return lines[-1]
+
+
+@pytest.mark.slow
+def test_ctrl_c_in_a_scan_says_what_was_kept_and_the_rerun_resumes_to_the_uninterrupted_result(tmp_path):
+    """A scan in this process (the default for small work), Ctrl-C once its first chunk is on disk: one line saying
+    how many clusters were kept and how to resume, exit 130; the same command again says it resumed from that many
+    and its tables equal those of a scan never interrupted (every column but the time taken)."""
+    from granstab.scan import read_map, scan
+    scene_file, out = packing_file(tmp_path, 200, 20), tmp_path / "scan"      # ~1.5 s of work at rest
+    proc = started("scan", scene_file, "--out", out, "--metric", "family", "--format", "csv")
+    _, err = interrupt_when(proc, lambda: any((out / "parts").glob("*.arrow")) if (out / "parts").is_dir() else False)
+    line = one_interrupt_line(err, "scan")
+    assert proc.returncode == 130
+    kept = int(line.split("interrupted (Ctrl-C): ")[1].split(" of ")[0])
+    total = granstab.load_scene(scene_file).n_particles
+    assert 0 < kept < total and f"of {total} clusters kept in {out}" in line and "resumes" in line
+    assert kept == len(np.unique(np.concatenate([_centers(f) for f in (out / "parts").glob("*.arrow")])))
+    again = granstab_cli("scan", scene_file, "--out", out, "--metric", "family", "--format", "csv")
+    assert again.returncode == 0 and again.stderr == ""
+    assert f"(resumed: {kept} already in the folder, {total - kept} analysed now)" in again.stdout.splitlines()[0]
+    scan(granstab.load_scene(scene_file), tmp_path / "whole", metric="family", fmt="csv", workers=1, figures=False)
+    a, b = read_map(out)["clusters"], read_map(tmp_path / "whole")["clusters"]
+    assert set(a) == set(b)
+    for key in a:
+        if key != "seconds":
+            assert [str(v) for v in a[key]] == [str(v) for v in b[key]], key
+
+
+def _centers(part: Path) -> np.ndarray:
+    import pyarrow.feather as feather
+    return feather.read_table(part).column("center").to_numpy()
+
+
+@pytest.mark.slow
+def test_ctrl_c_in_a_scan_on_dask_workers_is_one_line(tmp_path):
+    """Two local Dask workers get Ctrl-C too (the terminal's process group): they printed 28–59 lines of
+    KeyboardInterrupt and CancelledError tracebacks. Now: one line, exit 130, what is kept stays on disk."""
+    scene_file, out = packing_file(tmp_path, 2000, 200), tmp_path / "scan"
+    proc = started("scan", scene_file, "--out", out, "--metric", "family", "--workers", "2")
+    _, err = interrupt_when(proc, lambda: any((out / "parts").glob("*.arrow")) if (out / "parts").is_dir() else False)
+    line = one_interrupt_line(err, "scan")
+    assert proc.returncode == 130 and " clusters kept in " in line
+    kept = int(line.split("interrupted (Ctrl-C): ")[1].split(" of ")[0])
+    assert kept == len(np.unique(np.concatenate([_centers(f) for f in (out / "parts").glob("*.arrow")])))
+
+
+def test_ctrl_c_in_analyze_is_one_line(tmp_path):
+    """analyze of 4,096 branches, Ctrl-C once its progress bar shows: one line (after the bar), exit 130."""
+    scene_file = packing_file(tmp_path, 60, 12, seed=3)
+    proc = started("analyze", scene_file, "--metric", "L", "--max-sliding", "20", "--progress")
+    first = proc.stderr.read(1)                   # the bar has started: granstab is at work
+    time.sleep(0.2)
+    out, err = interrupt_when(proc, lambda: True)
+    one_interrupt_line(first + err, "analyze")
+    assert proc.returncode == 130 and out == ""
+
+
+# ------------------------------------------------------------------------------------------------ missing extras
+
+BLOCK = "import sys; sys.modules.update({{name: None for name in {names!r}}}); from granstab.cli import main; " \
+        "sys.exit(main({argv!r}))"
+
+
+@pytest.mark.parametrize("missing, options, extra", [
+    (["pyarrow"], [], "scan"),
+    (["dask", "dask.distributed", "distributed"], ["--workers", "2"], "scan"),
+    (["matplotlib"], [], "scan")])
+def test_a_missing_extra_is_one_line_naming_it_before_any_folder_is_made(tmp_path, missing, options, extra):
+    """`pip install -e ".[app]"` then `granstab scan` ended in ModuleNotFoundError: No module named 'dask' and a
+    half-made folder. Each package a scan needs, made unimportable: one line saying what to install, exit 2,
+    no output folder."""
+    out = tmp_path / "scan"
+    argv = ["scan", str(ROOT / "presets" / "annulus_frame.json"), "--out", str(out), *options]
+    proc = subprocess.run([sys.executable, "-c", BLOCK.format(names=missing, argv=argv)], capture_output=True,
+                          text=True, env=ENV)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert f"needs {missing[0]}, which is not installed: pip install \"granstab[{extra}]\"" in proc.stderr
+    assert not out.exists()
+
+
+def test_without_dask_a_default_scan_runs_in_this_process_and_says_so(tmp_path):
+    """Dask is needed only for parallel workers: a default scan without it runs and says where it ran."""
+    out = tmp_path / "scan"
+    argv = ["scan", str(ROOT / "presets" / "annulus_frame.json"), "--out", str(out), "--json"]
+    proc = subprocess.run([sys.executable, "-c", BLOCK.format(names=["dask", "distributed"], argv=argv)],
+                          capture_output=True, text=True, env=ENV)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    assert summary["workers"]["where"] == "in this process" and summary["clusters"] == 143
+
+
+def test_the_app_install_brings_what_the_tour_uses():
+    """The README's install (`.[app]`) runs the tour, whose step 9 scans: the app extra holds the scan extra."""
+    import tomllib
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert set(extras["scan"]) <= set(extras["app"])
+
+
+# ------------------------------------------------------------------------------------------------ default workers
+
+@pytest.mark.parametrize("seconds, cores, load, dask, workers", [
+    (300.0, 2, 6.0, True, 1),      # the busy 2-core machine of the issue: --workers 1 was 2-20x faster
+    (300.0, 2, 1.0, True, 1),      # one core taken by another process: no idle core for a second worker
+    (300.0, 2, 0.2, True, 2),
+    (3.0, 16, 0.0, True, 1),       # little work: Dask's start does not pay
+    (12.0, 16, 0.0, True, 3),      # 12 s of work: workers of at least 5 s each
+    (1000.0, 16, 4.4, True, 12),   # the idle cores, rounded
+    (300.0, 2, 0.0, False, 1)])    # no Dask: in this process, said so
+def test_the_default_workers_follow_the_stated_rule(seconds, cores, load, dask, workers):
+    from granstab.scan.workers import PARALLEL_SECONDS, WORKER_SECONDS, default_workers
+    assert (PARALLEL_SECONDS, WORKER_SECONDS) == (10.0, 5.0)             # the rule docs/scan.md states
+    n, why = default_workers(seconds, cores, load, dask)
+    assert n == workers and why
+
+
+def test_a_scan_says_where_it_ran_and_why(tmp_path, monkeypatch, capsys):
+    """On a busy machine (2 cores at load 6, as monkeypatched) a scan whose work counts as large stays in this
+    process and says so, in summary.json and in its output."""
+    from granstab.scan import run, workers
+    monkeypatch.setattr(workers, "PARALLEL_SECONDS", 0.0)                 # any work counts as large here
+    monkeypatch.setattr(run, "machine", lambda: (2, 6.0))
+    assert main(["scan", str(ROOT / "presets" / "annulus_frame.json"), "--out", str(tmp_path / "s")]) == 0
+    why = "default: 2 core(s) here at load 6.0: none idle for a second worker"
+    summary = json.loads((tmp_path / "s" / "summary.json").read_text())
+    assert summary["workers"] == {"count": 1, "where": "in this process", "why": why}
+    assert capsys.readouterr().out.splitlines()[1] == f"ran in this process ({why})"
