@@ -282,7 +282,8 @@ def test_a_missing_extra_is_one_line_naming_it_before_any_folder_is_made(tmp_pat
                           text=True, env=ENV)
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
-    assert f"needs {missing[0]}, which is not installed: pip install \"granstab[{extra}]\"" in proc.stderr
+    assert proc.stderr.startswith(f"granstab: {missing[0]} is needed for ")
+    assert f" and is not installed: pip install \"granstab[{extra}]\"" in proc.stderr
     assert not out.exists()
 
 

@@ -31,7 +31,7 @@ def require(module: str, extra: str, purpose: str):
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise MissingExtra(f"granstab: {purpose} needs {module.split('.')[0]}, which is not installed: "
+        raise MissingExtra(f"granstab: {module.split('.')[0]} is needed for {purpose} and is not installed: "
                            f"pip install \"granstab[{extra}]\" (in a checkout: pip install -e \".[{extra}]\")") \
             from None
 

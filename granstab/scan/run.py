@@ -233,19 +233,20 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     bar = _progress(len(todo)) if progress else None
     start = time.perf_counter()
     try:
-        ran = _run(scene, todo, chunk, {**options, "device": device}, out, bar, scheduler, workers)
-    except KeyboardInterrupt:
+        try:
+            ran = _run(scene, todo, chunk, {**options, "device": device}, out, bar, scheduler, workers)
+        finally:
+            if bar is not None:
+                bar.close()
+        summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo),
+                             extra={"resumed": int(len(chosen) - len(todo)), "workers": ran})
+        if figures:
+            from .figure import write_figures
+            write_figures(scene, out.path)
+    except KeyboardInterrupt:                  # the parts on disk stay: say how many, and how to go on
         kept = int(np.isin(chosen, out.done_centers()).sum())
         raise Interrupted(f"granstab scan: interrupted (Ctrl-C): {kept} of {len(chosen)} clusters kept in "
                           f"{out_dir}; the same command (the same --out and options) resumes from there") from None
-    finally:
-        if bar is not None:
-            bar.close()
-    summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo),
-                         extra={"resumed": int(len(chosen) - len(todo)), "workers": ran})
-    if figures:
-        from .figure import write_figures
-        write_figures(scene, out.path)
     return summary
 
 
