@@ -8,7 +8,7 @@ import os
 import sys
 import time
 import warnings
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
@@ -516,7 +516,8 @@ def main(argv=None) -> int:
         print(line, file=sys.stderr)       # the line, which stays the last one
         return EXIT_INTERRUPTED
     except BrokenPipeError:                # the reader stopped reading (`| head`): a quiet exit, as if finished
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # nothing more to flush at exit
+        with suppress(OSError, ValueError):   # nothing more to flush at exit (a stdout without a file: nothing)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:  # an output path that cannot be written: bad input too, one line
         where = f"{exc.filename}: " if exc.filename else ""
