@@ -4,10 +4,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 import warnings
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ from .io.syntax import paused_gc
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.metric import CHOICES as METRIC_CHOICES
 from .mechanics.stiffness import MaskError, stiffness
+from .model.errors import Interrupted, MissingExtra
 from .model.scene import SceneError
 from .moduli import moduli
 from .solve.budget import (
@@ -101,7 +103,7 @@ def import_lines(loaded) -> list[str]:
 
 
 def cmd_stiffness(args) -> int:
-    with strict_numerics(args.scene):
+    with strict_numerics(source_of(args.scene)):
         loaded = load(args.scene)
     scene = loaded.scene
     mask = parse_mask(args.mask, scene.n_contacts) if args.mask else None
@@ -171,8 +173,8 @@ def cmd_analyze(args) -> int:
     progress = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
     advice = [DENSE_ADVICE]
-    with deadline(args.timeout, args.scene, advice):
-        with strict_numerics(args.scene):
+    with deadline(args.timeout, source_of(args.scene), advice):
+        with strict_numerics(source_of(args.scene)):
             loaded = load(args.scene, progress=progress, **periodic_options(args))
             scene = loaded.scene
             if not refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start)):
@@ -244,7 +246,7 @@ def parse_strain(text: str | None, dim: int):
 
 
 def cmd_moduli(args) -> int:
-    with strict_numerics(args.scene):
+    with strict_numerics(source_of(args.scene)):
         loaded = load(args.scene)
         scene = loaded.scene
         result = moduli(scene, strain=parse_strain(args.strain, scene.dim), max_sliding=args.max_sliding)
@@ -369,9 +371,7 @@ def cmd_scan(args) -> int:
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     print(json.dumps({**summary, "import": loaded.report}, allow_nan=False) if args.json else "\n".join(
-        [f"{summary['clusters']} clusters in {summary['seconds']:.1f} s: "
-         + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}",
-         *import_lines(loaded)]))
+        [*scan_lines(summary, args.out), *import_lines(loaded)]))
     return 0
 
 
@@ -393,6 +393,29 @@ def periodic_options(args) -> dict:
     return options
 
 
+def scan_lines(summary: dict, out) -> list[str]:
+    """A scan's readable output: clusters, time and verdicts (and, resumed, how many an interrupted run had kept),
+    then where it ran and why (the default's rule: granstab/scan/workers.py)."""
+    kept = summary.get("resumed", 0)
+    resumed = (f" (resumed: {kept} already in the folder, {summary['clusters_this_run']} analysed now)"
+               if kept else "")
+    return [f"{summary['clusters']} clusters{resumed} in {summary['seconds']:.1f} s: "
+            + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {out}",
+            f"ran {summary['workers']['where']} ({summary['workers']['why']})"]
+
+
+def input_argument(p, dest: str) -> None:
+    """The input of analyze, stiffness, extract and scan: a scene file, or one snapshot as a folder or its files
+    (`analyze atoms.dump contacts.dump in.disks`), as `convert` takes it (granstab.io.load)."""
+    p.add_argument(dest, nargs="+", metavar="SCENE_OR_FILES",
+                   help="a scene file (TOML, JSON, NPZ), or a snapshot: its folder or its files (docs/formats.md)")
+
+
+def source_of(paths: list) -> str:
+    """The inputs as messages name them: the path, or the files joined by ' + ' (as the snapshot readers do)."""
+    return " + ".join(map(str, paths))
+
+
 def boundary_argument(p) -> None:
     p.add_argument("--boundary", choices=["loads", "fixed"], default="loads",
                    help="loads: the cut contacts' forces act as dead loads (the isolated cluster, Sec. 5); fixed: the "
@@ -401,7 +424,7 @@ def boundary_argument(p) -> None:
 
 def add_scan(sub) -> None:
     p = sub.add_parser("extract", help="the cluster of one particle (centre + N contact rings) as a scene file")
-    p.add_argument("input", help="any scene or snapshot that analyze reads")
+    input_argument(p, "input")
     p.add_argument("--center", required=True, help="the centre particle's name")
     p.add_argument("--rings", type=int, default=1, help="contact hops from the centre (default 1)")
     boundary_argument(p)
@@ -409,7 +432,7 @@ def add_scan(sub) -> None:
     periodic_arguments(p)
     p.set_defaults(run=cmd_extract)
     p = sub.add_parser("scan", help="local stability scan: every cluster of a packing, as a map")
-    p.add_argument("input", help="any scene or snapshot that analyze reads")
+    input_argument(p, "input")
     p.add_argument("--out", required=True, help="output directory (an interrupted scan there resumes)")
     p.add_argument("--rings", type=int, default=1, help="contact hops from each centre (default 1)")
     boundary_argument(p)
@@ -420,7 +443,9 @@ def add_scan(sub) -> None:
                    help="clusters with more sliding contacts examine a sample of their branches (branches: partial)")
     p.add_argument("--sample-branches", type=int, default=32, help="random branches examined beyond max-sliding")
     p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (tcp://HOST:8786)")
-    p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: all cores; 1: serial)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local Dask workers (1: in this process; default: by the work's measured size, the idle "
+                        "cores and the load, said in the output; docs/scan.md)")
     p.add_argument("--format", choices=["parquet", "csv"], default="parquet")
     p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
@@ -476,12 +501,12 @@ def build_parser() -> Parser:
     parser = Parser(prog="granstab", description="Stability of granular clusters (Kuhn & Chang).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     p = sub.add_parser("stiffness", help="write H, Hm, Hg1, Hg2, Hg3 and dof labels to an .npz file")
-    p.add_argument("scene")
+    input_argument(p, "scene")
     p.add_argument("--out", required=True)
     p.add_argument("--mask", help="one of +1,-1,0 per contact in file order (default: all elastic)")
     p.set_defaults(run=cmd_stiffness)
     p = sub.add_parser("analyze", help="branches, consistent eigenmodes and verdicts")
-    p.add_argument("scene")
+    input_argument(p, "scene")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--rotation-length", type=positive_number, default=None,
                    help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
@@ -510,7 +535,7 @@ def build_parser() -> Parser:
     periodic_arguments(p)
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("moduli", help="elastic moduli, stress and stability at fixed stress of a periodic packing")
-    p.add_argument("scene")
+    input_argument(p, "scene")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--strain", default=None,
                    help="a strain direction, d·d numbers row by row (e.g. '0,1,1,0'): the branches consistent "
@@ -541,13 +566,56 @@ def build_parser() -> Parser:
     return parser
 
 
+DASH_VALUES = ("--columns", "--mask", "--centers", "--center")   # values that may begin with '-' (an ignored
+                                                                 # column '-', a mask entry -1, a name)
+EXIT_INTERRUPTED = 130    # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C
+
+
+def attach_dash_values(argv) -> list:
+    """`--columns -,id1,id2` as `--columns=-,id1,id2`: argparse reads a word beginning with '-' as an option, so
+    these options' values would be refused ("expected one argument") unless attached with '='. A word that looks
+    like an option (`--json`, `-h`) is left alone."""
+    words, out, i = list(argv), [], 0
+    while i < len(words):
+        value = words[i + 1] if i + 1 < len(words) else ""
+        an_option = value.startswith("--") or (len(value) == 2 and value[1].isalpha())
+        if words[i] in DASH_VALUES and value.startswith("-") and value != "-" and not an_option:
+            out.append(f"{words[i]}={value}")
+            i += 2
+        else:
+            out.append(words[i])
+            i += 1
+    return out
+
+
+def interrupted_line(exc: KeyboardInterrupt, command: str | None) -> str:
+    """Ctrl-C as one line: what was kept and how to go on (a scan says it: Interrupted), else that nothing was."""
+    if isinstance(exc, Interrupted) and str(exc):
+        return str(exc)
+    return (f"granstab{' ' + command if command else ''}: interrupted (Ctrl-C) before it finished; nothing was "
+            "kept: run it again to start over")
+
+
 def main(argv=None) -> int:
+    command = None
     try:
-        args = build_parser().parse_args(argv)
-        return args.run(args)
-    except (SceneError, InputError, NumericalError, OverBudget) as exc:
+        args = build_parser().parse_args(attach_dash_values(sys.argv[1:] if argv is None else argv))
+        command = args.command
+        status = args.run(args)
+        sys.stdout.flush()                 # a closed pipe shows here, not in the interpreter's exit
+        return status
+    except (SceneError, InputError, NumericalError, OverBudget, MissingExtra) as exc:
         print(" ".join(str(exc).split()), file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:
+        line = " ".join(interrupted_line(exc, command).split())
+        exc.__traceback__ = None           # the interrupted frames go now: a progress bar in them closes before
+        print(line, file=sys.stderr)       # the line, which stays the last one
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:                # the reader stopped reading (`| head`): a quiet exit, as if finished
+        with suppress(OSError, ValueError):   # nothing more to flush at exit (a stdout without a file: nothing)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:  # an output path that cannot be written: bad input too, one line
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"granstab: cannot write {where}{exc.strerror or exc}", file=sys.stderr)

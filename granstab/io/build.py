@@ -46,6 +46,9 @@ from .validation import LAW_DEFAULT, import_warnings
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
+OVERLAP_WARN = 0.1     # overlap 2δ/(R_p + R_q) beyond which the report warns: a DEM keeps overlaps at a few per cent
+                       # of a radius or less (its stiffness is chosen so); 0.1 and more means the radii, units or
+                       # frame do not fit the positions, and the centres rule's curvatures (ρ = R − δ/2) with them
 
 
 @dataclass
@@ -127,7 +130,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
     e = branch / d[:, None]
     normal = e if snap.normal is None else _unit_normals(snap, pair)
-    geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap)
+    geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
     law, law_report = _law(snap, opts, len(d))
     force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
     report = {"source": snap.source, "format": snap.format, "read_as": "snapshot", "frame": snap.frame,
@@ -296,8 +299,9 @@ def branch_vectors(x, p, q, lattice):
     return raw, shifts
 
 
-def _geometry(rule, rad_p, rad_q, d, e, normal, snap):
-    """Contact point distance from p along e and the radii ρ of the parallel surfaces (module docstring)."""
+def _geometry(rule, rad_p, rad_q, d, e, normal, snap, pair):
+    """Contact point distance from p along e and the radii ρ of the parallel surfaces (module docstring); the
+    report counts and names (worst first) the contacts whose overlap exceeds OVERLAP_WARN of the mean radius."""
     delta = rad_p + rad_q - d
     if rule == "centres":
         rho_p, rho_q = rad_p - delta / 2, rad_q - delta / 2
@@ -311,8 +315,12 @@ def _geometry(rule, rad_p, rad_q, d, e, normal, snap):
         rho_p = d * rad_p / (rad_p + rad_q)
         rho_q = d - rho_p
     cosine = np.clip(np.sum(e * normal, axis=1), -1.0, 1.0)
+    overlap = 2 * delta / (rad_p + rad_q)
+    extreme = np.flatnonzero(overlap > OVERLAP_WARN)
     report = {"rule": rule, "distance_over_sum_of_radii": _stats(d / (rad_p + rad_q)),
-              "overlap_over_mean_radius": _stats(2 * delta / (rad_p + rad_q)),
+              "overlap_over_mean_radius": _stats(overlap),
+              "extreme_overlaps": {"threshold": OVERLAP_WARN, "count": len(extreme),
+                                   "names": _names(pair[extreme[np.argsort(-overlap[extreme], kind="stable")]])},
               "gaps": int(np.sum(delta < 0)),
               "normal_to_centre_line_deg_max": float(np.degrees(np.arccos(cosine.min()))) if len(d) else 0.0}
     return {"rho_p": rho_p, "rho_q": rho_q}, report

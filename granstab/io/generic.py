@@ -22,6 +22,7 @@ from ..model.errors import SceneError
 from .build import Snapshot, branch_vectors, parse_cell
 from .columns import (
     CONTACT_NAMES,
+    column_note,
     columns_option,
     contact_forces,
     contact_moments,
@@ -103,6 +104,7 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     unknown = [c for c in pnames if c not in PARTICLE_NAMES]
     if unknown:
         raise SceneError(f"{ppath}: line {pline}: {unknown[0]}: unknown column (known: {', '.join(sorted(PARTICLE_NAMES))})")
+    header_names = cnames
     if columns:
         cnames = columns_option(columns, len(cnames), str(cpath), " ".join(cnames))
     elif any(c not in CONTACT_NAMES for c in cnames):
@@ -163,7 +165,8 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
                     normal=normal, moment=moment, mobilised=mobilised, wall_load=wall_load, law=law,
                     lattice=lattice,
                     frame=None if which is None else float(which), frames=frames,
-                    notes={"duplicates": duplicates, "forces_from": how, "walls": walls},
+                    notes={"duplicates": duplicates, "forces_from": how, "walls": walls,
+                           "columns": column_note(cpath, header_names, cnames, bool(columns))},
                     particle_line=pline_of, contact_line=lambda c: cline_of(keep[c]))
 
 

@@ -31,6 +31,7 @@ from ..model.errors import SceneError
 from .build import Snapshot, branch_vectors
 from .columns import (
     CONTACT_NAMES,
+    column_note,
     columns_option,
     contact_forces,
     contact_moments,
@@ -422,7 +423,7 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, pr
                    if np.any(ablock.tilt) else "orthogonal box")}}),
                "moments_from": "none" if moment is None else "mx my mz (m)" if "frx" not in col else
                "rolling resistance f_r (pair/local p5 p6 p7): m = R_eff f_r × n on id1",
-               "columns": dict(enumerate(names, 1))},
+               "columns": column_note(cpath, cblock.columns, names, bool(columns), script is not None)},
         particle_line=lambda i: f"{apath}: line {ablock.first_line + i}",
         contact_line=lambda c: f"{cpath}: line {cblock.first_line + rows[c]}")
 

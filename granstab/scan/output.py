@@ -58,9 +58,10 @@ class ScanOutput:
         tmp.rename(name)
         self.tables.append(table)
 
-    def finish(self, scene: Scene, chosen: np.ndarray, seconds: float, n_new: int) -> dict:
-        """Combine the parts (each centre once, in scene order) into the tables, the map and summary.json. Strings
-        stay in Arrow (counted and compared there): the finish is serial, after the last chunk."""
+    def finish(self, scene: Scene, chosen: np.ndarray, seconds: float, n_new: int, extra: dict | None = None) -> dict:
+        """Combine the parts (each centre once, in scene order) into the tables, the map and summary.json (with
+        the entries of `extra` last). Strings stay in Arrow (counted and compared there): the finish is serial,
+        after the last chunk."""
         import pyarrow as pa
         import pyarrow.compute as pc
         clusters = concat_rows(self.tables)
@@ -76,7 +77,7 @@ class ScanOutput:
                    "partial_branches": int(pc.sum(pc.equal(clusters.column("branches"), "partial")).as_py() or 0),
                    "seconds": seconds, "clusters_per_second": n_new / seconds if seconds > 0 and n_new else None,
                    "cluster_seconds_median": float(np.median(column(clusters, "seconds"))) if n else None,
-                   "options": self.options}
+                   "options": self.options, **(extra or {})}
         (self.path / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
         return summary
 

@@ -7,7 +7,6 @@ where the unexamined branches cannot change it (analysis.py, verdicts.mark_parti
 """
 from __future__ import annotations
 
-import os
 import time
 import zlib
 from dataclasses import dataclass
@@ -17,6 +16,7 @@ import numpy as np
 from ..analysis import analyze
 from ..mechanics.branches import RIGID
 from ..mechanics.verdicts import verdict_columns
+from ..model.errors import Interrupted
 from ..model.scene import Scene, SceneError
 from ..solve.device import backend
 from ..solve.threads import blas_threads
@@ -34,14 +34,27 @@ from .clusters import (
 )
 from .output import ScanOutput
 from .rows import Row, columns_table, concat_rows, rows_table
+from .workers import (
+    close_quietly,
+    dask_installed,
+    default_workers,
+    machine,
+    require_extras,
+    sigint_flag,
+    sigint_ignored,
+)
 
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
                       # (batch.STACK_BYTES)
 TASK_SECONDS = (0.05, 0.3)  # a Dask task's measured compute, least and most: Dask's per-task cost (~10 ms of a
                       # worker and ~10 ms of the client and scheduler, measured) stays a few per cent of it
-FIRST_TASK = 64       # clusters of the first Dask tasks, before a cluster's cost is measured
+FIRST_TASK = 64       # clusters of the first Dask tasks (and of the first serial chunk), before a cluster's cost
+                      # is measured
+SERIAL_SECONDS = 1.0  # a serial chunk's compute by the measured cost of a cluster: a part file about every second,
+                      # so that Ctrl-C loses about that much
 GPU_CHUNK = 16384     # on a GPU one stacked solve wants many clusters
 IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next ones already sent
+POLL_SECONDS = 0.02   # the Dask loop's wait for results when none is ready (it checks for Ctrl-C between waits)
 # Local workers' environment: one BLAS thread each, and NOT Dask's default MALLOC_TRIM_THRESHOLD_, which also turns
 # off glibc's dynamic mmap threshold, so that every numpy temporary over 128 kB is a fresh mmap with page faults
 # (measured: 1.6× the CPU time of a chunk in a worker against the same chunk in this process; 1.17× without it).
@@ -181,7 +194,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     scene : Scene
         The packing (N particles).
     out_dir : str or Path
-        Output folder; centres already in it (an interrupted scan with the same options) are skipped.
+        Output folder; centres already in it (an interrupted scan with the same options) are skipped. Ctrl-C
+        raises `Interrupted` (a KeyboardInterrupt) saying how many clusters are kept there.
     rings, boundary : int, {"loads", "fixed"}
         The cluster of a centre: `rings` contact hops; cut contacts as dead loads or the next ring held fixed
         (`extract`).
@@ -190,8 +204,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     metric, max_sliding, sample_branches : str, int, int
         As in `granstab.analyze`, for every cluster (default metric "L").
     scheduler, workers, chunk, device : str, int, int, {"cpu", "gpu", "auto"}
-        A Dask scheduler address (tcp://HOST:PORT) or local workers (default: this machine's cores; 1 = serial,
-        in this process); clusters per task (default: sized by the measured cost of a cluster, `Guide`); where
+        A Dask scheduler address (tcp://HOST:PORT) or local workers (1 = serial, in this process; default: by
+        the work's measured size, the idle cores and the load, workers.py, said in the summary's "workers");
+        clusters per task (default: sized by the measured cost of a cluster, `Guide`); where
         the stacked eigenproblems run (granstab.solve.device).
     progress, fmt, figures : bool, {"parquet", "csv"}, bool
         A bar with the time left; the table format; whether to draw map.png/.svg and lambda_min.png/.svg.
@@ -199,13 +214,15 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     Returns
     -------
     dict
-        summary.json: counts per verdict, time, clusters per second, the options. The folder also holds
+        summary.json: counts per verdict, time, clusters per second, the options, how many clusters a resumed
+        scan found done ("resumed") and where it ran ("workers": count, where, why). The folder also holds
         clusters.* (one row a cluster) and particles.* (the map: ``unstable_fraction`` per particle).
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
     if boundary not in BOUNDARIES:
         raise SceneError(f"--boundary: one of {', '.join(BOUNDARIES)}, got {boundary!r}")
+    require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
                "boundary": boundary}
     device = backend(device).name                                   # a missing GPU fails here, in one line
@@ -215,58 +232,118 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     todo = chosen[~np.isin(chosen, out.done_centers())]
     bar = _progress(len(todo)) if progress else None
     start = time.perf_counter()
-    if len(todo):
-        run = _run_serial if (scheduler is None and (workers or os.cpu_count() or 1) <= 1) else _run_dask
-        run(scene, todo, chunk, {**options, "device": device}, out, bar, scheduler=scheduler, workers=workers)
-    if bar is not None:
-        bar.close()
-    summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo))
-    if figures:
-        from .figure import write_figures
-        write_figures(scene, out.path)
+    try:
+        try:
+            ran = _run(scene, todo, chunk, {**options, "device": device}, out, bar, scheduler, workers)
+        finally:
+            if bar is not None:
+                bar.close()
+        summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo),
+                             extra={"resumed": int(len(chosen) - len(todo)), "workers": ran})
+        if figures:
+            from .figure import write_figures
+            write_figures(scene, out.path)
+    except KeyboardInterrupt:                  # the parts on disk stay: say how many, and how to go on
+        kept = int(np.isin(chosen, out.done_centers()).sum())
+        raise Interrupted(f"granstab scan: interrupted (Ctrl-C): {kept} of {len(chosen)} clusters kept in "
+                          f"{out_dir}; the same command (the same --out and options) resumes from there") from None
     return summary
 
 
-def _run_serial(scene, todo, chunk, options, out, bar, **_):
-    graph, contacts_of = adjacency(scene), incidence(scene)
-    chunk = chunk or CHUNK
-    for at in range(0, len(todo), chunk):
-        part = todo[at:at + chunk]
+def _run(scene, todo, chunk, options, out, bar, scheduler, workers) -> dict:
+    """Analyse the centres `todo` where `scheduler`/`workers` say, or by the default rule (workers.py): the first
+    FIRST_TASK clusters in this process measure the cost of the rest. Returns how it ran (summary "workers")."""
+    def ran(count, where, why):
+        return {"count": count, "where": where, "why": why}
+
+    if not len(todo):
+        return ran(0, "nowhere", "every cluster was already in the folder")
+    if scheduler is not None:
+        _run_dask(scene, todo, chunk, options, out, bar, scheduler=scheduler, workers=None)
+        return ran(None, f"on the Dask cluster at {scheduler}", "--scheduler")
+    if workers is not None:
+        if workers <= 1:
+            _run_serial(scene, todo, chunk, options, out, bar)
+            return ran(1, "in this process", f"--workers {workers}")
+        _run_dask(scene, todo, chunk, options, out, bar, scheduler=None, workers=workers)
+        return ran(workers, f"on {workers} local Dask workers", f"--workers {workers}")
+    graphs = adjacency(scene), incidence(scene)
+    if options["device"] == "gpu":
+        _run_serial(scene, todo, chunk, options, out, bar, graphs=graphs)
+        return ran(1, "in this process", "default on a GPU: the GPU solves the stacks, workers would share it")
+    cost = _run_serial(scene, todo[:FIRST_TASK], chunk, options, out, bar, graphs=graphs)
+    rest = todo[FIRST_TASK:]
+    cores, load = machine()
+    n, why = default_workers(cost * len(rest), cores, load)
+    if n > 1 and not dask_installed():
+        n, why = default_workers(cost * len(rest), cores, load, dask=False)
+    if n > 1:
+        _run_dask(scene, rest, chunk, options, out, bar, scheduler=None, workers=n)
+        return ran(n, f"on {n} local Dask workers", f"default: {why}")
+    _run_serial(scene, rest, chunk, options, out, bar, cost=cost, graphs=graphs)
+    return ran(1, "in this process", f"default: {why}")
+
+
+def _run_serial(scene, todo, chunk, options, out, bar, cost=None, graphs=None) -> float | None:
+    """The centres `todo` in this process, a part file a chunk: `chunk` clusters, or FIRST_TASK and then
+    SERIAL_SECONDS of compute by the measured cost (at most CHUNK). Returns the measured seconds a cluster."""
+    graph, contacts_of = graphs or (adjacency(scene), incidence(scene))
+    at, done, spent = 0, 0, 0.0
+    while at < len(todo):
+        size = chunk or (FIRST_TASK if cost is None else min(max(int(SERIAL_SECONDS / cost), 1), CHUNK))
+        part = todo[at:at + size]
+        begun = time.perf_counter()
         out.write(chunk_table(chunk_cut(scene, part, reach(options), graph, contacts_of), options))
+        spent, done, at = spent + time.perf_counter() - begun, done + len(part), at + len(part)
+        cost = spent / done
         if bar is not None:
             bar.update(len(part))
+    return cost
 
 
 def _run_dask(scene, todo, chunk, options, out, bar, *, scheduler, workers):
     """Tasks of centres cut by a `Guide`, each with its own `Chunk` (rerun if a worker dies), results streamed to
     disk in the order they finish. At most IN_FLIGHT tasks per worker thread are out at a time: the client cuts the
-    next chunk while the workers compute, and holds a few chunks, never all of them."""
+    next chunk while the workers compute, and holds a few chunks, never all of them. Ctrl-C (workers.py): the
+    workers ignore it, this loop stops at the next poll and closes the cluster quietly."""
     import dask
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
     if scheduler is None:
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
-            cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored():
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
     graph, contacts_of = adjacency(scene), incidence(scene)
     guide = Guide(todo, chunk)
-    with Client(scheduler or cluster) as client:
-        running = as_completed()
+    client = Client(scheduler or cluster)
+    try:
+        with sigint_flag() as stop:
+            running = as_completed()
 
-        def fill():                                     # the cluster's threads now (a real cluster may grow)
-            threads = max(sum(client.nthreads().values()), 1)
-            while running.count() < IN_FLIGHT * threads and (part := guide.next(threads)) is not None:
-                running.add(client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph, contacts_of),
-                                          options, retries=3, pure=False))
+            def fill():                                 # the cluster's threads now (a real cluster may grow)
+                threads = max(sum(client.nthreads().values()), 1)
+                while running.count() < IN_FLIGHT * threads and (part := guide.next(threads)) is not None:
+                    running.add(client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph,
+                                                                     contacts_of), options, retries=3, pure=False))
 
-        fill()
-        for future in running:
-            table = future.result()
-            out.write(table)
-            guide.measured(table)
-            if bar is not None:
-                bar.update(table.num_rows)
             fill()
+            while not running.is_empty():
+                if stop.is_set():
+                    raise KeyboardInterrupt
+                batch = running.next_batch(block=False)
+                if not batch:
+                    time.sleep(POLL_SECONDS)
+                    continue
+                for future in batch:
+                    table = future.result()
+                    out.write(table)
+                    guide.measured(table)
+                    if bar is not None:
+                        bar.update(table.num_rows)
+                fill()
+    except KeyboardInterrupt:                   # Ctrl-C: what is on disk stays; no tracebacks from Dask's closing
+        close_quietly(client, cluster)
+        raise
+    client.close()
     if cluster is not None:
         cluster.close()
 
