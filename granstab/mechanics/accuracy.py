@@ -45,11 +45,36 @@ def part_scales(mechanical, geometric, A: np.ndarray, S: np.ndarray) -> dict:
     return {"mechanical": abs_norm_inf(mechanical), "geometric": abs_norm_inf(geometric), "sliding": sliding}
 
 
-def formation_error(scales: dict, C: np.ndarray, Cplus: np.ndarray) -> float:
-    """Bound of ‖sym(𝓗^i) as formed - exact‖₂ (module docstring): (8ε + 2γ_n κ(C̃)) Σ scales."""
-    n = C.shape[0]
+def formation_error(scales: dict, C: np.ndarray, Cplus: np.ndarray, curvature: float = 0.0) -> float:
+    """Bound of ‖sym(𝓗^i) as formed - exact‖₂ (module docstring, docs/bounds.md): (8ε + 2γ_n κ(C̃) + the centroid's
+    rounding `centre_error`) Σ scales, plus `curvature` (`curvature_error`), the error from rounding K^p + K^q."""
     kappa = float(np.linalg.norm(C) * np.linalg.norm(Cplus)) if C.size else 0.0
-    return (8 * EPS + 2 * gamma(n) * kappa) * sum(scales.values())
+    return (8 * EPS + 2 * gamma(C.shape[0]) * kappa + centre_error(C, Cplus)) * sum(scales.values()) + curvature
+
+
+def centre_error(C: np.ndarray, Cplus: np.ndarray):
+    """‖ΔP‖ bound times 2 (P H P moves by 2‖ΔP‖‖H‖) from rounding the centroid, for the rotations C (..., n, r) of
+    N <= n/3 particles in d <= 3 dimensions: the two-pass centring (rigid.centred) leaves each position about the
+    centroid within (N + 3)ε of the largest |entry| of its column, so ‖ΔC‖_F <= √(3N)(N + 3)ε ‖column maxima‖₂ and
+    ‖ΔP‖₂ <= 2‖ΔC‖₂‖C⁺‖₂ (docs/bounds.md)."""
+    if C.shape[-1] == 0:
+        return np.zeros(C.shape[:-2])[()]
+    N = C.shape[-2] / 3.0
+    dC = np.sqrt(3.0 * N) * (N + 3) * EPS * np.linalg.norm(np.abs(C).max(axis=-2), axis=-1)
+    return 4.0 * dC * np.linalg.norm(Cplus, axis=(-2, -1))
+
+
+def curvature_error(E, xp=np):
+    """‖E‖₂ <= √(‖E‖₁ ‖E‖∞) of the nonnegative entrywise error bound E (n, n) (sparse or dense) or (..., n, n) of the
+    stiffness from rounding K^p + K^q (stiffness.ContactBlocks.curvature_error, in the metric's dofs): a bound of
+    ‖ΔH̃‖₂ and so of ‖Δ sym(𝓗)‖₂ (P orthogonal). inf where a contact's pseudo-inverse is unresolved."""
+    if sp.issparse(E):
+        if not E.nnz:
+            return 0.0
+        return float(np.sqrt(abs(E).sum(axis=0).max() * abs(E).sum(axis=1).max()))
+    if E.shape[-1] == 0:
+        return xp.zeros(E.shape[:-2])[()]
+    return xp.sqrt(E.sum(axis=-1).max(axis=-1) * E.sum(axis=-2).max(axis=-1))
 
 
 def eigen_bounds(Hsym: np.ndarray, lam: np.ndarray, V: np.ndarray, formation: float):

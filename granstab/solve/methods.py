@@ -20,13 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanics.accuracy import formation_error, part_scales
+from ..mechanics.accuracy import curvature_error, formation_error, part_scales
 from ..mechanics.assembly import sliding_factors
 from ..mechanics.branches import Problem
 from ..mechanics.checks import equilibrium_residual, identity_errors, modified_leakage
 from ..mechanics.metric import Metric
 from ..mechanics.rigid import Projection, rigid_basis
-from ..mechanics.stiffness import ContactBlocks, assemble_parts, contact_blocks, geometric
+from ..mechanics.stiffness import ContactBlocks, assemble_parts, assembled_error, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
 from .dense import solve_branches
 
@@ -90,10 +90,24 @@ def _require_finite(scene: Scene, value: float) -> None:
 # ------------------------------------------------------------------------------------------------ dense
 
 def dense_parts(scene: Scene, blocks: ContactBlocks) -> dict:
-    """Hg1, Hg2, Hg3, Hm and H as CSR (physical dofs), and the sliding factors A, S (n, Ms) (eq:ContactF)."""
+    """Hg1, Hg2, Hg3, Hm and H as CSR (physical dofs), the sliding factors A, S (n, Ms) (eq:ContactF), and the
+    entrywise bound of H's error from rounding K^p + K^q ("curvature_error", CSR, or None where unresolved)."""
     parts = assemble_parts(scene, blocks)
     parts["A"], parts["S"] = sliding_factors(blocks, np.flatnonzero(scene.at_yield()))
+    parts["curvature_error"] = assembled_error(scene, blocks.curvature_error)
     return parts
+
+
+def metric_error(error, metric: Metric, free=None) -> float:
+    """‖|D| E |D|‖₂ bound (accuracy.curvature_error) of an assembled error bound E in the metric's dofs; inf for
+    None (unresolved)."""
+    if error is None:
+        return np.inf
+    D = abs(metric.matrix())
+    E = D @ error @ D
+    if free is not None:
+        E = E[free][:, free]
+    return curvature_error(E.tocsr())
 
 
 def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metric) -> Problem:
@@ -116,7 +130,8 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     scales = part_scales(mechanical, Hg, A, S)
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
-                   formation_error=formation_error(scales, C, projection.Cplus), free=free)
+                   formation_error=formation_error(scales, projection.C, projection.Cplus,
+                                                   metric_error(parts["curvature_error"], metric, free)), free=free)
 
 
 class DenseMethod:
@@ -223,7 +238,8 @@ class SparseMethod:
         proj = spb.projection
         core = Problem(H_el=spb.H, A=spb.A, S=spb.S, projection=proj, rigid=spb.R, sliding=spb.sliding,
                        n_contacts=scene.n_contacts, tol=scene.tol,
-                       formation_error=formation_error(scales, proj.C, proj.Cplus))
+                       formation_error=formation_error(scales, proj.C, proj.Cplus,
+                                                       metric_error(state.parts.curvature_error, metric)))
         return SparseBranchProblem(sp=spb, core=core)
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
