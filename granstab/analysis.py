@@ -15,7 +15,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .mechanics.branches import Problem, enumerate_masks, sample_masks
-from .mechanics.metric import CHOICES, Metric, family, resolve
+from .mechanics.metric import CHOICES, Metric, family, has_masses, resolve
+from .mechanics.robustness import metric_robustness
 from .mechanics.stiffness import ContactBlocks, curvature_warnings
 from .mechanics.verdicts import Verdict, family_entry, finalize, mark_partial, summarize
 from .model.scene import Scene, SceneError
@@ -210,8 +211,13 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
             errors = backend.errors(state, problem, branches)
         if "residual_stability" in notes:                                # over every branch, kept or not
             errors["eigen_residual_stability"] = max(errors["eigen_residual_stability"], notes["residual_stability"])
+        robust = None
+        if metric == "family" and backend.name == "dense" and not partial:
+            with timer("metric robustness"):
+                robust = metric_robustness(problem, masks, scene.dim, scene.dof_per_particle, m.rotation_length,
+                                           entries)
         verdict = finalize(verdict, errors, int(np.sum(state.blocks.rolling_undetermined)),
-                           entries if metric == "family" else None)
+                           entries if metric == "family" else None, robust, has_masses(scene))
         if partial:
             verdict = mark_partial(verdict, len(masks), Ms)
         verdict = replace(verdict, branches_kept=len(branches))

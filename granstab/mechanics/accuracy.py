@@ -45,23 +45,25 @@ def part_scales(mechanical, geometric, A: np.ndarray, S: np.ndarray) -> dict:
     return {"mechanical": abs_norm_inf(mechanical), "geometric": abs_norm_inf(geometric), "sliding": sliding}
 
 
-def formation_error(scales: dict, C: np.ndarray, Cplus: np.ndarray, curvature: float = 0.0) -> float:
-    """Bound of ‖sym(𝓗^i) as formed - exact‖₂ (module docstring, docs/bounds.md): (8ε + 2γ_n κ(C̃) + the centroid's
-    rounding `centre_error`) Σ scales, plus `curvature` (`curvature_error`), the error from rounding K^p + K^q."""
+def formation_error(scales: dict, C: np.ndarray, Cplus: np.ndarray, curvature: float = 0.0,
+                    centre: float = 0.0) -> float:
+    """Bound of ‖sym(𝓗^i) as formed - exact‖₂ (module docstring, docs/bounds.md): (8ε + 2γ_n κ(C̃) + `centre`, the
+    projection's error from the rounded centroid, `centre_error`) Σ scales, plus `curvature` (`curvature_error`),
+    the error carried in from rounding K^p + K^q."""
     kappa = float(np.linalg.norm(C) * np.linalg.norm(Cplus)) if C.size else 0.0
-    return (8 * EPS + 2 * gamma(C.shape[0]) * kappa + centre_error(C, Cplus)) * sum(scales.values()) + curvature
+    return (8 * EPS + 2 * gamma(C.shape[0]) * kappa + centre) * sum(scales.values()) + curvature
 
 
-def centre_error(C: np.ndarray, Cplus: np.ndarray):
-    """‖ΔP‖ bound times 2 (P H P moves by 2‖ΔP‖‖H‖) from rounding the centroid, for the rotations C (..., n, r) of
-    N <= n/3 particles in d <= 3 dimensions: the two-pass centring (rigid.centred) leaves each position about the
-    centroid within (N + 3)ε of the largest |entry| of its column, so ‖ΔC‖_F <= √(3N)(N + 3)ε ‖column maxima‖₂ and
-    ‖ΔP‖₂ <= 2‖ΔC‖₂‖C⁺‖₂ (docs/bounds.md)."""
-    if C.shape[-1] == 0:
+def centre_error(C: np.ndarray, defect, weight=1.0):
+    """2‖ΔP‖ (P H P moves by 2‖ΔP‖‖H‖) for the rotations C (..., n, r) (unscaled by the projection) whose positions
+    about the centroid are off by at most `defect` (rigid.centred) each, in dofs that scale translations by at most
+    `weight` (1 in the L metrics, √m in the inertia metric): ‖ΔC‖_F <= √(n r) weight defect and
+    ‖ΔP‖₂ <= 2‖ΔC‖₂ / σ_min(C) (docs/bounds.md)."""
+    n, r = C.shape[-2:]
+    if r == 0:
         return np.zeros(C.shape[:-2])[()]
-    N = C.shape[-2] / 3.0
-    dC = np.sqrt(3.0 * N) * (N + 3) * EPS * np.linalg.norm(np.abs(C).max(axis=-2), axis=-1)
-    return 4.0 * dC * np.linalg.norm(Cplus, axis=(-2, -1))
+    smin = np.linalg.svd(C, compute_uv=False)[..., -1]
+    return 4.0 * np.sqrt(n * r) * np.asarray(weight) * np.asarray(defect) / smin
 
 
 def curvature_error(E, xp=np):

@@ -12,11 +12,13 @@ is the paper's literal metric (all of the paper's examples have r = 1, so they a
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..model.scene import Scene, mean_contact_radius
+from ..model.tolerances import EPS
 from ..model.vec import rot_dim, rotate_matrix
 
 rotation_length = mean_contact_radius   # the default L of the scaled dofs [du, L dθ]
@@ -37,13 +39,15 @@ def translation_columns(n: int, d: int, lead: tuple = ()) -> np.ndarray:
     return T.reshape(*lead, n * (d + r), d)
 
 
-def centred(x: np.ndarray, weights=None) -> np.ndarray:
+def centred(x: np.ndarray, weights=None, defect: bool = False):
     """x (..., n, d) about its centroid (weighted by `weights` (..., n), e.g. masses), to ε·(spread of x), not ε·|x|.
 
     One pass, x - mean(x), is rounded to ε|x| through the mean: far from the origin (accepted up to 1e9 L) the
     rotations about it are then not orthogonal to the translations, and a rigid motion leaks into the spectrum by
     ε(|x|/L)‖Hg3‖ (issue 26). The second pass subtracts the mean of the (now small) differences, whose rounding is
-    relative to the spread: the rotations are orthogonal to the translations to ε·spread (docs/bounds.md)."""
+    relative to the spread. defect=True also returns a bound (...,) of max_p |centred_p - (x_p - c)| for the exact
+    centroid c (docs/bounds.md): the common offset, |Σ w_p centred_p| / Σ w summed exactly (math.fsum), plus each
+    position's own rounding, u(2 max|centred| + |second mean|) twice."""
     def mean(y):
         if weights is None:
             return y.mean(axis=-2, keepdims=True)
@@ -51,7 +55,17 @@ def centred(x: np.ndarray, weights=None) -> np.ndarray:
         return np.sum(w[..., :, None] * y, axis=-2, keepdims=True) / np.sum(w, axis=-1)[..., None, None]
 
     rel = x - mean(x)
-    return rel - mean(rel)
+    second = mean(rel)
+    out = rel - second
+    if not defect:
+        return out
+    u = EPS / 2
+    own = u * (2 * np.abs(out).max(axis=(-2, -1)) + np.abs(second).max(axis=(-2, -1)))
+    w = np.ones(x.shape[:-1]) if weights is None else np.broadcast_to(np.asarray(weights, float), x.shape[:-1])
+    flat_w, flat = w.reshape(-1, x.shape[-2]), out.reshape(-1, *x.shape[-2:])
+    offset = np.array([max(abs(math.fsum(wi * yi[:, k])) for k in range(x.shape[-1])) / wi.sum() * (1 + 4 * EPS)
+                       + u * np.abs(yi).max(initial=0.0) for wi, yi in zip(flat_w, flat)]).reshape(x.shape[:-2])
+    return out, offset + 2 * own
 
 
 def rotation_columns(x: np.ndarray, length=1.0, weights=None) -> np.ndarray:

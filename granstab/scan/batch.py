@@ -45,6 +45,7 @@ from ..mechanics.assembly import dof_index, scatter_columns, stack_blocks
 from ..mechanics.branches import BOTH, consistency, needs_search, s_limits, sign_patterns
 from ..mechanics.rigid import (
     Projection,
+    centred,
     dof_scale,
     on_complement,
     rigid_basis,
@@ -256,14 +257,13 @@ def _reduced(H_el, A, S, x, L, scales):
     nd = H_el.shape[1]
     C = rotation_columns(x, L)
     R, Q = rigid_basis(np.concatenate([translation_columns(n, d, (G,)), C], axis=2), complement=True)
-    proj = Projection.from_rotations(C)
-    PR = proj.apply(R)                                                              # P R (eq:newstiffnesses)
+    PR = Projection.from_rotations(C).apply(R)                                                              # P R (eq:newstiffnesses)
     leak = H_el @ PR
     leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
     coupling = 0.5 * (np.linalg.norm(leak, axis=(1, 2)) + np.linalg.norm(np.swapaxes(H_el, 1, 2) @ PR, axis=(1, 2))
                       + _column_sum(np.linalg.norm(A, axis=1) * np.linalg.norm(np.swapaxes(S, 1, 2) @ PR, axis=2)
                                     + np.linalg.norm(S, axis=1) * np.linalg.norm(np.swapaxes(A, 1, 2) @ PR, axis=2)))
-    formation = (8 * EPS + 2 * gamma(nd) * nd + centre_error(proj.C, proj.Cplus)) * scales + coupling
+    formation = (8 * EPS + 2 * gamma(nd) * nd + centre_error(C, centred(x, defect=True)[1])) * scales + coupling
     return formation, leakage, *on_complement(Q, H_el, A, S)
 
 

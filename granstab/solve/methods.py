@@ -20,12 +20,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanics.accuracy import curvature_error, formation_error, part_scales
+from ..mechanics.accuracy import centre_error, curvature_error, formation_error, part_scales
 from ..mechanics.assembly import sliding_factors
 from ..mechanics.branches import Problem
 from ..mechanics.checks import equilibrium_residual, identity_errors, modified_leakage
 from ..mechanics.metric import Metric
-from ..mechanics.rigid import Projection, rigid_basis
+from ..mechanics.rigid import Projection, centred, rigid_basis
 from ..mechanics.stiffness import ContactBlocks, assemble_parts, assembled_error, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
 from .dense import solve_branches
@@ -98,6 +98,17 @@ def dense_parts(scene: Scene, blocks: ContactBlocks) -> dict:
     return parts
 
 
+def centre_term(scene: Scene, metric: Metric, C: np.ndarray) -> float:
+    """accuracy.centre_error of the metric's rotations C (n, r): the centroid's defect (rigid.centred) and the largest
+    scaling of a translation by D⁻¹ (1 in the L metrics, √m in the inertia metric)."""
+    if C.shape[-1] == 0 or scene.n_particles == 0:
+        return 0.0
+    _, defect = centred(scene.x, metric.weights, defect=True)
+    d = scene.dim
+    weight = float(np.linalg.norm(np.linalg.inv(metric.blocks[:, :d, :d]), ord=2, axis=(1, 2)).max())
+    return float(centre_error(C, defect, weight))
+
+
 def metric_error(error, metric: Metric, free=None) -> float:
     """‖|D| E |D|‖₂ bound (accuracy.curvature_error) of an assembled error bound E in the metric's dofs; inf for
     None (unresolved)."""
@@ -131,7 +142,8 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
                    formation_error=formation_error(scales, projection.C, projection.Cplus,
-                                                   metric_error(parts["curvature_error"], metric, free)), free=free)
+                                                   metric_error(parts["curvature_error"], metric, free),
+                                                   centre_term(scene, metric, C)), free=free)
 
 
 class DenseMethod:
@@ -239,7 +251,8 @@ class SparseMethod:
         core = Problem(H_el=spb.H, A=spb.A, S=spb.S, projection=proj, rigid=spb.R, sliding=spb.sliding,
                        n_contacts=scene.n_contacts, tol=scene.tol,
                        formation_error=formation_error(scales, proj.C, proj.Cplus,
-                                                       metric_error(state.parts.curvature_error, metric)))
+                                                       metric_error(state.parts.curvature_error, metric),
+                                                       centre_term(scene, metric, metric.rotations(scene))))
         return SparseBranchProblem(sp=spb, core=core)
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
