@@ -149,12 +149,14 @@ def curvature_sum_error(scene: Scene) -> np.ndarray:
     """A bound (M,) of ‖(T^T (K^p + K^q) T) as computed − exact‖₂ on the tangent plane (docs/bounds.md): the
     input-frame sum is rounded entrywise (u |K^p + K^q|), the projection and the computed basis T (orthonormal and
     normal to n within a few ε) add at most 30ε‖K^p + K^q‖_F; in 2D the tensors κ t⊗t were themselves formed from
-    the scalars κ by the readers (io/schema.py, io/build.py), which rounds each entry to u|κ|: 4ε(|κp| + |κq|)."""
+    the scalars κ by the readers (io/schema.py, io/build.py), which rounds each entry to u|κ|: 4ε(|κp| + |κq|)
+    where the normal is oblique (the scalars are not kept, so their sum is bounded, not recovered)."""
     Ks = scene.curvature_p + scene.curvature_q
     out = 32 * EPS * np.linalg.norm(Ks, axis=(1, 2))
-    if scene.dim == 2:
-        out = out + 4 * EPS * (np.linalg.norm(scene.curvature_p, axis=(1, 2))
-                               + np.linalg.norm(scene.curvature_q, axis=(1, 2)))
+    if scene.dim == 2:                # κ t⊗t is exact where t is along an axis (its products are 0 and ±κ)
+        oblique = np.all(scene.normal != 0, axis=1)
+        out = out + 4 * EPS * oblique * (np.linalg.norm(scene.curvature_p, axis=(1, 2))
+                                         + np.linalg.norm(scene.curvature_q, axis=(1, 2)))
     return out
 
 
