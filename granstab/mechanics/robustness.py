@@ -33,7 +33,7 @@ from ..model.tolerances import EPS
 from .accuracy import abs_norm_inf, values_backward_error
 from .branches import branch_matrices
 
-MAX_BRANCHES = 4096       # beyond this many branches the continuous scan is not attempted (undetermined)
+MAX_WORK = 4e9            # branches × n³ beyond which the scan is not attempted (undetermined): ~1 s of LAPACK
 
 
 @dataclass(frozen=True)
@@ -136,7 +136,8 @@ def metric_robustness(problem, masks: np.ndarray, d: int, per: int, length: floa
     problem in the L₀ = `length` metric's dofs; Ms = 0 when no contact may slide); `entries` (MetricVerdict) the
     family's computed verdicts (each one proven where `sufficient`)."""
     proven = {e.verdict for e in entries if e.sufficient}
-    if problem.rigid.shape[1] == 0 or len(masks) > MAX_BRANCHES:    # supports, or too many branches to scan
+    n = problem.H_el.shape[0]
+    if problem.rigid.shape[1] == 0 or len(masks) * float(n) ** 3 > MAX_WORK:   # supports, or too much work
         return Robustness(False if len(proven) > 1 else "undetermined", None, (), ())
     H = branch_matrices(problem, masks)[0]
     S = 0.5 * (H + np.swapaxes(H, -1, -2))
