@@ -578,7 +578,8 @@ class ClientUI:
             return (f"{self.session.metric} only: *Check other metrics* below runs L/10, L, 10L (and inertia with "
                     "masses)")
         if m["robust"]:
-            return f"this verdict holds for every metric tried ({', '.join(x['metric'] for x in m['metrics'])})"
+            return ("this verdict is proven for every rotation length (and the inertia metric where masses are known), "
+                    f"not only those tried ({', '.join(x['metric'] for x in m['metrics'])})")
         return " · ".join(f"{x['metric']}: {x['verdict']} ({x['consistent_negative']} negative)"
                           for x in m["metrics"])
 

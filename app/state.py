@@ -331,7 +331,7 @@ class Session:
         start = time.perf_counter()
         with blas_threads(1):
             family = analyze(self.scene, metric="family").verdict
-        self.metrics = {"robust": bool(family.metric_robust), "metrics": [e.to_dict() for e in family.metrics],
+        self.metrics = {"robust": family.metric_robust is True, "metrics": [e.to_dict() for e in family.metrics],
                         "time": time.perf_counter() - start, "revision": self.revision}
         return self.metrics
 

@@ -15,7 +15,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .mechanics.branches import Problem, enumerate_masks, sample_masks
-from .mechanics.metric import CHOICES, Metric, family, resolve
+from .mechanics.metric import CHOICES, Metric, family, has_masses, resolve
+from .mechanics.robustness import metric_robustness
 from .mechanics.stiffness import ContactBlocks, curvature_warnings
 from .mechanics.verdicts import Verdict, family_entry, finalize, mark_partial, summarize
 from .model.scene import Scene, SceneError
@@ -130,6 +131,15 @@ def build_problem(scene: Scene, blocks: ContactBlocks, metric):
     return dense_problem(scene, blocks, parts, metric), parts
 
 
+def _robustness(scene, backend, problem, masks, metric, entries, timer):
+    """robustness.metric_robustness of the family on the dense path (elsewhere None: finalize says "undetermined"
+    unless two metrics prove different verdicts)."""
+    if backend.name != "dense":
+        return None
+    with timer("metric robustness"):
+        return metric_robustness(problem, masks, scene.dim, scene.dof_per_particle, metric.rotation_length, entries)
+
+
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
@@ -216,8 +226,10 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
             errors = backend.errors(state, problem, branches)
         if "residual_stability" in notes:                                # over every branch, kept or not
             errors["eigen_residual_stability"] = max(errors["eigen_residual_stability"], notes["residual_stability"])
-        verdict = finalize(verdict, errors, int(np.sum(state.blocks.rolling_undetermined)),
-                           entries if metric == "family" else None)
+        fam = metric == "family"
+        robust = _robustness(scene, backend, problem, masks, m, entries, timer) if fam and not partial else None
+        verdict = finalize(verdict, errors, int(np.sum(state.blocks.rolling_undetermined)), entries if fam else None,
+                           robust, has_masses(scene))
         if partial:
             verdict = mark_partial(verdict, len(masks), Ms)
         verdict = replace(verdict, branches_kept=len(branches), free_spins=getattr(problem, "free_spins", 0))

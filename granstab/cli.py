@@ -154,7 +154,10 @@ def format_table(result, show_all: bool = False) -> str:
                  f"{'yes' if sm['type2_nonuniqueness'] else 'no'}"
                  + ("; verdict hinges on an S within tolerance" if sm["hinges_on_tolerance"] else ""))
     if sm.get("metrics"):
-        lines.append(f"metric family ({'robust' if sm['metric_robust'] else 'NOT robust'}): " + "; ".join(
+        robust = {True: "verdict proven metric-robust", False: "verdict proven to depend on the metric"}.get(
+            sm["metric_robust"], "verdict's metric-robustness not proven")
+        counts = "counts equal" if sm.get("counts_robust") else "counts differ"
+        lines.append(f"metric family ({robust}; {counts}): " + "; ".join(
             f"{e['metric']}: {e['verdict']} {e['consistent_positive']}+/{e['consistent_negative']}-"
             for e in sm["metrics"]))
     if not sm["sufficient"]:

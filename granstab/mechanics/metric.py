@@ -33,12 +33,14 @@ CHOICES = ("family", "L", "L/10", "10L", "inertia")
 @dataclass(frozen=True, eq=False)
 class Metric:
     """A projection metric: `name` ("L", "L/10", "10L", "L=<value>" or "inertia"), `rotation_length` (L, None for
-    inertia) and D per particle, `blocks` (N, per, per) symmetric positive definite, `centre` of the rotations."""
+    inertia) and D per particle, `blocks` (N, per, per) symmetric positive definite, `centre` of the rotations and
+    the `weights` (N,) that define it (None: the centroid; masses: the centre of mass)."""
 
     name: str
     rotation_length: float | None
     blocks: np.ndarray
     centre: np.ndarray
+    weights: np.ndarray | None = None
 
     @property
     def diagonal(self) -> np.ndarray | None:
@@ -99,7 +101,7 @@ class Metric:
         scene, whose only rigid motions are the d translations (a rotation does not carry the images along)."""
         if scene.periodic:
             return np.zeros((scene.n_dof, 0))
-        return self.scaled(rotation_columns(scene.x, 1.0, self.centre))
+        return self.scaled(rotation_columns(scene.x, 1.0, self.weights))
 
     def translations(self, scene: Scene) -> np.ndarray:
         """T̃ = D⁻¹ T (n, d): rigid translations in the metric's dofs."""
@@ -128,7 +130,7 @@ def inertia_metric(scene: Scene) -> Metric:
     blocks[:, :d, :d] = np.eye(d) / np.sqrt(m)[:, None, None]
     blocks[:, d:, d:] = (Q / np.sqrt(w)[:, None, :]) @ np.swapaxes(Q, 1, 2)
     centre = (m[:, None] * scene.x).sum(axis=0) / m.sum()
-    return Metric(name="inertia", rotation_length=None, blocks=blocks, centre=centre)
+    return Metric(name="inertia", rotation_length=None, blocks=blocks, centre=centre, weights=m)
 
 
 def has_masses(scene: Scene) -> bool:

@@ -34,6 +34,8 @@ import scipy.sparse as sp
 
 from ..mechanics.accuracy import (
     abs_norm_inf,
+    centre_error,
+    curvature_error,
     gamma,
     value_bounds,
     values_backward_error,
@@ -43,6 +45,7 @@ from ..mechanics.assembly import dof_index, scatter_columns, stack_blocks
 from ..mechanics.branches import BOTH, consistency, needs_search, s_limits, sign_patterns
 from ..mechanics.rigid import (
     Projection,
+    centred,
     dof_scale,
     on_complement,
     rigid_basis,
@@ -201,6 +204,8 @@ def _solve_group(sub, blocks, parts, pairs, part, positions, starts, n, factor, 
     Dp = dscale[g[:, None], idx]                                                     # (P, 2per)
 
     H_el = stack_blocks(parts["elastic"][m] * Dp[:, :, None] * Dp[:, None, :], g, idx, G, nd)   # (G, nd, nd)
+    curvature = curvature_error(stack_blocks(blocks.curvature_error[m] * Dp[:, :, None] * Dp[:, None, :],
+                                             g, idx, G, nd))      # error from rounding K^p + K^q (accuracy.py)
 
     def abs_norm(rows):            # ‖|Σ_c X̃_c|‖∞ <= max over rows of Σ_c (row sums of |X̃_c|): per contact, no matrices
         return stack_blocks(rows[m] * Dp * Dp.max(axis=1, keepdims=True), g, idx, G, nd).max(axis=1)
@@ -218,12 +223,13 @@ def _solve_group(sub, blocks, parts, pairs, part, positions, starts, n, factor, 
     s_tol, s_floor = s_limits(S, sub.tol)                  # branches.Problem.s_tol, s_floor
 
     if fixed:                      # held by the ring: no rigid motion, P^nrr = I (eq:Pnrr), formation 8ε of the parts
-        formation, leakage = 8 * EPS * scales, np.zeros(G)
+        formation, leakage = 8 * EPS * scales + curvature, np.zeros(G)
         base = 0.5 * (H_el + np.swapaxes(H_el, 1, 2))
         PA, PS = A, S
     else:                          # off the rigid motions: QᵀH Q, QᵀA, QᵀS (_reduced)
         x = positions[np.concatenate([np.arange(starts[c], starts[c] + n) for c in part])].reshape(G, n, d)
         formation, leakage, base, PA, PS = _reduced(H_el, A, S, x, L, scales)
+        formation = formation + curvature
     update = _update_norm(PA, PS)
     PA, PS = np.ascontiguousarray(PA[:, :, :Ms]), np.ascontiguousarray(PS[:, :, :Ms])   # the branches' columns
     dofs = base.shape[1]           # the dofs solved for: nd, or nd − (d + r) off the rigid motions
@@ -271,13 +277,13 @@ def _reduced(H_el, A, S, x, L, scales):
     nd = H_el.shape[1]
     C = rotation_columns(x, L)
     R, Q = rigid_basis(np.concatenate([translation_columns(n, d, (G,)), C], axis=2), complement=True)
-    PR = Projection.from_rotations(C).apply(R)                                      # P R (eq:newstiffnesses)
+    PR = Projection.from_rotations(C).apply(R)                                                              # P R (eq:newstiffnesses)
     leak = H_el @ PR
     leakage = np.abs(leak).max(axis=(1, 2)) / np.maximum(np.linalg.norm(H_el, axis=(1, 2)), 1e-300)
     coupling = 0.5 * (np.linalg.norm(leak, axis=(1, 2)) + np.linalg.norm(np.swapaxes(H_el, 1, 2) @ PR, axis=(1, 2))
                       + _column_sum(np.linalg.norm(A, axis=1) * np.linalg.norm(np.swapaxes(S, 1, 2) @ PR, axis=2)
                                     + np.linalg.norm(S, axis=1) * np.linalg.norm(np.swapaxes(A, 1, 2) @ PR, axis=2)))
-    formation = (8 * EPS + 2 * gamma(nd) * nd) * scales + coupling
+    formation = (8 * EPS + 2 * gamma(nd) * nd + centre_error(C, centred(x, defect=True)[1])) * scales + coupling
     return formation, leakage, *on_complement(Q, H_el, A, S)
 
 

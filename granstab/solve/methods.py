@@ -20,13 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanics.accuracy import formation_error, part_scales
+from ..mechanics.accuracy import centre_error, curvature_error, formation_error, part_scales
 from ..mechanics.assembly import sliding_factors
 from ..mechanics.branches import Problem
 from ..mechanics.checks import equilibrium_residual, identity_errors, modified_leakage
 from ..mechanics.metric import Metric
-from ..mechanics.rigid import Projection, rigid_basis, rotation_dofs, unit_columns, untouched_dofs
-from ..mechanics.stiffness import ContactBlocks, assemble_parts, contact_blocks, geometric
+from ..mechanics.rigid import Projection, centred, rigid_basis, rotation_dofs, unit_columns, untouched_dofs
+from ..mechanics.stiffness import ContactBlocks, assemble_parts, assembled_error, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
 from .dense import solve_branches
 
@@ -90,10 +90,35 @@ def _require_finite(scene: Scene, value: float) -> None:
 # ------------------------------------------------------------------------------------------------ dense
 
 def dense_parts(scene: Scene, blocks: ContactBlocks) -> dict:
-    """Hg1, Hg2, Hg3, Hm and H as CSR (physical dofs), and the sliding factors A, S (n, Ms) (eq:ContactF)."""
+    """Hg1, Hg2, Hg3, Hm and H as CSR (physical dofs), the sliding factors A, S (n, Ms) (eq:ContactF), and the
+    entrywise bound of H's error from rounding K^p + K^q ("curvature_error", CSR, or None where unresolved)."""
     parts = assemble_parts(scene, blocks)
     parts["A"], parts["S"] = sliding_factors(blocks, np.flatnonzero(scene.at_yield()))
+    parts["curvature_error"] = assembled_error(scene, blocks.curvature_error)
     return parts
+
+
+def centre_term(scene: Scene, metric: Metric, C: np.ndarray) -> float:
+    """accuracy.centre_error of the metric's rotations C (n, r): the centroid's defect (rigid.centred) and the largest
+    scaling of a translation by D⁻¹ (1 in the L metrics, √m in the inertia metric)."""
+    if C.shape[-1] == 0 or scene.n_particles == 0:
+        return 0.0
+    _, defect = centred(scene.x, metric.weights, defect=True)
+    d = scene.dim
+    weight = float(np.linalg.norm(np.linalg.inv(metric.blocks[:, :d, :d]), ord=2, axis=(1, 2)).max())
+    return float(centre_error(C, defect, weight))
+
+
+def metric_error(error, metric: Metric, free=None) -> float:
+    """‖|D| E |D|‖₂ bound (accuracy.curvature_error) of an assembled error bound E in the metric's dofs; inf for
+    None (unresolved)."""
+    if error is None:
+        return np.inf
+    D = abs(metric.matrix())
+    E = D @ error @ D
+    if free is not None:
+        E = E[free][:, free]
+    return curvature_error(E.tocsr())
 
 
 def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metric) -> Problem:
@@ -109,17 +134,21 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     if free is None:
         spins = untouched_dofs(H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300),
                                dofs=rotation_dofs(scene.n_particles, scene.dim))
-        C = np.concatenate([metric.rotations(scene), unit_columns(len(H_el), spins)], axis=1)
+        R = metric.rotations(scene)
+        C = np.concatenate([R, unit_columns(len(H_el), spins)], axis=1)
         rigid, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))
     else:                          # held by fixed particles: their dofs dropped, no rigid motion, no projection
         H_el, A, S = H_el[np.ix_(free, free)], A[free], S[free]
         mechanical, Hg = mechanical[free][:, free], Hg[free][:, free]
-        C = rigid = np.zeros((len(free), 0))
+        C = R = rigid = np.zeros((len(free), 0))
     projection = Projection.from_rotations(C)
     scales = part_scales(mechanical, Hg, A, S)
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
-                   formation_error=formation_error(scales, C, projection.Cplus), free=free, free_spins=len(spins))
+                   formation_error=formation_error(scales, projection.C, projection.Cplus,
+                                                   metric_error(parts["curvature_error"], metric, free),
+                                                   centre_term(scene, metric, R)), free=free,
+                   free_spins=len(spins))
 
 
 class DenseMethod:
@@ -226,7 +255,9 @@ class SparseMethod:
         proj = spb.projection
         core = Problem(H_el=spb.H, A=spb.A, S=spb.S, projection=proj, rigid=spb.R, sliding=spb.sliding,
                        n_contacts=scene.n_contacts, tol=scene.tol,
-                       formation_error=formation_error(scales, proj.C, proj.Cplus))
+                       formation_error=formation_error(scales, proj.C, proj.Cplus,
+                                                       metric_error(state.parts.curvature_error, metric),
+                                                       centre_term(scene, metric, metric.rotations(scene))))
         return SparseBranchProblem(sp=spb, core=core)
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,

@@ -54,7 +54,7 @@ from ..mechanics.branches import RIGID, Branch, Problem, search_eigenspaces, tes
 from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
 from ..mechanics.rigid import Projection, rigid_basis, rotations, translations
-from ..mechanics.stiffness import ContactBlocks, contact_blocks, geometric
+from ..mechanics.stiffness import ContactBlocks, assembled_error, contact_blocks, geometric
 from ..model.scene import CONTACT_FIELDS, Scene
 from ..model.vec import rot_dim, rotate_matrix
 
@@ -137,6 +137,7 @@ class SparseParts:
     sliding: np.ndarray
     local: ContactBlocks
     timings: dict
+    curvature_error: sp.csr_matrix | None = None   # stiffness.assembled_error: H's error from rounding K^p + K^q
 
 
 def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
@@ -151,13 +152,17 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     s = np.empty((M, n_loc))
     index = np.empty((M, n_loc), dtype=np.intp)
     undetermined = np.zeros(M, bool)
+    error = np.empty((M, n_loc, n_loc))
     for sl, cb in contact_chunks(scene, chunk):
         b = cb.blocks
         total[sl] = b["Hm"] + geometric(b)
         mech[sl] = b["Hm"]
         a[sl], s[sl], index[sl] = cb.slide_left, cb.slide_right, cb.index
         undetermined[sl] = cb.rolling_undetermined
+        error[sl] = cb.curvature_error
     t1 = time.perf_counter()
+    curvature_error = assembled_error(scene, error)
+    del error
     H = assemble(total, scene.p, scene.q, per, scene.n_dof)
     del total
     Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
@@ -166,7 +171,7 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=scene.n_dof,
                           rolling_undetermined=undetermined)
     A, S = sliding_factors(local, sliding)
-    return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local,
+    return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local, curvature_error=curvature_error,
                        timings={"blocks": t1 - t0, "assembly": time.perf_counter() - t1})
 
 
