@@ -121,6 +121,15 @@ def metric_error(error, metric: Metric, free=None) -> float:
     return curvature_error(E.tocsr())
 
 
+def without_rows(R: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(I − U Uᵀ) R for the unit columns U on `rows` (the free spins): the same span as [R, U] with R orthogonal to
+    U, so that [R, U] stays well conditioned where R's translational part is tiny (a contactless cluster at 1e-78 L,
+    whose every spin is free); columns left exactly zero are dropped."""
+    out = R.copy()
+    out[rows] = 0.0
+    return out[:, np.abs(out).max(axis=0, initial=0.0) > 0]
+
+
 def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metric) -> Problem:
     """Elastic H̃ = D H D, sliding factors D A, D S and the projection in the metric's dofs (metric.py), with the
     bound of the error made in forming sym(𝓗^i) (accuracy.py)."""
@@ -135,7 +144,7 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
         spins = untouched_dofs(H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300),
                                dofs=rotation_dofs(scene.n_particles, scene.dim))
         R = metric.rotations(scene)
-        C = np.concatenate([R, unit_columns(len(H_el), spins)], axis=1)
+        C = np.concatenate([without_rows(R, spins), unit_columns(len(H_el), spins)], axis=1)
         rigid, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))
     else:                          # held by fixed particles: their dofs dropped, no rigid motion, no projection
         H_el, A, S = H_el[np.ix_(free, free)], A[free], S[free]
