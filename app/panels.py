@@ -21,6 +21,22 @@ from .field import field_picture
 from .params import PARAMS
 from .views import MESH_MAX, SceneView
 
+TITLE = "granstab explorer"
+# The page's title, and every input named by its label (viser 1.1's labels point at ids that its inputs lack, so
+# Playwright's get_by_label and screen readers found none): run once by the browser as the HTML element mounts (an
+# image that fails to load runs its onerror), then on every change of the page. docs/viser-gaps.md says why.
+PAGE_FIXES = ('<img alt="" src="data:," style="display:none" onerror="'
+              "document.title='" + TITLE + "';"
+              "if(!window.granstabLabels){window.granstabLabels=1;"
+              "const name=()=>{document.querySelectorAll('label').forEach(l=>{"
+              "const text=l.textContent.trim();let a=l;if(!text)return;"
+              "for(let i=0;i<5&amp;&amp;a;i++){a=a.parentElement;"
+              "const inputs=a?a.querySelectorAll('input:not([type=hidden]),textarea,[role=slider]'):[];"
+              "if(inputs.length){inputs.forEach(x=>{if(!x.hasAttribute('aria-label'))"
+              "x.setAttribute('aria-label',x.getAttribute('role')==='slider'?text+' slider':text)});break}}})};"
+              "name();new MutationObserver(name).observe(document.body,{childList:true,subtree:true})}"
+              '">')
+NEGATIVE, OTHER = "#c0392b", "#2c3e50"      # spectrum markers: consistent negative eigenvalues, the rest
 VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b", None: "#555555"}
 DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
 FRAME = 1 / 20            # s per animation frame
@@ -132,6 +148,7 @@ class ClientUI:
                 self.exports[key] = gui.add_button(label)
                 self.exports[key].on_click(self._download(fn))
         self.legend = gui.add_markdown("")
+        gui.add_html(PAGE_FIXES)
 
         self._build_side()
         gui.main_panel.dock_right()
@@ -232,6 +249,13 @@ class ClientUI:
             timer.start()
         return update
 
+    def _loading(self, name: str) -> None:
+        """While a scene opens: the last error goes, and the page says what is opening (sent at once)."""
+        self.message.content = (f'<div class="granstab-loading" style="color:#555;font-style:italic;padding:2px 8px">'
+                                f"Opening {html.escape(name)} …</div>")
+        self.message.visible = True
+        self.client.flush()
+
     def _show_message(self, text: str | None) -> None:
         self.message.content = (f'<div class="granstab-error" style="color:#b03a2e;font-weight:600;padding:2px 8px">'
                                 f"{html.escape(text)}</div>") if text else ""
@@ -266,6 +290,7 @@ class ClientUI:
         name = self._shown["preset"] = self.preset.value
         if name == self.session.preset:
             return
+        self._loading(name)
         ok = self.session.load_preset(name)
         self.view.key = None
         self.refresh(camera=ok)
@@ -280,6 +305,7 @@ class ClientUI:
         """Open the file sent from the page; one that cannot be opened (over MAX_UPLOAD: refused unread) gets a red
         notice with the reason beside viser's own notice of the transfer (docs/viser-gaps.md: uploads)."""
         up = self.upload.value
+        self._loading(Path(up.name).name)
         ok = self.session.load_upload(up.name, up.content)
         if not ok:
             self.client.add_notification(f"Not opened: {Path(up.name).name}", self.session.error, color="red",
@@ -291,6 +317,7 @@ class ClientUI:
         path = self.path.value.strip()
         if not path or path == self.session.preset:
             return
+        self._loading(path)
         ok = self.session.open_typed(path)
         self.view.key = None
         self.refresh(camera=ok)
@@ -324,8 +351,8 @@ class ClientUI:
         self.refresh()
 
     def _pick_field(self, rho_r: float, f_kr: float) -> None:
-        """A click on the λ⁽⁶⁾ surface sets ρ/r and f/(kr) (rounded to the slider steps)."""
-        if self.session.kind == "two_particle" and self.session.set_params(rho_r=rho_r, f_kr=f_kr):
+        """A click on the λ⁽⁶⁾ surface sets ρ/r and f/(kr), snapped to the slider steps (Session.pick_field)."""
+        if self.session.pick_field(rho_r, f_kr):
             self.refresh()
 
     def _reset_poses(self) -> None:
@@ -466,6 +493,9 @@ class ClientUI:
             for key, h in self.sliders.items():
                 h.visible = key in used
                 if key in used:
+                    p = s.param(key)                     # k follows the scene's scale (params.Param.around)
+                    if (h.min, h.max, h.step) != (p.lo, p.hi, p.step):
+                        h.min, h.max, h.step = p.lo, p.hi, p.step
                     self._show(key, h, s.params[key])
             self.reset.visible = s.resettable
             frames = getattr(s.model, "frames", None)
@@ -515,7 +545,7 @@ class ClientUI:
             title, verdict = f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map"
         if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
-        reason = ("" if verdict in (None, "no contact", "not analysed", "scan map") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
+        reason = "" if verdict in (None, "no contact", "not analysed", "scan map") else s.headline()[1]
         self.headline.content = (
             f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
             f'data-revision="{s.revision}" style="background:'
@@ -536,7 +566,7 @@ class ClientUI:
                 "normals, curvatures, forces), not shapes: the particles cannot be dragged.")
         self.info.content = (f"{note}\n\n" if note else "") + (
             f"{s.kind.replace('_', ' ')} scene" + (f" · {params}." if params else ".")) + drag + (
-            f"\n\n**Import report**\n\n```\n{report}\n```" if report else "")
+            f"\n\n**Import report**\n\n{wrapped(report)}" if report else "")
         if s.kind == "scan_map":
             self.details.content = (f"**Scan map.** {s.model.report}.\n\nColour: the fraction of the clusters "
                                     "containing a particle that are unstable (white 0 → dark red 1; grey: in no "
@@ -552,7 +582,7 @@ class ClientUI:
             rows = [
                 "| | |", "|---|---|",
                 f"| verdict | **{r['verdict']}** ({'sufficient condition met' if r['sufficient'] else 'not proven'}) |",
-                f"| consistent eigenvalues | {neg} negative · {zero} zero · {pos} positive |",
+                f"| consistent modes | {self._mode_counts()} |",
                 f"| Type-1 non-uniqueness | {r['type1']} |",
                 f"| Type-2 non-uniqueness | {'yes' if r['type2'] else 'no'} |",
                 f"| verdict hinges on S tolerance | {'yes' if r['hinges'] else 'no'} |",
@@ -570,6 +600,16 @@ class ClientUI:
                                                              or "none: no resolved negative λ") + " |")
             warn = "".join(f"\n\n**Warning:** {w}" for w in r["warnings"])
             self.details.content = f"**Why:** {r['reason']}\n\n" + "\n".join(rows) + warn
+
+    def _mode_counts(self) -> str:
+        """Consistent modes by sign, each mode once (Session.distinct_modes), and the core's per-branch count where a
+        mode recurs in several branches."""
+        d = self.session.distinct_modes()
+        pos, zero, neg = self.session.report()["counts"]
+        text = f"{d['negative']} negative · {d['zero']} zero · {d['positive']} positive"
+        if (neg, zero, pos) != (d["negative"], d["zero"], d["positive"]):
+            text += f" (over the branches: {neg} · {zero} · {pos}, a mode counted in each branch it appears in)"
+        return text
 
     def _metric_row(self) -> str:
         """The metric-robustness flag of the core (summary["metric_robust"]) once checked, else how to check."""
@@ -734,6 +774,13 @@ class ClientUI:
 
 # ------------------------------------------------------------------------------------------ figures
 
+def wrapped(text: str) -> str:
+    """Preformatted lines that wrap at the panel's edge (a Markdown code block cuts them off), as Markdown's raw
+    HTML."""
+    return (f'<div class="granstab-report" style="white-space:pre-wrap;overflow-wrap:anywhere;font-family:monospace;'
+            f'font-size:0.85em">{html.escape(text)}</div>')
+
+
 def _empty_figure():
     """A blank figure: no axes, no grid (the spectrum plot while it is off)."""
     import plotly.graph_objects as go
@@ -767,17 +814,18 @@ def spectrum_figure(modes, hidden: int = 0):
     def slog(v):
         return np.sign(v) * np.log10(1.0 + np.abs(v) / eps)
 
-    for kind, symbol, pick in (("consistent", "circle", lambda m: m.consistent),
-                               ("not consistent", "circle-open", lambda m: not m.consistent and m.label != "rigid"),
-                               ("rigid", "x-thin-open", lambda m: m.label == "rigid")):
-        sel = [m for m in modes if pick(m)]
+    for kind, symbol, colour, pick in (
+            ("consistent, negative", "circle", NEGATIVE, lambda m: m.consistent and m.eigenvalue < 0),
+            ("consistent, ≥ 0", "circle", OTHER, lambda m: m.consistent and m.eigenvalue >= 0),
+            ("not consistent", "circle-open", OTHER, lambda m: not m.consistent and m.label != "rigid"),
+            ("rigid", "x-thin-open", OTHER, lambda m: m.label == "rigid")):
+        sel = [m for m in modes if pick(m)]          # one colour per trace: its legend entry shows that colour
         if not sel:
             continue
         y = slog(np.array([m.eigenvalue for m in sel]))
-        colors = ["#c0392b" if m.eigenvalue < 0 and m.consistent else "#2c3e50" for m in sel]
         fig.add_trace(go.Scatter(
             x=[f"branch {m.branch}" for m in sel], y=y, mode="markers", name=kind,
-            marker={"symbol": symbol, "size": 11, "color": colors, "line": {"width": 1.5, "color": colors}},
+            marker={"symbol": symbol, "size": 11, "color": colour, "line": {"width": 1.5, "color": colour}},
             text=[f"λ = {m.eigenvalue:.5g}<br>{m.label}<br>{kind}" for m in sel],
             hovertemplate="%{text}<extra></extra>"))
     top = int(np.ceil(float(np.abs(slog(lam)).max()))) if lam.size else 1
