@@ -67,6 +67,7 @@ class ClientUI:
         self._closed = False
         self.released = threading.Event()         # set by the server once a closed tab's memory is handed back
         self._timers: set[threading.Timer] = set()    # typing pauses pending (cancelled on close)
+        self._checking: int | None = None         # the revision whose metric family is being checked
         self._player: threading.Thread | None = None
         self._mode_keys: dict[str, tuple] = {}
         self._spectrum_json = None
@@ -476,8 +477,31 @@ class ClientUI:
         time.sleep(SEND_PAUSE)
 
     def _check_metrics(self) -> None:
-        self.session.check_metrics()
+        """*Check other metrics*: says at once that it runs and about how long, then runs off the lock (a slider
+        stays live); the result is kept only if nothing moved meanwhile (Session.keep_metrics), else the row says
+        the check was superseded."""
+        s = self.session
+        if s.scene is None or s.analysis is None or self._checking == s.revision:
+            return
+        self._checking = s.revision
         self._write_verdict()
+        self.client.flush()
+        threading.Thread(target=self._family, args=(s.scene, s.revision), daemon=True).start()
+
+    def _family(self, scene, revision: int) -> None:
+        from .state import metric_family
+        try:
+            metrics = metric_family(scene)
+        except Exception as exc:  # noqa: BLE001 — shown in the page
+            self.run(self._show_message, f"Check other metrics: {' '.join(str(exc).split())}")
+            metrics = None
+        self.run(self._family_done, metrics, revision)
+
+    def _family_done(self, metrics, revision: int) -> None:
+        if self._checking == revision:
+            self._checking = None
+        if metrics is not None and self.session.keep_metrics(metrics, revision) is not None:
+            self._write_verdict()
 
     def _sync_controls(self) -> None:
         """Slider visibility/values and the preset list follow the session without firing callbacks."""
@@ -612,8 +636,12 @@ class ClientUI:
         return text
 
     def _metric_row(self) -> str:
-        """The metric-robustness flag of the core (summary["metric_robust"]) once checked, else how to check."""
+        """The metric-robustness flag of the core (summary["metric_robust"]) once checked, the check running, else how
+        to check."""
         m = self.session.metrics
+        if self._checking == self.session.revision:
+            return (f"checking L/10, L and 10L{' and inertia' if self.session.scene.mass is not None else ''} … "
+                    f"(about {max(self.session.family_estimate(), 0.1):.1g} s; a slider move supersedes it)")
         if m is None or m["revision"] != self.session.revision:
             return (f"{self.session.metric} only: *Check other metrics* below runs L/10, L, 10L (and inertia with "
                     "masses)")

@@ -370,12 +370,19 @@ class Session:
         Returns {"robust": bool, "metrics": [per-metric verdict and counts], "time": s} (None without a scene)."""
         if self.scene is None or self.analysis is None:
             return None
-        start = time.perf_counter()
-        with blas_threads(1):
-            family = analyze(self.scene, metric="family").verdict
-        self.metrics = {"robust": bool(family.metric_robust), "metrics": [e.to_dict() for e in family.metrics],
-                        "time": time.perf_counter() - start, "revision": self.revision}
+        return self.keep_metrics(metric_family(self.scene), self.revision)
+
+    def keep_metrics(self, metrics: dict, revision: int) -> dict | None:
+        """Keep a family check computed (metric_family, off the lock) for `revision`; one for an older scene or older
+        parameters is dropped (None): the next move superseded it."""
+        if revision != self.revision:
+            return None
+        self.metrics = {**metrics, "revision": revision}
         return self.metrics
+
+    def family_estimate(self) -> float:
+        """Seconds the family check should take here: three analyses in L's time (four with masses)."""
+        return (4 if self.scene is not None and self.scene.mass is not None else 3) * self.elapsed
 
     @property
     def scene_dim(self) -> int:
@@ -525,6 +532,16 @@ class Session:
         if field is None:
             raise ValueError("the λ⁽⁶⁾ contour exists for the two-particle pair only")
         return "lambda6-contour.png", field_png(field, (self.params["rho_r"], self.params["f_kr"]))
+
+
+def metric_family(scene) -> dict:
+    """The verdict of `scene` in every metric of the family (granstab.analyze, metric="family"), on one BLAS thread:
+    {"robust", "metrics", "time"}. Pure: it may run off the session's lock while the page moves on."""
+    start = time.perf_counter()
+    with blas_threads(1):
+        family = analyze(scene, metric="family").verdict
+    return {"robust": bool(family.metric_robust), "metrics": [e.to_dict() for e in family.metrics],
+            "time": time.perf_counter() - start}
 
 
 def opens_as_folder(folder: Path, most: int = 64) -> bool:
