@@ -32,7 +32,7 @@ PAGE_FIXES = ('<img alt="" src="data:," style="display:none" onerror="'
               "const text=l.textContent.trim();let a=l;if(!text)return;"
               "for(let i=0;i<5&amp;&amp;a;i++){a=a.parentElement;"
               "const inputs=a?a.querySelectorAll('input:not([type=hidden]),textarea,[role=slider]'):[];"
-              "if(inputs.length){inputs.forEach(x=>{if(!x.hasAttribute('aria-label'))"
+              "if(inputs.length){inputs.forEach(x=>{if(!x.getAttribute('aria-label'))"
               "x.setAttribute('aria-label',x.getAttribute('role')==='slider'?text+' slider':text)});break}}})};"
               "name();new MutationObserver(name).observe(document.body,{childList:true,subtree:true})}"
               '">')
