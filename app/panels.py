@@ -47,6 +47,7 @@ SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for 
 LINES_MAX = 5_000         # contacts: above this force lines and normals are off until asked for (seconds per frame
                           # in a browser without a GPU: 10⁴ disks 0.38 s, 10⁵ disks 10 s)
 SPECTRUM_ASPECT, BLANK_ASPECT = 1.3, 0.1    # height/width of the spectrum plot, and of the blank strip while it is off
+COVERED_PX = 430 + 400    # the side panels' widths over the canvas (set_width in _build/_build_side)
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
 TWO_LINES = "line-height:1.3em;height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;" \
             "-webkit-box-orient:vertical"                   # a headline line's box: two lines, whatever its text
@@ -774,7 +775,7 @@ class ClientUI:
         bodies = s.bodies()
         x = np.array([b.x for b in bodies])
         reach = 1.2 * np.array([max(b.axes) for b in bodies])[:, None]   # each body by its own size (hand_in_glove's
-        size = s.size                                                     # q is larger than the mean)
+                                                                          # q is larger than the mean)
         lo, hi = (x - reach).min(axis=0), (x + reach).max(axis=0)
         span = float(np.max(hi - lo))
         self.client.camera.near, self.client.camera.far = 1e-3 * span, 1e2 * span   # packings in px or in m
@@ -782,8 +783,7 @@ class ClientUI:
             if s.field() is not None and self.view.options["surface"]:
                 lo[1] = min(lo[1], -4.9 * s.field_scale)
             c = 0.5 * (lo + hi)
-            extent = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * 1.3))
-            distance = 0.8 * extent + 0.5 * size
+            distance = fit_distance(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), self.client.camera)
             if self.camera_view.value == OBLIQUE:        # from the front and above: heights become readable
                 self.client.camera.up_direction = (0.0, 0.0, 1.0)
                 self.client.camera.position = (float(c[0]), float(c[1]) - 0.8 * distance, 0.75 * distance)
@@ -798,6 +798,16 @@ class ClientUI:
             view = np.array([0.55, -0.65, 0.5])
             self.client.camera.position = tuple((c + 1.3 * extent * view / np.linalg.norm(view)).tolist())
             self.client.camera.look_at = tuple(c.tolist())
+
+
+def fit_distance(half_w: float, half_h: float, camera, covered: float = COVERED_PX, fill: float = 0.9) -> float:
+    """How far above a 2D scene of half-sizes (half_w, half_h) the camera must be for the scene to fill at most `fill`
+    of the canvas that the side panels (`covered` px of its width) leave free, for the camera's vertical field of
+    view and the canvas's size in px (an opened cluster was cut at the canvas edge by a fixed distance)."""
+    t = np.tan(0.5 * float(camera.fov))
+    width, height = float(camera.image_width), float(camera.image_height)
+    free = max(width - covered, 0.3 * width)
+    return max(half_h / (fill * t), half_w / (fill * t * free / height))
 
 
 # ------------------------------------------------------------------------------------------ figures

@@ -77,3 +77,33 @@ def test_a_closed_page_cancels_its_typing_pause(app):
         assert len(ui._timers) == 1
         timer = next(iter(ui._timers))
     assert not ui._timers and timer.finished.is_set()
+
+
+CHAIN = "dim = 2\ntitle = \"a chain of 12 disks\"\n[defaults]\nk = 1.0\nalpha = 0.5\nmu = 0.3\n" + "".join(
+    f"[[particles]]\nname = \"d{i}\"\nx = [{2.0 * i}, 0.0]\n" for i in range(12)) + "".join(
+    f"[[contacts]]\np = \"d{i}\"\nq = \"d{i + 1}\"\npoint = [{2.0 * i + 1}, 0.0]\nnormal = [1.0, 0.0]\n"
+    "curvature_p = -1.0\ncurvature_q = -1.0\nforce = [-0.01, 0.0]\n" for i in range(11))
+
+
+def test_an_opened_scene_fits_the_free_canvas(app, tmp_path):
+    """A long chain (24 radii by 2), seen from above: every disk's extreme lies within the part of the canvas that
+    the side panels leave free (they cover COVERED_PX of its width), for the page's field of view and size."""
+    import numpy as np
+
+    from granstab_app.panels import COVERED_PX, TOP
+    (tmp_path / "chain.toml").write_text(CHAIN)
+    with HeadlessPage(app) as page:
+        ui = page.ui
+        ui.path.value = str(tmp_path / "chain.toml")
+        settle(ui, lambda: ui.session.scene.n_particles == 12)
+        ui.camera_view.value = TOP
+        ui.run(ui._set_camera)
+        cam = ui.client.camera
+        x = np.array([b.x for b in ui.session.bodies()])
+        r = np.array([max(b.axes) for b in ui.session.bodies()])
+        eye, at = np.asarray(cam.position), np.asarray(cam.look_at)
+        height = eye[2]
+        t = np.tan(0.5 * cam.fov)
+        half_w = height * t * (cam.image_width - COVERED_PX) / cam.image_height     # free half-width at z = 0
+        assert np.all(np.abs(x[:, 0] - at[0]) + r <= half_w)
+        assert np.all(np.abs(x[:, 1] - at[1]) + r <= height * t)
