@@ -81,9 +81,9 @@ def markdown(r: dict) -> str:
         "30-page class.", "",
         "| | RSS | threads |", "|---|---|---|",
         f"| after the warm-up | {r['warm_mb']:.0f} MB | {r['threads_warm']} |",
+        *(f"| after {n} sessions | {mb:.0f} MB | |" for n, mb in r["marks"].items() if int(n) < r["sessions"]),
         f"| after {r['sessions']} sessions | {r['last_mb']:.0f} MB (largest {r['max_mb']:.0f} MB, "
         f"{r['growth_per_session_mb']:+.2f} MB per session) | {r['threads_after']} |",
-        *(f"| after {n} sessions | {mb:.0f} MB | |" for n, mb in r["marks"].items() if int(n) < r["sessions"]),
         f"| {r['class']} pages open at once | {r['class_during_mb']:.0f} MB | |",
         f"| after they left | {r['class_after_mb']:.0f} MB ({max(kept, 0):.0%} of what the class used still held) | |",
         "", "A closed tab's UI stops its timers and animation thread and is dropped, and the server hands the freed "
