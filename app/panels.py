@@ -292,6 +292,9 @@ class ClientUI:
         name = self._shown["preset"] = self.preset.value
         if name == self.session.preset:
             return
+        if name not in self.session.presets():          # the menu's options only (a forged value is no path)
+            self._show_message(f"{name}: not a preset of this server")
+            return
         self._loading(name)
         ok = self.session.load_preset(name)
         self.view.key = None

@@ -126,7 +126,7 @@ class Session:
         (app/paths.py: off beyond loopback without a data root, else confined to it); a folder that is neither a scan
         nor a snapshot is named as a folder with its scene files, never tried file by file."""
         name = text.strip()
-        if any((self.presets_dir / f"{name}{suffix}").is_file() for suffix in (".toml", ".json")):
+        if name in self.presets():                   # a preset's name (a bare file stem: no way out of the folder)
             return self.load_preset(name)
         try:
             path = typed_path(name, self.data_root, self.typed_paths)

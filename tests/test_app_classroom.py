@@ -53,6 +53,11 @@ def test_the_session_opens_typed_paths_under_the_policy(tree):
     assert not s.open_typed("../secret.toml") and "data root" in s.error
     assert s.scene.n_particles == 4                                     # the scene shown stays
     assert s.open_typed("two_particle") and s.kind == "two_particle"   # a preset name is no path
+    presets = tree.parent / "presets"                                  # a preset name cannot lead out either
+    presets.mkdir()
+    (presets / "two_particle.toml").write_text((REPO / "presets" / "two_particle.toml").read_text())
+    inside = Session(presets_dir=presets, data_root=tree)
+    assert not inside.open_typed("../secret") and inside.kind == "two_particle"
     off = Session(typed_paths=False)
     assert not off.open_typed(str(tree / "pair.toml")) and "--data-root" in off.error
 
