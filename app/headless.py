@@ -16,7 +16,7 @@ import viser
 from websockets.sync.client import connect
 
 CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [0.0, 0.0, 5.0], "fov": 1.0,
-          "near": 0.01, "far": 100.0, "image_height": 800, "image_width": 1200, "look_at": [0.0, 0.0, 0.0],
+          "near": 0.01, "far": 100.0, "image_height": 800, "image_width": 1600, "look_at": [0.0, 0.0, 0.0],
           "up_direction": [0.0, 1.0, 0.0]}
 _LOCK = threading.Lock()
 _OPENED = 0
@@ -33,17 +33,18 @@ class HeadlessPage:
         self._reader = None
 
     def __enter__(self) -> HeadlessPage:
-        with _LOCK:                              # the page is told apart by its camera's width (pages open at once)
+        with _LOCK:                              # the page is told apart by its canvas height (pages open at once)
             global _OPENED
             _OPENED += 1
-            width = 1000 + _OPENED
+            height = 800 + _OPENED % 200
         self._ws = connect(f"ws://127.0.0.1:{self.app.port}", subprotocols=[f"viser-v{viser.__version__}"],
                            max_size=None)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
-        self._ws.send(msgspec.msgpack.encode({**CAMERA, "image_width": width}))
-        self.ui = _wait(lambda: next((u for u in list(self.app.uis.values()) if u.client.camera.image_width == width),
-                                     None), self.timeout, "the page's session")
+        self._ws.send(msgspec.msgpack.encode({**CAMERA, "image_height": height}))
+        self.ui = _wait(lambda: next((u for u in list(self.app.uis.values())
+                                      if u.client.camera.image_height == height), None),
+                        self.timeout, "the page's session")
         return self
 
     def _read(self) -> None:

@@ -18,7 +18,7 @@ from granstab.solve.threads import cap_process
 
 BUSY = 4
 PRESET = Path(__file__).resolve().parent.parent / "presets" / "annulus_frame.json"
-MOVES = {True: 2, False: 4}
+MOVES = {True: 1, False: 4}
 
 
 def _moves(model, n: int) -> list[float]:
@@ -32,13 +32,15 @@ def _moves(model, n: int) -> list[float]:
     return out
 
 
-def _measure(n: int) -> dict:
+def _measure(n: int, quick: bool) -> dict:
     """Moves and the metric family with the explorer's BLAS limit (cap_process(1), as app/server.py sets), then with
-    none (the library's default threads: what the explorer ran before)."""
+    none (the library's default threads: what the explorer ran before; not in a quick run, where it takes minutes
+    beside busy processes)."""
     from granstab_app.models import load_model
     model = load_model(PRESET)
     out = {}
-    for name, cap in (("explorer now (1 BLAS thread)", 1), ("before (library default threads)", None)):
+    ways = (("explorer now (1 BLAS thread)", 1), ("before (library default threads)", None))
+    for name, cap in ways[:1] if quick else ways:
         cap_process(cap)
         try:
             moves = _moves(model, n)
@@ -53,11 +55,11 @@ def _measure(n: int) -> dict:
 
 def run(quick: bool = False) -> dict:
     n = MOVES[quick]
-    rest = _measure(n)
+    rest = _measure(n, quick)
     busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(BUSY)]
     try:
         time.sleep(1.0)
-        loaded = _measure(n)
+        loaded = _measure(n, quick)
         load = os.getloadavg()[0]
     finally:
         for p in busy:

@@ -9,7 +9,8 @@ import time
 
 PRESET = "gear_packing"
 SESSIONS = {True: 20, False: 100}
-WARM = 5
+WARM = 10
+MARKS = (10, 25, 50, 100)     # sessions after which RSS is listed (the shape of any growth)
 CLASS = 10
 
 
@@ -63,6 +64,7 @@ def run(quick: bool = False) -> dict:
         app.stop()
     return {"preset": PRESET, "sessions": len(series), "warm_mb": warm, "last_mb": series[-1], "max_mb": max(series),
             "growth_per_session_mb": (series[-1] - series[0]) / max(len(series) - 1, 1),
+            "marks": {n: series[n - 1] for n in MARKS if n <= len(series)},
             "threads_warm": threads, "threads_after": after_threads,
             "session_median_s": statistics.median(seconds), "class": CLASS, "class_before_mb": before_class,
             "class_during_mb": during, "class_after_mb": after_class}
@@ -79,10 +81,11 @@ def markdown(r: dict) -> str:
         "30-page class.", "",
         "| | RSS | threads |", "|---|---|---|",
         f"| after the warm-up | {r['warm_mb']:.0f} MB | {r['threads_warm']} |",
+        *(f"| after {n} sessions | {mb:.0f} MB | |" for n, mb in r["marks"].items() if int(n) < r["sessions"]),
         f"| after {r['sessions']} sessions | {r['last_mb']:.0f} MB (largest {r['max_mb']:.0f} MB, "
         f"{r['growth_per_session_mb']:+.2f} MB per session) | {r['threads_after']} |",
         f"| {r['class']} pages open at once | {r['class_during_mb']:.0f} MB | |",
-        f"| after they left | {r['class_after_mb']:.0f} MB ({kept:.0%} of what the class used still held) | |",
+        f"| after they left | {r['class_after_mb']:.0f} MB ({max(kept, 0):.0%} of what the class used still held) | |",
         "", "A closed tab's UI stops its timers and animation thread and is dropped, and the server hands the freed "
         "heap back to the system (malloc_trim after each disconnect: glibc keeps it in the arenas of viser's 32 pool "
         "threads, which is where the class's memory stayed). viser's pool threads stay once started (up to 32; its "

@@ -33,7 +33,7 @@ def rss() -> float:
 
 
 def test_sequential_sessions_leave_memory_and_threads_flat(app):
-    for _ in range(5):                                  # warm-up: imports, caches, viser's first pool threads
+    for _ in range(10):                                 # warm-up: imports, caches, viser's first pool threads
         with HeadlessPage(app):
             pass
     warm, threads = rss(), threading.active_count()
