@@ -14,6 +14,7 @@ from io_checks import check_contact_geometry
 import granstab
 from granstab.cli import main
 from granstab.io import load
+from granstab.mechanics.branches import RIGID
 
 ROOT = Path(__file__).parents[1]
 DATASIM = ROOT.parent / "shared" / "data" / "rigidlibrary" / "DataSim"
@@ -308,3 +309,29 @@ def test_lammps_orthogonal_header_gives_the_same_scene(sheared, tmp_path):
     assert a.report["periodic"]["kind"] == "LAMMPS orthogonal box" and a.scene.n_contacts == b.scene.n_contacts
     for key in ("cell", "image", "point", "force", "x"):
         assert np.array_equal(getattr(a.scene, key), getattr(b.scene, key)), key
+
+
+@pytest.mark.dem
+def test_lammps_shear_run_moduli_and_lowest_modes(sheared):
+    """The sheared run's last frame as a periodic medium: its stress is LAMMPS's own contact sum (1/V) Σ f ⊗ b
+    over the dump's rows (independent of the reader), its moduli come with their error estimates, and its lowest
+    modes on the sparse path have the two translations as the only rigid zeros."""
+    files = [sheared / "atoms_shear2d.dump", sheared / "contacts_shear2d.dump", SHEAR]
+    s = load(files, timestep=10000).scene
+    m = granstab.moduli(s)
+    local = dump_rows(files[1], 10000)
+    force = local[:, 2:4] + local[:, 5:7]                     # on id1: normal part + tangential part
+    sigma = np.einsum("ci,cj->ij", force, -local[:, 8:10]) / abs(np.linalg.det(s.cell))   # b = x_2 − x_1
+    # the reader puts the sliding contacts exactly on the cone (|Δf| <= yield_rtol |f|): the stress moves by that
+    assert np.abs(m.stress - sigma).max() <= 1e-3 * np.abs(sigma).max()
+    assert m.pressure > 0 and m.volume == pytest.approx(14.9 ** 2, rel=1e-12)
+    assert m.C.shape == (2, 2, 2, 2) and np.all(np.isfinite(m.C))
+    # error estimates: the non-affine solve to round-off; the others are the snapshot's (a DEM frame under shear is
+    # not static: load residual; frictional contacts with tangential forces: C and σ not symmetric)
+    assert m.bulk > 0 and m.errors["residual"] <= 1e-12 and all(np.isfinite(list(m.errors.values())))
+    assert len(m.branches) == 2 and {b.name for b in m.branches} >= {"elastic"}
+    r = granstab.analyze(s, method="sparse", k=6, metric="L", max_sliding=0, sample_branches=1)
+    elastic = r.branches[0]
+    rigid = np.sum(elastic.codes == RIGID)
+    assert rigid == 2 and max(r.errors.values()) <= 1e-9, r.errors      # the d translations, nothing else
+    assert np.all(np.isfinite(elastic.stability_eigenvalues))
