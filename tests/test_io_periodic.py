@@ -335,3 +335,32 @@ def test_lammps_shear_run_moduli_and_lowest_modes(sheared):
     rigid = np.sum(elastic.codes == RIGID)
     assert rigid == 2 and max(r.errors.values()) <= 1e-9, r.errors      # the d translations, nothing else
     assert np.all(np.isfinite(elastic.stability_eigenvalues))
+
+
+# ------------------------------------------------------------------------------------------------ the whole packing
+
+@pytest.mark.slow
+def test_whole_periodic_packing_on_the_sparse_path():
+    """RigidLibrary's whole frame as a periodic medium, every contact sticking (the all-unloading branch): 2,985
+    dofs, above the dense limit, so `analyze` takes the sparse path. Its lowest eigenvalues are those of
+    sym(D H D) (D = diag(1, 1, 1/L), L the mean contact radius; no rotation to project off in a periodic scene)
+    computed densely here, the two translations are the only rigid zeros, and the count below σ is exact."""
+    from dataclasses import replace
+
+    from granstab.model.scene import mean_contact_radius
+    from granstab.solve.sparse import DENSE_MAX_DOF
+    s = load(DATASIM).scene
+    s = replace(s, state=("elastic",) * s.n_contacts)
+    assert s.n_dof > DENSE_MAX_DOF
+    r = granstab.analyze(s, k=6, metric="L")
+    assert r.backend == "sparse" and r.summary["verdict"] == "stable" and r.summary["sufficient"]
+    b = r.branches[0]
+    assert np.sum(b.codes == RIGID) == 2 and b.negative_count["total"] and b.negative_count["count"] == 0
+    L = mean_contact_radius(s)
+    D = np.tile([1.0, 1.0, 1.0 / L], s.n_particles)
+    H = granstab.stiffness(s).H * D[:, None] * D[None, :]
+    lam = np.linalg.eigvalsh(0.5 * (H + H.T))
+    scale = np.abs(lam).max()
+    assert np.abs(lam[:2]).max() <= 1e-12 * scale and lam[2] > 1e-6 * scale   # two translations, then positive
+    got = b.stability_eigenvalues[b.codes != RIGID]
+    assert np.allclose(got, lam[2:2 + len(got)], rtol=0, atol=1e-10 * scale)
