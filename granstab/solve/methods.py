@@ -229,7 +229,7 @@ class SparseMethod:
         proj = spb.projection
         core = Problem(H_el=spb.H, A=spb.A, S=spb.S, projection=proj, rigid=spb.R, sliding=spb.sliding,
                        n_contacts=scene.n_contacts, tol=scene.tol,
-                       formation_error=formation_error(scales, proj.C, proj.Cplus))
+                       formation_error=formation_error(scales, proj.C, proj.Cplus), free_spins=spb.free_spins)
         return SparseBranchProblem(sp=spb, core=core)
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
