@@ -122,6 +122,10 @@ def test_a_wrong_image_in_the_converted_file_is_one_line(tmp_path, capsys):
     assert main(["analyze", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"{out}: contacts[{c}]") and "image" in err, err
+    # --no-periodic is an import option: a scene file is read as written, and says so in one line
+    assert main(["analyze", str(out), "--no-periodic"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"{out}: periodic: an option of snapshots; a scene file (scene-json) is read as written\n", err
 
 
 # ------------------------------------------------------------------------------------------------ LAMMPS
