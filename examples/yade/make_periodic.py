@@ -9,7 +9,6 @@ vector tilts along x, a Lees–Edwards-like cell) so that contacts slide. A last
 recomputes every contact at the positions written, then examples/yade/export_granstab.py writes OUTDIR/particles.csv
 (with its `# cell:` line) and OUTDIR/contacts.csv, and YADE's own per-body force and torque sums.
 """
-import json
 import os
 import sys
 
@@ -18,7 +17,7 @@ from yade.utils import sphere, unbalancedForce
 from yade.wrapper import (Bo1_Sphere_Aabb, ForceResetter, FrictMat, GlobalStiffnessTimeStepper,
                           Ig2_Sphere_Sphere_ScGeom, InsertionSortCollider, InteractionLoop,
                           Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack, NewtonIntegrator,
-                          PeriTriaxController, Sphere)
+                          PeriTriaxController)
 from yade import Matrix3
 from math import radians
 
@@ -59,7 +58,5 @@ newton.dead = True                                 # one more step: forces at th
 O.run(1, True)
 exec(open(os.path.join(here, "export_granstab.py")).read())
 export_granstab(os.path.join(out, "particles.csv"), os.path.join(out, "contacts.csv"))
-with open(os.path.join(out, "yade_resultants.json"), "w") as fh:   # YADE's own sums, to check the conversion
-    ids = [b.id for b in O.bodies if isinstance(b.shape, Sphere)]
-    json.dump({"id": ids, "force": [list(O.forces.f(i)) for i in ids], "torque": [list(O.forces.t(i)) for i in ids],
-               "iter": O.iter, "hSize": [list(O.cell.hSize.row(i)) for i in range(3)]}, fh)
+export_resultants(os.path.join(out, "yade_resultants.json"),      # YADE's own sums, to check the conversion
+                  hSize=[list(O.cell.hSize.row(i)) for i in range(3)])
