@@ -12,6 +12,7 @@ Three kinds, each with `params_used`, `initial_params()`, `build(params) -> Scen
 """
 from __future__ import annotations
 
+import itertools
 import json
 import tomllib
 from dataclasses import dataclass, field
@@ -288,6 +289,19 @@ def contact_sockets(scene: granstab.Scene) -> dict[int, tuple]:
     return {i: tuple(v) for i, v in out.items()}
 
 
+def cell_edges(scene: granstab.Scene) -> np.ndarray | None:
+    """The periodic cell's outline as segments (E, 2, d): the parallelogram (2D, 4 edges) or parallelepiped (3D, 12)
+    spanned by the lattice vectors, centred on the particles' centroid (a packing whose positions fill one period
+    sits in it); None for a scene without a cell."""
+    if scene.cell is None:
+        return None
+    corners = np.array(list(itertools.product((0, 1), repeat=scene.dim)))
+    pairs = [(i, j) for i in range(len(corners)) for j in range(i + 1, len(corners))
+             if np.abs(corners[i] - corners[j]).sum() == 1]
+    points = scene.x.mean(axis=0) - 0.5 * scene.cell.sum(axis=0) + corners @ scene.cell
+    return np.array([[points[i], points[j]] for i, j in pairs])
+
+
 def model_for_scene(scene: granstab.Scene):
     """The two-particle model if the scene is the symmetric pair, else a contact-level model."""
     return TwoParticleModel.from_scene(scene) or ContactModel(scene)
@@ -332,6 +346,7 @@ __all__ = [
     "ContactModel",
     "ShapeModel",
     "TwoParticleModel",
+    "cell_edges",
     "contact_sockets",
     "load_model",
     "model_for_scene",

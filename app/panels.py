@@ -456,6 +456,7 @@ class ClientUI:
                 with self._quiet():                      # gizmo poses written here are not drags
                     self.view.draw_particles(s, skip=skip)
             legend = self.view.draw_contacts(s)
+            self.view.draw_cell(s)
             field = s.field() if self.view.options["surface"] else None
             current = (s.params.get("rho_r"), s.params.get("f_kr"), s.rolling_eigenvalue())
             if field is None:

@@ -6,6 +6,7 @@ Node tree (names are per client):
   /particles/<name>/body       the animation offset (identity unless a mode is playing)
   /particles/<name>/body/mesh  the shape, in body axes;  …/body/marker  a stripe along body e1 (shows rotation)
   /contacts/…                  points, normals, force arrows, osculating arcs (world axes)
+  /cell                        the outline of a periodic scene's cell
   /field/…                     the λ⁽⁶⁾ height surface of the pair, its axes and the current-state marker
 """
 from __future__ import annotations
@@ -16,6 +17,7 @@ from .modes import rotation_matrix
 
 PALETTE = [(120, 170, 230), (240, 170, 110), (150, 205, 140), (215, 150, 205), (230, 215, 120), (140, 210, 210)]
 MARKER = (40, 40, 60)
+CELL = (90, 90, 90)                     # a periodic scene's cell outline
 COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0, 0), "tensile": (30, 110, 220),
           "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
 Z_UP = np.array([0.0, 0.0, 1.0])
@@ -221,6 +223,7 @@ class SceneView:
         self.options = {"normals": True, "forces": True, "osculating": True, "surface": True, "force_scale": 1.0}
         self.base = {}                            # particle name → Body drawn (pose of its frame)
         self._contact_keys: dict[str, bytes] = {}     # what /contacts shows now: digest per group
+        self._cell_key: object = False            # what /cell shows now (None: nothing; False: not drawn yet)
         self.dim = 2
 
     # particles ---------------------------------------------------------------------------------
@@ -354,6 +357,19 @@ class SceneView:
         """The /contacts frame that the contact drawings hang from (made again after /contacts was removed)."""
         if self.contacts_frame is None:
             self.contacts_frame = self.api.add_frame("/contacts", show_axes=False)
+
+    def draw_cell(self, session) -> None:
+        """The outline of a periodic scene's cell (models.cell_edges), re-sent only when it changes."""
+        from .models import cell_edges
+        scene = session.scene
+        edges = None if scene is None or session.kind == "scan_map" else cell_edges(scene)
+        key = None if edges is None else digest((session.size,), edges)
+        if key == self._cell_key:
+            return
+        self._cell_key = key
+        self.api.remove_by_name("/cell")
+        if edges is not None:
+            self.api.add_line_segments("/cell", to3(edges, 0.0), CELL, thickness=2.0, thickness_units="screen")
 
     # contacts ----------------------------------------------------------------------------------
     def draw_contacts(self, session) -> dict:

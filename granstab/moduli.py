@@ -19,7 +19,7 @@ import scipy.sparse.linalg as spla
 from .mechanics.assembly import sliding_factors
 from .mechanics.branches import enumerate_masks, s_limits, sample_masks
 from .mechanics.cell import cell_parts, mandel_basis, stress, stress_work, to_tensor
-from .mechanics.rigid import translations, untouched_dofs
+from .mechanics.rigid import untouched_dofs
 from .mechanics.stiffness import assemble_parts, contact_blocks
 from .model.scene import Scene, SceneError
 from .model.tolerances import EPS
@@ -129,9 +129,11 @@ PINV_RTOL = 1e-10    # singular values of H below this times the largest: its me
 
 @dataclass(eq=False)
 class _Solver:
-    """X^i = H^i⁺ Ξ^i on the kept dofs. `lu`: the elastic bordered system [[H, T], [Tᵀ, 0]] factorised once (sparse
-    LU), every branch by Woodbury; `lu` None: H has mechanisms beyond the translations (gear-like rolling modes,
-    floppy rattlers), so each branch uses the dense pseudo-inverse and `mechanisms` counts its extra zeros."""
+    """X^i = H^i⁺ Ξ^i on the kept dofs: those some contact touches, less the d translations of one particle that
+    ground the translations (X is then the solution with that particle still; C does not see a translation, since
+    every block annihilates one). `lu`: H factorised once (sparse LU), every branch by Woodbury; `lu` None: H has
+    mechanisms beyond the translations (gear-like rolling, floppy rattlers), so each branch uses the dense
+    pseudo-inverse and `mechanisms` counts its zeros."""
 
     keep: np.ndarray
     H: sp.csr_matrix
@@ -141,10 +143,6 @@ class _Solver:
     d: int
     Y: np.ndarray | None = None
     mechanisms: int = 0
-
-    def bordered(self, R: np.ndarray) -> np.ndarray:
-        pad = np.vstack([R, np.zeros((self.d, R.shape[1]))])
-        return self.lu.solve(pad)[:len(self.keep)]
 
     def response(self, parts, on: np.ndarray) -> np.ndarray:
         """X = H^i⁺ Ξ^i for the branch whose loading contacts are `on` (bool (Ms,))."""
@@ -156,7 +154,7 @@ class _Solver:
             H = self.H.toarray() + Ao @ So.T
             return np.linalg.pinv(H, rcond=PINV_RTOL) @ (parts.Xi[self.keep] + Ao @ parts.S_cell[:, on].T)
         if self.Y is None:                                            # H⁻¹[Ξ, A]: one solve, every branch
-            self.Y = self.bordered(np.hstack([parts.Xi[self.keep], self.A]))
+            self.Y = self.lu.solve(np.hstack([parts.Xi[self.keep], self.A]))
         X = self.Y[:, :m] + self.Y[:, m:][:, on] @ parts.S_cell[:, on].T
         if on.any():
             HA = self.Y[:, m:][:, on]
@@ -169,18 +167,28 @@ def _inf_norm(H) -> float:
     return float(abs(H).sum(axis=1).max()) if H.shape[0] else 0.0
 
 
+def _grounded(scene: Scene, untouched: np.ndarray) -> np.ndarray:
+    """The kept dofs: not untouched, and not the translations of the first particle whose translations are kept."""
+    per = scene.dof_per_particle
+    moving = ~untouched.reshape(scene.n_particles, per)[:, :scene.dim].any(axis=1)
+    keep = ~untouched
+    if moving.any():
+        first_moving = int(np.flatnonzero(moving)[0])
+        keep[first_moving * per:first_moving * per + scene.dim] = False
+    return np.flatnonzero(keep)
+
+
 def _factor(scene: Scene, H, untouched: np.ndarray, A, S) -> _Solver:
-    """The solver on the dofs some contact touches: sparse LU of the bordered system, or the dense fallback."""
-    keep = np.flatnonzero(~untouched)
-    T = translations(scene)[keep]
+    """The solver on the kept dofs (`_grounded`): sparse LU (minimum-degree order of Hᵀ + H), or the dense
+    fallback where H is singular there (mechanisms)."""
+    keep = _grounded(scene, untouched)
     Hk = H[keep][:, keep].tocsr()
     A, S = A[keep], S[keep]
     if not len(keep):
         return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim)
-    bordered = sp.bmat([[Hk, sp.csr_matrix(T)], [sp.csr_matrix(T.T), None]], format="csc")
     scale = max(_inf_norm(Hk), 1e-300)
     try:
-        lu = spla.splu(bordered)
+        lu = spla.splu(Hk.tocsc(), permc_spec="MMD_AT_PLUS_A")
         singular = float(np.abs(lu.U.diagonal()).min()) < PIVOT_RTOL * scale
     except RuntimeError:                                             # exactly singular
         lu, singular = None, True
@@ -191,8 +199,7 @@ def _factor(scene: Scene, H, untouched: np.ndarray, A, S) -> _Solver:
                          f"and the untouched dofs (mechanisms or floppy rattlers) and {len(keep)} dofs are too many "
                          f"for the dense pseudo-inverse (at most {DENSE_MAX}): remove rattlers")
     sv = np.linalg.svd(Hk.toarray(), compute_uv=False)
-    extra = int(np.sum(sv <= PINV_RTOL * sv.max())) - scene.dim
-    return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim, mechanisms=max(extra, 0))
+    return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim, mechanisms=int(np.sum(sv <= PINV_RTOL * sv.max())))
 
 
 def _branch(name, mask, on, solver, parts, volume, Q) -> CellBranch:
@@ -339,15 +346,14 @@ SYMMETRIC_RTOL = 1e-12   # an extended matrix this close to symmetric is a conse
 
 
 def _held(solver) -> dict:
-    """The particles at fixed cell, elastic branch, conservative view: the eigenvalues of sym(H) on the dofs some
-    contact touches, the d translations (exact zeros) set aside; dense, so only up to DENSE_MAX dofs. `granstab
+    """The particles at fixed cell, elastic branch, conservative view: the eigenvalues of sym(H) on the kept dofs
+    (the translations grounded: positive there iff positive off the translations); dense, up to DENSE_MAX dofs. `granstab
     analyze` gives the full answer (every branch, consistency, error bounds)."""
     if len(solver.keep) > DENSE_MAX:
         return {"verdict": "not computed", "note": f"more than {DENSE_MAX} dofs: run granstab analyze"}
     H = solver.H.toarray()
-    lam = np.linalg.eigvalsh(0.5 * (H + H.T))
-    tol = 1e3 * EPS * max(float(np.abs(lam).max(initial=0.0)), 1e-300) * max(len(lam), 1)
-    rest = np.delete(lam, np.argsort(np.abs(lam))[:solver.d])
+    rest = np.linalg.eigvalsh(0.5 * (H + H.T))                        # translations grounded (`_grounded`)
+    tol = 1e3 * EPS * max(float(np.abs(rest).max(initial=0.0)), 1e-300) * max(len(rest), 1)
     if not rest.size:
         return {"verdict": "stable", "min_eigenvalue": None, "tolerance": tol,
                 "note": "nothing but the translations moves at fixed cell"}

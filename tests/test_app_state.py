@@ -495,3 +495,38 @@ def test_a_concave_side_is_drawn_as_a_socket():
     near = ring[np.linalg.norm(ring - point, axis=1) < 0.5 * r]
     assert len(near) >= 10 and near[:, 1].min() < -0.3 * r and near[:, 1].max() > 0.3 * r
     assert np.abs(np.linalg.norm(near - [-0.002, 0.0], axis=1) - 1.002).max() < 1e-12 * r
+
+
+def test_a_periodic_packing_is_drawn_with_its_cell_outline(tmp_path):
+    """A periodic scene (a converted LAMMPS lattice in a sheared box) has a cell outline: 4 edges along ±a_1, ±a_2,
+    every particle inside it; the view draws it once as /cell, again only when it changes, and removes it for a
+    scene without a cell."""
+    from test_io_periodic import lattice_dumps
+
+    from granstab.io import load
+    from granstab_app.models import cell_edges
+    from granstab_app.views import SceneView
+    paths, _, cell = lattice_dumps(tmp_path, gamma=0.1)
+    scene = load(paths, columns="id1,id2,fx,fy,fz").scene
+    edges = cell_edges(scene)
+    assert edges.shape == (4, 2, 2)
+    sides = np.sort(np.abs(edges[:, 1] - edges[:, 0]).round(12), axis=0)
+    assert np.allclose(sides, np.sort(np.abs(np.r_[cell, cell]).round(12), axis=0), rtol=0, atol=1e-12)
+    frac = (scene.x - edges[0, 0]) @ np.linalg.inv(scene.cell)     # edges[0, 0]: the corner at fractional (0, 0)
+    assert np.all((frac > 0) & (frac < 1))                   # the lattice fills one period: inside the outline
+    assert cell_edges(granstab_scene_without_cell()) is None
+    calls = []
+    api = SimpleNamespace(remove_by_name=lambda name: calls.append(("remove", name)),
+                          add_line_segments=lambda name, points, *a, **k: calls.append(("add", name, points.shape)))
+    view = SceneView(api)
+    session = SimpleNamespace(scene=scene, kind="contacts", size=1.0)
+    view.draw_cell(session)
+    view.draw_cell(session)                                  # unchanged: not re-sent
+    assert calls == [("remove", "/cell"), ("add", "/cell", (4, 2, 3))]
+    view.draw_cell(SimpleNamespace(scene=granstab_scene_without_cell(), kind="contacts", size=1.0))
+    assert calls[-1] == ("remove", "/cell")
+
+
+def granstab_scene_without_cell():
+    import granstab
+    return granstab.load_scene(REPO / "presets" / "two_particle.toml")

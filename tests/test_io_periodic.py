@@ -14,6 +14,7 @@ from io_checks import check_contact_geometry
 import granstab
 from granstab.cli import main
 from granstab.io import load
+from granstab.mechanics.branches import RIGID
 
 ROOT = Path(__file__).parents[1]
 DATASIM = ROOT.parent / "shared" / "data" / "rigidlibrary" / "DataSim"
@@ -121,6 +122,10 @@ def test_a_wrong_image_in_the_converted_file_is_one_line(tmp_path, capsys):
     assert main(["analyze", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"{out}: contacts[{c}]") and "image" in err, err
+    # --no-periodic is an import option: a scene file is read as written, and says so in one line
+    assert main(["analyze", str(out), "--no-periodic"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"{out}: periodic: an option of snapshots; a scene file (scene-json) is read as written\n", err
 
 
 # ------------------------------------------------------------------------------------------------ LAMMPS
@@ -308,3 +313,58 @@ def test_lammps_orthogonal_header_gives_the_same_scene(sheared, tmp_path):
     assert a.report["periodic"]["kind"] == "LAMMPS orthogonal box" and a.scene.n_contacts == b.scene.n_contacts
     for key in ("cell", "image", "point", "force", "x"):
         assert np.array_equal(getattr(a.scene, key), getattr(b.scene, key)), key
+
+
+@pytest.mark.dem
+def test_lammps_shear_run_moduli_and_lowest_modes(sheared):
+    """The sheared run's last frame as a periodic medium: its stress is LAMMPS's own contact sum (1/V) Σ f ⊗ b
+    over the dump's rows (independent of the reader), its moduli come with their error estimates, and its lowest
+    modes on the sparse path have the two translations as the only rigid zeros."""
+    files = [sheared / "atoms_shear2d.dump", sheared / "contacts_shear2d.dump", SHEAR]
+    s = load(files, timestep=10000).scene
+    m = granstab.moduli(s)
+    local = dump_rows(files[1], 10000)
+    force = local[:, 2:4] + local[:, 5:7]                     # on id1: normal part + tangential part
+    sigma = np.einsum("ci,cj->ij", force, -local[:, 8:10]) / abs(np.linalg.det(s.cell))   # b = x_2 − x_1
+    # the reader puts the sliding contacts exactly on the cone (|Δf| <= yield_rtol |f|): the stress moves by that
+    assert np.abs(m.stress - sigma).max() <= 1e-3 * np.abs(sigma).max()
+    assert m.pressure > 0 and m.volume == pytest.approx(14.9 ** 2, rel=1e-12)
+    assert m.C.shape == (2, 2, 2, 2) and np.all(np.isfinite(m.C))
+    # error estimates: the non-affine solve to round-off; the others are the snapshot's (a DEM frame under shear is
+    # not static: load residual; frictional contacts with tangential forces: C and σ not symmetric)
+    assert m.bulk > 0 and m.errors["residual"] <= 1e-12 and all(np.isfinite(list(m.errors.values())))
+    assert len(m.branches) == 2 and {b.name for b in m.branches} >= {"elastic"}
+    r = granstab.analyze(s, method="sparse", k=6, metric="L", max_sliding=0, sample_branches=1)
+    elastic = r.branches[0]
+    rigid = np.sum(elastic.codes == RIGID)
+    assert rigid == 2 and max(r.errors.values()) <= 1e-9, r.errors      # the d translations, nothing else
+    assert np.all(np.isfinite(elastic.stability_eigenvalues))
+
+
+# ------------------------------------------------------------------------------------------------ the whole packing
+
+@pytest.mark.slow
+def test_whole_periodic_packing_on_the_sparse_path():
+    """RigidLibrary's whole frame as a periodic medium, every contact sticking (the all-unloading branch): 2,985
+    dofs, above the dense limit, so `analyze` takes the sparse path. Its lowest eigenvalues are those of
+    sym(D H D) (D = diag(1, 1, 1/L), L the mean contact radius; no rotation to project off in a periodic scene)
+    computed densely here, the two translations are the only rigid zeros, and the count below σ is exact."""
+    from dataclasses import replace
+
+    from granstab.model.scene import mean_contact_radius
+    from granstab.solve.sparse import DENSE_MAX_DOF
+    s = load(DATASIM).scene
+    s = replace(s, state=("elastic",) * s.n_contacts)
+    assert s.n_dof > DENSE_MAX_DOF
+    r = granstab.analyze(s, k=6, metric="L")
+    assert r.backend == "sparse" and r.summary["verdict"] == "stable" and r.summary["sufficient"]
+    b = r.branches[0]
+    assert np.sum(b.codes == RIGID) == 2 and b.negative_count["total"] and b.negative_count["count"] == 0
+    L = mean_contact_radius(s)
+    D = np.tile([1.0, 1.0, 1.0 / L], s.n_particles)
+    H = granstab.stiffness(s).H * D[:, None] * D[None, :]
+    lam = np.linalg.eigvalsh(0.5 * (H + H.T))
+    scale = np.abs(lam).max()
+    assert np.abs(lam[:2]).max() <= 1e-12 * scale and lam[2] > 1e-6 * scale   # two translations, then positive
+    got = b.stability_eigenvalues[b.codes != RIGID]
+    assert np.allclose(got, lam[2:2 + len(got)], rtol=0, atol=1e-10 * scale)

@@ -17,8 +17,9 @@ from exact_geometry import cluster_from_scene, loads, press
 from scipy.spatial.transform import Rotation
 
 import granstab
+from granstab.mechanics.branches import RIGID
 from granstab.mechanics.cell import cell_parts, mandel_basis, stress, stress_work, to_mandel, to_tensor
-from granstab.mechanics.stiffness import contact_blocks
+from granstab.mechanics.stiffness import assemble_parts, contact_blocks
 from granstab.model import packings
 from granstab.model import shapes as S
 from granstab.model.periodic import tile
@@ -199,15 +200,14 @@ def test_stress_is_tension_positive_and_the_energy_derivative(dim):
 def test_tiling_gives_the_same_moduli_and_contains_the_spectrum(dim, phi, shear):
     """Moduli are intensive: the packing tiled 2×2 (2×2×2) has the same C and σ to round-off, and the spectrum of
     its sym(H) contains the original's (every mode of the cell is a periodic mode of the supercell)."""
-    scene = jammed(dim, phi, shear)
+    scene = jammed(dim, phi, shear) if dim == 2 else packings.jammed(3, 16, phi, seed=1)   # 3D: 128 tiled
     big = tile(scene, 2)
     assert big.n_particles == 2 ** dim * scene.n_particles and big.n_contacts == 2 ** dim * scene.n_contacts
     small, large = moduli(scene), moduli(big)
     scale = np.abs(small.mandel).max()
     assert np.abs(small.mandel - large.mandel).max() < MODULI_RTOL * scale
     assert np.abs(small.stress - large.stress).max() < 1e-12 * np.abs(small.stress).max()
-    lam = np.linalg.eigvalsh(_sym(granstab.stiffness(scene).H))
-    lam_big = np.linalg.eigvalsh(_sym(granstab.stiffness(big).H))
+    lam, lam_big = (np.linalg.eigvalsh(_sym(assemble_parts(s, contact_blocks(s))["H"].toarray())) for s in (scene, big))
     gap = np.abs(lam[:, None] - lam_big[None]).min(axis=1)
     assert gap.max() < 1e-10 * np.abs(lam).max()
     assert not np.allclose(lam_big[:len(lam)], lam)                    # the supercell has modes of its own
@@ -233,6 +233,11 @@ def test_zero_modes_are_translations_and_free_spins(dim):
     result = granstab.analyze(scene, metric="L")
     assert result.summary["verdict"] == "stable", result.summary["reason"]
     assert result.summary["free_spins"] == r * scene.n_particles
+    sparse = granstab.analyze(scene, metric="L", method="sparse", k=6)     # the same spins set aside there
+    assert sparse.summary["verdict"] == "stable" and sparse.summary["free_spins"] == r * scene.n_particles
+    dense_low = np.sort(result.branches[0].stability_eigenvalues[result.branches[0].codes != RIGID])[:4]
+    sparse_low = np.sort(sparse.branches[0].stability_eigenvalues)[dim:dim + 4]      # after the d translations
+    assert np.abs(dense_low - sparse_low).max() < 1e-10 * dense_low.max()
 
 
 def test_rattler_is_reported_not_failed():
@@ -373,3 +378,15 @@ def test_cli_moduli_table_json_and_errors(tmp_path, capsys):
     assert "moduli need a periodic scene" in capsys.readouterr().err
     assert main(["moduli", str(path), "--strain", "1,2,3"]) == 2
     assert capsys.readouterr().err.strip() == "--strain: 4 numbers expected (a 2x2 tensor row by row), got 3"
+
+
+def test_many_sliding_contacts_are_sampled_and_said_so():
+    """Beyond max_sliding the branches are a stated sample: the range of the directional moduli over them, a note
+    that it is not a bound, and no proof of stability at fixed stress."""
+    scene = frictional(2)
+    result = moduli(scene, strain=[[1.0, 0.0], [0.0, -1.0]], max_sliding=1, sample_branches=8)
+    direction = result.direction
+    assert not direction["enumerated"] and not direction["unique"]
+    assert "a sample, not a bound" in direction["note"] and direction["range"][0] <= direction["range"][1]
+    assert {b.name for b in result.branches} == {"elastic", "all loading"}
+    assert not result.verdicts["fixed_stress"]["sufficient"] or result.verdicts["fixed_stress"]["verdict"] == "unstable"

@@ -51,3 +51,17 @@ def export_granstab(particles_path="particles.csv", contacts_path="contacts.csv"
             mu = getattr(i.phys, "tangensOfFrictionAngle", 0.0)
             out.write(f"{a},{other},{f1[0]!r},{f1[1]!r},{f1[2]!r},{normal[0]!r},{normal[1]!r},{normal[2]!r},"
                       f"{i.phys.kn!r},{i.phys.ks!r},{mu!r}\n")
+
+
+def export_resultants(path="yade_resultants.json", **extra):
+    """YADE's own per-sphere force and torque sums (O.forces) and the iteration, plus `extra`, as JSON: what the
+    tests check the conversion against."""
+    import json
+
+    from yade import O
+    from yade.wrapper import Sphere
+
+    ids = [b.id for b in O.bodies if b is not None and isinstance(b.shape, Sphere)]
+    with open(path, "w") as fh:
+        json.dump({"id": ids, "force": [list(O.forces.f(i)) for i in ids], "torque": [list(O.forces.t(i)) for i in ids],
+                   "iter": O.iter, **extra}, fh)

@@ -245,6 +245,8 @@ def jammed(dim: int = 2, n: int = 32, phi: float | None = None, *, k: float = 1.
         keep = count >= dim + 1
         if keep.all():
             break
+        if keep.sum() <= dim:
+            raise ValueError(f"jammed: no rigid backbone at phi = {phi} with {n} particles (raise phi or n)")
         x, radius = _relax(x[keep], radius[keep], cell, k), radius[keep]
     x = x - np.floor(x @ np.linalg.inv(cell)) @ cell                  # inside the cell
     return _harmonic_scene(dim, x, radius, cell, k, tol)

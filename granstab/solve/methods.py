@@ -160,6 +160,9 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
                    free_spins=len(spins))
 
 
+RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
+
+
 class DenseMethod:
     """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. From lowrank.MIN_BRANCHES
     branches on, or when `device` resolves to a GPU (device.py), the branches are solved as low-rank updates of
@@ -266,7 +269,8 @@ class SparseMethod:
                        n_contacts=scene.n_contacts, tol=scene.tol,
                        formation_error=formation_error(scales, proj.C, proj.Cplus,
                                                        metric_error(state.parts.curvature_error, metric),
-                                                       centre_term(scene, metric, metric.rotations(scene))))
+                                                       centre_term(scene, metric, metric.rotations(scene))),
+                       free_spins=spb.free_spins)
         return SparseBranchProblem(sp=spb, core=core)
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
@@ -309,13 +313,17 @@ class SparseMethod:
 
     def _modes(self, spb, masks, kk: int):
         """Modes of every branch: several branches as low-rank updates of one elastic solve (ritz.SparseRitz,
-        verified per branch, shift-invert ARPACK where that fails), a single one by shift-invert directly."""
+        verified per branch, shift-invert ARPACK where that fails), a single one, or branches whose Ritz problem
+        would not fit RITZ_BYTES (many sliding contacts: its basis grows by 4 columns and its updates by one
+        width² matrix a contact), by shift-invert directly, one after the other."""
         from .sparse import lowest_modes
-        if len(masks) > 1:
+        Ms = spb.A.shape[1]
+        if len(masks) > 1 and 8 * Ms * (kk + 8 + 4 * Ms) ** 2 <= RITZ_BYTES:
             from .ritz import SparseRitz
             yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)
             return
-        yield lowest_modes(spb, kk, masks[0], tol=self.tol)
+        for mask in masks:
+            yield lowest_modes(spb, kk, mask, tol=self.tol)
 
     def errors(self, state: State, problem: SparseBranchProblem, branches) -> dict:
         from .sparse import identity_errors as sparse_identities

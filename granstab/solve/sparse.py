@@ -53,7 +53,14 @@ from ..mechanics.assembly import assemble, sliding_factors, stack_blocks
 from ..mechanics.branches import RIGID, Branch, Problem, search_eigenspaces, test_codes
 from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
-from ..mechanics.rigid import Projection, rigid_basis, rotations, translations
+from ..mechanics.rigid import (
+    Projection,
+    rigid_basis,
+    rotation_dofs,
+    rotations,
+    translations,
+    untouched_dofs,
+)
 from ..mechanics.stiffness import ContactBlocks, assembled_error, contact_blocks, geometric
 from ..model.scene import CONTACT_FIELDS, Scene
 from ..model.vec import rot_dim, rotate_matrix
@@ -111,6 +118,7 @@ class SparseProblem:
     norm: float
     local: ContactBlocks
     timings: dict = field(default_factory=dict)
+    free_spins: int = 0       # rotation dofs no contact feels (rigid.untouched_dofs): Hs has 2·norm there, far above
 
     @property
     def n(self) -> int:
@@ -196,9 +204,15 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     norm = float(abs(Hs).sum(axis=1).max()) if Hs.nnz else 1.0
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
+    spins = (untouched_dofs(H, A, S, scale=norm, dofs=rotation_dofs(scene.n_particles, scene.dim))
+             if scene.fixed is None else np.zeros(0, dtype=np.intp))
+    if spins.size:              # free spins (frictionless round particles): exactly decoupled, moved to the top
+        Hs = (Hs + sp.csr_matrix((np.full(spins.size, 2.0 * norm), (spins, spins)), shape=Hs.shape)).tocsr()
+        norm *= 2.0
     return SparseProblem(scene=scene, length=metric.rotation_length, scale=metric.diagonal, metric=metric, H=H,
                          Hs=Hs, Hm=Hm, A=A, S=S, sliding=parts.sliding, C=C, Q=Q, R=R, norm=max(norm, 1e-300),
-                         local=parts.local, timings={**parts.timings, "projection": time.perf_counter() - t1})
+                         local=parts.local, timings={**parts.timings, "projection": time.perf_counter() - t1},
+                         free_spins=int(spins.size))
 
 
 
