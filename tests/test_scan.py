@@ -188,8 +188,8 @@ def test_every_path_makes_rows_of_the_schema_derived_from_the_row_record(tmp_pat
         write_table(table, tmp_path / f"rows.{fmt}", fmt)
         back = read_arrow(tmp_path / f"rows.{fmt}", fmt, Row)
         assert [f.type for f in back.schema] == [f.type for f in kinds], fmt
-        same = [a == b or a != a and b != b for x, y in zip(back.to_pylist(), table.to_pylist())
-                for a, b in zip(x.values(), y.values())]
+        same = [a == b or a != a and b != b or (isinstance(a, list) and np.array_equal(a, b, equal_nan=True))
+                for x, y in zip(back.to_pylist(), table.to_pylist()) for a, b in zip(x.values(), y.values())]
         assert all(same), fmt
 
 

@@ -164,9 +164,9 @@ def read_arrow(path: Path, fmt: str, record):
     table = pcsv.read_csv(path, convert_options=pcsv.ConvertOptions(
         column_types=types, null_values=[""], strings_can_be_null=False))
     for i, field in enumerate(table.schema):
-        if pa.types.is_list(kinds.field(field.name).type):
-            table = table.set_column(i, field.name, pc.split_pattern(table.column(i), ";").cast(
-                kinds.field(field.name).type))
+        if pa.types.is_list(kinds.field(field.name).type):               # '' is a null list (work_parts)
+            text = pc.if_else(pc.equal(table.column(i), ""), pa.scalar(None, pa.string()), table.column(i))
+            table = table.set_column(i, field.name, pc.split_pattern(text, ";").cast(kinds.field(field.name).type))
     return table
 
 
