@@ -310,7 +310,7 @@ class Session:
             return None
         start = time.perf_counter()
         with blas_threads(1):
-            family = analyze(self.scene, metric="family").verdict
+            family = analyze(self.scene, metric="family", attribution=False).verdict
         self.metrics = {"robust": bool(family.metric_robust), "metrics": [e.to_dict() for e in family.metrics],
                         "time": time.perf_counter() - start, "revision": self.revision}
         return self.metrics
@@ -338,6 +338,7 @@ class Session:
             "n_sliding": int(np.sum(self.scene.at_yield())), "worst_error": worst, "errors": a.errors,
             "analysis_time": a.timings.get("total", 0.0), "elapsed": self.elapsed, "warnings": a.warnings,
             "error": self.error, "notice": self.notice, "metric": self.metric, "dynamics": self.dynamics(),
+            "attribution": None if a.attribution is None else a.attribution.line(),
         }
 
     def type1(self) -> str:

@@ -20,6 +20,7 @@ from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.metric import CHOICES as METRIC_CHOICES
 from .mechanics.stiffness import MaskError, stiffness
 from .model.scene import SceneError
+from .scan.clusters import DEFAULT_BOUNDARY
 from .solve.budget import (
     DENSE_ADVICE,
     SPARSE_ADVICE,
@@ -154,6 +155,8 @@ def format_table(result, show_all: bool = False) -> str:
         lines.append(f"metric family ({'robust' if sm['metric_robust'] else 'NOT robust'}): " + "; ".join(
             f"{e['metric']}: {e['verdict']} {e['consistent_positive']}+/{e['consistent_negative']}-"
             for e in sm["metrics"]))
+    if result.attribution is not None:
+        lines.append(result.attribution.line())
     if not sm["sufficient"]:
         lines.append("not sufficient because: " + ", ".join(sm["insufficient_because"]))
     lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in d["errors"].items()))
@@ -299,20 +302,24 @@ def cmd_scan(args) -> int:
         summary = scan(loaded.scene, args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
-                       device=args.device)
+                       device=args.device, attribution=not args.no_attribution)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     print(json.dumps({**summary, "import": loaded.report}, allow_nan=False) if args.json else "\n".join(
         [f"{summary['clusters']} clusters in {summary['seconds']:.1f} s: "
-         + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}",
+         + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items())
+         + ("; unstable by mechanism: " + ", ".join(f"{m} {c}" for m, c in summary["mechanisms"].items() if c)
+            if any(summary["mechanisms"].values()) else "") + f"; wrote {args.out}",
          *import_lines(loaded)]))
     return 0
 
 
 def boundary_argument(p) -> None:
-    p.add_argument("--boundary", choices=["loads", "fixed"], default="loads",
+    p.add_argument("--boundary", default=DEFAULT_BOUNDARY, metavar="loads|fixed|embedded[:R]",
                    help="loads: the cut contacts' forces act as dead loads (the isolated cluster, Sec. 5); fixed: the "
-                        "next ring of particles is held fixed (no rigid modes)")
+                        "next ring of particles is held fixed (no rigid modes); embedded:R: the next R rings (default "
+                        f"2) free and elastic, the ring beyond held, the verdict on the cluster's own modes (default "
+                        f"{DEFAULT_BOUNDARY}, docs/attribution.md)")
 
 
 def add_scan(sub) -> None:
@@ -337,6 +344,8 @@ def add_scan(sub) -> None:
     p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (tcp://HOST:8786)")
     p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: all cores; 1: serial)")
     p.add_argument("--format", choices=["parquet", "csv"], default="parquet")
+    p.add_argument("--no-attribution", action="store_true",
+                   help="skip each unstable cluster's mechanism and its two control solves (docs/attribution.md)")
     p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")

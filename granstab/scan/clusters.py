@@ -117,6 +117,7 @@ def boundary_ring(scene: Scene, center: int, rings: int, graph: sp.csr_matrix | 
 
 
 BOUNDARIES = ("loads", "fixed", "embedded")
+DEFAULT_BOUNDARY = "loads"     # the scan's default (README, docs/attribution.md: why)
 
 
 def boundary_rings(boundary: str) -> tuple[str, int]:

@@ -23,6 +23,7 @@ from ..solve.device import backend
 from ..solve.threads import blas_threads
 from .batch import EMBEDDED_INSIDE, batchable, rim_flags, solve_chunk
 from .clusters import (
+    DEFAULT_BOUNDARY,
     adjacency,
     boundary_rings,
     cluster,
@@ -156,7 +157,7 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
     (verdicts.verdict_columns); seconds: the chunk's time shared equally. index: the packing's index of each
     particle of `scene`."""
     start = time.perf_counter()
-    got = solve_chunk(scene, centers, member_lists, {**options, "attribute": True})
+    got = solve_chunk(scene, centers, member_lists, {**options, "attribute": options.get("attribution", True)})
     if got is None or not len(got["position"]):
         return None
     position = got["position"]
@@ -227,7 +228,8 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
         done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
         rest = np.setdiff1d(np.arange(len(centers)), done)
         rows = [cluster_row(scene, centers[i], member_lists[i], options, graph, index) for i in rest]
-        batched, rows = _with_mechanisms(scene, centers, member_lists, options, batched, done, rows, rest)
+        if options.get("attribution", True):
+            batched, rows = _with_mechanisms(scene, centers, member_lists, options, batched, done, rows, rest)
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
     return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
 
@@ -252,10 +254,10 @@ def select_centers(scene: Scene, centers) -> np.ndarray:
 
 
 def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = "L", max_sliding: int = 8,
-         boundary: str = "loads",
+         boundary: str = DEFAULT_BOUNDARY,
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
-         device: str = "cpu") -> dict:
+         device: str = "cpu", attribution: bool = True) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -266,9 +268,10 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         The packing (N particles).
     out_dir : str or Path
         Output folder; centres already in it (an interrupted scan with the same options) are skipped.
-    rings, boundary : int, {"loads", "fixed"}
-        The cluster of a centre: `rings` contact hops; cut contacts as dead loads or the next ring held fixed
-        (`extract`).
+    rings, boundary : int, {"loads", "fixed", "embedded[:R]"}
+        The cluster of a centre: `rings` contact hops; cut contacts as dead loads, the next ring held fixed, or the
+        next R rings free and elastic with the ring beyond held and the verdict on the cluster's own modes
+        (`extract`, clusters.embedded; default DEFAULT_BOUNDARY, docs/attribution.md).
     centers : "all", "every:K", or names
         Which particles are centres.
     metric, max_sliding, sample_branches : str, int, int
@@ -279,6 +282,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         the stacked eigenproblems run (granstab.solve.device).
     progress, fmt, figures : bool, {"parquet", "csv"}, bool
         A bar with the time left; the table format; whether to draw map.png/.svg and lambda_min.png/.svg.
+    attribution : bool
+        Every unstable cluster's attribution (mechanism, work_parts, rim_share and the two controls, batched:
+        mechanics/attribution.py); False leaves those columns empty (the overhead: BENCHMARKS.md).
 
     Returns
     -------
@@ -290,7 +296,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         raise SceneError(f"rings must be >= 1, got {rings}")
     boundary_rings(boundary)                                        # a bad value: one line
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
-               "boundary": boundary}
+               "boundary": boundary, "attribution": bool(attribution)}
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, scene)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
