@@ -54,7 +54,7 @@ def study(scene, out: Path, boundaries) -> dict:
         results[label] = {"verdict": verdict, "mechanism": Counter(rows["mechanism"]),
                           "seconds": time.perf_counter() - start}
     whole = results["whole"]["verdict"]
-    for label, r in results.items():
+    for r in results.values():
         v = r["verdict"]
         r["unstable"] = sum(x == "unstable" for x in v.values())
         r["agree"] = sum(v[c] == whole[c] for c in whole)

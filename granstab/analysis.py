@@ -239,9 +239,10 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
 
 
 def focus(analysis: Analysis, inside, share: float) -> Analysis:
-    """The analysis with the verdict taken on the modes of the particles `inside` (indices) only: an eigenpair with
-    less than `share` of its squared metric norm there is not theirs and is left out like a rigid one (--boundary
-    embedded: the cluster inside its surroundings)."""
+    """The analysis with the verdict taken on the modes of the particles `inside` (indices) only: a negative or zero
+    eigenpair (λ <= its bound) with less than `share` of its squared metric norm there is not theirs and is left out
+    like a rigid one; positive ones change no verdict and all count (--boundary embedded: the cluster inside its
+    surroundings)."""
     problem, scene = analysis.problem, analysis.scene
     mask = np.zeros(scene.n_particles, dtype=bool)
     mask[inside] = True
@@ -250,7 +251,8 @@ def focus(analysis: Analysis, inside, share: float) -> Analysis:
     branches = []
     for b in analysis.branches:
         there = np.sum(b.stability_vectors[dofs] ** 2, axis=0) / np.sum(b.stability_vectors ** 2, axis=0)
-        branches.append(replace(b, codes=np.where(there < share, RIGID, b.codes).astype(b.codes.dtype)))
+        low = b.stability_eigenvalues <= b.accuracy
+        branches.append(replace(b, codes=np.where((there < share) & low, RIGID, b.codes).astype(b.codes.dtype)))
     verdict = finalize(summarize(branches), analysis.errors, int(np.sum(contact_blocks(scene).rolling_undetermined)),
                        None)
     return replace(analysis, branches=branches, verdict=replace(verdict, branches_kept=len(branches)))

@@ -112,7 +112,8 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
     return _concatenate(solved)
 
 
-EMBEDDED_INSIDE = 0.5   # embedded: a mode is the cluster's when at least this share of its metric norm is inside
+EMBEDDED_INSIDE = 0.5   # embedded: a negative or zero mode is the cluster's when at least this share of its metric norm
+                        # is on the cluster's particles (else its surroundings': left out of the counts)
 
 
 def layout(scene, centers, member_lists: list, options: dict) -> dict:
@@ -208,7 +209,8 @@ def _cluster_contacts(sub, local: np.ndarray, sizes: np.ndarray, free: np.ndarra
 def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, options, lay) -> dict:
     """Row fields of the clusters `part` (all with n free particles): see the module docstring and `_stack`.
     embedded (lay["focus"]): an eigenpair counts only when at least EMBEDDED_INSIDE of its metric norm is on the
-    cluster's own particles; the others are the surroundings' and are left out like rigid ones (code RIGID)."""
+    cluster's own particles if it is negative or zero; the others are the surroundings' and are left out like rigid
+    ones (code RIGID)."""
     device = options.get("device", "cpu")
     st = _stack(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, options, lay)
     G, dofs, Ms = len(part), st["base"].shape[1], st["Ms"]
@@ -389,8 +391,9 @@ def _vectors(base, PA, PS, update, n_sliding, formation, s_tol, s_floor, nd: int
              inside: np.ndarray | None = None) -> dict:
     """Every branch (enumerate_masks order) of the clusters `base` (sym(Qᵀ H_el Q), or sym(H_el) held), stacked
     eigh on the backend, residual bounds (accuracy.vector_bounds) and consistency codes (Appendix D) from the S
-    values (PSᵀ y = Sᵀ Q y: those of the eigenvector in the cluster's dofs); inside (G, nd) bool (embedded): an
-    eigenpair with less than EMBEDDED_INSIDE of its norm there gets code RIGID (not the cluster's). Also each
+    values (PSᵀ y = Sᵀ Q y: those of the eigenvector in the cluster's dofs); inside (G, nd) bool (embedded): a
+    negative or zero eigenpair (λ <= its bound) with less than EMBEDDED_INSIDE of its norm there gets code RIGID (the
+    surroundings', not the cluster's; positive ones change no verdict and all count). Also each
     cluster's lowest consistent negative eigenpair (`_lowest`)."""
     Ms = PA.shape[2]
     owner, masks = sign_patterns(n_sliding, Ms)
@@ -407,7 +410,7 @@ def _vectors(base, PA, PS, update, n_sliding, formation, s_tol, s_floor, nd: int
     codes, hinges = consistency(masks[:, :, None].astype(float), got["S"], s_tol[owner, None, None],
                                 s_floor[owner, None, None])
     if inside is not None:
-        codes = np.where(got["inside"] < EMBEDDED_INSIDE, RIGID, codes).astype(codes.dtype)
+        codes = np.where((got["inside"] < EMBEDDED_INSIDE) & (lam <= bounds), RIGID, codes).astype(codes.dtype)
     return {"owner": owner, "lam": lam, "bounds": bounds, "codes": codes, "hinges": hinges,
             "special": needs_search(lam, bounds), "error": got["residual"].max(axis=1),
             **_lowest(lam, bounds, codes, got["V"], owner, masks, len(base))}

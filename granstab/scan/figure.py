@@ -35,9 +35,7 @@ def particle_radii(scene: Scene) -> np.ndarray:
 def colormap():
     """White → dark red with grey for 'in no cluster' (NaN): the explorer's map colours."""
     from matplotlib.colors import LinearSegmentedColormap
-    cmap = LinearSegmentedColormap.from_list("granstab_unstable", [WHITE, RED])
-    cmap.set_bad(GREY)
-    return cmap
+    return LinearSegmentedColormap.from_list("granstab_unstable", [WHITE, RED]).with_extremes(bad=GREY)
 
 
 def map_fractions(scene: Scene, clusters: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -87,22 +85,25 @@ def write_figures(scene: Scene, out_dir) -> list[Path]:
 
 
 def _disks(ax, centres, radii, value, hatched):
-    """The disks coloured by `value` (NaN grey), those `hatched` overlaid with HATCH where `value` is 0; rasterised
-    above RASTER_ABOVE disks."""
-    from matplotlib.collections import PatchCollection
-    from matplotlib.patches import Circle
+    """The disks (one EllipseCollection in data units) coloured by `value` (NaN grey), those `hatched` overlaid with
+    HATCH where `value` is 0; rasterised above RASTER_ABOVE disks."""
+    from matplotlib.collections import EllipseCollection
     big = len(centres) > RASTER_ABOVE
-    pc = PatchCollection([Circle(c, rad) for c, rad in zip(centres, radii)], cmap=colormap(), edgecolor="k",
-                         linewidth=0.2, rasterized=big)
+
+    def disks(which, **style):
+        d = 2 * radii[which]
+        return ax.add_collection(EllipseCollection(d, d, np.zeros(len(d)), units="xy", offsets=centres[which],
+                                                   offset_transform=ax.transData, rasterized=big, **style))
+
+    pc = disks(slice(None), cmap=colormap(), edgecolor="k", linewidth=0.2)
     pc.set_array(np.ma.masked_invalid(value))
     pc.set_clim(0, 1)
-    ax.add_collection(pc)
     only_cut = hatched & ~(value > 0)
     if only_cut.any():
-        ax.add_collection(PatchCollection([Circle(c, rad) for c, rad in zip(centres[only_cut], radii[only_cut])],
-                                          facecolor="none", edgecolor=GREY, hatch=HATCH, linewidth=0.0,
-                                          rasterized=big))
-    ax.autoscale_view()
+        disks(only_cut, facecolor="none", edgecolor=GREY, hatch=HATCH, linewidth=0.0)
+    pad = radii.max(initial=0.0)
+    ax.set_xlim(centres[:, 0].min() - pad, centres[:, 0].max() + pad)
+    ax.set_ylim(centres[:, 1].min() - pad, centres[:, 1].max() + pad)
     ax.set_aspect("equal")
     return pc
 
