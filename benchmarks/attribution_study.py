@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 import time
 from collections import Counter
 from pathlib import Path
@@ -87,7 +88,7 @@ def main(argv=None) -> None:
     p.add_argument("--out", default="docs/attribution")
     args = p.parse_args(argv)
     scene = window(granstab.load_scene(args.scene), args.size)
-    work = Path("/tmp") / f"attribution-study-{args.name}"
+    work = Path(tempfile.mkdtemp(prefix=f"attribution-study-{args.name}-"))
     boundaries = [("loads", "loads"), ("fixed", "fixed")] + [(f"embedded:{R}", f"embedded:{R}") for R in range(5)] \
         + [("whole", f"embedded:{WHOLE}")]
     got = study(scene, work, boundaries)

@@ -11,7 +11,7 @@ from granstab.analysis import attribute
 from granstab.mechanics.attribution import MECHANISMS, mechanism
 from granstab.model import packings
 from granstab.scan import read_map, scan
-from granstab.scan.clusters import adjacency, cluster, control_scene, members, subscene
+from granstab.scan.clusters import adjacency, cluster, control_scene, loaded, members, subscene
 from granstab.scan.run import cluster_row, scan_chunk
 
 ROOT = Path(__file__).parents[1]
@@ -86,9 +86,10 @@ def test_the_rule_is_first_that_holds_and_only_for_unstable_rows():
 
 
 def rim_of(scene, center, keep):
+    """The cluster's particles with a contact outside it or a load like a contact force (clusters.loaded)."""
     graph = adjacency(scene)
     outside = np.setdiff1d(members(scene, [center], 2, graph)[0], keep)
-    return np.flatnonzero(np.asarray(graph[keep][:, outside].sum(axis=1)).ravel() > 0)
+    return np.flatnonzero((np.asarray(graph[keep][:, outside].sum(axis=1)).ravel() > 0) | loaded(scene)[keep])
 
 
 def test_a_real_frame_reproduces_its_attribution_cluster_by_cluster(tmp_path):

@@ -56,7 +56,7 @@ from ..mechanics.verdicts import CONSISTENT, tally
 from ..model.tolerances import EPS
 from ..model.vec import rot_dim
 from ..solve.device import backend, eigh_stack, residual_norms
-from .clusters import adjacency, boundary_rings, members
+from .clusters import adjacency, boundary_rings, loaded, members
 
 LENGTH_FACTORS = {"L": 1.0, "L/10": 0.1, "10L": 10.0}
 STACK_BYTES = {"cpu": 32 * 2 ** 20,   # the branch matrices of one stacked solve (and their copies) on the host: small
@@ -149,14 +149,14 @@ def layout(scene, centers, member_lists: list, options: dict) -> dict:
 
 def rim_flags(scene, centers, member_lists: list, graph) -> list[np.ndarray]:
     """Per cluster a bool per member: it has a contact with a particle outside the cluster (`scene` must hold the
-    ring beyond the clusters: run.reach)."""
+    ring beyond the clusters: run.reach), or a load like a contact force (clusters.loaded: a contact cut before)."""
     G, N = len(member_lists), scene.n_particles
     owner = np.repeat(np.arange(G), [len(m) for m in member_lists])
     flat = np.concatenate(member_lists)
     X = sp.csr_matrix((np.ones(len(flat)), (owner, flat)), shape=(G, N))
     inside = np.asarray((X @ graph)[owner, flat]).ravel()                  # neighbours in the cluster, itself too
     degree = np.asarray(graph.sum(axis=1)).ravel()[flat]
-    return np.split(inside < degree, np.cumsum([len(m) for m in member_lists])[:-1])
+    return np.split((inside < degree) | loaded(scene)[flat], np.cumsum([len(m) for m in member_lists])[:-1])
 
 
 def _flag(reached: list, chosen: list, N: int) -> np.ndarray:

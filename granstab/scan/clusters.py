@@ -141,9 +141,24 @@ def embedded(scene: Scene, center: int, rings: int, R: int, title: str = "", gra
     return replace(sub, state=tuple("elastic" if e else st for e, st in zip(elastic, sub.state)))
 
 
+RIM_LOAD = 0.5     # a load above this share of a particle's largest contact force marks a cut contact (rim)
+
+
+def loaded(scene: Scene) -> np.ndarray:
+    """(N,) bool: particles whose load in the packing is like a contact force (|b| above RIM_LOAD of their largest
+    contact force): contacts cut before the scan saw the packing — across a periodic cell's seam, at a region's
+    edge — or measured forces that do not balance. They are on the rim of any cluster holding them."""
+    largest = np.zeros(scene.n_particles)
+    size = np.linalg.norm(scene.force, axis=1)
+    np.maximum.at(largest, scene.p, size)
+    np.maximum.at(largest, scene.q, size)
+    return np.linalg.norm(scene.load, axis=1) > RIM_LOAD * largest
+
+
 def control_scene(scene: Scene, center: int, rings: int, boundary: str, control: str, graph=None) -> Scene:
     """A control of the cluster of `center` (mechanics/attribution.py): "elastic", the cluster as `boundary` cuts it
-    with every contact elastic; "rim", the cluster alone with its rim (particles with contacts outside it) held."""
+    with every contact elastic; "rim", the cluster alone with its rim (particles with contacts outside it, or with a
+    packing load like a contact force: `loaded`) held."""
     if control == "elastic":
         sub = cluster(scene, center, rings, boundary, graph=graph)
         return replace(sub, state=("elastic",) * sub.n_contacts)
@@ -151,7 +166,7 @@ def control_scene(scene: Scene, center: int, rings: int, boundary: str, control:
     sub = subscene(scene, inner)
     outside = np.setdiff1d(members(scene, [center], rings + 1, graph)[0], inner)
     graph = adjacency(scene) if graph is None else graph
-    rim = np.asarray(graph[inner][:, outside].sum(axis=1)).ravel() > 0
+    rim = (np.asarray(graph[inner][:, outside].sum(axis=1)).ravel() > 0) | loaded(scene)[inner]
     held = rim if sub.fixed is None else rim | sub.fixed
     return replace(sub, fixed=held if held.any() else None)
 
