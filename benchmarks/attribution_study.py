@@ -4,7 +4,7 @@ packing held at its boundary, each interior cluster's verdict under --boundary l
 boundary, only the cluster's own contacts sliding, the verdict on the modes mostly inside the cluster), with the
 mechanism histogram of each. Run by hand (not a `granstab bench` topic: it writes docs/attribution/):
 
-    python -m granstab_bench.attribution_study SCENE NAME [--size S] [--out docs/attribution]
+    python -m granstab_bench.attribution_study SCENE NAME [--size S] [--centre X,Y] [--out docs/attribution]
 """
 from __future__ import annotations
 
@@ -24,10 +24,10 @@ from granstab.scan.clusters import adjacency, members
 WHOLE = 99            # embedded rings that reach past any window used here: the whole window
 
 
-def window(scene, size: float):
-    """The particles within a centred square of side `size` as a finite packing, the particles one contact beyond
-    held fixed (scene.fixed): a packing held at its boundary."""
-    centre = np.median(scene.x, axis=0)
+def window(scene, size: float, centre=None):
+    """The particles within a square of side `size` about `centre` (default the median position) as a finite
+    packing, the particles one contact beyond held fixed (scene.fixed): a packing held at its boundary."""
+    centre = np.median(scene.x, axis=0) if centre is None else np.asarray(centre, dtype=float)
     inside = np.flatnonzero(np.all(np.abs(scene.x - centre) <= size / 2, axis=1))
     graph = adjacency(scene)
     ring = np.setdiff1d(np.flatnonzero(np.asarray(graph[inside].sum(axis=0)).ravel() > 0), inside)
@@ -69,7 +69,7 @@ def study(scene, out: Path, boundaries) -> dict:
 
 def table(name: str, got: dict) -> str:
     """The convergence table (markdown)."""
-    lines = [f"**{name}**: a window of {got['n_particles']} particles ({got['n_held']} held at its boundary, "
+    lines = [f"**{name}**{got.get('where', '')}: a window of {got['n_particles']} particles ({got['n_held']} held at its boundary, "
              f"{got['n_sliding']} sliding contacts), {got['n_centres']} interior clusters (1 ring).", "",
              "| boundary | unstable | agree with whole | unstable, whole not | missed | mechanisms | s |",
              "|---|---|---|---|---|---|---|"]
@@ -85,13 +85,16 @@ def main(argv=None) -> None:
     p.add_argument("scene")
     p.add_argument("name")
     p.add_argument("--size", type=float, default=20.0, help="side of the window, in the scene's lengths")
+    p.add_argument("--centre", default=None, help="X,Y of the window's centre (default: the median position)")
     p.add_argument("--out", default="docs/attribution")
     args = p.parse_args(argv)
-    scene = window(granstab.load_scene(args.scene), args.size)
+    centre = None if args.centre is None else [float(v) for v in args.centre.split(",")]
+    scene = window(granstab.load_scene(args.scene), args.size, centre)
     work = Path(tempfile.mkdtemp(prefix=f"attribution-study-{args.name}-"))
     boundaries = [("loads", "loads"), ("fixed", "fixed")] + [(f"embedded:{R}", f"embedded:{R}") for R in range(5)] \
         + [("whole", f"embedded:{WHOLE}")]
     got = study(scene, work, boundaries)
+    got["where"] = f" ({args.size:g} wide" + ("" if centre is None else f" about ({args.centre})") + ")"
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / f"convergence-{args.name}.json").write_text(json.dumps(got, indent=1), encoding="utf-8")

@@ -131,8 +131,8 @@ def build_problem(scene: Scene, blocks: ContactBlocks, metric):
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
-            device: str = "cpu", lowrank: bool | None = None, keep: str = "auto",
-            attribution: bool = True, rim=None) -> Analysis:
+            device: str = "cpu", lowrank: bool | None = None, keep: str = "auto", attribution: bool = True,
+            rim=None) -> Analysis:
     """Analyse every loading branch of `scene`: spectra, consistent modes and verdicts (Sec. 3, Appendix D).
 
     Parameters
@@ -157,12 +157,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
         problem (None: from 2^10 branches on, or on a GPU); which branches the result keeps ("verdict": those the
         verdict rests on; "auto": all up to KEEP_ALL).
-    on_branch, progress : callable or None, bool
-        Called with each `Branch` of the primary metric as it is finished; a bar with the time left.
-    attribution : bool
-        An unstable verdict on the dense path gets ``attribution`` (`attribute`: work parts, rim share, controls,
-        mechanism); False: not computed (the controls are two more analyses). rim: the particles (indices) with
-        cut contacts, held in the fixed control (default none: the scene's loads are its own).
+    on_branch, progress, attribution, rim : called with each `Branch` of the primary metric as it is finished; a
+        bar with the time left; an unstable dense result gets ``attribution`` (`attribute`, rim: cut particles).
 
     Returns
     -------
@@ -231,10 +227,14 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                         "over all branches (keep='all' keeps every one)")
     result = Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
                       timings=timer.times, warnings=warnings, backend=backend.name)
-    if attribution and verdict.verdict == "unstable" and backend.name == "dense":
-        with timer("attribution"):
-            result.attribution = attribute(result, rim, max_sliding=max_sliding, sample_branches=sample_branches,
-                                           seed=seed)
+    return _attributed(result, rim, attribution and backend.name == "dense", max_sliding=max_sliding,
+                       sample_branches=sample_branches, seed=seed)
+
+
+def _attributed(result: Analysis, rim, wanted: bool, **options) -> Analysis:
+    """`result` with its `attribution` where it is unstable and `wanted` (the dense path; its time is its own)."""
+    if wanted and result.verdict.verdict == "unstable":
+        result.attribution = attribute(result, rim, **options)
     return result
 
 
