@@ -143,8 +143,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         "family": the verdict in L/10, L, 10L and inertia where masses are known, spectra in L,
         ``summary["metric_robust"]`` and ``summary["metrics"]``; otherwise that metric only.
     rotation_length : float, optional
-        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's metric);
-        `rotation_length_` is its deprecated old name.
+        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's; old name rotation_length_).
     max_sliding, sample_branches, seed : int
         More than `max_sliding` potentially sliding contacts (2^Ms branches) are refused unless `sample_branches`
         is given: then the all-loading, all-unloading and that many seeded random branches are examined
