@@ -117,7 +117,7 @@ def boundary_ring(scene: Scene, center: int, rings: int, graph: sp.csr_matrix | 
 
 
 BOUNDARIES = ("loads", "fixed", "embedded")
-DEFAULT_BOUNDARY = "loads"     # the scan's default (README, docs/attribution.md: why)
+DEFAULT_BOUNDARY = "embedded:1"   # the scan's default: docs/attribution.md#the-default (why)
 
 
 def boundary_rings(boundary: str) -> tuple[str, int]:

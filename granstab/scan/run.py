@@ -172,8 +172,9 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
             "n_contacts": got["n_contacts"], "n_sliding": got["n_sliding"], "branches": np.full(n, "all", object),
             "n_branches": got["n_branches"], "lambda_min": got["lambda_min"], "metric_robust": np.full(n, None, object),
             "eigen_residual": got["eigen_residual"], "rigid_leakage": got["rigid_leakage"], **verdicts,
-            "seconds": np.full(n, (time.perf_counter() - start) / n), "work_parts": got["work_parts"],
-            "rim_share": got["rim_share"], "mechanism": np.full(n, "", object),
+            "seconds": np.full(n, (time.perf_counter() - start) / n),
+            "work_parts": got.get("work_parts", np.full((n, 5), np.nan)), "rim_share": got.get("rim_share", np.full(n, np.nan)),
+            "mechanism": np.full(n, "", object),
             "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object)}
 
 
