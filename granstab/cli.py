@@ -314,12 +314,12 @@ def cmd_scan(args) -> int:
     return 0
 
 
-def boundary_argument(p) -> None:
-    p.add_argument("--boundary", default=DEFAULT_BOUNDARY, metavar="loads|fixed|embedded[:R]",
+def boundary_argument(p, default: str) -> None:
+    p.add_argument("--boundary", default=default, metavar="loads|fixed|embedded[:R]",
                    help="loads: the cut contacts' forces act as dead loads (the isolated cluster, Sec. 5); fixed: the "
                         "next ring of particles is held fixed (no rigid modes); embedded:R: the next R rings (default "
                         f"2) free and elastic, the ring beyond held, the verdict on the cluster's own modes (default "
-                        f"{DEFAULT_BOUNDARY}, docs/attribution.md)")
+                        f"{default}; the scan's: docs/attribution.md)")
 
 
 def add_scan(sub) -> None:
@@ -327,14 +327,14 @@ def add_scan(sub) -> None:
     p.add_argument("input", help="any scene or snapshot that analyze reads")
     p.add_argument("--center", required=True, help="the centre particle's name")
     p.add_argument("--rings", type=int, default=1, help="contact hops from the centre (default 1)")
-    boundary_argument(p)
+    boundary_argument(p, "loads")
     p.add_argument("--out", required=True, help="scene file to write (JSON)")
     p.set_defaults(run=cmd_extract)
     p = sub.add_parser("scan", help="local stability scan: every cluster of a packing, as a map")
     p.add_argument("input", help="any scene or snapshot that analyze reads")
     p.add_argument("--out", required=True, help="output directory (an interrupted scan there resumes)")
     p.add_argument("--rings", type=int, default=1, help="contact hops from each centre (default 1)")
-    boundary_argument(p)
+    boundary_argument(p, DEFAULT_BOUNDARY)
     p.add_argument("--centers", default="all", help="all | every:K | NAME,NAME,...")
     p.add_argument("--metric", choices=list(METRIC_CHOICES), default="L",
                    help="projection metric of every cluster (default L; family: robustness, 2-3x the time)")

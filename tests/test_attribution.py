@@ -97,7 +97,7 @@ def test_a_real_frame_reproduces_its_attribution_cluster_by_cluster(tmp_path):
     or not, equals `analyze` of its extracted cluster with the cluster's rim: mechanism, controls, rim share and
     the work parts (scaled as the row's: |v|² = lambda_min / λ), within 1e-8 of |lambda_min|."""
     scene = granstab.load_scene(ANNULUS)
-    scan(scene, tmp_path, centers="every:3", workers=1, figures=False)
+    scan(scene, tmp_path, centers="every:3", boundary="loads", workers=1, figures=False)
     rows = read_map(tmp_path)["clusters"]
     unstable = np.flatnonzero(rows["verdict"] == "unstable")
     assert len(unstable) >= 5 and {"batched", "batched-values"} & set(rows["path"][unstable])

@@ -346,11 +346,12 @@ def test_more_sliding_contacts_than_the_cap_examine_a_sample_and_say_so(tmp_path
 
 def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
     scene = granstab.load_scene(ANNULUS)
-    options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads"}
+    options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads",
+               "attribution": True}
     from granstab.scan.output import ScanOutput
     out = ScanOutput(tmp_path, "csv", options, scene)
-    out.write(chunk_table(chunk_cut(scene, np.arange(0, 20), 1), options))              # what finished before the kill
-    summary = scan(scene, tmp_path, centers="every:1", workers=1, fmt="csv", figures=False)
+    out.write(chunk_table(chunk_cut(scene, np.arange(0, 20), 2), options))              # what finished before the kill
+    summary = scan(scene, tmp_path, centers="every:1", boundary="loads", workers=1, fmt="csv", figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert summary["clusters_this_run"] == scene.n_particles - 20
     assert list(rows["center"]) == list(range(scene.n_particles))     # each centre once, in scene order

@@ -97,7 +97,7 @@ class ModeWork:
     rim_share: float
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return {**asdict(self), "work_parts": list(self.work_parts)}
 
 
 @dataclass(frozen=True)

@@ -214,7 +214,12 @@ def _solve_group(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sl
     device = options.get("device", "cpu")
     st = _stack(sub, blocks, parts, pairs, part, local, starts, n, factor, n_sliding, options, lay)
     G, dofs, Ms = len(part), st["base"].shape[1], st["Ms"]
-    inside = np.repeat(st["inner"], sub.dof_per_particle, axis=1) if lay["focus"] else None
+    inside = None
+    if lay["focus"]:               # vᵀ W v: the squared norm on the cluster's dofs, W = diag(inner) (or QᵀWQ off rigid)
+        mark = np.repeat(st["inner"], sub.dof_per_particle, axis=1).astype(float)
+        Q = st["Q"]
+        inside = (np.einsum("gij,gi,gik->gjk", Q, mark, Q) if Q is not None
+                  else mark[:, :, None] * np.eye(dofs)[None])
     values_only = (n_sliding[part] == 0) & (device == "cpu") & (inside is None)
     values, vectors = np.flatnonzero(values_only), np.flatnonzero(~values_only)
     solved = [(values, _values(st["base"][values], st["formation"][values], dofs))] if values.size else []
@@ -391,7 +396,7 @@ def _vectors(base, PA, PS, update, n_sliding, formation, s_tol, s_floor, nd: int
              inside: np.ndarray | None = None) -> dict:
     """Every branch (enumerate_masks order) of the clusters `base` (sym(Qᵀ H_el Q), or sym(H_el) held), stacked
     eigh on the backend, residual bounds (accuracy.vector_bounds) and consistency codes (Appendix D) from the S
-    values (PSᵀ y = Sᵀ Q y: those of the eigenvector in the cluster's dofs); inside (G, nd) bool (embedded): a
+    values (PSᵀ y = Sᵀ Q y: those of the eigenvector in the cluster's dofs); inside (G, n, n) (embedded): a
     negative or zero eigenpair (λ <= its bound) with less than EMBEDDED_INSIDE of its norm there gets code RIGID (the
     surroundings', not the cluster's; positive ones change no verdict and all count). Also each
     cluster's lowest consistent negative eigenpair (`_lowest`)."""
@@ -438,7 +443,7 @@ def _lowest(lam, bounds, codes, V, owner, masks, G: int) -> dict:
 def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str, inside: np.ndarray | None = None) -> dict:
     """Stacked eigh of sym(𝓗^i) on the device: eigenvalues, eigenvectors, residual norms ‖A v − λ v‖ and the S
     values Sᵀ v (eq:flow) of the eigenvectors, whatever their signs (a row counts consistent modes, PLUS, MINUS or
-    BOTH alike); with `inside` (L, n) bool, each eigenvector's squared norm there."""
+    BOTH alike); with `inside` (L, n, n), each eigenvector's vᵀ inside v (its squared norm on the cluster)."""
     be = backend(device)
 
     def keep(xp, A, lam, V, start):
@@ -446,7 +451,7 @@ def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str, inside: np.ndarra
         out = {"lam": lam, "V": V, "residual": residual_norms(xp, A, lam, V),
                "S": xp.matmul(xp.swapaxes(Sd, 1, 2), V)}
         if inside is not None:
-            out["inside"] = xp.sum(V * V * be.asarray(inside[start:start + A.shape[0]])[:, :, None], axis=1)
+            out["inside"] = xp.sum(V * xp.matmul(be.asarray(inside[start:start + A.shape[0]]), V), axis=1)
         return out
 
     return eigh_stack(Hsym, device=be.name, keep=keep, symmetric=True)
