@@ -1,6 +1,6 @@
 """The cost of attribution (issue 25): a serial scan with every unstable cluster's attribution (work parts, rim share
 and the two batched control solves, mechanics/attribution.py) against the same scan without it
-(`--no-attribution`), and the embedded boundary against the loads one, on RigidLibrary's sheared DEM frame where it
+(`--no-attribution`), for the loads boundary and the default (embedded:1), on RigidLibrary's sheared DEM frame where it
 is beside the checkout (../shared/data) and on a random packing with contacts at yield. Goal: ≤ 2× a plain scan."""
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ from pathlib import Path
 
 from granstab.model import packings
 from granstab.scan import scan
+from granstab.scan.clusters import DEFAULT_BOUNDARY
 
 from .formatting import table
 from .timing import timeit_pair
 
-DATASIM = Path(__file__).parents[1].parent / "shared" / "data" / "rigidlibrary" / "DataSim"
-QUICK = {"random": 1000, "repeat": 3}
+DATASIM = Path(__file__).resolve().parents[2] / "shared" / "data" / "rigidlibrary" / "DataSim"   # ../shared
+QUICK = {"random": 300, "repeat": 1}
 FULL = {"random": 5000, "repeat": 5}
 
 
@@ -37,7 +38,7 @@ def run(quick: bool = False) -> dict:
     cfg = QUICK if quick else FULL
     rows = []
     for name, scene in scenes(cfg):
-        for boundary in ("loads", "embedded:2"):
+        for boundary in ("loads", DEFAULT_BOUNDARY):
             (plain, _), (full, summary) = timeit_pair(
                 lambda s=scene, b=boundary: _scan(s, boundary=b, attribution=False),
                 lambda s=scene, b=boundary: _scan(s, boundary=b), repeat=cfg["repeat"], min_time=0.0, values=True)
@@ -53,7 +54,7 @@ def markdown(results: dict) -> str:
              "A serial scan (`--workers 1`, rings 1, metric L) with every unstable cluster attributed — its work "
              "parts, rim share and the two control solves (all contacts elastic; the rim held), batched like the "
              "branches — against the same scan with `--no-attribution`; medians of "
-             f"{results['repeat']} interleaved runs. Only unstable clusters pay for the controls, so the overhead "
+             f"{results['repeat']} interleaved run(s) after one warm-up each. Only unstable clusters pay for the controls, so the overhead "
              "grows with their share (goal: ≤ 2× a plain scan).", ""]
     rows = [[r["packing"], f"{r['n_particles']:,}", r["boundary"], f"{r['unstable']:,} of {r['clusters']:,}",
              f"{r['plain_s']:.2f} s", f"{r['attributed_s']:.2f} s", f"**{r['ratio']:.2f}×**",
