@@ -621,6 +621,8 @@ class ClientUI:
                 f"| analysis time | {r['analysis_time'] * 1e3:.1f} ms (with scene: {r['elapsed'] * 1e3:.1f} ms) |",
             ]
             rows.insert(6, f"| metric | {self._metric_row()} |")
+            if r.get("attribution"):
+                rows.insert(2, f"| why (docs/attribution.md) | {r['attribution']} |")
             if r["dynamics"] is not None:
                 d = r["dynamics"]
                 rows.insert(7, "| lowest frequencies ω = √λ | " + (", ".join(f"{w:.4g}" for w in d["frequencies"])

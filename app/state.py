@@ -407,6 +407,7 @@ class Session:
             "n_sliding": int(np.sum(self.scene.at_yield())), "worst_error": worst, "errors": a.errors,
             "analysis_time": a.timings.get("total", 0.0), "elapsed": self.elapsed, "warnings": a.warnings,
             "error": self.error, "notice": self.notice, "metric": self.metric, "dynamics": self.dynamics(),
+            "attribution": None if a.attribution is None else a.attribution.line(),
         }
 
     def type1(self) -> str:
@@ -539,7 +540,7 @@ def metric_family(scene) -> dict:
     {"robust", "metrics", "time"}. Pure: it may run off the session's lock while the page moves on."""
     start = time.perf_counter()
     with blas_threads(1):
-        family = analyze(scene, metric="family").verdict
+        family = analyze(scene, metric="family", attribution=False).verdict
     return {"robust": family.metric_robust is True, "metrics": [e.to_dict() for e in family.metrics],
             "time": time.perf_counter() - start}
 

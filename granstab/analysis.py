@@ -14,15 +14,17 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .mechanics.branches import Problem, enumerate_masks, sample_masks
+from .mechanics.accuracy import resolved_sign
+from .mechanics.attribution import contact_work, mechanism, rim_share
+from .mechanics.branches import BOTH, MINUS, PLUS, RIGID, Problem, enumerate_masks, sample_masks
 from .mechanics.metric import CHOICES, Metric, family, has_masses, resolve
 from .mechanics.robustness import metric_robustness
-from .mechanics.stiffness import ContactBlocks, curvature_warnings
-from .mechanics.verdicts import Verdict, family_entry, finalize, mark_partial, summarize
+from .mechanics.stiffness import ContactBlocks, contact_blocks, curvature_warnings
+from .mechanics.verdicts import Attribution, ModeWork, Verdict, family_entry, finalize, mark_partial, summarize
 from .model.scene import Scene, SceneError
 from .solve.methods import METHODS, Timer, choose_method
 
-__all__ = ["Analysis", "METHODS", "analyze", "build_problem"]
+__all__ = ["Analysis", "METHODS", "analyze", "attribute", "build_problem"]
 
 KEEP = ("auto", "all", "verdict")
 KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would grow with 2^Ms (3.4 kB a branch)
@@ -42,6 +44,7 @@ class Analysis:
     timings: dict
     warnings: list = field(default_factory=list)
     backend: str = "dense"
+    attribution: Attribution | None = None
 
     @property
     def summary(self) -> dict:
@@ -92,6 +95,7 @@ class Analysis:
             "errors": self.errors,
             "timings": self.timings,
             "warnings": self.warnings,
+            "attribution": None if self.attribution is None else self.attribution.to_dict(),
         }
 
 
@@ -143,7 +147,8 @@ def _robustness(scene, backend, problem, masks, metric, entries, timer):
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
-            device: str = "cpu", lowrank: bool | None = None, keep: str = "auto") -> Analysis:
+            device: str = "cpu", lowrank: bool | None = None, keep: str = "auto", attribution: bool = True,
+            rim=None) -> Analysis:
     """Analyse every loading branch of `scene`: spectra, consistent modes and verdicts (Sec. 3, Appendix D).
 
     Parameters
@@ -154,8 +159,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         "family": the verdict in L/10, L, 10L and inertia where masses are known, spectra in L,
         ``summary["metric_robust"]`` and ``summary["metrics"]``; otherwise that metric only.
     rotation_length : float, optional
-        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's metric);
-        `rotation_length_` is its deprecated old name.
+        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's; old name rotation_length_).
     max_sliding, sample_branches, seed : int
         More than `max_sliding` potentially sliding contacts (2^Ms branches) are refused unless `sample_branches`
         is given: then the all-loading, all-unloading and that many seeded random branches are examined
@@ -168,8 +172,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
         problem (None: from 2^10 branches on, or on a GPU); which branches the result keeps ("verdict": those the
         verdict rests on; "auto": all up to KEEP_ALL).
-    on_branch, progress : callable or None, bool
-        Called with each `Branch` of the primary metric as it is finished; a bar with the time left.
+    on_branch, progress, attribution, rim : called with each `Branch` of the primary metric as it is finished; a
+        bar with the time left; an unstable dense result gets ``attribution`` (`attribute`, rim: cut particles).
 
     Returns
     -------
@@ -238,5 +242,97 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
                         "over all branches (keep='all' keeps every one)")
-    return Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
-                    timings=timer.times, warnings=warnings, backend=backend.name)
+    result = Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
+                      timings=timer.times, warnings=warnings, backend=backend.name)
+    return _attributed(result, rim, attribution and backend.name == "dense", max_sliding=max_sliding,
+                       sample_branches=sample_branches, seed=seed)
+
+
+def _attributed(result: Analysis, rim, wanted: bool, **options) -> Analysis:
+    """`result` with its `attribution` where it is unstable and `wanted` (the dense path; its time is its own)."""
+    if wanted and result.verdict.verdict == "unstable":
+        result.attribution = attribute(result, rim, **options)
+    return result
+
+
+def focus(analysis: Analysis, inside, share: float) -> Analysis:
+    """The analysis with the verdict taken on the modes of the particles `inside` (indices) only: a negative or zero
+    eigenpair (λ <= its bound) with less than `share` of its squared metric norm there is not theirs and is left out
+    like a rigid one; positive ones change no verdict and all count (--boundary embedded: the cluster inside its
+    surroundings)."""
+    problem, scene = analysis.problem, analysis.scene
+    mask = np.zeros(scene.n_particles, dtype=bool)
+    mask[inside] = True
+    dofs = np.repeat(mask, scene.dof_per_particle)
+    dofs = dofs if problem.free is None else dofs[problem.free]
+    branches = []
+    for b in analysis.branches:
+        there = np.sum(b.stability_vectors[dofs] ** 2, axis=0) / np.sum(b.stability_vectors ** 2, axis=0)
+        low = b.stability_eigenvalues <= b.accuracy
+        branches.append(replace(b, codes=np.where((there < share) & low, RIGID, b.codes).astype(b.codes.dtype)))
+    verdict = finalize(summarize(branches), analysis.errors, int(np.sum(contact_blocks(scene).rolling_undetermined)),
+                       None)
+    return replace(analysis, branches=branches, verdict=replace(verdict, branches_kept=len(branches)))
+
+
+def mode_works(analysis: Analysis, rim: np.ndarray, blocks: ContactBlocks | None = None,
+               inside=None) -> list[ModeWork]:
+    """Every consistent negative eigenpair of the kept branches (resolved sign < 0), lowest first, with its work
+    parts (attribution.contact_work on U = D P v: they sum to λ) and rim share (attribution.rim_share, among the
+    particles `inside`, default all)."""
+    scene, problem, metric = analysis.scene, analysis.problem, analysis.metric
+    blocks = contact_blocks(scene) if blocks is None else blocks
+    on_rim = np.zeros(scene.n_particles, dtype=bool)
+    on_rim[rim] = True
+    within = np.ones(scene.n_particles, dtype=bool)
+    if inside is not None:
+        within[:] = False
+        within[inside] = True
+    out = []
+    for i, b in enumerate(analysis.branches):
+        negative = np.isin(b.codes, (PLUS, MINUS, BOTH)) & (resolved_sign(b.stability_eigenvalues, b.accuracy) < 0)
+        for j in np.flatnonzero(negative):
+            v = np.zeros(scene.n_dof)
+            v[problem.free if problem.free is not None else slice(None)] = b.stability_vectors[:, j]
+            u = np.zeros(scene.n_dof)
+            u[problem.free if problem.free is not None else slice(None)] = problem.projection.apply(
+                b.stability_vectors[:, j])
+            U = metric.physical(u)[blocks.index]
+            parts = contact_work(blocks, np.arange(scene.n_contacts), U, np.asarray(b.mask) == 1).sum(axis=0)
+            weights = (v ** 2).reshape(scene.n_particles, -1).sum(axis=1)
+            out.append(ModeWork(branch=i, index=int(j), eigenvalue=float(b.stability_eigenvalues[j]),
+                                work_parts=tuple(float(x) for x in parts),
+                                rim_share=float(rim_share(weights, on_rim, within))))
+    return sorted(out, key=lambda w: w.eigenvalue)
+
+
+def control_verdict(scene: Scene, metric: Metric, **options) -> str:
+    """The verdict of a control scene (attribute) in the analysis's metric; 'stable' when nothing is free to move."""
+    if scene.fixed is not None and scene.fixed.all():
+        return "stable"
+    name, length = ("inertia", None) if metric.rotation_length is None else ("L", metric.rotation_length)
+    return analyze(scene, metric=name, rotation_length=length, attribution=False, **options).verdict.verdict
+
+
+def attribute(analysis: Analysis, rim=None, **options) -> Attribution:
+    """Why `analysis` is unstable (mechanics/attribution.py): the work parts and rim share of its lowest consistent
+    negative mode and of every other one, the controls (every contact elastic; the rim held fixed) in the same
+    metric, and the `mechanism` label by the rule stated there.
+
+    rim: the particles (indices) with cut contacts (the scan passes each cluster's); default none: a scene's loads
+    are its own, so the rim-held control is the analysis itself. options: max_sliding, sample_branches, seed for
+    the controls."""
+    scene = analysis.scene
+    rim = np.zeros(0, dtype=np.int64) if rim is None else np.asarray(rim, dtype=np.int64)
+    modes = mode_works(analysis, rim)
+    if not modes:
+        raise ValueError(f"{scene.source}: no consistent negative eigenpair among the kept branches to attribute")
+    elastic = control_verdict(replace(scene, state=("elastic",) * scene.n_contacts), analysis.metric, **options)
+    held = np.zeros(scene.n_particles, dtype=bool) if scene.fixed is None else scene.fixed.copy()
+    held[rim] = True
+    fixed = (control_verdict(replace(scene, fixed=held), analysis.metric, **options) if rim.size
+             else analysis.verdict.verdict)
+    low = modes[0]
+    label = mechanism(np.array([low.work_parts]), np.array([low.rim_share]), [elastic], [fixed], [True])[0]
+    return Attribution(mechanism=str(label), work_parts=low.work_parts, rim_share=low.rim_share,
+                       elastic_control=elastic, fixed_control=fixed, modes=tuple(modes))

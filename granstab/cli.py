@@ -23,6 +23,7 @@ from .mechanics.stiffness import MaskError, stiffness
 from .model.errors import Interrupted, MissingExtra
 from .model.scene import SceneError
 from .moduli import moduli
+from .scan.clusters import DEFAULT_BOUNDARY
 from .solve.budget import (
     DENSE_ADVICE,
     SPARSE_ADVICE,
@@ -160,6 +161,8 @@ def format_table(result, show_all: bool = False) -> str:
         lines.append(f"metric family ({robust}; {counts}): " + "; ".join(
             f"{e['metric']}: {e['verdict']} {e['consistent_positive']}+/{e['consistent_negative']}-"
             for e in sm["metrics"]))
+    if result.attribution is not None:
+        lines.append(result.attribution.line())
     if not sm["sufficient"]:
         lines.append("not sufficient because: " + ", ".join(sm["insufficient_because"]))
     lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in d["errors"].items()))
@@ -370,7 +373,7 @@ def cmd_scan(args) -> int:
         summary = scan(loaded.scene, args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
-                       device=args.device)
+                       device=args.device, attribution=not args.no_attribution)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     print(json.dumps({**summary, "import": loaded.report}, allow_nan=False) if args.json else "\n".join(
@@ -402,8 +405,11 @@ def scan_lines(summary: dict, out) -> list[str]:
     kept = summary.get("resumed", 0)
     resumed = (f" (resumed: {kept} already in the folder, {summary['clusters_this_run']} analysed now)"
                if kept else "")
+    mechanisms = summary.get("mechanisms", {})
     return [f"{summary['clusters']} clusters{resumed} in {summary['seconds']:.1f} s: "
-            + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {out}",
+            + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items())
+            + ("; unstable by mechanism: " + ", ".join(f"{m} {c}" for m, c in mechanisms.items() if c)
+               if any(mechanisms.values()) else "") + f"; wrote {out}",
             f"ran {summary['workers']['where']} ({summary['workers']['why']})"]
 
 
@@ -419,10 +425,12 @@ def source_of(paths: list) -> str:
     return " + ".join(map(str, paths))
 
 
-def boundary_argument(p) -> None:
-    p.add_argument("--boundary", choices=["loads", "fixed"], default="loads",
+def boundary_argument(p, default: str) -> None:
+    p.add_argument("--boundary", default=default, metavar="loads|fixed|embedded[:R]",
                    help="loads: the cut contacts' forces act as dead loads (the isolated cluster, Sec. 5); fixed: the "
-                        "next ring of particles is held fixed (no rigid modes)")
+                        "next ring of particles is held fixed (no rigid modes); embedded:R: the next R rings (default "
+                        f"2) free and elastic, the ring beyond held, the verdict on the cluster's own modes (default "
+                        f"{default}; the scan's: docs/attribution.md)")
 
 
 def add_scan(sub) -> None:
@@ -430,7 +438,7 @@ def add_scan(sub) -> None:
     input_argument(p, "input")
     p.add_argument("--center", required=True, help="the centre particle's name")
     p.add_argument("--rings", type=int, default=1, help="contact hops from the centre (default 1)")
-    boundary_argument(p)
+    boundary_argument(p, "loads")
     p.add_argument("--out", required=True, help="scene file to write (JSON)")
     periodic_arguments(p)
     p.set_defaults(run=cmd_extract)
@@ -438,7 +446,7 @@ def add_scan(sub) -> None:
     input_argument(p, "input")
     p.add_argument("--out", required=True, help="output directory (an interrupted scan there resumes)")
     p.add_argument("--rings", type=int, default=1, help="contact hops from each centre (default 1)")
-    boundary_argument(p)
+    boundary_argument(p, DEFAULT_BOUNDARY)
     p.add_argument("--centers", default="all", help="all | every:K | NAME,NAME,...")
     p.add_argument("--metric", choices=list(METRIC_CHOICES), default="L",
                    help="projection metric of every cluster (default L; family: robustness, 2-3x the time)")
@@ -450,6 +458,8 @@ def add_scan(sub) -> None:
                    help="local Dask workers (1: in this process; default: by the work's measured size, the idle "
                         "cores and the load, said in the output; docs/scan.md)")
     p.add_argument("--format", choices=["parquet", "csv"], default="parquet")
+    p.add_argument("--no-attribution", action="store_true",
+                   help="skip each unstable cluster's mechanism and its two control solves (docs/attribution.md)")
     p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")

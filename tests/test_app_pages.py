@@ -270,7 +270,7 @@ def scan_dir(tmp_path_factory):
     scene, _ = planted_lattice(40, 0.4)
     packing = folder / "lattice.json"
     packing.write_text(_json.dumps(granstab.scene_to_dict(scene)))
-    scan(granstab.load_scene(packing), folder / "scan", workers=1, figures=False)
+    scan(granstab.load_scene(packing), folder / "scan", boundary="loads", workers=1, figures=False)
     return folder / "scan"
 
 

@@ -462,7 +462,7 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     scene, _ = planted_lattice(40, 0.4)
     packing = tmp_path / "lattice.json"
     packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
-    scan(granstab.load_scene(packing), tmp_path / "scan", workers=1, figures=False)
+    scan(granstab.load_scene(packing), tmp_path / "scan", boundary="loads", workers=1, figures=False)
     clusters = read_map(tmp_path / "scan")["clusters"]
     row = {k: v[list(clusters["center"]).index(scene.names.index("p40"))] for k, v in clusters.items()}
     s = Session(str(tmp_path / "scan"))

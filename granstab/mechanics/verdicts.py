@@ -89,6 +89,48 @@ class Verdict:
                 "branches": self.branches, "branches_kept": self.branches_kept, "free_spins": self.free_spins}
 
 
+@dataclass(frozen=True)
+class ModeWork:
+    """One consistent negative eigenpair's second-order work split by part (attribution.PARTS; they sum to
+    `eigenvalue`, the eigenvector unit in the verdict's metric) and its share on the rim (attribution.rim_share)."""
+
+    branch: int
+    index: int
+    eigenvalue: float
+    work_parts: tuple[float, ...]
+    rim_share: float
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), "work_parts": list(self.work_parts)}
+
+
+@dataclass(frozen=True)
+class Attribution:
+    """Why an unstable cluster is unstable (issue 25, attribution.py): its `mechanism` label, the work parts and rim
+    share of its lowest consistent negative mode, the verdicts of the two controls (every contact elastic; the rim
+    held fixed) and every consistent negative mode's parts (`modes`)."""
+
+    mechanism: str
+    work_parts: tuple[float, ...]
+    rim_share: float
+    elastic_control: str
+    fixed_control: str
+    modes: tuple[ModeWork, ...]
+
+    def to_dict(self) -> dict:
+        from .attribution import PARTS
+        return {"mechanism": self.mechanism, "work_parts": dict(zip(PARTS, self.work_parts)),
+                "rim_share": self.rim_share, "elastic_control": self.elastic_control,
+                "fixed_control": self.fixed_control, "modes": [m.to_dict() for m in self.modes]}
+
+    def line(self) -> str:
+        """One line for a verdict panel or a report."""
+        from .attribution import PARTS
+        parts = ", ".join(f"{n} {v:+.2e}" for n, v in zip(PARTS, self.work_parts))
+        return (f"mechanism: {self.mechanism} — work of the lowest negative mode: {parts}; rim share "
+                f"{self.rim_share:.0%}; all elastic: {self.elastic_control}, rim held: {self.fixed_control}")
+
+
 def summarize(branches, notes: dict | None = None) -> Verdict:
     """Counts of consistent eigenvalues over all branches and the verdict with its reason (`tally`, `verdict_of`).
 

@@ -177,7 +177,59 @@ def boundary_ring(scene: Scene, center: int, rings: int, graph: sp.csr_matrix | 
     return inner, np.setdiff1d(outer, inner)
 
 
-BOUNDARIES = ("loads", "fixed")
+BOUNDARIES = ("loads", "fixed", "embedded")
+DEFAULT_BOUNDARY = "embedded:1"   # the scan's default: docs/attribution.md#the-default (why)
+
+
+def boundary_rings(boundary: str) -> tuple[str, int]:
+    """("loads" | "fixed" | "embedded", R) of a --boundary value: "embedded[:R]" (R rings, default 2); a one-line
+    SceneError for anything else."""
+    kind, _, rings = boundary.partition(":")
+    if kind not in BOUNDARIES or (rings and (kind != "embedded" or not rings.isdigit())):
+        raise SceneError(f"--boundary: one of loads, fixed, embedded[:R] (R a whole number of rings), got {boundary!r}")
+    return kind, int(rings) if rings else (2 if kind == "embedded" else 0)
+
+
+def embedded(scene: Scene, center: int, rings: int, R: int, title: str = "", graph=None) -> Scene:
+    """The cluster of `center` embedded in its next R rings (--boundary embedded:R): those particles free with their
+    contacts elastic at their current state (only contacts between two of the cluster's own particles may slide),
+    the ring beyond them held fixed."""
+    inner = members(scene, [center], rings, graph)[0]
+    within, ring = boundary_ring(scene, center, rings + R, graph)
+    sub = subscene(scene, within, title=title, hold=ring)
+    own = np.isin(np.asarray(sub.names, dtype=object), np.asarray(scene.names, dtype=object)[inner])
+    elastic = ~(own[sub.p] & own[sub.q])
+    return replace(sub, state=tuple("elastic" if e else st for e, st in zip(elastic, sub.state)))
+
+
+RIM_LOAD = 0.5     # a load above this share of a particle's largest contact force marks a cut contact (rim)
+
+
+def loaded(scene: Scene) -> np.ndarray:
+    """(N,) bool: particles whose load in the packing is like a contact force (|b| above RIM_LOAD of their largest
+    contact force): contacts cut before the scan saw the packing — across a periodic cell's seam, at a region's
+    edge — or measured forces that do not balance. They are on the rim of any cluster holding them."""
+    largest = np.zeros(scene.n_particles)
+    size = np.linalg.norm(scene.force, axis=1)
+    np.maximum.at(largest, scene.p, size)
+    np.maximum.at(largest, scene.q, size)
+    return np.linalg.norm(scene.load, axis=1) > RIM_LOAD * largest
+
+
+def control_scene(scene: Scene, center: int, rings: int, boundary: str, control: str, graph=None) -> Scene:
+    """A control of the cluster of `center` (mechanics/attribution.py): "elastic", the cluster as `boundary` cuts it
+    with every contact elastic; "rim", the cluster alone with its rim (particles with contacts outside it, or with a
+    packing load like a contact force: `loaded`) held."""
+    if control == "elastic":
+        sub = cluster(scene, center, rings, boundary, graph=graph)
+        return replace(sub, state=("elastic",) * sub.n_contacts)
+    inner = members(scene, [center], rings, graph)[0]
+    sub = subscene(scene, inner)
+    outside = np.setdiff1d(members(scene, [center], rings + 1, graph)[0], inner)
+    graph = adjacency(scene) if graph is None else graph
+    rim = (np.asarray(graph[inner][:, outside].sum(axis=1)).ravel() > 0) | loaded(scene)[inner]
+    held = rim if sub.fixed is None else rim | sub.fixed
+    return replace(sub, fixed=held if held.any() else None)
 
 
 def cluster(scene: Scene, center: int, rings: int = 1, boundary: str = "loads", title: str = "",
@@ -189,11 +241,13 @@ def cluster(scene: Scene, center: int, rings: int = 1, boundary: str = "loads", 
     the rigid-rotation projection applies (eq:newstiffnesses) — can the cluster, pushed as its neighbours push it
     now, deform unstably? "fixed": the next ring of particles is held fixed (supports, no rigid modes, no
     projection) — can it deform unstably while its surroundings do not move (a stiffer, sufficient question)?
-    graph: adjacency(scene), if at hand."""
+    "embedded:R" (`embedded`): the next R rings free and elastic, the ring beyond held. graph: adjacency(scene), if
+    at hand."""
     if rings < 1:
         raise SceneError(f"{scene.source}: rings must be >= 1, got {rings}")
-    if boundary not in BOUNDARIES:
-        raise SceneError(f"{scene.source}: boundary must be one of {', '.join(BOUNDARIES)}, got {boundary!r}")
+    kind, R = boundary_rings(boundary)
+    if kind == "embedded":
+        return embedded(scene, center, rings, R, title=title, graph=graph)
     if boundary == "fixed":
         inner, ring = boundary_ring(scene, center, rings, graph)
         return subscene(scene, inner, title=title, hold=ring, center=center)

@@ -9,22 +9,25 @@ from __future__ import annotations
 
 import time
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..analysis import analyze
+from ..analysis import analyze, focus, mode_works
+from ..mechanics.attribution import mechanism
 from ..mechanics.branches import RIGID
 from ..mechanics.verdicts import verdict_columns
 from ..model.errors import Interrupted
 from ..model.scene import Scene, SceneError
 from ..solve.device import backend
 from ..solve.threads import blas_threads
-from .batch import batchable, solve_chunk
+from .batch import EMBEDDED_INSIDE, batchable, rim_flags, solve_chunk
 from .clusters import (
-    BOUNDARIES,
+    DEFAULT_BOUNDARY,
     adjacency,
+    boundary_rings,
     cluster,
+    control_scene,
     cut,
     incidence,
     members,
@@ -71,15 +74,93 @@ def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict, grap
     try:
         sub = cluster(scene, center, options["rings"], options.get("boundary", "loads"), graph=graph)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
-                      sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()))
+                      sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()),
+                      attribution=False)
     except SceneError as exc:
         return Row.failed(center_id, ids, str(exc), time.perf_counter() - start)
+    inner = _sub_index(sub, scene, keep)
+    if boundary_rings(options.get("boundary", "loads"))[0] == "embedded":
+        res = focus(res, inner, EMBEDDED_INSIDE)
     lam = [b.stability_eigenvalues[b.codes != RIGID] for b in res.branches]
+    lam_min = float(min((v.min() for v in lam if v.size), default=np.nan))
+    attribution = None
+    if res.verdict.verdict == "unstable":       # the lowest consistent negative mode (mechanics/attribution.py)
+        rim = inner[rim_flags(scene, [center], [np.asarray(keep)], graph if graph is not None else adjacency(scene))[0]]
+        modes = mode_works(res, rim, inside=inner)
+        scale = lam_min / modes[0].eigenvalue if modes else np.nan        # |v|² = lambda_min / λ: they sum to it
+        attribution = {"work_parts": [w * scale for w in modes[0].work_parts], "rim_share": modes[0].rim_share} \
+            if modes else None
     return Row.analyzed(center_id, ids, res.verdict, n_contacts=sub.n_contacts,
-                        n_sliding=int(np.sum(sub.at_yield())),
-                        lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
+                        n_sliding=int(np.sum(sub.at_yield())), lambda_min=lam_min,
                         eigen_residual=res.errors["eigen_residual_stability"],
-                        rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
+                        rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start,
+                        attribution=attribution)
+
+
+def _sub_index(sub: Scene, scene: Scene, keep) -> np.ndarray:
+    """Where the particles `keep` of `scene` are in the cluster scene `sub` (its particles are sorted by index)."""
+    return np.array([sub.names.index(scene.names[i]) for i in keep], dtype=np.int64)
+
+
+def _with_mechanisms(scene, centers, member_lists, options, batched, done, rows, rest):
+    """The controls of every unstable cluster of a chunk, batched together (`controls`), and their mechanism labels
+    (attribution.mechanism) put into the batched columns and the `analyze` rows."""
+    verdict = np.full(len(centers), "", dtype=object)
+    if batched is not None:
+        verdict[done] = batched["verdict"]
+    for i, row in zip(rest, rows):
+        verdict[i] = row.verdict
+    unstable = np.flatnonzero(verdict == "unstable")
+    if not unstable.size:
+        return batched, rows
+    got = controls(scene, centers[unstable], [member_lists[i] for i in unstable], options)
+    elastic, fixed = (np.full(len(centers), "", dtype=object) for _ in range(2))
+    elastic[unstable], fixed[unstable] = got["elastic"], got["rim"]
+    if batched is not None:
+        label = mechanism(batched["work_parts"], batched["rim_share"], elastic[done], fixed[done],
+                          batched["verdict"] == "unstable")
+        batched.update(mechanism=label, elastic_control=elastic[done], fixed_control=fixed[done])
+    rows = [replace(row, mechanism=str(mechanism([row.work_parts], [row.rim_share], [elastic[i]], [fixed[i]],
+                                                 [True])[0]),
+                    elastic_control=elastic[i], fixed_control=fixed[i]) if row.work_parts is not None else row
+            for i, row in zip(rest, rows)]
+    return batched, rows
+
+
+def controls(scene: Scene, centers: np.ndarray, member_lists: list, options: dict) -> dict:
+    """The verdict strings of the two controls of each cluster (attribution.py): "elastic" (every contact elastic,
+    the scan's boundary) and "rim" (the cluster alone with its rim held), solved as the branches are (batch.py, one
+    stack per size); what the batch hands back, by `analyze` of the control scene (clusters.control_scene)."""
+    out = {}
+    for kind in ("elastic", "rim"):
+        verdict = np.full(len(centers), "", dtype=object)
+        opts = {**options, "control": kind, "attribute": False}
+        got = solve_chunk(scene, centers, member_lists, opts) if batchable(options) else None
+        done = np.zeros(0, dtype=np.int64)
+        if got is not None:
+            finite = np.isfinite(got["eigen_residual"]) & np.isfinite(got["rigid_leakage"])
+            done = got["position"]
+            verdict[done] = verdict_columns(got["counts"], got["n_branches"], finite, got["n_undetermined"])["verdict"]
+        for i in np.setdiff1d(np.arange(len(centers)), done):
+            verdict[i] = _control_by_analyze(scene, centers[i], member_lists[i], opts)
+        out[kind] = verdict
+    return out
+
+
+def _control_by_analyze(scene: Scene, center: int, keep, options: dict) -> str:
+    """One control's verdict by `analyze` (the clusters the batch hands back); 'error' if it fails."""
+    try:
+        sub = control_scene(scene, center, options["rings"], options.get("boundary", "loads"), options["control"])
+        if sub.fixed is not None and sub.fixed.all():
+            return "stable"                                           # nothing free to move
+        res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
+                      sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()),
+                      attribution=False)
+    except SceneError:
+        return "error"
+    if options["control"] == "elastic" and boundary_rings(options.get("boundary", "loads"))[0] == "embedded":
+        res = focus(res, _sub_index(sub, scene, keep), EMBEDDED_INSIDE)
+    return res.verdict.verdict
 
 
 def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, options: dict,
@@ -89,7 +170,7 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
     (verdicts.verdict_columns); seconds: the chunk's time shared equally. index: the packing's index of each
     particle of `scene`."""
     start = time.perf_counter()
-    got = solve_chunk(scene, centers, member_lists, options)
+    got = solve_chunk(scene, centers, member_lists, {**options, "attribute": options.get("attribution", True)})
     if got is None or not len(got["position"]):
         return None
     position = got["position"]
@@ -104,7 +185,10 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
             "n_contacts": got["n_contacts"], "n_sliding": got["n_sliding"], "branches": np.full(n, "all", object),
             "n_branches": got["n_branches"], "lambda_min": got["lambda_min"], "metric_robust": np.full(n, None, object),
             "eigen_residual": got["eigen_residual"], "rigid_leakage": got["rigid_leakage"], **verdicts,
-            "seconds": np.full(n, (time.perf_counter() - start) / n)}
+            "seconds": np.full(n, (time.perf_counter() - start) / n),
+            "work_parts": got.get("work_parts", np.full((n, 5), np.nan)), "rim_share": got.get("rim_share", np.full(n, np.nan)),
+            "mechanism": np.full(n, "", object),
+            "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object)}
 
 
 @dataclass(frozen=True)
@@ -139,8 +223,9 @@ def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tu
 
 
 def reach(options: dict) -> int:
-    """Contact hops a chunk's scene must hold around its centres: the rings, and the held ring beyond them."""
-    return options["rings"] + (options.get("boundary") == "fixed")
+    """Contact hops a chunk's scene must hold around its centres: the rings, the embedded rings, and the ring beyond
+    them (held, or, for the loads boundary, what tells the rim, batch.rim_flags)."""
+    return options["rings"] + boundary_rings(options.get("boundary", "loads"))[1] + 1
 
 
 def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.ndarray | None = None):
@@ -157,6 +242,8 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
         done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
         rest = np.setdiff1d(np.arange(len(centers)), done)
         rows = [cluster_row(scene, centers[i], member_lists[i], options, graph, index) for i in rest]
+        if options.get("attribution", True):
+            batched, rows = _with_mechanisms(scene, centers, member_lists, options, batched, done, rows, rest)
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
     return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
 
@@ -181,10 +268,10 @@ def select_centers(scene: Scene, centers) -> np.ndarray:
 
 
 def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = "L", max_sliding: int = 8,
-         boundary: str = "loads",
+         boundary: str = DEFAULT_BOUNDARY,
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
-         device: str = "cpu") -> dict:
+         device: str = "cpu", attribution: bool = True) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -196,9 +283,10 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     out_dir : str or Path
         Output folder; centres already in it (an interrupted scan with the same options) are skipped. Ctrl-C
         raises `Interrupted` (a KeyboardInterrupt) saying how many clusters are kept there.
-    rings, boundary : int, {"loads", "fixed"}
-        The cluster of a centre: `rings` contact hops; cut contacts as dead loads or the next ring held fixed
-        (`extract`).
+    rings, boundary : int, {"loads", "fixed", "embedded[:R]"}
+        The cluster of a centre: `rings` contact hops; cut contacts as dead loads, the next ring held fixed, or the
+        next R rings free and elastic with the ring beyond held and the verdict on the cluster's own modes
+        (`extract`, clusters.embedded; default DEFAULT_BOUNDARY, docs/attribution.md).
     centers : "all", "every:K", or names
         Which particles are centres.
     metric, max_sliding, sample_branches : str, int, int
@@ -210,6 +298,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         the stacked eigenproblems run (granstab.solve.device).
     progress, fmt, figures : bool, {"parquet", "csv"}, bool
         A bar with the time left; the table format; whether to draw map.png/.svg and lambda_min.png/.svg.
+    attribution : bool
+        Every unstable cluster's attribution (mechanism, work_parts, rim_share and the two controls, batched:
+        mechanics/attribution.py); False leaves those columns empty (the overhead: BENCHMARKS.md).
 
     Returns
     -------
@@ -220,11 +311,10 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
-    if boundary not in BOUNDARIES:
-        raise SceneError(f"--boundary: one of {', '.join(BOUNDARIES)}, got {boundary!r}")
+    boundary_rings(boundary)                                        # a bad value: one line
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
-               "boundary": boundary}
+               "boundary": boundary, "attribution": bool(attribution)}
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, scene)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
