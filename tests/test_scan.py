@@ -371,7 +371,8 @@ def test_two_dask_workers_give_the_serial_rows_and_survive_a_killed_worker(tmp_p
         with Client(cluster) as client:
             victim = sorted(client.scheduler_info()["workers"])[0]
             runner = threading.Thread(target=scan, args=(scene, tmp_path / "dask"),
-                                      kwargs={"scheduler": cluster.scheduler_address, "chunk": 1, "figures": False})
+                                      kwargs={"scheduler": cluster.scheduler_address, "chunk": 1, "figures": False,
+                                              "boundary": "loads"})
             runner.start()
             deadline = time.monotonic() + 120
             while not (parts.is_dir() and any(parts.glob("*.arrow"))) and time.monotonic() < deadline:

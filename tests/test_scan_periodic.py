@@ -65,7 +65,7 @@ def test_scan_rows_of_seam_particles_equal_analyze_of_the_extracted_cluster(pack
     s = packing
     names = [s.names[c] for c in seam_centres(s, 4)]
     assert len(names) == 4
-    scan(s, tmp_path / "scan", centers=names, workers=1, chunk=workers_chunk, figures=False)
+    scan(s, tmp_path / "scan", centers=names, workers=1, chunk=workers_chunk, figures=False, boundary="loads")
     rows = pq.read_table(tmp_path / "scan" / "clusters.parquet").to_pylist()
     assert [s.names[r["center"]] for r in rows] == names
     assert {r["path"] for r in rows} <= {"batched", "batched-values"}
