@@ -121,13 +121,16 @@ def metric_error(error, metric: Metric, free=None) -> float:
     return curvature_error(E.tocsr())
 
 
-def without_rows(R: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """(I − U Uᵀ) R for the unit columns U on `rows` (the free spins): the same span as [R, U] with R orthogonal to
-    U, so that [R, U] stays well conditioned where R's translational part is tiny (a contactless cluster at 1e-78 L,
-    whose every spin is free); columns left exactly zero are dropped."""
-    out = R.copy()
-    out[rows] = 0.0
-    return out[:, np.abs(out).max(axis=0, initial=0.0) > 0]
+def free_spins(H, A, S, scene: Scene) -> np.ndarray:
+    """The rotation dofs no contact feels (rigid.untouched_dofs): the free spins of frictionless round particles,
+    set aside like the rigid motions in a periodic scene. Only there: its rigid motions are the d translations, to
+    which the spins are orthogonal, so they are exact zero modes of sym(𝓗) and leave every other eigenvalue as it is.
+    In a free cluster the rigid rotations have spin parts and Hg3 does not vanish on them (loads): projecting the spins
+    out as well would also hold the orbital rotation and move the other eigenvalues (tests/test_metric.py, the pair
+    potential's dynamical matrix), so there they stay in the spectrum as zeros."""
+    norm = abs(H).sum(axis=1).max() if H.shape[0] else 0.0
+    norm = float(np.asarray(norm).max(initial=0.0)) if not np.isscalar(norm) else float(norm)
+    return untouched_dofs(H, A, S, scale=max(norm, 1e-300), dofs=rotation_dofs(scene.n_particles, scene.dim))
 
 
 def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metric) -> Problem:
@@ -141,10 +144,10 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     free = scene.free_dofs
     spins = np.zeros(0, dtype=np.intp)
     if free is None:
-        spins = untouched_dofs(H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300),
-                               dofs=rotation_dofs(scene.n_particles, scene.dim))
+        if scene.periodic:         # free_spins: only where no rigid rotation couples them (see there)
+            spins = free_spins(H_el, A, S, scene)
         R = metric.rotations(scene)
-        C = np.concatenate([without_rows(R, spins), unit_columns(len(H_el), spins)], axis=1)
+        C = np.concatenate([R, unit_columns(len(H_el), spins)], axis=1)
         rigid, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))
     else:                          # held by fixed particles: their dofs dropped, no rigid motion, no projection
         H_el, A, S = H_el[np.ix_(free, free)], A[free], S[free]

@@ -205,7 +205,7 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
     spins = (untouched_dofs(H, A, S, scale=norm, dofs=rotation_dofs(scene.n_particles, scene.dim))
-             if scene.fixed is None else np.zeros(0, dtype=np.intp))
+             if scene.fixed is None and scene.periodic else np.zeros(0, dtype=np.intp))   # methods.free_spins
     if spins.size:              # free spins (frictionless round particles): exactly decoupled, moved to the top
         Hs = (Hs + sp.csr_matrix((np.full(spins.size, 2.0 * norm), (spins, spins)), shape=Hs.shape)).tocsr()
         norm *= 2.0
