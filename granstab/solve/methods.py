@@ -107,8 +107,7 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     free = scene.free_dofs
     spins = np.zeros(0, dtype=np.intp)
     if free is None:
-        spins = untouched_dofs(H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300),
-                               dofs=rotation_dofs(scene.n_particles, scene.dim))
+        spins = _free_spins(scene, metric, H_el, A, S)
         C = np.concatenate([metric.rotations(scene), unit_columns(len(H_el), spins)], axis=1)
         rigid, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))
     else:                          # held by fixed particles: their dofs dropped, no rigid motion, no projection
@@ -120,6 +119,18 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
                    formation_error=formation_error(scales, C, projection.Cplus), free=free, free_spins=len(spins))
+
+
+def _free_spins(scene, metric, H_el, A, S) -> np.ndarray:
+    """The rotation dofs no contact feels (rigid.untouched_dofs) that are not already rigid motions (one particle:
+    its spin is the rigid rotation), to be set aside with the rigid motions."""
+    spins = untouched_dofs(H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300),
+                           dofs=rotation_dofs(scene.n_particles, scene.dim))
+    if not spins.size:
+        return spins
+    Q, _ = rigid_basis(np.concatenate([metric.translations(scene), metric.rotations(scene)], axis=1))
+    outside = 1.0 - np.sum(Q[spins] ** 2, axis=1)                   # |e_j - Q Qᵀ e_j|² of each unit column
+    return spins[outside > 0.25]
 
 
 class DenseMethod:
