@@ -122,10 +122,14 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
 
 
 def _free_spins(scene, metric, H_el, A, S) -> np.ndarray:
-    """The rotation dofs no contact feels (rigid.untouched_dofs) that are not already rigid motions (one particle:
-    its spin is the rigid rotation), to be set aside with the rigid motions."""
+    """The rotation dofs no contact feels (rigid.untouched_dofs) of particles that have contacts (a particle with
+    none is free, and its motions stay zero modes of the verdict) and that are not already rigid motions (one
+    particle: its spin is the rigid rotation), to be set aside with the rigid motions."""
+    touching = np.zeros(scene.n_particles, bool)
+    touching[np.r_[scene.p, scene.q]] = True
+    dofs = rotation_dofs(scene.n_particles, scene.dim) & np.repeat(touching, scene.dof_per_particle)
     spins = untouched_dofs(H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300),
-                           dofs=rotation_dofs(scene.n_particles, scene.dim))
+                           dofs=dofs)
     if not spins.size:
         return spins
     Q, _ = rigid_basis(np.concatenate([metric.translations(scene), metric.rotations(scene)], axis=1))

@@ -199,8 +199,11 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     norm = float(abs(Hs).sum(axis=1).max()) if Hs.nnz else 1.0
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
-    spins = (untouched_dofs(H, A, S, scale=norm, dofs=rotation_dofs(scene.n_particles, scene.dim))
-             if scene.fixed is None else np.zeros(0, dtype=np.intp))
+    touching = np.zeros(scene.n_particles, bool)
+    touching[np.r_[scene.p, scene.q]] = True
+    spin_dofs = rotation_dofs(scene.n_particles, scene.dim) & np.repeat(touching, scene.dof_per_particle)
+    spins = (untouched_dofs(H, A, S, scale=norm, dofs=spin_dofs) if scene.fixed is None
+             else np.zeros(0, dtype=np.intp))
     if spins.size:              # free spins (frictionless round particles): exactly decoupled, moved to the top
         Hs = (Hs + sp.csr_matrix((np.full(spins.size, 2.0 * norm), (spins, spins)), shape=Hs.shape)).tocsr()
         norm *= 2.0
