@@ -110,6 +110,22 @@ def untouched_dofs(H, *factors: np.ndarray, scale: float, dofs: np.ndarray | Non
     return np.flatnonzero(quiet if dofs is None else quiet & dofs)
 
 
+def free_spins(scene, H, *factors: np.ndarray, scale: float) -> np.ndarray:
+    """The free spins of a periodic scene (`untouched_dofs` among the rotation dofs of particles that have contacts:
+    frictionless round particles turning in place), set aside with the rigid motions; none in a free cluster.
+    In a periodic scene the rigid motions are the d translations, to which the spins are orthogonal, so the spins are
+    exact zero modes of sym(𝓗) and setting them aside moves no other eigenvalue. In a free cluster the rigid
+    rotations have spin parts and Hg3 (the loads) does not vanish on them: holding the spins too would also hold the
+    orbital rotation and move the other eigenvalues (tests/test_metric.py, the pair potential's dynamical matrix),
+    so there they stay in the spectrum as zeros. A particle without contacts is a rattler: all its dofs stay."""
+    if not scene.periodic:
+        return np.zeros(0, dtype=np.intp)
+    touching = np.zeros(scene.n_particles, bool)
+    touching[np.r_[scene.p, scene.q]] = True
+    dofs = rotation_dofs(scene.n_particles, scene.dim) & np.repeat(touching, scene.dof_per_particle)
+    return untouched_dofs(H, *factors, scale=scale, dofs=dofs)
+
+
 def rotation_dofs(n_particles: int, dim: int) -> np.ndarray:
     """(n_dof,) bool: True on the rotation dofs."""
     return np.tile(np.r_[np.zeros(dim), np.ones(rot_dim(dim))].astype(bool), n_particles)

@@ -25,7 +25,7 @@ from ..mechanics.assembly import sliding_factors
 from ..mechanics.branches import Problem
 from ..mechanics.checks import equilibrium_residual, identity_errors, modified_leakage
 from ..mechanics.metric import Metric
-from ..mechanics.rigid import Projection, centred, rigid_basis, rotation_dofs, unit_columns, untouched_dofs
+from ..mechanics.rigid import Projection, centred, free_spins, rigid_basis, unit_columns
 from ..mechanics.stiffness import ContactBlocks, assemble_parts, assembled_error, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
 from .dense import solve_branches
@@ -121,18 +121,6 @@ def metric_error(error, metric: Metric, free=None) -> float:
     return curvature_error(E.tocsr())
 
 
-def free_spins(H, A, S, scene: Scene) -> np.ndarray:
-    """The rotation dofs no contact feels (rigid.untouched_dofs): the free spins of frictionless round particles,
-    set aside like the rigid motions in a periodic scene. Only there: its rigid motions are the d translations, to
-    which the spins are orthogonal, so they are exact zero modes of sym(𝓗) and leave every other eigenvalue as it is.
-    In a free cluster the rigid rotations have spin parts and Hg3 does not vanish on them (loads): projecting the spins
-    out as well would also hold the orbital rotation and move the other eigenvalues (tests/test_metric.py, the pair
-    potential's dynamical matrix), so there they stay in the spectrum as zeros."""
-    norm = abs(H).sum(axis=1).max() if H.shape[0] else 0.0
-    norm = float(np.asarray(norm).max(initial=0.0)) if not np.isscalar(norm) else float(norm)
-    return untouched_dofs(H, A, S, scale=max(norm, 1e-300), dofs=rotation_dofs(scene.n_particles, scene.dim))
-
-
 def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metric) -> Problem:
     """Elastic H̃ = D H D, sliding factors D A, D S and the projection in the metric's dofs (metric.py), with the
     bound of the error made in forming sym(𝓗^i) (accuracy.py)."""
@@ -144,8 +132,7 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     free = scene.free_dofs
     spins = np.zeros(0, dtype=np.intp)
     if free is None:
-        if scene.periodic:         # free_spins: only where no rigid rotation couples them (see there)
-            spins = free_spins(H_el, A, S, scene)
+        spins = free_spins(scene, H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300))
         R = metric.rotations(scene)
         C = np.concatenate([R, unit_columns(len(H_el), spins)], axis=1)
         rigid, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))

@@ -53,14 +53,7 @@ from ..mechanics.assembly import assemble, sliding_factors, stack_blocks
 from ..mechanics.branches import RIGID, Branch, Problem, search_eigenspaces, test_codes
 from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
-from ..mechanics.rigid import (
-    Projection,
-    rigid_basis,
-    rotation_dofs,
-    rotations,
-    translations,
-    untouched_dofs,
-)
+from ..mechanics.rigid import Projection, free_spins, rigid_basis, rotations, translations
 from ..mechanics.stiffness import ContactBlocks, assembled_error, contact_blocks, geometric
 from ..model.scene import CONTACT_FIELDS, Scene
 from ..model.vec import rot_dim, rotate_matrix
@@ -204,8 +197,7 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     norm = float(abs(Hs).sum(axis=1).max()) if Hs.nnz else 1.0
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
-    spins = (untouched_dofs(H, A, S, scale=norm, dofs=rotation_dofs(scene.n_particles, scene.dim))
-             if scene.fixed is None and scene.periodic else np.zeros(0, dtype=np.intp))   # methods.free_spins
+    spins = free_spins(scene, H, A, S, scale=norm) if scene.fixed is None else np.zeros(0, dtype=np.intp)
     if spins.size:              # free spins (frictionless round particles): exactly decoupled, moved to the top
         Hs = (Hs + sp.csr_matrix((np.full(spins.size, 2.0 * norm), (spins, spins)), shape=Hs.shape)).tocsr()
         norm *= 2.0
