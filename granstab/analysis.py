@@ -30,7 +30,8 @@ KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would 
 @dataclass(eq=False)
 class Analysis:
     """Result of `analyze`: branches, verdict (a `Verdict`; `summary` is its dict), errors (relative,
-    dimensionless), timings (s), in the primary metric `metric` (metric.py)."""
+    dimensionless), timings (s), in the primary metric `metric` (metric.py); `cost`: the method, the metrics, and
+    how many branches each path solved over all of them ("low_rank", "full", "sparse")."""
 
     scene: Scene
     problem: Problem
@@ -41,6 +42,7 @@ class Analysis:
     timings: dict
     warnings: list = field(default_factory=list)
     backend: str = "dense"
+    cost: dict = field(default_factory=dict)
 
     @property
     def summary(self) -> dict:
@@ -90,6 +92,7 @@ class Analysis:
             "summary": self.summary,
             "errors": self.errors,
             "timings": self.timings,
+            "cost": self.cost,
             "warnings": self.warnings,
         }
 
@@ -152,8 +155,9 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
         problem (None: from 2^10 branches on, or on a GPU); which branches the result keeps ("verdict": those the
         verdict rests on; "auto": all up to KEEP_ALL).
-    on_branch, progress : callable or None, bool
-        Called with each `Branch` of the primary metric as it is finished; a bar with the time left.
+    on_branch, progress : callable or None, bool or a reporter
+        Called with each `Branch` of the primary metric as it is finished; a bar with the time left, or a reporter
+        with stages (granstab.io.progress.Heartbeat: a line a minute where no bar can be drawn).
 
     Returns
     -------
@@ -192,6 +196,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         keep_all = keep == "all" or (keep == "auto" and len(masks) <= KEEP_ALL)
         order = [primary] + [i for i in range(len(metrics)) if i != primary]
         entries = [None] * len(metrics)
+        paths = {}                                                       # branches solved per path, all metrics
         for i in order:
             m = metrics[i]
             main = i == primary
@@ -201,6 +206,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                 branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
                                                 progress=progress, label=f"branches, metric {m.name}",
                                                 keep_all=keep_all)
+            for path, count in notes["paths"].items():
+                paths[path] = paths.get(path, 0) + count
             verdict = summarize(branches, notes)
             entries[i] = family_entry(m, verdict)
             if main:
@@ -221,4 +228,6 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
                         "over all branches (keep='all' keeps every one)")
     return Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
-                    timings=timer.times, warnings=warnings, backend=backend.name)
+                    timings=timer.times, warnings=warnings, backend=backend.name,
+                    cost={"method": backend.name, "metrics": len(metrics), "branches_per_metric": len(masks),
+                          "paths": paths})

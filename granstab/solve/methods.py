@@ -71,8 +71,12 @@ def choose_method(scene: Scene, method: str, k: int, device: str = "cpu", lowran
     return DenseMethod(device, lowrank)
 
 
-def _progress_bar(total: int, desc: str = "branches"):
-    """A tqdm bar with the time left (tqdm is optional: None without it)."""
+def _progress_bar(total: int, desc: str = "branches", progress=True):
+    """A tqdm bar with the time left (tqdm is optional: None without it), or, when `progress` is a reporter with
+    stages (io.progress.Heartbeat), that reporter at a new stage."""
+    if hasattr(progress, "stage"):
+        progress.stage(desc, total)
+        return progress
     try:
         from tqdm.auto import tqdm
     except ImportError:
@@ -142,7 +146,7 @@ class DenseMethod:
 
     def solve(self, problem: Problem, masks: np.ndarray, on_branch=None, progress: bool = False,
               label: str = "branches", keep_all: bool = True):
-        bar = _progress_bar(len(masks), label) if progress and len(masks) > 1 else None
+        bar = _progress_bar(len(masks), label, progress) if progress and len(masks) > 1 else None
 
         def stream(b):
             if bar is not None:
@@ -151,15 +155,16 @@ class DenseMethod:
                 on_branch(b)
 
         from .device import backend
-        from .lowrank import MIN_BRANCHES, solve_branches_lowrank
+        from .lowrank import solve_branches_lowrank, use_lowrank
         lowrank = self.lowrank
         if lowrank is None:
-            lowrank = len(masks) >= MIN_BRANCHES or backend(self.device).name == "gpu"
-        notes = {"complete": True}
+            lowrank = use_lowrank(len(masks), problem.H_el.shape[0]) or backend(self.device).name == "gpu"
+        notes = {"complete": True, "paths": {"full": len(masks)}}
         if lowrank:
             branches, info = solve_branches_lowrank(problem, masks, device=self.device, keep_all=keep_all,
                                                     on_branch=stream if bar is not None or on_branch else None)
             notes["lowrank"] = info
+            notes["paths"] = {"low_rank": len(masks) - info["full_path"], "full": info["full_path"]}
             notes["residual_stability"] = info["residual_stability"]
             if not keep_all:
                 notes.update(tally=info["tally"], n_branches=info["n_branches"])
@@ -230,7 +235,7 @@ class SparseMethod:
               label: str = "branches", keep_all: bool = True):
         from .sparse import sparse_branch
         spb, k = problem.sp, self.k
-        bar = _progress_bar(len(masks), f"{label} (sparse)") if progress else None
+        bar = _progress_bar(len(masks), f"{label} (sparse)", progress) if progress else None
         branches, unverified, cut, ritz = [], 0, 0, 0
         for mask, modes in zip(masks, self._modes(spb, masks, k + 1)):
             ritz += modes.method == "ritz"
@@ -246,7 +251,7 @@ class SparseMethod:
             bar.close()
         n_free = spb.n - spb.n_rigid
         complete = all(b.negative_count["total"] for b in branches)
-        notes = {"complete": complete, "full": k >= n_free, "k": k, "warnings": [
+        notes = {"complete": complete, "full": k >= n_free, "k": k, "paths": {"sparse": len(masks)}, "warnings": [
             f"sparse path: the lowest {min(k, n_free)} of {n_free} non-rigid eigenpairs of sym(𝓗^i) per branch; "
             "uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated"]}
         if ritz:
