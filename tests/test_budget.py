@@ -112,3 +112,19 @@ def test_tiny_timeout_is_one_line_and_a_nonzero_exit(disks300_file, monkeypatch,
     assert main(["analyze", str(disks300_file), "--metric", "L", "--json", "--timeout", "0.05"]) == 2
     out, err = capsys.readouterr()
     assert out == "" and len(err.strip().splitlines()) == 1 and "stopped after --timeout 0.05 s" in err
+
+
+def test_a_3000_disk_chain_says_where_it_is_and_stops_at_the_timeout(tmp_path, monkeypatch, capsys):
+    """A floppy zig-zag chain (9,000 dofs: the sparse path; thousands of clustered negative eigenvalues, on which
+    shift-invert stalls): not solved quickly yet, but no silent minutes: heartbeats, then one line at --timeout."""
+    from granstab.model.packings import chain
+    path = tmp_path / "chain.npz"
+    granstab.save_scene(chain(2, 3000, zigzag=0.3), path)
+    monkeypatch.setattr(progress, "HEARTBEAT_FIRST", 0.5)
+    monkeypatch.setattr(progress, "HEARTBEAT_EVERY", 0.5)
+    assert main(["analyze", str(path), "--metric", "L", "--json", "--timeout", "4"]) == 2
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert out == "" and lines[-1].startswith(f"{path}: stopped after --timeout 4 s, unfinished; lower --k")
+    assert len(lines) >= 3 and all(line.startswith(f"granstab: analyze {path}: ") for line in lines[:-1])
+    assert any("(sparse)" in line for line in lines[:-1])
