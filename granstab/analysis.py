@@ -153,7 +153,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         granstab.solve.sparse.DENSE_MAX_DOF dofs. `warnings` says what a method leaves out.
     device, lowrank, keep : {"cpu", "gpu", "auto"}, bool or None, {"auto", "all", "verdict"}
         Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
-        problem (None: from 2^10 branches on, or on a GPU); which branches the result keeps ("verdict": those the
+        problem (None: from 2^10 branches on, or branches · n³ >= 5e8, or on a GPU); which branches the result keeps ("verdict": those the
         verdict rests on; "auto": all up to KEEP_ALL).
     on_branch, progress : callable or None, bool or a reporter
         Called with each `Branch` of the primary metric as it is finished; a bar with the time left, or a reporter

@@ -5,8 +5,9 @@
     branches, notes = method.solve(problem, masks, on_branch=None, progress=False, label="branches")
     errors = method.errors(state, problem, branches)
 
-* `DenseMethod`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (dense.py), or from
-  lowrank.MIN_BRANCHES branches on the low-rank updates of the elastic problem (lowrank.py).
+* `DenseMethod`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (dense.py), or, from
+  lowrank.MIN_BRANCHES branches or branches · n³ >= lowrank.MIN_WORK on (lowrank.use_lowrank), the low-rank
+  updates of the elastic problem (lowrank.py).
 * `SparseMethod`: per branch the lowest k non-rigid eigenpairs of sym(𝓗^i) and the exact number of its negative
   eigenvalues from Sylvester's law of inertia (sparse.py; several branches as Ritz updates, ritz.py); no
   n_dof × n_dof matrix. It leaves out ℍ^i (uniqueness, Type-2) and the eigenpairs above the k lowest: counts beyond
@@ -124,9 +125,9 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
 
 
 class DenseMethod:
-    """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. From lowrank.MIN_BRANCHES
-    branches on, or when `device` resolves to a GPU (device.py), the branches are solved as low-rank updates of
-    the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
+    """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. Where lowrank.use_lowrank says
+    so (many branches, or large ones), or when `device` resolves to a GPU (device.py), the branches are solved as
+    low-rank updates of the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
     branches it solves (their ℍ^i nullity is proven instead) and says so."""
 
     name = "dense"
