@@ -127,6 +127,20 @@ def build_problem(scene: Scene, blocks: ContactBlocks, metric):
     return dense_problem(scene, blocks, parts, metric), parts
 
 
+def _check_options(metric: str, keep: str, method: str, rotation_length: float | None) -> None:
+    """ValueError for an option `analyze` does not know."""
+    if metric not in CHOICES:
+        raise ValueError(f"metric must be one of {', '.join(CHOICES)}, got {metric!r}")
+    if keep not in KEEP:
+        raise ValueError(f"keep must be one of {', '.join(KEEP)}, got {keep!r}")
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if rotation_length is not None and not (np.isfinite(rotation_length) and rotation_length > 0):
+        raise ValueError(f"rotation_length must be a positive number, got {rotation_length!r}")
+    if rotation_length is not None and metric == "inertia":
+        raise ValueError("rotation_length: the inertia metric has no rotation length")
+
+
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
@@ -170,16 +184,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
                        stacklevel=2)
         rotation_length = rotation_length if rotation_length is not None else rotation_length_
-    if metric not in CHOICES:
-        raise ValueError(f"metric must be one of {', '.join(CHOICES)}, got {metric!r}")
-    if keep not in KEEP:
-        raise ValueError(f"keep must be one of {', '.join(KEEP)}, got {keep!r}")
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    if rotation_length is not None and not (np.isfinite(rotation_length) and rotation_length > 0):
-        raise ValueError(f"rotation_length must be a positive number, got {rotation_length!r}")
-    if rotation_length is not None and metric == "inertia":
-        raise ValueError("rotation_length: the inertia metric has no rotation length")
+    _check_options(metric, keep, method, rotation_length)
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
     backend = choose_method(scene, method, k, device, lowrank)
