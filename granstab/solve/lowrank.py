@@ -30,7 +30,6 @@ its nullity), which is what makes it fast; the full path (`dense.solve_branches`
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -181,7 +180,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
 
     kept = Kept(keep_all)
     info["residual_stability"] = 0.0
-    with (be.threads(k) if workers == 1 else blas_threads(1)), pool_of(workers) as pool:
+    with (be.threads(k) if workers == 1 else blas_threads(1)), ThreadPoolExecutor(workers) as pool:
         for start, (part, host, special, plain) in zip(range(0, L, size), pool.map(solve, range(0, L, size))):
             with be.threads(n if workers == 1 else 1):
                 full = dict(zip(np.flatnonzero(special),
@@ -208,17 +207,6 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
     if not keep_all:
         info["tally"], info["n_branches"] = kept.tally, L
     return out, info
-
-
-@contextmanager
-def pool_of(workers: int):
-    """A thread pool whose queued chunks are dropped when the caller stops (an exception, --timeout's deadline),
-    instead of being run to the end as `with ThreadPoolExecutor()` would."""
-    pool = ThreadPoolExecutor(workers)
-    try:
-        yield pool
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 class Kept:
