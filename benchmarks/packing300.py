@@ -70,7 +70,7 @@ def markdown(results: dict) -> str:
              f"LAMMPS's `examples/dem/in.disks300` (300 frictional disks, sheared), converted at step {STEP}: "
              f"{r['particles']} disks, {r['contacts']} contacts, {r['n_dof']} dofs, {r['n_sliding']} contacts at "
              "the friction limit kept sliding (the others elastic). `estimate` is what `granstab analyze` "
-             f"computes before any work (`solve/budget.py`, measured now, {r['cores']} cores) to refuse work over "
+             f"computes before any work (`solve/budget.py`, CPU time of {r['cores']} free cores) to refuse work over "
              "10 s or over `--timeout`; `paths` counts the branches each path solved over all metrics.", "",
              table(["case", "metrics", "branches", "paths", "estimate", "measured", "verdict"],
                    [[c["case"], c["metrics"], c["branches"], ", ".join(f"{k} {v}" for k, v in c["paths"].items()),

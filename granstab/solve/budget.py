@@ -5,8 +5,8 @@ The full dense path solves, per branch, an n×n symmetric eigenproblem, a non-sy
 projections and residuals with a few matrix products (dense.py, mechanics/branches.py); the low-rank path an n×n
 symmetric eigenproblem, a Gram matrix's eigenvalues and a few products (lowrank.py); both are repeated for every
 metric of the family. Their cost is measured here on this machine, on a stack of random matrices of the same
-size (up to MEASURE_DIM; larger sizes scale as n³), so the estimate follows the machine it runs on, its load
-included.
+size (up to MEASURE_DIM; larger sizes scale as n³), in CPU time, so the estimate follows the machine it runs on
+but not its load of the moment.
 """
 from __future__ import annotations
 
@@ -29,7 +29,9 @@ class OverBudget(Exception):
 
 def branch_seconds(n: int, stack: int = MEASURE_STACK, lowrank: bool = False) -> float:
     """Measured seconds per branch for n dofs on one BLAS thread (a shared machine's threads give no more; the
-    branch paths run one thread a core). Full path (dense.py): eigh + eig + SVD and four products of a stack of
+    branch paths run one thread a core), in CPU time: the time on this machine's cores when they are free, so that
+    what is refused does not depend on the load of the moment (a loaded machine takes longer; the heartbeat says
+    so, and --timeout's deadline stops it). Full path (dense.py): eigh + eig + SVD and four products of a stack of
     random n×n matrices; low-rank path (lowrank.py): eigh, the Gram matrix's eigvalsh and three products."""
     from .threads import blas_threads
 
@@ -39,7 +41,7 @@ def branch_seconds(n: int, stack: int = MEASURE_STACK, lowrank: bool = False) ->
     S = A + np.swapaxes(A, 1, 2)
     with blas_threads(1):
         np.linalg.eig(A[:1, :2, :2])                        # first call loads LAPACK: not part of the cost
-        start = time.perf_counter()
+        start = time.thread_time()                          # CPU time: what a core gives, whatever the load
         np.linalg.eigh(S)
         if lowrank:
             np.linalg.eigvalsh(S)
@@ -48,7 +50,7 @@ def branch_seconds(n: int, stack: int = MEASURE_STACK, lowrank: bool = False) ->
             np.linalg.svd(A, compute_uv=False)
         for _ in range(3 if lowrank else 4):                # projections, residuals, Gram matrix, signs
             A @ S
-        per = (time.perf_counter() - start) / stack
+        per = (time.thread_time() - start) / stack
     return per * (n / m) ** 3
 
 
@@ -71,7 +73,7 @@ def refuse_over(source: str, seconds: float, timeout: float | None, work: str, a
     asked = (f"more than the {limit:.3g} s a run takes without --timeout: give --timeout {math.ceil(1.2 * seconds)} "
              "to run it (a line a minute on stderr says where it is), or " if timeout is None else
              f"more than the {limit:.3g} s left of --timeout: ")
-    raise OverBudget(f"{source}: refused: {work} need about {seconds:.3g} s on this machine now, {asked}"
+    raise OverBudget(f"{source}: refused: {work} need about {seconds:.3g} s on this machine's free cores, {asked}"
                      f"{alternatives}cap the potentially sliding contacts (--max-sliding, or state = \"elastic\" for "
                      "contacts known to stick), analyse a smaller cluster around the region of interest"
                      + (", or raise --timeout" if timeout is not None else ""))
