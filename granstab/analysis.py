@@ -33,7 +33,8 @@ KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would 
 @dataclass(eq=False)
 class Analysis:
     """Result of `analyze`: branches, verdict (a `Verdict`; `summary` is its dict), errors (relative,
-    dimensionless), timings (s), in the primary metric `metric` (metric.py)."""
+    dimensionless), timings (s), in the primary metric `metric` (metric.py); `cost`: the method, the metrics, and
+    how many branches each path solved over all of them ("low_rank", "full", "sparse")."""
 
     scene: Scene
     problem: Problem
@@ -45,6 +46,7 @@ class Analysis:
     warnings: list = field(default_factory=list)
     backend: str = "dense"
     attribution: Attribution | None = None
+    cost: dict = field(default_factory=dict)
 
     @property
     def summary(self) -> dict:
@@ -94,6 +96,7 @@ class Analysis:
             "summary": self.summary,
             "errors": self.errors,
             "timings": self.timings,
+            "cost": self.cost,
             "warnings": self.warnings,
             "attribution": None if self.attribution is None else self.attribution.to_dict(),
         }
@@ -144,8 +147,8 @@ def _robustness(scene, backend, problem, masks, metric, entries, timer):
         return metric_robustness(problem, masks, scene.dim, scene.dof_per_particle, metric.rotation_length, entries)
 
 
-def _check_options(metric: str, keep: str, method: str, rotation_length) -> None:
-    """analyze's choices, each a ValueError naming the option."""
+def _check_options(metric: str, keep: str, method: str, rotation_length: float | None) -> None:
+    """ValueError for an option `analyze` does not know."""
     if metric not in CHOICES:
         raise ValueError(f"metric must be one of {', '.join(CHOICES)}, got {metric!r}")
     if keep not in KEEP:
@@ -184,10 +187,13 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         granstab.solve.sparse.DENSE_MAX_DOF dofs. `warnings` says what a method leaves out.
     device, lowrank, keep : {"cpu", "gpu", "auto"}, bool or None, {"auto", "all", "verdict"}
         Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
-        problem (None: from 2^10 branches on, or on a GPU); which branches the result keeps ("verdict": those the
+        problem (None: from 2^10 branches on, or branches · n³ >= 5e8, or on a GPU); which branches the result keeps ("verdict": those the
         verdict rests on; "auto": all up to KEEP_ALL).
-    on_branch, progress, attribution, rim : called with each `Branch` of the primary metric as it is finished; a
-        bar with the time left; an unstable dense result gets ``attribution`` (`attribute`, rim: cut particles).
+    on_branch, progress : callable or None, bool or a reporter
+        Called with each `Branch` of the primary metric as it is finished; a bar with the time left, or a reporter
+        with stages (granstab.io.progress.Heartbeat: a line a minute where no bar can be drawn).
+    attribution, rim : bool, indices or None
+        An unstable dense result gets ``attribution`` (`attribute`; rim: the particles with cut contacts).
 
     Returns
     -------
@@ -217,6 +223,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         keep_all = keep == "all" or (keep == "auto" and len(masks) <= KEEP_ALL)
         order = [primary] + [i for i in range(len(metrics)) if i != primary]
         entries = [None] * len(metrics)
+        paths = {}                                                       # branches solved per path, all metrics
         for i in order:
             m = metrics[i]
             main = i == primary
@@ -226,6 +233,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                 branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
                                                 progress=progress, label=f"branches, metric {m.name}",
                                                 keep_all=keep_all)
+            for path, count in notes["paths"].items():
+                paths[path] = paths.get(path, 0) + count
             verdict = summarize(branches, notes)
             entries[i] = family_entry(m, verdict)
             if main:
@@ -248,7 +257,9 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
                         "over all branches (keep='all' keeps every one)")
     result = Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
-                      timings=timer.times, warnings=warnings, backend=backend.name)
+                      timings=timer.times, warnings=warnings, backend=backend.name,
+                      cost={"method": backend.name, "metrics": len(metrics), "branches_per_metric": len(masks),
+                            "paths": paths})
     return _attributed(result, rim, attribution and backend.name == "dense", max_sliding=max_sliding,
                        sample_branches=sample_branches, seed=seed)
 

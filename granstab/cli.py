@@ -175,22 +175,29 @@ def cmd_analyze(args) -> int:
     if args.rotation_length is not None and args.metric == "inertia":
         raise InputError("--rotation-length: the inertia metric has no rotation length (use --metric L, L/10, 10L "
                          "or family)")
+    from .io.progress import Heartbeat
     from .solve.device import DeviceError
-    progress = args.progress or sys.stderr.isatty()
+    bars = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
     advice = [DENSE_ADVICE]
-    with deadline(args.timeout, source_of(args.scene), advice):
+    with deadline(args.timeout, source_of(args.scene), advice), Heartbeat(f"analyze {source_of(args.scene)}",
+                                                                      enabled=not bars) as beat:
+        beat.stage("reading")
         with strict_numerics(source_of(args.scene)):
-            loaded = load(args.scene, progress=progress, **periodic_options(args))
+            loaded = load(args.scene, progress=bars, **periodic_options(args))
             scene = loaded.scene
-            if not refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start)):
+            dense, beat.estimate = refuse_unfinishable(
+                scene, args, args.timeout and args.timeout - (time.perf_counter() - start))
+            if not dense:
                 advice[0] = SPARSE_ADVICE
+            beat.stage("assembly")
             try:
                 result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length,
                                  max_sliding=args.max_sliding, sample_branches=args.sample_branches,
-                                 method=args.method, k=args.k, progress=progress, device=args.device)
+                                 method=args.method, k=args.k, progress=bars or beat, device=args.device)
             except DeviceError as exc:
                 raise InputError(f"--device: {exc}") from None
+            beat.stage("writing the result")
             data = {**result.to_dict(), "import": loaded.report}
             require_finite(data, scene.source)
             text = json.dumps(data, allow_nan=False) if args.json else "\n".join(
@@ -263,11 +270,14 @@ def cmd_moduli(args) -> int:
     return 0
 
 
-def refuse_unfinishable(scene, args, seconds_left: float | None) -> bool:
+def refuse_unfinishable(scene, args, seconds_left: float | None) -> tuple[bool, float | None]:
     """Refuse (one line, before any work) more sliding contacts than --max-sliding, and dense branch enumerations
-    whose measured cost exceeds the time left of --timeout; each message says what to do. Returns whether the
-    dense path will run."""
+    whose measured cost, over every metric asked for, exceeds the time left of --timeout (without --timeout:
+    budget.ASK_SECONDS); each message says what to do. Returns whether the dense path will run and its estimate."""
+    from .mechanics.metric import family
+    from .solve.lowrank import use_lowrank
     from .solve.sparse import DENSE_MAX_DOF
+    from .solve.threads import cores
     n_sliding = int(np.sum(scene.at_yield()))
     sampled = n_sliding > args.max_sliding
     if sampled and args.sample_branches is None:
@@ -276,10 +286,18 @@ def refuse_unfinishable(scene, args, seconds_left: float | None) -> bool:
                          "raise --max-sliding (with --timeout to bound the time), set state = \"elastic\" for "
                          "contacts known to stick, or scan local clusters (granstab scan)")
     dense = args.method == "dense" or (args.method == "auto" and scene.n_dof <= DENSE_MAX_DOF)
-    if dense and seconds_left is not None:
-        n_branches = args.sample_branches + 2 if sampled else 2 ** n_sliding
-        refuse_over(scene.source, estimate(scene.n_dof, n_branches), seconds_left, scene.n_dof, n_sliding)
-    return dense
+    if not dense or args.device != "cpu":
+        return dense, None
+    n = scene.n_dof if scene.free_dofs is None else len(scene.free_dofs)
+    n_branches = args.sample_branches + 2 if sampled else 2 ** n_sliding
+    n_metrics = len(family(scene, args.rotation_length)) if args.metric == "family" else 1
+    lowrank = use_lowrank(n_branches, n)
+    seconds = estimate(n, n_branches, n_metrics, lowrank=lowrank, workers=cores())
+    one = f"--metric L alone (about {seconds / n_metrics:.3g} s), " if n_metrics > 1 else ""
+    refuse_over(scene.source, seconds, seconds_left,
+                f"{n_branches} branches × {n_metrics} metric(s) of {n} dofs ({'low-rank' if lowrank else 'full'} "
+                "path)", one + "--method sparse with a small --k, ")
+    return dense, seconds
 
 
 def cmd_reproduce(args) -> int:

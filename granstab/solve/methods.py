@@ -5,8 +5,9 @@
     branches, notes = method.solve(problem, masks, on_branch=None, progress=False, label="branches")
     errors = method.errors(state, problem, branches)
 
-* `DenseMethod`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (dense.py), or from
-  lowrank.MIN_BRANCHES branches on the low-rank updates of the elastic problem (lowrank.py).
+* `DenseMethod`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (dense.py), or, from
+  lowrank.MIN_BRANCHES branches or branches · n³ >= lowrank.MIN_WORK on (lowrank.use_lowrank), the low-rank
+  updates of the elastic problem (lowrank.py).
 * `SparseMethod`: per branch the lowest k non-rigid eigenpairs of sym(𝓗^i) and the exact number of its negative
   eigenvalues from Sylvester's law of inertia (sparse.py; several branches as Ritz updates, ritz.py); no
   n_dof × n_dof matrix. It leaves out ℍ^i (uniqueness, Type-2) and the eigenpairs above the k lowest: counts beyond
@@ -71,8 +72,12 @@ def choose_method(scene: Scene, method: str, k: int, device: str = "cpu", lowran
     return DenseMethod(device, lowrank)
 
 
-def _progress_bar(total: int, desc: str = "branches"):
-    """A tqdm bar with the time left (tqdm is optional: None without it)."""
+def _progress_bar(total: int, desc: str = "branches", progress=True):
+    """A tqdm bar with the time left (tqdm is optional: None without it), or, when `progress` is a reporter with
+    stages (io.progress.Heartbeat), that reporter at a new stage."""
+    if hasattr(progress, "stage"):
+        progress.stage(desc, total)
+        return progress
     try:
         from tqdm.auto import tqdm
     except ImportError:
@@ -154,9 +159,9 @@ RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width�
 
 
 class DenseMethod:
-    """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. From lowrank.MIN_BRANCHES
-    branches on, or when `device` resolves to a GPU (device.py), the branches are solved as low-rank updates of
-    the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
+    """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. Where lowrank.use_lowrank says
+    so (many branches, or large ones), or when `device` resolves to a GPU (device.py), the branches are solved as
+    low-rank updates of the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
     branches it solves (their ℍ^i nullity is proven instead) and says so."""
 
     name = "dense"
@@ -176,7 +181,7 @@ class DenseMethod:
 
     def solve(self, problem: Problem, masks: np.ndarray, on_branch=None, progress: bool = False,
               label: str = "branches", keep_all: bool = True):
-        bar = _progress_bar(len(masks), label) if progress and len(masks) > 1 else None
+        bar = _progress_bar(len(masks), label, progress) if progress and len(masks) > 1 else None
 
         def stream(b):
             if bar is not None:
@@ -185,15 +190,16 @@ class DenseMethod:
                 on_branch(b)
 
         from .device import backend
-        from .lowrank import MIN_BRANCHES, solve_branches_lowrank
+        from .lowrank import solve_branches_lowrank, use_lowrank
         lowrank = self.lowrank
         if lowrank is None:
-            lowrank = len(masks) >= MIN_BRANCHES or backend(self.device).name == "gpu"
-        notes = {"complete": True}
+            lowrank = use_lowrank(len(masks), problem.H_el.shape[0]) or backend(self.device).name == "gpu"
+        notes = {"complete": True, "paths": {"full": len(masks)}}
         if lowrank:
             branches, info = solve_branches_lowrank(problem, masks, device=self.device, keep_all=keep_all,
                                                     on_branch=stream if bar is not None or on_branch else None)
             notes["lowrank"] = info
+            notes["paths"] = {"low_rank": len(masks) - info["full_path"], "full": info["full_path"]}
             notes["residual_stability"] = info["residual_stability"]
             if not keep_all:
                 notes.update(tally=info["tally"], n_branches=info["n_branches"])
@@ -267,7 +273,7 @@ class SparseMethod:
               label: str = "branches", keep_all: bool = True):
         from .sparse import sparse_branch
         spb, k = problem.sp, self.k
-        bar = _progress_bar(len(masks), f"{label} (sparse)") if progress else None
+        bar = _progress_bar(len(masks), f"{label} (sparse)", progress) if progress else None
         branches, unverified, cut, ritz = [], 0, 0, 0
         for mask, modes in zip(masks, self._modes(spb, masks, k + 1)):
             ritz += modes.method == "ritz"
@@ -283,7 +289,7 @@ class SparseMethod:
             bar.close()
         n_free = spb.n - spb.n_rigid
         complete = all(b.negative_count["total"] for b in branches)
-        notes = {"complete": complete, "full": k >= n_free, "k": k, "warnings": [
+        notes = {"complete": complete, "full": k >= n_free, "k": k, "paths": {"sparse": len(masks)}, "warnings": [
             f"sparse path: the lowest {min(k, n_free)} of {n_free} non-rigid eigenpairs of sym(𝓗^i) per branch; "
             "uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated"]}
         if ritz:

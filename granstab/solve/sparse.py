@@ -50,7 +50,7 @@ import scipy.sparse.linalg as spla
 from ..mechanics import checks
 from ..mechanics.accuracy import resolved_sign, vector_bounds
 from ..mechanics.assembly import assemble, sliding_factors, stack_blocks
-from ..mechanics.branches import RIGID, Branch, Problem, search_eigenspaces, test_codes
+from ..mechanics.branches import RIGID, Branch, Problem, canonical_signs, search_eigenspaces, test_codes
 from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
 from ..mechanics.rigid import Projection, free_spins, rigid_basis, rotations, translations
@@ -654,7 +654,7 @@ def sparse_branch(problem: Problem, spb, modes, mask, k: int):
     n_rigid = spb.n_rigid
     lam = np.r_[np.zeros(n_rigid), lam_k]
     bounds = np.r_[np.full(n_rigid, problem.formation_error), bounds_k]
-    V = np.concatenate([spb.R, V_k], axis=1)
+    V = np.concatenate([spb.R, canonical_signs(V_k)], axis=1)          # the signs of branches.column_signs
     order = np.argsort(lam, kind="stable")
     lam, V, bounds = lam[order], V[:, order], bounds[order]
     rigid = order < n_rigid
