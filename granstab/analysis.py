@@ -192,8 +192,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     on_branch, progress : callable or None, bool or a reporter
         Called with each `Branch` of the primary metric as it is finished; a bar with the time left, or a reporter
         with stages (granstab.io.progress.Heartbeat: a line a minute where no bar can be drawn).
-    attribution, rim : bool, indices or None
-        An unstable dense result gets ``attribution`` (`attribute`; rim: the particles with cut contacts).
+    attribution, rim : an unstable dense result gets ``attribution`` (`attribute`; rim: particles with cut contacts).
 
     Returns
     -------
