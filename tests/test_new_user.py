@@ -252,9 +252,10 @@ def test_ctrl_c_in_a_scan_on_dask_workers_is_one_line(tmp_path):
 
 
 def test_ctrl_c_in_analyze_is_one_line(tmp_path):
-    """analyze of 4,096 branches, Ctrl-C once its progress bar shows: one line (after the bar), exit 130."""
+    """analyze of 4,096 branches (--timeout: above the 10 s a run takes without it), Ctrl-C once its progress bar
+    shows: one line (after the bar), exit 130."""
     scene_file = packing_file(tmp_path, 60, 12, seed=3)
-    proc = started("analyze", scene_file, "--metric", "L", "--max-sliding", "20", "--progress")
+    proc = started("analyze", scene_file, "--metric", "L", "--max-sliding", "20", "--progress", "--timeout", "600")
     first = proc.stderr.read(1)                   # the bar has started: granstab is at work
     time.sleep(0.2)
     out, err = interrupt_when(proc, lambda: True)
