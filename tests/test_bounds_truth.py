@@ -74,10 +74,11 @@ def scalar_tensors(scene, kappas):
     return out
 
 
-def check(scene, truths) -> dict:
-    """granstab.analyze (L metric) against each truth spectrum: every |λ - λ_true| <= its bound, and a sufficient
-    verdict agrees with the truth's sign of the lowest non-rigid eigenvalue (single elastic branch)."""
-    res = granstab.analyze(scene, metric="L")
+def check(scene, truths, method: str = "auto") -> dict:
+    """granstab.analyze (L metric, `method`) against each truth spectrum (ascending; the sparse path's rigid zeros
+    and k lowest are its first entries): every |λ - λ_true| <= its bound, and a sufficient verdict agrees with the
+    truth's sign of the lowest non-rigid eigenvalue (single elastic branch)."""
+    res = granstab.analyze(scene, metric="L", method=method)
     b = res.branches[0]
     lam, bound = b.stability_eigenvalues, b.accuracy
     assert np.all(np.diff(lam) >= 0)
@@ -152,23 +153,29 @@ def test_far_from_the_origin(dim, seed, distance):
     """A random cluster moved `distance` mean contact radii from the origin (the accepted range ends at 1e9): its
     data are rounded there, and the truth is taken from those data; the same verdict as at the origin where both
     are proven (translation changes nothing in exact arithmetic but the rounding of x and the points, which the
-    truth of each scene includes)."""
+    truth of each scene includes). The far scene on the sparse path too (its own bounds: sparse.sparse_branch)."""
     base = granstab.scene_from_dict(random_cluster(dim, 4, seed, moments=False, states="elastic"))
     L = granstab.mechanics.rigid.rotation_length(base)
     offset = distance * L * np.r_[1.0, 0.37, -0.21][:dim]
     far = shifted(base, offset)
-    here, there = check(base, [truth(base)]), check(far, [truth(far)])
-    if here["sufficient"] and there["sufficient"]:
-        assert here["verdict"] == there["verdict"]
+    far_truth = [truth(far)]
+    here, there = check(base, [truth(base)]), check(far, far_truth)
+    sparse = check(far, far_truth, method="sparse")
+    for other in (there, sparse):
+        if here["sufficient"] and other["sufficient"]:
+            assert here["verdict"] == other["verdict"]
 
 
 @pytest.mark.parametrize("distance", [0.0, 7.1e6, 7e8])   # L = 0.85: 1e9 L is 8.5e8
 def test_a_nearly_neutral_pair_far_away(distance):
     """A pair of unequal disks whose rolling eigenvalue is ~1e-12 of k (ρ within 1e-9 of r^p), off-centre so the
-    centroid is not exactly representable: on main a rigid rotation leaked by ε(|x|/L)‖Hg3‖ ≈ 5e-13 into it."""
+    centroid is not exactly representable: on main a rigid rotation leaked by ε(|x|/L)‖Hg3‖ ≈ 5e-13 into it. The
+    sparse path too."""
     sc = two_particle.scene(r=1.0, rq=0.7, rho=1.0 + 1e-9, rhoq=0.7, f=0.01)
     sc = shifted(sc, np.array([distance + 0.3, 0.37 * distance + 0.7]))
-    check(sc, [truth(sc)])
+    truths = [truth(sc)]
+    check(sc, truths)
+    check(sc, truths, method="sparse")
 
 
 def test_far_rotations_are_orthogonal_to_translations_to_the_spread():
@@ -184,6 +191,45 @@ def test_far_rotations_are_orthogonal_to_translations_to_the_spread():
     leak = [granstab.analyze(shifted(pair, np.array([s + 0.3, 0.37 * s + 0.7])), metric="L")
             .errors["rigid_leakage_modified"] for s in (0.0, 7.1e6, 5e8)]
     assert max(leak) <= 4 * leak[0] + 16 * np.finfo(float).eps
+
+
+@pytest.mark.parametrize("distance", [7.1e6, 9e8])
+@pytest.mark.parametrize("dim,n", [(2, 200)])
+def test_far_packings_on_the_sparse_path(dim, n, distance):
+    """A random packing (two contacts at yield: four branches) moved `distance` L away and analysed on the sparse path
+    against the dense path at the origin. The near scene is the far one moved back, fl(fl(x + o) - o) = fl(x + o) - o
+    exactly (Sterbenz), and both use the same L, so both approximate the same exact sym(𝓗^i): each eigenvalue must
+    agree within the sum of the two reported bounds (no tolerance added), and proven verdicts must agree. The rigid
+    leakage ‖sym(𝓗^i) R‖_F that every sparse bound now carries (sparse.rigid_leakage) stays at the origin's round-off
+    level far away: the sparse path orthogonalises its rotations against the translations (rigid.rigid_basis)."""
+    from granstab.model.packings import random_packing
+    from granstab.solve.methods import SparseMethod, Timer
+    from granstab.solve.sparse import rigid_leakage
+    base = random_packing(dim, n, n_sliding=2, seed=dim)
+    L = granstab.mechanics.rigid.rotation_length(base)
+    offset = distance * L * np.r_[1.0, 0.37, -0.21][:dim]
+    far = shifted(base, offset)
+    near = shifted(far, -offset)
+    assert np.array_equal(near.x + offset, far.x) and np.array_equal(near.point + offset, far.point)
+    dense = granstab.analyze(near, metric="L", rotation_length=L, method="dense", attribution=False)
+    sparse = granstab.analyze(far, metric="L", rotation_length=L, method="sparse", k=6)
+    assert len(sparse.branches) == len(dense.branches) == 4
+    by_mask = {b.mask.tobytes(): b for b in dense.branches}
+    for b in sparse.branches:
+        d = by_mask[b.mask.tobytes()]
+        m = len(b.stability_eigenvalues)
+        err = np.abs(b.stability_eigenvalues - d.stability_eigenvalues[:m])
+        assert np.all(err <= b.accuracy + d.accuracy[:m]), (err, b.accuracy, d.accuracy[:m])
+        RATIOS.append(float(np.max(err / (b.accuracy + d.accuracy[:m]))))
+    if sparse.summary["sufficient"] and dense.summary["sufficient"]:
+        assert sparse.summary["verdict"] == dense.summary["verdict"]
+    method = SparseMethod(k=6)
+    metric = granstab.mechanics.metric.length_metric
+    leak = []
+    for sc in (near, far):
+        problem = method.problem(method.prepare(sc, Timer()), metric(sc, L, name="L")).sp
+        leak.append(rigid_leakage(problem, np.ones(2, bool)) / problem.norm)
+    assert leak[1] <= 4 * leak[0] + 64 * np.finfo(float).eps   # round-off of ‖P Hs P R‖: a few ε‖Hs‖ at either place
 
 
 @pytest.mark.parametrize("dim,seed", [(2, 3), (2, 4), (3, 5), (3, 6)])

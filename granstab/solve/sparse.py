@@ -641,19 +641,21 @@ def _finish(sp_, Bop, lam, V, mask, sig, verified, nu, method, info) -> Modes:
 
 def sparse_branch(problem: Problem, spb, modes, mask, k: int):
     """A branches.Branch from the k+1 lowest modes: rigid modes first in the basis, per-eigenvalue accuracy bounds
-    (accuracy.py), consistency codes, the subspace search of Appendix D on repeated and non-rigid zero eigenvalues
-    (branches.search_eigenspaces, as the dense path) and the negative count of sym(𝓗^i) (`negative_count`: count, total = whether every
-    negative eigenvalue is among the computed ones, below = the shift σ of the inertia count)."""
+    (accuracy.py, with the branch's `rigid_leakage`), consistency codes, the subspace search of Appendix D on
+    repeated and non-rigid zero eigenvalues (branches.search_eigenspaces, as the dense path) and the negative count
+    of sym(𝓗^i) (`negative_count`: count, total = whether every negative eigenvalue is among the computed ones,
+    below = the shift σ of the inertia count)."""
     n = spb.n
     lam_k, V_k = modes.eigenvalues, modes.vectors
     res_k = modes.residuals * spb.norm                                  # absolute residual norms
-    bounds_k = vector_bounds(lam_k, res_k, spb.norm, problem.formation_error, n)
+    formation = problem.formation_error + rigid_leakage(spb, _on(spb, mask))
+    bounds_k = vector_bounds(lam_k, res_k, spb.norm, formation, n)
     cut = len(lam_k) > k and k > 0 and lam_k[k] - lam_k[k - 1] <= bounds_k[k] + bounds_k[k - 1]
     top = (lam_k[k], bounds_k[k]) if len(lam_k) > k else (np.inf, 0.0)
     lam_k, V_k, bounds_k = lam_k[:k], V_k[:, :k], bounds_k[:k]
     n_rigid = spb.n_rigid
     lam = np.r_[np.zeros(n_rigid), lam_k]
-    bounds = np.r_[np.full(n_rigid, problem.formation_error), bounds_k]
+    bounds = np.r_[np.full(n_rigid, formation), bounds_k]
     V = np.concatenate([spb.R, canonical_signs(V_k)], axis=1)          # the signs of branches.column_signs
     order = np.argsort(lam, kind="stable")
     lam, V, bounds = lam[order], V[:, order], bounds[order]
@@ -680,6 +682,17 @@ def sparse_branch(problem: Problem, spb, modes, mask, k: int):
                negative_count={"count": count, "total": total,
                                "below": float(modes.sigma) if np.isfinite(modes.sigma) else None})
     return b, bool(cut)
+
+
+def rigid_leakage(sp_: SparseProblem, on: np.ndarray) -> float:
+    """‖sym(𝓗^i) R‖_F = ‖P Hs^i P R‖_F for the branch whose sliding contacts are `on` (bool, Ms): the rigid leakage
+    that remains (zero in exact arithmetic), added to every bound as the dense path's `dense.formation` does, from
+    sparse-times-thin products (R is (n, d + r); nothing n × n is formed)."""
+    Q = sp_.Q
+    X = sp_.R - Q @ (Q.T @ sp_.R)
+    A, S = sp_.A[:, on], sp_.S[:, on]
+    Y = sp_.Hs @ X + 0.5 * (A @ (S.T @ X) + S @ (A.T @ X))
+    return float(np.linalg.norm(Y - Q @ (Q.T @ Y)))
 
 
 # ------------------------------------------------------------------------------------------------ errors
@@ -739,4 +752,4 @@ DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this m
 
 __all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
            "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
-           "operator", "sparse_branch", "sparse_parts", "sparse_problem"]
+           "operator", "rigid_leakage", "sparse_branch", "sparse_parts", "sparse_problem"]
