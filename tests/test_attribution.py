@@ -199,6 +199,18 @@ def test_map_colours_agree_with_the_explorer_and_differ_from_the_no_cluster_grey
     assert np.allclose(np.array(cmap(np.ma.masked_invalid([np.nan]))[0][:3]) * 255, GREY, atol=1)
 
 
+def test_map_disks_of_a_periodic_packing_have_their_own_radius():
+    """A jammed periodic packing (radii 0.5 and 0.7, 16 contacts across the seam): each disk is drawn with its
+    radius, measured to q's copy across the seam (it was the distance to q's image, about the cell's width: DataSim's
+    map drew disks 40 wide). Tolerance 10 % of r: the contact point sits midway through the overlap, which reaches
+    ~13 % of r at the default φ = 0.90 (half of it ~6.5 %); the two radii differ by 0.2, far above it."""
+    from granstab.scan.figure import particle_radii
+    scene = packings.jammed(2, 32)
+    assert np.any(scene.image != 0)
+    r = particle_radii(scene)
+    assert np.all(np.minimum(np.abs(r - 0.5), np.abs(r - 0.7)) <= 0.1 * r)
+
+
 @pytest.mark.slow
 def test_large_maps_are_rasterised_and_the_lambda_axis_fits_the_data(tmp_path):
     """A 2,601-disk map's SVG is under 1 MB (as vectors it was 1.7 MB, and 13.5 MB for 20,000 disks: issue 26); the
