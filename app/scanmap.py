@@ -48,8 +48,9 @@ def map_colours(packing: np.ndarray, by_cut: np.ndarray) -> np.ndarray:
 @dataclass
 class ScanMapModel:
     """The scanned packing and its map: `fraction` (per particle, the share of its clusters unstable by the
-    packing, mechanism not boundary; NaN: in no cluster), `by_cut` (the share unstable by the cut alone), `own` (the verdict of each particle's own cluster, '' if it was no centre), `members` (centre → member
-    particles, as indices into the packing)."""
+    packing, mechanism not boundary; NaN: in no cluster), `by_cut` (the share unstable by the cut alone), `own`
+    (the verdict of each particle's own cluster, '' if it was no centre), `members` (centre → member particles,
+    as indices into the packing)."""
 
     scene: granstab.Scene
     fraction: np.ndarray
