@@ -661,7 +661,9 @@ class ClientUI:
     def _write_legend(self, legend: dict) -> None:
         if self.session.kind == "scan_map":
             self.legend.content = ("**Legend** — particle colour: the share of the scanned clusters containing it that "
-                                   "are unstable (white 0 → dark red 1; grey: in no cluster).")
+                                   "are unstable by the packing (mechanism frictional, geometric or mixed; white 0 → "
+                                   "dark red 1). Light grey: unstable only through `boundary` clusters (the dead "
+                                   "loads at the cut, docs/attribution.md); dark grey: in no cluster.")
             return
         scene, o = self.session.scene, self.view.options     # what is drawn now, and only that
         contacts = scene is not None and scene.n_contacts > 0

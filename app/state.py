@@ -25,7 +25,7 @@ from .models import Body, ShapeModel, TwoParticleModel, load_model
 from .modes import label_mode, mode_offsets, rotation_matrix
 from .params import PARAMS
 from .paths import PathRefused, folder_choice, typed_path
-from .scanmap import fraction_colours, is_scan_dir, load_scan_map
+from .scanmap import is_scan_dir, load_scan_map
 
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
 DEFAULT_PRESET = "two_particle"
@@ -281,8 +281,9 @@ class Session:
 
     @property
     def map_colours(self) -> np.ndarray | None:
-        """(N, 3) colours of the scan map (fraction of unstable clusters per particle), or None off the map."""
-        return fraction_colours(self.model.fraction) if self.kind == "scan_map" else None
+        """(N, 3) colours of the scan map (share of unstable clusters per particle by the packing; grey: by the cut
+        alone), or None off the map."""
+        return self.model.colours if self.kind == "scan_map" else None
 
     def open_cluster(self, name: str) -> bool:
         """From the scan map: the cluster of particle `name` becomes the scene (back_to_map returns)."""

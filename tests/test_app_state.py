@@ -459,6 +459,7 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
 
     import granstab
     from granstab.scan import read_map, scan
+    from granstab_app.scanmap import fraction_colours
     scene, _ = planted_lattice(40, 0.4)
     packing = tmp_path / "lattice.json"
     packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
@@ -468,7 +469,10 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     s = Session(str(tmp_path / "scan"))
     assert s.error is None and s.kind == "scan_map" and s.analysis is None and not s.deferred
     colours = s.map_colours
-    assert tuple(colours[40]) == (176, 20, 20) and tuple(colours[0]) == (250, 250, 250)   # fraction 1 and 0
+    around = [m for v, m, ms in zip(clusters["verdict"], clusters["mechanism"], clusters["members"]) if 40 in ms]
+    # its own cluster geometric, its six neighbours' boundary (the planted particle on their rim, dead loads there)
+    assert sorted(around) == ["boundary"] * 6 + ["geometric"]
+    assert tuple(colours[40]) == tuple(fraction_colours(np.array([1 / 7]))[0]) and tuple(colours[0]) == (250, 250, 250)
     top = [*scene.x[40] + [0.3, -0.2], 50.0]                 # straight down onto particle 40, off its centre
     assert s.pick(top, [0.0, 0.0, -1.0]) == "p40"
     gap = scene.x[40] + [1.0, 1.0 / np.sqrt(3)]       # the centroid of a triangle of neighbours (spacing 2, r = 1)
@@ -478,6 +482,32 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     assert s.analysis.summary["consistent_negative"] == row["consistent_negative"]
     assert s.back_to_map() and s.kind == "scan_map" and s.map is None
     assert not s.open_cluster("nope") and "no centre" in s.error
+
+
+def test_scan_map_shows_instability_by_the_packing_and_greys_the_cut_alone(tmp_path):
+    """issue 25's default map: three disks in a line (their end disks carry the dead loads of cut contacts) and,
+    apart, a sliding pair, scanned with boundary loads. Every chain particle is unstable only through `boundary`
+    clusters (light grey, not the pink of its unstable_fraction 1/3 or 1/2); the sliding pair's clusters are
+    `frictional` (dark red: all its clusters unstable by the packing)."""
+    from test_attribution import chain, pair
+
+    import granstab
+    from granstab.model.scene import CONTACT_FIELDS
+    from granstab.scan import read_map, scan
+    from granstab_app.scanmap import CUT_GREY, RED
+    line, slide = chain(3), pair([-0.01, 0.005], "sliding", -0.5, "sliding pair")
+    shift = {"p": 3, "q": 3, "point": [0.0, 10.0]}                  # the pair 10 radii above the line
+    arrays = {f: np.concatenate([getattr(line, f), getattr(slide, f) + shift.get(f, 0)])
+              for f in CONTACT_FIELDS if f != "image"}          # no cell: no images
+    arrays["state"] = tuple(line.state) + tuple(slide.state)
+    scene = granstab.build_scene(2, [*line.names, *slide.names], np.r_[line.x, slide.x + [0.0, 10.0]], arrays)
+    scan(scene, tmp_path / "scan", boundary="loads", workers=1, figures=False)
+    rows = read_map(tmp_path / "scan")["clusters"]
+    by_centre = dict(zip(rows["center"], zip(rows["verdict"], rows["mechanism"])))
+    assert {by_centre[c] for c in (3, 4)} == {("unstable", "frictional")} and ("unstable", "boundary") in \
+        {by_centre[c] for c in (0, 1, 2)} and {m for _, m in (by_centre[c] for c in (0, 1, 2))} <= {"boundary", ""}
+    colours = Session(str(tmp_path / "scan")).map_colours
+    assert [tuple(c) for c in colours] == [CUT_GREY] * 3 + [tuple(RED)] * 2
 
 
 def test_a_concave_side_is_drawn_as_a_socket():

@@ -69,6 +69,43 @@ def test_hand_made_clusters_get_their_labels_and_the_parts_sum_to_the_eigenvalue
     assert a.fixed_control == "stable" and a.rim_share > 0.5 and a.work_parts[4] < 0
 
 
+def sphere_pair(force, state, rho, rolling):
+    """Two unit spheres touching at (1, 0, 0), contact force `force`, state `state`, curvature radius ρ in both
+    tangent directions on both sides, rolling (and twisting) stiffness `rolling`·I."""
+    K = np.diag([0.0, -1 / rho, -1 / rho])[None]
+    return granstab.build_scene(3, ["p", "q"], [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]], {
+        "p": np.array([0]), "q": np.array([1]), "point": np.array([[1.0, 0.0, 0.0]]),
+        "normal": np.array([[1.0, 0.0, 0.0]]), "force": np.array([force]), "curvature_p": K, "curvature_q": K,
+        "moment": np.zeros((1, 3)), "k": np.ones(1), "alpha": np.ones(1), "mu": np.full(1, 0.5),
+        "rolling": rolling * np.eye(3)[None], "state": (state,)}, title="sphere pair")
+
+
+def test_3d_clusters_get_their_labels_and_the_parts_sum_to_the_eigenvalue():
+    """3D (spheres, three rotations): a pair sliding at the cone (f_t = μ f_n, blunt ρ = 2r, a little rolling
+    stiffness so that the all-elastic pair is stable) and a fcc cell of 4 spheres with one contact at the friction
+    limit (packings.lattice) are `frictional`: Hm of the sliding contacts negative, the all-elastic control stable;
+    the sharp sphere pair (ρ = r/2, no tangential force) is `geometric` with Hg1 + Hg2 = f(ρ - r), the 2D closed
+    form of Sec. 4.1 (each tangent direction rolls as the disk does), Hm = Hg3 = 0. Parts sum to λ to SUM_RTOL."""
+    sliding = granstab.analyze(sphere_pair([-0.01, 0.005, 0.0], "sliding", 2.0, 0.1), metric="L")
+    cell = granstab.analyze(packings.lattice(3, 1, n_sliding=1, seed=1), metric="L")
+    sharp = granstab.analyze(sphere_pair([-0.01, 0.0, 0.0], "auto", 0.5, 0.0), metric="L")
+    for r, label in ((sliding, "frictional"), (cell, "frictional"), (sharp, "geometric")):
+        a = r.attribution
+        assert (r.verdict.verdict, a.mechanism) == ("unstable", label)
+        assert len(a.work_parts) == 5 and abs(sum(a.work_parts) - lowest_negative(r)) <= SUM_RTOL * abs(
+            lowest_negative(r))
+        got = mechanism(np.array([a.work_parts]), np.array([a.rim_share]), [a.elastic_control], [a.fixed_control],
+                        [True])
+        assert got.tolist() == [label]
+    for r in (sliding, cell):
+        assert r.attribution.work_parts[1] < 0 and r.attribution.elastic_control == "stable"
+    f, rho, radius = 0.01, 0.5, 1.0
+    hm_el, hm_sl, hg1, hg2, hg3 = sharp.attribution.work_parts
+    # closed form to 1e-12: f = 1e-2, parts O(f), round-off ~1e-16 f (the 2D pair's tolerance)
+    assert abs(hg1 + hg2 - f * (rho - radius)) <= 1e-12 and abs(hm_el) + abs(hm_sl) + abs(hg3) <= 1e-12
+    assert (sharp.attribution.elastic_control, sharp.attribution.fixed_control) == ("unstable", "unstable")
+
+
 def test_the_rule_is_first_that_holds_and_only_for_unstable_rows():
     """frictional before geometric before boundary, else mixed; '' for rows that are not unstable."""
     parts = np.array([[0, -1, 0, 0, 0],        # sliding negative, elastic control stable
@@ -160,6 +197,18 @@ def test_map_colours_agree_with_the_explorer_and_differ_from_the_no_cluster_grey
     assert np.allclose(np.array(cmap(0.5)[:3]) * 255, fraction_colours(np.array([0.5]))[0], atol=1.5)
     assert np.max(np.abs(np.array(cmap(0.5)[:3]) - np.array(GREY) / 255)) >= 0.15
     assert np.allclose(np.array(cmap(np.ma.masked_invalid([np.nan]))[0][:3]) * 255, GREY, atol=1)
+
+
+def test_map_disks_of_a_periodic_packing_have_their_own_radius():
+    """A jammed periodic packing (radii 0.5 and 0.7, 16 contacts across the seam): each disk is drawn with its
+    radius, measured to q's copy across the seam (it was the distance to q's image, about the cell's width: DataSim's
+    map drew disks 40 wide). Tolerance 10 % of r: the contact point sits midway through the overlap, which reaches
+    ~13 % of r at the default φ = 0.90 (half of it ~6.5 %); the two radii differ by 0.2, far above it."""
+    from granstab.scan.figure import particle_radii
+    scene = packings.jammed(2, 32)
+    assert np.any(scene.image != 0)
+    r = particle_radii(scene)
+    assert np.all(np.minimum(np.abs(r - 0.5), np.abs(r - 0.7)) <= 0.1 * r)
 
 
 @pytest.mark.slow

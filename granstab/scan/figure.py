@@ -21,9 +21,9 @@ HATCH = "////"          # particles whose containing clusters are unstable only 
 
 
 def particle_radii(scene: Scene) -> np.ndarray:
-    """Drawing radius: median distance from a particle's reference point to its contact points (disks, spheres);
-    particles without contacts get the median of the others."""
-    d = np.linalg.norm(np.r_[scene.point - scene.x[scene.p], scene.point - scene.x[scene.q]], axis=1)
+    """Drawing radius: median distance from a particle's reference point to its contact points (disks, spheres;
+    from q's copy across a periodic seam, Scene.r_qp); particles without contacts get the median of the others."""
+    d = np.linalg.norm(np.r_[scene.r_pq, scene.r_qp], axis=1)
     owner = np.r_[scene.p, scene.q]
     order = np.argsort(owner, kind="stable")
     counts = np.bincount(owner, minlength=scene.n_particles)
