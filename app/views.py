@@ -339,13 +339,12 @@ class SceneView:
         self._contacts_visible(False)
         self._animate_points(bodies)
         for body in bodies:
-            base = self.base.get(body.name)
-            if base is None:
+            base, frame = self.base.get(body.name), self.inner.get(body.name)
+            if base is None or frame is None:                # not drawn, or a point of the cloud
                 continue
             R0 = rot3(base.R)
-            dx = R0.T @ (to3(body.x) - to3(base.x))
-            self.inner[body.name].position = dx
-            self.inner[body.name].wxyz = wxyz(R0.T @ rot3(body.R))
+            frame.position = R0.T @ (to3(body.x) - to3(base.x))
+            frame.wxyz = wxyz(R0.T @ rot3(body.R))
 
     def _animate_points(self, bodies) -> None:
         """The point clouds along the mode: a large packing's centres, and the periodic images, each at its

@@ -588,3 +588,14 @@ def test_periodic_images_sit_across_the_faces_and_move_with_their_particles(tmp_
     assert np.abs(x1 - session.scene.x).max() > 0.1 * session.size       # the mode moves the packing visibly
     # round-off of positions of size ~ the cell (a few units): 1e-12 absolute
     assert np.allclose(step, (x1 - session.scene.x)[images[0]], rtol=0, atol=1e-12)
+    from granstab_app.views import SceneView  # the view plays the same: /cell/images follows
+    clouds = {}
+    api = SimpleNamespace(remove_by_name=lambda name: None, add_line_segments=lambda *a, **k: None,
+                          add_point_cloud=lambda name, points, **k: clouds.setdefault(name, SimpleNamespace(points=points)))
+    view = SceneView(api)
+    view.draw_cell(SimpleNamespace(scene=session.scene, kind="contacts", size=reach / 2))
+    view.base = {b.name: b for b in session.bodies()}
+    view.animate(moved)
+    assert np.allclose(clouds["/cell/images"].points[:, :2], ghost_positions(x1, images), rtol=0, atol=1e-12)
+    view.stop_animation()
+    assert np.allclose(clouds["/cell/images"].points[:, :2], ghost_positions(session.scene.x, images), atol=1e-12)
