@@ -42,12 +42,16 @@ def run(quick: bool = False) -> dict:
 
 
 def _goal(d: dict) -> str:
-    """Whether the case at the goal's size met it (time and memory), else "—"."""
+    """Whether the case at the goal's size met it (time and memory) and, where missed, by how much; else "—"."""
     size, seconds, mb = GOALS[d["kind"]]
     if abs(d["particles"] - size) > 0.02 * size:
         return "—"
-    ok = d["t_scene"] + d["t_run"] <= seconds and (mb is None or d["peak_mb"] <= mb)
-    return ("met" if ok else "missed") + f" (≤ {seconds:g} s" + ("" if mb is None else f", ≤ {mb / 1024:g} GB") + ")"
+    t = d["t_scene"] + d["t_run"]
+    over = ([f"time {t:.0f} s, {t / seconds:.1f}× the goal"] if t > seconds else []) + \
+           ([f"memory {d['peak_mb']:.0f} MB, {d['peak_mb'] - mb:.0f} MB ({d['peak_mb'] / mb - 1:.0%}) over"]
+            if mb is not None and d["peak_mb"] > mb else [])
+    goal = f"≤ {seconds:g} s" + ("" if mb is None else f", ≤ {mb / 1024:g} GB")
+    return f"missed ({goal}): " + "; ".join(over) if over else f"met ({goal})"
 
 
 def markdown(results: dict) -> str:

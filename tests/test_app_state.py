@@ -7,6 +7,7 @@ the numbers compared (k for eigenvalues, the field's max |λ|), at a few hundred
 """
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 from types import SimpleNamespace
@@ -534,7 +535,7 @@ def test_a_periodic_packing_is_drawn_with_its_cell_outline(tmp_path):
     from test_io_periodic import lattice_dumps
 
     from granstab.io import load
-    from granstab_app.models import cell_edges
+    from granstab_app.models import cell_edges, periodic_images
     from granstab_app.views import SceneView
     paths, _, cell = lattice_dumps(tmp_path, gamma=0.1)
     scene = load(paths, columns="id1,id2,fx,fy,fz").scene
@@ -548,11 +549,14 @@ def test_a_periodic_packing_is_drawn_with_its_cell_outline(tmp_path):
     calls = []
     api = SimpleNamespace(remove_by_name=lambda name: calls.append(("remove", name)),
                           add_line_segments=lambda name, points, *a, **k: calls.append(("add", name, points.shape)))
+    api.add_point_cloud = lambda name, points, **k: calls.append(("add", name, points.shape)) or SimpleNamespace()
     view = SceneView(api)
     session = SimpleNamespace(scene=scene, kind="contacts", size=1.0)
     view.draw_cell(session)
     view.draw_cell(session)                                  # unchanged: not re-sent
-    assert calls == [("remove", "/cell"), ("add", "/cell", (4, 2, 3))]
+    ghosts = len(periodic_images(scene, 2.0)[0])
+    assert ghosts > 0
+    assert calls == [("remove", "/cell"), ("add", "/cell", (4, 2, 3)), ("add", "/cell/images", (ghosts, 3))]
     view.draw_cell(SimpleNamespace(scene=granstab_scene_without_cell(), kind="contacts", size=1.0))
     assert calls[-1] == ("remove", "/cell")
 
@@ -560,3 +564,68 @@ def test_a_periodic_packing_is_drawn_with_its_cell_outline(tmp_path):
 def granstab_scene_without_cell():
     import granstab
     return granstab.load_scene(REPO / "presets" / "two_particle.toml")
+
+
+def test_periodic_images_sit_across_the_faces_and_move_with_their_particles(tmp_path):
+    """A jammed frictionless packing in a sheared cell (granstab.model.packings.jammed): the ghosts drawn beside the
+    cell are the particles within `reach` of a face, shifted by n @ cell (n in {-1, 0, 1}², not 0). Checked against a
+    brute force over every particle and every shift in the copy's frame (the copy lies outside the outline, within
+    reach of it along every lattice direction it was shifted along, and inside the outline's slab along the others),
+    and against the seam contacts: q's ghost across a seam contact is q's copy x^q + image @ cell. Played along a
+    mode, every ghost moves by its particle's displacement (a periodic mode moves every copy alike)."""
+    import granstab
+    from granstab.model import packings
+    from granstab_app.models import cell_edges, ghost_positions, periodic_images
+    scene = packings.jammed(2, 64, shear=0.5, seed=3)
+    reach = 1.0                                                  # the small disks' diameter
+    index, shift = periodic_images(scene, reach)
+    inv = np.linalg.inv(scene.cell)
+    n = shift @ inv
+    assert np.allclose(n, n.round(), rtol=0, atol=1e-12) and np.all(np.abs(n.round()).sum(axis=1) > 0)
+    assert np.allclose(ghost_positions(scene.x, (index, shift)), scene.x[index] + n.round() @ scene.cell, atol=1e-12)
+    corner = cell_edges(scene)[0, 0]                             # the outline's corner at fractional (0, 0)
+    width = 1.0 / np.linalg.norm(inv, axis=0)                    # the distance between opposite faces
+    expected = set()
+    for i, x in enumerate(scene.x):
+        for m in itertools.product((-1, 0, 1), repeat=2):
+            if not any(m):
+                continue
+            f = (x + np.array(m) @ scene.cell - corner) @ inv    # the copy, in fractions of the outline
+            out_by = np.where(np.array(m) > 0, f - 1, np.where(np.array(m) < 0, -f, 0.0)) * width
+            if all((out_by[a] > 0 and out_by[a] < reach) if m[a] else 0 <= f[a] <= 1 for a in range(2)):
+                expected.add((i, m))
+    got = {(int(i), tuple(int(v) for v in m)) for i, m in zip(index, n.round())}
+    assert got == expected and len(got) == len(index)           # complete and each ghost once
+    seam = np.flatnonzero(np.any(scene.image != 0, axis=1))
+    assert len(seam) > 0
+    found = 0
+    for c in seam:
+        hit = [g for g in np.flatnonzero(index == scene.q[c]) if np.allclose(n[g], scene.image[c], atol=1e-12)]
+        found += len(hit)
+        for g in hit:                                            # q's ghost is where p touches q's copy
+            assert np.allclose(scene.x[index[g]] + shift[g], scene.q_copy[c], rtol=0, atol=1e-12)
+    assert found >= len(seam) // 2          # most seam partners lie within a diameter of the face they cross
+    path = tmp_path / "jammed.json"
+    granstab.io.scenes.save_scene(scene, path)
+    session = Session(str(path))
+    assert session.error is None and session.scene.cell is not None
+    mode = next(m for m in session.modes() if m.label != "rigid")
+    moved = session.mode_bodies(mode, 1.0, 0.7)
+    at = {b.name: b.x for b in moved}
+    x1 = np.array([at[name] for name in session.scene.names])
+    images = periodic_images(session.scene, reach)
+    step = ghost_positions(x1, images) - ghost_positions(session.scene.x, images)
+    assert np.abs(x1 - session.scene.x).max() > 0.1 * session.size       # the mode moves the packing visibly
+    # round-off of positions of size ~ the cell (a few units): 1e-12 absolute
+    assert np.allclose(step, (x1 - session.scene.x)[images[0]], rtol=0, atol=1e-12)
+    from granstab_app.views import SceneView  # the view plays the same: /cell/images follows
+    clouds = {}
+    api = SimpleNamespace(remove_by_name=lambda name: None, add_line_segments=lambda *a, **k: None,
+                          add_point_cloud=lambda name, points, **k: clouds.setdefault(name, SimpleNamespace(points=points)))
+    view = SceneView(api)
+    view.draw_cell(SimpleNamespace(scene=session.scene, kind="contacts", size=reach / 2))
+    view.base = {b.name: b for b in session.bodies()}
+    view.animate(moved)
+    assert np.allclose(clouds["/cell/images"].points[:, :2], ghost_positions(x1, images), rtol=0, atol=1e-12)
+    view.stop_animation()
+    assert np.allclose(clouds["/cell/images"].points[:, :2], ghost_positions(session.scene.x, images), atol=1e-12)

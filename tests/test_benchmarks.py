@@ -252,3 +252,14 @@ def test_run_line_without_a_recorded_run_time():
     meta = {**fake_meta("scan", "D"), "command": "granstab bench --device gpu"}
     assert "by `granstab bench --device gpu` in 7 s on" in run_line(meta)
     assert "by `granstab bench --device gpu` on Test CPU" in run_line({**meta, "seconds": None})
+
+
+def test_periodic_goal_says_by_how_much_it_was_missed():
+    """The periodic section's goal column (fed fake numbers, nothing timed): a case at the goal's size that is too
+    slow and too large says by what factor and by how many MB; a met one says met; another size is not judged."""
+    from granstab_bench.periodic import _goal
+    case = {"kind": "analyze", "particles": 99_960, "t_scene": 2.0, "t_run": 58.0, "peak_mb": 3072.0}
+    assert _goal(case) == "missed (≤ 20 s, ≤ 2.5 GB): time 60 s, 3.0× the goal; memory 3072 MB, 512 MB (20%) over"
+    assert _goal({**case, "t_run": 10.0, "peak_mb": 2000.0}) == "met (≤ 20 s, ≤ 2.5 GB)"
+    assert _goal({**case, "t_run": 10.0}).endswith("memory 3072 MB, 512 MB (20%) over")
+    assert _goal({**case, "particles": 10_044}) == "—"
