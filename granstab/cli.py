@@ -486,6 +486,72 @@ def add_scan(sub) -> None:
     p.set_defaults(run=cmd_scan)
 
 
+def frame_list(text: str, available: list | None, source: str) -> list:
+    """--frames: 'A,B,C' or 'A:B[:STEP]' (the input's frames from A to B inclusive, every STEP-th), checked against
+    the frames the input holds."""
+    if not available:
+        raise InputError(f"--frames: {source} holds one frame")
+    try:
+        if ":" in text:
+            parts = [frame_number(v) for v in text.split(":")]
+            if len(parts) not in (2, 3) or (len(parts) == 3 and (parts[2] < 1 or parts[2] != int(parts[2]))):
+                raise ValueError
+            chosen = [f for f in available if parts[0] <= f <= parts[1]][::int(parts[2]) if len(parts) == 3 else 1]
+        else:
+            chosen = [frame_number(v) for v in text.split(",")]
+    except (ValueError, argparse.ArgumentTypeError):
+        raise InputError(f"--frames: expected A,B,C or A:B[:STEP], got {text!r}") from None
+    missing = [f for f in chosen if f not in available]
+    if missing or not chosen:
+        raise InputError(f"--frames: {source} has no frame {missing[0] if missing else text} (its frames: "
+                         f"{', '.join(map(str, available[:8]))}{', …' if len(available) > 8 else ''})")
+    return chosen
+
+
+def cmd_export(args) -> int:
+    """A packing (or a sequence of its frames) → .vtp, extended XYZ or a dump pair for ParaView and OVITO (issue 29)."""
+    from .export import frame_of as export_frame
+    from .export import write
+    from .export.track import track_fields, track_frames
+    source = source_of(args.input)
+    if args.track and args.frames:
+        raise InputError("--track: the track folder names the frames; give --frames or --track, not both")
+    wanted = [None]
+    if args.track or args.frames:
+        if args.scan:
+            raise InputError("--scan: a scan folder holds one packing; a sequence (--frames, --track) takes none")
+        available = load(args.input, **periodic_options(args)).frames
+        wanted = track_frames(args.track) if args.track else frame_list(args.frames, available, source)
+        if args.track:
+            frame_list(",".join(map(str, wanted)), available, source)        # the track's frames are the input's
+    frames, notes = [], []
+    for f in wanted:
+        loaded = load(args.input, frame=f, **periodic_options(args))
+        extra = track_fields(args.track, f, loaded.scene.names) if args.track else None
+        frames.append(export_frame(loaded.scene, scan=args.scan, modes=args.modes, time=f or 0, extra=extra))
+        notes += import_lines(loaded)
+    paths = write(frames, args.out, args.format, Path(args.input[0]).stem or "packing")
+    print("\n".join([f"wrote {len(frames)} frame(s) as {args.format}: " + ", ".join(map(str, paths)),
+                     *dict.fromkeys(notes)]))
+    return 0
+
+
+def add_export(sub) -> None:
+    p = sub.add_parser("export", help="particles, contacts, cell, verdicts and modes for OVITO and ParaView")
+    input_argument(p, "input")
+    p.add_argument("--out", required=True, help="folder to write (created)")
+    p.add_argument("--format", choices=["vtp", "xyz", "dump"], default="vtp",
+                   help="vtp: VTK PolyData for ParaView (the export extra); xyz: extended XYZ for OVITO and ASE; "
+                        "dump: a LAMMPS-style dump pair, atoms + local (docs/export.md)")
+    p.add_argument("--scan", default=None, help="a granstab scan folder of this packing: its verdict fields")
+    p.add_argument("--modes", type=count(0), default=0,
+                   help="the K lowest consistent modes of the whole packing as vector fields (default 0)")
+    p.add_argument("--frames", default=None, help="a sequence: A,B,C or A:B[:STEP] of the input's frames")
+    p.add_argument("--track", default=None, help="a granstab track folder: its frames, with its particle fields")
+    periodic_arguments(p)
+    p.set_defaults(run=cmd_export)
+
+
 def frame_number(text: str):
     """--frame/--timestep: an integer where it is one (frame numbers, steps), else a float (times)."""
     try:
@@ -594,6 +660,7 @@ def build_parser() -> Parser:
     p.set_defaults(run=cmd_bench)
     add_convert(sub)
     add_scan(sub)
+    add_export(sub)
     return parser
 
 
