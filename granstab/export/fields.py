@@ -69,7 +69,8 @@ def contact_state(scene: Scene) -> np.ndarray:
 
 def scene_frame(scene: Scene, time: float = 0.0) -> Frame:
     """The scene's own fields: names, positions, contact radius, mass where known; per contact the particles, the
-    contact point, the normal, the force on p by q, its normal part (compression positive: -f·n) and tangential part, the state."""
+    contact point, the branch vector, the normal, the force on p by q, its normal part (compression positive: -f·n)
+    and tangential part, the state."""
     particles = {"name": np.array(scene.names, dtype=str), "radius": contact_radius(scene)}
     if scene.mass is not None:
         particles["mass"] = np.asarray(scene.mass, dtype=float)
@@ -80,6 +81,7 @@ def scene_frame(scene: Scene, time: float = 0.0) -> Frame:
                 "normal": as3(scene.normal),
                 "force": as3(scene.force), "normal_force": -fn, "tangential_force": as3(scene.tangential_force()),
                 "state": contact_state(scene)}
+    contacts["branch"] = as3(scene.branch)                         # x^p → q's copy: ends = x^p, x^p + branch
     ends = np.stack([as3(scene.x[scene.p]), as3(scene.q_copy)], axis=1)
     return Frame(dim=scene.dim, positions=as3(scene.x), particles=particles, ends=ends, contacts=contacts,
                  cell=None if scene.cell is None else np.asarray(scene.cell, dtype=float), time=time)

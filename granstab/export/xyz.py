@@ -78,6 +78,5 @@ def write(frames: list[Frame], out: Path, stem: str) -> list[Path]:
         for frame in frames:
             fp.write(block(frame, frame.positions, frame.particles, str(particles)))
             rest = {k: v for k, v in frame.contacts.items() if k != "point"}
-            rest["branch"] = frame.ends[:, 1] - frame.ends[:, 0]
             fc.write(block(frame, frame.contacts["point"], rest, str(contacts)))
     return [particles, contacts]
