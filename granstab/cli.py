@@ -516,18 +516,22 @@ def cmd_export(args) -> int:
     source = source_of(args.input)
     if args.track and args.frames:
         raise InputError("--track: the track folder names the frames; give --frames or --track, not both")
-    wanted = [None]
+    wanted = [(None, None)]                                      # (the track's position, the reader's frame)
     if args.track or args.frames:
         if args.scan:
             raise InputError("--scan: a scan folder holds one packing; a sequence (--frames, --track) takes none")
         available = load(args.input, **periodic_options(args)).frames
-        wanted = track_frames(args.track) if args.track else frame_list(args.frames, available, source)
         if args.track:
-            frame_list(",".join(map(str, wanted)), available, source)        # the track's frames are the input's
+            wanted = track_frames(args.track)
+            keys = [k for _, k in wanted if k is not None]
+            if keys:                                              # the track's frames are the input's
+                frame_list(",".join(map(str, keys)), available, source)
+        else:
+            wanted = [(None, f) for f in frame_list(args.frames, available, source)]
     frames, notes = [], []
-    for f in wanted:
+    for position, f in wanted:
         loaded = load(args.input, frame=f, **periodic_options(args))
-        extra = track_fields(args.track, f, loaded.scene.names) if args.track else None
+        extra = track_fields(args.track, position, loaded.scene.names) if args.track else None
         frames.append(export_frame(loaded.scene, scan=args.scan, modes=args.modes, time=f or 0, extra=extra))
         notes += import_lines(loaded)
     paths = write(frames, args.out, args.format, Path(args.input[0]).stem or "packing")

@@ -295,14 +295,18 @@ def test_a_track_folder_gives_the_frames_and_its_particle_fields(tmp_path):
     frames = {f: granstab.load(annulus, frame=f).scene for f in (1, 2)}
     track = tmp_path / "track"
     track.mkdir()
-    pq.write_table(pa.table({"frame": [2]}), track / "frames.parquet")
+    # granstab.track's contract: `frame` the position in the input's frames, `step` the reader's key (frame 2)
+    pq.write_table(pa.table({"frame": [1], "step": [2.0]}), track / "frames.parquet")
     names = list(frames[2].names)[::-1] + ["gone"]                  # any order; a name the scene lacks is ignored
     d2min = np.arange(len(names), dtype=float) / 7
-    pq.write_table(pa.table({"frame": [2] * len(names), "name": names, "d2min": d2min}), track / "particles.parquet")
+    rows = {"frame": [1] * len(names), "name": names, "x": np.zeros(len(names)), "d2min": d2min,
+            "rattler": [False] * len(names)}
+    pq.write_table(pa.table(rows), track / "particles.parquet")
     assert main(["export", annulus, "--out", str(tmp_path / "out"), "--format", "xyz", "--track", str(track)]) == 0
     [atoms] = ase_io.read(tmp_path / "out" / "annulus.xyz", index=":", format="extxyz")
     expect = dict(zip(names, d2min))
     assert atoms.info["Time"] == 2 and same(atoms.arrays["d2min"], [expect[n] for n in frames[2].names])
+    assert same(atoms.arrays["rattler"], np.zeros(len(frames[2].names))) and "x" not in atoms.arrays
 
 
 @pytest.mark.parametrize("what, argv, says", [
