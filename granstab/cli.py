@@ -513,7 +513,7 @@ def cmd_export(args) -> int:
     from .export import frame_of as export_frame
     from .export import write
     from .export.track import track_fields, track_frames
-    source = source_of(args.input)
+    start, source = time.perf_counter(), source_of(args.input)
     if args.track and args.frames:
         raise InputError("--track: the track folder names the frames; give --frames or --track, not both")
     wanted = [(None, None)]                                      # (the track's position, the reader's frame)
@@ -535,8 +535,9 @@ def cmd_export(args) -> int:
         frames.append(export_frame(loaded.scene, scan=args.scan, modes=args.modes, time=f or 0, extra=extra))
         notes += import_lines(loaded)
     paths = write(frames, args.out, args.format, Path(args.input[0]).stem or "packing")
-    print("\n".join([f"wrote {len(frames)} frame(s) as {args.format}: " + ", ".join(map(str, paths)),
-                     *dict.fromkeys(notes)]))
+    names = [p.name for p in paths] if len(paths) <= 6 else [paths[0].name, "…", paths[-1].name]
+    print("\n".join([f"wrote {len(frames)} frame(s) as {args.format} in {time.perf_counter() - start:.1f} s: "
+                      f"{len(paths)} file(s) in {args.out} ({', '.join(names)})", *dict.fromkeys(notes)]))
     return 0
 
 

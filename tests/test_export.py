@@ -149,7 +149,8 @@ def test_vtp_reads_back_identical_in_vtk(packing, tmp_path):
     assert sorted(got) == sorted(frame.particles)
     assert all(same(got[k], v) for k, v in frame.particles.items())
     info = vtk_arrays(particles.GetFieldData())
-    assert same(info["mode1_eigenvalue"], [frame.info["mode1_eigenvalue"]])
+    assert sorted(info) == sorted(frame.info) and all(same(info[k], [v]) for k, v in frame.info.items())
+    assert 0 < frame.info["mode1_accuracy"] < abs(frame.info["mode1_eigenvalue"])   # the sign is resolved
     assert contacts.GetNumberOfLines() == scene.n_contacts
     ends = vtk_to_numpy(contacts.GetPoints().GetData()).reshape(-1, 2, 3)
     line = vtk_to_numpy(contacts.GetLines().GetConnectivityArray()).reshape(-1, 2)

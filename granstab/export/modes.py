@@ -2,6 +2,8 @@
 branch and the slip it makes at each contact (eq:ContactF, eq:flow)."""
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from ..analysis import analyze
@@ -17,18 +19,19 @@ from .fields import Frame, as3, axial
 SAME_MODE = 1.0 - 1e-9
 
 
-def lowest_modes(result, count: int) -> list[tuple[float, np.ndarray, np.ndarray]]:
+def lowest_modes(result, count: int) -> list[tuple[float, float, np.ndarray, np.ndarray]]:
     """The `count` lowest consistent non-rigid eigenpairs over every branch of an Analysis, each once: (eigenvalue,
-    unit physical motion U (n_dof,) in the direction the branch's consistency allows (eq:flow), the branch mask (M,)). A one-line error when the packing has fewer."""
+    its error bound (accuracy.py), unit physical motion U (n_dof,) in the direction the branch's consistency allows
+    (eq:flow), the branch mask (M,)). A one-line error when the packing has fewer."""
     found = sorted(((c["eigenvalue"], i, c["index"], c["vector_sign"]) for i, b in enumerate(result.branches)
                     for c in b.consistent()), key=lambda t: t[:3])
-    chosen: list[tuple[float, np.ndarray, np.ndarray]] = []
+    chosen: list[tuple[float, float, np.ndarray, np.ndarray]] = []
     for lam, i, j, sign in found:
         branch = result.branches[i]
         U = (-1.0 if sign == -1 else 1.0) * result.motion(branch.stability_vectors[:, j])   # MINUS: -v is consistent
-        if any(abs(lam - other) <= branch.accuracy[j] and abs(U @ V) > SAME_MODE for other, V, _ in chosen):
+        if any(abs(lam - other) <= branch.accuracy[j] and abs(U @ V) > SAME_MODE for other, _, V, _ in chosen):
             continue
-        chosen.append((lam, U, np.asarray(branch.mask)))
+        chosen.append((lam, float(branch.accuracy[j]), U, np.asarray(branch.mask)))
         if len(chosen) == count:
             return chosen
     raise SceneError(f"{result.scene.source}: --modes {count}: the packing has {len(chosen)} distinct consistent "
@@ -53,18 +56,22 @@ def contact_slip(scene: Scene, U: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def add_modes(frame: Frame, scene: Scene, count: int, result=None) -> None:
     """mode{j}_displacement, mode{j}_rotation (per particle, unit motion U = D Ũ, `Analysis.motion`), mode{j}_branch
-    and mode{j}_slip (per contact), mode{j}_eigenvalue (info), j = 1 … count, lowest first, in the L metric."""
+    and mode{j}_slip (per contact), mode{j}_eigenvalue and its error bound mode{j}_accuracy (info), j = 1 … count,
+    lowest first, in the L metric; modes_seconds: what the whole-packing analysis cost."""
     if count < 1:
         return
     if count > scene.n_dof:
         raise SceneError(f"{scene.source}: --modes {count}: more than the packing's {scene.n_dof} dofs")
+    start = time.perf_counter()
     result = result or analyze(scene, metric="L", method="auto", k=max(6, count))
     d = scene.dim
     frame.info["modes_metric"] = f"{result.metric.name} (eigenvalues in {result.metric.units})"
-    for j, (lam, U, mask) in enumerate(lowest_modes(result, count), start=1):
+    frame.info["modes_seconds"] = time.perf_counter() - start
+    for j, (lam, bound, U, mask) in enumerate(lowest_modes(result, count), start=1):
         per = U.reshape(scene.n_particles, -1)
         frame.particles[f"mode{j}_displacement"] = as3(per[:, :d])
         frame.particles[f"mode{j}_rotation"] = axial(per[:, d:], d)
         frame.contacts[f"mode{j}_branch"] = mask.astype(np.int32)
         frame.contacts[f"mode{j}_slip"] = contact_slip(scene, U, mask)
         frame.info[f"mode{j}_eigenvalue"] = float(lam)
+        frame.info[f"mode{j}_accuracy"] = bound
