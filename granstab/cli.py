@@ -528,12 +528,23 @@ def cmd_export(args) -> int:
                 frame_list(",".join(map(str, keys)), available, source)
         else:
             wanted = [(None, f) for f in frame_list(args.frames, available, source)]
+    from .io.progress import Heartbeat
     frames, notes = [], []
-    for position, f in wanted:
-        loaded = load(args.input, frame=f, **periodic_options(args))
-        extra = track_fields(args.track, position, loaded.scene.names) if args.track else None
-        frames.append(export_frame(loaded.scene, scan=args.scan, modes=args.modes, time=f or 0, extra=extra))
-        notes += import_lines(loaded)
+    advice = ["export without --modes (the scan's fields and the forces need no whole-packing analysis), export "
+              "a smaller region (convert --region), or raise --timeout"]
+    with deadline(args.timeout, source, advice), Heartbeat(f"export {source}") as beat:
+        for position, f in wanted:
+            beat.stage(f"frame {f}" if f is not None else "reading")
+            loaded = load(args.input, frame=f, **periodic_options(args))
+            if args.modes:                       # the whole-packing analysis: refused before it starts if too long
+                modes_analysis = argparse.Namespace(max_sliding=16, sample_branches=None, method="auto", device="cpu",
+                                                    metric="L", rotation_length=None)
+                _, beat.estimate = refuse_unfinishable(loaded.scene, modes_analysis,
+                                                       args.timeout and args.timeout - (time.perf_counter() - start))
+            extra = track_fields(args.track, position, loaded.scene.names) if args.track else None
+            beat.stage(f"frame {f}: fields and modes" if f is not None else "fields and modes")
+            frames.append(export_frame(loaded.scene, scan=args.scan, modes=args.modes, time=f or 0, extra=extra))
+            notes += import_lines(loaded)
     paths = write(frames, args.out, args.format, Path(args.input[0]).stem or "packing")
     names = [p.name for p in paths] if len(paths) <= 6 else [paths[0].name, "…", paths[-1].name]
     print("\n".join([f"wrote {len(frames)} frame(s) as {args.format} in {time.perf_counter() - start:.1f} s: "
@@ -553,6 +564,9 @@ def add_export(sub) -> None:
                    help="the K lowest consistent modes of the whole packing as vector fields (default 0)")
     p.add_argument("--frames", default=None, help="a sequence: A,B,C or A:B[:STEP] of the input's frames")
     p.add_argument("--track", default=None, help="a granstab track folder: its frames, with its particle fields")
+    p.add_argument("--timeout", type=positive_number, default=None,
+                   help="with --modes: stop after this many seconds (one line, exit 2); a whole-packing analysis "
+                        "whose measured cost exceeds it (without --timeout: 10 s) is refused before it starts")
     periodic_arguments(p)
     p.set_defaults(run=cmd_export)
 

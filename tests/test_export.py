@@ -316,6 +316,7 @@ def test_a_track_folder_gives_the_frames_and_its_particle_fields(tmp_path):
     # 48 dofs less 2 translations and 16 free spins (frictionless disks): at most 30 modes on its one branch
     ("jammed", ["--modes", "40"], "--modes 40: the packing has 30 distinct consistent non-rigid mode(s)"),
     ("lattice", ["--frames", "1:2"], "--frames: "),                         # a scene file holds one frame
+    ("lattice", ["--modes", "1", "--timeout", "1e-6"], "stopped after --timeout 1e-06 s, unfinished; export without"),
     ("lattice", ["--scan", "OTHER"], "--scan: the scan's packing (16 particles"),
 ])
 def test_bad_input_is_one_line(packing, periodic, tmp_path, capsys, what, argv, says):

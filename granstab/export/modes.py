@@ -63,7 +63,7 @@ def add_modes(frame: Frame, scene: Scene, count: int, result=None) -> None:
     if count > scene.n_dof:
         raise SceneError(f"{scene.source}: --modes {count}: more than the packing's {scene.n_dof} dofs")
     start = time.perf_counter()
-    result = result or analyze(scene, metric="L", method="auto", k=max(6, count))
+    result = result or analyze(scene, metric="L", method="auto", k=max(6, count), attribution=False)   # modes only
     d = scene.dim
     frame.info["modes_metric"] = f"{result.metric.name} (eigenvalues in {result.metric.units})"
     frame.info["modes_seconds"] = time.perf_counter() - start
