@@ -18,6 +18,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 from ovito import io as ovito_io
+from ovito.modifiers import LoadTrajectoryModifier
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 
@@ -245,9 +246,18 @@ def test_dump_pair_reads_back_identical(packing, tmp_path):
     assert same(table["p"].astype(int) - 1, scene.p) and same(table["q"].astype(int) - 1, scene.q)
     assert same(table["mode1_slip"].astype(float), frame.contacts["mode1_slip"])
     assert same(table["normal_force"].astype(float), frame.contacts["normal_force"])
-    data = ovito_io.import_file(str(atoms_path)).compute(0)
+    pipeline = ovito_io.import_file(str(atoms_path))
+    bonds = LoadTrajectoryModifier()                    # OVITO's way to a dump local file: bonds with properties
+    names = parse_dump(local_path, "ENTRIES")[0][1]
+    given = {"p": "Particle Identifiers.1", "q": "Particle Identifiers.2", "normal_force": "normal_force"}
+    bonds.source.load(str(local_path), columns=[given.get(n) for n in names])
+    pipeline.modifiers.append(bonds)
+    data = pipeline.compute(0)
     scalars = {k: v for k, v in frame.particles.items() if v.ndim == 1}     # vectors: one column a component
     ovito_matches(data, scalars, frame.positions, typed=False)
+    assert same(np.asarray(data.particles.bonds.topology), np.c_[scene.p, scene.q])
+    assert np.allclose(np.asarray(data.particles.bonds["normal_force"]), frame.contacts["normal_force"],
+                       rtol=2 * np.finfo(float).eps, atol=0)                     # OVITO's parser: 2 ulp (above)
 
 
 @pytest.mark.dem
