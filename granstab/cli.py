@@ -532,7 +532,7 @@ def cmd_export(args) -> int:
     frames, notes = [], []
     advice = ["export without --modes (the scan's fields and the forces need no whole-packing analysis), export "
               "a smaller region (convert --region), or raise --timeout"]
-    with deadline(args.timeout, source, advice), Heartbeat(f"export {source}") as beat:
+    with Heartbeat(f"export {source}") as beat, deadline(args.timeout, source, advice):   # the alarm inside the beat
         for position, f in wanted:
             beat.stage(f"frame {f}" if f is not None else "reading")
             loaded = load(args.input, frame=f, **periodic_options(args))
