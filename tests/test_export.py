@@ -369,3 +369,11 @@ def test_a_3d_triclinic_cell_in_every_format(tmp_path):
     bounds = np.array([ln.split() for ln in lines[5:8]], dtype=float)
     a, xz = scene.cell[0, 0], scene.cell[2, 0]
     assert same(bounds, [[0, a + xz, 0], [0, scene.cell[1, 1], xz], [0, scene.cell[2, 2], 0]])
+
+
+def test_without_vtk_the_vtp_export_names_the_extra(packing, tmp_path, capsys, monkeypatch):
+    _, root, _ = packing
+    monkeypatch.setitem(__import__("sys").modules, "vtkmodules", None)        # as if vtk were not installed
+    assert main(["export", str(root / "lattice.json"), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and 'pip install "granstab[export]"' in err, err

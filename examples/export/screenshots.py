@@ -14,15 +14,23 @@ from pathlib import Path
 
 import ase.io
 import numpy as np
+import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
+import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (the render window's backend)
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkFiltersSources import vtkArrowSource, vtkSphereSource
 from vtkmodules.vtkIOImage import vtkPNGWriter
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
-from vtkmodules.vtkRenderingCore import (vtkActor, vtkColorTransferFunction, vtkGlyph3DMapper, vtkPolyDataMapper,
-                                         vtkRenderer, vtkRenderWindow, vtkTextActor, vtkWindowToImageFilter)
-import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (the render window's backend)
-import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
+from vtkmodules.vtkRenderingCore import (
+    vtkActor,
+    vtkColorTransferFunction,
+    vtkGlyph3DMapper,
+    vtkPolyDataMapper,
+    vtkRenderer,
+    vtkRenderWindow,
+    vtkTextActor,
+    vtkWindowToImageFilter,
+)
 
 import granstab
 from granstab.export import export
