@@ -307,7 +307,8 @@ def format_rigidity(result: dict) -> str:
                      f"{r['seconds']:.2f} s")
         if name == "physical":
             t = r["rank_tolerance"]
-            lines.append(f"  rank tolerance {t['largest']:.2e}, singular-value gap {t['gap']:.3g}")
+            gap = "none dropped (full rank)" if t["gap"] is None else f"{t['gap']:.3g}"
+            lines.append(f"  rank tolerance {t['largest']:.2e}, singular-value gap {gap}")
             ps = r["prestress"]
             for branch in ("all_loading", "all_unloading"):
                 if ps.get("evaluated"):

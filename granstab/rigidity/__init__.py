@@ -68,7 +68,9 @@ def analyse_physical(scene: Scene, frame: Frame) -> dict:
     extra = {"method": "dense SVD per connected block of the sparse compatibility matrix",
              "rotation_length": length,
              "rank_tolerance": {"rule": "sigma > max(rows, cols) * eps * sigma_max of each block",
-                                "largest": ph.tolerance, "gap": ph.gap},
+                                "largest": ph.tolerance,
+                                "gap": ph.gap if np.isfinite(ph.gap) else None,
+                                "gap_is": "sigma_rank / sigma_rank+1, smallest over the blocks (null: full rank)"},
              "rigid_contact_strain": ph.strain_gap}
     result = report(scene, frame, ph.component, counts, time.perf_counter() - start, extra)
     t = time.perf_counter()
@@ -149,13 +151,17 @@ def partition(result: dict) -> set:
 
 
 def differing_contacts(a: dict, b: dict) -> dict:
-    """Where two models' partitions differ: the contacts that do not lie in one same cluster in both."""
-    cluster_a = {i: frozenset(c["contacts"]) for c in a["clusters"] for i in c["contacts"]}
-    cluster_b = {i: frozenset(c["contacts"]) for c in b["clusters"] for i in c["contacts"]}
-    differ = sorted(i for i in range(len(a["contacts"])) if cluster_a.get(i) != cluster_b.get(i))
-    return {"same_partition": not differ, "count": len(differ),
-            "contacts": [[*a["contacts"][i][:2], a["contacts"][i][2], b["contacts"][i][2]] for i in differ],
-            "columns": ["p", "q", "label (physical)", "label (generic)"]}
+    """Where two models differ: the contacts rigid (in some cluster) in one model and floppy in the other, and
+    whether the partitions of contacts into clusters are the same."""
+    la = np.array([c[2] for c in a["contacts"]])
+    lb = np.array([c[2] for c in b["contacts"]])
+    differ = np.flatnonzero((la >= 0) != (lb >= 0))
+    same = partition(a) == partition(b)
+    return {"same_partition": same, "count": int(differ.size),
+            "contacts": [[*a["contacts"][i][:2], int(la[i]), int(lb[i])] for i in differ],
+            "columns": ["p", "q", "label (physical)", "label (generic)"],
+            "note": "contacts rigid in one model and floppy in the other"
+                    + ("" if same or differ.size else "; the clusters also group the rigid contacts differently")}
 
 
 def largest_rigid_cluster(result: dict, model: str | None = None) -> dict:

@@ -1,6 +1,6 @@
-"""The rigidity figure (matplotlib, the `scan` extra, as the scan's map): the packing with every contact drawn as
-its branch vector, coloured by rigid cluster (largest first, the first colours the strongest), floppy contacts
-grey; with two models, one panel each."""
+"""The rigidity figure (matplotlib, the `scan` extra, as the scan's map): the force chains (each contact's branch
+vector, width ∝ |f|), then per model the contacts coloured by rigid cluster (largest first: blue, orange, green,
+… cyclically), floppy contacts grey."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -20,27 +20,34 @@ def write_figure(scene: Scene, result: dict, path) -> Path:
     from matplotlib.patches import Circle
 
     models = [m for m in ("physical", "generic") if m in result]
-    fig, axes = plt.subplots(1, len(models), figsize=(6.5 * len(models), 6.5), squeeze=False)
+    fig, axes = plt.subplots(1, len(models) + 1, figsize=(5.5 * (len(models) + 1), 5.5), squeeze=False)
     r = particle_radii(scene)
-    for ax, model in zip(axes[0], models):
-        res = result[model]
+    for ax in axes[0]:
         ax.add_collection(PatchCollection([Circle(c, rad) for c, rad in zip(scene.x[:, :2], r)],
                                           facecolor="whitesmoke", edgecolor="0.6", linewidth=0.2))
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+    f = np.linalg.norm(scene.force, axis=1)
+    segments, _ = contact_segments(scene, result[models[0]]["contacts"])
+    width = np.minimum(1.2 * f / max(f.mean(), 1e-300), 3.0)
+    axes[0, 0].add_collection(LineCollection(segments, colors="k", linewidths=width))
+    axes[0, 0].autoscale_view()
+    axes[0, 0].set_title("force chains (width ∝ |f|, capped at 2.5 mean)", fontsize=9)
+    for ax, model in zip(axes[0, 1:], models):
+        res = result[model]
         segments, labels = contact_segments(scene, res["contacts"])
         colours = cluster_colours(labels, plt.get_cmap("tab10"))
         floppy = labels < 0
         ax.add_collection(LineCollection(segments[floppy], colors="0.7", linewidths=0.5))
         ax.add_collection(LineCollection(segments[~floppy], colors=colours[~floppy], linewidths=1.6))
         ax.autoscale_view()
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
         sizes = [len(c["particles"]) for c in res["clusters"][:3]]
         ax.set_title(f"{model}: {len(res['clusters'])} rigid clusters (largest {sizes}), "
                      f"{res['floppy_modes']['count']} floppy modes", fontsize=9)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=110 if path.suffix.lower() == ".png" else None)
+    fig.savefig(path, dpi=90 if path.suffix.lower() == ".png" else None)
     plt.close(fig)
     return path
 

@@ -28,7 +28,8 @@ class Frame:
 
     r_pq, r_qp: contact point minus each body's reference point (q's periodic copy for r_qp); branch: q's copy
     minus x^p; sliding: a normal constraint only; rolling: the relative rotation constrained too; periodic: the
-    cell is fixed, so only translations are trivial."""
+    cell is fixed, so only translations are trivial. A frictionless contact (μ = 0) constrains its normal only,
+    as a sliding one."""
 
     dim: int
     names: tuple
@@ -67,7 +68,7 @@ def from_scene(scene: Scene, walls: str = "free", wall_flags=None) -> Frame:
         raise SceneError(f"--walls: must be one of {', '.join(WALL_OPTIONS)}, got {walls!r}")
     rolling = np.any(scene.rolling != 0.0, axis=(1, 2))
     base = dict(dim=scene.dim, names=tuple(scene.names), x=scene.x, p=scene.p, q=scene.q, r_pq=scene.r_pq,
-                r_qp=scene.r_qp, branch=scene.branch, normal=scene.normal, sliding=scene.at_yield(), rolling=rolling,
+                r_qp=scene.r_qp, branch=scene.branch, normal=scene.normal, sliding=scene.at_yield() | (scene.mu == 0), rolling=rolling,
                 periodic=scene.periodic, n_particles=scene.n_particles, n_contacts=scene.n_contacts)
     if walls == "free":
         return Frame(**base)

@@ -132,7 +132,8 @@ def _null_sparse(block: sp.csr_matrix, start: int):
         if zero < k or k == n:
             break
         k = min(n, 2 * k)
-    gap = float(np.sqrt(lam[zero] / max(lam[zero - 1], tol))) if 0 < zero < k else np.inf
+    floor = np.finfo(float).eps * top                       # the Ritz values' own round-off
+    gap = float(np.sqrt(lam[zero] / max(lam[zero - 1], floor))) if 0 < zero < k else np.inf
     return n - zero, gap, float(np.sqrt(tol)), _canonical(X @ W[:, :zero])
 
 
