@@ -7,7 +7,9 @@ Modules, one job each:
   modes.py    labels (rigid, rolling, gear, shearing, sliding, indentation) and animation poses of eigenmodes
   field.py    the λ⁽⁶⁾ field of the symmetric pair over (ρ/r, f/(kr)), and its PNG
   state.py    the per-client session: parameters, poses, current Scene, last analysis, errors (no viser)
+  paths.py    what a typed path may open: loopback, --data-root confinement, folders (no viser)
   views.py    drawing in the viser scene (particles, contacts, arrows, osculating circles, surface, animation)
   panels.py   GUI folders and their callbacks: read handles, call state, write handles
-  server.py   ViserServer wiring, one session per browser tab, the `granstab-app` command
+  server.py   ViserServer wiring, one session per browser tab (memory handed back when it closes), `granstab-app`
+  headless.py a page without a browser (viser's websocket protocol): the memory tests and benchmarks
 """

@@ -12,6 +12,7 @@ Three kinds, each with `params_used`, `initial_params()`, `build(params) -> Scen
 """
 from __future__ import annotations
 
+import itertools
 import json
 import tomllib
 from dataclasses import dataclass, field
@@ -288,6 +289,47 @@ def contact_sockets(scene: granstab.Scene) -> dict[int, tuple]:
     return {i: tuple(v) for i, v in out.items()}
 
 
+def cell_edges(scene: granstab.Scene) -> np.ndarray | None:
+    """The periodic cell's outline as segments (E, 2, d): the parallelogram (2D, 4 edges) or parallelepiped (3D, 12)
+    spanned by the lattice vectors, centred on the particles' centroid (a packing whose positions fill one period
+    sits in it); None for a scene without a cell."""
+    if scene.cell is None:
+        return None
+    corners = np.array(list(itertools.product((0, 1), repeat=scene.dim)))
+    pairs = [(i, j) for i in range(len(corners)) for j in range(i + 1, len(corners))
+             if np.abs(corners[i] - corners[j]).sum() == 1]
+    points = scene.x.mean(axis=0) - 0.5 * scene.cell.sum(axis=0) + corners @ scene.cell
+    return np.array([[points[i], points[j]] for i, j in pairs])
+
+
+def periodic_images(scene: granstab.Scene, reach: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The periodic images drawn beside the cell: every particle within `reach` of a face of the outline
+    (cell_edges), copied across to the opposite side by the lattice shift n @ cell, n in {-1, 0, 1}^d other than 0
+    (near a corner: a copy across each face, edge and corner it is near). Returns (index (G,), shift (G, d)): ghost g is
+    x[index[g]] + shift[g] (ghost_positions); None for a scene without a cell."""
+    if scene.cell is None:
+        return None
+    inv = np.linalg.inv(scene.cell)
+    frac = (scene.x - scene.x.mean(axis=0) + 0.5 * scene.cell.sum(axis=0)) @ inv     # fractional, outline = [0, 1]^d
+    margin = reach * np.linalg.norm(inv, axis=0)            # reach in fractions: face i is 1/|column i of inv| apart
+    near = {1: frac < margin, -1: frac > 1 - margin}        # copied by +a_i (near face 0) or -a_i (near face 1)
+    index, shift = [], []
+    for n in itertools.product((-1, 0, 1), repeat=scene.dim):
+        if not any(n):
+            continue
+        chosen = np.all([near[ni][:, i] for i, ni in enumerate(n) if ni], axis=0)
+        index.append(np.flatnonzero(chosen))
+        shift.append(np.broadcast_to(np.asarray(n, float) @ scene.cell, (int(chosen.sum()), scene.dim)))
+    return np.concatenate(index), np.concatenate(shift)
+
+
+def ghost_positions(x: np.ndarray, images: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """The ghosts' positions (G, d) for particle positions x (N, d): a displaced packing's ghosts move with their
+    particles (a periodic mode moves every copy of a particle alike)."""
+    index, shift = images
+    return x[index] + shift
+
+
 def model_for_scene(scene: granstab.Scene):
     """The two-particle model if the scene is the symmetric pair, else a contact-level model."""
     return TwoParticleModel.from_scene(scene) or ContactModel(scene)
@@ -332,9 +374,12 @@ __all__ = [
     "ContactModel",
     "ShapeModel",
     "TwoParticleModel",
+    "cell_edges",
     "contact_sockets",
+    "ghost_positions",
     "load_model",
     "model_for_scene",
     "model_from_dict",
+    "periodic_images",
     "read_scene_file",
 ]

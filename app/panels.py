@@ -21,6 +21,22 @@ from .field import field_picture
 from .params import PARAMS
 from .views import MESH_MAX, SceneView
 
+TITLE = "granstab explorer"
+# The page's title, and every input named by its label (viser 1.1's labels point at ids that its inputs lack, so
+# Playwright's get_by_label and screen readers found none): run once by the browser as the HTML element mounts (an
+# image that fails to load runs its onerror), then on every change of the page. docs/viser-gaps.md says why.
+PAGE_FIXES = ('<img alt="" src="data:," style="display:none" onerror="'
+              "document.title='" + TITLE + "';"
+              "if(!window.granstabLabels){window.granstabLabels=1;"
+              "const name=()=>{document.querySelectorAll('label').forEach(l=>{"
+              "const text=l.textContent.trim();let a=l;if(!text)return;"
+              "for(let i=0;i<5&amp;&amp;a;i++){a=a.parentElement;"
+              "const inputs=a?a.querySelectorAll('input:not([type=hidden]),textarea,[role=slider]'):[];"
+              "if(inputs.length){inputs.forEach(x=>{if(!x.getAttribute('aria-label'))"
+              "x.setAttribute('aria-label',x.getAttribute('role')==='slider'?text+' slider':text)});break}}})};"
+              "name();new MutationObserver(name).observe(document.body,{childList:true,subtree:true})}"
+              '">')
+NEGATIVE, OTHER = "#c0392b", "#2c3e50"      # spectrum markers: consistent negative eigenvalues, the rest
 VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b", None: "#555555"}
 DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
 FRAME = 1 / 20            # s per animation frame
@@ -31,6 +47,7 @@ SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for 
 LINES_MAX = 5_000         # contacts: above this force lines and normals are off until asked for (seconds per frame
                           # in a browser without a GPU: 10⁴ disks 0.38 s, 10⁵ disks 10 s)
 SPECTRUM_ASPECT, BLANK_ASPECT = 1.3, 0.1    # height/width of the spectrum plot, and of the blank strip while it is off
+COVERED_PX = 430 + 400    # the side panels' widths over the canvas (set_width in _build/_build_side)
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
 TWO_LINES = "line-height:1.3em;height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;" \
             "-webkit-box-orient:vertical"                   # a headline line's box: two lines, whatever its text
@@ -49,6 +66,9 @@ class ClientUI:
         self._quiet_thread: int | None = None   # the thread writing handles: its own echo callbacks are ignored
         self._last_drag = 0.0
         self._closed = False
+        self.released = threading.Event()         # set by the server once a closed tab's memory is handed back
+        self._timers: set[threading.Timer] = set()    # typing pauses pending (cancelled on close)
+        self._checking: int | None = None         # the revision whose metric family is being checked
         self._player: threading.Thread | None = None
         self._mode_keys: dict[str, tuple] = {}
         self._spectrum_json = None
@@ -84,7 +104,7 @@ class ClientUI:
             self.preset.on_update(self._picking(self._load_preset))
             self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
             self.upload.on_upload(self._picking(self._upload))
-            self.path = gui.add_text("Path on server", initial_value="")
+            self.path = gui.add_text("Path on server", initial_value="", disabled=not self.session.typed_paths)
             self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
             self.frame.on_update(lambda _: self.run(self._pick_frame))
@@ -130,6 +150,7 @@ class ClientUI:
                 self.exports[key] = gui.add_button(label)
                 self.exports[key].on_click(self._download(fn))
         self.legend = gui.add_markdown("")
+        gui.add_html(PAGE_FIXES)
 
         self._build_side()
         gui.main_panel.dock_right()
@@ -215,11 +236,27 @@ class ClientUI:
             nonlocal timer
             if timer is not None:
                 timer.cancel()
+                self._timers.discard(timer)
+            if self._closed:
+                return
             picks = self._picks
-            timer = threading.Timer(TYPING_PAUSE, lambda: self.run(fn) if self._picks == picks else None)
+
+            def fire():
+                self._timers.discard(mine)
+                if self._picks == picks:
+                    self.run(fn)
+            timer = mine = threading.Timer(TYPING_PAUSE, fire)
             timer.daemon = True
+            self._timers.add(timer)
             timer.start()
         return update
+
+    def _loading(self, name: str) -> None:
+        """While a scene opens: the last error goes, and the page says what is opening (sent at once)."""
+        self.message.content = (f'<div class="granstab-loading" style="color:#555;font-style:italic;padding:2px 8px">'
+                                f"Opening {html.escape(name)} …</div>")
+        self.message.visible = True
+        self.client.flush()
 
     def _show_message(self, text: str | None) -> None:
         self.message.content = (f'<div class="granstab-error" style="color:#b03a2e;font-weight:600;padding:2px 8px">'
@@ -227,7 +264,17 @@ class ClientUI:
         self.message.visible = bool(text)
 
     def close(self) -> None:
+        """The tab is gone: nothing runs for it any more. Pending typing pauses are cancelled, the animation thread
+        ends (joined), a callback running now finishes first (the lock); its state is then unreferenced."""
         self._closed = True
+        for timer in list(self._timers):
+            timer.cancel()
+        self._timers.clear()
+        player = self._player
+        if player is not None and player is not threading.current_thread():
+            player.join(timeout=5.0)
+        with self.lock:
+            self._player = None
 
     # --------------------------------------------------------------------------------------- callbacks
     def _apply_sliders(self) -> None:
@@ -245,6 +292,10 @@ class ClientUI:
         name = self._shown["preset"] = self.preset.value
         if name == self.session.preset:
             return
+        if name not in self.session.presets():          # the menu's options only (a forged value is no path)
+            self._show_message(f"{name}: not a preset of this server")
+            return
+        self._loading(name)
         ok = self.session.load_preset(name)
         self.view.key = None
         self.refresh(camera=ok)
@@ -259,6 +310,7 @@ class ClientUI:
         """Open the file sent from the page; one that cannot be opened (over MAX_UPLOAD: refused unread) gets a red
         notice with the reason beside viser's own notice of the transfer (docs/viser-gaps.md: uploads)."""
         up = self.upload.value
+        self._loading(Path(up.name).name)
         ok = self.session.load_upload(up.name, up.content)
         if not ok:
             self.client.add_notification(f"Not opened: {Path(up.name).name}", self.session.error, color="red",
@@ -270,7 +322,8 @@ class ClientUI:
         path = self.path.value.strip()
         if not path or path == self.session.preset:
             return
-        ok = self.session.load_preset(path)
+        self._loading(path)
+        ok = self.session.open_typed(path)
         self.view.key = None
         self.refresh(camera=ok)
 
@@ -303,8 +356,8 @@ class ClientUI:
         self.refresh()
 
     def _pick_field(self, rho_r: float, f_kr: float) -> None:
-        """A click on the λ⁽⁶⁾ surface sets ρ/r and f/(kr) (rounded to the slider steps)."""
-        if self.session.kind == "two_particle" and self.session.set_params(rho_r=rho_r, f_kr=f_kr):
+        """A click on the λ⁽⁶⁾ surface sets ρ/r and f/(kr), snapped to the slider steps (Session.pick_field)."""
+        if self.session.pick_field(rho_r, f_kr):
             self.refresh()
 
     def _reset_poses(self) -> None:
@@ -403,6 +456,7 @@ class ClientUI:
                 with self._quiet():                      # gizmo poses written here are not drags
                     self.view.draw_particles(s, skip=skip)
             legend = self.view.draw_contacts(s)
+            self.view.draw_cell(s)
             field = s.field() if self.view.options["surface"] else None
             current = (s.params.get("rho_r"), s.params.get("f_kr"), s.rolling_eigenvalue())
             if field is None:
@@ -428,8 +482,31 @@ class ClientUI:
         time.sleep(SEND_PAUSE)
 
     def _check_metrics(self) -> None:
-        self.session.check_metrics()
+        """*Check other metrics*: says at once that it runs and about how long, then runs off the lock (a slider
+        stays live); the result is kept only if nothing moved meanwhile (Session.keep_metrics), else the row says
+        the check was superseded."""
+        s = self.session
+        if s.scene is None or s.analysis is None or self._checking == s.revision:
+            return
+        self._checking = s.revision
         self._write_verdict()
+        self.client.flush()
+        threading.Thread(target=self._family, args=(s.scene, s.revision), daemon=True).start()
+
+    def _family(self, scene, revision: int) -> None:
+        from .state import metric_family
+        try:
+            metrics = metric_family(scene)
+        except Exception as exc:  # noqa: BLE001 — shown in the page
+            self.run(self._show_message, f"Check other metrics: {' '.join(str(exc).split())}")
+            metrics = None
+        self.run(self._family_done, metrics, revision)
+
+    def _family_done(self, metrics, revision: int) -> None:
+        if self._checking == revision:
+            self._checking = None
+        if metrics is not None and self.session.keep_metrics(metrics, revision) is not None:
+            self._write_verdict()
 
     def _sync_controls(self) -> None:
         """Slider visibility/values and the preset list follow the session without firing callbacks."""
@@ -445,6 +522,9 @@ class ClientUI:
             for key, h in self.sliders.items():
                 h.visible = key in used
                 if key in used:
+                    p = s.param(key)                     # k follows the scene's scale (params.Param.around)
+                    if (h.min, h.max, h.step) != (p.lo, p.hi, p.step):
+                        h.min, h.max, h.step = p.lo, p.hi, p.step
                     self._show(key, h, s.params[key])
             self.reset.visible = s.resettable
             frames = getattr(s.model, "frames", None)
@@ -494,7 +574,7 @@ class ClientUI:
             title, verdict = f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map"
         if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
-        reason = ("" if verdict in (None, "no contact", "not analysed", "scan map") else r["reason"] + ("" if r["sufficient"] else " — not proven"))
+        reason = "" if verdict in (None, "no contact", "not analysed", "scan map") else s.headline()[1]
         self.headline.content = (
             f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
             f'data-revision="{s.revision}" style="background:'
@@ -515,7 +595,7 @@ class ClientUI:
                 "normals, curvatures, forces), not shapes: the particles cannot be dragged.")
         self.info.content = (f"{note}\n\n" if note else "") + (
             f"{s.kind.replace('_', ' ')} scene" + (f" · {params}." if params else ".")) + drag + (
-            f"\n\n**Import report**\n\n```\n{report}\n```" if report else "")
+            f"\n\n**Import report**\n\n{wrapped(report)}" if report else "")
         if s.kind == "scan_map":
             self.details.content = (f"**Scan map.** {s.model.report}.\n\nColour: the fraction of the clusters "
                                     "containing a particle that are unstable (white 0 → dark red 1; grey: in no "
@@ -531,7 +611,7 @@ class ClientUI:
             rows = [
                 "| | |", "|---|---|",
                 f"| verdict | **{r['verdict']}** ({'sufficient condition met' if r['sufficient'] else 'not proven'}) |",
-                f"| consistent eigenvalues | {neg} negative · {zero} zero · {pos} positive |",
+                f"| consistent modes | {self._mode_counts()} |",
                 f"| Type-1 non-uniqueness | {r['type1']} |",
                 f"| Type-2 non-uniqueness | {'yes' if r['type2'] else 'no'} |",
                 f"| verdict hinges on S tolerance | {'yes' if r['hinges'] else 'no'} |",
@@ -541,6 +621,8 @@ class ClientUI:
                 f"| analysis time | {r['analysis_time'] * 1e3:.1f} ms (with scene: {r['elapsed'] * 1e3:.1f} ms) |",
             ]
             rows.insert(6, f"| metric | {self._metric_row()} |")
+            if r.get("attribution"):
+                rows.insert(2, f"| why (docs/attribution.md) | {r['attribution']} |")
             if r["dynamics"] is not None:
                 d = r["dynamics"]
                 rows.insert(7, "| lowest frequencies ω = √λ | " + (", ".join(f"{w:.4g}" for w in d["frequencies"])
@@ -550,21 +632,38 @@ class ClientUI:
             warn = "".join(f"\n\n**Warning:** {w}" for w in r["warnings"])
             self.details.content = f"**Why:** {r['reason']}\n\n" + "\n".join(rows) + warn
 
+    def _mode_counts(self) -> str:
+        """Consistent modes by sign, each mode once (Session.distinct_modes), and the core's per-branch count where a
+        mode recurs in several branches."""
+        d = self.session.distinct_modes()
+        pos, zero, neg = self.session.report()["counts"]
+        text = f"{d['negative']} negative · {d['zero']} zero · {d['positive']} positive"
+        if (neg, zero, pos) != (d["negative"], d["zero"], d["positive"]):
+            text += f" (over the branches: {neg} · {zero} · {pos}, a mode counted in each branch it appears in)"
+        return text
+
     def _metric_row(self) -> str:
-        """The metric-robustness flag of the core (summary["metric_robust"]) once checked, else how to check."""
+        """The metric-robustness flag of the core (summary["metric_robust"]) once checked, the check running, else how
+        to check."""
         m = self.session.metrics
+        if self._checking == self.session.revision:
+            return (f"checking L/10, L and 10L{' and inertia' if self.session.scene.mass is not None else ''} … "
+                    f"(about {max(self.session.family_estimate(), 0.1):.1g} s; a slider move supersedes it)")
         if m is None or m["revision"] != self.session.revision:
             return (f"{self.session.metric} only: *Check other metrics* below runs L/10, L, 10L (and inertia with "
                     "masses)")
         if m["robust"]:
-            return f"this verdict holds for every metric tried ({', '.join(x['metric'] for x in m['metrics'])})"
+            return ("this verdict is proven for every rotation length (and the inertia metric where masses are known), "
+                    f"not only those tried ({', '.join(x['metric'] for x in m['metrics'])})")
         return " · ".join(f"{x['metric']}: {x['verdict']} ({x['consistent_negative']} negative)"
                           for x in m["metrics"])
 
     def _write_legend(self, legend: dict) -> None:
         if self.session.kind == "scan_map":
             self.legend.content = ("**Legend** — particle colour: the share of the scanned clusters containing it that "
-                                   "are unstable (white 0 → dark red 1; grey: in no cluster).")
+                                   "are unstable by the packing (mechanism frictional, geometric or mixed; white 0 → "
+                                   "dark red 1). Light grey: unstable only through `boundary` clusters (the dead "
+                                   "loads at the cut, docs/attribution.md); dark grey: in no cluster.")
             return
         scene, o = self.session.scene, self.view.options     # what is drawn now, and only that
         contacts = scene is not None and scene.n_contacts > 0
@@ -685,7 +784,7 @@ class ClientUI:
         bodies = s.bodies()
         x = np.array([b.x for b in bodies])
         reach = 1.2 * np.array([max(b.axes) for b in bodies])[:, None]   # each body by its own size (hand_in_glove's
-        size = s.size                                                     # q is larger than the mean)
+                                                                          # q is larger than the mean)
         lo, hi = (x - reach).min(axis=0), (x + reach).max(axis=0)
         span = float(np.max(hi - lo))
         self.client.camera.near, self.client.camera.far = 1e-3 * span, 1e2 * span   # packings in px or in m
@@ -693,8 +792,7 @@ class ClientUI:
             if s.field() is not None and self.view.options["surface"]:
                 lo[1] = min(lo[1], -4.9 * s.field_scale)
             c = 0.5 * (lo + hi)
-            extent = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * 1.3))
-            distance = 0.8 * extent + 0.5 * size
+            distance = fit_distance(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), self.client.camera)
             if self.camera_view.value == OBLIQUE:        # from the front and above: heights become readable
                 self.client.camera.up_direction = (0.0, 0.0, 1.0)
                 self.client.camera.position = (float(c[0]), float(c[1]) - 0.8 * distance, 0.75 * distance)
@@ -711,7 +809,24 @@ class ClientUI:
             self.client.camera.look_at = tuple(c.tolist())
 
 
+def fit_distance(half_w: float, half_h: float, camera, covered: float = COVERED_PX, fill: float = 0.9) -> float:
+    """How far above a 2D scene of half-sizes (half_w, half_h) the camera must be for the scene to fill at most `fill`
+    of the canvas that the side panels (`covered` px of its width) leave free, for the camera's vertical field of
+    view and the canvas's size in px (an opened cluster was cut at the canvas edge by a fixed distance)."""
+    t = np.tan(0.5 * float(camera.fov))
+    width, height = float(camera.image_width), float(camera.image_height)
+    free = max(width - covered, 0.3 * width)
+    return max(half_h / (fill * t), half_w / (fill * t * free / height))
+
+
 # ------------------------------------------------------------------------------------------ figures
+
+def wrapped(text: str) -> str:
+    """Preformatted lines that wrap at the panel's edge (a Markdown code block cuts them off), as Markdown's raw
+    HTML."""
+    return (f'<div class="granstab-report" style="white-space:pre-wrap;overflow-wrap:anywhere;font-family:monospace;'
+            f'font-size:0.85em">{html.escape(text)}</div>')
+
 
 def _empty_figure():
     """A blank figure: no axes, no grid (the spectrum plot while it is off)."""
@@ -746,17 +861,18 @@ def spectrum_figure(modes, hidden: int = 0):
     def slog(v):
         return np.sign(v) * np.log10(1.0 + np.abs(v) / eps)
 
-    for kind, symbol, pick in (("consistent", "circle", lambda m: m.consistent),
-                               ("not consistent", "circle-open", lambda m: not m.consistent and m.label != "rigid"),
-                               ("rigid", "x-thin-open", lambda m: m.label == "rigid")):
-        sel = [m for m in modes if pick(m)]
+    for kind, symbol, colour, pick in (
+            ("consistent, negative", "circle", NEGATIVE, lambda m: m.consistent and m.eigenvalue < 0),
+            ("consistent, ≥ 0", "circle", OTHER, lambda m: m.consistent and m.eigenvalue >= 0),
+            ("not consistent", "circle-open", OTHER, lambda m: not m.consistent and m.label != "rigid"),
+            ("rigid", "x-thin-open", OTHER, lambda m: m.label == "rigid")):
+        sel = [m for m in modes if pick(m)]          # one colour per trace: its legend entry shows that colour
         if not sel:
             continue
         y = slog(np.array([m.eigenvalue for m in sel]))
-        colors = ["#c0392b" if m.eigenvalue < 0 and m.consistent else "#2c3e50" for m in sel]
         fig.add_trace(go.Scatter(
             x=[f"branch {m.branch}" for m in sel], y=y, mode="markers", name=kind,
-            marker={"symbol": symbol, "size": 11, "color": colors, "line": {"width": 1.5, "color": colors}},
+            marker={"symbol": symbol, "size": 11, "color": colour, "line": {"width": 1.5, "color": colour}},
             text=[f"λ = {m.eigenvalue:.5g}<br>{m.label}<br>{kind}" for m in sel],
             hovertemplate="%{text}<extra></extra>"))
     top = int(np.ceil(float(np.abs(slog(lam)).max()))) if lam.size else 1

@@ -18,6 +18,7 @@ from .models import Body, ContactModel
 from .params import defaults
 
 WHITE, RED, GREY = np.array([250, 250, 250]), np.array([176, 20, 20]), (150, 150, 150)
+CUT_GREY = (205, 205, 205)   # unstable only by the cut (mechanism boundary): lighter than GREY (in no cluster)
 
 
 def is_scan_dir(path) -> bool:
@@ -35,14 +36,25 @@ def fraction_colours(fraction: np.ndarray) -> np.ndarray:
     return rgb
 
 
+def map_colours(packing: np.ndarray, by_cut: np.ndarray) -> np.ndarray:
+    """(N, 3) uint8 of the default map (docs/attribution.md): `fraction_colours` of the share of a particle's
+    clusters unstable by the packing (mechanism frictional, geometric or mixed); CUT_GREY where none is, but some
+    are unstable by the cut alone (mechanism boundary): the scan's map.png hatches the same particles."""
+    rgb = fraction_colours(packing)
+    rgb[(by_cut > 0) & ~(packing > 0)] = CUT_GREY
+    return rgb
+
+
 @dataclass
 class ScanMapModel:
-    """The scanned packing and its map: `fraction` (unstable_fraction per particle, NaN: in no cluster),
-    `own` (the verdict of each particle's own cluster, '' if it was no centre), `members` (centre → member
-    particles, as indices into the packing)."""
+    """The scanned packing and its map: `fraction` (per particle, the share of its clusters unstable by the
+    packing, mechanism not boundary; NaN: in no cluster), `by_cut` (the share unstable by the cut alone), `own`
+    (the verdict of each particle's own cluster, '' if it was no centre), `members` (centre → member particles,
+    as indices into the packing)."""
 
     scene: granstab.Scene
     fraction: np.ndarray
+    by_cut: np.ndarray
     own: np.ndarray
     members: dict
     summary: dict
@@ -56,6 +68,11 @@ class ScanMapModel:
 
     def build(self, P: dict) -> granstab.Scene:
         return self.scene
+
+    @property
+    def colours(self) -> np.ndarray:
+        """(N, 3) uint8: the map's colours (`map_colours`)."""
+        return map_colours(self.fraction, self.by_cut)
 
     def bodies(self, P: dict) -> list[Body]:
         return ContactModel(self.scene).bodies(P)
@@ -106,6 +123,7 @@ class ScanMapModel:
 def load_scan_map(path) -> ScanMapModel:
     """The model of a scan folder, its packing the folder's own; one-line SceneError when it cannot be read."""
     from granstab.scan import read_map, read_packing
+    from granstab.scan.figure import map_fractions
     path = Path(path)
     data = read_map(path)
     scene = read_packing(path)
@@ -115,5 +133,6 @@ def load_scan_map(path) -> ScanMapModel:
                                   "changed since the scan?)")
     clusters = data["clusters"]
     members = {int(c): np.asarray(row, dtype=np.int64) for c, row in zip(clusters["center"], clusters["members"])}
-    return ScanMapModel(scene, np.asarray(particles["unstable_fraction"], float),
-                        np.asarray(particles["own_verdict"], dtype=object), members, data["summary"], str(path))
+    packing, by_cut = map_fractions(scene, clusters)      # the figure's shares: scans without mechanism, all packing
+    return ScanMapModel(scene, packing, by_cut, np.asarray(particles["own_verdict"], dtype=object), members,
+                        data["summary"], str(path))

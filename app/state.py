@@ -24,13 +24,15 @@ from .field import Field, field_png, lambda6_field
 from .models import Body, ShapeModel, TwoParticleModel, load_model
 from .modes import label_mode, mode_offsets, rotation_matrix
 from .params import PARAMS
-from .scanmap import fraction_colours, is_scan_dir, load_scan_map
+from .paths import PathRefused, folder_choice, typed_path
+from .scanmap import is_scan_dir, load_scan_map
 
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
 DEFAULT_PRESET = "two_particle"
 CONSISTENT = (PLUS, MINUS, BOTH)
 LARGE = 500               # particles: above this the whole packing is analysed only on request (`analyse`)
 MAX_UPLOAD = 5_000_000     # bytes: a scene file larger than this is refused before it is parsed
+SAME_MODE = 0.999          # |cos| of two unit motions above which they are one mode (distinct_modes)
 
 
 @dataclass(frozen=True)
@@ -63,8 +65,10 @@ def one_line(exc: BaseException) -> str:
 class Session:
     """State of one browser tab. `error` is None or the one-line message of the last failure."""
 
-    def __init__(self, preset: str | None = None, presets_dir=None):
+    def __init__(self, preset: str | None = None, presets_dir=None, data_root=None, typed_paths: bool = True):
         self.presets_dir = Path(presets_dir) if presets_dir else PRESETS_DIR
+        self.data_root = Path(data_root) if data_root else None   # typed paths: read inside it (app/paths.py)
+        self.typed_paths = typed_paths or self.data_root is not None
         self.preset: str | None = None
         self.model = None
         self.params: dict[str, float] = {}
@@ -117,6 +121,23 @@ class Session:
         self.recompute()
         return self.error is None
 
+    def open_typed(self, text: str) -> bool:
+        """Open what was typed into *Path on server*: a preset name, or a path under the server's policy
+        (app/paths.py: off beyond loopback without a data root, else confined to it); a folder that is neither a scan
+        nor a snapshot is named as a folder with its scene files, never tried file by file."""
+        name = text.strip()
+        if name in self.presets():                   # a preset's name (a bare file stem: no way out of the folder)
+            return self.load_preset(name)
+        try:
+            path = typed_path(name, self.data_root, self.typed_paths)
+        except PathRefused as exc:
+            self.error = str(exc)
+            return False
+        if path.is_dir() and not opens_as_folder(path):
+            self.error = folder_choice(path)
+            return False
+        return self.load_preset(str(path))
+
     def load_upload(self, name: str, content: bytes) -> bool:
         """Open a file sent from the page: size-guarded (MAX_UPLOAD bytes), read from a private temporary folder that
         is removed afterwards; the page sees only the file's own name, never the server's path."""
@@ -153,12 +174,53 @@ class Session:
 
     def set_params(self, **values) -> bool:
         """Set parameters (clipped and rounded to their slider steps); recompute only if something changed."""
-        clean = {key: PARAMS[key].clean(value) for key, value in values.items()}
+        clean = {key: self.param(key).clean(value) for key, value in values.items()}
         if all(self.params.get(key) == value for key, value in clean.items()):
             return False
         self.params.update(clean)
         self.recompute()
         return True
+
+    def param(self, key: str):
+        """The slider of parameter `key` for this scene (params.Param.around its start value: k of a DEM run)."""
+        return PARAMS[key].around(self.model.initial_params()[key])
+
+    def pick_field(self, rho_r: float, f_kr: float) -> bool:
+        """A click on the λ⁽⁶⁾ surface: ρ/r and f/(kr) snapped to their slider steps, so that what is analysed is
+        what the sliders show (2.4308, 0.002077 → 2.43, 0.0021)."""
+        if self.kind != "two_particle":
+            return False
+        return self.set_params(rho_r=PARAMS["rho_r"].snap(rho_r), f_kr=PARAMS["f_kr"].snap(f_kr))
+
+    def headline(self) -> tuple[str | None, str]:
+        """The verdict word and the reason under it, in one voice: the core's reason may call a neutral verdict whose
+        zero is resolved only within its accuracy "NOT DETERMINED"; the page says the verdict once and that it is not
+        proven (the table below says why)."""
+        r = self.report()
+        if r["verdict"] is None:
+            return None, ""
+        reason = r["reason"].replace("NOT DETERMINED:", "not proven:")
+        if not r["sufficient"] and "not proven" not in reason:
+            reason += " — not proven"
+        return r["verdict"], reason
+
+    def distinct_modes(self) -> dict:
+        """Consistent modes by sign, each counted once: the same motion in several branches (a rolling mode that no
+        sliding contact takes part in) is one mode. Two unit motions are the same where |cos| ≥ SAME_MODE.
+        Returns {"negative": n, "zero": n, "positive": n}; the core's counts (report()["counts"]) are per branch."""
+        out = {"negative": [], "zero": [], "positive": []}
+        if self.analysis is None:
+            return {k: 0 for k in out}
+        for m in self.modes():
+            if not m.consistent:
+                continue
+            b = self.analysis.branches[m.branch]
+            sign = "negative" if m.eigenvalue < -b.zero_tol else "positive" if m.eigenvalue > b.zero_tol else "zero"
+            v = self.analysis.motion(b.stability_vectors[:, m.index])
+            v = v / max(float(np.linalg.norm(v)), 1e-300)
+            if not any(abs(float(v @ w)) >= SAME_MODE for w in out[sign]):
+                out[sign].append(v)
+        return {k: len(v) for k, v in out.items()}
 
     @property
     def draggable(self) -> bool:
@@ -219,8 +281,9 @@ class Session:
 
     @property
     def map_colours(self) -> np.ndarray | None:
-        """(N, 3) colours of the scan map (fraction of unstable clusters per particle), or None off the map."""
-        return fraction_colours(self.model.fraction) if self.kind == "scan_map" else None
+        """(N, 3) colours of the scan map (share of unstable clusters per particle by the packing; grey: by the cut
+        alone), or None off the map."""
+        return self.model.colours if self.kind == "scan_map" else None
 
     def open_cluster(self, name: str) -> bool:
         """From the scan map: the cluster of particle `name` becomes the scene (back_to_map returns)."""
@@ -308,12 +371,19 @@ class Session:
         Returns {"robust": bool, "metrics": [per-metric verdict and counts], "time": s} (None without a scene)."""
         if self.scene is None or self.analysis is None:
             return None
-        start = time.perf_counter()
-        with blas_threads(1):
-            family = analyze(self.scene, metric="family").verdict
-        self.metrics = {"robust": bool(family.metric_robust), "metrics": [e.to_dict() for e in family.metrics],
-                        "time": time.perf_counter() - start, "revision": self.revision}
+        return self.keep_metrics(metric_family(self.scene), self.revision)
+
+    def keep_metrics(self, metrics: dict, revision: int) -> dict | None:
+        """Keep a family check computed (metric_family, off the lock) for `revision`; one for an older scene or older
+        parameters is dropped (None): the next move superseded it."""
+        if revision != self.revision:
+            return None
+        self.metrics = {**metrics, "revision": revision}
         return self.metrics
+
+    def family_estimate(self) -> float:
+        """Seconds the family check should take here: three analyses in L's time (four with masses)."""
+        return (4 if self.scene is not None and self.scene.mass is not None else 3) * self.elapsed
 
     @property
     def scene_dim(self) -> int:
@@ -338,6 +408,7 @@ class Session:
             "n_sliding": int(np.sum(self.scene.at_yield())), "worst_error": worst, "errors": a.errors,
             "analysis_time": a.timings.get("total", 0.0), "elapsed": self.elapsed, "warnings": a.warnings,
             "error": self.error, "notice": self.notice, "metric": self.metric, "dynamics": self.dynamics(),
+            "attribution": None if a.attribution is None else a.attribution.line(),
         }
 
     def type1(self) -> str:
@@ -463,6 +534,34 @@ class Session:
         if field is None:
             raise ValueError("the λ⁽⁶⁾ contour exists for the two-particle pair only")
         return "lambda6-contour.png", field_png(field, (self.params["rho_r"], self.params["f_kr"]))
+
+
+def metric_family(scene) -> dict:
+    """The verdict of `scene` in every metric of the family (granstab.analyze, metric="family"), on one BLAS thread:
+    {"robust", "metrics", "time"}. Pure: it may run off the session's lock while the page moves on."""
+    start = time.perf_counter()
+    with blas_threads(1):
+        family = analyze(scene, metric="family", attribution=False).verdict
+    return {"robust": family.metric_robust is True, "metrics": [e.to_dict() for e in family.metrics],
+            "time": time.perf_counter() - start}
+
+
+def opens_as_folder(folder: Path, most: int = 64) -> bool:
+    """Whether a folder opens whole: a scan, a folder a format reads itself (RigidLibrary), or a snapshot whose files
+    (at most `most`, those granstab.io.load would take) one format reads together (a LAMMPS run's dumps)."""
+    from granstab.io import SKIPPED_IN_FOLDERS
+    from granstab.io.registry import detect, reads_folder
+    if is_scan_dir(folder) or reads_folder(folder):
+        return True
+    files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
+                   and p.suffix.lower() not in SKIPPED_IN_FOLDERS)
+    if not files or len(files) > most:
+        return False
+    try:
+        detect(files)
+    except (granstab.SceneError, OSError):
+        return False
+    return True
 
 
 def _json(value):

@@ -6,16 +6,21 @@ Node tree (names are per client):
   /particles/<name>/body       the animation offset (identity unless a mode is playing)
   /particles/<name>/body/mesh  the shape, in body axes;  …/body/marker  a stripe along body e1 (shows rotation)
   /contacts/…                  points, normals, force arrows, osculating arcs (world axes)
+  /cell                        the outline of a periodic scene's cell
+  /cell/images                 its periodic images near the faces (lighter; they move with their particles' mode)
   /field/…                     the λ⁽⁶⁾ height surface of the pair, its axes and the current-state marker
 """
 from __future__ import annotations
 
 import numpy as np
 
+from .models import cell_edges, ghost_positions, periodic_images
 from .modes import rotation_matrix
 
 PALETTE = [(120, 170, 230), (240, 170, 110), (150, 205, 140), (215, 150, 205), (230, 215, 120), (140, 210, 210)]
 MARKER = (40, 40, 60)
+CELL = (90, 90, 90)                     # a periodic scene's cell outline
+GHOST = (200, 215, 235)                 # periodic images of the particles near the cell's faces (lighter)
 COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0, 0), "tensile": (30, 110, 220),
           "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
 Z_UP = np.array([0.0, 0.0, 1.0])
@@ -221,6 +226,8 @@ class SceneView:
         self.options = {"normals": True, "forces": True, "osculating": True, "surface": True, "force_scale": 1.0}
         self.base = {}                            # particle name → Body drawn (pose of its frame)
         self._contact_keys: dict[str, bytes] = {}     # what /contacts shows now: digest per group
+        self._cell_key: object = False            # what /cell shows now (None: nothing; False: not drawn yet)
+        self.ghosts = None                        # (point cloud, scene names, periodic_images, z) of /cell/images
         self.dim = 2
 
     # particles ---------------------------------------------------------------------------------
@@ -330,16 +337,27 @@ class SceneView:
         """Show bodies displaced along a mode: local offsets of the /body frames relative to the drawn poses. The
         contact drawings belong to the undeformed state: hidden while a mode plays (stop_animation shows them)."""
         self._contacts_visible(False)
+        self._animate_points(bodies)
         for body in bodies:
-            base = self.base.get(body.name)
-            if base is None:
+            base, frame = self.base.get(body.name), self.inner.get(body.name)
+            if base is None or frame is None:                # not drawn, or a point of the cloud
                 continue
             R0 = rot3(base.R)
-            dx = R0.T @ (to3(body.x) - to3(base.x))
-            self.inner[body.name].position = dx
-            self.inner[body.name].wxyz = wxyz(R0.T @ rot3(body.R))
+            frame.position = R0.T @ (to3(body.x) - to3(base.x))
+            frame.wxyz = wxyz(R0.T @ rot3(body.R))
+
+    def _animate_points(self, bodies) -> None:
+        """The point clouds along the mode: a large packing's centres, and the periodic images, each at its
+        particle's displaced position plus its lattice shift (models.ghost_positions)."""
+        if self.cloud is not None:
+            self.cloud.points = np.array([to3(b.x) for b in bodies])
+        if self.ghosts is not None:
+            cloud, names, images, z = self.ghosts
+            at = {b.name: b.x for b in bodies}
+            cloud.points = to3(ghost_positions(np.array([at[n] for n in names]), images), z)
 
     def stop_animation(self) -> None:
+        self._animate_points(self.base.values())
         for frame in self.inner.values():
             frame.position = (0.0, 0.0, 0.0)
             frame.wxyz = (1.0, 0.0, 0.0, 0.0)
@@ -354,6 +372,27 @@ class SceneView:
         """The /contacts frame that the contact drawings hang from (made again after /contacts was removed)."""
         if self.contacts_frame is None:
             self.contacts_frame = self.api.add_frame("/contacts", show_axes=False)
+
+    def draw_cell(self, session) -> None:
+        """The outline of a periodic scene's cell (models.cell_edges) and the periodic images of the particles within
+        one mean diameter of a face (models.periodic_images), re-sent only when they change."""
+        scene = session.scene
+        edges = None if scene is None or session.kind == "scan_map" else cell_edges(scene)
+        key = None if edges is None else digest((session.size,), edges, scene.x)
+        if key == self._cell_key:
+            return
+        self._cell_key = key
+        self.api.remove_by_name("/cell")
+        self.ghosts = None
+        if edges is None:
+            return
+        self.api.add_line_segments("/cell", to3(edges, 0.0), CELL, thickness=2.0, thickness_units="screen")
+        images = periodic_images(scene, 2.0 * session.size)
+        if len(images[0]):
+            z = -0.1 * session.size                          # under the particles they copy
+            cloud = self.api.add_point_cloud("/cell/images", points=to3(ghost_positions(scene.x, images), z),
+                                             colors=GHOST, point_size=1.8 * session.size, point_shape="circle")
+            self.ghosts = (cloud, scene.names, images, z)
 
     # contacts ----------------------------------------------------------------------------------
     def draw_contacts(self, session) -> dict:

@@ -9,4 +9,5 @@ with its "## " heading), optionally `plot(results: dict, figdir: Path)` for its 
 """
 
 TOPICS = ("assembly", "sparse_vs_dense", "scaling", "field", "branches", "app_latency", "accuracy", "leave_out",
-          "metrics", "scan", "reading", "converting", "browser_latency", "rigidity")
+          "metrics", "packing300", "scan", "attribution", "reading", "converting", "periodic",
+          "browser_latency", "app_load", "sessions", "rigidity")

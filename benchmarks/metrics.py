@@ -10,6 +10,8 @@ from pathlib import Path
 import granstab
 from granstab.model import packings
 
+from .timing import repeats
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -35,7 +37,7 @@ def _interleaved(fns: dict, repeat: int) -> dict:
 
 
 def run(quick: bool = False) -> dict:
-    repeat = 3 if quick else 5
+    repeat = repeats(3 if quick else 5)
     rows = []
     for name, scene in _scenes(quick).items():
         runs = _interleaved({"L": lambda s=scene: granstab.analyze(s, metric="L"),

@@ -40,6 +40,8 @@ from granstab.io.schema import (
 from granstab.model import packings
 from granstab.model.scene import LAW_KEYS, STATES, build_scene
 
+from .timing import repeats
+
 QUICK_SIZES = (1_000, 10_000)
 FULL_SIZES = (10_000, 100_000, 1_000_000)
 REFERENCE_MAX = 120_000       # the per-contact reference takes ~minutes beyond this
@@ -48,7 +50,7 @@ CONTACTS_PER_PARTICLE = 2.7   # of the 2D random packings (measured; the sizes b
 
 def median_time(fn, budget: float = 2.0, most: int = 5) -> tuple[float, int]:
     """Median wall time of fn() and the number of runs (up to `most`, while the total is under `budget`)."""
-    times = []
+    times, most = [], repeats(most)
     while len(times) < most and (not times or sum(times) < budget):
         start = time.perf_counter()
         fn()

@@ -1,9 +1,19 @@
-"""Wall-time medians: one call, repeated calls, two calls interleaved (so drifting load hits both alike)."""
+"""Wall-time medians: one call, repeated calls, two calls interleaved (so drifting load hits both alike).
+
+`ONCE` (set by the tests): every timing is one call, no warm-up and no repeats, so that a test checks that the
+benchmark code runs and what it reports, without spending CI minutes on measuring."""
 from __future__ import annotations
 
 import time
 
 import numpy as np
+
+ONCE = False
+
+
+def repeats(n: int) -> int:
+    """n repeats of a measurement, or one when ONCE."""
+    return 1 if ONCE else n
 
 
 def once(fn):
@@ -18,6 +28,8 @@ def timeit(fn, repeat: int = 5, min_time: float = 0.3, max_repeat: int = 50, war
     """Median wall time of fn() over at least `repeat` runs (more while the total is under min_time), after
     `warmup` untimed runs; returns (median seconds, the value of the last call). A call slower than `slow`
     seconds is timed once (its warm-up run is the measurement)."""
+    if ONCE:
+        return once(fn)
     value = None
     times = []
     for i in range(warmup):
@@ -35,6 +47,9 @@ def timeit(fn, repeat: int = 5, min_time: float = 0.3, max_repeat: int = 50, war
 
 def timeit_pair(fa, fb, repeat: int = 7, min_time: float = 1.0, values: bool = False):
     """Medians of fa() and fb() timed interleaved (a, b, a, b, …), after one warm-up each."""
+    if ONCE:
+        (ta, va), (tb, vb) = once(fa), once(fb)
+        return ((ta, va), (tb, vb)) if values else (ta, tb)
     va, vb = fa(), fb()
     ta, tb = [], []
     start = time.perf_counter()

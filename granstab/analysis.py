@@ -14,14 +14,17 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .mechanics.branches import Problem, enumerate_masks, sample_masks
-from .mechanics.metric import CHOICES, Metric, family, resolve
-from .mechanics.stiffness import ContactBlocks, curvature_warnings
-from .mechanics.verdicts import Verdict, family_entry, finalize, mark_partial, summarize
+from .mechanics.accuracy import resolved_sign
+from .mechanics.attribution import contact_work, mechanism, rim_share
+from .mechanics.branches import BOTH, MINUS, PLUS, RIGID, Problem, enumerate_masks, sample_masks
+from .mechanics.metric import CHOICES, Metric, family, has_masses, resolve
+from .mechanics.robustness import metric_robustness
+from .mechanics.stiffness import ContactBlocks, contact_blocks, curvature_warnings
+from .mechanics.verdicts import Attribution, ModeWork, Verdict, family_entry, finalize, mark_partial, summarize
 from .model.scene import Scene, SceneError
 from .solve.methods import METHODS, Timer, choose_method
 
-__all__ = ["Analysis", "METHODS", "analyze", "build_problem"]
+__all__ = ["Analysis", "METHODS", "analyze", "attribute", "build_problem"]
 
 KEEP = ("auto", "all", "verdict")
 KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would grow with 2^Ms (3.4 kB a branch)
@@ -30,7 +33,8 @@ KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would 
 @dataclass(eq=False)
 class Analysis:
     """Result of `analyze`: branches, verdict (a `Verdict`; `summary` is its dict), errors (relative,
-    dimensionless), timings (s), in the primary metric `metric` (metric.py)."""
+    dimensionless), timings (s), in the primary metric `metric` (metric.py); `cost`: the method, the metrics, and
+    how many branches each path solved over all of them ("low_rank", "full", "sparse")."""
 
     scene: Scene
     problem: Problem
@@ -41,6 +45,8 @@ class Analysis:
     timings: dict
     warnings: list = field(default_factory=list)
     backend: str = "dense"
+    attribution: Attribution | None = None
+    cost: dict = field(default_factory=dict)
 
     @property
     def summary(self) -> dict:
@@ -90,7 +96,9 @@ class Analysis:
             "summary": self.summary,
             "errors": self.errors,
             "timings": self.timings,
+            "cost": self.cost,
             "warnings": self.warnings,
+            "attribution": None if self.attribution is None else self.attribution.to_dict(),
         }
 
 
@@ -115,6 +123,12 @@ def _branch_dict(b, inertia: bool) -> dict:
     return out
 
 
+def _spin_warning(problem) -> list[str]:
+    spins = getattr(problem, "free_spins", 0)
+    return [f"{spins} free spin(s): rotation dofs no contact feels (frictionless round particles), set aside like "
+            "the rigid motions: zero modes, neither neutral nor unstable"] if spins else []
+
+
 def build_problem(scene: Scene, blocks: ContactBlocks, metric):
     """The dense problem in a metric (a Metric, or L as a number): (problem, parts); see solve.methods.dense_problem."""
     from .solve.methods import dense_parts, dense_problem
@@ -124,10 +138,34 @@ def build_problem(scene: Scene, blocks: ContactBlocks, metric):
     return dense_problem(scene, blocks, parts, metric), parts
 
 
+def _robustness(scene, backend, problem, masks, metric, entries, timer):
+    """robustness.metric_robustness of the family on the dense path (elsewhere None: finalize says "undetermined"
+    unless two metrics prove different verdicts)."""
+    if backend.name != "dense":
+        return None
+    with timer("metric robustness"):
+        return metric_robustness(problem, masks, scene.dim, scene.dof_per_particle, metric.rotation_length, entries)
+
+
+def _check_options(metric: str, keep: str, method: str, rotation_length: float | None) -> None:
+    """ValueError for an option `analyze` does not know."""
+    if metric not in CHOICES:
+        raise ValueError(f"metric must be one of {', '.join(CHOICES)}, got {metric!r}")
+    if keep not in KEEP:
+        raise ValueError(f"keep must be one of {', '.join(KEEP)}, got {keep!r}")
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if rotation_length is not None and not (np.isfinite(rotation_length) and rotation_length > 0):
+        raise ValueError(f"rotation_length must be a positive number, got {rotation_length!r}")
+    if rotation_length is not None and metric == "inertia":
+        raise ValueError("rotation_length: the inertia metric has no rotation length")
+
+
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
-            device: str = "cpu", lowrank: bool | None = None, keep: str = "auto") -> Analysis:
+            device: str = "cpu", lowrank: bool | None = None, keep: str = "auto", attribution: bool = True,
+            rim=None) -> Analysis:
     """Analyse every loading branch of `scene`: spectra, consistent modes and verdicts (Sec. 3, Appendix D).
 
     Parameters
@@ -138,8 +176,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         "family": the verdict in L/10, L, 10L and inertia where masses are known, spectra in L,
         ``summary["metric_robust"]`` and ``summary["metrics"]``; otherwise that metric only.
     rotation_length : float, optional
-        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's metric);
-        `rotation_length_` is its deprecated old name.
+        L of the scaled dofs [du, L dθ] (default: the mean contact radius; 1 = the paper's; old name rotation_length_).
     max_sliding, sample_branches, seed : int
         More than `max_sliding` potentially sliding contacts (2^Ms branches) are refused unless `sample_branches`
         is given: then the all-loading, all-unloading and that many seeded random branches are examined
@@ -150,10 +187,12 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         granstab.solve.sparse.DENSE_MAX_DOF dofs. `warnings` says what a method leaves out.
     device, lowrank, keep : {"cpu", "gpu", "auto"}, bool or None, {"auto", "all", "verdict"}
         Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
-        problem (None: from 2^10 branches on, or on a GPU); which branches the result keeps ("verdict": those the
+        problem (None: from 2^10 branches on, or branches · n³ >= 5e8, or on a GPU); which branches the result keeps ("verdict": those the
         verdict rests on; "auto": all up to KEEP_ALL).
-    on_branch, progress : callable or None, bool
-        Called with each `Branch` of the primary metric as it is finished; a bar with the time left.
+    on_branch, progress : callable or None, bool or a reporter
+        Called with each `Branch` of the primary metric as it is finished; a bar with the time left, or a reporter
+        with stages (granstab.io.progress.Heartbeat: a line a minute where no bar can be drawn).
+    attribution, rim : an unstable dense result gets ``attribution`` (`attribute`; rim: particles with cut contacts).
 
     Returns
     -------
@@ -166,16 +205,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
                        stacklevel=2)
         rotation_length = rotation_length if rotation_length is not None else rotation_length_
-    if metric not in CHOICES:
-        raise ValueError(f"metric must be one of {', '.join(CHOICES)}, got {metric!r}")
-    if keep not in KEEP:
-        raise ValueError(f"keep must be one of {', '.join(KEEP)}, got {keep!r}")
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    if rotation_length is not None and not (np.isfinite(rotation_length) and rotation_length > 0):
-        raise ValueError(f"rotation_length must be a positive number, got {rotation_length!r}")
-    if rotation_length is not None and metric == "inertia":
-        raise ValueError("rotation_length: the inertia metric has no rotation length")
+    _check_options(metric, keep, method, rotation_length)
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
     backend = choose_method(scene, method, k, device, lowrank)
@@ -192,6 +222,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         keep_all = keep == "all" or (keep == "auto" and len(masks) <= KEEP_ALL)
         order = [primary] + [i for i in range(len(metrics)) if i != primary]
         entries = [None] * len(metrics)
+        paths = {}                                                       # branches solved per path, all metrics
         for i in order:
             m = metrics[i]
             main = i == primary
@@ -201,6 +232,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                 branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
                                                 progress=progress, label=f"branches, metric {m.name}",
                                                 keep_all=keep_all)
+            for path, count in notes["paths"].items():
+                paths[path] = paths.get(path, 0) + count
             verdict = summarize(branches, notes)
             entries[i] = family_entry(m, verdict)
             if main:
@@ -210,18 +243,111 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
             errors = backend.errors(state, problem, branches)
         if "residual_stability" in notes:                                # over every branch, kept or not
             errors["eigen_residual_stability"] = max(errors["eigen_residual_stability"], notes["residual_stability"])
-        verdict = finalize(verdict, errors, int(np.sum(state.blocks.rolling_undetermined)),
-                           entries if metric == "family" else None)
+        fam = metric == "family"
+        robust = _robustness(scene, backend, problem, masks, m, entries, timer) if fam and not partial else None
+        verdict = finalize(verdict, errors, int(np.sum(state.blocks.rolling_undetermined)), entries if fam else None,
+                           robust, has_masses(scene))
         if partial:
             verdict = mark_partial(verdict, len(masks), Ms)
         verdict = replace(verdict, branches_kept=len(branches), free_spins=getattr(problem, "free_spins", 0))
-    warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", [])
-    if getattr(problem, "free_spins", 0):
-        warnings.append(f"{problem.free_spins} free spin(s): rotation dofs no contact feels (frictionless round "
-                        "particles), set aside like the rigid motions: zero modes, neither neutral nor unstable")
+    warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", []) + _spin_warning(problem)
     if len(branches) < verdict.n_branches:
         warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
                         "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
                         "over all branches (keep='all' keeps every one)")
-    return Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
-                    timings=timer.times, warnings=warnings, backend=backend.name)
+    result = Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
+                      timings=timer.times, warnings=warnings, backend=backend.name,
+                      cost={"method": backend.name, "metrics": len(metrics), "branches_per_metric": len(masks),
+                            "paths": paths})
+    return _attributed(result, rim, attribution and backend.name == "dense", max_sliding=max_sliding,
+                       sample_branches=sample_branches, seed=seed)
+
+
+def _attributed(result: Analysis, rim, wanted: bool, **options) -> Analysis:
+    """`result` with its `attribution` where it is unstable and `wanted` (the dense path; its time is its own)."""
+    if wanted and result.verdict.verdict == "unstable":
+        result.attribution = attribute(result, rim, **options)
+    return result
+
+
+def focus(analysis: Analysis, inside, share: float) -> Analysis:
+    """The analysis with the verdict taken on the modes of the particles `inside` (indices) only: a negative or zero
+    eigenpair (λ <= its bound) with less than `share` of its squared metric norm there is not theirs and is left out
+    like a rigid one; positive ones change no verdict and all count (--boundary embedded: the cluster inside its
+    surroundings)."""
+    problem, scene = analysis.problem, analysis.scene
+    mask = np.zeros(scene.n_particles, dtype=bool)
+    mask[inside] = True
+    dofs = np.repeat(mask, scene.dof_per_particle)
+    dofs = dofs if problem.free is None else dofs[problem.free]
+    branches = []
+    for b in analysis.branches:
+        there = np.sum(b.stability_vectors[dofs] ** 2, axis=0) / np.sum(b.stability_vectors ** 2, axis=0)
+        low = b.stability_eigenvalues <= b.accuracy
+        branches.append(replace(b, codes=np.where((there < share) & low, RIGID, b.codes).astype(b.codes.dtype)))
+    verdict = finalize(summarize(branches), analysis.errors, int(np.sum(contact_blocks(scene).rolling_undetermined)),
+                       None)
+    return replace(analysis, branches=branches, verdict=replace(verdict, branches_kept=len(branches)))
+
+
+def mode_works(analysis: Analysis, rim: np.ndarray, blocks: ContactBlocks | None = None,
+               inside=None) -> list[ModeWork]:
+    """Every consistent negative eigenpair of the kept branches (resolved sign < 0), lowest first, with its work
+    parts (attribution.contact_work on U = D P v: they sum to λ) and rim share (attribution.rim_share, among the
+    particles `inside`, default all)."""
+    scene, problem, metric = analysis.scene, analysis.problem, analysis.metric
+    blocks = contact_blocks(scene) if blocks is None else blocks
+    on_rim = np.zeros(scene.n_particles, dtype=bool)
+    on_rim[rim] = True
+    within = np.ones(scene.n_particles, dtype=bool)
+    if inside is not None:
+        within[:] = False
+        within[inside] = True
+    out = []
+    for i, b in enumerate(analysis.branches):
+        negative = np.isin(b.codes, (PLUS, MINUS, BOTH)) & (resolved_sign(b.stability_eigenvalues, b.accuracy) < 0)
+        for j in np.flatnonzero(negative):
+            v = np.zeros(scene.n_dof)
+            v[problem.free if problem.free is not None else slice(None)] = b.stability_vectors[:, j]
+            u = np.zeros(scene.n_dof)
+            u[problem.free if problem.free is not None else slice(None)] = problem.projection.apply(
+                b.stability_vectors[:, j])
+            U = metric.physical(u)[blocks.index]
+            parts = contact_work(blocks, np.arange(scene.n_contacts), U, np.asarray(b.mask) == 1).sum(axis=0)
+            weights = (v ** 2).reshape(scene.n_particles, -1).sum(axis=1)
+            out.append(ModeWork(branch=i, index=int(j), eigenvalue=float(b.stability_eigenvalues[j]),
+                                work_parts=tuple(float(x) for x in parts),
+                                rim_share=float(rim_share(weights, on_rim, within))))
+    return sorted(out, key=lambda w: w.eigenvalue)
+
+
+def control_verdict(scene: Scene, metric: Metric, **options) -> str:
+    """The verdict of a control scene (attribute) in the analysis's metric; 'stable' when nothing is free to move."""
+    if scene.fixed is not None and scene.fixed.all():
+        return "stable"
+    name, length = ("inertia", None) if metric.rotation_length is None else ("L", metric.rotation_length)
+    return analyze(scene, metric=name, rotation_length=length, attribution=False, **options).verdict.verdict
+
+
+def attribute(analysis: Analysis, rim=None, **options) -> Attribution:
+    """Why `analysis` is unstable (mechanics/attribution.py): the work parts and rim share of its lowest consistent
+    negative mode and of every other one, the controls (every contact elastic; the rim held fixed) in the same
+    metric, and the `mechanism` label by the rule stated there.
+
+    rim: the particles (indices) with cut contacts (the scan passes each cluster's); default none: a scene's loads
+    are its own, so the rim-held control is the analysis itself. options: max_sliding, sample_branches, seed for
+    the controls."""
+    scene = analysis.scene
+    rim = np.zeros(0, dtype=np.int64) if rim is None else np.asarray(rim, dtype=np.int64)
+    modes = mode_works(analysis, rim)
+    if not modes:
+        raise ValueError(f"{scene.source}: no consistent negative eigenpair among the kept branches to attribute")
+    elastic = control_verdict(replace(scene, state=("elastic",) * scene.n_contacts), analysis.metric, **options)
+    held = np.zeros(scene.n_particles, dtype=bool) if scene.fixed is None else scene.fixed.copy()
+    held[rim] = True
+    fixed = (control_verdict(replace(scene, fixed=held), analysis.metric, **options) if rim.size
+             else analysis.verdict.verdict)
+    low = modes[0]
+    label = mechanism(np.array([low.work_parts]), np.array([low.rim_share]), [elastic], [fixed], [True])[0]
+    return Attribution(mechanism=str(label), work_parts=low.work_parts, rim_share=low.rim_share,
+                       elastic_control=elastic, fixed_control=fixed, modes=tuple(modes))

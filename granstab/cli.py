@@ -4,10 +4,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 import warnings
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +20,10 @@ from .io.syntax import paused_gc
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.metric import CHOICES as METRIC_CHOICES
 from .mechanics.stiffness import MaskError, stiffness
+from .model.errors import Interrupted, MissingExtra
 from .model.scene import SceneError
 from .moduli import moduli
+from .scan.clusters import DEFAULT_BOUNDARY
 from .solve.budget import (
     DENSE_ADVICE,
     SPARSE_ADVICE,
@@ -101,7 +104,7 @@ def import_lines(loaded) -> list[str]:
 
 
 def cmd_stiffness(args) -> int:
-    with strict_numerics(args.scene):
+    with strict_numerics(source_of(args.scene)):
         loaded = load(args.scene)
     scene = loaded.scene
     mask = parse_mask(args.mask, scene.n_contacts) if args.mask else None
@@ -152,9 +155,14 @@ def format_table(result, show_all: bool = False) -> str:
                  f"{'yes' if sm['type2_nonuniqueness'] else 'no'}"
                  + ("; verdict hinges on an S within tolerance" if sm["hinges_on_tolerance"] else ""))
     if sm.get("metrics"):
-        lines.append(f"metric family ({'robust' if sm['metric_robust'] else 'NOT robust'}): " + "; ".join(
+        robust = {True: "verdict proven metric-robust", False: "verdict proven to depend on the metric"}.get(
+            sm["metric_robust"], "verdict's metric-robustness not proven")
+        counts = "counts equal" if sm.get("counts_robust") else "counts differ"
+        lines.append(f"metric family ({robust}; {counts}): " + "; ".join(
             f"{e['metric']}: {e['verdict']} {e['consistent_positive']}+/{e['consistent_negative']}-"
             for e in sm["metrics"]))
+    if result.attribution is not None:
+        lines.append(result.attribution.line())
     if not sm["sufficient"]:
         lines.append("not sufficient because: " + ", ".join(sm["insufficient_because"]))
     lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in d["errors"].items()))
@@ -167,22 +175,29 @@ def cmd_analyze(args) -> int:
     if args.rotation_length is not None and args.metric == "inertia":
         raise InputError("--rotation-length: the inertia metric has no rotation length (use --metric L, L/10, 10L "
                          "or family)")
+    from .io.progress import Heartbeat
     from .solve.device import DeviceError
-    progress = args.progress or sys.stderr.isatty()
+    bars = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
     advice = [DENSE_ADVICE]
-    with deadline(args.timeout, args.scene, advice):
-        with strict_numerics(args.scene):
-            loaded = load(args.scene, progress=progress)
+    with deadline(args.timeout, source_of(args.scene), advice), Heartbeat(f"analyze {source_of(args.scene)}",
+                                                                      enabled=not bars) as beat:
+        beat.stage("reading")
+        with strict_numerics(source_of(args.scene)):
+            loaded = load(args.scene, progress=bars, **periodic_options(args))
             scene = loaded.scene
-            if not refuse_unfinishable(scene, args, args.timeout and args.timeout - (time.perf_counter() - start)):
+            dense, beat.estimate = refuse_unfinishable(
+                scene, args, args.timeout and args.timeout - (time.perf_counter() - start))
+            if not dense:
                 advice[0] = SPARSE_ADVICE
+            beat.stage("assembly")
             try:
                 result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length,
                                  max_sliding=args.max_sliding, sample_branches=args.sample_branches,
-                                 method=args.method, k=args.k, progress=progress, device=args.device)
+                                 method=args.method, k=args.k, progress=bars or beat, device=args.device)
             except DeviceError as exc:
                 raise InputError(f"--device: {exc}") from None
+            beat.stage("writing the result")
             data = {**result.to_dict(), "import": loaded.report}
             require_finite(data, scene.source)
             text = json.dumps(data, allow_nan=False) if args.json else "\n".join(
@@ -219,7 +234,8 @@ def format_moduli(result, scene) -> str:
     fs = result.verdicts["fixed_stress"]
     lines.append(f"fixed stress: {fs['verdict'].upper()} ({'proven' if fs['sufficient'] else 'not proven'}; "
                  f"min eigenvalue {fs['min_eigenvalue']:.4g}, tolerance {fs['tolerance']:.1e}, "
-                 f"{fs['n_branches']} branch(es)); fixed cell: {result.verdicts['fixed_cell']}")
+                 f"{fs['n_branches']} branch(es)); fixed cell: {result.verdicts['fixed_cell']['verdict'].upper()} "
+                 "(sym(H), elastic branch; granstab analyze for every branch)")
     z = result.zero_modes
     lines.append(f"zero modes: {z['translations']} translations, {z['free_spins']} free spins, {z['rattlers']} "
                  f"rattlers, {z['mechanisms']} mechanisms")
@@ -243,7 +259,7 @@ def parse_strain(text: str | None, dim: int):
 
 
 def cmd_moduli(args) -> int:
-    with strict_numerics(args.scene):
+    with strict_numerics(source_of(args.scene)):
         loaded = load(args.scene)
         scene = loaded.scene
         result = moduli(scene, strain=parse_strain(args.strain, scene.dim), max_sliding=args.max_sliding)
@@ -254,11 +270,14 @@ def cmd_moduli(args) -> int:
     return 0
 
 
-def refuse_unfinishable(scene, args, seconds_left: float | None) -> bool:
+def refuse_unfinishable(scene, args, seconds_left: float | None) -> tuple[bool, float | None]:
     """Refuse (one line, before any work) more sliding contacts than --max-sliding, and dense branch enumerations
-    whose measured cost exceeds the time left of --timeout; each message says what to do. Returns whether the
-    dense path will run."""
+    whose measured cost, over every metric asked for, exceeds the time left of --timeout (without --timeout:
+    budget.ASK_SECONDS); each message says what to do. Returns whether the dense path will run and its estimate."""
+    from .mechanics.metric import family
+    from .solve.lowrank import use_lowrank
     from .solve.sparse import DENSE_MAX_DOF
+    from .solve.threads import cores
     n_sliding = int(np.sum(scene.at_yield()))
     sampled = n_sliding > args.max_sliding
     if sampled and args.sample_branches is None:
@@ -267,10 +286,18 @@ def refuse_unfinishable(scene, args, seconds_left: float | None) -> bool:
                          "raise --max-sliding (with --timeout to bound the time), set state = \"elastic\" for "
                          "contacts known to stick, or scan local clusters (granstab scan)")
     dense = args.method == "dense" or (args.method == "auto" and scene.n_dof <= DENSE_MAX_DOF)
-    if dense and seconds_left is not None:
-        n_branches = args.sample_branches + 2 if sampled else 2 ** n_sliding
-        refuse_over(scene.source, estimate(scene.n_dof, n_branches), seconds_left, scene.n_dof, n_sliding)
-    return dense
+    if not dense or args.device != "cpu":
+        return dense, None
+    n = scene.n_dof if scene.free_dofs is None else len(scene.free_dofs)
+    n_branches = args.sample_branches + 2 if sampled else 2 ** n_sliding
+    n_metrics = len(family(scene, args.rotation_length)) if args.metric == "family" else 1
+    lowrank = use_lowrank(n_branches, n)
+    seconds = estimate(n, n_branches, n_metrics, lowrank=lowrank, workers=cores())
+    one = f"--metric L alone (about {seconds / n_metrics:.3g} s), " if n_metrics > 1 else ""
+    refuse_over(scene.source, seconds, seconds_left,
+                f"{n_branches} branches × {n_metrics} metric(s) of {n} dofs ({'low-rank' if lowrank else 'full'} "
+                "path)", one + "--method sparse with a small --k, ")
+    return dense, seconds
 
 
 def cmd_rigidity(args) -> int:
@@ -390,7 +417,7 @@ def cmd_convert(args) -> int:
 def cmd_extract(args) -> int:
     """The cluster of one particle as a scene file (issue 10): re-analyse, open in the app, check by hand."""
     from .scan import extract
-    loaded = load(args.input)
+    loaded = load(args.input, **periodic_options(args))
     sub = extract(loaded.scene, args.center, rings=args.rings, boundary=args.boundary)
     Path(args.out).write_text(json.dumps(scene_to_dict(sub), allow_nan=False), encoding="utf-8")
     held = "" if sub.fixed is None else f" ({int(sub.fixed.sum())} of them held fixed)"
@@ -403,40 +430,85 @@ def cmd_scan(args) -> int:
     """Every local cluster of a packing → DIR/clusters, particles, summary.json, map (issue 10)."""
     from .scan import scan
     from .solve.device import DeviceError
-    loaded = load(args.input)
+    loaded = load(args.input, **periodic_options(args))
     try:
         summary = scan(loaded.scene, args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
-                       device=args.device)
+                       device=args.device, attribution=not args.no_attribution)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     print(json.dumps({**summary, "import": loaded.report}, allow_nan=False) if args.json else "\n".join(
-        [f"{summary['clusters']} clusters in {summary['seconds']:.1f} s: "
-         + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items()) + f"; wrote {args.out}",
-         *import_lines(loaded)]))
+        [*scan_lines(summary, args.out), *import_lines(loaded)]))
     return 0
 
 
-def boundary_argument(p) -> None:
-    p.add_argument("--boundary", choices=["loads", "fixed"], default="loads",
+def periodic_arguments(p, cell: bool = False) -> None:
+    """The periodic-cell import options of a command that reads snapshots (io/build.py: Options)."""
+    p.add_argument("--no-periodic", dest="periodic", action="store_false",
+                   help="a periodic snapshot as a free cluster: cut the contacts across the cell's seam (their "
+                        "forces become loads) instead of keeping them with their images")
+    if cell:
+        p.add_argument("--cell", help="the periodic cell of tables without one: the rows a_1 … a_d "
+                                      "(e.g. 20,0,5,20 in 2D) or an orthogonal box (20,20)")
+
+
+def periodic_options(args) -> dict:
+    """--no-periodic / --cell as load() options (none given: none, so that scene files take them too)."""
+    options = {} if args.periodic else {"periodic": False}
+    if getattr(args, "cell", None) is not None:
+        options["cell"] = args.cell
+    return options
+
+
+def scan_lines(summary: dict, out) -> list[str]:
+    """A scan's readable output: clusters, time and verdicts (and, resumed, how many an interrupted run had kept),
+    then where it ran and why (the default's rule: granstab/scan/workers.py)."""
+    kept = summary.get("resumed", 0)
+    resumed = (f" (resumed: {kept} already in the folder, {summary['clusters_this_run']} analysed now)"
+               if kept else "")
+    mechanisms = summary.get("mechanisms", {})
+    return [f"{summary['clusters']} clusters{resumed} in {summary['seconds']:.1f} s: "
+            + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items())
+            + ("; unstable by mechanism: " + ", ".join(f"{m} {c}" for m, c in mechanisms.items() if c)
+               if any(mechanisms.values()) else "") + f"; wrote {out}",
+            f"ran {summary['workers']['where']} ({summary['workers']['why']})"]
+
+
+def input_argument(p, dest: str) -> None:
+    """The input of analyze, stiffness, extract and scan: a scene file, or one snapshot as a folder or its files
+    (`analyze atoms.dump contacts.dump in.disks`), as `convert` takes it (granstab.io.load)."""
+    p.add_argument(dest, nargs="+", metavar="SCENE_OR_FILES",
+                   help="a scene file (TOML, JSON, NPZ), or a snapshot: its folder or its files (docs/formats.md)")
+
+
+def source_of(paths: list) -> str:
+    """The inputs as messages name them: the path, or the files joined by ' + ' (as the snapshot readers do)."""
+    return " + ".join(map(str, paths))
+
+
+def boundary_argument(p, default: str) -> None:
+    p.add_argument("--boundary", default=default, metavar="loads|fixed|embedded[:R]",
                    help="loads: the cut contacts' forces act as dead loads (the isolated cluster, Sec. 5); fixed: the "
-                        "next ring of particles is held fixed (no rigid modes)")
+                        "next ring of particles is held fixed (no rigid modes); embedded:R: the next R rings (default "
+                        f"2) free and elastic, the ring beyond held, the verdict on the cluster's own modes (default "
+                        f"{default}; the scan's: docs/attribution.md)")
 
 
 def add_scan(sub) -> None:
     p = sub.add_parser("extract", help="the cluster of one particle (centre + N contact rings) as a scene file")
-    p.add_argument("input", help="any scene or snapshot that analyze reads")
+    input_argument(p, "input")
     p.add_argument("--center", required=True, help="the centre particle's name")
     p.add_argument("--rings", type=int, default=1, help="contact hops from the centre (default 1)")
-    boundary_argument(p)
+    boundary_argument(p, "loads")
     p.add_argument("--out", required=True, help="scene file to write (JSON)")
+    periodic_arguments(p)
     p.set_defaults(run=cmd_extract)
     p = sub.add_parser("scan", help="local stability scan: every cluster of a packing, as a map")
-    p.add_argument("input", help="any scene or snapshot that analyze reads")
+    input_argument(p, "input")
     p.add_argument("--out", required=True, help="output directory (an interrupted scan there resumes)")
     p.add_argument("--rings", type=int, default=1, help="contact hops from each centre (default 1)")
-    boundary_argument(p)
+    boundary_argument(p, DEFAULT_BOUNDARY)
     p.add_argument("--centers", default="all", help="all | every:K | NAME,NAME,...")
     p.add_argument("--metric", choices=list(METRIC_CHOICES), default="L",
                    help="projection metric of every cluster (default L; family: robustness, 2-3x the time)")
@@ -444,12 +516,17 @@ def add_scan(sub) -> None:
                    help="clusters with more sliding contacts examine a sample of their branches (branches: partial)")
     p.add_argument("--sample-branches", type=int, default=32, help="random branches examined beyond max-sliding")
     p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (tcp://HOST:8786)")
-    p.add_argument("--workers", type=int, default=None, help="local Dask workers (default: all cores; 1: serial)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local Dask workers (1: in this process; default: by the work's measured size, the idle "
+                        "cores and the load, said in the output; docs/scan.md)")
     p.add_argument("--format", choices=["parquet", "csv"], default="parquet")
+    p.add_argument("--no-attribution", action="store_true",
+                   help="skip each unstable cluster's mechanism and its two control solves (docs/attribution.md)")
     p.add_argument("--device", choices=["cpu", "gpu", "auto"], default="cpu",
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
     p.add_argument("--json", action="store_true", help="print summary.json")
+    periodic_arguments(p)
     p.set_defaults(run=cmd_scan)
 
 
@@ -489,6 +566,7 @@ def import_arguments(p) -> None:
                         "metric")
     p.add_argument("--columns", help="what each column is, e.g. id1,id2,fx,fy,fz (formats with named columns)")
     p.add_argument("--keep-rattlers", action="store_true", help="keep particles without contacts")
+    periodic_arguments(p, cell=True)
 
 
 def load_with_import_options(inputs, args):
@@ -499,6 +577,7 @@ def load_with_import_options(inputs, args):
                if getattr(args, key) is not None}
     if args.keep_rattlers:
         options["keep_rattlers"] = True
+    options.update(periodic_options(args))
     return load(inputs, format=args.format, frame=args.frame, timestep=args.timestep,
                 progress=args.progress or sys.stderr.isatty(), **options)
 
@@ -531,12 +610,12 @@ def build_parser() -> Parser:
     parser = Parser(prog="granstab", description="Stability of granular clusters (Kuhn & Chang).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     p = sub.add_parser("stiffness", help="write H, Hm, Hg1, Hg2, Hg3 and dof labels to an .npz file")
-    p.add_argument("scene")
+    input_argument(p, "scene")
     p.add_argument("--out", required=True)
     p.add_argument("--mask", help="one of +1,-1,0 per contact in file order (default: all elastic)")
     p.set_defaults(run=cmd_stiffness)
     p = sub.add_parser("analyze", help="branches, consistent eigenmodes and verdicts")
-    p.add_argument("scene")
+    input_argument(p, "scene")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--rotation-length", type=positive_number, default=None,
                    help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
@@ -562,9 +641,10 @@ def build_parser() -> Parser:
                         "auto: the GPU when CuPy sees one")
     p.add_argument("--all", action="store_true", help="list every eigenvalue in the table (default: the lowest "
                    f"{TABLE_LOWEST} per branch and the counts)")
+    periodic_arguments(p)
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("moduli", help="elastic moduli, stress and stability at fixed stress of a periodic packing")
-    p.add_argument("scene")
+    input_argument(p, "scene")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--strain", default=None,
                    help="a strain direction, d·d numbers row by row (e.g. '0,1,1,0'): the branches consistent "
@@ -596,13 +676,56 @@ def build_parser() -> Parser:
     return parser
 
 
+DASH_VALUES = ("--columns", "--mask", "--centers", "--center")   # values that may begin with '-' (an ignored
+                                                                 # column '-', a mask entry -1, a name)
+EXIT_INTERRUPTED = 130    # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C
+
+
+def attach_dash_values(argv) -> list:
+    """`--columns -,id1,id2` as `--columns=-,id1,id2`: argparse reads a word beginning with '-' as an option, so
+    these options' values would be refused ("expected one argument") unless attached with '='. A word that looks
+    like an option (`--json`, `-h`) is left alone."""
+    words, out, i = list(argv), [], 0
+    while i < len(words):
+        value = words[i + 1] if i + 1 < len(words) else ""
+        an_option = value.startswith("--") or (len(value) == 2 and value[1].isalpha())
+        if words[i] in DASH_VALUES and value.startswith("-") and value != "-" and not an_option:
+            out.append(f"{words[i]}={value}")
+            i += 2
+        else:
+            out.append(words[i])
+            i += 1
+    return out
+
+
+def interrupted_line(exc: KeyboardInterrupt, command: str | None) -> str:
+    """Ctrl-C as one line: what was kept and how to go on (a scan says it: Interrupted), else that nothing was."""
+    if isinstance(exc, Interrupted) and str(exc):
+        return str(exc)
+    return (f"granstab{' ' + command if command else ''}: interrupted (Ctrl-C) before it finished; nothing was "
+            "kept: run it again to start over")
+
+
 def main(argv=None) -> int:
+    command = None
     try:
-        args = build_parser().parse_args(argv)
-        return args.run(args)
-    except (SceneError, InputError, NumericalError, OverBudget) as exc:
+        args = build_parser().parse_args(attach_dash_values(sys.argv[1:] if argv is None else argv))
+        command = args.command
+        status = args.run(args)
+        sys.stdout.flush()                 # a closed pipe shows here, not in the interpreter's exit
+        return status
+    except (SceneError, InputError, NumericalError, OverBudget, MissingExtra) as exc:
         print(" ".join(str(exc).split()), file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:
+        line = " ".join(interrupted_line(exc, command).split())
+        exc.__traceback__ = None           # the interrupted frames go now: a progress bar in them closes before
+        print(line, file=sys.stderr)       # the line, which stays the last one
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:                # the reader stopped reading (`| head`): a quiet exit, as if finished
+        with suppress(OSError, ValueError):   # nothing more to flush at exit (a stdout without a file: nothing)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:  # an output path that cannot be written: bad input too, one line
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"granstab: cannot write {where}{exc.strerror or exc}", file=sys.stderr)

@@ -19,7 +19,7 @@ import scipy.sparse.linalg as spla
 from .mechanics.assembly import sliding_factors
 from .mechanics.branches import enumerate_masks, s_limits, sample_masks
 from .mechanics.cell import cell_parts, mandel_basis, stress, stress_work, to_tensor
-from .mechanics.rigid import translations, untouched_dofs
+from .mechanics.rigid import untouched_dofs
 from .mechanics.stiffness import assemble_parts, contact_blocks
 from .model.scene import Scene, SceneError
 from .model.tolerances import EPS
@@ -129,9 +129,11 @@ PINV_RTOL = 1e-10    # singular values of H below this times the largest: its me
 
 @dataclass(eq=False)
 class _Solver:
-    """X^i = H^i⁺ Ξ^i on the kept dofs. `lu`: the elastic bordered system [[H, T], [Tᵀ, 0]] factorised once (sparse
-    LU), every branch by Woodbury; `lu` None: H has mechanisms beyond the translations (gear-like rolling modes,
-    floppy rattlers), so each branch uses the dense pseudo-inverse and `mechanisms` counts its extra zeros."""
+    """X^i = H^i⁺ Ξ^i on the kept dofs: those some contact touches, less the d translations of one particle that
+    ground the translations (X is then the solution with that particle still; C does not see a translation, since
+    every block annihilates one). `lu`: H factorised once (sparse LU), every branch by Woodbury; `lu` None: H has
+    mechanisms beyond the translations (gear-like rolling, floppy rattlers), so each branch uses the dense
+    pseudo-inverse and `mechanisms` counts its zeros."""
 
     keep: np.ndarray
     H: sp.csr_matrix
@@ -142,19 +144,17 @@ class _Solver:
     Y: np.ndarray | None = None
     mechanisms: int = 0
 
-    def bordered(self, R: np.ndarray) -> np.ndarray:
-        pad = np.vstack([R, np.zeros((self.d, R.shape[1]))])
-        return self.lu.solve(pad)[:len(self.keep)]
-
     def response(self, parts, on: np.ndarray) -> np.ndarray:
         """X = H^i⁺ Ξ^i for the branch whose loading contacts are `on` (bool (Ms,))."""
         m = parts.B.shape[0]
         Ao, So = self.A[:, on], self.S[:, on]
+        if not len(self.keep):                                        # nothing but the cell moves
+            return np.zeros((0, m))
         if self.lu is None:
             H = self.H.toarray() + Ao @ So.T
             return np.linalg.pinv(H, rcond=PINV_RTOL) @ (parts.Xi[self.keep] + Ao @ parts.S_cell[:, on].T)
         if self.Y is None:                                            # H⁻¹[Ξ, A]: one solve, every branch
-            self.Y = self.bordered(np.hstack([parts.Xi[self.keep], self.A]))
+            self.Y = self.lu.solve(np.hstack([parts.Xi[self.keep], self.A]))
         X = self.Y[:, :m] + self.Y[:, m:][:, on] @ parts.S_cell[:, on].T
         if on.any():
             HA = self.Y[:, m:][:, on]
@@ -162,16 +162,33 @@ class _Solver:
         return X
 
 
+def _inf_norm(H) -> float:
+    """‖H‖∞ of a sparse matrix (0 for an empty one)."""
+    return float(abs(H).sum(axis=1).max()) if H.shape[0] else 0.0
+
+
+def _grounded(scene: Scene, untouched: np.ndarray) -> np.ndarray:
+    """The kept dofs: not untouched, and not the translations of the first particle whose translations are kept."""
+    per = scene.dof_per_particle
+    moving = ~untouched.reshape(scene.n_particles, per)[:, :scene.dim].any(axis=1)
+    keep = ~untouched
+    if moving.any():
+        first_moving = int(np.flatnonzero(moving)[0])
+        keep[first_moving * per:first_moving * per + scene.dim] = False
+    return np.flatnonzero(keep)
+
+
 def _factor(scene: Scene, H, untouched: np.ndarray, A, S) -> _Solver:
-    """The solver on the dofs some contact touches: sparse LU of the bordered system, or the dense fallback."""
-    keep = np.flatnonzero(~untouched)
-    T = translations(scene)[keep]
+    """The solver on the kept dofs (`_grounded`): sparse LU (minimum-degree order of Hᵀ + H), or the dense
+    fallback where H is singular there (mechanisms)."""
+    keep = _grounded(scene, untouched)
     Hk = H[keep][:, keep].tocsr()
     A, S = A[keep], S[keep]
-    bordered = sp.bmat([[Hk, sp.csr_matrix(T)], [sp.csr_matrix(T.T), None]], format="csc")
-    scale = max(float(abs(Hk).sum(axis=1).max()), 1e-300)
+    if not len(keep):
+        return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim)
+    scale = max(_inf_norm(Hk), 1e-300)
     try:
-        lu = spla.splu(bordered)
+        lu = spla.splu(Hk.tocsc(), permc_spec="MMD_AT_PLUS_A")
         singular = float(np.abs(lu.U.diagonal()).min()) < PIVOT_RTOL * scale
     except RuntimeError:                                             # exactly singular
         lu, singular = None, True
@@ -182,8 +199,7 @@ def _factor(scene: Scene, H, untouched: np.ndarray, A, S) -> _Solver:
                          f"and the untouched dofs (mechanisms or floppy rattlers) and {len(keep)} dofs are too many "
                          f"for the dense pseudo-inverse (at most {DENSE_MAX}): remove rattlers")
     sv = np.linalg.svd(Hk.toarray(), compute_uv=False)
-    extra = int(np.sum(sv <= PINV_RTOL * sv.max())) - scene.dim
-    return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim, mechanisms=max(extra, 0))
+    return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim, mechanisms=int(np.sum(sv <= PINV_RTOL * sv.max())))
 
 
 def _branch(name, mask, on, solver, parts, volume, Q) -> CellBranch:
@@ -192,7 +208,7 @@ def _branch(name, mask, on, solver, parts, volume, Q) -> CellBranch:
     Xi = parts.Xi[solver.keep] + Ao @ parts.S_cell[:, on].T
     X = solver.response(parts, on)
     HX = solver.H @ X + Ao @ (So.T @ X)
-    norm = float(abs(solver.H).sum(axis=1).max()) + float(np.abs(Ao).sum(axis=1).max(initial=0.0)
+    norm = _inf_norm(solver.H) + float(np.abs(Ao).sum(axis=1).max(initial=0.0)
                                                           * np.abs(So).sum(axis=0).max(initial=0.0))
     residual = float(np.abs(HX - Xi).max(initial=0.0) / max(norm * np.abs(X).max(initial=0.0)
                                                               + np.abs(Xi).max(initial=0.0), 1e-300))
@@ -231,7 +247,7 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     sliding = np.flatnonzero(scene.at_yield())
     A, S = sliding_factors(blocks, sliding)
     parts = cell_parts(scene, blocks, sliding)
-    scale = max(float(abs(H).sum(axis=1).max()), 1e-300)
+    scale = max(_inf_norm(H), 1e-300)
     untouched = np.zeros(scene.n_dof, bool)
     untouched[untouched_dofs(H, parts.Xi, parts.Xi_left.T, A, S, scale=scale)] = True
     solver = _factor(scene, H, untouched, A, S)
@@ -251,7 +267,8 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     direction = None if strain is None else _direction(scene, strain, sliding, every, s_tol, partial)
     zero = {**_zero_modes(scene, untouched), "mechanisms": solver.mechanisms}
     return Moduli(dim=scene.dim, volume=volume, stress=sigma, branches=branches, zero_modes=zero,
-                  verdicts=_verdicts(every, sliding, s_tol, partial), errors=_errors(scene, sigma, every),
+                  verdicts=_verdicts(every, sliding, s_tol, partial, _asymmetry(solver, parts), _held(solver)),
+                  errors=_errors(scene, sigma, every),
                   seconds=time.perf_counter() - start, direction=direction, notes=_notes(scene, Ms, zero))
 
 
@@ -296,7 +313,7 @@ def _zero_modes(scene: Scene, untouched: np.ndarray) -> dict:
     particles that have stiff translations) and rattlers (particles none of whose dofs any contact touches)."""
     d, r = scene.dim, rot_dim(scene.dim)
     per = untouched.reshape(scene.n_particles, d + r)
-    rattler = per.all(axis=1)
+    rattler = per.all(axis=1) & ~per.all()          # all untouched: a one-particle lattice, its translations rigid
     spins = int(per[~rattler, d:].sum())
     return {"translations": d, "free_spins": spins, "rattlers": int(rattler.sum()),
             "rattler_dofs": int(per[rattler].size),
@@ -313,11 +330,47 @@ def _errors(scene: Scene, sigma: np.ndarray, branches) -> dict:
             "load_residual": load}
 
 
-def _verdicts(every, sliding, s_tol: float, partial: bool) -> dict:
+def _asymmetry(solver, parts) -> float:
+    """max(|H - Hᵀ|, |Ξ - Ξ'ᵀ|, |B - Bᵀ|) / max|[[H, Ξ], [Ξ', B]]| of the elastic branch (0 for a conservative law)."""
+    H = solver.H.toarray() if len(solver.keep) <= DENSE_MAX else solver.H
+    Xi, left = parts.Xi[solver.keep], parts.Xi_left[:, solver.keep]
+    biggest = abs(H).max() if H.size else 0.0
+    skew = abs(H - H.T).max() if H.size else 0.0
+    scale = max(float(biggest), float(np.abs(Xi).max(initial=0.0)), float(np.abs(parts.B).max()), 1e-300)
+    return max(float(skew), float(np.abs(Xi - left.T).max(initial=0.0)),
+               float(np.abs(parts.B - parts.B.T).max())) / scale
+
+
+SYMMETRIC_RTOL = 1e-12   # an extended matrix this close to symmetric is a conservative one (its Schur complement
+#                          is the minimum of the second-order work over the particles' motions)
+
+
+def _held(solver) -> dict:
+    """The particles at fixed cell, elastic branch, conservative view: the eigenvalues of sym(H) on the kept dofs
+    (the translations grounded: positive there iff positive off the translations); dense, up to DENSE_MAX dofs. `granstab
+    analyze` gives the full answer (every branch, consistency, error bounds)."""
+    if len(solver.keep) > DENSE_MAX:
+        return {"verdict": "not computed", "note": f"more than {DENSE_MAX} dofs: run granstab analyze"}
+    H = solver.H.toarray()
+    rest = np.linalg.eigvalsh(0.5 * (H + H.T))                        # translations grounded (`_grounded`)
+    tol = 1e3 * EPS * max(float(np.abs(rest).max(initial=0.0)), 1e-300) * max(len(rest), 1)
+    if not rest.size:
+        return {"verdict": "stable", "min_eigenvalue": None, "tolerance": tol,
+                "note": "nothing but the translations moves at fixed cell"}
+    low = float(rest.min())
+    return {"verdict": "stable" if low > tol else "unstable" if low < -tol else "neutral", "min_eigenvalue": low,
+            "tolerance": tol, "note": "sym(H) of the elastic branch without the translations (granstab analyze: "
+                                      "every branch, consistency and error bounds)"}
+
+
+def _verdicts(every, sliding, s_tol: float, partial: bool, asymmetry: float, held: dict) -> dict:
     """Fixed cell: `granstab analyze` of the scene answers it (the particles move, the cell is held). Fixed stress
-    (eq:stab, eq:instab for the cell): sym(C^i - Q) positive definite on every branch proves stability; a negative
-    eigenvalue whose strain direction is consistent with its branch (`_consistent`) proves instability; a zero one
-    so consistent (within the tolerance) neutrality; anything else is not determined."""
+    (eq:stab, eq:instab for the cell): V ε·(C^i - Q)·ε is the second-order work of the motion [-X^i ε, ε] that
+    keeps the particles in equilibrium. A negative one whose strain is consistent with its branch (`_consistent`)
+    proves instability, a zero one so consistent neutrality. sym(C^i - Q) positive definite on every branch proves
+    stability only for a symmetric extended matrix (no sliding, conservative geometry: the Schur complement is then
+    the minimum over the particles' motions) and with the particles stable at fixed cell; otherwise it is reported
+    as not proven."""
     scale = max(max(np.abs(b.mandel).max() for b in every), 1e-300)
     tol = (1e3 * EPS + max(b.residual for b in every)) * scale
     lam_min, unstable, neutral = np.inf, False, False
@@ -331,16 +384,18 @@ def _verdicts(every, sliding, s_tol: float, partial: bool) -> dict:
     if unstable:
         verdict, proof = "unstable", True
     elif lam_min > tol:
-        verdict, proof = "stable", not partial
+        verdict, proof = "stable", (not partial and len(sliding) == 0 and asymmetry <= SYMMETRIC_RTOL
+                                    and held["verdict"] == "stable")
     elif neutral:
         verdict, proof = "neutral", True
     else:
         verdict, proof = "not determined", False
-    return {"fixed_cell": "answered by `granstab analyze` of the scene (the particles move, the cell is held)",
+    return {"fixed_cell": held,
             "fixed_stress": {"verdict": verdict, "sufficient": proof, "min_eigenvalue": lam_min, "tolerance": tol,
-                             "n_branches": len(every), "all_branches": not partial,
+                             "n_branches": len(every), "all_branches": not partial, "asymmetry": asymmetry,
                              "note": "the cell under constant Cauchy stress: sym(C^i - Q) on every branch examined; "
-                                     "it assumes the particles are stable at fixed cell"}}
+                                     "a proof of stability needs a symmetric extended matrix and the particles "
+                                     "stable at fixed cell (granstab analyze)"}}
 
 
 def _notes(scene: Scene, Ms: int, zero: dict) -> tuple:

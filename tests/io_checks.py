@@ -8,7 +8,8 @@ from granstab.io import load
 
 
 def check_contact_geometry(s, radius, rtol=1e-12):
-    branch = s.x[s.q] - s.x[s.p]
+    """Periodic scenes too: q's side is its copy x^q + image @ cell (the branch to it, r^qp from it)."""
+    branch = s.branch
     d = np.linalg.norm(branch, axis=1)
     assert np.abs(np.linalg.norm(s.normal, axis=1) - 1).max() <= rtol
     assert np.min(np.sum(branch * s.normal, 1) / d) > 1 - 1e-8        # n^pq along p → q
@@ -16,7 +17,7 @@ def check_contact_geometry(s, radius, rtol=1e-12):
     assert np.all(delta > 0)                                            # overlaps: R_p + R_q − d
     rho_p, rho_q = radius[s.p] - delta / 2, radius[s.q] - delta / 2
     a = np.linalg.norm(s.point - s.x[s.p], axis=1)
-    b = np.linalg.norm(s.point - s.x[s.q], axis=1)
+    b = np.linalg.norm(s.point - s.q_copy, axis=1)
     assert np.abs(a - rho_p).max() <= rtol * radius.max() * 10         # middle of the overlap, from p …
     assert np.abs(b - rho_q).max() <= rtol * radius.max() * 10         # … and from q: on the centre line
     assert np.all((a < d) & (b < d))                                    # between the centres
@@ -26,7 +27,7 @@ def check_contact_geometry(s, radius, rtol=1e-12):
     assert np.abs(trace * rho_p + 1).max() <= 1e-10                    # κ = −1/(R − δ/2)
     trace = np.einsum("cij,cij->c", s.curvature_q, tangent) / (s.dim - 1)
     assert np.abs(trace * rho_q + 1).max() <= 1e-10
-    assert len({frozenset(pq) for pq in zip(s.p.tolist(), s.q.tolist())}) == s.n_contacts
+    assert len({frozenset(pq) for pq in zip(s.p.tolist(), s.q.tolist())}) == s.n_contacts   # one image a pair here
     tension = np.sum(s.force * s.normal, 1) >= 0                        # f_n <= 0: kept, elastic, reported
     assert all(np.asarray(s.state)[tension] == "elastic")
     return delta, tension

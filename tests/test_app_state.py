@@ -7,6 +7,7 @@ the numbers compared (k for eigenvalues, the field's max |λ|), at a few hundred
 """
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 from types import SimpleNamespace
@@ -459,16 +460,20 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
 
     import granstab
     from granstab.scan import read_map, scan
+    from granstab_app.scanmap import fraction_colours
     scene, _ = planted_lattice(40, 0.4)
     packing = tmp_path / "lattice.json"
     packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
-    scan(granstab.load_scene(packing), tmp_path / "scan", workers=1, figures=False)
+    scan(granstab.load_scene(packing), tmp_path / "scan", boundary="loads", workers=1, figures=False)
     clusters = read_map(tmp_path / "scan")["clusters"]
     row = {k: v[list(clusters["center"]).index(scene.names.index("p40"))] for k, v in clusters.items()}
     s = Session(str(tmp_path / "scan"))
     assert s.error is None and s.kind == "scan_map" and s.analysis is None and not s.deferred
     colours = s.map_colours
-    assert tuple(colours[40]) == (176, 20, 20) and tuple(colours[0]) == (250, 250, 250)   # fraction 1 and 0
+    around = [m for v, m, ms in zip(clusters["verdict"], clusters["mechanism"], clusters["members"]) if 40 in ms]
+    # its own cluster geometric, its six neighbours' boundary (the planted particle on their rim, dead loads there)
+    assert sorted(around) == ["boundary"] * 6 + ["geometric"]
+    assert tuple(colours[40]) == tuple(fraction_colours(np.array([1 / 7]))[0]) and tuple(colours[0]) == (250, 250, 250)
     top = [*scene.x[40] + [0.3, -0.2], 50.0]                 # straight down onto particle 40, off its centre
     assert s.pick(top, [0.0, 0.0, -1.0]) == "p40"
     gap = scene.x[40] + [1.0, 1.0 / np.sqrt(3)]       # the centroid of a triangle of neighbours (spacing 2, r = 1)
@@ -478,6 +483,32 @@ def test_scan_map_opens_a_cluster_and_returns(tmp_path):
     assert s.analysis.summary["consistent_negative"] == row["consistent_negative"]
     assert s.back_to_map() and s.kind == "scan_map" and s.map is None
     assert not s.open_cluster("nope") and "no centre" in s.error
+
+
+def test_scan_map_shows_instability_by_the_packing_and_greys_the_cut_alone(tmp_path):
+    """issue 25's default map: three disks in a line (their end disks carry the dead loads of cut contacts) and,
+    apart, a sliding pair, scanned with boundary loads. Every chain particle is unstable only through `boundary`
+    clusters (light grey, not the pink of its unstable_fraction 1/3 or 1/2); the sliding pair's clusters are
+    `frictional` (dark red: all its clusters unstable by the packing)."""
+    from test_attribution import chain, pair
+
+    import granstab
+    from granstab.model.scene import CONTACT_FIELDS
+    from granstab.scan import read_map, scan
+    from granstab_app.scanmap import CUT_GREY, RED
+    line, slide = chain(3), pair([-0.01, 0.005], "sliding", -0.5, "sliding pair")
+    shift = {"p": 3, "q": 3, "point": [0.0, 10.0]}                  # the pair 10 radii above the line
+    arrays = {f: np.concatenate([getattr(line, f), getattr(slide, f) + shift.get(f, 0)])
+              for f in CONTACT_FIELDS if f != "image"}          # no cell: no images
+    arrays["state"] = tuple(line.state) + tuple(slide.state)
+    scene = granstab.build_scene(2, [*line.names, *slide.names], np.r_[line.x, slide.x + [0.0, 10.0]], arrays)
+    scan(scene, tmp_path / "scan", boundary="loads", workers=1, figures=False)
+    rows = read_map(tmp_path / "scan")["clusters"]
+    by_centre = dict(zip(rows["center"], zip(rows["verdict"], rows["mechanism"])))
+    assert {by_centre[c] for c in (3, 4)} == {("unstable", "frictional")} and ("unstable", "boundary") in \
+        {by_centre[c] for c in (0, 1, 2)} and {m for _, m in (by_centre[c] for c in (0, 1, 2))} <= {"boundary", ""}
+    colours = Session(str(tmp_path / "scan")).map_colours
+    assert [tuple(c) for c in colours] == [CUT_GREY] * 3 + [tuple(RED)] * 2
 
 
 def test_a_concave_side_is_drawn_as_a_socket():
@@ -495,3 +526,106 @@ def test_a_concave_side_is_drawn_as_a_socket():
     near = ring[np.linalg.norm(ring - point, axis=1) < 0.5 * r]
     assert len(near) >= 10 and near[:, 1].min() < -0.3 * r and near[:, 1].max() > 0.3 * r
     assert np.abs(np.linalg.norm(near - [-0.002, 0.0], axis=1) - 1.002).max() < 1e-12 * r
+
+
+def test_a_periodic_packing_is_drawn_with_its_cell_outline(tmp_path):
+    """A periodic scene (a converted LAMMPS lattice in a sheared box) has a cell outline: 4 edges along ±a_1, ±a_2,
+    every particle inside it; the view draws it once as /cell, again only when it changes, and removes it for a
+    scene without a cell."""
+    from test_io_periodic import lattice_dumps
+
+    from granstab.io import load
+    from granstab_app.models import cell_edges, periodic_images
+    from granstab_app.views import SceneView
+    paths, _, cell = lattice_dumps(tmp_path, gamma=0.1)
+    scene = load(paths, columns="id1,id2,fx,fy,fz").scene
+    edges = cell_edges(scene)
+    assert edges.shape == (4, 2, 2)
+    sides = np.sort(np.abs(edges[:, 1] - edges[:, 0]).round(12), axis=0)
+    assert np.allclose(sides, np.sort(np.abs(np.r_[cell, cell]).round(12), axis=0), rtol=0, atol=1e-12)
+    frac = (scene.x - edges[0, 0]) @ np.linalg.inv(scene.cell)     # edges[0, 0]: the corner at fractional (0, 0)
+    assert np.all((frac > 0) & (frac < 1))                   # the lattice fills one period: inside the outline
+    assert cell_edges(granstab_scene_without_cell()) is None
+    calls = []
+    api = SimpleNamespace(remove_by_name=lambda name: calls.append(("remove", name)),
+                          add_line_segments=lambda name, points, *a, **k: calls.append(("add", name, points.shape)))
+    api.add_point_cloud = lambda name, points, **k: calls.append(("add", name, points.shape)) or SimpleNamespace()
+    view = SceneView(api)
+    session = SimpleNamespace(scene=scene, kind="contacts", size=1.0)
+    view.draw_cell(session)
+    view.draw_cell(session)                                  # unchanged: not re-sent
+    ghosts = len(periodic_images(scene, 2.0)[0])
+    assert ghosts > 0
+    assert calls == [("remove", "/cell"), ("add", "/cell", (4, 2, 3)), ("add", "/cell/images", (ghosts, 3))]
+    view.draw_cell(SimpleNamespace(scene=granstab_scene_without_cell(), kind="contacts", size=1.0))
+    assert calls[-1] == ("remove", "/cell")
+
+
+def granstab_scene_without_cell():
+    import granstab
+    return granstab.load_scene(REPO / "presets" / "two_particle.toml")
+
+
+def test_periodic_images_sit_across_the_faces_and_move_with_their_particles(tmp_path):
+    """A jammed frictionless packing in a sheared cell (granstab.model.packings.jammed): the ghosts drawn beside the
+    cell are the particles within `reach` of a face, shifted by n @ cell (n in {-1, 0, 1}², not 0). Checked against a
+    brute force over every particle and every shift in the copy's frame (the copy lies outside the outline, within
+    reach of it along every lattice direction it was shifted along, and inside the outline's slab along the others),
+    and against the seam contacts: q's ghost across a seam contact is q's copy x^q + image @ cell. Played along a
+    mode, every ghost moves by its particle's displacement (a periodic mode moves every copy alike)."""
+    import granstab
+    from granstab.model import packings
+    from granstab_app.models import cell_edges, ghost_positions, periodic_images
+    scene = packings.jammed(2, 64, shear=0.5, seed=3)
+    reach = 1.0                                                  # the small disks' diameter
+    index, shift = periodic_images(scene, reach)
+    inv = np.linalg.inv(scene.cell)
+    n = shift @ inv
+    assert np.allclose(n, n.round(), rtol=0, atol=1e-12) and np.all(np.abs(n.round()).sum(axis=1) > 0)
+    assert np.allclose(ghost_positions(scene.x, (index, shift)), scene.x[index] + n.round() @ scene.cell, atol=1e-12)
+    corner = cell_edges(scene)[0, 0]                             # the outline's corner at fractional (0, 0)
+    width = 1.0 / np.linalg.norm(inv, axis=0)                    # the distance between opposite faces
+    expected = set()
+    for i, x in enumerate(scene.x):
+        for m in itertools.product((-1, 0, 1), repeat=2):
+            if not any(m):
+                continue
+            f = (x + np.array(m) @ scene.cell - corner) @ inv    # the copy, in fractions of the outline
+            out_by = np.where(np.array(m) > 0, f - 1, np.where(np.array(m) < 0, -f, 0.0)) * width
+            if all((out_by[a] > 0 and out_by[a] < reach) if m[a] else 0 <= f[a] <= 1 for a in range(2)):
+                expected.add((i, m))
+    got = {(int(i), tuple(int(v) for v in m)) for i, m in zip(index, n.round())}
+    assert got == expected and len(got) == len(index)           # complete and each ghost once
+    seam = np.flatnonzero(np.any(scene.image != 0, axis=1))
+    assert len(seam) > 0
+    found = 0
+    for c in seam:
+        hit = [g for g in np.flatnonzero(index == scene.q[c]) if np.allclose(n[g], scene.image[c], atol=1e-12)]
+        found += len(hit)
+        for g in hit:                                            # q's ghost is where p touches q's copy
+            assert np.allclose(scene.x[index[g]] + shift[g], scene.q_copy[c], rtol=0, atol=1e-12)
+    assert found >= len(seam) // 2          # most seam partners lie within a diameter of the face they cross
+    path = tmp_path / "jammed.json"
+    granstab.io.scenes.save_scene(scene, path)
+    session = Session(str(path))
+    assert session.error is None and session.scene.cell is not None
+    mode = next(m for m in session.modes() if m.label != "rigid")
+    moved = session.mode_bodies(mode, 1.0, 0.7)
+    at = {b.name: b.x for b in moved}
+    x1 = np.array([at[name] for name in session.scene.names])
+    images = periodic_images(session.scene, reach)
+    step = ghost_positions(x1, images) - ghost_positions(session.scene.x, images)
+    assert np.abs(x1 - session.scene.x).max() > 0.1 * session.size       # the mode moves the packing visibly
+    # round-off of positions of size ~ the cell (a few units): 1e-12 absolute
+    assert np.allclose(step, (x1 - session.scene.x)[images[0]], rtol=0, atol=1e-12)
+    from granstab_app.views import SceneView  # the view plays the same: /cell/images follows
+    clouds = {}
+    api = SimpleNamespace(remove_by_name=lambda name: None, add_line_segments=lambda *a, **k: None,
+                          add_point_cloud=lambda name, points, **k: clouds.setdefault(name, SimpleNamespace(points=points)))
+    view = SceneView(api)
+    view.draw_cell(SimpleNamespace(scene=session.scene, kind="contacts", size=reach / 2))
+    view.base = {b.name: b for b in session.bodies()}
+    view.animate(moved)
+    assert np.allclose(clouds["/cell/images"].points[:, :2], ghost_positions(x1, images), rtol=0, atol=1e-12)
+    view.stop_animation()
+    assert np.allclose(clouds["/cell/images"].points[:, :2], ghost_positions(session.scene.x, images), atol=1e-12)

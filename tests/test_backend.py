@@ -84,6 +84,29 @@ def test_thread_policy_by_size():
         assert all(p["num_threads"] == 1 for p in threadpool_info() if p["user_api"] == "blas")
 
 
+def test_an_outer_limit_bounds_the_inner_policy():
+    """`with blas_threads(1)` around an analysis keeps its dense solves on one thread (issue 26: the explorer's limit
+    was lifted by the core's own `sized(n)` above SMALL dofs, and a busy machine made it 18× slower)."""
+    pytest.importorskip("threadpoolctl", reason="threadpoolctl (test extra) applies the policy")
+    from threadpoolctl import threadpool_info
+    np.linalg.eigh(np.eye(3))
+    big = threads.SMALL + 1
+    assert threads.for_size(big) == threads.cores()
+    with threads.blas_threads(1):
+        assert threads.for_size(big) == 1
+        with threads.sized(big):
+            assert all(p["num_threads"] == 1 for p in threadpool_info() if p["user_api"] == "blas")
+    assert threads.for_size(big) == threads.cores()                     # the bound ends with its block
+    try:
+        threads.cap_process(1)
+        assert threads.for_size(big) == 1
+        with threads.blas_threads(4):                                    # a cap bounds explicit limits too
+            assert all(p["num_threads"] == 1 for p in threadpool_info() if p["user_api"] == "blas")
+    finally:
+        threads.cap_process(None)
+    assert threads.for_size(big) == threads.cores()
+
+
 # ------------------------------------------------------------------------------------------------- GPU only
 
 def honest_bounds(A, got):

@@ -129,12 +129,12 @@ def test_analyze_of_a_snapshot_keeps_the_import_report(capsys):
 def test_every_command_that_reads_an_input_prints_the_import_warnings(tmp_path, capsys):
     """stiffness, extract and scan read what analyze reads and print its import warnings after their own line;
     scan --json adds the report as "import". DataSim (RigidLibrary's sheared periodic snapshot): rattlers dropped
-    (counted here from the files) and contacts cut at the seam of the cell."""
+    (counted here from the files) and, with --no-periodic, contacts cut at the seam of the cell."""
     warned = [f"warning: import: {w}" for w in granstab.load(ANNULUS).warnings]
     assert main(["stiffness", str(ANNULUS), "--out", str(tmp_path / "k.npz")]) == 0
     assert capsys.readouterr().out.splitlines()[1:] == warned
     assert main(["scan", str(ANNULUS), "--out", str(tmp_path / "scan"), "--workers", "1"]) == 0
-    assert capsys.readouterr().out.splitlines()[1:] == warned
+    assert capsys.readouterr().out.splitlines()[2:] == warned           # after the counts and where it ran
     assert main(["scan", str(ANNULUS), "--out", str(tmp_path / "scan"), "--workers", "1", "--json"]) == 0   # resumed
     summary = json.loads(capsys.readouterr().out)
     assert summary["import"]["warnings"] == [w.removeprefix("warning: import: ") for w in warned]
@@ -149,6 +149,9 @@ def test_every_command_that_reads_an_input_prints_the_import_warnings(tmp_path, 
     assert lines[0].startswith(f"wrote {tmp_path / 'c.json'}: ")
     assert any(x.startswith(f"warning: import: {rattlers} particle(s) without contacts (rattlers) dropped")
                for x in lines[1:])
-    cut = granstab.load(DATASIM).report["contacts"]["cut_around_periodic_cell"]
+    assert not any("closing a loop around the periodic cell" in x for x in lines[1:])   # periodic: none cut
+    assert main(["extract", str(DATASIM), "--center", "500", "--out", str(tmp_path / "c.json"), "--no-periodic"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    cut = granstab.load(DATASIM, periodic=False).report["contacts"]["cut_around_periodic_cell"]
     assert cut > 0 and any(x.startswith(f"warning: import: {cut} contact(s) closing a loop around the periodic "
                                         "cell cut") for x in lines[1:])

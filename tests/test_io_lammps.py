@@ -44,11 +44,13 @@ def test_sheared_snapshot_matches_the_dump(dim, step):
     radius = np.array([radius_of[n] for n in names])
     _, tension = check_contact_geometry(s, radius)
     assert tension.sum() <= rep["forces"]["fn_nonpositive"]["count"] < 0.01 * rep["contacts"]["in_file"]
-    # every contact: the dump's branch vector x_1 − x_2 (p10-p12, minimum image) is x_p − x_q of the unwrapped
-    # scene; the force is the normal part (fx fy fz) plus the tangential part (p1 p2 p3) on id1
+    # every contact: the dump's branch vector x_1 − x_2 (p10-p12, minimum image) is x_p minus q's copy
+    # x_q + image @ cell of the periodic scene (the images: LAMMPS's own); the force is the normal part (fx fy fz)
+    # plus the tangential part (p1 p2 p3) on id1
+    assert s.cell is not None and rep["periodic"]["periodic"]
     rows = {(int(a), int(b)): r for r, (a, b) in enumerate(local[:, :2])}
     pick = np.array([rows[(names[a], names[b])] for a, b in zip(s.p, s.q)])
-    err = np.abs((s.x[s.p] - s.x[s.q]) - local[pick, 8:8 + dim]).max(axis=1)
+    err = np.abs((s.x[s.p] - s.q_copy) - local[pick, 8:8 + dim]).max(axis=1)
     # 12 digits in the dump; pairs across the sheared boundary: LAMMPS's ghost atoms carry the tilt of the step
     # before (the tilt grows by 0.748/3000 in 2D, 0.23/2000 in 3D, a step)
     tilt_step = 0.748 / 3000 if dim == 2 else 0.23 / 2000
@@ -65,9 +67,10 @@ def test_sheared_snapshot_matches_the_dump(dim, step):
     # non-touching neighbour pairs are dropped by overlap, and all had zero force
     touching_rows = len(local) - rep["non_touching_pairs"]["count"]
     assert touching_rows == rep["contacts"]["in_file"] and rep["non_touching_pairs"]["with_force"] == 0
-    # every dump row is a scene contact, a non-touching neighbour pair or a contact cut around the periodic cell
-    cut = rep["contacts"]["cut_around_periodic_cell"]
-    assert len(local) == len(pick) + rep["non_touching_pairs"]["count"] + cut
+    # every dump row is a scene contact or a non-touching neighbour pair: none is cut at the seam
+    assert rep["contacts"]["cut_around_periodic_cell"] == 0 and rep["periodic"]["contacts_cut"] == 0
+    assert len(local) == len(pick) + rep["non_touching_pairs"]["count"]
+    assert rep["periodic"]["seam_contacts"] == int(np.sum(np.any(s.image != 0, axis=1))) > 0
     # the fixture's corner wraps around the cell: some contacts join atoms dumped on opposite sides
     position_of = dict(zip(atoms[:, 0].astype(int), atoms[:, 2:2 + dim]))
     raw = np.array([position_of[a] - position_of[b] for a, b in local[pick, :2].astype(int)])
@@ -128,7 +131,7 @@ def test_hertz_law_is_the_tangent_stiffness_at_the_overlap(tmp_path):
     atoms = raw_block(inputs(2)[0], 18000)
     radius_of = dict(zip(atoms[:, 0].astype(int), atoms[:, 5]))
     r = np.array([radius_of[n] for n in names])
-    delta = r[s.p] + r[s.q] - np.linalg.norm(s.x[s.q] - s.x[s.p], axis=1)
+    delta = r[s.p] + r[s.q] - np.linalg.norm(s.branch, axis=1)
     a = np.sqrt(r[s.p] * r[s.q] / (r[s.p] + r[s.q]) * delta)
     # F = k_n a δ: dF/dδ by a central difference of the closed form, against the reader's k
     h = 1e-6 * delta
@@ -148,10 +151,11 @@ def test_region_box_and_ids(tmp_path):
 
 
 def test_analyse_the_2d_fixture_dense_and_the_3d_fixture_sparse():
-    s2 = load(inputs(2), timestep=21000).scene
+    """The fixtures are a corner of the cell: analysed as clusters (--no-periodic: seam contacts cut)."""
+    s2 = load(inputs(2), timestep=21000, periodic=False).scene
     r2 = granstab.analyze(s2, method="dense")
     assert max(r2.errors.values()) <= 1e-10 and len(r2.branches) == 2 ** r2.to_dict()["n_sliding"]
-    s3 = load(inputs(3), timestep=14000).scene
+    s3 = load(inputs(3), timestep=14000, periodic=False).scene
     r3 = granstab.analyze(s3, method="sparse", k=4)
     assert any(w.startswith("sparse path") for w in r3.to_dict()["warnings"]) and max(r3.errors.values()) <= 1e-10
 

@@ -46,7 +46,8 @@ def check_liggghts_packing(folder, tmp_path, capsys):
     assert rc == 0 and report["format"] == "lammps" and report["particles"]["in_file"] == 200
     assert report["cone"]["at_yield"] >= 10 and report["cone"]["outside"]["count"] == 0   # the loading: sliding
     assert report["non_touching_pairs"]["count"] == 0          # pair/gran/local lists touching pairs only
-    assert report["geometry"]["gaps"] == 0 and report["contacts"]["cut_around_periodic_cell"] > 0
+    assert report["geometry"]["gaps"] == 0 and report["contacts"]["cut_around_periodic_cell"] == 0
+    assert report["periodic"]["periodic"] and report["periodic"]["seam_contacts"] > 0   # kept with their images
     law = report["law"]
     assert (law["k"]["value"], law["alpha"]["value"], law["mu"]["value"]) == (2000.0, 0.5, 0.5)
     assert "fix property/global kn" in law["k"]["source"]

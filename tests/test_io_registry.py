@@ -91,7 +91,7 @@ def test_a_format_registered_from_outside_is_detected_and_built(tmp_path, monkey
     assert np.allclose(loaded.scene.force, [[-0.01, 0.2 * 0.01]], rtol=0, atol=1e-17)   # onto |f_t| = μ f_n
     assert loaded.scene.state == ("sliding",)
     (outside,) = [w for w in loaded.warnings if "outside the friction cone" in w]
-    assert outside.startswith("1 contact(s) outside the friction cone (100.0 %, |f_t|/(μ f_n) up to 2.5)")
+    assert outside.startswith("1 contact(s) outside the friction cone (100 %, |f_t|/(μ f_n) up to 2.5)")
     assert "(1-2)" in outside
     with pytest.raises(ValueError, match="registered already"):
         granstab.io.register(Format("toy-pair", sniff=sniff, read=two_disks))

@@ -40,13 +40,15 @@ def test_3d_scene_through_a_force_vector_table(tmp_path):
                        .split("\n", 7)[7].splitlines())
     radius_of = dict(zip(atoms[:, 0].astype(int), atoms[:, 5]))
     ids = np.array(s.names).astype(int)
+    cell = " ".join(f"{v:.17g}" for v in s.cell.ravel())               # the periodic cell as a header line
     np.savetxt(tmp_path / "p.csv", np.column_stack([ids, s.x, [radius_of[i] for i in ids]]), delimiter=",",
-               header="id,x,y,z,radius", comments="")
+               header=f"# cell: {cell}\nid,x,y,z,radius", comments="")
     np.savetxt(tmp_path / "c.csv", np.column_stack([ids[s.p], ids[s.q], s.force]), delimiter=",",
                header="id1,id2,fx,fy,fz", comments="", fmt="%.17g")
     got = load([tmp_path / "p.csv", tmp_path / "c.csv"], k=1000, alpha=0.5, mu=0.5)
     a = got.scene
     assert a.dim == 3 and a.names == s.names and a.state == s.state
+    assert np.array_equal(a.cell, s.cell) and np.array_equal(a.image, s.image) and np.any(a.image != 0)
     for key in ("x", "point", "normal", "curvature_p", "force", "load", "k"):
         assert np.abs(getattr(a, key) - getattr(s, key)).max() <= 1e-12 * max(np.abs(getattr(s, key)).max(), 1), key
 

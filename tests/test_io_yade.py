@@ -103,3 +103,60 @@ def test_yade_table_bad_field_is_one_line(tmp_path, capsys):
     rc = main(["convert", str(tmp_path), "--out", str(tmp_path / "x.json")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err == f"{tmp_path / 'contacts.csv'}: line 5: fy: not a number ('1.5e')", err
+
+
+# ------------------------------------------------------------------------------------------------ periodic cells
+
+PERIODIC = Path(__file__).parent / "data" / "io" / "yade_periodic"
+
+
+@pytest.fixture(scope="module")
+def periodic_run(tmp_path_factory):
+    if shutil.which("yade") is None:
+        pytest.fail("yade: executable not found (apt-get install -y yade, as .ci/run does)", pytrace=False)
+    out = tmp_path_factory.mktemp("yade_periodic")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    done = subprocess.run(["yade", "-n", "-x", str(YADE / "make_periodic.py"), str(out)], cwd=out, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, (done.stdout + done.stderr)[-3000:]
+    return out
+
+
+def check_periodic_yade(folder):
+    """YADE's periodic cell through the exporter: the scene is periodic with YADE's cell (the columns of hSize as
+    rows), every interaction a contact, and YADE's own per-body forces and torques are the scene's sums, torques
+    taken about each centre with r^qp from q's copy x^q + image·cell: a wrong image would put that arm a cell away."""
+    imp = granstab.load(folder)
+    scene, report = imp.scene, imp.report
+    yade = json.loads((folder / "yade_resultants.json").read_text())
+    C = np.genfromtxt(folder / "contacts.csv", delimiter=",", names=True)
+    P = np.genfromtxt(folder / "particles.csv", delimiter=",", names=True, skip_header=1)   # after the # cell: line
+    assert report["periodic"]["periodic"] and report["contacts"]["cut_around_periodic_cell"] == 0
+    assert np.array_equal(scene.cell, np.array(yade["hSize"]).T)
+    assert scene.n_contacts == len(C) and report["periodic"]["seam_contacts"] >= 10
+    ids = P["id"].astype(int)
+    index = np.full(ids.max() + 1, -1)
+    index[ids] = np.arange(len(ids))
+    names = np.array(scene.names).astype(int)
+    check_contact_geometry(scene, P["radius"][index[names]])
+    F, T = np.zeros((len(ids), 3)), np.zeros((len(ids), 3))
+    F[index[yade["id"]]], T[index[yade["id"]]] = yade["force"], yade["torque"]
+    net, torque = np.zeros((scene.n_particles, 3)), np.zeros((scene.n_particles, 3))
+    for side, sign, arm in ((scene.p, 1.0, scene.r_pq), (scene.q, -1.0, scene.r_qp)):
+        np.add.at(net, side, sign * scene.force)
+        np.add.at(torque, side, np.cross(arm, sign * scene.force))
+    rows = index[names]
+    scale = np.abs(scene.force).max()
+    assert np.abs(net - F[rows]).max() <= 1e-5 * scale              # sliding forces put on the cone: 1e-4 of |f|
+    assert np.abs(torque - T[rows]).max() <= 1e-5 * scale * P["radius"].max()
+    return scene
+
+
+@pytest.mark.yade
+def test_yade_periodic_cell_converts_with_every_contact(periodic_run):
+    check_periodic_yade(periodic_run)
+
+
+def test_yade_periodic_fixture_converts_with_every_contact():
+    scene = check_periodic_yade(PERIODIC)
+    assert scene.cell[1, 0] > 0.01 * scene.cell[1, 1]                  # sheared: the second vector tilted along x

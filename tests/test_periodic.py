@@ -17,8 +17,9 @@ from exact_geometry import cluster_from_scene, loads, press
 from scipy.spatial.transform import Rotation
 
 import granstab
+from granstab.mechanics.branches import RIGID
 from granstab.mechanics.cell import cell_parts, mandel_basis, stress, stress_work, to_mandel, to_tensor
-from granstab.mechanics.stiffness import contact_blocks
+from granstab.mechanics.stiffness import assemble_parts, contact_blocks
 from granstab.model import packings
 from granstab.model import shapes as S
 from granstab.model.periodic import tile
@@ -70,9 +71,11 @@ def periodic_case(dim):
     return scene, cluster_from_scene(flat, parts), owner
 
 
-def exact_extended(dim) -> np.ndarray:
+def exact_extended(dim, pinned: bool = False) -> np.ndarray:
     """∂[b, w (folded onto the particles); Σ_bodies b ⊗ X : E_a] / ∂[u, θ, ε_a] of the exact statics, with
-    x = (I + ε) X + u for every body and its copies (Lagrangian virial: the cell's work-conjugate load)."""
+    x = (I + ε) X + u for every body and its copies (Lagrangian virial: the cell's work-conjugate load). `pinned`:
+    the seam copy moves with the strain like a itself, not like its image — what dropping the image's strain
+    would give (a negative control)."""
     scene, cl, owner = periodic_case(dim)
     N, d, r = scene.n_particles, dim, scene.dof_per_particle - dim
     E = mandel_basis(d)
@@ -84,7 +87,10 @@ def exact_extended(dim) -> np.ndarray:
         y[j] = 1j * CSTEP
         U = y[:N * (d + r)].reshape(N, d + r)
         eps = np.einsum("a,aij->ij", y[N * (d + r):], E)
-        L = loads(cl, X @ eps.T + U[owner, :d], U[owner, d:])
+        moved = X @ eps.T
+        if pinned:
+            moved[3] = X[0] @ eps.T
+        L = loads(cl, moved + U[owner, :d], U[owner, d:])
         folded = np.zeros((N, d + r), complex)
         np.add.at(folded, owner, L)
         cell = np.einsum("bi,bj,aij->a", L[:, :d], X, E)
@@ -106,31 +112,7 @@ def test_extended_stiffness_matches_exact_periodic_statics(dim):
     assert err < EXACT_RTOL, err
     n = H.shape[0]
     assert np.abs(K_exact[:n, n:]).max() > 0.1 and np.abs(K_exact[n:, n:]).max() > 0.1   # the cell blocks are tested
-    without_image = np.block([[H, parts.Xi], [parts.Xi_left, parts.B]])
-    assert not np.allclose(without_image, exact_extended_flat(dim), atol=1e-6)
-
-
-def exact_extended_flat(dim):
-    """The same derivative with the seam contact's copy pinned at x_a + a_1 as if it were particle a itself but
-    not moved by the strain: what dropping the image from the cell columns would give (a negative control)."""
-    scene, cl, owner = periodic_case(dim)
-    N, d, r = scene.n_particles, dim, scene.dof_per_particle - dim
-    E = mandel_basis(d)
-    n_var = N * (d + r) + len(E)
-    X = cl.x0.copy()
-    out = np.zeros((n_var, n_var))
-    for j in range(n_var):
-        y = np.zeros(n_var, complex)
-        y[j] = 1j * CSTEP
-        U = y[:N * (d + r)].reshape(N, d + r)
-        eps = np.einsum("a,aij->ij", y[N * (d + r):], E)
-        moved = X @ eps.T
-        moved[3] = X[0] @ eps.T                                          # the copy moves like a, not like its image
-        L = loads(cl, moved + U[owner, :d], U[owner, d:])
-        folded = np.zeros((N, d + r), complex)
-        np.add.at(folded, owner, L)
-        out[:, j] = np.concatenate([folded.ravel(), np.einsum("bi,bj,aij->a", L[:, :d], X, E)]).imag / CSTEP
-    return out
+    assert np.abs(K - exact_extended(dim, pinned=True)).max() > 1e-3 * np.abs(K_exact).max()   # the image matters
 
 
 # ------------------------------------------------------------------ independent harmonic energy Hessian
@@ -218,15 +200,14 @@ def test_stress_is_tension_positive_and_the_energy_derivative(dim):
 def test_tiling_gives_the_same_moduli_and_contains_the_spectrum(dim, phi, shear):
     """Moduli are intensive: the packing tiled 2×2 (2×2×2) has the same C and σ to round-off, and the spectrum of
     its sym(H) contains the original's (every mode of the cell is a periodic mode of the supercell)."""
-    scene = jammed(dim, phi, shear)
+    scene = jammed(dim, phi, shear) if dim == 2 else packings.jammed(3, 16, phi, seed=1)   # 3D: 128 tiled
     big = tile(scene, 2)
     assert big.n_particles == 2 ** dim * scene.n_particles and big.n_contacts == 2 ** dim * scene.n_contacts
     small, large = moduli(scene), moduli(big)
     scale = np.abs(small.mandel).max()
     assert np.abs(small.mandel - large.mandel).max() < MODULI_RTOL * scale
     assert np.abs(small.stress - large.stress).max() < 1e-12 * np.abs(small.stress).max()
-    lam = np.linalg.eigvalsh(_sym(granstab.stiffness(scene).H))
-    lam_big = np.linalg.eigvalsh(_sym(granstab.stiffness(big).H))
+    lam, lam_big = (np.linalg.eigvalsh(_sym(assemble_parts(s, contact_blocks(s))["H"].toarray())) for s in (scene, big))
     gap = np.abs(lam[:, None] - lam_big[None]).min(axis=1)
     assert gap.max() < 1e-10 * np.abs(lam).max()
     assert not np.allclose(lam_big[:len(lam)], lam)                    # the supercell has modes of its own
@@ -252,6 +233,11 @@ def test_zero_modes_are_translations_and_free_spins(dim):
     result = granstab.analyze(scene, metric="L")
     assert result.summary["verdict"] == "stable", result.summary["reason"]
     assert result.summary["free_spins"] == r * scene.n_particles
+    sparse = granstab.analyze(scene, metric="L", method="sparse", k=6)     # the same spins set aside there
+    assert sparse.summary["verdict"] == "stable" and sparse.summary["free_spins"] == r * scene.n_particles
+    dense_low = np.sort(result.branches[0].stability_eigenvalues[result.branches[0].codes != RIGID])[:4]
+    sparse_low = np.sort(sparse.branches[0].stability_eigenvalues)[dim:dim + 4]      # after the d translations
+    assert np.abs(dense_low - sparse_low).max() < 1e-10 * dense_low.max()
 
 
 def test_rattler_is_reported_not_failed():
@@ -341,3 +327,66 @@ def test_stress_work_term_and_fixed_stress_verdict():
 def test_moduli_refuse_a_scene_without_cell():
     with pytest.raises(granstab.SceneError, match="moduli need a periodic scene"):
         moduli(granstab.load_scene("presets/two_particle.toml"))
+
+
+def one_disk_cell(a: float = 0.99, k: float = 1.0):
+    """One frictionless disk of diameter 1 in a square cell of side a < 1: it touches its own images along x and
+    y (overlap δ = 1 - a, force f = kδ). Closed forms (V = a²): C_xxxx = C_yyyy = k, C_xxyy = 0, Mandel shear
+    C_(xy)(xy) = -f/a (the compressed contacts' transverse -f/a, no normal stretch); σ = -(f/a) I."""
+    f = k * (1.0 - a)
+    normal = np.eye(2)
+    t = np.c_[-normal[:, 1], normal[:, 0]]
+    K = -(2 / a) * t[:, :, None] * t[:, None, :]
+    arrays = {"p": np.array([0, 0]), "q": np.array([0, 0]), "point": 0.5 * a * normal, "normal": normal,
+              "curvature_p": K, "curvature_q": K.copy(), "force": -f * normal, "moment": np.zeros((2, 1)),
+              "k": np.full(2, k), "alpha": np.zeros(2), "mu": np.zeros(2), "rolling": np.zeros((2, 1, 1)),
+              "state": ("auto", "auto")}
+    return build_scene(2, ["d"], np.zeros((1, 2)), arrays, cell=a * np.eye(2), image=np.eye(2, dtype=int),
+                       source="one disk"), f
+
+
+def test_one_disk_cell_closed_form_stable_held_unstable_at_fixed_stress():
+    """The square lattice as a one-disk cell: C and σ equal the closed forms to round-off; held (fixed cell) it is
+    stable — nothing can move but the translations and the spin — while at fixed stress C - Q has the shear
+    eigenvalue -f/a - p = -2f/a < 0 along a consistent (frictionless: always) strain: unstable, proven."""
+    a = 0.99
+    scene, f = one_disk_cell(a)
+    result = moduli(scene)
+    expect = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -f / a]])
+    assert np.abs(result.mandel - expect).max() < 1e-14
+    assert np.abs(result.stress + (f / a) * np.eye(2)).max() < 1e-16
+    assert result.zero_modes == {**result.zero_modes, "free_spins": 1, "rattlers": 0, "mechanisms": 0}
+    fixed_stress = result.verdicts["fixed_stress"]
+    assert fixed_stress["verdict"] == "unstable" and fixed_stress["sufficient"]
+    assert fixed_stress["min_eigenvalue"] == pytest.approx(-2 * f / a, rel=1e-12)
+    assert result.verdicts["fixed_cell"]["verdict"] == "stable"
+
+
+def test_cli_moduli_table_json_and_errors(tmp_path, capsys):
+    from granstab.cli import main
+    scene, f = one_disk_cell()
+    path = tmp_path / "cell.json"
+    granstab.save_scene(scene, path)
+    assert main(["moduli", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "stress σ (tension positive)" in out and "fixed stress: UNSTABLE (proven" in out
+    assert main(["moduli", str(path), "--json", "--strain", "0,1,1,0"]) == 0
+    data = __import__("json").loads(capsys.readouterr().out)
+    assert np.allclose(np.array(data["C"]), moduli(scene).C, rtol=0, atol=1e-15)
+    assert data["direction"]["consistent"][0]["modulus"] == pytest.approx(-f / 0.99, rel=1e-12)
+    assert main(["moduli", "presets/two_particle.toml"]) == 2
+    assert "moduli need a periodic scene" in capsys.readouterr().err
+    assert main(["moduli", str(path), "--strain", "1,2,3"]) == 2
+    assert capsys.readouterr().err.strip() == "--strain: 4 numbers expected (a 2x2 tensor row by row), got 3"
+
+
+def test_many_sliding_contacts_are_sampled_and_said_so():
+    """Beyond max_sliding the branches are a stated sample: the range of the directional moduli over them, a note
+    that it is not a bound, and no proof of stability at fixed stress."""
+    scene = frictional(2)
+    result = moduli(scene, strain=[[1.0, 0.0], [0.0, -1.0]], max_sliding=1, sample_branches=8)
+    direction = result.direction
+    assert not direction["enumerated"] and not direction["unique"]
+    assert "a sample, not a bound" in direction["note"] and direction["range"][0] <= direction["range"][1]
+    assert {b.name for b in result.branches} == {"elastic", "all loading"}
+    assert not result.verdicts["fixed_stress"]["sufficient"] or result.verdicts["fixed_stress"]["verdict"] == "unstable"

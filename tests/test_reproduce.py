@@ -102,3 +102,48 @@ def test_cli_and_names(tmp_path):
     assert not (tmp_path / "REPRODUCTION.md").exists()
     with pytest.raises(ValueError, match="unknown example"):
         report.reproduce("three-disk", tmp_path, progress=False)
+
+
+SIGNS = """
+import json, sys
+from threadpoolctl import threadpool_info, threadpool_limits
+import granstab
+from granstab.paper import four_disk as fd
+with threadpool_limits(int(sys.argv[1]), user_api="blas"):
+    r = granstab.analyze(fd.scene(**fd.PAPER), metric="L")
+    st, un = fd.stability_table(r), fd.uniqueness_table(r)
+print(json.dumps({"arch": sorted({i.get("architecture") for i in threadpool_info() if i["internal_api"] == "openblas"}),
+                  "four_disk_branches.csv": [p["sign"] for row in st for p in row["pairs"]],
+                  "four_disk_uniqueness.csv": [e["sign"] for row in un for e in row["entries"]]}))
+"""
+
+
+@pytest.mark.parametrize(("threads", "coretype", "busy"), [(1, None, False), (2, None, False), (2, None, True),
+                                                             (2, "Haswell", False), (2, "SkylakeX", False)])
+def test_committed_signs_do_not_depend_on_blas_threads_kernels_or_load(threads, coretype, busy):
+    """The four-disk tables' ±v signs (eigenvectors with entries equal by symmetry; ℍ^i null vectors from an SVD)
+    are the committed ones with 1 or 2 BLAS threads, beside a process spinning on a core, and with OpenBLAS's
+    Haswell (AVX2) or SkylakeX (AVX-512) kernels, each in a fresh process (main gave the uniqueness table's signs
+    one way with Haswell and the other with SkylakeX)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    if coretype:
+        env["OPENBLAS_CORETYPE"] = coretype
+    spin = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if busy else None
+    try:
+        proc = subprocess.run([sys.executable, "-c", SIGNS, str(threads)], capture_output=True, text=True, env=env,
+                              timeout=300)
+    finally:
+        if spin is not None:
+            spin.kill()
+            spin.wait()
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout)
+    if coretype and got["arch"] != [coretype]:    # a build without DYNAMIC_ARCH, or a CPU without those kernels
+        pytest.skip(f"this OpenBLAS ran {got['arch']} kernels, not OPENBLAS_CORETYPE={coretype}")
+    for name in ("four_disk_branches.csv", "four_disk_uniqueness.csv"):
+        head, rows = _read(COMMITTED / name)
+        assert got[name] == [row[head.index("consistent")] for row in rows], name

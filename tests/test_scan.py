@@ -77,7 +77,7 @@ def test_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path):
     """Sampled rows of a scan = analyze() on `extract`: same verdict and counts, λ_min within 1e-10·max|λ|."""
     scene = granstab.load_scene(ANNULUS)
     names = [scene.names[i] for i in (3, 50, 99, 140)]
-    scan(scene, tmp_path, centers=",".join(names), workers=1, figures=False)
+    scan(scene, tmp_path, centers=",".join(names), boundary="loads", workers=1, figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert list(rows["center"]) == [3, 50, 99, 140]                   # indices into the packing
     assert [list(m) for m in rows["members"]] == [list(m) for m in members(scene, [3, 50, 99, 140], 1)]
@@ -188,8 +188,8 @@ def test_every_path_makes_rows_of_the_schema_derived_from_the_row_record(tmp_pat
         write_table(table, tmp_path / f"rows.{fmt}", fmt)
         back = read_arrow(tmp_path / f"rows.{fmt}", fmt, Row)
         assert [f.type for f in back.schema] == [f.type for f in kinds], fmt
-        same = [a == b or a != a and b != b for x, y in zip(back.to_pylist(), table.to_pylist())
-                for a, b in zip(x.values(), y.values())]
+        same = [a == b or a != a and b != b or (isinstance(a, list) and np.array_equal(a, b, equal_nan=True))
+                for x, y in zip(back.to_pylist(), table.to_pylist()) for a, b in zip(x.values(), y.values())]
         assert all(same), fmt
 
 
@@ -290,7 +290,7 @@ def test_scan_of_a_small_scene_equals_analyze_of_the_scene(tmp_path):
     """rings large enough that every cluster is the whole scene: every row is `analyze` of the scene."""
     scene = granstab.load_scene(ROOT / "presets" / "four_disk.toml")
     ref = granstab.analyze(scene, metric="L")
-    summary = scan(scene, tmp_path, rings=4, workers=1, figures=False)
+    summary = scan(scene, tmp_path, rings=4, boundary="loads", workers=1, figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert summary["clusters"] == scene.n_particles
     assert set(rows["n_particles"]) == {scene.n_particles} and set(rows["n_branches"]) == {16}
@@ -316,7 +316,7 @@ def test_planted_unstable_cluster_is_found_and_nothing_far_away(tmp_path, rho_ov
     """Sharp planted contacts: the planted particle's cluster and its neighbours' are unstable, nothing beyond three
     diameters; the same contacts flat (the control): every cluster stable."""
     scene, planted = planted_lattice(40, rho_over_r)
-    scan(scene, tmp_path, workers=1, figures=False)
+    scan(scene, tmp_path, boundary="loads", workers=1, figures=False)
     data = read_map(tmp_path)
     verdict = dict(zip((scene.names[c] for c in data["clusters"]["center"]), data["clusters"]["verdict"]))
     fraction = np.asarray(data["particles"]["unstable_fraction"], dtype=float)
@@ -334,7 +334,7 @@ def test_planted_unstable_cluster_is_found_and_nothing_far_away(tmp_path, rho_ov
 
 def test_more_sliding_contacts_than_the_cap_examine_a_sample_and_say_so(tmp_path):
     scene = packings.lattice(2, 3, n_sliding=6, mobilised=0.5)
-    summary = scan(scene, tmp_path, rings=3, max_sliding=3, sample_branches=5, workers=1, figures=False)
+    summary = scan(scene, tmp_path, rings=3, max_sliding=3, sample_branches=5, boundary="loads", workers=1, figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert summary["partial_branches"] == summary["clusters"] == scene.n_particles
     assert set(rows["branches"]) == {"partial"}
@@ -346,11 +346,12 @@ def test_more_sliding_contacts_than_the_cap_examine_a_sample_and_say_so(tmp_path
 
 def test_interrupted_scan_resumes_without_repeating_a_cluster(tmp_path):
     scene = granstab.load_scene(ANNULUS)
-    options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads"}
+    options = {"rings": 1, "metric": "L", "max_sliding": 8, "sample_branches": 32, "boundary": "loads",
+               "attribution": True}
     from granstab.scan.output import ScanOutput
     out = ScanOutput(tmp_path, "csv", options, scene)
-    out.write(chunk_table(chunk_cut(scene, np.arange(0, 20), 1), options))              # what finished before the kill
-    summary = scan(scene, tmp_path, centers="every:1", workers=1, fmt="csv", figures=False)
+    out.write(chunk_table(chunk_cut(scene, np.arange(0, 20), 2), options))              # what finished before the kill
+    summary = scan(scene, tmp_path, centers="every:1", boundary="loads", workers=1, fmt="csv", figures=False)
     rows = read_map(tmp_path)["clusters"]
     assert summary["clusters_this_run"] == scene.n_particles - 20
     assert list(rows["center"]) == list(range(scene.n_particles))     # each centre once, in scene order
@@ -364,13 +365,14 @@ def test_two_dask_workers_give_the_serial_rows_and_survive_a_killed_worker(tmp_p
     the scan still runs: one cluster a task) loses no cluster (Dask reruns its tasks; every row once)."""
     from dask.distributed import Client, LocalCluster
     scene = granstab.load_scene(ANNULUS)
-    scan(scene, tmp_path / "serial", workers=1, figures=False)
+    scan(scene, tmp_path / "serial", boundary="loads", workers=1, figures=False)
     parts = tmp_path / "dask" / "parts"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         with Client(cluster) as client:
             victim = sorted(client.scheduler_info()["workers"])[0]
             runner = threading.Thread(target=scan, args=(scene, tmp_path / "dask"),
-                                      kwargs={"scheduler": cluster.scheduler_address, "chunk": 1, "figures": False})
+                                      kwargs={"scheduler": cluster.scheduler_address, "chunk": 1, "figures": False,
+                                              "boundary": "loads"})
             runner.start()
             deadline = time.monotonic() + 120
             while not (parts.is_dir() and any(parts.glob("*.arrow"))) and time.monotonic() < deadline:
@@ -391,7 +393,7 @@ def test_two_dask_workers_give_the_serial_rows_and_survive_a_killed_worker(tmp_p
 
 def test_cli_scan_and_extract_round_trip(tmp_path):
     out = tmp_path / "scan"
-    proc = subprocess.run([sys.executable, "-m", "granstab", "scan", str(ANNULUS), "--out", str(out),
+    proc = subprocess.run([sys.executable, "-m", "granstab", "scan", str(ANNULUS), "--out", str(out), "--boundary", "loads",
                            "--centers", "every:20", "--workers", "1", "--json"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
@@ -445,7 +447,7 @@ def test_fixed_boundary_scan_rows_equal_analyze_of_the_extracted_scene(tmp_path)
         assert rows["consistent_positive"][i] == res.summary["consistent_positive"]
         assert abs(rows["lambda_min"][i] - lowest(res)) <= 1e-10 * scale
     with pytest.raises(granstab.SceneError, match="other options"):      # a resume may not mix boundaries
-        scan(scene, tmp_path, centers=",".join(names), workers=1, figures=False)
+        scan(scene, tmp_path, centers=",".join(names), boundary="loads", workers=1, figures=False)
 
 
 @pytest.mark.parametrize("value, message", [(1, "must be true or false"), ("yes", "must be true or false")])
@@ -479,7 +481,7 @@ def test_a_copied_scan_folder_opens_without_the_packing_it_was_scanned_from(tmp_
     packing = tmp_path / "lattice.json"
     packing.write_text(json.dumps(granstab.scene_to_dict(scene)))
     scanned = granstab.load_scene(packing)
-    scan(scanned, tmp_path / "scan", workers=1, fmt=fmt, figures=False)
+    scan(scanned, tmp_path / "scan", boundary="loads", workers=1, fmt=fmt, figures=False)
     centers = np.arange(scanned.n_particles)
     expected = {scanned.names[c]: [scanned.names[m] for m in keep]
                 for c, keep in zip(centers, members(scanned, centers, 1))}

@@ -7,7 +7,6 @@ isotropically to 10 kPa by the walls, then loaded triaxially (the y walls close 
 x and z hold 10 kPa) so that contacts slide. A last step with the integrator off recomputes every contact at the
 positions written, then examples/yade/export_granstab.py writes OUTDIR/particles.csv and OUTDIR/contacts.csv.
 """
-import json
 import os
 import sys
 
@@ -16,7 +15,7 @@ from yade.utils import aabbWalls, sphere, unbalancedForce
 from yade.wrapper import (Bo1_Box_Aabb, Bo1_Sphere_Aabb, ForceResetter, FrictMat, GlobalStiffnessTimeStepper,
                           Ig2_Box_Sphere_ScGeom, Ig2_Sphere_Sphere_ScGeom, InsertionSortCollider, InteractionLoop,
                           Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack, NewtonIntegrator,
-                          Sphere, TriaxialStressController)
+                          TriaxialStressController)
 from math import radians
 
 here = os.path.dirname(os.path.abspath(sys.argv[0]))     # yade runs the script with argv[0] = its path
@@ -57,7 +56,4 @@ newton.dead = True                                 # one more step: forces at th
 O.run(1, True)
 exec(open(os.path.join(here, "export_granstab.py")).read())
 export_granstab(os.path.join(out, "particles.csv"), os.path.join(out, "contacts.csv"))
-with open(os.path.join(out, "yade_resultants.json"), "w") as fh:   # YADE's own sums, to check the conversion
-    ids = [b.id for b in O.bodies if isinstance(b.shape, Sphere)]
-    json.dump({"id": ids, "force": [list(O.forces.f(i)) for i in ids], "torque": [list(O.forces.t(i)) for i in ids],
-               "iter": O.iter}, fh)
+export_resultants(os.path.join(out, "yade_resultants.json"))   # YADE's own sums, to check the conversion

@@ -24,7 +24,7 @@ from .registry import Format, Loaded, Request, detect, formats, get, reads_folde
 from .validation import format_report
 
 OPTION_KEYS = {"k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol", "length_scale", "units", "region",
-               "keep_rattlers", "density"}
+               "keep_rattlers", "density", "periodic", "cell"}
 SKIPPED_IN_FOLDERS = (".json", ".toml", ".npz", ".py", ".sh", ".md")   # a snapshot folder's other files
 
 
@@ -49,7 +49,9 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, prog
         Snapshots only: k, alpha, mu (override the file's law), geometry ("centres" | "touching"), outside_cone
         ("sliding" | "project" | "elastic" | "error"), yield_rtol, length_scale (file length unit → scene unit),
         units (its name), region (ids, {"box": [lo, hi, ...]} on scaled centres, or the --region text),
-        keep_rattlers, density, columns (formats with named columns).
+        keep_rattlers, density, columns (formats with named columns), periodic (False: cut a periodic cell's
+        seam contacts, their forces become loads; default: keep them with their images, the scene carries the
+        cell), cell (the cell of a snapshot whose files give none: rows as text "a11,a12,a21,a22" or numbers).
 
     Returns
     -------
@@ -73,7 +75,10 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, prog
     if fmt.scene_file and (options or frame is not None or timestep is not None):
         given = next(iter(options), "frame" if frame is not None else "timestep")
         raise SceneError(f"{paths[0]}: {given}: an option of snapshots; a scene file ({fmt.name}) is read as written")
-    request = Request(frame=frame if frame is not None else timestep, columns=options.pop("columns", None), tol=tol)
+    if options.get("cell") is not None and fmt.name != "table":
+        raise SceneError(f"--cell: only the generic tables take a cell ({fmt.name} input gives its own or none)")
+    request = Request(frame=frame if frame is not None else timestep, columns=options.pop("columns", None), tol=tol,
+                      cell=options.pop("cell", None))
     with ReadProgress(paths, progress) as bar:
         read = fmt.read(paths, request, bar)
         if fmt.scene_file:

@@ -22,9 +22,12 @@ the first particle, in the file's units); `build` turns it into a granstab Scene
   (2/5 m R² I). Neither: the scene carries no masses and `--metric inertia` says so.
 - **Loads** follow the contact forces (scene rule b^p = −Σ f^pq): walls, contacts cut by a region or around a
   periodic cell and the snapshot's own imbalance become external loads; the report gives each.
-- **Periodic cells** (lattice rows, Lees–Edwards = sheared lattice): minimum-image branch vectors; particles are
-  unwrapped along the contact network, and contacts that close a loop around the cell are cut (their forces
-  become loads): the analysis then sees the cell as a free cluster held by dead loads.
+- **Periodic cells** (lattice rows a_i, Lees–Edwards = sheared lattice): minimum-image branch vectors. By default
+  the scene is periodic: it carries the cell, every contact keeps q's image (d integers: q's copy at
+  x_q + Σ image_i a_i, the branch from x_p to it), positions stay as the file gives them. `periodic=False`
+  (`--no-periodic`), a region, or a cell open along an axis: particles are unwrapped along the contact network,
+  and contacts that close a loop around the cell are cut (their forces become loads): the analysis then sees the
+  cell as a free cluster held by dead loads. The report says which (`periodic`).
 """
 from __future__ import annotations
 
@@ -43,6 +46,9 @@ from .validation import LAW_DEFAULT, import_warnings
 
 GEOMETRY = ("centres", "touching")
 OUTSIDE_CONE = ("sliding", "project", "elastic", "error")
+OVERLAP_WARN = 0.1     # overlap 2δ/(R_p + R_q) beyond which the report warns: a DEM keeps overlaps at a few per cent
+                       # of a radius or less (its stiffness is chosen so); 0.1 and more means the radii, units or
+                       # frame do not fit the positions, and the centres rule's curvatures (ρ = R − δ/2) with them
 
 
 @dataclass
@@ -94,6 +100,7 @@ class Options:
     region: object = None
     keep_rattlers: bool = False
     density: float | None = None    # mass per scene volume (2D: per area), when the file gives no masses
+    periodic: bool = True           # keep a periodic cell's seam contacts with their images (False: cut them)
 
 
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5}
@@ -123,7 +130,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
     e = branch / d[:, None]
     normal = e if snap.normal is None else _unit_normals(snap, pair)
-    geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap)
+    geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
     law, law_report = _law(snap, opts, len(d))
     force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
     report = {"source": snap.source, "format": snap.format, "read_as": "snapshot", "frame": snap.frame,
@@ -132,8 +139,12 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     imbalance = _imbalance(snap, arm_p, arm_p - branch)
 
     keep_c, keep_p, selection = _select(snap, x, opts, names)
-    unwrapped, cut = _unwrap(snap, x, shifts, keep_c, scale)
-    keep_c &= ~cut
+    cell, why_cut = _cell(snap, opts, scale)
+    if cell is None:
+        unwrapped, cut = _unwrap(snap, x, shifts, keep_c, scale)
+        keep_c &= ~cut
+    else:
+        unwrapped, cut = x, np.zeros(len(d), bool)
     if not opts.keep_rattlers:
         touched = np.zeros(len(x), bool)
         touched[snap.p[keep_c]] = touched[snap.q[keep_c]] = True
@@ -161,8 +172,9 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     mass, inertia, report["masses"] = _masses(snap, opts.density, radius)
     if progress is not None:
         progress.stage("checks")
+    periodic = {} if cell is None else {"cell": cell, "image": -shifts[c]}
     scene = build_scene(snap.dim, list(names[keep_p]), unwrapped[keep_p], arrays, title=title, source=snap.source,
-                        tol=tol, entries=lambda k: f"contact {pair[c[k]]}",
+                        tol=tol, entries=lambda k: f"contact {pair[c[k]]}", **periodic,
                         **({} if mass is None else {"mass": mass[keep_p], "inertia": inertia[keep_p]}))
     report.update({
         "particles": {"in_file": len(x), "in_scene": int(keep_p.sum()), "outside_region": selection["particles"],
@@ -173,7 +185,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         "units": {"length": opts.units or (snap.length_unit if scale == 1.0 else f"{scale:g} {snap.length_unit}"),
                   "length_scale": scale, "force": "as in the file"},
         "geometry": geometry_report, "law": law_report, "forces": force_report, "cone": cone_report,
-        "imbalance": imbalance, "periodic": _periodic_report(snap, cut, pair),
+        "imbalance": imbalance, "periodic": _periodic_report(snap, cut, pair, cell, why_cut, shifts, c),
         "walls": snap.notes.get("walls", "none in the file"),
         "duplicates": snap.notes.get("duplicates", "none (one row per contact)"),
     })
@@ -269,11 +281,16 @@ def _stats(values) -> dict:
 
 def branch_vectors(x, p, q, lattice):
     """x_q − x_p, minimum image when `lattice` (rows; NaN row = open axis) is given, and the integer lattice
-    shifts used (M, d). Lower-triangular lattices (Lees–Edwards, LAMMPS tilt) are reduced last axis first."""
+    shifts s used (M, d): the branch is x_q − s·lattice − x_p, so q's image is −s. Lower-triangular lattices
+    (Lees–Edwards, LAMMPS tilt) are reduced last axis first; any other full cell by rounding the fractional
+    coordinates (the same shifts for a lower-triangular one: branches far shorter than the cell)."""
     raw = x[q] - x[p]
     shifts = np.zeros(raw.shape, dtype=np.int64)
     if lattice is None:
         return raw, shifts
+    if not np.isnan(lattice).any() and np.any(np.triu(lattice, 1) != 0):
+        shifts = np.round(np.linalg.solve(lattice.T, raw.T).T).astype(np.int64)
+        return raw - shifts @ lattice, shifts
     for i in range(x.shape[1] - 1, -1, -1):
         if np.isnan(lattice[i, i]):
             continue
@@ -283,8 +300,9 @@ def branch_vectors(x, p, q, lattice):
     return raw, shifts
 
 
-def _geometry(rule, rad_p, rad_q, d, e, normal, snap):
-    """Contact point distance from p along e and the radii ρ of the parallel surfaces (module docstring)."""
+def _geometry(rule, rad_p, rad_q, d, e, normal, snap, pair):
+    """Contact point distance from p along e and the radii ρ of the parallel surfaces (module docstring); the
+    report counts and names (worst first) the contacts whose overlap exceeds OVERLAP_WARN of the mean radius."""
     delta = rad_p + rad_q - d
     if rule == "centres":
         rho_p, rho_q = rad_p - delta / 2, rad_q - delta / 2
@@ -298,8 +316,12 @@ def _geometry(rule, rad_p, rad_q, d, e, normal, snap):
         rho_p = d * rad_p / (rad_p + rad_q)
         rho_q = d - rho_p
     cosine = np.clip(np.sum(e * normal, axis=1), -1.0, 1.0)
+    overlap = 2 * delta / (rad_p + rad_q)
+    extreme = np.flatnonzero(overlap > OVERLAP_WARN)
     report = {"rule": rule, "distance_over_sum_of_radii": _stats(d / (rad_p + rad_q)),
-              "overlap_over_mean_radius": _stats(2 * delta / (rad_p + rad_q)),
+              "overlap_over_mean_radius": _stats(overlap),
+              "extreme_overlaps": {"threshold": OVERLAP_WARN, "count": len(extreme),
+                                   "names": _names(pair[extreme[np.argsort(-overlap[extreme], kind="stable")]])},
               "gaps": int(np.sum(delta < 0)),
               "normal_to_centre_line_deg_max": float(np.degrees(np.arccos(cosine.min()))) if len(d) else 0.0}
     return {"rho_p": rho_p, "rho_q": rho_q}, report
@@ -511,10 +533,68 @@ def _unwrap(snap: Snapshot, x, shifts, keep_c, scale):
     return unwrapped, cut
 
 
-def _periodic_report(snap: Snapshot, cut, pair):
+def _cell(snap: Snapshot, opts: Options, scale: float):
+    """(the scene's cell (d, d) in scene units, None) when the scene is periodic, else (None, why the seam
+    contacts are cut; None without a cell)."""
+    if snap.lattice is None:
+        return None, None
+    if not opts.periodic:
+        return None, "--no-periodic"
+    if np.isnan(snap.lattice).any():
+        return None, "the cell is open along an axis (a periodic scene needs a full cell)"
+    if opts.region is not None:
+        return None, "a region was selected (the scene is a cluster, not the cell)"
+    return snap.lattice * scale, None
+
+
+def parse_cell(value, dim: int, where: str) -> np.ndarray:
+    """The cell's rows a_i from d·d numbers (a_1 then a_2 …) or d (an orthogonal box), as text (commas or blanks)
+    or numbers; a one-line error naming `where` (e.g. "<file>: line 2") and the field `cell`."""
+    words = value.replace(",", " ").split() if isinstance(value, str) else list(np.ravel(value))
+    try:
+        numbers = np.array([float(w) for w in words])
+    except ValueError:
+        bad = next(w for w in words if not _is_number(w))
+        raise SceneError(f"{where}: cell: not a number ({str(bad)[:40]!r})") from None
+    if numbers.size == dim:
+        numbers = np.diag(numbers).ravel()
+    if numbers.size != dim * dim:
+        raise SceneError(f"{where}: cell: expected {dim * dim} numbers (the rows a_1 … a_{dim} of the {dim}D cell) "
+                         f"or {dim} (an orthogonal box), got {numbers.size}")
+    cell = numbers.reshape(dim, dim)
+    if not np.all(np.isfinite(cell)):
+        raise SceneError(f"{where}: cell: not finite ({', '.join(f'{v:g}' for v in numbers)})")
+    det, scale = float(np.linalg.det(cell)), float(np.prod(np.linalg.norm(cell, axis=1)))
+    if not det > 1e-12 * scale:                  # as the scene's check (model/periodic.py), here with the line
+        what = " (left-handed: swap two rows)" if det < -1e-12 * scale else ""
+        raise SceneError(f"{where}: cell: the lattice vectors (rows) span no positive volume, det = {det:.6g}{what}")
+    return cell
+
+
+def _is_number(text) -> bool:
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _periodic_report(snap: Snapshot, cut, pair, cell, why_cut, shifts, kept):
+    """The cell and what became of the seam contacts: kept with their images (periodic) or cut (and why)."""
     if snap.lattice is None:
         return None
-    return {"lattice": np.nan_to_num(snap.lattice, nan=0.0).tolist(), **snap.notes.get("periodic", {}),
-            "contacts_cut": int(cut.sum()), "cut_names": _names(pair[cut]),
-            "treatment": "minimum-image branch vectors; particles unwrapped along the contacts; contacts closing a "
-                         "loop around the cell are cut and their forces become loads on both particles"}
+    seam = np.zeros(len(shifts), bool)
+    seam[kept] = True
+    seam = (seam | cut) & np.any(shifts != 0, axis=1)
+    report = {"lattice": np.nan_to_num(snap.lattice, nan=0.0).tolist(), **snap.notes.get("periodic", {}),
+              "periodic": cell is not None, "cell": None if cell is None else cell.tolist(),
+              "seam_contacts": int(seam.sum()), "seam_names": _names(pair[seam]),
+              "contacts_cut": int(cut.sum()), "cut_names": _names(pair[cut])}
+    if cell is not None:
+        report["treatment"] = ("periodic scene: the cell kept, each contact with q's image (seam contacts: a nonzero "
+                               "image); --no-periodic cuts them instead")
+    else:
+        report["treatment"] = (f"not periodic ({why_cut}): minimum-image branch vectors; particles unwrapped along "
+                               "the contacts; contacts closing a loop around the cell are cut and their forces "
+                               "become loads on both particles")
+    return report

@@ -2,6 +2,8 @@
 forces from whichever columns a file has, and ids → particle indices, with one-line errors."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ..model.errors import SceneError
@@ -33,6 +35,14 @@ def columns_option(text: str, width: int, where: str, found: str) -> list:
     if len(names) != width:
         raise SceneError(f"--columns: {len(names)} names for the {width} columns of {where} ({found})")
     return names
+
+
+def column_note(path, header: list, names: list, given: bool, script: bool = False) -> dict:
+    """The report's entry for a contact table's columns: which file, where their meaning came from (--columns, the
+    LAMMPS input script's computes, or the header's own names) and each header name → its meaning ('-': ignored)."""
+    how = "--columns" if given else ("the input script" if script and any(h not in CONTACT_NAMES for h in header)
+                                     else "the header")
+    return {"file": Path(path).name, "from": how, "map": [[h, n] for h, n in zip(header, names)]}
 
 
 def contact_forces(where: str, col: dict, dim: int, normal=None):

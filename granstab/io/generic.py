@@ -7,6 +7,10 @@ line naming the columns after any `#` comment lines), optionally many frames (a 
 
 `columns` renames the contact table's columns in order (names as in granstab.io.columns.CONTACT_NAMES). A pair
 listed in both orders is one contact; the two rows must agree with Newton's third law (reported).
+
+A periodic cell: a comment line `# cell: a11 a12 a21 a22` (2D; 3D: nine numbers, the rows a_i; or d numbers, an
+orthogonal box) before the header of either table, or the `cell` option (`--cell`). Contacts then take the
+minimum image (build.py); the scene is periodic unless `--no-periodic`.
 """
 from __future__ import annotations
 
@@ -15,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from ..model.errors import SceneError
-from .build import Snapshot
+from .build import Snapshot, branch_vectors, parse_cell
 from .columns import (
     CONTACT_NAMES,
+    column_note,
     columns_option,
     contact_forces,
     contact_moments,
@@ -45,6 +50,35 @@ def header(path: Path):
     raise SceneError(f"{path}: line 1: header: empty file")
 
 
+def cell_comment(path: Path):
+    """(the text after `cell:`, its line number) of a `# cell: ...` comment before the header, or None."""
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for number, line in enumerate(fh, 1):
+            text = line.strip()
+            if text and not text.startswith("#"):
+                return None
+            words = text.lstrip("#").strip()
+            if words.lower().startswith("cell") and words[4:].lstrip()[:1] in (":", "="):
+                return words[4:].lstrip()[1:].strip(), number
+    return None
+
+
+def table_cell(paths: list[Path], dim: int, given=None):
+    """The cell of `# cell:` comments (both tables may give one: then the same) or of `given` (--cell), or None."""
+    cells = []
+    for path in paths:
+        found = cell_comment(path)
+        if found is not None:
+            cells.append((parse_cell(found[0], dim, f"{path}: line {found[1]}"), path, found[1]))
+    for cell, path, line in cells[1:]:
+        if not np.array_equal(cell, cells[0][0]):
+            raise SceneError(f"{path}: line {line}: cell: differs from the cell of {cells[0][1].name} line "
+                             f"{cells[0][2]}")
+    if given is not None and cells:
+        raise SceneError(f"--cell: {cells[0][1]} line {cells[0][2]} gives the cell already; leave --cell out")
+    return parse_cell(given, dim, "--cell") if given is not None else cells[0][0] if cells else None
+
+
 def is_table(path: Path) -> bool:
     if path.suffix.lower() not in SUFFIXES or not path.is_file():
         return False
@@ -55,8 +89,8 @@ def is_table(path: Path) -> bool:
     return {"id1", "id2"} <= set(names) or {"id", "x", "y"} <= set(names)
 
 
-def read_tables(paths: list[Path], frame=None, columns: str | None = None, progress=None) -> Snapshot:
-    """The snapshot of one frame; `progress`: a progress.ReadProgress (bytes parsed)."""
+def read_tables(paths: list[Path], frame=None, columns: str | None = None, progress=None, cell=None) -> Snapshot:
+    """The snapshot of one frame; `progress`: a progress.ReadProgress (bytes parsed); `cell`: --cell."""
     update = None if progress is None else progress.update
     kinds = {p: header(p) for p in paths}
     particle_files = [p for p, h in kinds.items() if {"id", "x", "y"} <= set(h[0])]
@@ -70,6 +104,7 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     unknown = [c for c in pnames if c not in PARTICLE_NAMES]
     if unknown:
         raise SceneError(f"{ppath}: line {pline}: {unknown[0]}: unknown column (known: {', '.join(sorted(PARTICLE_NAMES))})")
+    header_names = cnames
     if columns:
         cnames = columns_option(columns, len(cnames), str(cpath), " ".join(cnames))
     elif any(c not in CONTACT_NAMES for c in cnames):
@@ -102,19 +137,19 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     wall = ccol["id2"] < 0
     p = to_indices(ids, ccol["id1"], "id1", cline_of, what)
     q = np.where(wall, p, to_indices(ids, np.where(wall, ids[0], ccol["id2"]), "id2", cline_of, what))
+    lattice = table_cell([ppath, cpath], dim, cell)
+    branch = branch_vectors(x, p, q, lattice)[0]           # minimum image in a cell (wall rows: p = q, unused)
     normal = None
     if "nx" in ccol:
         normal = np.stack([ccol[f"n{a}"] for a in "xyz"[:dim]], axis=1)
     elif "fn" in ccol and dim == 2:
         with np.errstate(invalid="ignore", divide="ignore"):
-            branch = x[q] - x[p]
             normal = branch / np.linalg.norm(branch, axis=1)[:, None]
     force, how = contact_forces(str(cpath), ccol, dim, normal)
     if normal is not None:
         with np.errstate(invalid="ignore", divide="ignore"):
             normal = normal / np.linalg.norm(normal, axis=1)[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):     # f_r columns: R_eff f_r × n (wall rows: unused)
-        branch = x[q] - x[p]
         moment = contact_moments(ccol, dim, branch / np.linalg.norm(branch, axis=1)[:, None],
                                  radius[p] * radius[q] / (radius[p] + radius[q]))
     wall_load, walls = _walls(wall, p, force, len(ids), ccol["id2"])
@@ -128,8 +163,10 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     return Snapshot(source=f"{ppath} + {cpath}", format="table", dim=dim, ids=ids.astype(np.int64)
                     if np.all(ids == np.round(ids)) else ids, x=x, radius=radius, p=p, q=q, force=force,
                     normal=normal, moment=moment, mobilised=mobilised, wall_load=wall_load, law=law,
+                    lattice=lattice,
                     frame=None if which is None else float(which), frames=frames,
-                    notes={"duplicates": duplicates, "forces_from": how, "walls": walls},
+                    notes={"duplicates": duplicates, "forces_from": how, "walls": walls,
+                           "columns": column_note(cpath, header_names, cnames, bool(columns))},
                     particle_line=pline_of, contact_line=lambda c: cline_of(keep[c]))
 
 
@@ -198,4 +235,5 @@ def _one_row_per_pair(p, q, force, normal, moment, mobilised):
 
 
 register(Format("table", sniff=lambda paths: all(is_table(p) for p in paths), columns=True,
-                read=lambda paths, request, progress: read_tables(paths, request.frame, request.columns, progress)))
+                read=lambda paths, request, progress: read_tables(paths, request.frame, request.columns, progress,
+                                                                  request.cell)))

@@ -10,7 +10,8 @@ fz, delx, dely, delz, cx, cy, cz, ftx, fty, ftz, delta, or - to ignore), from ca
 input script's compute lines when the script is one of the inputs. The forces are those on id1 by id2
 (pair/local fx fy fz: the force on the first atom). pair/local also lists neighbour pairs that do not touch: they
 are dropped by overlap (R_1 + R_2 − d ≤ 0), not by force, and counted. Periodic boxes (pp) use minimum-image
-branch vectors (triclinic tilt: a sheared lattice). 2D when the script says `dimension 2`, or when every z is
+branch vectors (triclinic tilt: a sheared lattice); the scene is periodic (the box is its cell, each contact keeps
+its image) when every axis of the dimension is periodic (build.py). 2D when the script says `dimension 2`, or when every z is
 equal and fz = 0. The contact law comes from the script's pair_style/pair_coeff (granular hooke/hertz with
 linear_history or mindlin tangential, gran/hooke/history, gran/hertz/history) where it has one:
 Hookean k = k_n, α = k_t/k_n; Hertz k = dF/dδ = 1.5 k_n a with a = √(R_eff δ) (tangent stiffness at the
@@ -30,6 +31,7 @@ from ..model.errors import SceneError
 from .build import Snapshot, branch_vectors
 from .columns import (
     CONTACT_NAMES,
+    column_note,
     columns_option,
     contact_forces,
     contact_moments,
@@ -416,9 +418,12 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, pr
         moment=None if moment is None else moment[touching],
         frames=sorted(set(a_steps) & set(c_steps)),
         notes={"non_touching_pairs": dropped, "law_notes": notes, "dimension": dim, "forces_from": how,
+               **({} if lattice is None else {"periodic": {"kind": "LAMMPS " + (
+                   f"triclinic box (tilt xy xz yz {' '.join(f'{t:g}' for t in ablock.tilt)})"
+                   if np.any(ablock.tilt) else "orthogonal box")}}),
                "moments_from": "none" if moment is None else "mx my mz (m)" if "frx" not in col else
                "rolling resistance f_r (pair/local p5 p6 p7): m = R_eff f_r × n on id1",
-               "columns": dict(enumerate(names, 1))},
+               "columns": column_note(cpath, cblock.columns, names, bool(columns), script is not None)},
         particle_line=lambda i: f"{apath}: line {ablock.first_line + i}",
         contact_line=lambda c: f"{cpath}: line {cblock.first_line + rows[c]}")
 

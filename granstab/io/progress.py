@@ -1,5 +1,7 @@
-"""The reading bar: a tqdm bar over the bytes of the files a read takes in, then its stages (parse, build,
-checks). Every reader of granstab.io (scene files and snapshots) reports to one; tqdm is optional."""
+"""Progress: the reading bar, a tqdm bar over the bytes of the files a read takes in, then its stages (parse,
+build, checks), to which every reader of granstab.io reports (tqdm is optional); and, where stderr is not a
+terminal, the `Heartbeat`: a line a minute with the stage and the estimate, to which the branch loops report
+(solve/methods.py) as they do to their bars."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -42,3 +44,55 @@ class ReadProgress:
                 self.bar.reset(total=total)
             self.bar.set_description(f"{name} {self.label}")
             self.bar.refresh()
+
+
+HEARTBEAT_FIRST = 10.0    # seconds before a non-interactive run's first heartbeat line …
+HEARTBEAT_EVERY = 60.0    # … and between the next ones (module attributes: a test sets them small)
+
+
+class Heartbeat:
+    """Progress where no bar can be drawn (stderr not a terminal: logs, pipes, CI): after HEARTBEAT_FIRST seconds
+    and then every HEARTBEAT_EVERY, one line on `stream` with the stage, its count and the estimate. The same
+    interface as the bars (`stage`, `update`, `close`), so the work reports to either; stdout is never touched."""
+
+    def __init__(self, what: str, estimate: float | None = None, stream=None, enabled: bool = True):
+        import sys
+        self.what, self.estimate, self.enabled = what, estimate, enabled
+        self.stream = stream if stream is not None else sys.stderr
+        self.name, self.done, self.total = "starting", 0, None
+        self._stop = None
+
+    def __enter__(self):
+        import threading
+        import time
+        self._start = time.monotonic()
+        self._stop = threading.Event()
+        if self.enabled:
+            threading.Thread(target=self._beat, daemon=True, name="granstab-heartbeat").start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+
+    def _beat(self) -> None:
+        wait = HEARTBEAT_FIRST
+        while not self._stop.wait(wait):
+            self.stream.write(self.line() + "\n")
+            self.stream.flush()
+            wait = HEARTBEAT_EVERY
+
+    def line(self) -> str:
+        """'granstab: <what>: 70 s, branches, metric L/10 (37 of 128); estimated 46 s in all'."""
+        import time
+        count = f" ({self.done} of {self.total})" if self.total else ""
+        guess = f"; estimated {self.estimate:.3g} s in all" if self.estimate else ""
+        return f"granstab: {self.what}: {time.monotonic() - self._start:.0f} s, {self.name}{count}{guess}"
+
+    def stage(self, name: str, total: int | None = None) -> None:
+        self.name, self.done, self.total = name, 0, total
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+
+    def close(self) -> None:
+        """The end of a stage (the bars' close)."""

@@ -38,12 +38,13 @@ class Loaded:
 
 @dataclass(frozen=True)
 class Request:
-    """What a read is asked for beyond the paths: the frame (or timestep, or time), the --columns mapping and the
-    tolerances of the scene checks."""
+    """What a read is asked for beyond the paths: the frame (or timestep, or time), the --columns mapping, the
+    tolerances of the scene checks and the --cell of tables without one (text or numbers, file units)."""
 
     frame: object = None
     columns: str | None = None
     tol: Tolerances = DEFAULT
+    cell: object = None
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,21 @@ NAMES_SHOWN = 8
 LAW_DEFAULT = "built-in default (not in the file)"    # the source of a law parameter neither file nor user gave
 
 
+def percent(fraction: float) -> str:
+    """A fraction as a percentage with the digits it needs: two significant figures below 10 % (0.05 %, 1.2 %), one
+    decimal above; never a non-zero share shown as 0 % or a partial one as 100 %. The report's one way of writing
+    a share."""
+    value = 100 * fraction
+    if value == 0 or value == 100:
+        return f"{value:.0f} %"
+    digits = 2
+    while True:                       # more digits until the rounding neither hides it nor makes it whole
+        text = f"{value:.{digits}g}" if value < 10 else f"{value:.{max(digits - 1, 1)}f}"
+        if 0 < float(text) < 100 or digits > 16:
+            return f"{text} %"
+        digits += 1
+
+
 def _names(names: list) -> str:
     if not names:
         return ""
@@ -27,7 +42,7 @@ def import_warnings(report: dict) -> list[str]:
     cone, co, pa, fo = r["cone"], r["contacts"], r["particles"], r["forces"]["fn_nonpositive"]
     outside, ratio = cone["outside"], cone["largest_ratio_ft_over_mu_fn"]
     if outside["count"]:
-        out.append(f"{outside['count']} contact(s) outside the friction cone ({100 * outside['fraction']:.1f} %"
+        out.append(f"{outside['count']} contact(s) outside the friction cone ({percent(outside['fraction'])}"
                    + ("" if ratio is None else f", |f_t|/(μ f_n) up to {ratio:.4g}") + f"): {outside['action']}; "
                    f"forces changed by up to {cone['largest_change_over_force']:.3g} of their size"
                    f"{_names(outside['names'])}")
@@ -43,6 +58,13 @@ def import_warnings(report: dict) -> list[str]:
     if co["cut_around_periodic_cell"]:
         out.append(f"{co['cut_around_periodic_cell']} contact(s) closing a loop around the periodic cell cut: their "
                    f"forces act as loads on both particles{_names(r['periodic']['cut_names'])}")
+    extreme, geo = r["geometry"].get("extreme_overlaps"), r["geometry"]
+    if extreme and extreme["count"]:
+        out.append(f"{extreme['count']} contact(s) overlap by more than {extreme['threshold']:g} of the pair's mean "
+                   f"radius (2δ/(R_p+R_q) up to {geo['overlap_over_mean_radius']['max']:.3g}; d/(R_p+R_q) down to "
+                   f"{geo['distance_over_sum_of_radii']['min']:.3g}): a DEM keeps overlaps at a few per cent of a "
+                   "radius; check the radii (diameters?), the units and the frame, since the contact points and "
+                   f"curvatures follow from them{_names(extreme['names'])}")
     if r["geometry"]["rule"] == "centres" and r["geometry"]["gaps"]:
         out.append(f"{r['geometry']['gaps']} contact(s) with a gap (centre distance > R_p + R_q): the centres rule "
                    "puts their contact point in the gap (data whose radii do not match: --geometry touching)")
@@ -62,6 +84,41 @@ def import_warnings(report: dict) -> list[str]:
     return out
 
 
+def _periodic_line(pe: dict) -> str:
+    """The periodic cell and which treatment was used: seam contacts kept with their images, or cut."""
+    cell = "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in pe["lattice"]) + "]"
+    if pe["periodic"]:
+        return (f"periodic: {pe.get('kind', 'cell')} {cell}: periodic scene, {pe['seam_contacts']} seam contact(s) "
+                f"kept with their images{_names(pe['seam_names'])}; {pe['treatment']}")
+    return (f"periodic: {pe.get('kind', 'cell')} {cell}: {pe['contacts_cut']} contact(s) cut"
+            f"{_names(pe['cut_names'])}; {pe['treatment']}")
+
+
+def _states(co: dict) -> str:
+    """What the scene's contact states mean, in words: at the friction limit (state "sliding"), forced elastic by
+    the input (tension, or a force outside the cone kept with --outside-cone project/elastic), the rest inside."""
+    inside = co["in_scene"] - co["sliding"] - co["elastic"]
+    return (f"{co['sliding']} at the friction limit (sliding: both of their branches are examined), "
+            f"{co['elastic']} forced elastic by the input (tension, or outside the cone with --outside-cone "
+            f"project/elastic), {inside} inside the cone (sticking)")
+
+
+def _columns(r: dict) -> list[str]:
+    """Lines for how the contact table's columns were read and the pairs the file lists that do not touch."""
+    out = []
+    if r.get("columns"):
+        c = r["columns"]
+        out.append(f"columns of {c['file']} (from {c['from']}): "
+                   + ", ".join(f"{h} → {'ignored' if n == '-' else n}" for h, n in c["map"])
+                   + "".join(f"; {key.split('_')[0]} from {r[key]}" for key in ("forces_from", "moments_from")
+                             if r.get(key) not in (None, "none")))
+    apart = r.get("non_touching_pairs")
+    if apart:
+        out.append(f"non-touching pairs: {apart['count']} listed by the file and dropped, {apart['with_force']} of "
+                   f"them with a force; {apart['rule']}")
+    return out
+
+
 def format_report(report: dict) -> str:
     """The report as lines: a scene file's one line, a snapshot's every section, then its warnings."""
     r = report
@@ -77,7 +134,8 @@ def format_report(report: dict) -> str:
         f"particles: {pa['in_scene']} in the scene of {pa['in_file']} (outside region {pa['outside_region']}, "
         f"without contacts dropped {pa['without_contacts_dropped']})",
         f"contacts: {co['in_scene']} in the scene of {co['in_file']} (cut by region {co['cut_by_region']}, cut around "
-        f"the periodic cell {co['cut_around_periodic_cell']}); {co['sliding']} sliding, {co['elastic']} elastic",
+        f"the periodic cell {co['cut_around_periodic_cell']}); {_states(co)}",
+        *_columns(r),
         f"units: length {r['units']['length']}, force {r['units']['force']}",
         f"geometry: {geo['rule']}; d/(R_p+R_q) {geo['distance_over_sum_of_radii']['min']:.4g} … "
         f"{geo['distance_over_sum_of_radii']['max']:.4g}; gaps {geo['gaps']}; "
@@ -86,7 +144,7 @@ def format_report(report: dict) -> str:
                             f"({v['source']})" for k, v in law.items()),
         f"cone (all {co['in_file']} contacts of the frame): {cone['at_yield']} at yield (within {cone['yield_rtol']:g} of |f_t| = μ f_n, "
         f"{cone['at_yield_by_file_flag']} by the file's flag); {out['count']} outside "
-        f"({100 * out['fraction']:.1f} %): {out['action']}{_names(out['names'])}",
+        f"({percent(out['fraction'])}): {out['action']}{_names(out['names'])}",
         f"forces: {fo['convention']}; f_n <= 0: {fo['fn_nonpositive']['count']} "
         f"(treated as {fo['fn_nonpositive']['treated_as']}){_names(fo['fn_nonpositive']['names'])}",
         f"duplicates: {r['duplicates']}",
@@ -96,9 +154,7 @@ def format_report(report: dict) -> str:
         f" ({imb['scale']})",
     ]
     if r.get("periodic"):
-        pe = r["periodic"]
-        lines.append(f"periodic: {pe.get('kind', 'cell')}, {pe['contacts_cut']} contacts cut{_names(pe['cut_names'])}"
-                     f"; {pe['treatment']}")
+        lines.append(_periodic_line(r["periodic"]))
     for key in ("left_out",):
         if key in r:
             lines.append(f"left out: {r[key]}")

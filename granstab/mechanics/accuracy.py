@@ -45,11 +45,38 @@ def part_scales(mechanical, geometric, A: np.ndarray, S: np.ndarray) -> dict:
     return {"mechanical": abs_norm_inf(mechanical), "geometric": abs_norm_inf(geometric), "sliding": sliding}
 
 
-def formation_error(scales: dict, C: np.ndarray, Cplus: np.ndarray) -> float:
-    """Bound of ‖sym(𝓗^i) as formed - exact‖₂ (module docstring): (8ε + 2γ_n κ(C̃)) Σ scales."""
-    n = C.shape[0]
+def formation_error(scales: dict, C: np.ndarray, Cplus: np.ndarray, curvature: float = 0.0,
+                    centre: float = 0.0) -> float:
+    """Bound of ‖sym(𝓗^i) as formed - exact‖₂ (module docstring, docs/bounds.md): (8ε + 2γ_n κ(C̃) + `centre`, the
+    projection's error from the rounded centroid, `centre_error`) Σ scales, plus `curvature` (`curvature_error`),
+    the error carried in from rounding K^p + K^q."""
     kappa = float(np.linalg.norm(C) * np.linalg.norm(Cplus)) if C.size else 0.0
-    return (8 * EPS + 2 * gamma(n) * kappa) * sum(scales.values())
+    return (8 * EPS + 2 * gamma(C.shape[0]) * kappa + centre) * sum(scales.values()) + curvature
+
+
+def centre_error(C: np.ndarray, defect, weight=1.0):
+    """2‖ΔP‖ (P H P moves by 2‖ΔP‖‖H‖) for the rotations C (..., n, r) (unscaled by the projection) whose positions
+    about the centroid are off by at most `defect` (rigid.centred) each, in dofs that scale translations by at most
+    `weight` (1 in the L metrics, √m in the inertia metric): ‖ΔC‖_F <= √(n r) weight defect and
+    ‖ΔP‖₂ <= 2‖ΔC‖₂ / σ_min(C) (docs/bounds.md)."""
+    n, r = C.shape[-2:]
+    if r == 0:
+        return np.zeros(C.shape[:-2])[()]
+    smin = np.linalg.svd(C, compute_uv=False)[..., -1]
+    return 4.0 * np.sqrt(n * r) * np.asarray(weight) * np.asarray(defect) / smin
+
+
+def curvature_error(E, xp=np):
+    """‖E‖₂ <= √(‖E‖₁ ‖E‖∞) of the nonnegative entrywise error bound E (n, n) (sparse or dense) or (..., n, n) of the
+    stiffness from rounding K^p + K^q (stiffness.ContactBlocks.curvature_error, in the metric's dofs): a bound of
+    ‖ΔH̃‖₂ and so of ‖Δ sym(𝓗)‖₂ (P orthogonal). inf where a contact's pseudo-inverse is unresolved."""
+    if sp.issparse(E):
+        if not E.nnz:
+            return 0.0
+        return float(np.sqrt(abs(E).sum(axis=0).max() * abs(E).sum(axis=1).max()))
+    if E.shape[-1] == 0:
+        return xp.zeros(E.shape[:-2])[()]
+    return xp.sqrt(E.sum(axis=-1).max(axis=-1) * E.sum(axis=-2).max(axis=-1))
 
 
 def eigen_bounds(Hsym: np.ndarray, lam: np.ndarray, V: np.ndarray, formation: float):

@@ -184,7 +184,7 @@ def search_subspace(problem: Problem, mask: np.ndarray, W: np.ndarray):
     A = (problem.S.T @ W)[m != 0] * m[m != 0][:, None]               # rows m_j S_j(c)
     k = W.shape[1]
     if A.shape[0] == 0:
-        return _unit(W[:, 0]), BOTH, False
+        return canonical(_unit(W[:, 0])), BOTH, False
     res = linprog(np.r_[np.zeros(k), -1.0], A_ub=np.c_[-A, np.ones(len(A))], b_ub=np.zeros(len(A)),
                   bounds=[(-1, 1)] * k + [(None, 1)], method="highs")
     if res.status == 0 and -res.fun > problem.s_tol:
@@ -228,7 +228,7 @@ def _unit(v):
 
 
 def _finish(problem, mask, v):
-    v = _unit(v)
+    v = canonical(_unit(v))
     codes, hinges = test_codes(problem, mask[None], v[None, :, None])
     code = int(codes[0, 0])
     if code == INCONSISTENT:
@@ -237,12 +237,15 @@ def _finish(problem, mask, v):
 
 
 SIGN_TIE = 1e-6   # entries within this relative distance of a column's largest magnitude count as tied for it
+# (1e-6, not 1e-8: an eigenvector's entries move by ~ε‖H‖/gap between BLAS builds, far above ε when gaps are small)
 
 
 def column_signs(V, xp=np):
-    """±1 per eigenvector column of V (..., n, k): the sign that makes the first of its largest-magnitude entries
-    positive, entries within SIGN_TIE of the largest counted as tied. LAPACK's sign choice varies between builds
-    and BLAS thread counts, and so does which of two entries equal by symmetry comes out larger at round-off; the
+    """±1 per eigenvector column of V (..., n, k): THE sign rule of every reported vector (the dense, low-rank and
+    sparse paths, the eigenspace search's vectors, the paper's tables). The first entry, in dof order, whose
+    magnitude is within SIGN_TIE (relative) of the column's largest is made positive. LAPACK's sign choice varies
+    between builds, CPU kernels (OpenBLAS Haswell/SkylakeX) and BLAS thread counts, and so does which of two
+    entries equal by symmetry comes out larger at round-off (four_disk: 0.60150096 twice, 5.5e-16 apart); the
     reported vector_sign (±v consistent) must not."""
     mag = xp.abs(V)
     tied = mag >= (1 - SIGN_TIE) * mag.max(axis=-2, keepdims=True)
@@ -253,6 +256,11 @@ def column_signs(V, xp=np):
 def canonical_signs(V: np.ndarray) -> np.ndarray:
     """Eigenvectors (..., n, k) in the sign convention of `column_signs`."""
     return V * column_signs(V)
+
+
+def canonical(v: np.ndarray) -> np.ndarray:
+    """One vector (n,) in the sign convention of `column_signs`."""
+    return v * column_signs(v[:, None])[0, 0]
 
 
 def eigen_groups(lam: np.ndarray, tol) -> list[np.ndarray]:

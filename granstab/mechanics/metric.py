@@ -33,12 +33,13 @@ CHOICES = ("family", "L", "L/10", "10L", "inertia")
 @dataclass(frozen=True, eq=False)
 class Metric:
     """A projection metric: `name` ("L", "L/10", "10L", "L=<value>" or "inertia"), `rotation_length` (L, None for
-    inertia) and D per particle, `blocks` (N, per, per) symmetric positive definite, `centre` of the rotations."""
+    inertia) and D per particle, `blocks` (N, per, per) symmetric positive definite, and the `weights` (N,) of the
+    rotations' centre (rigid.centred; None: the centroid; masses: the centre of mass)."""
 
     name: str
     rotation_length: float | None
     blocks: np.ndarray
-    centre: np.ndarray
+    weights: np.ndarray | None = None
 
     @property
     def diagonal(self) -> np.ndarray | None:
@@ -95,11 +96,11 @@ class Metric:
         return out
 
     def rotations(self, scene: Scene) -> np.ndarray:
-        """C̃ = D⁻¹ C (n, r): rigid rotations about `centre` (eq:dtrigid) in the metric's dofs; (n, 0) for a periodic
+        """C̃ = D⁻¹ C (n, r): rigid rotations about the `weights` centre (eq:dtrigid) in the metric's dofs; (n, 0) for a periodic
         scene, whose only rigid motions are the d translations (a rotation does not carry the images along)."""
         if scene.periodic:
             return np.zeros((scene.n_dof, 0))
-        return self.scaled(rotation_columns(scene.x, 1.0, self.centre))
+        return self.scaled(rotation_columns(scene.x, 1.0, self.weights))
 
     def translations(self, scene: Scene) -> np.ndarray:
         """T̃ = D⁻¹ T (n, d): rigid translations in the metric's dofs."""
@@ -110,9 +111,8 @@ def length_metric(scene: Scene, length: float, name: str | None = None) -> Metri
     """D = diag(1, 1/L) on every particle; rotations about the centroid."""
     d, r, N = scene.dim, rot_dim(scene.dim), scene.n_particles
     per = np.diag(dof_scale(1, d, length))
-    centre = scene.x.mean(axis=0) if N else np.zeros(d)
     return Metric(name=name or f"L={length:.6g}", rotation_length=float(length),
-                  blocks=np.broadcast_to(per, (N, d + r, d + r)).copy(), centre=centre)
+                  blocks=np.broadcast_to(per, (N, d + r, d + r)).copy())
 
 
 def inertia_metric(scene: Scene) -> Metric:
@@ -127,8 +127,7 @@ def inertia_metric(scene: Scene) -> Metric:
     blocks = np.zeros((N, d + r, d + r))
     blocks[:, :d, :d] = np.eye(d) / np.sqrt(m)[:, None, None]
     blocks[:, d:, d:] = (Q / np.sqrt(w)[:, None, :]) @ np.swapaxes(Q, 1, 2)
-    centre = (m[:, None] * scene.x).sum(axis=0) / m.sum()
-    return Metric(name="inertia", rotation_length=None, blocks=blocks, centre=centre)
+    return Metric(name="inertia", rotation_length=None, blocks=blocks, weights=m)
 
 
 def has_masses(scene: Scene) -> bool:

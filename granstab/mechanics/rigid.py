@@ -12,11 +12,13 @@ is the paper's literal metric (all of the paper's examples have r = 1, so they a
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..model.scene import Scene, mean_contact_radius
+from ..model.tolerances import EPS
 from ..model.vec import rot_dim, rotate_matrix
 
 rotation_length = mean_contact_radius   # the default L of the scaled dofs [du, L dθ]
@@ -37,14 +39,43 @@ def translation_columns(n: int, d: int, lead: tuple = ()) -> np.ndarray:
     return T.reshape(*lead, n * (d + r), d)
 
 
-def rotation_columns(x: np.ndarray, length=1.0, centre=None) -> np.ndarray:
-    """C̃ (..., n_dof, r): rigid rotations of the particles at x (..., n, d) about `centre` (..., d) (default their
-    centroid; eq:dtrigid), dθ̄ × x^p and dθ̄, in scaled dofs [du, L dθ] with L = `length` (...) (1: physical dofs)."""
+def centred(x: np.ndarray, weights=None, defect: bool = False):
+    """x (..., n, d) about its centroid (weighted by `weights` (..., n), e.g. masses), to ε·(spread of x), not ε·|x|.
+
+    One pass, x - mean(x), is rounded to ε|x| through the mean: far from the origin (accepted up to 1e9 L) the
+    rotations about it are then not orthogonal to the translations, and a rigid motion leaks into the spectrum by
+    ε(|x|/L)‖Hg3‖ (issue 26). The second pass subtracts the mean of the (now small) differences, whose rounding is
+    relative to the spread. defect=True also returns a bound (...,) of max_p |centred_p - (x_p - c)| for the exact
+    centroid c (docs/bounds.md): the common offset, |Σ w_p centred_p| / Σ w summed exactly (math.fsum), plus each
+    position's own rounding, u(2 max|centred| + |second mean|) twice."""
+    def mean(y):
+        if weights is None:
+            return y.mean(axis=-2, keepdims=True)
+        w = np.asarray(weights, float)
+        return np.sum(w[..., :, None] * y, axis=-2, keepdims=True) / np.sum(w, axis=-1)[..., None, None]
+
+    rel = x - mean(x)
+    second = mean(rel)
+    out = rel - second
+    if not defect:
+        return out
+    u = EPS / 2
+    own = u * (2 * np.abs(out).max(axis=(-2, -1)) + np.abs(second).max(axis=(-2, -1)))
+    w = np.ones(x.shape[:-1]) if weights is None else np.broadcast_to(np.asarray(weights, float), x.shape[:-1])
+    flat_w, flat = w.reshape(-1, x.shape[-2]), out.reshape(-1, *x.shape[-2:])
+    offset = np.array([max(abs(math.fsum(wi * yi[:, k])) for k in range(x.shape[-1])) / wi.sum() * (1 + 4 * EPS)
+                       + u * np.abs(yi).max(initial=0.0) for wi, yi in zip(flat_w, flat)]).reshape(x.shape[:-2])
+    return out, offset + 2 * own
+
+
+def rotation_columns(x: np.ndarray, length=1.0, weights=None) -> np.ndarray:
+    """C̃ (..., n_dof, r): rigid rotations of the particles at x (..., n, d) about their centroid (weighted by
+    `weights` (..., n): the centre of mass; eq:dtrigid, `centred`), dθ̄ × x^p and dθ̄, in scaled dofs [du, L dθ] with
+    L = `length` (...) (1: physical dofs)."""
     *lead, n, d = x.shape
     r = rot_dim(d)
-    centre = x.mean(axis=-2, keepdims=True) if centre is None else np.asarray(centre)[..., None, :]
     C = np.zeros((*lead, n, d + r, r))
-    C[..., :d, :] = rotate_matrix((x - centre).reshape(-1, d)).reshape(*lead, n, d, r)
+    C[..., :d, :] = rotate_matrix(centred(x, weights).reshape(-1, d)).reshape(*lead, n, d, r)
     C[..., d:, :] = np.asarray(length, float)[..., None, None, None] * np.eye(r)
     return C.reshape(*lead, n * (d + r), r)
 
@@ -77,6 +108,22 @@ def untouched_dofs(H, *factors: np.ndarray, scale: float, dofs: np.ndarray | Non
         rows = np.maximum(rows, np.abs(F).max(axis=1, initial=0.0))
     quiet = rows <= tiny
     return np.flatnonzero(quiet if dofs is None else quiet & dofs)
+
+
+def free_spins(scene, H, *factors: np.ndarray, scale: float) -> np.ndarray:
+    """The free spins of a periodic scene (`untouched_dofs` among the rotation dofs of particles that have contacts:
+    frictionless round particles turning in place), set aside with the rigid motions; none in a free cluster.
+    In a periodic scene the rigid motions are the d translations, to which the spins are orthogonal, so the spins are
+    exact zero modes of sym(𝓗) and setting them aside moves no other eigenvalue. In a free cluster the rigid
+    rotations have spin parts and Hg3 (the loads) does not vanish on them: holding the spins too would also hold the
+    orbital rotation and move the other eigenvalues (tests/test_metric.py, the pair potential's dynamical matrix),
+    so there they stay in the spectrum as zeros. A particle without contacts is a rattler: all its dofs stay."""
+    if not scene.periodic:
+        return np.zeros(0, dtype=np.intp)
+    touching = np.zeros(scene.n_particles, bool)
+    touching[np.r_[scene.p, scene.q]] = True
+    dofs = rotation_dofs(scene.n_particles, scene.dim) & np.repeat(touching, scene.dof_per_particle)
+    return untouched_dofs(H, *factors, scale=scale, dofs=dofs)
 
 
 def rotation_dofs(n_particles: int, dim: int) -> np.ndarray:
@@ -113,7 +160,8 @@ def on_complement(N: np.ndarray, H: np.ndarray, *factors: np.ndarray) -> tuple:
 
 @dataclass(frozen=True, eq=False)
 class Projection:
-    """P^nrr = I - C C⁺ as a low-rank operator (eq:Pnrr, eq:Prr); C (n, r), C⁺ (r, n)."""
+    """P^nrr = I - C C⁺ as a low-rank operator (eq:Pnrr, eq:Prr); C (n, r) the rotations, each column scaled by a
+    power of two (`from_rotations`), C⁺ (r, n)."""
 
     C: np.ndarray
     Cplus: np.ndarray
@@ -121,7 +169,12 @@ class Projection:
     @classmethod
     def from_rotations(cls, C: np.ndarray) -> Projection:
         """P^nrr of the rotations C (..., n, r) (a stack of clusters too); r = 0 (a cluster held by fixed particles):
-        the identity."""
+        the identity. Each column is first scaled by a power of two to a largest entry in [1, 2): exact, P = C C⁺ is
+        unchanged, and CᵀC can neither underflow nor overflow (a cluster at 1e-78 L in the inertia metric has
+        entries ~1e-156: CᵀC was subnormal and C⁺ infinite)."""
+        if C.shape[-1]:
+            top = np.abs(C).max(axis=-2, keepdims=True)
+            C = C * np.ldexp(1.0, -np.frexp(np.where(top > 0, top, 1.0))[1] + 1)
         Ct = np.swapaxes(C, -1, -2)
         return cls(C=C, Cplus=np.linalg.solve(Ct @ C, Ct) if C.shape[-1] else Ct.copy())
 

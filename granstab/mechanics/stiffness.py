@@ -27,6 +27,7 @@ import numpy as np
 
 from ..model.law import elastic_stiffness, sliding_direction, yield_normal
 from ..model.scene import Scene
+from ..model.tolerances import EPS
 from ..model.vec import (
     cross,
     cross_matrix,
@@ -46,7 +47,9 @@ class ContactBlocks:
     blocks[name]: (M, n, n) for name in Hg1, Hg2, Hg3, Hm (Hm elastic);
     slide_left a, slide_right s: (M, n) — a sliding contact adds a ⊗ s to Hm, and S = s·U (eq:flow);
     index: (M, n) global dof numbers; rolling_undetermined: (M,) bool, contacts whose K^p+K^q is singular on the
-    tangent plane (flat-on-flat or exact hand-in-glove) while carrying force: their rolling is not determined.
+    tangent plane (flat-on-flat or exact hand-in-glove) while carrying force: their rolling is not determined;
+    curvature_error: (M, n, n) entrywise bound of the error of the blocks from rounding K^p + K^q (inf where
+    unresolved; docs/bounds.md), None where not computed.
     """
 
     blocks: dict
@@ -55,6 +58,7 @@ class ContactBlocks:
     index: np.ndarray
     n_dof: int
     rolling_undetermined: np.ndarray
+    curvature_error: np.ndarray | None = None
 
 
 def geometric(parts: dict):
@@ -70,6 +74,14 @@ def assemble_parts(scene: Scene, blocks: ContactBlocks, hm: np.ndarray | None = 
              for name, b in blocks.blocks.items()}
     parts["H"] = (geometric(parts) + parts["Hm"]).tocsr()
     return parts
+
+
+def assembled_error(scene: Scene, error: np.ndarray | None):
+    """The contacts' entrywise error bounds (M, n, n) summed into CSR over the scene's dofs; None where a contact's
+    is infinite (its pseudo-inverse unresolved: stiffness._inverse_error)."""
+    if error is None or not np.all(np.isfinite(error)):
+        return None
+    return assemble(error, scene.p, scene.q, scene.dof_per_particle, scene.n_dof)
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,39 +135,83 @@ def relative_motion(r_pq: np.ndarray, r_qp: np.ndarray):
 
 
 def tangent_plane(scene: Scene):
-    """The contacts' tangent bases T (M, d, d-1), the curvatures K^p, K^q projected on the tangent plane and
-    symmetrised (M, d-1, d-1), and their scale max(|K^p|, |K^q|) (M,), the largest |eigenvalue| of either."""
+    """The contacts' tangent bases T (M, d, d-1), the curvature sum K^p + K^q added in the input frame and then
+    projected on the tangent plane and symmetrised (M, d-1, d-1), and the scale max(|K^p|, |K^q|) (M,), the largest
+    |eigenvalue| of either on the tangent plane.
+
+    The sum is formed before the projection: near a conforming contact (K^p + K^q ≈ 0) the input-frame sum is exact
+    or rounded relative to the sum itself (Sterbenz), whereas projecting first rounds each term to ε|K| and leaves
+    an absolute error ε|K| on a sum of size η: a relative error ε|K|/η in (K^p + K^q)^+ (docs/bounds.md)."""
     T = tangent_basis(scene.normal)
     Tt = np.swapaxes(T, 1, 2)
+    ks = Tt @ (scene.curvature_p + scene.curvature_q) @ T
+    ks = 0.5 * (ks + np.swapaxes(ks, 1, 2))
     kp = Tt @ scene.curvature_p @ T
     kq = Tt @ scene.curvature_q @ T
-    kp = 0.5 * (kp + np.swapaxes(kp, 1, 2))
-    kq = 0.5 * (kq + np.swapaxes(kq, 1, 2))
-    scale = np.maximum(np.abs(np.linalg.eigvalsh(kp)).max(axis=1), np.abs(np.linalg.eigvalsh(kq)).max(axis=1))
-    return T, kp, kq, scale
+    scale = np.maximum(np.abs(np.linalg.eigvalsh(0.5 * (kp + np.swapaxes(kp, 1, 2)))).max(axis=1),
+                       np.abs(np.linalg.eigvalsh(0.5 * (kq + np.swapaxes(kq, 1, 2)))).max(axis=1))
+    return T, ks, scale
+
+
+def curvature_sum_error(scene: Scene) -> np.ndarray:
+    """A bound (M,) of ‖(T^T (K^p + K^q) T) as computed − exact‖₂ on the tangent plane (docs/bounds.md): the
+    input-frame sum is rounded entrywise (u |K^p + K^q|), the projection and the computed basis T (orthonormal and
+    normal to n within a few ε) add at most 30ε‖K^p + K^q‖_F; in 2D the tensors κ t⊗t were themselves formed from
+    the scalars κ by the readers (io/schema.py, io/build.py), which rounds each entry to u|κ|: 4ε(|κp| + |κq|)
+    where the normal is oblique (the scalars are not kept, so their sum is bounded, not recovered)."""
+    Ks = scene.curvature_p + scene.curvature_q
+    out = 32 * EPS * np.linalg.norm(Ks, axis=(1, 2))
+    if scene.dim == 2:                # κ t⊗t is exact where t is along an axis (its products are 0 and ±κ)
+        oblique = np.all(scene.normal != 0, axis=1)
+        out = out + 4 * EPS * oblique * (np.linalg.norm(scene.curvature_p, axis=(1, 2))
+                                         + np.linalg.norm(scene.curvature_q, axis=(1, 2)))
+    return out
 
 
 def tangent_curvatures(scene: Scene):
     """Tangent-plane curvatures K^p, K^q (M, d, d) and the pseudo-inverse G = (K^p+K^q)^+ on the tangent plane.
 
     The cut-off is scale-aware: eigenvalues of K^p+K^q below pinv_rtol·max(|K^p|, |K^q|) are dropped (Table 1,
-    erratum 4, docs/errata.md). Returns (Kp, Kq, G, cut) with cut (M,) True where an eigenvalue was dropped.
+    erratum 4, docs/errata.md). Returns (Kp, Kq, G, cut, error) with cut (M,) True where an eigenvalue was dropped
+    and error (M,) a bound of ‖G − G_exact‖₂ (inf where the cut-off decision itself is not resolved; bounds.md).
     """
-    T, kp, kq, scale = tangent_plane(scene)
-    Tt = np.swapaxes(T, 1, 2)
-    lam, V = np.linalg.eigh(kp + kq)                                  # (M, d-1)
-    keep = np.abs(lam) > scene.tol.pinv_rtol * scale[:, None]
+    T, ks, scale = tangent_plane(scene)
+    lam, V = np.linalg.eigh(ks)                                       # (M, d-1)
+    cutoff = scene.tol.pinv_rtol * scale[:, None]
+    keep = np.abs(lam) > cutoff
     inv = np.divide(1.0, lam, out=np.zeros_like(lam), where=keep)
     TV = T @ V
     G = (TV * inv[:, None, :]) @ np.swapaxes(TV, 1, 2)
-    return T @ kp @ Tt, T @ kq @ Tt, G, ~keep.all(axis=1)
+    return (_tangent(scene.curvature_p, T), _tangent(scene.curvature_q, T), G, ~keep.all(axis=1),
+            _inverse_error(scene, lam, keep, cutoff))
+
+
+def _tangent(K: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """T sym(Tᵀ K T) Tᵀ: K restricted to the tangent plane, symmetrised, in the global frame (M, d, d)."""
+    Tt = np.swapaxes(T, 1, 2)
+    k = Tt @ K @ T
+    return T @ (0.5 * (k + np.swapaxes(k, 1, 2))) @ Tt
+
+
+def _inverse_error(scene: Scene, lam: np.ndarray, keep: np.ndarray, cutoff: np.ndarray) -> np.ndarray:
+    """‖Γ − Γ̂‖₂ (M,) for Γ̂ = (K^p + K^q)^+ on the tangent plane from the computed eigenvalues `lam` (M, d-1):
+    with δ the error of the projected sum (`curvature_sum_error`) plus the 2×2 eigensolver's 8ε‖Ŝ‖, perturbation of
+    an inverse gives ‖Γ̂‖²δ / (1 − ‖Γ̂‖δ), plus 4ε‖Γ̂‖ for forming Γ̂; inf where δ reaches half a kept eigenvalue
+    or an eigenvalue is within δ of the cut-off (the exact data might be cut where the computed are not)."""
+    mag = np.abs(lam)
+    delta = curvature_sum_error(scene) + 8 * EPS * mag.max(axis=1, initial=0.0)
+    g = np.divide(1.0, mag, out=np.zeros_like(mag), where=keep).max(axis=1, initial=0.0)
+    gd = g * delta
+    err = g * gd / np.maximum(1.0 - gd, 1e-300) + 4 * EPS * g
+    unresolved = (gd >= 0.5) | np.any(np.abs(mag - cutoff) <= delta[:, None], axis=1) & (delta > 0)
+    return np.where(unresolved, np.inf, err)
 
 
 def conforming_ratio(scene: Scene) -> np.ndarray:
     """Per contact: smallest |eigenvalue| of K^p + K^q on the tangent plane over max(|K^p|, |K^q|) (0 when both are
     zero: flat-on-flat)."""
-    _, kp, kq, scale = tangent_plane(scene)
-    lam = np.abs(np.linalg.eigvalsh(kp + kq)).min(axis=1)
+    _, ks, scale = tangent_plane(scene)
+    lam = np.abs(np.linalg.eigvalsh(ks)).min(axis=1)
     return np.divide(lam, scale, out=np.zeros_like(lam), where=scale > 0)
 
 
@@ -192,40 +248,73 @@ def _statics(r_side: np.ndarray, df: np.ndarray, dm) -> np.ndarray:
     return -np.concatenate([df, moment], axis=1)
 
 
+def _rolling_geometric(scene: Scene, G: np.ndarray, kin: dict, affine: bool = True):
+    """Hg1 and Hg2 blocks (M, n, n) for the pseudo-inverse G (M, d, d) of eq:rolling: linear in G, plus (affine) the
+    terms without it (½(δu_def·n)n in δr, the twirl of eq:A3). `kin`: the per-contact maps of `contact_blocks`."""
+    d, r, M = scene.dim, rot_dim(scene.dim), scene.n_contacts
+    n_loc = 2 * (d + r)
+    Bu, nn, twist, du_t, Kp, Kq, Cf = (kin[k] for k in ("Bu", "nn", "twist", "du_t", "Kp", "Kq", "Cf"))
+    st_pq = -G @ (twist - Kq @ du_t)
+    st_qp = -G @ (twist + Kp @ du_t)
+    dr_pq = 0.5 * (nn @ Bu) + st_pq if affine else st_pq
+    dr_qp = -0.5 * (nn @ Bu) + st_qp if affine else st_qp
+    dn_pq = -Kp @ st_pq
+    dn_qp = -Kq @ st_qp
+    df_pq, df_qp = Cf @ dn_pq, Cf @ dn_qp
+    dm_pq = dm_qp = None
+    if d == 3:
+        if affine:
+            twirl = scene.normal[:, None, :] @ kin["Bt"]                 # (M, 1, n): δθ_def·n
+            df_twirl = -0.5 * cross(scene.force, scene.normal)[:, :, None] * twirl
+            df_pq, df_qp = df_pq + df_twirl, df_qp + df_twirl
+        if scene.has_moments:
+            m, nrm = scene.moment, scene.normal
+            Cm = np.sum(m * nrm, axis=1)[:, None, None] * np.eye(3) - nrm[:, :, None] * m[:, None, :]
+            dm_pq, dm_qp = Cm @ dn_pq, Cm @ dn_qp
+            if affine:
+                dm_twirl = -0.5 * cross(m, nrm)[:, :, None] * (nrm[:, None, :] @ kin["Bt"])
+                dm_pq, dm_qp = dm_pq + dm_twirl, dm_qp + dm_twirl
+    Hg2 = np.concatenate([_statics(scene.r_pq, df_pq, dm_pq), _statics(scene.r_qp, df_qp, dm_qp)], axis=1)
+    Xf = cross_matrix(scene.force)
+    Hg1 = np.zeros((M, n_loc, n_loc))
+    Hg1[:, d:d + r] = Xf @ dr_pq
+    Hg1[:, 2 * d + r:] = -Xf @ dr_qp
+    return Hg1, Hg2
+
+
+def _rolling_error(scene: Scene, T: np.ndarray, kin: dict, error: np.ndarray) -> np.ndarray:
+    """Entrywise bound (M, n, n) of |ΔHg1 + ΔHg2| from the error ‖ΔΓ‖₂ <= error (M,) of (K^p + K^q)^+ on the
+    tangent plane: ΔΓ = Σ_b c_b E_b over the symmetric basis E_b with |c_b| <= ‖ΔΓ‖₂, and Hg1 + Hg2 is affine in G,
+    so |ΔH| <= ‖ΔΓ‖₂ Σ_b |Lin(T E_b Tᵀ)| (docs/bounds.md)."""
+    k = T.shape[2]
+    Tt = np.swapaxes(T, 1, 2)
+    total = 0.0
+    for i in range(k):
+        for j in range(i, k):
+            E = np.zeros((k, k))
+            E[i, j] = E[j, i] = 1.0
+            h1, h2 = _rolling_geometric(scene, T @ E @ Tt, kin, affine=False)
+            total = total + np.abs(h1 + h2)
+    finite = np.isfinite(error)[:, None, None]
+    return np.where(finite, np.where(finite, error[:, None, None], 0.0) * total, np.where(total > 0, np.inf, 0.0))
+
+
 def contact_blocks(scene: Scene) -> ContactBlocks:
     """The (M, n, n) blocks of Hg1, Hg2, Hg3 and elastic Hm for all contacts, and the sliding rank-one factors."""
     d, r, M = scene.dim, rot_dim(scene.dim), scene.n_contacts
     n_loc = 2 * (d + r)
     nrm, f = scene.normal, scene.force
     Bu, Bt = kinematics(scene)
-    Kp, Kq, G, cut = tangent_curvatures(scene)
+    Kp, Kq, G, cut, g_error = tangent_curvatures(scene)
     nn = nrm[:, :, None] * nrm[:, None, :]
     Pt = np.eye(d) - nn
 
-    # rolling (eq:rolling), contact-point and normal increments (eq:Drpq, eq:dsn, eq:Dnpq)
-    twist = rotate_matrix(nrm) @ Bt                                   # δθ_def × n
-    du_t = Pt @ Bu
-    st_pq = -G @ (twist - Kq @ du_t)
-    st_qp = -G @ (twist + Kp @ du_t)
-    dr_pq = 0.5 * (nn @ Bu) + st_pq
-    dr_qp = -0.5 * (nn @ Bu) + st_qp
-    dn_pq = -Kp @ st_pq
-    dn_qp = -Kq @ st_qp
-
-    # force rotation with the contact frame (eq:Dfpq, eq:Dmpq, eq:A3 with erratum 1): f × (δn × n) = Cf·δn
-    Cf = np.sum(f * nrm, axis=1)[:, None, None] * np.eye(d) - nrm[:, :, None] * f[:, None, :]
-    df_pq, df_qp = Cf @ dn_pq, Cf @ dn_qp
-    dm_pq = dm_qp = None
-    if d == 3:
-        twirl = nrm[:, None, :] @ Bt                                  # (M, 1, n): δθ_def·n
-        df_twirl = -0.5 * cross(f, nrm)[:, :, None] * twirl
-        df_pq, df_qp = df_pq + df_twirl, df_qp + df_twirl
-        if scene.has_moments:
-            m = scene.moment
-            Cm = np.sum(m * nrm, axis=1)[:, None, None] * np.eye(3) - nrm[:, :, None] * m[:, None, :]
-            dm_twirl = -0.5 * cross(m, nrm)[:, :, None] * twirl
-            dm_pq, dm_qp = Cm @ dn_pq + dm_twirl, Cm @ dn_qp + dm_twirl
-    Hg2 = np.concatenate([_statics(scene.r_pq, df_pq, dm_pq), _statics(scene.r_qp, df_qp, dm_qp)], axis=1)
+    # rolling (eq:rolling), contact-point and normal increments (eq:Drpq, eq:dsn, eq:Dnpq), force rotation with the
+    # contact frame (eq:Dfpq, eq:Dmpq, eq:A3 with erratum 1): f × (δn × n) = Cf·δn; Hg1 from -δr × f (eq:Hg1)
+    kin = {"Bu": Bu, "Bt": Bt, "nn": nn, "twist": rotate_matrix(nrm) @ Bt, "du_t": Pt @ Bu, "Kp": Kp, "Kq": Kq,
+           "Cf": np.sum(f * nrm, axis=1)[:, None, None] * np.eye(d) - nrm[:, :, None] * f[:, None, :]}
+    Hg1, Hg2 = _rolling_geometric(scene, G, kin)
+    rolling_error = _rolling_error(scene, tangent_basis(nrm), kin, g_error)
 
     # mechanical stiffness, elastic branch (eq:Hm, eq:ContactF)
     F = elastic_stiffness(nrm, scene.k, scene.alpha, scene.mu)
@@ -233,12 +322,6 @@ def contact_blocks(scene: Scene) -> ContactBlocks:
     dmm = scene.rolling @ Bt if scene.has_rolling else None
     Hm = np.concatenate([_statics(scene.r_pq, dfm, dmm),
                          _statics(scene.r_qp, -dfm, None if dmm is None else -dmm)], axis=1)
-
-    # first geometric stiffness: -δr^pq × f^pq on p and -δr^qp × f^qp on q (eq:Hg1)
-    Xf = cross_matrix(f)
-    Hg1 = np.zeros((M, n_loc, n_loc))
-    Hg1[:, d:d + r] = Xf @ dr_pq
-    Hg1[:, 2 * d + r:] = -Xf @ dr_qp
 
     # third geometric stiffness: dθ^p × b^p, dθ^p × w^p per contact (eq:Hg3)
     Hg3 = np.zeros((M, n_loc, n_loc))
@@ -260,7 +343,8 @@ def contact_blocks(scene: Scene) -> ContactBlocks:
     index = dof_index(scene.p, scene.q, d + r)
     undetermined = cut & (np.linalg.norm(f, axis=1) > 0)
     return ContactBlocks(blocks={"Hg1": Hg1, "Hg2": Hg2, "Hg3": Hg3, "Hm": Hm}, slide_left=a, slide_right=s,
-                         index=index, n_dof=scene.n_dof, rolling_undetermined=undetermined)
+                         index=index, n_dof=scene.n_dof, rolling_undetermined=undetermined,
+                         curvature_error=rolling_error)
 
 
 class MaskError(ValueError):

@@ -59,7 +59,9 @@ class Verdict:
     zero_margin: float | None
     suggest_k: int | None = None
     metrics: tuple[MetricVerdict, ...] = ()
-    metric_robust: bool | None = None
+    metric_robust: bool | str | None = None
+    counts_robust: bool | None = None
+    metric_flips: tuple = ()
     branches: str = "all"
     branches_kept: int | None = None
     free_spins: int = 0
@@ -83,7 +85,50 @@ class Verdict:
         if self.suggest_k is not None:
             out["suggest_k"] = self.suggest_k
         return {**out, "metrics": [e.to_dict() for e in self.metrics], "metric_robust": self.metric_robust,
+                "counts_robust": self.counts_robust, "metric_flips": list(self.metric_flips),
                 "branches": self.branches, "branches_kept": self.branches_kept, "free_spins": self.free_spins}
+
+
+@dataclass(frozen=True)
+class ModeWork:
+    """One consistent negative eigenpair's second-order work split by part (attribution.PARTS; they sum to
+    `eigenvalue`, the eigenvector unit in the verdict's metric) and its share on the rim (attribution.rim_share)."""
+
+    branch: int
+    index: int
+    eigenvalue: float
+    work_parts: tuple[float, ...]
+    rim_share: float
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), "work_parts": list(self.work_parts)}
+
+
+@dataclass(frozen=True)
+class Attribution:
+    """Why an unstable cluster is unstable (issue 25, attribution.py): its `mechanism` label, the work parts and rim
+    share of its lowest consistent negative mode, the verdicts of the two controls (every contact elastic; the rim
+    held fixed) and every consistent negative mode's parts (`modes`)."""
+
+    mechanism: str
+    work_parts: tuple[float, ...]
+    rim_share: float
+    elastic_control: str
+    fixed_control: str
+    modes: tuple[ModeWork, ...]
+
+    def to_dict(self) -> dict:
+        from .attribution import PARTS
+        return {"mechanism": self.mechanism, "work_parts": dict(zip(PARTS, self.work_parts)),
+                "rim_share": self.rim_share, "elastic_control": self.elastic_control,
+                "fixed_control": self.fixed_control, "modes": [m.to_dict() for m in self.modes]}
+
+    def line(self) -> str:
+        """One line for a verdict panel or a report."""
+        from .attribution import PARTS
+        parts = ", ".join(f"{n} {v:+.2e}" for n, v in zip(PARTS, self.work_parts))
+        return (f"mechanism: {self.mechanism} — work of the lowest negative mode: {parts}; rim share "
+                f"{self.rim_share:.0%}; all elastic: {self.elastic_control}, rim held: {self.fixed_control}")
 
 
 def summarize(branches, notes: dict | None = None) -> Verdict:
@@ -232,24 +277,36 @@ def family_entry(metric, verdict: Verdict) -> MetricVerdict:
                          consistent_negative=verdict.consistent_negative)
 
 
-def finalize(verdict: Verdict, errors: dict, n_undetermined: int, entries: list | None) -> Verdict:
+def finalize(verdict: Verdict, errors: dict, n_undetermined: int, entries: list | None, robustness=None,
+             masses: bool = False) -> Verdict:
     """The verdict's last word on sufficiency: non-finite error estimates, undetermined rolling (flag_undetermined)
-    and, over the metric family `entries` (MetricVerdict), whether verdict and counts are metric-robust."""
+    and, over the metric family `entries` (MetricVerdict), `counts_robust` (every metric's verdict and counts equal)
+    and `metric_robust`, the proven answer of robustness.metric_robustness (True, False or "undetermined"; without
+    it False where two metrics prove different verdicts, else "undetermined")."""
     if not all(np.isfinite(v) for v in errors.values()) and "non_finite" not in verdict.insufficient_because:
         verdict = verdict.weaker(("non_finite",))
     verdict = flag_undetermined(verdict, n_undetermined)
     if entries is not None:
         key = ("verdict", "consistent_positive", "consistent_negative")
-        robust = all(tuple(getattr(e, k) for k in key) == tuple(getattr(entries[0], k) for k in key)
+        counts = all(tuple(getattr(e, k) for k in key) == tuple(getattr(entries[0], k) for k in key)
                      for e in entries)
+        proven = {e.verdict for e in entries if e.sufficient}
+        robust = robustness.robust if robustness is not None else False if len(proven) > 1 else "undetermined"
+        flips = robustness.flips if robustness is not None else ()
         # a contradiction: another metric PROVES a different verdict (one that only leaves the sign unresolved,
         # e.g. an eigenvalue scaled below its accuracy bound, is listed but contradicts nothing)
-        contradicted = any(e.verdict != verdict.verdict and e.sufficient for e in entries)
+        contradicted = any(e.verdict != verdict.verdict and e.sufficient for e in entries) or bool(flips)
         depends = len({e.verdict for e in entries}) > 1
-        verdict = verdict.weaker(("metric_dependent",) if contradicted else (),
-                                 "; the verdict depends on the projection metric: "
-                                 + ", ".join(f"{e.metric} {e.verdict}" for e in entries) if depends else "",
-                                 metrics=tuple(entries), metric_robust=robust)
+        reason = ("; the verdict depends on the projection metric: "
+                  + ", ".join(f"{e.metric} {e.verdict}" for e in entries) if depends else "")
+        if flips:
+            reason += ("; proven to change with the rotation length at L = "
+                       + ", ".join(f"{v:.4g}" for v in flips))
+        if robust is not True:
+            reason += ("; the inertia metric (kinetic energy) is the physical answer" if masses else
+                       "; give masses for the physical answer (the inertia metric)")
+        verdict = verdict.weaker(("metric_dependent",) if contradicted else (), reason, metrics=tuple(entries),
+                                 metric_robust=robust, counts_robust=counts, metric_flips=tuple(flips))
     if "non_finite" in verdict.insufficient_because:
         verdict = verdict.weaker(reason="; NOT DETERMINED: some computed numbers are not finite (overflow)")
     return verdict

@@ -1,9 +1,11 @@
 """Structural reading of scene files: one-line `SceneError`s naming file, entry and field, and the value checks
 (types, shapes, finite, within MAX_MAGNITUDE) shared by the table-at-a-time `Reader` (top level, defaults, shape
-entries) and the column-wise readers of io/entries.py. Imports no other room but model.
+entries) and the column-wise readers of io/entries.py; and the other one-line conditions every room may raise (a
+missing optional dependency, an interruption). Imports no other room but model.
 """
 from __future__ import annotations
 
+import importlib
 import json
 import math
 
@@ -14,6 +16,24 @@ from .tolerances import MAX_MAGNITUDE
 
 class SceneError(ValueError):
     """Invalid scene input; the message is the one line the CLI prints."""
+
+
+class MissingExtra(ImportError):
+    """An optional dependency that is not installed; the message names the extra to install (one line)."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C; the message says what was kept and how to resume (the one line the CLI prints)."""
+
+
+def require(module: str, extra: str, purpose: str):
+    """`module` imported, or MissingExtra naming the extra that brings it (before any work or output starts)."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise MissingExtra(f"granstab: {module.split('.')[0]} is needed for {purpose} and is not installed: "
+                           f"pip install \"granstab[{extra}]\" (in a checkout: pip install -e \".[{extra}]\")") \
+            from None
 
 
 def one_line(text) -> str:

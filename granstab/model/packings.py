@@ -19,7 +19,10 @@ compressive forces inside the friction cone, loads from equilibrium (eq:equil1, 
   fraction phi, relaxed to force balance at round-off (L-BFGS, then Newton), rattlers removed; its contacts carry
   images across the cell (model/periodic.py). Test fixtures and examples of periodic scenes.
 
-`lattice` and `random_packing` accept `f_over_k` (normal force / (k r)), `mobilised` (|f_t| / μ f_n, in [0, 1)), `n_sliding` (that many
+`chain(dim, n)`: a straight or zig-zag chain of disks/spheres under compression, floppy (many clustered
+near-zero eigenvalues) and banded.
+
+`lattice`, `random_packing` and `chain` accept `f_over_k` (normal force / (k r)), `mobilised` (|f_t| / μ f_n, in [0, 1)), `n_sliding` (that many
 contacts put exactly at yield: 2^n_sliding loading branches), `moments` (contact moments as a fraction of
 f r; 0 = none), `rolling` (rolling stiffness / (k r²)), `seed`.
 """
@@ -153,6 +156,26 @@ def random_packing(dim: int = 2, n_particles: int = 1000, *, radius: float = 1.0
     return _scene(dim, x, arrays, title, tol)
 
 
+def chain(dim: int = 2, n_particles: int = 3000, *, zigzag: float = 0.0, radius: float = 1.0,
+          f_over_k: float = 1e-3, curvature_ratio: float = 1.0, mu: float = 0.5, k: float = 1.0,
+          alpha: float = 1.0, seed: int = 0, tol: Tolerances = DEFAULT) -> Scene:
+    """A chain of equal disks/spheres, each pressed on the next (normal force f_over_k·k·r, the end forces carried
+    as loads): a floppy structure whose transverse and rolling modes give many clustered near-zero eigenvalues
+    (ρ = r: disks roll on each other neutrally). `zigzag`: the angle (radians) each bond makes with the axis,
+    alternately up and down (0: straight); its Hessian is banded."""
+    rng = np.random.default_rng(seed)
+    i = np.arange(n_particles - 1)
+    bond = np.zeros((n_particles - 1, dim))
+    bond[:, 0], bond[:, 1] = np.cos(zigzag), np.sin(zigzag) * np.where(i % 2, -1.0, 1.0)
+    x = np.zeros((n_particles, dim))
+    x[1:] = np.cumsum(bond * (2 * radius - f_over_k * radius), axis=0)
+    f_n = np.full(len(i), f_over_k * k * radius)
+    arrays = _arrays(dim, x, i, i + 1, np.full(len(i), 0.5), curvature_ratio, f_n, rng, mu, k, alpha, 0.0, 0,
+                     0.0, 0.0)
+    title = f"{'zig-zag' if zigzag else 'straight'} {dim}D chain, {n_particles} particles, f/(kr) = {f_over_k:g}"
+    return _scene(dim, x, arrays, title, tol)
+
+
 def _cells_for(dim: int, n_particles: int) -> int:
     per_cell = 1 if dim == 2 else 4
     return max(1, int(round((n_particles / per_cell) ** (1 / dim))))
@@ -245,6 +268,8 @@ def jammed(dim: int = 2, n: int = 32, phi: float | None = None, *, k: float = 1.
         keep = count >= dim + 1
         if keep.all():
             break
+        if keep.sum() <= dim:
+            raise ValueError(f"jammed: no rigid backbone at phi = {phi} with {n} particles (raise phi or n)")
         x, radius = _relax(x[keep], radius[keep], cell, k), radius[keep]
     x = x - np.floor(x @ np.linalg.inv(cell)) @ cell                  # inside the cell
     return _harmonic_scene(dim, x, radius, cell, k, tol)
@@ -271,4 +296,4 @@ def _harmonic_scene(dim, x, radius, cell, k, tol) -> Scene:
     return build_scene(dim, names, x, arrays, title=title, source=title, tol=tol, cell=cell, image=image)
 
 
-__all__ = ["harmonic_contacts", "jammed", "lattice", "lattice_sites", "neighbour_pairs", "random_packing"]
+__all__ = ["chain", "harmonic_contacts", "jammed", "lattice", "lattice_sites", "neighbour_pairs", "random_packing"]

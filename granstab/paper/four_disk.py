@@ -35,6 +35,7 @@ from granstab.mechanics.branches import (
     PLUS,
     RIGID,
     branch_matrices,
+    canonical,
     search_subspace,
     test_codes,
 )
@@ -174,7 +175,7 @@ def uniqueness_table(result) -> list[dict]:
             if space.shape[1] == 0:
                 space = np.real(W[:, [j]])
             if space.shape[1] == 1:
-                v = space[:, 0] / np.linalg.norm(space[:, 0])
+                v = canonical(space[:, 0] / np.linalg.norm(space[:, 0]))      # the SVD's sign is arbitrary
                 codes, _ = test_codes(problem, b.mask[None], v[None, :, None])
                 code = int(codes[0, 0])
             else:

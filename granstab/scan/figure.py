@@ -1,19 +1,29 @@
-"""The scan's figures (matplotlib, the `scan` extra): the packing coloured by the fraction of unstable clusters
-containing each particle (2D: disks; 3D: a projection and a slice through the middle), and a histogram of λ_min."""
+"""The scan's figures (matplotlib, the `scan` extra): the packing coloured by the share of the clusters containing
+each particle that are unstable for a reason of the packing (mechanism frictional, geometric or mixed), particles
+whose clusters are unstable only by the cut (mechanism boundary) hatched, and the mechanism histogram (2D: disks;
+3D: a projection and a slice through the middle); and a histogram of λ_min.
+
+Colours are the explorer's (granstab_app.scanmap): white (0) → dark red (1), grey for a particle in no cluster.
+Maps of more than RASTER_ABOVE particles are rasterised inside the SVG (a 20,000-disk vector map was 13.5 MB)."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
+from ..mechanics.attribution import MECHANISMS
 from ..model.scene import Scene
 from .output import read_map
 
+WHITE, RED, GREY = (250 / 255, 250 / 255, 250 / 255), (176 / 255, 20 / 255, 20 / 255), (150 / 255,) * 3
+RASTER_ABOVE = 2000     # particles: above, the disks are drawn as an image inside the SVG
+HATCH = "////"          # particles whose containing clusters are unstable only by the cut (mechanism boundary)
+
 
 def particle_radii(scene: Scene) -> np.ndarray:
-    """Drawing radius: median distance from a particle's reference point to its contact points (disks, spheres);
-    particles without contacts get the median of the others."""
-    d = np.linalg.norm(np.r_[scene.point - scene.x[scene.p], scene.point - scene.x[scene.q]], axis=1)
+    """Drawing radius: median distance from a particle's reference point to its contact points (disks, spheres;
+    from q's copy across a periodic seam, Scene.r_qp); particles without contacts get the median of the others."""
+    d = np.linalg.norm(np.r_[scene.r_pq, scene.r_qp], axis=1)
     owner = np.r_[scene.p, scene.q]
     order = np.argsort(owner, kind="stable")
     counts = np.bincount(owner, minlength=scene.n_particles)
@@ -22,51 +32,120 @@ def particle_radii(scene: Scene) -> np.ndarray:
     return np.where(np.isfinite(r), r, np.nanmedian(r) if np.isfinite(r).any() else 1.0)
 
 
+def colormap():
+    """White → dark red with grey for 'in no cluster' (NaN): the explorer's map colours."""
+    from matplotlib.colors import LinearSegmentedColormap
+    return LinearSegmentedColormap.from_list("granstab_unstable", [WHITE, RED]).with_extremes(bad=GREY)
+
+
+def map_fractions(scene: Scene, clusters: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Per particle: the share of the clusters containing it that are unstable by the packing (mechanism other than
+    boundary; NaN: in no cluster), and the share unstable by the cut alone (mechanism boundary)."""
+    sizes = np.array([len(m) for m in clusters["members"]], dtype=np.int64)
+    flat = np.concatenate([np.asarray(m, dtype=np.int64) for m in clusters["members"]] + [np.zeros(0, np.int64)])
+    unstable = np.asarray(clusters["verdict"]) == "unstable"
+    label = np.asarray(clusters.get("mechanism", np.full(len(sizes), "")), dtype=object)
+    boundary = unstable & (label == "boundary")
+    contains = np.bincount(flat, minlength=scene.n_particles).astype(float)
+
+    def share(flags):
+        count = np.bincount(flat, weights=np.repeat(flags, sizes).astype(float), minlength=scene.n_particles)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(contains > 0, count / np.maximum(contains, 1), np.nan)
+
+    return share(unstable & ~boundary), share(boundary)
+
+
 def write_figures(scene: Scene, out_dir) -> list[Path]:
     """map.png/.svg and lambda_min.png/.svg in out_dir."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.collections import PatchCollection
-    from matplotlib.patches import Circle
 
     data = read_map(out_dir)
-    frac = np.asarray(data["particles"]["unstable_fraction"], dtype=float)
+    packing, by_cut = map_fractions(scene, data["clusters"])
     r = particle_radii(scene)
-    cmap = plt.get_cmap("coolwarm").copy()
-    cmap.set_bad("lightgrey")
-    views = [("x", "y", np.ones(scene.n_particles, bool))]
+    views = [np.ones(scene.n_particles, bool)]
     if scene.dim == 3:
         z = scene.x[:, 2]
-        views.append(("x", "y", np.abs(z - np.median(z)) <= np.median(r)))
-    fig, axes = plt.subplots(1, len(views), figsize=(6.5 * len(views), 6), squeeze=False)
-    for ax, (_, _, keep), title in zip(axes[0], views, ("projection on x-y", "slice |z - median z| <= r")):
-        patches = [Circle(c, rad) for c, rad in zip(scene.x[keep, :2], r[keep])]
-        pc = PatchCollection(patches, cmap=cmap, edgecolor="k", linewidth=0.2)
-        pc.set_array(np.ma.masked_invalid(frac[keep]))
-        pc.set_clim(0, 1)
-        ax.add_collection(pc)
-        ax.autoscale_view()
-        ax.set_aspect("equal")
+        views.append(np.abs(z - np.median(z)) <= np.median(r))
+    fig, axes = plt.subplots(1, len(views), figsize=(6.5 * len(views), 7.4), squeeze=False)
+    for ax, keep, title in zip(axes[0], views, ("projection on x-y", "slice |z - median z| <= r")):
+        pc = _disks(ax, scene.x[keep, :2], r[keep], packing[keep], by_cut[keep] > 0)
         ax.set_title(title if scene.dim == 3 else "local stability map")
-        fig.colorbar(pc, ax=ax, shrink=0.8, label="fraction of unstable clusters containing the particle "
-                                                   "(grey: in none)")
-    fig.suptitle(f"{data['summary']['clusters']} clusters, rings = {data['summary']['options']['rings']}: "
-                 + ", ".join(f"{v} {c}" for v, c in data["summary"]["verdicts"].items()))
+        fig.colorbar(pc, ax=ax, shrink=0.7, label="share of its clusters unstable by the packing")
+    _legend(axes[0][-1], data["summary"])
+    s = data["summary"]
+    fig.suptitle(f"{s['clusters']} clusters, rings = {s['options']['rings']}, boundary "
+                 f"{s['options'].get('boundary', 'loads')}: " + ", ".join(f"{c} {v}" for v, c in s["verdicts"].items()),
+                 fontsize=10)
     paths = _save(fig, Path(out_dir) / "map")
-    lam = np.asarray(data["clusters"].get("lambda_min", []), dtype=float)
+    paths += _lambda_histogram(plt, np.asarray(data["clusters"].get("lambda_min", []), dtype=float), Path(out_dir))
+    return paths
+
+
+def _disks(ax, centres, radii, value, hatched):
+    """The disks (one EllipseCollection in data units) coloured by `value` (NaN grey), those `hatched` overlaid with
+    HATCH where `value` is 0; rasterised above RASTER_ABOVE disks."""
+    from matplotlib.collections import EllipseCollection
+    big = len(centres) > RASTER_ABOVE
+
+    def disks(which, **style):
+        d = 2 * radii[which]
+        return ax.add_collection(EllipseCollection(d, d, np.zeros(len(d)), units="xy", offsets=centres[which],
+                                                   offset_transform=ax.transData, rasterized=big, **style))
+
+    pc = disks(slice(None), cmap=colormap(), edgecolor="k", linewidth=0.2)
+    pc.set_array(np.ma.masked_invalid(value))
+    pc.set_clim(0, 1)
+    only_cut = hatched & ~(value > 0)
+    if only_cut.any():
+        disks(only_cut, facecolor="none", edgecolor=GREY, hatch=HATCH, linewidth=0.0)
+    pad = radii.max(initial=0.0)
+    ax.set_xlim(centres[:, 0].min() - pad, centres[:, 0].max() + pad)
+    ax.set_ylim(centres[:, 1].min() - pad, centres[:, 1].max() + pad)
+    ax.set_aspect("equal")
+    return pc
+
+
+def _legend(ax, summary: dict) -> None:
+    """What the colours and the hatching mean, and the mechanism histogram of the unstable clusters."""
+    from matplotlib.patches import Patch
+    counts = summary.get("mechanisms", {})
+    handles = [Patch(facecolor=RED, edgecolor="k", label="unstable by the packing (colour)"),
+               Patch(facecolor=WHITE, edgecolor=GREY, hatch=HATCH,
+                     label="unstable only by the cut: dead loads at the rim (boundary)"),
+               Patch(facecolor=GREY, edgecolor="k", label="in no scanned cluster")]
+    handles += [Patch(facecolor="none", edgecolor="none", label=f"{m}: {counts.get(m, 0)} clusters")
+                for m in MECHANISMS]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.04), ncol=2, fontsize=7, frameon=False,
+              title="unstable clusters by mechanism (docs/attribution.md)", title_fontsize=7)
+
+
+def _lambda_histogram(plt, lam: np.ndarray, out_dir: Path) -> list[Path]:
+    """lambda_min.png/.svg: λ_min on an asinh axis, linear within ±s (s the median |λ_min|, stated on the axis),
+    logarithmic beyond; the axis spans the data."""
     lam = lam[np.isfinite(lam)]
     fig, ax = plt.subplots(figsize=(6.5, 4))
+    s = float(np.median(np.abs(lam))) if lam.size else 1.0
+    s = s if s > 0 else 1.0
     if lam.size:
-        scale = np.median(np.abs(lam)) or 1.0
-        ax.hist(np.arcsinh(lam / scale), bins=40, color="steelblue")
-        ticks = np.array([-1e3, -1e2, -10, -1, 0, 1, 10, 1e2, 1e3])
-        ax.set_xticks(np.arcsinh(ticks), [f"{t:g}" for t in ticks])
+        t = np.arcsinh(lam / s)
+        edges = np.linspace(t.min(), t.max(), 41) if t.max() > t.min() else np.array([t[0] - 1, t[0] + 1])
+        ax.hist(lam, bins=s * np.sinh(edges), color="steelblue")
+        ax.set_xscale("asinh", linear_width=s)
+        pad = 0.02 * (t.max() - t.min() or 1.0)
+        ax.set_xlim(s * np.sinh(t.min() - pad), s * np.sinh(t.max() + pad))
+        ticks = np.r_[-s * 10.0 ** np.arange(6), 0.0, s * 10.0 ** np.arange(6)]
+        ticks = np.sort(ticks[(ticks >= lam.min()) & (ticks <= lam.max())] if lam.min() < 0 < lam.max() else
+                        ticks[(ticks >= lam.min() - s) & (ticks <= lam.max() + s)])
+        ax.set_xticks(ticks, [f"{v:.2g}" for v in ticks], fontsize=8, rotation=30)
+        ax.minorticks_off()
         ax.axvline(0, color="k", lw=0.8)
-    ax.set_xlabel(f"lowest stability eigenvalue λ_min / {scale if lam.size else 1:.3g} (asinh scale)")
+    ax.set_xlabel(f"lowest stability eigenvalue λ_min (asinh axis: linear within ±{s:.3g}, the median |λ_min|; "
+                  "logarithmic beyond)", fontsize=8)
     ax.set_ylabel("clusters")
-    paths += _save(fig, Path(out_dir) / "lambda_min")
-    return paths
+    return _save(fig, out_dir / "lambda_min")
 
 
 def _save(fig, stem: Path) -> list[Path]:
@@ -74,6 +153,6 @@ def _save(fig, stem: Path) -> list[Path]:
     fig.tight_layout()
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
     for p in paths:
-        fig.savefig(p, dpi=110)
+        fig.savefig(p, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return paths

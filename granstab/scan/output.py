@@ -58,9 +58,10 @@ class ScanOutput:
         tmp.rename(name)
         self.tables.append(table)
 
-    def finish(self, scene: Scene, chosen: np.ndarray, seconds: float, n_new: int) -> dict:
-        """Combine the parts (each centre once, in scene order) into the tables, the map and summary.json. Strings
-        stay in Arrow (counted and compared there): the finish is serial, after the last chunk."""
+    def finish(self, scene: Scene, chosen: np.ndarray, seconds: float, n_new: int, extra: dict | None = None) -> dict:
+        """Combine the parts (each centre once, in scene order) into the tables, the map and summary.json (with
+        the entries of `extra` last). Strings stay in Arrow (counted and compared there): the finish is serial,
+        after the last chunk."""
         import pyarrow as pa
         import pyarrow.compute as pc
         clusters = concat_rows(self.tables)
@@ -73,12 +74,24 @@ class ScanOutput:
         summary = {"source": scene.source, "n_particles": scene.n_particles, "n_contacts": scene.n_contacts,
                    "clusters": n, "clusters_requested": int(len(chosen)), "clusters_this_run": int(n_new),
                    "verdicts": {c["values"]: c["counts"] for c in sorted(counts, key=lambda c: c["values"])},
+                   "mechanisms": mechanism_counts(clusters),
                    "partial_branches": int(pc.sum(pc.equal(clusters.column("branches"), "partial")).as_py() or 0),
                    "seconds": seconds, "clusters_per_second": n_new / seconds if seconds > 0 and n_new else None,
                    "cluster_seconds_median": float(np.median(column(clusters, "seconds"))) if n else None,
-                   "options": self.options}
+                   "options": self.options, **(extra or {})}
         (self.path / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
         return summary
+
+
+def mechanism_counts(clusters) -> dict:
+    """The histogram of the unstable rows' `mechanism` labels (attribution.MECHANISMS order; every label listed,
+    0 where none; 'none' counts unstable rows without one: a scan with attribution off, or a row that failed)."""
+    from ..mechanics.attribution import MECHANISMS
+    labels = column(clusters, "mechanism") if clusters.num_rows else np.zeros(0, dtype=object)
+    unstable = column(clusters, "verdict") == "unstable" if clusters.num_rows else np.zeros(0, dtype=bool)
+    out = {m: int(np.sum(unstable & (labels == m))) for m in MECHANISMS}
+    out["none"] = int(np.sum(unstable)) - sum(out.values())
+    return out
 
 
 def first_rows(position: np.ndarray, n: int) -> np.ndarray:
@@ -164,9 +177,9 @@ def read_arrow(path: Path, fmt: str, record):
     table = pcsv.read_csv(path, convert_options=pcsv.ConvertOptions(
         column_types=types, null_values=[""], strings_can_be_null=False))
     for i, field in enumerate(table.schema):
-        if pa.types.is_list(kinds.field(field.name).type):
-            table = table.set_column(i, field.name, pc.split_pattern(table.column(i), ";").cast(
-                kinds.field(field.name).type))
+        if pa.types.is_list(kinds.field(field.name).type):               # '' is a null list (work_parts)
+            text = pc.if_else(pc.equal(table.column(i), ""), pa.scalar(None, pa.string()), table.column(i))
+            table = table.set_column(i, field.name, pc.split_pattern(text, ";").cast(kinds.field(field.name).type))
     return table
 
 

@@ -38,10 +38,15 @@ class Row:
     rigid_leakage: float
     reason: str
     seconds: float
+    mechanism: str = ""
+    work_parts: list[float] | None = None
+    rim_share: float | None = None
+    elastic_control: str = ""
+    fixed_control: str = ""
 
     @classmethod
     def analyzed(cls, center, members, verdict, *, n_contacts: int, n_sliding: int, lambda_min: float,
-                 eigen_residual: float, rigid_leakage: float, seconds: float) -> Row:
+                 eigen_residual: float, rigid_leakage: float, seconds: float, attribution: dict | None = None) -> Row:
         """The row of an `analyze` of the cluster (its `Verdict` and numbers)."""
         return cls(center=center, members=members, n_particles=len(members), path="analyze", n_contacts=n_contacts,
                    n_sliding=n_sliding, branches=verdict.branches, n_branches=verdict.n_branches,
@@ -51,7 +56,7 @@ class Row:
                    metric_robust=verdict.metric_robust,
                    zero_margin=np.nan if verdict.zero_margin is None else verdict.zero_margin,
                    eigen_residual=eigen_residual, rigid_leakage=rigid_leakage, reason=verdict.reason,
-                   seconds=seconds)
+                   seconds=seconds, **(attribution or {}))
 
     @classmethod
     def failed(cls, center, members, reason: str, seconds: float) -> Row:
@@ -76,6 +81,7 @@ class ParticleRow:
 
 
 ROW_COLUMNS = tuple(f.name for f in fields(Row))
+NAN_IS_NULL = ("rim_share",)     # columns whose NaN in a batch's numpy columns means "none" (null)
 
 
 def schema(record):
@@ -102,8 +108,8 @@ def rows_table(rows: list[Row]):
 
 
 def columns_table(columns: dict):
-    """Rows given as columns, one per field of `Row` (numpy arrays; members as (flat values, offsets)), as an Arrow
-    table of `schema(Row)`."""
+    """Rows given as columns, one per field of `Row` (numpy arrays; members as (flat values, offsets); work_parts
+    (rows, 5)), as an Arrow table of `schema(Row)`."""
     import pyarrow as pa
     if set(columns) != set(ROW_COLUMNS):
         raise ValueError(f"columns_table: the fields of Row, got {sorted(set(columns) ^ set(ROW_COLUMNS))} wrong")
@@ -111,8 +117,17 @@ def columns_table(columns: dict):
     values, offsets = columns["members"]
     members = pa.ListArray.from_arrays(pa.array(offsets, type=pa.int32()),
                                        pa.array(values, type=kinds.field("members").type.value_type))
-    return pa.table({key: members if key == "members" else pa.array(columns[key], type=kinds.field(key).type)
-                     for key in ROW_COLUMNS}, schema=kinds)
+    def array(key):
+        value = columns[key]
+        if key == "members":
+            return members
+        if isinstance(value, np.ndarray) and value.ndim == 2:       # (rows, k): a list each, null where all NaN
+            return pa.ListArray.from_arrays(pa.array(np.arange(0, value.size + 1, value.shape[1]), type=pa.int32()),
+                                            pa.array(value.ravel(), type=kinds.field(key).type.value_type),
+                                            mask=pa.array(np.isnan(value).all(axis=1)))
+        return pa.array(value, type=kinds.field(key).type, from_pandas=key in NAN_IS_NULL)
+
+    return pa.table({key: array(key) for key in ROW_COLUMNS}, schema=kinds)
 
 
 def concat_rows(tables: list):

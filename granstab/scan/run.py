@@ -7,24 +7,27 @@ where the unexamined branches cannot change it (analysis.py, verdicts.mark_parti
 """
 from __future__ import annotations
 
-import os
 import time
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..analysis import analyze
+from ..analysis import analyze, focus, mode_works
+from ..mechanics.attribution import mechanism
 from ..mechanics.branches import RIGID
 from ..mechanics.verdicts import verdict_columns
+from ..model.errors import Interrupted
 from ..model.scene import Scene, SceneError
 from ..solve.device import backend
 from ..solve.threads import blas_threads
-from .batch import batchable, solve_chunk
+from .batch import EMBEDDED_INSIDE, batchable, rim_flags, solve_chunk
 from .clusters import (
-    BOUNDARIES,
+    DEFAULT_BOUNDARY,
     adjacency,
+    boundary_rings,
     cluster,
+    control_scene,
     cut,
     incidence,
     members,
@@ -34,14 +37,27 @@ from .clusters import (
 )
 from .output import ScanOutput
 from .rows import Row, columns_table, concat_rows, rows_table
+from .workers import (
+    close_quietly,
+    dask_installed,
+    default_workers,
+    machine,
+    require_extras,
+    sigint_flag,
+    sigint_ignored,
+)
 
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
                       # (batch.STACK_BYTES)
 TASK_SECONDS = (0.05, 0.3)  # a Dask task's measured compute, least and most: Dask's per-task cost (~10 ms of a
                       # worker and ~10 ms of the client and scheduler, measured) stays a few per cent of it
-FIRST_TASK = 64       # clusters of the first Dask tasks, before a cluster's cost is measured
+FIRST_TASK = 64       # clusters of the first Dask tasks (and of the first serial chunk), before a cluster's cost
+                      # is measured
+SERIAL_SECONDS = 1.0  # a serial chunk's compute by the measured cost of a cluster: a part file about every second,
+                      # so that Ctrl-C loses about that much
 GPU_CHUNK = 16384     # on a GPU one stacked solve wants many clusters
 IN_FLIGHT = 3         # Dask tasks out per worker thread: one running, the next ones already sent
+POLL_SECONDS = 0.02   # the Dask loop's wait for results when none is ready (it checks for Ctrl-C between waits)
 # Local workers' environment: one BLAS thread each, and NOT Dask's default MALLOC_TRIM_THRESHOLD_, which also turns
 # off glibc's dynamic mmap threshold, so that every numpy temporary over 128 kB is a fresh mmap with page faults
 # (measured: 1.6× the CPU time of a chunk in a worker against the same chunk in this process; 1.17× without it).
@@ -58,15 +74,93 @@ def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict, grap
     try:
         sub = cluster(scene, center, options["rings"], options.get("boundary", "loads"), graph=graph)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
-                      sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()))
+                      sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()),
+                      attribution=False)
     except SceneError as exc:
         return Row.failed(center_id, ids, str(exc), time.perf_counter() - start)
+    inner = _sub_index(sub, scene, keep)
+    if boundary_rings(options.get("boundary", "loads"))[0] == "embedded":
+        res = focus(res, inner, EMBEDDED_INSIDE)
     lam = [b.stability_eigenvalues[b.codes != RIGID] for b in res.branches]
+    lam_min = float(min((v.min() for v in lam if v.size), default=np.nan))
+    attribution = None
+    if res.verdict.verdict == "unstable":       # the lowest consistent negative mode (mechanics/attribution.py)
+        rim = inner[rim_flags(scene, [center], [np.asarray(keep)], graph if graph is not None else adjacency(scene))[0]]
+        modes = mode_works(res, rim, inside=inner)
+        scale = lam_min / modes[0].eigenvalue if modes else np.nan        # |v|² = lambda_min / λ: they sum to it
+        attribution = {"work_parts": [w * scale for w in modes[0].work_parts], "rim_share": modes[0].rim_share} \
+            if modes else None
     return Row.analyzed(center_id, ids, res.verdict, n_contacts=sub.n_contacts,
-                        n_sliding=int(np.sum(sub.at_yield())),
-                        lambda_min=float(min((v.min() for v in lam if v.size), default=np.nan)),
+                        n_sliding=int(np.sum(sub.at_yield())), lambda_min=lam_min,
                         eigen_residual=res.errors["eigen_residual_stability"],
-                        rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start)
+                        rigid_leakage=res.errors["rigid_leakage_modified"], seconds=time.perf_counter() - start,
+                        attribution=attribution)
+
+
+def _sub_index(sub: Scene, scene: Scene, keep) -> np.ndarray:
+    """Where the particles `keep` of `scene` are in the cluster scene `sub` (its particles are sorted by index)."""
+    return np.array([sub.names.index(scene.names[i]) for i in keep], dtype=np.int64)
+
+
+def _with_mechanisms(scene, centers, member_lists, options, batched, done, rows, rest):
+    """The controls of every unstable cluster of a chunk, batched together (`controls`), and their mechanism labels
+    (attribution.mechanism) put into the batched columns and the `analyze` rows."""
+    verdict = np.full(len(centers), "", dtype=object)
+    if batched is not None:
+        verdict[done] = batched["verdict"]
+    for i, row in zip(rest, rows):
+        verdict[i] = row.verdict
+    unstable = np.flatnonzero(verdict == "unstable")
+    if not unstable.size:
+        return batched, rows
+    got = controls(scene, centers[unstable], [member_lists[i] for i in unstable], options)
+    elastic, fixed = (np.full(len(centers), "", dtype=object) for _ in range(2))
+    elastic[unstable], fixed[unstable] = got["elastic"], got["rim"]
+    if batched is not None:
+        label = mechanism(batched["work_parts"], batched["rim_share"], elastic[done], fixed[done],
+                          batched["verdict"] == "unstable")
+        batched.update(mechanism=label, elastic_control=elastic[done], fixed_control=fixed[done])
+    rows = [replace(row, mechanism=str(mechanism([row.work_parts], [row.rim_share], [elastic[i]], [fixed[i]],
+                                                 [True])[0]),
+                    elastic_control=elastic[i], fixed_control=fixed[i]) if row.work_parts is not None else row
+            for i, row in zip(rest, rows)]
+    return batched, rows
+
+
+def controls(scene: Scene, centers: np.ndarray, member_lists: list, options: dict) -> dict:
+    """The verdict strings of the two controls of each cluster (attribution.py): "elastic" (every contact elastic,
+    the scan's boundary) and "rim" (the cluster alone with its rim held), solved as the branches are (batch.py, one
+    stack per size); what the batch hands back, by `analyze` of the control scene (clusters.control_scene)."""
+    out = {}
+    for kind in ("elastic", "rim"):
+        verdict = np.full(len(centers), "", dtype=object)
+        opts = {**options, "control": kind, "attribute": False}
+        got = solve_chunk(scene, centers, member_lists, opts) if batchable(options) else None
+        done = np.zeros(0, dtype=np.int64)
+        if got is not None:
+            finite = np.isfinite(got["eigen_residual"]) & np.isfinite(got["rigid_leakage"])
+            done = got["position"]
+            verdict[done] = verdict_columns(got["counts"], got["n_branches"], finite, got["n_undetermined"])["verdict"]
+        for i in np.setdiff1d(np.arange(len(centers)), done):
+            verdict[i] = _control_by_analyze(scene, centers[i], member_lists[i], opts)
+        out[kind] = verdict
+    return out
+
+
+def _control_by_analyze(scene: Scene, center: int, keep, options: dict) -> str:
+    """One control's verdict by `analyze` (the clusters the batch hands back); 'error' if it fails."""
+    try:
+        sub = control_scene(scene, center, options["rings"], options.get("boundary", "loads"), options["control"])
+        if sub.fixed is not None and sub.fixed.all():
+            return "stable"                                           # nothing free to move
+        res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
+                      sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()),
+                      attribution=False)
+    except SceneError:
+        return "error"
+    if options["control"] == "elastic" and boundary_rings(options.get("boundary", "loads"))[0] == "embedded":
+        res = focus(res, _sub_index(sub, scene, keep), EMBEDDED_INSIDE)
+    return res.verdict.verdict
 
 
 def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, options: dict,
@@ -76,7 +170,7 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
     (verdicts.verdict_columns); seconds: the chunk's time shared equally. index: the packing's index of each
     particle of `scene`."""
     start = time.perf_counter()
-    got = solve_chunk(scene, centers, member_lists, options)
+    got = solve_chunk(scene, centers, member_lists, {**options, "attribute": options.get("attribution", True)})
     if got is None or not len(got["position"]):
         return None
     position = got["position"]
@@ -91,7 +185,10 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
             "n_contacts": got["n_contacts"], "n_sliding": got["n_sliding"], "branches": np.full(n, "all", object),
             "n_branches": got["n_branches"], "lambda_min": got["lambda_min"], "metric_robust": np.full(n, None, object),
             "eigen_residual": got["eigen_residual"], "rigid_leakage": got["rigid_leakage"], **verdicts,
-            "seconds": np.full(n, (time.perf_counter() - start) / n)}
+            "seconds": np.full(n, (time.perf_counter() - start) / n),
+            "work_parts": got.get("work_parts", np.full((n, 5), np.nan)), "rim_share": got.get("rim_share", np.full(n, np.nan)),
+            "mechanism": np.full(n, "", object),
+            "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object)}
 
 
 @dataclass(frozen=True)
@@ -126,8 +223,9 @@ def chunk_scene(scene: Scene, centers: np.ndarray, rings: int, graph=None) -> tu
 
 
 def reach(options: dict) -> int:
-    """Contact hops a chunk's scene must hold around its centres: the rings, and the held ring beyond them."""
-    return options["rings"] + (options.get("boundary") == "fixed")
+    """Contact hops a chunk's scene must hold around its centres: the rings, the embedded rings, and the ring beyond
+    them (held, or, for the loads boundary, what tells the rim, batch.rim_flags)."""
+    return options["rings"] + boundary_rings(options.get("boundary", "loads"))[1] + 1
 
 
 def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.ndarray | None = None):
@@ -144,6 +242,8 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
         done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
         rest = np.setdiff1d(np.arange(len(centers)), done)
         rows = [cluster_row(scene, centers[i], member_lists[i], options, graph, index) for i in rest]
+        if options.get("attribution", True):
+            batched, rows = _with_mechanisms(scene, centers, member_lists, options, batched, done, rows, rest)
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
     return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
 
@@ -168,10 +268,10 @@ def select_centers(scene: Scene, centers) -> np.ndarray:
 
 
 def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = "L", max_sliding: int = 8,
-         boundary: str = "loads",
+         boundary: str = DEFAULT_BOUNDARY,
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
-         device: str = "cpu") -> dict:
+         device: str = "cpu", attribution: bool = True) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -181,33 +281,40 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     scene : Scene
         The packing (N particles).
     out_dir : str or Path
-        Output folder; centres already in it (an interrupted scan with the same options) are skipped.
-    rings, boundary : int, {"loads", "fixed"}
-        The cluster of a centre: `rings` contact hops; cut contacts as dead loads or the next ring held fixed
-        (`extract`).
+        Output folder; centres already in it (an interrupted scan with the same options) are skipped. Ctrl-C
+        raises `Interrupted` (a KeyboardInterrupt) saying how many clusters are kept there.
+    rings, boundary : int, {"loads", "fixed", "embedded[:R]"}
+        The cluster of a centre: `rings` contact hops; cut contacts as dead loads, the next ring held fixed, or the
+        next R rings free and elastic with the ring beyond held and the verdict on the cluster's own modes
+        (`extract`, clusters.embedded; default DEFAULT_BOUNDARY, docs/attribution.md).
     centers : "all", "every:K", or names
         Which particles are centres.
     metric, max_sliding, sample_branches : str, int, int
         As in `granstab.analyze`, for every cluster (default metric "L").
     scheduler, workers, chunk, device : str, int, int, {"cpu", "gpu", "auto"}
-        A Dask scheduler address (tcp://HOST:PORT) or local workers (default: this machine's cores; 1 = serial,
-        in this process); clusters per task (default: sized by the measured cost of a cluster, `Guide`); where
+        A Dask scheduler address (tcp://HOST:PORT) or local workers (1 = serial, in this process; default: by
+        the work's measured size, the idle cores and the load, workers.py, said in the summary's "workers");
+        clusters per task (default: sized by the measured cost of a cluster, `Guide`); where
         the stacked eigenproblems run (granstab.solve.device).
     progress, fmt, figures : bool, {"parquet", "csv"}, bool
         A bar with the time left; the table format; whether to draw map.png/.svg and lambda_min.png/.svg.
+    attribution : bool
+        Every unstable cluster's attribution (mechanism, work_parts, rim_share and the two controls, batched:
+        mechanics/attribution.py); False leaves those columns empty (the overhead: BENCHMARKS.md).
 
     Returns
     -------
     dict
-        summary.json: counts per verdict, time, clusters per second, the options. The folder also holds
+        summary.json: counts per verdict, time, clusters per second, the options, how many clusters a resumed
+        scan found done ("resumed") and where it ran ("workers": count, where, why). The folder also holds
         clusters.* (one row a cluster) and particles.* (the map: ``unstable_fraction`` per particle).
     """
     if rings < 1:
         raise SceneError(f"rings must be >= 1, got {rings}")
-    if boundary not in BOUNDARIES:
-        raise SceneError(f"--boundary: one of {', '.join(BOUNDARIES)}, got {boundary!r}")
+    boundary_rings(boundary)                                        # a bad value: one line
+    require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
-               "boundary": boundary}
+               "boundary": boundary, "attribution": bool(attribution)}
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, scene)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
@@ -215,58 +322,118 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     todo = chosen[~np.isin(chosen, out.done_centers())]
     bar = _progress(len(todo)) if progress else None
     start = time.perf_counter()
-    if len(todo):
-        run = _run_serial if (scheduler is None and (workers or os.cpu_count() or 1) <= 1) else _run_dask
-        run(scene, todo, chunk, {**options, "device": device}, out, bar, scheduler=scheduler, workers=workers)
-    if bar is not None:
-        bar.close()
-    summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo))
-    if figures:
-        from .figure import write_figures
-        write_figures(scene, out.path)
+    try:
+        try:
+            ran = _run(scene, todo, chunk, {**options, "device": device}, out, bar, scheduler, workers)
+        finally:
+            if bar is not None:
+                bar.close()
+        summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo),
+                             extra={"resumed": int(len(chosen) - len(todo)), "workers": ran})
+        if figures:
+            from .figure import write_figures
+            write_figures(scene, out.path)
+    except KeyboardInterrupt:                  # the parts on disk stay: say how many, and how to go on
+        kept = int(np.isin(chosen, out.done_centers()).sum())
+        raise Interrupted(f"granstab scan: interrupted (Ctrl-C): {kept} of {len(chosen)} clusters kept in "
+                          f"{out_dir}; the same command (the same --out and options) resumes from there") from None
     return summary
 
 
-def _run_serial(scene, todo, chunk, options, out, bar, **_):
-    graph, contacts_of = adjacency(scene), incidence(scene)
-    chunk = chunk or CHUNK
-    for at in range(0, len(todo), chunk):
-        part = todo[at:at + chunk]
+def _run(scene, todo, chunk, options, out, bar, scheduler, workers) -> dict:
+    """Analyse the centres `todo` where `scheduler`/`workers` say, or by the default rule (workers.py): the first
+    FIRST_TASK clusters in this process measure the cost of the rest. Returns how it ran (summary "workers")."""
+    def ran(count, where, why):
+        return {"count": count, "where": where, "why": why}
+
+    if not len(todo):
+        return ran(0, "nowhere", "every cluster was already in the folder")
+    if scheduler is not None:
+        _run_dask(scene, todo, chunk, options, out, bar, scheduler=scheduler, workers=None)
+        return ran(None, f"on the Dask cluster at {scheduler}", "--scheduler")
+    if workers is not None:
+        if workers <= 1:
+            _run_serial(scene, todo, chunk, options, out, bar)
+            return ran(1, "in this process", f"--workers {workers}")
+        _run_dask(scene, todo, chunk, options, out, bar, scheduler=None, workers=workers)
+        return ran(workers, f"on {workers} local Dask workers", f"--workers {workers}")
+    graphs = adjacency(scene), incidence(scene)
+    if options["device"] == "gpu":
+        _run_serial(scene, todo, chunk, options, out, bar, graphs=graphs)
+        return ran(1, "in this process", "default on a GPU: the GPU solves the stacks, workers would share it")
+    cost = _run_serial(scene, todo[:FIRST_TASK], chunk, options, out, bar, graphs=graphs)
+    rest = todo[FIRST_TASK:]
+    cores, load = machine()
+    n, why = default_workers(cost * len(rest), cores, load)
+    if n > 1 and not dask_installed():
+        n, why = default_workers(cost * len(rest), cores, load, dask=False)
+    if n > 1:
+        _run_dask(scene, rest, chunk, options, out, bar, scheduler=None, workers=n)
+        return ran(n, f"on {n} local Dask workers", f"default: {why}")
+    _run_serial(scene, rest, chunk, options, out, bar, cost=cost, graphs=graphs)
+    return ran(1, "in this process", f"default: {why}")
+
+
+def _run_serial(scene, todo, chunk, options, out, bar, cost=None, graphs=None) -> float | None:
+    """The centres `todo` in this process, a part file a chunk: `chunk` clusters, or FIRST_TASK and then
+    SERIAL_SECONDS of compute by the measured cost (at most CHUNK). Returns the measured seconds a cluster."""
+    graph, contacts_of = graphs or (adjacency(scene), incidence(scene))
+    at, done, spent = 0, 0, 0.0
+    while at < len(todo):
+        size = chunk or (FIRST_TASK if cost is None else min(max(int(SERIAL_SECONDS / cost), 1), CHUNK))
+        part = todo[at:at + size]
+        begun = time.perf_counter()
         out.write(chunk_table(chunk_cut(scene, part, reach(options), graph, contacts_of), options))
+        spent, done, at = spent + time.perf_counter() - begun, done + len(part), at + len(part)
+        cost = spent / done
         if bar is not None:
             bar.update(len(part))
+    return cost
 
 
 def _run_dask(scene, todo, chunk, options, out, bar, *, scheduler, workers):
     """Tasks of centres cut by a `Guide`, each with its own `Chunk` (rerun if a worker dies), results streamed to
     disk in the order they finish. At most IN_FLIGHT tasks per worker thread are out at a time: the client cuts the
-    next chunk while the workers compute, and holds a few chunks, never all of them."""
+    next chunk while the workers compute, and holds a few chunks, never all of them. Ctrl-C (workers.py): the
+    workers ignore it, this loop stops at the next poll and closes the cluster quietly."""
     import dask
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
     if scheduler is None:
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}):
-            cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored():
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
     graph, contacts_of = adjacency(scene), incidence(scene)
     guide = Guide(todo, chunk)
-    with Client(scheduler or cluster) as client:
-        running = as_completed()
+    client = Client(scheduler or cluster)
+    try:
+        with sigint_flag() as stop:
+            running = as_completed()
 
-        def fill():                                     # the cluster's threads now (a real cluster may grow)
-            threads = max(sum(client.nthreads().values()), 1)
-            while running.count() < IN_FLIGHT * threads and (part := guide.next(threads)) is not None:
-                running.add(client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph, contacts_of),
-                                          options, retries=3, pure=False))
+            def fill():                                 # the cluster's threads now (a real cluster may grow)
+                threads = max(sum(client.nthreads().values()), 1)
+                while running.count() < IN_FLIGHT * threads and (part := guide.next(threads)) is not None:
+                    running.add(client.submit(chunk_table, chunk_cut(scene, part, reach(options), graph,
+                                                                     contacts_of), options, retries=3, pure=False))
 
-        fill()
-        for future in running:
-            table = future.result()
-            out.write(table)
-            guide.measured(table)
-            if bar is not None:
-                bar.update(table.num_rows)
             fill()
+            while not running.is_empty():
+                if stop.is_set():
+                    raise KeyboardInterrupt
+                batch = running.next_batch(block=False)
+                if not batch:
+                    time.sleep(POLL_SECONDS)
+                    continue
+                for future in batch:
+                    table = future.result()
+                    out.write(table)
+                    guide.measured(table)
+                    if bar is not None:
+                        bar.update(table.num_rows)
+                fill()
+    except KeyboardInterrupt:                   # Ctrl-C: what is on disk stays; no tracebacks from Dask's closing
+        close_quietly(client, cluster)
+        raise
+    client.close()
     if cluster is not None:
         cluster.close()
 

@@ -1,31 +1,38 @@
 """Time budget of an analysis: an estimate from a measured per-branch cost, refusal of work that cannot finish in
 the time asked, and a deadline that stops work that runs over (`granstab analyze --timeout`).
 
-The dense path solves, per branch, an n×n symmetric eigenproblem, a non-symmetric one and an SVD, and forms
-projections and residuals with a few matrix products (dense.py, mechanics/branches.py), batched over the 2^Ms
-branches. Their cost is measured here on this machine, on a stack of random matrices of the same size (up to
-MEASURE_DIM; larger sizes scale as n³), so the estimate follows the machine it runs on.
+The full dense path solves, per branch, an n×n symmetric eigenproblem, a non-symmetric one and an SVD, and forms
+projections and residuals with a few matrix products (dense.py, mechanics/branches.py); the low-rank path an n×n
+symmetric eigenproblem, a Gram matrix's eigenvalues and a few products (lowrank.py); both are repeated for every
+metric of the family. Their cost is measured here on this machine, on a stack of random matrices of the same
+size (up to MEASURE_DIM; larger sizes scale as n³), in CPU time, so the estimate follows the machine it runs on
+but not its load of the moment.
 """
 from __future__ import annotations
 
+import math
 import signal
 import time
 from contextlib import contextmanager
 
 import numpy as np
 
-MEASURE_DIM = 96       # matrices larger than this are timed at this size and scaled by (n / MEASURE_DIM)³
-MEASURE_STACK = 4      # matrices timed at once (a few hundredths of a second in all)
+MEASURE_DIM = 160      # matrices larger than this are timed at this size and scaled by (n / MEASURE_DIM)³
+MEASURE_STACK = 4      # matrices timed at once (a few tenths of a second in all, only for work that may be long)
+ASK_SECONDS = 10.0     # without --timeout, the CLI refuses work estimated longer than this (one line, what to do)
+TRIVIAL_WORK = 2e7     # metrics · branches · n³ below this is certainly under a second: nothing is measured
 
 
 class OverBudget(Exception):
     """The work does not fit the time asked; the message is one line saying what to do."""
 
 
-def branch_seconds(n: int, stack: int = MEASURE_STACK) -> float:
-    """Measured seconds per branch for n dofs: eigh + eig + SVD and four products of a stack of random n×n
-    matrices, on one BLAS thread (a shared machine's threads give no more; measured here the real branches ran
-    no faster than this)."""
+def branch_seconds(n: int, stack: int = MEASURE_STACK, lowrank: bool = False) -> float:
+    """Measured seconds per branch for n dofs on one BLAS thread (a shared machine's threads give no more; the
+    branch paths run one thread a core), in CPU time: the time on this machine's cores when they are free, so that
+    what is refused does not depend on the load of the moment (a loaded machine takes longer; the heartbeat says
+    so, and --timeout's deadline stops it). Full path (dense.py): eigh + eig + SVD and four products of a stack of
+    random n×n matrices; low-rank path (lowrank.py): eigh, the Gram matrix's eigvalsh and three products."""
     from .threads import blas_threads
 
     m = max(1, min(n, MEASURE_DIM))
@@ -34,30 +41,42 @@ def branch_seconds(n: int, stack: int = MEASURE_STACK) -> float:
     S = A + np.swapaxes(A, 1, 2)
     with blas_threads(1):
         np.linalg.eig(A[:1, :2, :2])                        # first call loads LAPACK: not part of the cost
-        start = time.perf_counter()
+        start = time.thread_time()                          # CPU time: what a core gives, whatever the load
         np.linalg.eigh(S)
-        np.linalg.eig(A)
-        np.linalg.svd(A, compute_uv=False)
-        for _ in range(4):                                  # projections and the two eigen-residuals
+        if lowrank:
+            np.linalg.eigvalsh(S)
+        else:
+            np.linalg.eig(A)
+            np.linalg.svd(A, compute_uv=False)
+        for _ in range(3 if lowrank else 4):                # projections, residuals, Gram matrix, signs
             A @ S
-        per = (time.perf_counter() - start) / stack
+        per = (time.thread_time() - start) / stack
     return per * (n / m) ** 3
 
 
-def estimate(n_dof: int, n_branches: int) -> float:
-    """Estimated seconds for `n_branches` dense branches of `n_dof` dofs (one measurement, at most ~0.1 s)."""
-    return n_branches * branch_seconds(n_dof, min(MEASURE_STACK, n_branches))
+def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = False, workers: int = 1) -> float:
+    """Estimated seconds for `n_branches` dense branches of `n_dof` dofs in each of `n_metrics` metrics (the
+    family repeats every branch per metric), on the full or the low-rank path (`workers` cores share the low-rank
+    branches). One measurement, at most a few tenths of a second, skipped (0) for trivially small work."""
+    if n_metrics * n_branches * float(n_dof) ** 3 < TRIVIAL_WORK:
+        return 0.0
+    per = branch_seconds(n_dof, min(MEASURE_STACK, n_branches), lowrank)
+    return n_metrics * n_branches * per / (max(workers, 1) if lowrank else 1)
 
 
-def refuse_over(source: str, seconds: float, timeout: float, n_dof: int, n_sliding: int) -> None:
-    """Raise OverBudget (one line, with what to do) when the estimate exceeds the time asked."""
-    if seconds <= timeout:
+def refuse_over(source: str, seconds: float, timeout: float | None, work: str, alternatives: str = "") -> None:
+    """Raise OverBudget (one line, with what to do) when the estimate exceeds the time asked (`timeout`; None: the
+    CLI's ASK_SECONDS, which --timeout lifts)."""
+    limit = ASK_SECONDS if timeout is None else timeout
+    if seconds <= limit:
         return
-    raise OverBudget(f"{source}: refused: 2^{n_sliding} = {2 ** n_sliding} branches of {n_dof} dofs need about "
-                     f"{seconds:.3g} s on this machine (measured {1e3 * seconds / 2 ** n_sliding:.3g} ms a branch), "
-                     f"more than the {timeout:.3g} s left of --timeout: cap the potentially sliding contacts (--max-sliding, or "
-                     "state = \"elastic\" for contacts known to stick), analyse a smaller cluster around the region "
-                     "of interest, or raise --timeout")
+    asked = (f"more than the {limit:.3g} s a run takes without --timeout: give --timeout {math.ceil(1.2 * seconds)} "
+             "to run it (a line a minute on stderr says where it is), or " if timeout is None else
+             f"more than the {limit:.3g} s left of --timeout: ")
+    raise OverBudget(f"{source}: refused: {work} need about {seconds:.3g} s on this machine's free cores, {asked}"
+                     f"{alternatives}cap the potentially sliding contacts (--max-sliding, or state = \"elastic\" for "
+                     "contacts known to stick), analyse a smaller cluster around the region of interest"
+                     + (", or raise --timeout" if timeout is not None else ""))
 
 
 DENSE_ADVICE = ("cap the potentially sliding contacts (--max-sliding), use --method sparse with a small --k, "

@@ -64,7 +64,7 @@ def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
     R = problem.rigid
     n_rigid = R.shape[1]
     norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
-    bounds, resid = eigen_bounds(Hsym, lam, V, problem.formation_error)   # accuracy.py: |λ - λ̂| <= bound
+    bounds, resid = eigen_bounds(Hsym, lam, V, formation(problem, Hsym))   # accuracy.py: |λ - λ̂| <= bound
     tol = bounds.max(axis=1) if n else np.zeros(L)
     zero = np.abs(lam) <= bounds
     close = np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:]   # adjacent eigenvalues in one group
@@ -90,6 +90,14 @@ def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
     res_u = np.linalg.norm(HH @ W - W * mu[:, None, :], axis=1).max(axis=1) / norm_u if n else np.zeros(L)
     return {"tol": tol, "bounds": bounds, "zero": zero, "special": repeated | (extra_z > 0) | (extra_u > 0),
             "n_null": null.sum(axis=1), "res_s": res_s, "res_u": res_u, "svd": svd}
+
+
+def formation(problem, Hsym: np.ndarray):
+    """The formation bound of each branch (..., 1): the problem's (accuracy.formation_error) plus the rigid leakage
+    ‖sym(𝓗^i) R‖_F that remains (zero in exact arithmetic: R is the rigid basis), so that a rigid motion leaking
+    into the spectrum can never pass for a resolved eigenvalue (issue 26)."""
+    leak = np.linalg.norm(Hsym @ problem.rigid, axis=(-2, -1)) if problem.rigid.size else np.zeros(Hsym.shape[:-2])
+    return problem.formation_error + np.asarray(leak)[..., None]
 
 
 def _count_nonrigid(R: np.ndarray, W: np.ndarray) -> np.ndarray:
@@ -119,7 +127,7 @@ def _plain_branch(problem, mask, batch, i, lam, V, codes, hinges, mu) -> Branch:
 def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> Branch:
     n = len(lam)
     norm = max(np.abs(lam).max(), 1e-300)
-    bounds, _ = eigen_bounds(Hsym, lam, V, problem.formation_error)
+    bounds, _ = eigen_bounds(Hsym, lam, V, formation(problem, Hsym))
     tol = float(bounds.max()) if n else 0.0
     V = V.copy()
     codes = codes.copy()

@@ -41,9 +41,11 @@ from ..mechanics.verdicts import CONSISTENT, merge_tallies, tally
 from ..model.tolerances import EPS
 from .dense import solve_branches
 from .device import backend, residual_norms
-from .threads import cores
+from .threads import blas_threads, cores
 
-MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s)
+MIN_BRANCHES = 1024   # analyze() takes this path from 2^10 branches on (below it the full path costs < 1 s) …
+MIN_WORK = 5e8        # … or from branches · n³ >= this: the full path's eig + SVD of n×n then costs > ~1 s a core
+                      # (measured: n = 879, eig 1.5 s, SVD 0.27 s, eigh 0.16 s on one core), this path's eigh a fifth
 GPU_THREADS = 8       # chunks in flight on a GPU (each takes its share of the device memory, backend.chunk)
 
 
@@ -80,7 +82,22 @@ def reduce(problem: Problem) -> Reduced:
     HN = problem.H_el @ N
     AS_norm = np.linalg.norm(problem.A, axis=0) * np.linalg.norm(s, axis=0)
     return Reduced(N=N, M0=M0, a=a, s=s, E0=PR.T @ Hsym @ N, alpha=PR.T @ problem.A, beta=PR.T @ problem.S, HN=HN,
-                   HN_norm=float(np.linalg.norm(HN, 2)), AS_norm=AS_norm, n=R.shape[0])
+                   HN_norm=spectral_upper(HN), AS_norm=AS_norm, n=R.shape[0])
+
+
+def spectral_upper(X: np.ndarray) -> float:
+    """An upper bound of ‖X‖₂ without an SVD: √(‖X‖₁ ‖X‖∞) (Hölder; an SVD of a 900-dof cluster's H N took
+    longer than all its branches)."""
+    if X.size == 0:
+        return 0.0
+    return float(np.sqrt(np.abs(X).sum(axis=0).max() * np.abs(X).sum(axis=1).max()))
+
+
+def use_lowrank(n_branches: int, n: int) -> bool:
+    """Whether `DenseMethod` takes this path by default (on a CPU): from MIN_BRANCHES branches, or when the full
+    path's per-branch eig + SVD would cost more than MIN_WORK (a rule on sizes, not on the machine, so that the
+    result's contents do not depend on load)."""
+    return n_branches >= MIN_BRANCHES or n_branches * float(n) ** 3 >= MIN_WORK
 
 
 def sym_updates(a: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -163,9 +180,9 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
 
     kept = Kept(keep_all)
     info["residual_stability"] = 0.0
-    with be.threads(k), ThreadPoolExecutor(workers) as pool:
+    with (be.threads(k) if workers == 1 else blas_threads(1)), ThreadPoolExecutor(workers) as pool:
         for start, (part, host, special, plain) in zip(range(0, L, size), pool.map(solve, range(0, L, size))):
-            with be.threads(n):
+            with be.threads(n if workers == 1 else 1):
                 full = dict(zip(np.flatnonzero(special),
                                 solve_branches(problem, part[special]) if special.any() else []))
             info["full_path"] += len(full)

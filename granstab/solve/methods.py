@@ -5,8 +5,9 @@
     branches, notes = method.solve(problem, masks, on_branch=None, progress=False, label="branches")
     errors = method.errors(state, problem, branches)
 
-* `DenseMethod`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (dense.py), or from
-  lowrank.MIN_BRANCHES branches on the low-rank updates of the elastic problem (lowrank.py).
+* `DenseMethod`: every eigenpair of every branch's sym(𝓗^i) and ℍ^i, stacked LAPACK (dense.py), or, from
+  lowrank.MIN_BRANCHES branches or branches · n³ >= lowrank.MIN_WORK on (lowrank.use_lowrank), the low-rank
+  updates of the elastic problem (lowrank.py).
 * `SparseMethod`: per branch the lowest k non-rigid eigenpairs of sym(𝓗^i) and the exact number of its negative
   eigenvalues from Sylvester's law of inertia (sparse.py; several branches as Ritz updates, ritz.py); no
   n_dof × n_dof matrix. It leaves out ℍ^i (uniqueness, Type-2) and the eigenpairs above the k lowest: counts beyond
@@ -20,13 +21,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanics.accuracy import formation_error, part_scales
+from ..mechanics.accuracy import centre_error, curvature_error, formation_error, part_scales
 from ..mechanics.assembly import sliding_factors
 from ..mechanics.branches import Problem
 from ..mechanics.checks import equilibrium_residual, identity_errors, modified_leakage
 from ..mechanics.metric import Metric
-from ..mechanics.rigid import Projection, rigid_basis, rotation_dofs, unit_columns, untouched_dofs
-from ..mechanics.stiffness import ContactBlocks, assemble_parts, contact_blocks, geometric
+from ..mechanics.rigid import Projection, centred, free_spins, rigid_basis, unit_columns
+from ..mechanics.stiffness import ContactBlocks, assemble_parts, assembled_error, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
 from .dense import solve_branches
 
@@ -71,8 +72,12 @@ def choose_method(scene: Scene, method: str, k: int, device: str = "cpu", lowran
     return DenseMethod(device, lowrank)
 
 
-def _progress_bar(total: int, desc: str = "branches"):
-    """A tqdm bar with the time left (tqdm is optional: None without it)."""
+def _progress_bar(total: int, desc: str = "branches", progress=True):
+    """A tqdm bar with the time left (tqdm is optional: None without it), or, when `progress` is a reporter with
+    stages (io.progress.Heartbeat), that reporter at a new stage."""
+    if hasattr(progress, "stage"):
+        progress.stage(desc, total)
+        return progress
     try:
         from tqdm.auto import tqdm
     except ImportError:
@@ -90,10 +95,35 @@ def _require_finite(scene: Scene, value: float) -> None:
 # ------------------------------------------------------------------------------------------------ dense
 
 def dense_parts(scene: Scene, blocks: ContactBlocks) -> dict:
-    """Hg1, Hg2, Hg3, Hm and H as CSR (physical dofs), and the sliding factors A, S (n, Ms) (eq:ContactF)."""
+    """Hg1, Hg2, Hg3, Hm and H as CSR (physical dofs), the sliding factors A, S (n, Ms) (eq:ContactF), and the
+    entrywise bound of H's error from rounding K^p + K^q ("curvature_error", CSR, or None where unresolved)."""
     parts = assemble_parts(scene, blocks)
     parts["A"], parts["S"] = sliding_factors(blocks, np.flatnonzero(scene.at_yield()))
+    parts["curvature_error"] = assembled_error(scene, blocks.curvature_error)
     return parts
+
+
+def centre_term(scene: Scene, metric: Metric, C: np.ndarray) -> float:
+    """accuracy.centre_error of the metric's rotations C (n, r): the centroid's defect (rigid.centred) and the largest
+    scaling of a translation by D⁻¹ (1 in the L metrics, √m in the inertia metric)."""
+    if C.shape[-1] == 0 or scene.n_particles == 0:
+        return 0.0
+    _, defect = centred(scene.x, metric.weights, defect=True)
+    d = scene.dim
+    weight = float(np.linalg.norm(np.linalg.inv(metric.blocks[:, :d, :d]), ord=2, axis=(1, 2)).max())
+    return float(centre_error(C, defect, weight))
+
+
+def metric_error(error, metric: Metric, free=None) -> float:
+    """‖|D| E |D|‖₂ bound (accuracy.curvature_error) of an assembled error bound E in the metric's dofs; inf for
+    None (unresolved)."""
+    if error is None:
+        return np.inf
+    D = abs(metric.matrix())
+    E = D @ error @ D
+    if free is not None:
+        E = E[free][:, free]
+    return curvature_error(E.tocsr())
 
 
 def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metric) -> Problem:
@@ -107,25 +137,31 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
     free = scene.free_dofs
     spins = np.zeros(0, dtype=np.intp)
     if free is None:
-        spins = untouched_dofs(H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300),
-                               dofs=rotation_dofs(scene.n_particles, scene.dim))
-        C = np.concatenate([metric.rotations(scene), unit_columns(len(H_el), spins)], axis=1)
+        spins = free_spins(scene, H_el, A, S, scale=max(float(np.abs(H_el).sum(axis=1).max(initial=0.0)), 1e-300))
+        R = metric.rotations(scene)
+        C = np.concatenate([R, unit_columns(len(H_el), spins)], axis=1)
         rigid, _ = rigid_basis(np.concatenate([metric.translations(scene), C], axis=1))
     else:                          # held by fixed particles: their dofs dropped, no rigid motion, no projection
         H_el, A, S = H_el[np.ix_(free, free)], A[free], S[free]
         mechanical, Hg = mechanical[free][:, free], Hg[free][:, free]
-        C = rigid = np.zeros((len(free), 0))
+        C = R = rigid = np.zeros((len(free), 0))
     projection = Projection.from_rotations(C)
     scales = part_scales(mechanical, Hg, A, S)
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
-                   formation_error=formation_error(scales, C, projection.Cplus), free=free, free_spins=len(spins))
+                   formation_error=formation_error(scales, projection.C, projection.Cplus,
+                                                   metric_error(parts["curvature_error"], metric, free),
+                                                   centre_term(scene, metric, R)), free=free,
+                   free_spins=len(spins))
+
+
+RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
 
 
 class DenseMethod:
-    """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. From lowrank.MIN_BRANCHES
-    branches on, or when `device` resolves to a GPU (device.py), the branches are solved as low-rank updates of
-    the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
+    """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. Where lowrank.use_lowrank says
+    so (many branches, or large ones), or when `device` resolves to a GPU (device.py), the branches are solved as
+    low-rank updates of the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
     branches it solves (their ℍ^i nullity is proven instead) and says so."""
 
     name = "dense"
@@ -145,7 +181,7 @@ class DenseMethod:
 
     def solve(self, problem: Problem, masks: np.ndarray, on_branch=None, progress: bool = False,
               label: str = "branches", keep_all: bool = True):
-        bar = _progress_bar(len(masks), label) if progress and len(masks) > 1 else None
+        bar = _progress_bar(len(masks), label, progress) if progress and len(masks) > 1 else None
 
         def stream(b):
             if bar is not None:
@@ -154,15 +190,16 @@ class DenseMethod:
                 on_branch(b)
 
         from .device import backend
-        from .lowrank import MIN_BRANCHES, solve_branches_lowrank
+        from .lowrank import solve_branches_lowrank, use_lowrank
         lowrank = self.lowrank
         if lowrank is None:
-            lowrank = len(masks) >= MIN_BRANCHES or backend(self.device).name == "gpu"
-        notes = {"complete": True}
+            lowrank = use_lowrank(len(masks), problem.H_el.shape[0]) or backend(self.device).name == "gpu"
+        notes = {"complete": True, "paths": {"full": len(masks)}}
         if lowrank:
             branches, info = solve_branches_lowrank(problem, masks, device=self.device, keep_all=keep_all,
                                                     on_branch=stream if bar is not None or on_branch else None)
             notes["lowrank"] = info
+            notes["paths"] = {"low_rank": len(masks) - info["full_path"], "full": info["full_path"]}
             notes["residual_stability"] = info["residual_stability"]
             if not keep_all:
                 notes.update(tally=info["tally"], n_branches=info["n_branches"])
@@ -226,14 +263,17 @@ class SparseMethod:
         proj = spb.projection
         core = Problem(H_el=spb.H, A=spb.A, S=spb.S, projection=proj, rigid=spb.R, sliding=spb.sliding,
                        n_contacts=scene.n_contacts, tol=scene.tol,
-                       formation_error=formation_error(scales, proj.C, proj.Cplus))
+                       formation_error=formation_error(scales, proj.C, proj.Cplus,
+                                                       metric_error(state.parts.curvature_error, metric),
+                                                       centre_term(scene, metric, metric.rotations(scene))),
+                       free_spins=spb.free_spins)
         return SparseBranchProblem(sp=spb, core=core)
 
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
               label: str = "branches", keep_all: bool = True):
         from .sparse import sparse_branch
         spb, k = problem.sp, self.k
-        bar = _progress_bar(len(masks), f"{label} (sparse)") if progress else None
+        bar = _progress_bar(len(masks), f"{label} (sparse)", progress) if progress else None
         branches, unverified, cut, ritz = [], 0, 0, 0
         for mask, modes in zip(masks, self._modes(spb, masks, k + 1)):
             ritz += modes.method == "ritz"
@@ -249,7 +289,7 @@ class SparseMethod:
             bar.close()
         n_free = spb.n - spb.n_rigid
         complete = all(b.negative_count["total"] for b in branches)
-        notes = {"complete": complete, "full": k >= n_free, "k": k, "warnings": [
+        notes = {"complete": complete, "full": k >= n_free, "k": k, "paths": {"sparse": len(masks)}, "warnings": [
             f"sparse path: the lowest {min(k, n_free)} of {n_free} non-rigid eigenpairs of sym(𝓗^i) per branch; "
             "uniqueness (ℍ^i spectra, Type-2 non-uniqueness) is not evaluated"]}
         if ritz:
@@ -269,13 +309,17 @@ class SparseMethod:
 
     def _modes(self, spb, masks, kk: int):
         """Modes of every branch: several branches as low-rank updates of one elastic solve (ritz.SparseRitz,
-        verified per branch, shift-invert ARPACK where that fails), a single one by shift-invert directly."""
+        verified per branch, shift-invert ARPACK where that fails), a single one, or branches whose Ritz problem
+        would not fit RITZ_BYTES (many sliding contacts: its basis grows by 4 columns and its updates by one
+        width² matrix a contact), by shift-invert directly, one after the other."""
         from .sparse import lowest_modes
-        if len(masks) > 1:
+        Ms = spb.A.shape[1]
+        if len(masks) > 1 and 8 * Ms * (kk + 8 + 4 * Ms) ** 2 <= RITZ_BYTES:
             from .ritz import SparseRitz
             yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)
             return
-        yield lowest_modes(spb, kk, masks[0], tol=self.tol)
+        for mask in masks:
+            yield lowest_modes(spb, kk, mask, tol=self.tol)
 
     def errors(self, state: State, problem: SparseBranchProblem, branches) -> dict:
         from .sparse import identity_errors as sparse_identities

@@ -50,11 +50,11 @@ import scipy.sparse.linalg as spla
 from ..mechanics import checks
 from ..mechanics.accuracy import resolved_sign, vector_bounds
 from ..mechanics.assembly import assemble, sliding_factors, stack_blocks
-from ..mechanics.branches import RIGID, Branch, Problem, search_eigenspaces, test_codes
+from ..mechanics.branches import RIGID, Branch, Problem, canonical_signs, search_eigenspaces, test_codes
 from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
-from ..mechanics.rigid import Projection, rigid_basis, rotations, translations
-from ..mechanics.stiffness import ContactBlocks, contact_blocks, geometric
+from ..mechanics.rigid import Projection, free_spins, rigid_basis, rotations, translations
+from ..mechanics.stiffness import ContactBlocks, assembled_error, contact_blocks, geometric
 from ..model.scene import CONTACT_FIELDS, Scene
 from ..model.vec import rot_dim, rotate_matrix
 
@@ -111,6 +111,7 @@ class SparseProblem:
     norm: float
     local: ContactBlocks
     timings: dict = field(default_factory=dict)
+    free_spins: int = 0       # rotation dofs no contact feels (rigid.untouched_dofs): Hs has 2·norm there, far above
 
     @property
     def n(self) -> int:
@@ -137,6 +138,7 @@ class SparseParts:
     sliding: np.ndarray
     local: ContactBlocks
     timings: dict
+    curvature_error: sp.csr_matrix | None = None   # stiffness.assembled_error: H's error from rounding K^p + K^q
 
 
 def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
@@ -151,13 +153,17 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     s = np.empty((M, n_loc))
     index = np.empty((M, n_loc), dtype=np.intp)
     undetermined = np.zeros(M, bool)
+    error = np.empty((M, n_loc, n_loc))
     for sl, cb in contact_chunks(scene, chunk):
         b = cb.blocks
         total[sl] = b["Hm"] + geometric(b)
         mech[sl] = b["Hm"]
         a[sl], s[sl], index[sl] = cb.slide_left, cb.slide_right, cb.index
         undetermined[sl] = cb.rolling_undetermined
+        error[sl] = cb.curvature_error
     t1 = time.perf_counter()
+    curvature_error = assembled_error(scene, error)
+    del error
     H = assemble(total, scene.p, scene.q, per, scene.n_dof)
     del total
     Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
@@ -166,7 +172,7 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=scene.n_dof,
                           rolling_undetermined=undetermined)
     A, S = sliding_factors(local, sliding)
-    return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local,
+    return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local, curvature_error=curvature_error,
                        timings={"blocks": t1 - t0, "assembly": time.perf_counter() - t1})
 
 
@@ -191,9 +197,14 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
     norm = float(abs(Hs).sum(axis=1).max()) if Hs.nnz else 1.0
     if Ms:
         norm += float(np.sum(np.linalg.norm(A, axis=0) * np.linalg.norm(S, axis=0)))
+    spins = free_spins(scene, H, A, S, scale=norm) if scene.fixed is None else np.zeros(0, dtype=np.intp)
+    if spins.size:              # free spins (frictionless round particles): exactly decoupled, moved to the top
+        Hs = (Hs + sp.csr_matrix((np.full(spins.size, 2.0 * norm), (spins, spins)), shape=Hs.shape)).tocsr()
+        norm *= 2.0
     return SparseProblem(scene=scene, length=metric.rotation_length, scale=metric.diagonal, metric=metric, H=H,
                          Hs=Hs, Hm=Hm, A=A, S=S, sliding=parts.sliding, C=C, Q=Q, R=R, norm=max(norm, 1e-300),
-                         local=parts.local, timings={**parts.timings, "projection": time.perf_counter() - t1})
+                         local=parts.local, timings={**parts.timings, "projection": time.perf_counter() - t1},
+                         free_spins=int(spins.size))
 
 
 
@@ -630,20 +641,22 @@ def _finish(sp_, Bop, lam, V, mask, sig, verified, nu, method, info) -> Modes:
 
 def sparse_branch(problem: Problem, spb, modes, mask, k: int):
     """A branches.Branch from the k+1 lowest modes: rigid modes first in the basis, per-eigenvalue accuracy bounds
-    (accuracy.py), consistency codes, the subspace search of Appendix D on repeated and non-rigid zero eigenvalues
-    (branches.search_eigenspaces, as the dense path) and the negative count of sym(𝓗^i) (`negative_count`: count, total = whether every
-    negative eigenvalue is among the computed ones, below = the shift σ of the inertia count)."""
+    (accuracy.py, with the branch's `rigid_leakage`), consistency codes, the subspace search of Appendix D on
+    repeated and non-rigid zero eigenvalues (branches.search_eigenspaces, as the dense path) and the negative count
+    of sym(𝓗^i) (`negative_count`: count, total = whether every negative eigenvalue is among the computed ones,
+    below = the shift σ of the inertia count)."""
     n = spb.n
     lam_k, V_k = modes.eigenvalues, modes.vectors
     res_k = modes.residuals * spb.norm                                  # absolute residual norms
-    bounds_k = vector_bounds(lam_k, res_k, spb.norm, problem.formation_error, n)
+    formation = problem.formation_error + rigid_leakage(spb, _on(spb, mask))
+    bounds_k = vector_bounds(lam_k, res_k, spb.norm, formation, n)
     cut = len(lam_k) > k and k > 0 and lam_k[k] - lam_k[k - 1] <= bounds_k[k] + bounds_k[k - 1]
     top = (lam_k[k], bounds_k[k]) if len(lam_k) > k else (np.inf, 0.0)
     lam_k, V_k, bounds_k = lam_k[:k], V_k[:, :k], bounds_k[:k]
     n_rigid = spb.n_rigid
     lam = np.r_[np.zeros(n_rigid), lam_k]
-    bounds = np.r_[np.full(n_rigid, problem.formation_error), bounds_k]
-    V = np.concatenate([spb.R, V_k], axis=1)
+    bounds = np.r_[np.full(n_rigid, formation), bounds_k]
+    V = np.concatenate([spb.R, canonical_signs(V_k)], axis=1)          # the signs of branches.column_signs
     order = np.argsort(lam, kind="stable")
     lam, V, bounds = lam[order], V[:, order], bounds[order]
     rigid = order < n_rigid
@@ -669,6 +682,17 @@ def sparse_branch(problem: Problem, spb, modes, mask, k: int):
                negative_count={"count": count, "total": total,
                                "below": float(modes.sigma) if np.isfinite(modes.sigma) else None})
     return b, bool(cut)
+
+
+def rigid_leakage(sp_: SparseProblem, on: np.ndarray) -> float:
+    """‖sym(𝓗^i) R‖_F = ‖P Hs^i P R‖_F for the branch whose sliding contacts are `on` (bool, Ms): the rigid leakage
+    that remains (zero in exact arithmetic), added to every bound as the dense path's `dense.formation` does, from
+    sparse-times-thin products (R is (n, d + r); nothing n × n is formed)."""
+    Q = sp_.Q
+    X = sp_.R - Q @ (Q.T @ sp_.R)
+    A, S = sp_.A[:, on], sp_.S[:, on]
+    Y = sp_.Hs @ X + 0.5 * (A @ (S.T @ X) + S @ (A.T @ X))
+    return float(np.linalg.norm(Y - Q @ (Q.T @ Y)))
 
 
 # ------------------------------------------------------------------------------------------------ errors
@@ -728,4 +752,4 @@ DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this m
 
 __all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
            "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
-           "operator", "sparse_branch", "sparse_parts", "sparse_problem"]
+           "operator", "rigid_leakage", "sparse_branch", "sparse_parts", "sparse_problem"]

@@ -8,12 +8,17 @@ factorizations (dense n ≳ 100, sparse LU and ARPACK on large clusters) are the
 
 `for_size(n)` is the policy, `blas_threads(n)` applies a limit for a block with threadpoolctl when it is installed
 (the app, test and report extras bring it); without it the block runs unchanged, so the core needs only numpy and
-scipy.
+scipy. A limit is an upper bound for the blocks nested in it (in the same thread): `with blas_threads(1):` around a
+call keeps it on one thread even where the call's own `sized(n)` would take every core (before, the explorer's
+one-thread limit was lifted inside every dense analysis of more than SMALL dofs, and on a busy 2-core machine the
+two-thread pool waiting for a core made a 0.3 s analysis 18× slower, where a fair share predicts 3×).
+`cap_process(n)` bounds every block of the process (a server of many small sessions: app/server.py).
 """
 from __future__ import annotations
 
 import os
-from contextlib import nullcontext
+from contextlib import contextmanager, nullcontext
+from contextvars import ContextVar
 from functools import cache
 
 try:
@@ -32,9 +37,21 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
+_bound: ContextVar[int | None] = ContextVar("granstab_blas_bound", default=None)   # the enclosing block's limit
+_process_cap: int | None = None                                                    # cap_process
+
+
+def bound() -> int | None:
+    """The most BLAS threads a block may take here: the enclosing limit or the process cap (None: no bound)."""
+    limits = [n for n in (_bound.get(), _process_cap) if n is not None]
+    return min(limits) if limits else None
+
+
 def for_size(n: int) -> int:
-    """BLAS threads for dense work on n×n matrices: 1 up to SMALL, every core above."""
-    return 1 if n <= SMALL else cores()
+    """BLAS threads for dense work on n×n matrices: 1 up to SMALL, every core above (at most `bound()`)."""
+    threads = 1 if n <= SMALL else cores()
+    cap = bound()
+    return threads if cap is None else min(threads, cap)
 
 
 @cache
@@ -47,10 +64,32 @@ def _controller():
 
 
 def blas_threads(n: int | None):
-    """A context limiting BLAS to n threads (n None, or threadpoolctl absent: no limit)."""
+    """A context limiting BLAS to n threads, and every block nested in it to at most n (n None: the enclosing bound
+    only; threadpoolctl absent: no limit)."""
+    cap = bound()
+    n = cap if n is None else n if cap is None else min(n, cap)
     if n is None or ThreadpoolController is None:
         return nullcontext()
-    return _controller().limit(limits=n, user_api="blas")
+    return _limited(n)
+
+
+@contextmanager
+def _limited(n: int):
+    token = _bound.set(n)
+    try:
+        with _controller().limit(limits=n, user_api="blas"):
+            yield
+    finally:
+        _bound.reset(token)
+
+
+def cap_process(n: int | None) -> None:
+    """At most n BLAS threads for the whole process from now on (None: lift the cap), applied to the loaded
+    libraries at once and bounding every later block."""
+    global _process_cap
+    _process_cap = n
+    if ThreadpoolController is not None:
+        _controller().limit(limits=n if n is not None else cores(), user_api="blas")
 
 
 def sized(n: int):

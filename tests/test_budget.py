@@ -1,0 +1,140 @@
+"""No silent minutes (issue 26): the path a 300-disk packing's branches take, the up-front estimate (path and metric
+family), the heartbeat of a non-interactive run, and --timeout honoured on the threaded low-rank path."""
+import json
+import time
+
+import numpy as np
+import pytest
+
+import granstab
+from granstab.cli import main
+from granstab.io import progress
+from granstab.mechanics.branches import branch_matrices
+from granstab.mechanics.metric import family
+from granstab.model.packings import random_packing
+from granstab.solve import budget, lowrank
+from granstab.solve.threads import cores
+
+
+@pytest.fixture(scope="module")
+def disks300():
+    """About 300 frictional disks (867 dofs) with 2 contacts at the friction limit: 4 branches."""
+    return random_packing(2, 300, n_sliding=2, seed=1)
+
+
+@pytest.fixture(scope="module")
+def disks300_file(disks300, tmp_path_factory):
+    path = tmp_path_factory.mktemp("disks300") / "disks300.npz"
+    granstab.save_scene(disks300, path)
+    return path
+
+
+def test_a_300_disk_packing_takes_the_low_rank_path(disks300):
+    """Below 2^10 branches every branch of a ~900-dof cluster used to take the full path (eig + SVD of 900×900,
+    seconds a branch); the cost report says which path each branch took."""
+    result = granstab.analyze(disks300, metric="L")
+    assert result.cost["paths"] == {"low_rank": 4, "full": 0} and result.cost["branches_per_metric"] == 4
+    # the low-rank eigenvalues are those of the branch's full sym(𝓗) (a direct dense eigvalsh); the tolerance is
+    # the reported per-eigenvalue bound plus the direct solve's own backward error (n ε ‖sym 𝓗‖)
+    b = result.branches[0]
+    _, _, Hsym = branch_matrices(result.problem, b.mask[None])
+    direct = np.linalg.eigvalsh(Hsym[0])
+    slack = Hsym.shape[-1] * np.finfo(float).eps * np.abs(direct).max()
+    assert np.all(np.abs(np.sort(b.stability_eigenvalues) - direct) <= b.accuracy.max() + slack)
+
+
+def test_the_estimate_counts_every_metric_of_the_family(disks300_file, monkeypatch, capsys):
+    """The default family repeats every branch in each metric; the --timeout estimate ignored that (3-4× low)."""
+    scene = granstab.load_scene(disks300_file)
+    n_metrics = len(family(scene, None))
+    per_branch = 1.0                                              # a fixed measured cost: the estimate is exact
+    monkeypatch.setattr(budget, "branch_seconds", lambda n, stack=4, lowrank=False: per_branch)
+    one = 4 * per_branch / cores()                                # 4 low-rank branches shared by the cores
+    timeout = one * (n_metrics - 0.5)                             # the family does not fit, one metric does
+    assert main(["analyze", str(disks300_file), "--timeout", f"{timeout}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "refused" in err
+    assert f"4 branches × {n_metrics} metric(s) of {scene.n_dof} dofs (low-rank path)" in err
+    assert f"need about {n_metrics * one:.3g} s" in err and f"--metric L alone (about {one:.3g} s)" in err
+    monkeypatch.setattr(lowrank, "solve_branches_lowrank", _stop)            # the refusal came before any work
+    assert main(["analyze", str(disks300_file), "--timeout", f"{timeout}", "--metric", "L"]) == 2
+    assert "work started" in capsys.readouterr().err
+
+
+def _stop(*args, **kwargs):
+    raise granstab.SceneError("work started")
+
+
+def test_without_timeout_long_work_is_refused_in_one_line_before_it_starts(disks300_file, monkeypatch, capsys):
+    monkeypatch.setattr(budget, "branch_seconds", lambda n, stack=4, lowrank=False: 2 * budget.ASK_SECONDS)
+    monkeypatch.setattr(lowrank, "solve_branches_lowrank", _stop)
+    assert main(["analyze", str(disks300_file), "--metric", "L", "--json"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1
+    assert "give --timeout" in err and "--method sparse" in err and "work started" not in err
+
+
+def test_a_non_interactive_run_prints_heartbeats_and_keeps_json_clean(disks300_file, monkeypatch, capsys):
+    """stderr is not a terminal under capsys: no bar, a heartbeat line (interval set small here) with the stage."""
+    monkeypatch.setattr(progress, "HEARTBEAT_FIRST", 0.2)
+    monkeypatch.setattr(progress, "HEARTBEAT_EVERY", 0.2)
+    slow = lowrank.solve_branches_lowrank
+
+    def slowed(*args, **kwargs):                                  # at least a few heartbeats long on any machine
+        time.sleep(0.7)
+        return slow(*args, **kwargs)
+
+    monkeypatch.setattr(lowrank, "solve_branches_lowrank", slowed)
+    assert main(["analyze", str(disks300_file), "--metric", "L", "--json", "--timeout", "600"]) == 0
+    out, err = capsys.readouterr()
+    data = json.loads(out)                                        # stdout: the JSON result alone
+    assert data["cost"]["paths"]["low_rank"] == 4
+    beats = [line for line in err.splitlines() if line.startswith(f"granstab: analyze {disks300_file}: ")]
+    assert len(beats) >= 2 and beats == err.splitlines()
+    assert any("branches, metric L (" in line and "of 4)" in line for line in beats)
+
+
+def test_timeout_stops_the_threaded_low_rank_branches(disks300, monkeypatch):
+    """--timeout's deadline stops the low-rank branches, which run in a thread pool: the chunks still queued are
+    dropped, not solved. The deadline is set to fire 0.5 s after the first chunk starts (whatever the load)."""
+    import signal
+    calls = []
+    stack = lowrank.branch_stack
+
+    def slowly(*args, **kwargs):
+        if not calls:
+            signal.setitimer(signal.ITIMER_REAL, 0.5)             # re-arms --timeout's timer (process-wide)
+        calls.append(1)
+        time.sleep(0.5)
+        return stack(*args, **kwargs)
+
+    monkeypatch.setattr(lowrank, "branch_stack", slowly)
+    scene = random_packing(2, 300, n_sliding=5, seed=1)          # 32 branches, one a chunk
+    with pytest.raises(budget.OverBudget, match="stopped after --timeout"):
+        with budget.deadline(600, scene.source, ["advice"]):
+            granstab.analyze(scene, metric="L")
+    time.sleep(2.0)                                               # chunks still queued would run now
+    assert 0 < len(calls) < 32
+
+
+def test_tiny_timeout_is_one_line_and_a_nonzero_exit(disks300_file, monkeypatch, capsys):
+    monkeypatch.setattr(budget, "branch_seconds", lambda n, stack=4, lowrank=False: 0.0)   # not refused up front
+    assert main(["analyze", str(disks300_file), "--metric", "L", "--json", "--timeout", "0.05"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1 and "stopped after --timeout 0.05 s" in err
+
+
+def test_a_3000_disk_chain_says_where_it_is_and_stops_at_the_timeout(tmp_path, monkeypatch, capsys):
+    """A floppy zig-zag chain (9,000 dofs: the sparse path; thousands of clustered negative eigenvalues, on which
+    shift-invert stalls): not solved quickly yet, but no silent minutes: heartbeats, then one line at --timeout."""
+    from granstab.model.packings import chain
+    path = tmp_path / "chain.npz"
+    granstab.save_scene(chain(2, 3000, zigzag=0.3), path)
+    monkeypatch.setattr(progress, "HEARTBEAT_FIRST", 0.5)
+    monkeypatch.setattr(progress, "HEARTBEAT_EVERY", 0.5)
+    assert main(["analyze", str(path), "--metric", "L", "--json", "--timeout", "4"]) == 2
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert out == "" and lines[-1].startswith(f"{path}: stopped after --timeout 4 s, unfinished; lower --k")
+    assert len(lines) >= 3 and all(line.startswith(f"granstab: analyze {path}: ") for line in lines[:-1])
+    assert any("(sparse)" in line for line in lines[:-1])
