@@ -44,25 +44,30 @@ def core_scene(scene: Scene, wall_flags):
 def whole(core: Scene, soft_modes: int) -> tuple[dict, np.ndarray]:
     """The whole-packing analysis (WHOLE): λ_min (non-rigid) and the consistent negative count of the all-unloading
     and all-loading branches, and each particle's soft-spot participation: the mean over the `soft_modes` lowest
-    consistent modes (both branches pooled) of its share of the mode's squared translation."""
+    consistent modes (both branches pooled; where none is consistent, the lowest non-rigid modes of the
+    all-unloading branch, said in `soft_modes_from`) of its share of the mode's squared translation."""
     res = analyze(core, k=max(6, soft_modes), **WHOLE)
     sliding = np.flatnonzero(core.at_yield()) if core.n_contacts else np.zeros(0, int)
-    row, modes = {}, []
+    row, modes, elastic = {}, [], []
     for name, sign in (("unloading", -1), ("loading", 1)):
         branch = next((b for b in res.branches if np.all(b.mask[sliding] == sign)), None)
         if branch is None:
             row[f"lambda_min_{name}"], row[f"n_negative_{name}"] = float("nan"), -1
             continue
         lam = branch.stability_eigenvalues
-        nonrigid = lam[branch.codes != RIGID]
-        row[f"lambda_min_{name}"] = float(nonrigid.min()) if nonrigid.size else float("nan")
+        nonrigid = np.flatnonzero(branch.codes != RIGID)
+        row[f"lambda_min_{name}"] = float(lam[nonrigid].min()) if nonrigid.size else float("nan")
         consistent = branch.consistent()
         row[f"n_negative_{name}"] = int(sum(c["eigenvalue"] < -branch.accuracy[c["index"]] for c in consistent))
         modes += [(c["eigenvalue"], branch.stability_vectors[:, c["index"]]) for c in consistent]
+        if sign == -1:
+            elastic = [(lam[j], branch.stability_vectors[:, j]) for j in nonrigid]
     row["whole_verdict"] = res.verdict.verdict
     row["whole_method"] = res.backend
+    row["soft_modes_from"] = "consistent modes, both branches" if modes else \
+        "no consistent mode: the lowest non-rigid modes of the all-unloading branch"
     share = np.zeros(core.n_particles)
-    lowest = sorted(modes, key=lambda m: m[0])[:soft_modes]
+    lowest = sorted(modes or elastic, key=lambda m: m[0])[:soft_modes]
     for _, v in lowest:
         u = res.motion(v).reshape(core.n_particles, core.dof_per_particle)[:, :core.dim]
         t = np.sum(u * u, axis=1)
