@@ -164,7 +164,7 @@ def test_stress_from_the_contacts_is_the_hand_sum(tracked):
     contacts = np.loadtxt(paths[1], delimiter=",", skiprows=1)
     at = {(int(r[0]), int(r[1])): r[2:4] for r in parts}
     sigma = np.zeros((2, 2))
-    for f, a, b, fx, fy in contacts[contacts[:, 0] == 1]:
+    for _, a, b, fx, fy in contacts[contacts[:, 0] == 1]:
         sigma += np.outer([fx, fy], at[(1, int(b))] - at[(1, int(a))])
     s = 1.999
     sigma /= (3 * s) ** 2

@@ -10,18 +10,15 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
 from ..io import frames as list_frames
 from ..io.progress import Heartbeat
 from ..model.errors import Interrupted, require
 from ..model.scene import SceneError
 from ..scan.clusters import DEFAULT_BOUNDARY, boundary_rings
+from ..scan.run import _progress
 from .frame import frame_task
 from .tables import finish
 
-DEFAULTS = {"window": 1, "d2min_radius": None, "radius_diameters": 2.5, "event_quantity": "shear_stress",
-            "event_threshold": 0.05, "soft_modes": 5, "rings": 1, "boundary": DEFAULT_BOUNDARY, "seed": 0}
 EVENT_QUANTITIES = ("shear_stress", "stress_ratio")
 POLL_SECONDS = 0.05
 
@@ -124,7 +121,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     todo = [k for k in positions if not (out / "parts" / f"frame-{k:06d}.json").exists()]
     with Heartbeat(f"track {out_dir}", enabled=not progress) as beat:      # a line a minute without a bar
         beat.stage("frames", total=len(todo))
-        bar = (_bar(len(todo)) if progress else None) or beat
+        bar = (_progress(len(todo), "frame") if progress else None) or beat
         try:
             try:
                 ran = run_frames(spec, todo, keys, workers, bar)
@@ -192,7 +189,7 @@ def _dask(spec, todo, keys, n: int, bar) -> None:
     from dask.distributed import Client, LocalCluster, as_completed
 
     from ..scan.run import WORKER_ENVIRON
-    from ..scan.workers import close_quietly, sigint_flag, sigint_ignored
+    from ..scan.workers import close_quietly, finished, sigint_flag, sigint_ignored
     with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored():
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
     client = Client(cluster)
@@ -200,16 +197,9 @@ def _dask(spec, todo, keys, n: int, bar) -> None:
         with sigint_flag() as stop:
             running = as_completed([client.submit(frame_task, spec, k, keys[k], pure=False, retries=1)
                                     for k in todo])
-            while not running.is_empty():
-                if stop.is_set():
-                    raise KeyboardInterrupt
-                batch = running.next_batch(block=False)
-                if not batch:
-                    time.sleep(POLL_SECONDS)
-                    continue
-                for future in batch:
-                    future.result()                    # a frame's error: its one line, here
-                    bar.update(1)
+            for future in finished(running, stop, POLL_SECONDS):
+                future.result()                        # a frame's error: its one line, here
+                bar.update(1)
     except BaseException:
         close_quietly(client, cluster)
         raise
@@ -236,10 +226,3 @@ def _after(out: Path, summary: dict, predict: bool, figures: bool) -> dict:
         (out / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
     return summary
 
-
-def _bar(total: int):
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:
-        return None
-    return tqdm(total=total, desc="frames", unit="frame", mininterval=0.5)
