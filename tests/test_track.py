@@ -298,3 +298,12 @@ def test_mercury_and_datasim_inputs_list_their_frames(tmp_path):
     assert np.allclose(d2[:3], 0.0, atol=1e-20)      # a rigid translation by (1, 1): no non-affine motion
     if DATASIM.is_dir():
         assert granstab.io.frames(DATASIM) == [5000]
+
+
+def test_a_scene_file_is_a_sequence_of_one_frame(tmp_path, capsys):
+    preset = Path(__file__).parents[1] / "presets" / "two_particle.toml"
+    assert main(["track", str(preset), "--out", str(tmp_path), "--workers", "1", "--no-figures", "--predict"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("1 frames") and "predict: " in out          # said whether the prediction ran
+    frames = pq.read_table(tmp_path / "frames.parquet").to_pydict()
+    assert frames["frame"] == [0] and np.isnan(frames["step"][0]) and np.isnan(frames["n_made"][0])

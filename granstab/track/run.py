@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from ..io import frames as list_frames
+from ..io import is_snapshot
 from ..io.progress import Heartbeat
 from ..model.errors import Interrupted, require
 from ..model.scene import SceneError
@@ -30,7 +31,7 @@ def select(text: str | None, n: int) -> list[int]:
         return list(range(n))
     parts = text.split(":")
     try:
-        if len(parts) > 3:
+        if len(parts) > 3 or not text.strip():
             raise ValueError
         values = [int(v) if v.strip() else None for v in parts] + [None] * (3 - len(parts))
         if len(parts) == 1:
@@ -95,7 +96,8 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
         Local Dask workers (1: this process; default by the measured cost, scan/workers.py); a bar; the seed of the
         `random` predictor.
     **import_options
-        As `granstab.io.load` (mu, k, alpha, columns, length_scale, periodic, …); rattlers are always kept.
+        As `granstab.io.load` (mu, k, alpha, columns, length_scale, periodic, …); a snapshot's rattlers are always
+        kept.
 
     Returns
     -------
@@ -106,10 +108,10 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     require("pyarrow", "scan", "the track's tables")
     paths = [str(p) for p in ([inputs] if isinstance(inputs, (str, Path)) else inputs)]
     options = {k: v for k, v in import_options.items() if v is not None}
-    options["keep_rattlers"] = True
+    if len(paths) > 1 or is_snapshot(paths[0]):
+        options["keep_rattlers"] = True              # a scene file (one frame) is read as written
     begun = time.perf_counter()
     keys = list_frames(paths, format=format, **options)
-    options.pop("keep_rattlers")
     positions = select(frames, len(keys))
     out = Path(out_dir)
     spec = {"inputs": paths, "format": format, "import": {k: v for k, v in options.items()}, "out": str(out),
