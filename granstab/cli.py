@@ -300,6 +300,57 @@ def refuse_unfinishable(scene, args, seconds_left: float | None) -> tuple[bool, 
     return dense, seconds
 
 
+def cmd_rigidity(args) -> int:
+    """Rigid clusters, floppy modes, self-stresses and Maxwell counts (issue 28): JSON or a readable summary."""
+    from .rigidity import rigidity
+    with strict_numerics(str(args.input[0])):
+        loaded = load_with_import_options(args.input, args)
+        result = rigidity(loaded.scene, model=args.model, walls=args.walls, wall_flags=loaded.wall_flags)
+        result["import"] = loaded.report
+        require_finite({k: v for k, v in result.items() if k != "import"}, loaded.scene.source)
+    if args.figure:
+        from .rigidity.figure import write_figure
+        result["figure"] = str(write_figure(loaded.scene, result, args.figure))
+    print(json.dumps(result, allow_nan=False) if args.json else "\n".join([format_rigidity(result),
+                                                                          *import_lines(loaded)]))
+    return 0
+
+
+def format_rigidity(result: dict) -> str:
+    """A readable summary of a rigidity result: per model the clusters, modes, counts and cost."""
+    lines = [f"{result['source']}: {result['dim']}D, walls {result['walls']}"
+             + (", periodic cell (fixed)" if result["periodic"] else "")]
+    for name in ("physical", "generic"):
+        if name not in result:
+            continue
+        r, c = result[name], result[name]["counts"]
+        sizes = ", ".join(str(len(cl["particles"])) for cl in r["clusters"][:5])
+        lines.append(f"{name} ({r['method']}): {len(r['clusters'])} rigid clusters (largest: {sizes or 'none'} "
+                     f"particles); {r['floppy_modes']['count']} internal floppy modes + {r['trivial_modes']['count']} "
+                     f"trivial; {r['self_stresses']} self-stresses; {len(r['rattlers'])} rattlers; "
+                     f"z = {c['z']:.3f} (without rattlers {c['z_without_rattlers']:.3f}), z_iso = "
+                     f"{c['z_iso']:.3f}; Maxwell: {c['maxwell']['dofs']} dofs - {c['maxwell']['constraints']} "
+                     f"constraints + {c['maxwell']['self_stresses']} self-stresses = {c['maxwell']['floppy']} floppy; "
+                     f"{r['seconds']:.2f} s")
+        if name == "physical":
+            t = r["rank_tolerance"]
+            gap = "none dropped (full rank)" if t["gap"] is None else f"{t['gap']:.3g}"
+            lines.append(f"  rank tolerance {t['largest']:.2e}, singular-value gap {gap}")
+            ps = r["prestress"]
+            for branch in ("all_loading", "all_unloading"):
+                if ps.get("evaluated"):
+                    b = ps[branch]
+                    lines.append(f"  prestress, {branch.replace('_', '-')}: {b['stabilised']} floppy directions "
+                                 f"stabilised, {b['destabilised']} destabilised, {b['neutral']} neutral")
+    if "differ" in result:
+        d = result["differ"]
+        lines.append("models agree on every contact" if d["same_partition"] else
+                     f"models differ on {d['count']} contacts (--json: differ.contacts)")
+    if "figure" in result:
+        lines.append(f"wrote {result['figure']}")
+    return "\n".join(lines)
+
+
 def cmd_reproduce(args) -> int:
     from .paper import reproduce
     reproduce(args.name, Path(args.out), root=args.root)
@@ -351,14 +402,7 @@ def cmd_convert(args) -> int:
     """Snapshot(s) (or a scene file) → contact-level scene JSON or NPZ; prints the validation report (issue 9)."""
     from .io import format_report
 
-    options = {key: getattr(args, key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
-                                                   "length_scale", "units", "region", "columns", "density")
-               if getattr(args, key) is not None}
-    if args.keep_rattlers:
-        options["keep_rattlers"] = True
-    options.update(periodic_options(args))
-    loaded = load(args.inputs, format=args.format, frame=args.frame, timestep=args.timestep,
-                  progress=args.progress or sys.stderr.isatty(), **options)
+    loaded = load_with_import_options(args.inputs, args)
     if Path(args.out).suffix.lower() == ".npz":
         save_scene(loaded.scene, args.out)             # binary: 10⁶ contacts in a fraction of a second
     else:
@@ -580,10 +624,9 @@ def frame_number(text: str):
     return int(value) if value.is_integer() else value
 
 
-def add_convert(sub) -> None:
-    p = sub.add_parser("convert", help="DEM snapshots / experimental frames → a contact-level scene (JSON)")
-    p.add_argument("inputs", nargs="+", help="a folder or file(s) of one snapshot")
-    p.add_argument("--out", required=True, help="scene file to write (JSON; NPZ when it ends in .npz)")
+def import_arguments(p) -> None:
+    """The import options of a snapshot (convert's, and every command that reads one through them): format,
+    frame or timestep, region, contact law, geometry, cone policy, units, columns, rattlers, progress."""
     p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.formats()")
     p.add_argument("--progress", action="store_true",
                    help="a progress bar on stderr while large files are read (default when stderr is a terminal)")
@@ -609,8 +652,101 @@ def add_convert(sub) -> None:
     p.add_argument("--columns", help="what each column is, e.g. id1,id2,fx,fy,fz (formats with named columns)")
     p.add_argument("--keep-rattlers", action="store_true", help="keep particles without contacts")
     periodic_arguments(p, cell=True)
+
+
+def import_options(args) -> dict:
+    """The load() options `import_arguments` defined, only those given (a scene file takes none)."""
+    options = {key: getattr(args, key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
+                                                   "length_scale", "units", "region", "columns", "density")
+               if getattr(args, key) is not None}
+    if args.keep_rattlers:
+        options["keep_rattlers"] = True
+    options.update(periodic_options(args))
+    return options
+
+
+def load_with_import_options(inputs, args):
+    """`granstab.io.load` of `inputs` with the options `import_arguments` defined (only those given are passed,
+    so that a scene file, which takes none, is read as written)."""
+    return load(inputs, format=args.format, frame=args.frame, timestep=args.timestep,
+                progress=args.progress or sys.stderr.isatty(), **import_options(args))
+
+
+def cmd_track(args) -> int:
+    """A sequence of frames → DIR/frames.parquet, particles.parquet, events.json, summary.json (issue 27)."""
+    from .track import track
+    if args.frame is not None or args.timestep is not None:
+        raise InputError(f"--{'frame' if args.frame is not None else 'timestep'}: track reads every frame of the "
+                         "input; choose them with --frames A:B:STEP")
+    options = {k: v for k, v in import_options(args).items() if k != "keep_rattlers"}   # track keeps them always
+    summary = track(args.inputs, args.out, format=args.format, frames=args.frames, whole=args.whole,
+                    scan=args.scan, rigidity=args.rigidity, predict=args.predict, figures=not args.no_figures,
+                    window=args.window, d2min_radius=args.d2min_radius, event_quantity=args.event_quantity,
+                    event_threshold=args.event_threshold, soft_modes=args.soft_modes, rings=args.rings,
+                    boundary=args.boundary, workers=args.workers, progress=args.progress, seed=args.seed,
+                    **options)
+    resumed = summary["cost"]["resumed"]
+    lines = [f"{summary['frames']} frames ({resumed} already in the folder) in {summary['cost']['seconds']:.1f} s; "
+             f"{summary['events']} events ({summary['thresholds']['event_quantity']} drops over "
+             f"{summary['thresholds']['event_threshold']:g} × its mean); wrote {args.out}",
+             f"ran {summary['cost']['workers']['where']} ({summary['cost']['workers']['why']})",
+             *[f"{name}: {what}" for name, what in summary.get("after", {}).items()]]
+    print(json.dumps(summary) if args.json else "\n".join(lines))
+    return 0
+
+
+def add_track(sub) -> None:
+    p = sub.add_parser("track", help="a sequence of frames: per-frame stress, analyses, D²min, contact changes, "
+                                     "events (docs/track.md)")
+    p.add_argument("inputs", nargs="+", help="a snapshot with frames: its folder or its files")
+    p.add_argument("--out", required=True, help="output directory (an interrupted track there resumes)")
+    p.add_argument("--frames", default=None, metavar="A:B:STEP",
+                   help="positions in the input's frame list, 0-based, B excluded (default: all)")
+    p.add_argument("--whole", action="store_true",
+                   help="per frame the whole-packing analysis (all-unloading and all-loading branches, soft spots)")
+    p.add_argument("--scan", action="store_true", help="per frame the local scan map (granstab scan)")
+    p.add_argument("--rigidity", action="store_true", help="per frame the largest rigid cluster")
+    p.add_argument("--predict", action="store_true", help="then the prediction test (prediction.json)")
+    p.add_argument("--no-figures", action="store_true", help="skip the figures")
+    p.add_argument("--window", type=count(1), default=1, help="D²min and contact changes over W frames (default 1)")
+    p.add_argument("--d2min-radius", type=positive_number, default=None,
+                   help="D²min neighbourhood radius in input length units (default 2.5 mean contact branch lengths)")
+    p.add_argument("--event-quantity", choices=["shear_stress", "stress_ratio"], default="shear_stress")
+    p.add_argument("--event-threshold", type=positive_number, default=0.05,
+                   help="an event: a drop over this fraction of the run's mean (default 0.05)")
+    p.add_argument("--soft-modes", type=count(1), default=5, help="lowest consistent modes of the soft-spot measure")
+    p.add_argument("--rings", type=count(1), default=1, help="--scan: contact hops from each centre (default 1)")
+    boundary_argument(p, DEFAULT_BOUNDARY)
+    p.add_argument("--workers", type=int, default=None,
+                   help="local Dask workers over frames (1: in this process; default: by the measured cost)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random predictor")
+    p.add_argument("--json", action="store_true", help="print summary.json")
+    import_arguments(p)
+    p.set_defaults(run=cmd_track)
+
+
+def add_convert(sub) -> None:
+    p = sub.add_parser("convert", help="DEM snapshots / experimental frames → a contact-level scene (JSON)")
+    p.add_argument("inputs", nargs="+", help="a folder or file(s) of one snapshot")
+    p.add_argument("--out", required=True, help="scene file to write (JSON; NPZ when it ends in .npz)")
+    import_arguments(p)
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.set_defaults(run=cmd_convert)
+
+
+def add_rigidity(sub) -> None:
+    from .rigidity import MODELS, WALL_OPTIONS
+    p = sub.add_parser("rigidity", help="rigid clusters, floppy modes, self-stresses and Maxwell counts")
+    p.add_argument("input", nargs="+", help="any scene or snapshot that analyze reads (a folder or files)")
+    p.add_argument("--model", choices=list(MODELS), default="physical",
+                   help="physical: rank and null space of the compatibility matrix (default); generic: the pebble "
+                        "game; both: side by side with the contacts where they differ")
+    p.add_argument("--walls", choices=list(WALL_OPTIONS), default="free",
+                   help="free: wall forces are loads (default); bodies: each annulus wall one body (RigidLibrary)")
+    p.add_argument("--figure", default=None, help="write the packing with contacts coloured by cluster (PNG/SVG)")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    import_arguments(p)
+    p.set_defaults(run=cmd_rigidity)
 
 
 def build_parser() -> Parser:
@@ -679,6 +815,8 @@ def build_parser() -> Parser:
     p.set_defaults(run=cmd_bench)
     add_convert(sub)
     add_scan(sub)
+    add_rigidity(sub)
+    add_track(sub)
     add_export(sub)
     return parser
 

@@ -191,7 +191,8 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     })
     report.update({k: v for k, v in snap.notes.items() if k not in report})
     report["warnings"] = import_warnings(report)
-    return Loaded(scene=scene, report=report, frames=snap.frames)
+    return Loaded(scene=scene, report=report, frames=snap.frames,
+                  wall_flags=None if snap.wall_flags is None else snap.wall_flags[keep_p])
 
 
 # ------------------------------------------------------------------------------------------------ checks

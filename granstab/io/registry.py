@@ -29,6 +29,7 @@ class Loaded:
     scene: Scene
     report: dict
     frames: list | None = None
+    wall_flags: object = None     # (N,) per scene particle: -1 / +1 at a wall the file flags (annulus), else None
 
     @property
     def warnings(self) -> list[str]:

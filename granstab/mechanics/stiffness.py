@@ -113,14 +113,22 @@ class Stiffness:
 
 def kinematics(scene: Scene):
     """Bu (M, d, n) and Bt (M, r, n): contact deformations δu_def, δθ_def from local dofs (eq:dudef, eq:dtdef)."""
-    d, r, M = scene.dim, rot_dim(scene.dim), scene.n_contacts
+    return relative_motion(scene.r_pq, scene.r_qp)
+
+
+def relative_motion(r_pq: np.ndarray, r_qp: np.ndarray):
+    """Bu (M, d, n), Bt (M, r, n): δu_def = du^q - du^p + dθ^q × r^qp - dθ^p × r^pq and δθ_def = dθ^q - dθ^p over
+    the local dofs [du^p, dθ^p, du^q, dθ^q] (eq:dudef, eq:dtdef), from the radial vectors alone (the rigidity
+    analysis's compatibility rows use the same map)."""
+    M, d = r_pq.shape
+    r = rot_dim(d)
     n = 2 * (d + r)
     Bu = np.zeros((M, d, n))
     Bt = np.zeros((M, r, n))
     Bu[:, :, :d] = -np.eye(d)
-    Bu[:, :, d:d + r] = -rotate_matrix(scene.r_pq)
+    Bu[:, :, d:d + r] = -rotate_matrix(r_pq)
     Bu[:, :, d + r:2 * d + r] = np.eye(d)
-    Bu[:, :, 2 * d + r:] = rotate_matrix(scene.r_qp)
+    Bu[:, :, 2 * d + r:] = rotate_matrix(r_qp)
     Bt[:, :, d:d + r] = -np.eye(r)
     Bt[:, :, 2 * d + r:] = np.eye(r)
     return Bu, Bt

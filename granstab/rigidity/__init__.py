@@ -1,0 +1,178 @@
+"""Rigidity of a packing: rigid clusters, floppy modes, self-stresses and Maxwell counts (issue 28).
+
+    result = granstab.rigidity.rigidity(scene, model="both", walls="free")
+    result["physical"]["clusters"][0]          # the largest rigid cluster: its particles and contacts
+
+Two models of the same body-bar frame (frame.py: particles as rigid bodies, a sticking contact d constraints, a
+sliding one 1, rolling stiffness r more):
+- "physical" (physical.py): the rank and null space of the compatibility matrix at the actual geometry, with its
+  rank tolerance and singular-value gap; the prestress's second-order verdict on the floppy modes (prestress.py);
+- "generic" (pebble.py): the (k, k) pebble game, k = d(d+1)/2, RigidLibrary's (3,3) game in 2D: exact for
+  generic geometry, blind to collinear contacts, parallel chains and the periodic cell.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..model.errors import SceneError
+from ..model.scene import Scene, mean_contact_radius
+from .frame import WALL_NAMES, WALL_OPTIONS, Frame, from_scene
+from .pebble import pebble_game
+from .physical import physical
+from .prestress import prestress
+
+MODELS = ("physical", "generic", "both")
+
+
+def rigidity(scene: Scene, model: str = "physical", walls: str = "free", wall_flags=None) -> dict:
+    """The rigidity analysis of a scene as a JSON-able dict: one entry per model ("physical", "generic"), and with
+    model="both" also "differ" (the contacts whose cluster membership differs); `walls` "free" or "bodies"
+    (RigidLibrary's annulus convention, needs `wall_flags`)."""
+    if model not in MODELS:
+        raise SceneError(f"--model: must be one of {', '.join(MODELS)}, got {model!r}")
+    frame = from_scene(scene, walls, wall_flags)
+    out = {"source": scene.source, "dim": scene.dim, "walls": walls, "periodic": scene.periodic,
+           "wall_bodies": frame.walls}
+    for name in (("physical", "generic") if model == "both" else (model,)):
+        out[name] = (analyse_physical if name == "physical" else analyse_generic)(scene, frame)
+    if model == "both":
+        out["differ"] = differing_contacts(out["physical"], out["generic"])
+    return out
+
+
+def analyse_generic(scene: Scene, frame: Frame) -> dict:
+    """The pebble game: bars in RigidLibrary's order (one bar of every contact, then the further bars)."""
+    start = time.perf_counter()
+    k = frame.per
+    bars = frame.bars
+    extra = np.repeat(np.arange(len(bars)), bars - 1)
+    order = np.r_[np.arange(len(bars)), extra]
+    game = pebble_game(frame.n_bodies, frame.p[order], frame.q[order], k)
+    independent = int(game.independent.sum())
+    counts = {"dofs": k * frame.n_bodies, "constraints": len(order), "rank": independent,
+              "floppy": game.free, "trivial": k}
+    return report(scene, frame, game.component, counts, time.perf_counter() - start,
+                  {"method": f"({k},{k}) pebble game on the body-bar graph",
+                   "trivial_modes_note": "the game counts k rigid motions of the whole; a periodic cell is ignored"})
+
+
+def analyse_physical(scene: Scene, frame: Frame) -> dict:
+    start = time.perf_counter()
+    length = mean_contact_radius(scene)
+    ph = physical(frame, length)
+    trivial = frame.dim if frame.periodic else frame.per
+    counts = {"dofs": frame.per * frame.n_bodies, "constraints": int(frame.bars.sum()), "rank": ph.rank,
+              "floppy": ph.nullity, "trivial": trivial}
+    extra = {"method": "dense SVD per connected block of the sparse compatibility matrix",
+             "rotation_length": length,
+             "rank_tolerance": {"rule": "sigma > max(rows, cols) * eps * sigma_max of each block",
+                                "largest": ph.tolerance,
+                                "gap": ph.gap if np.isfinite(ph.gap) else None,
+                                "gap_is": "sigma_rank / sigma_rank+1, smallest over the blocks (null: full rank)"},
+             "rigid_contact_strain": ph.strain_gap}
+    result = report(scene, frame, ph.component, counts, time.perf_counter() - start, extra)
+    t = time.perf_counter()
+    result["prestress"] = prestress(scene, ph.null, length)
+    result["prestress"]["seconds"] = time.perf_counter() - t
+    return result
+
+
+def rattlers(frame: Frame) -> np.ndarray:
+    """Particles (not walls) left with fewer than 2 contacts when such particles are removed one round after
+    another: a frictional disk needs two contacts to be held (bool, N_b)."""
+    alive = np.ones(frame.n_bodies, bool)
+    alive[frame.n_particles:] = False
+    walls = np.arange(frame.n_bodies) >= frame.n_particles
+    while True:
+        use = (alive | walls)[frame.p] & (alive | walls)[frame.q]
+        z = np.bincount(frame.p[use], minlength=frame.n_bodies) + np.bincount(frame.q[use], minlength=frame.n_bodies)
+        drop = alive & (z < 2)
+        if not drop.any():
+            return ~alive & ~walls
+        alive &= ~drop
+
+
+def report(scene: Scene, frame: Frame, component: np.ndarray, counts: dict, seconds: float, extra: dict) -> dict:
+    """The JSON contract: contacts [p, q, label], clusters largest first, floppy and trivial modes, rattlers,
+    self-stresses and the counts (z, z_iso, Maxwell with its self-stress correction)."""
+    names = frame.names
+    same = (component[frame.p] == component[frame.q]) & (component[frame.p] >= 0)
+    raw = np.where(same, component[frame.p], -1)
+    labels, clusters = _ordered(raw, frame)
+    rat = rattlers(frame)
+    m = frame.n_contacts
+    n_live = int(frame.n_particles - rat[:frame.n_particles].sum())
+    live_contacts = ~rat[frame.p[:m]] & ~rat[frame.q[:m]]
+    bars = frame.bars[:m]
+    mean_bars = float(bars[live_contacts].mean()) if live_contacts.any() else float("nan")
+    self_stresses = counts["constraints"] - counts["rank"]
+    return {
+        "contacts": [[names[a], names[b], int(c)] for a, b, c in zip(frame.p, frame.q, labels)],
+        "clusters": clusters,
+        "floppy_modes": {"count": counts["floppy"] - counts["trivial"], "total_with_trivial": counts["floppy"]},
+        "trivial_modes": {"count": counts["trivial"],
+                          "kind": "translations (fixed periodic cell)" if frame.periodic and "pebble" not in
+                          extra["method"] else "rigid motions of the whole (translations and rotations)"},
+        "rattlers": [names[i] for i in np.flatnonzero(rat)],
+        "self_stresses": self_stresses,
+        "counts": {"particles": frame.n_particles, "bodies": frame.n_bodies, "contacts": len(frame.p),
+                   "sliding": int(frame.sliding.sum()), "z": 2 * m / max(frame.n_particles, 1),
+                   "z_without_rattlers": 2 * int(live_contacts.sum()) / max(n_live, 1),
+                   "z_iso": 2 * frame.per / mean_bars if mean_bars else None,
+                   "maxwell": {**{k: counts[k] for k in ("dofs", "constraints", "rank")},
+                               "self_stresses": self_stresses,
+                               "floppy": counts["dofs"] - counts["constraints"] + self_stresses,
+                               "formula": "floppy = dofs - constraints + self_stresses"},
+                   "largest_cluster_particles": len(clusters[0]["particles"]) if clusters else 0},
+        "seconds": seconds, **extra,
+    }
+
+
+def _ordered(raw: np.ndarray, frame: Frame):
+    """Cluster labels renumbered largest first (bodies, then contacts, then the first contact), and the clusters."""
+    found = np.unique(raw[raw >= 0])
+    members = {c: np.flatnonzero(raw == c) for c in found}
+    bodies = {c: np.unique(np.r_[frame.p[members[c]], frame.q[members[c]]]) for c in found}
+    order = sorted(found, key=lambda c: (-len(bodies[c]), -len(members[c]), members[c][0]))
+    new = np.full(len(raw), -1)
+    clusters = []
+    for i, c in enumerate(order):
+        new[members[c]] = i
+        clusters.append({"label": i, "particles": [frame.names[b] for b in bodies[c]],
+                         "contacts": members[c].tolist()})
+    return new, clusters
+
+
+def partition(result: dict) -> set:
+    """A model's partition of contacts into rigid clusters, as a set of frozensets of contact indices."""
+    return {frozenset(c["contacts"]) for c in result["clusters"]}
+
+
+def differing_contacts(a: dict, b: dict) -> dict:
+    """Where two models differ: the contacts rigid (in some cluster) in one model and floppy in the other, and
+    whether the partitions of contacts into clusters are the same."""
+    la = np.array([c[2] for c in a["contacts"]])
+    lb = np.array([c[2] for c in b["contacts"]])
+    differ = np.flatnonzero((la >= 0) != (lb >= 0))
+    same = partition(a) == partition(b)
+    return {"same_partition": same, "count": int(differ.size),
+            "contacts": [[*a["contacts"][i][:2], int(la[i]), int(lb[i])] for i in differ],
+            "columns": ["p", "q", "label (physical)", "label (generic)"],
+            "note": "contacts rigid in one model and floppy in the other"
+                    + ("" if same or differ.size else "; the clusters also group the rigid contacts differently")}
+
+
+def largest_rigid_cluster(result: dict, model: str | None = None) -> dict:
+    """The largest rigid cluster of a `rigidity` result (for `track`: one frame's entry): its particle and contact
+    counts and its share of the particles; `model` defaults to the physical one when present."""
+    name = model or ("physical" if "physical" in result else "generic")
+    r = result[name]
+    first = r["clusters"][0] if r["clusters"] else {"particles": [], "contacts": []}
+    particles = [p for p in first["particles"] if p not in WALL_NAMES]
+    return {"model": name, "particles": len(particles), "contacts": len(first["contacts"]),
+            "fraction": len(particles) / max(r["counts"]["particles"], 1)}
+
+
+__all__ = ["MODELS", "WALL_OPTIONS", "largest_rigid_cluster", "partition", "rigidity"]

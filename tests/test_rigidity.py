@@ -1,0 +1,218 @@
+"""Rigidity (issue 28): exact counts on hand-made frames, the two models on generic data, RigidLibrary's pebble game
+on the annulus frame, the periodic frame's differences, and the command's JSON contract."""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from granstab.cli import main
+from granstab.io import load
+from granstab.model import packings
+from granstab.model.packings import random_packing
+from granstab.model.scene import build_scene
+from granstab.rigidity import largest_rigid_cluster, partition, rigidity
+from granstab.rigidity.frame import Frame, from_scene
+from granstab.rigidity.pebble import pebble_game
+from granstab.rigidity.physical import physical
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data" / "rigidlibrary"
+REFERENCE = ROOT / "tests" / "data" / "rigidlibrary_annulus10_frame1_pebbles.json"
+ZERO = 1e-10   # a null vector's residual: the SVD's ε·κ on these O(1) frames is ~1e-15; 1e-10 leaves a wide margin
+
+
+def disks(x, pairs, sliding=(), radius=1.0, mu=0.5):
+    """Equal disks touching along their centre lines, contacts sticking unless listed in `sliding`."""
+    x, pairs = np.asarray(x, float), np.asarray(pairs)
+    p, q = pairs[:, 0], pairs[:, 1]
+    b = x[q] - x[p]
+    n = b / np.linalg.norm(b, axis=1)[:, None]
+    t = np.c_[-n[:, 1], n[:, 0]]
+    K = -(1 / radius) * t[:, :, None] * t[:, None, :]
+    slide = np.isin(np.arange(len(p)), list(sliding))
+    force = -1e-3 * n + np.where(slide, mu * 1e-3, 0.0)[:, None] * t
+    M = len(p)
+    arrays = dict(p=p, q=q, point=x[p] + 0.5 * b, normal=n, curvature_p=K, curvature_q=K.copy(), force=force,
+                  moment=np.zeros((M, 1)), k=np.ones(M), alpha=np.ones(M), mu=np.full(M, mu),
+                  rolling=np.zeros((M, 1, 1)), state=tuple("sliding" if s else "elastic" for s in slide))
+    return build_scene(2, [str(i) for i in range(len(x))], x, arrays)
+
+
+def null_space(frame: Frame, length: float = 1.0) -> np.ndarray:
+    """All null vectors of the physical model as one (n, f) matrix."""
+    ph = physical(frame, length)
+    N = np.zeros((frame.n_bodies * frame.per, ph.nullity))
+    col = 0
+    for where, V in ph.null:
+        N[where, col:col + V.shape[1]] = V
+        col += V.shape[1]
+    return N
+
+
+def in_span(N: np.ndarray, v: np.ndarray) -> float:
+    """|v - N Nᵀ v| / |v|: 0 when v is an allowed velocity (N orthonormal)."""
+    return float(np.linalg.norm(v - N @ (N.T @ v)) / np.linalg.norm(v))
+
+
+def test_triangle_of_three_sticking_disks_is_one_rigid_cluster():
+    s = disks([[0, 0], [2, 0], [1, np.sqrt(3)]], [[0, 1], [1, 2], [0, 2]])
+    r = rigidity(s, "both")
+    for model in ("physical", "generic"):
+        assert [c[2] for c in r[model]["contacts"]] == [0, 0, 0]
+        assert r[model]["clusters"][0]["particles"] == ["0", "1", "2"]
+        # 9 dofs - 6 independent constraints = 3 rigid motions, none internal, no self-stress
+        assert r[model]["floppy_modes"]["count"] == 0 and r[model]["trivial_modes"]["count"] == 3
+        assert r[model]["self_stresses"] == 0
+    assert r["differ"]["same_partition"]
+
+
+def test_square_of_four_sliding_disks_has_its_shear_mode_and_free_spins():
+    """4 bodies (12 dofs), 4 sliding contacts (normal rows only, independent): 8 floppy = 3 rigid motions + 4
+    free spins (every normal passes through the centres) + 1 shear: the top pair slides sideways along x."""
+    s = disks([[0, 0], [2, 0], [2, 2], [0, 2]], [[0, 1], [1, 2], [2, 3], [3, 0]], sliding=range(4))
+    r = rigidity(s, "both")
+    assert r["physical"]["floppy_modes"]["count"] == 5 == r["generic"]["floppy_modes"]["count"]
+    assert all(c[2] == -1 for c in r["physical"]["contacts"])
+    N = null_space(from_scene(s))
+    shear = np.zeros((4, 3))
+    shear[2:, 0] = 1.0                     # particles 2 and 3 (the top) move by +x
+    assert in_span(N, shear.ravel()) < ZERO
+    for i in range(4):
+        spin = np.zeros((4, 3))
+        spin[i, 2] = 1.0
+        assert in_span(N, spin.ravel()) < ZERO
+    stretch = np.zeros((4, 3))
+    stretch[1:3, 0] = 1.0                  # pulling the right pair away stretches the normals of 0-1 and 3-2
+    assert in_span(N, stretch.ravel()) > 0.1
+
+
+def chain_with_wall() -> Frame:
+    """Two unit disks A (x = -1) and B (x = +1) between the two faces of one wall body W (reference point 0):
+    contacts W-A at x = -2, A-B at 0, B-W at +2, all sticking and all on the x axis."""
+    x = np.array([[0.0, 0.0], [-1.0, 0.0], [1.0, 0.0]])          # W, A, B
+    p, q = np.array([0, 1, 2]), np.array([1, 2, 0])
+    point = np.array([[-2.0, 0.0], [0.0, 0.0], [2.0, 0.0]])
+    normal = np.tile([1.0, 0.0], (3, 1))
+    return Frame(dim=2, names=("W", "A", "B"), x=x, p=p, q=q, r_pq=point - x[p], r_qp=point - x[q],
+                 branch=x[q] - x[p], normal=normal, sliding=np.zeros(3, bool), rolling=np.zeros(3, bool),
+                 periodic=False, n_particles=3, n_contacts=3)
+
+
+def test_collinear_chain_where_the_models_differ():
+    """Generic: 6 bars on 3 bodies = 3·3 - 3, rigid. Physical: every contact point on one line, so the chain
+    buckles sideways at first order. Derivation (W fixed, R = 1): A moves up by v and turns by ω_A; its point at
+    W (x = -2) moves v - ω_A R = 0, so ω_A = v/R; its point at B moves v + ω_A R = 2v. B moves up w, turns ω_B:
+    at A, w - ω_B R = 2v; at W (x = 2), w + ω_B R = 0; so w = v, ω_B = -v/R. One internal floppy mode."""
+    frame = chain_with_wall()
+    game = pebble_game(3, np.repeat(frame.p, 2), np.repeat(frame.q, 2), 3)
+    assert game.free == 3 and list(game.component) == [0, 0, 0]
+    N = null_space(frame)
+    assert N.shape[1] == 4                 # 3 rigid motions + the buckling mode
+    mode = np.array([0, 0, 0, 0, 1, 1, 0, 1, -1], float)     # W; A: u = (0, v), θ = v/R; B: (0, v), -v/R
+    assert in_span(N, mode) < ZERO
+    ph = physical(frame, 1.0)
+    assert not ph.rigid_contact.any() and (ph.component == -1).all()
+
+
+def generic_frame(seed: int) -> tuple:
+    """A random packing's contact graph thinned to z ≈ 3.3 with random contact points and normals: no bar through
+    a centre, no two parallel, so the geometry is generic and the physical rank is the pebble game's. Returns the
+    scene and the frame."""
+    s = random_packing(2, 64, seed=seed, mobilised=1.0, n_sliding=60, jitter=0.3)
+    frame = from_scene(s)
+    rng = np.random.default_rng(seed)
+    keep = np.sort(rng.choice(len(frame.p), size=105, replace=False))
+    p, q, branch = frame.p[keep], frame.q[keep], frame.branch[keep]
+    point = frame.x[p] + 0.5 * branch + rng.normal(scale=0.3, size=branch.shape)
+    angle = rng.uniform(0, 2 * np.pi, len(p))
+    return s, dataclasses.replace(frame, p=p, q=q, branch=branch, r_pq=point - frame.x[p], r_qp=point - frame.x[q],
+                                  normal=np.c_[np.cos(angle), np.sin(angle)], sliding=frame.sliding[keep],
+                                  rolling=frame.rolling[keep], n_contacts=len(p))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_two_models_agree_on_generic_data(seed):
+    from granstab.rigidity import analyse_generic, analyse_physical
+    s, frame = generic_frame(seed)
+    ph, ge = analyse_physical(s, frame), analyse_generic(s, frame)
+    assert ph["floppy_modes"] == ge["floppy_modes"] and ph["self_stresses"] == ge["self_stresses"]
+    assert partition(ph) == partition(ge)
+    assert ph["floppy_modes"]["count"] > 0 and ph["clusters"]     # a case with floppy parts and rigid clusters
+    gap = ph["rank_tolerance"]["gap"]
+    assert gap is None or gap > 1e6                          # dense SVD: the rank is clearly resolved
+
+
+def annulus(**options):
+    return load(DATA / "DataAnnulus" / "10", frame=1, mu=0.3, keep_rattlers=True, **options)
+
+
+def reference_partition():
+    ref = json.loads(REFERENCE.read_text())
+    clusters = {}
+    for a, b, label, _ in ref["contacts"]:
+        if label >= 0:
+            clusters.setdefault(label, set()).add(frozenset((a, b)))
+    return ref, {frozenset(c) for c in clusters.values()}
+
+
+def named_partition(result):
+    contacts = result["contacts"]
+    return {frozenset(frozenset(contacts[i][:2]) for i in c["contacts"]) for c in result["clusters"]}
+
+
+def test_annulus_generic_matches_rigidlibrarys_pebble_game():
+    """RigidLibrary's own game (tests/data/rigidlibrary_reference.py) on the same frame, μ = 0.3 as its run
+    script, rattlers kept (it keeps every particle): the same partition, free pebbles and failed bars."""
+    loaded = annulus()
+    r = rigidity(loaded.scene, "generic", "bodies", loaded.wall_flags)["generic"]
+    ref, parts = reference_partition()
+    assert named_partition(r) == parts
+    assert len(r["contacts"]) == len(ref["contacts"])
+    assert r["floppy_modes"]["total_with_trivial"] == ref["free_pebbles"]
+    assert r["self_stresses"] == ref["failed_bars"]
+    assert largest_rigid_cluster({"generic": r})["particles"] == 1141      # 1143 bodies less the two walls
+
+
+@pytest.mark.slow
+def test_annulus_physical_matches_rigidlibrarys_pebble_game():
+    loaded = annulus()
+    r = rigidity(loaded.scene, "physical", "bodies", loaded.wall_flags)["physical"]
+    _, parts = reference_partition()
+    assert named_partition(r) == parts
+    # the sparse path resolves σ to √(nε)·σ_max only (CᵀC): the first non-zero σ is still 10x above its zeros
+    assert r["rank_tolerance"]["gap"] > 10
+
+
+def test_periodic_cell_has_only_translations_as_trivial_modes():
+    """A jammed frictionless packing in a fixed periodic cell (normal constraints only): the physical model counts
+    d = 2 trivial modes (translations; the cell forbids rotating the whole), the cell-ignoring game 3, and each
+    count's Maxwell identity holds: dofs - constraints + self-stresses = nullity."""
+    s = packings.jammed(2, 32, seed=0)
+    assert s.periodic
+    r = rigidity(s, "both")
+    ph, ge = r["physical"], r["generic"]
+    assert ph["trivial_modes"]["count"] == 2 and ge["trivial_modes"]["count"] == 3
+    for model in (ph, ge):
+        assert model["counts"]["maxwell"]["floppy"] == model["floppy_modes"]["total_with_trivial"]
+    assert ph["floppy_modes"]["total_with_trivial"] >= ge["floppy_modes"]["total_with_trivial"]
+
+
+def test_cli_json_contract_and_walls_error(tmp_path, capsys):
+    s = disks([[0, 0], [2, 0], [1, np.sqrt(3)]], [[0, 1], [1, 2], [0, 2]])
+    from granstab.io.scenes import save_scene
+    path = tmp_path / "tri.npz"
+    save_scene(s, path)
+    assert main(["rigidity", str(path), "--json", "--model", "both", "--figure", str(tmp_path / "f.png")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for model in ("physical", "generic"):
+        assert {"contacts", "clusters", "floppy_modes", "trivial_modes", "rattlers", "self_stresses",
+                "counts"} <= set(out[model])
+        assert out[model]["counts"]["z_iso"] == pytest.approx(3.0)    # all sticking: 2·3/2
+    assert (tmp_path / "f.png").stat().st_size > 1000
+    assert main(["rigidity", str(path), "--walls", "bodies"]) == 2
+    err = capsys.readouterr().err
+    assert "--walls bodies" in err and len(err.strip().splitlines()) == 1
