@@ -182,6 +182,7 @@ class ClientUI:
             self._spectrum_default = None        # the scene size the checkbox default was last set for
             self._spectrum_json = None
             self.spectrum = gui.add_plotly(_empty_figure(), aspect=SPECTRUM_ASPECT, visible=False)
+            self.track.add_plot(gui)                         # a track's λ_min(t)/stress(t): no modes on its map
         self.field_panel = gui.add_panel()
         self.field_panel.dock_above(self.side)
         with self.field_panel.add_tab("λ⁽⁶⁾ field"):

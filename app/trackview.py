@@ -1,9 +1,10 @@
-"""A tracked folder's controls in one tab: the D²min overlay toggle, its legend and the λ_min(t)/stress(t) plot with
-the frame now and the events marked (viser handles; the Frame slider is the Scene tab's own, app/panels.py).
+"""A tracked folder's controls: the D²min overlay toggle and its legend (under the Frame slider, which is the Scene
+tab's own, app/panels.py) and the λ_min(t)/stress(t) plot with the frame now and the events marked (in the left
+panel, under the spectrum: no mode is shown on a map).
 
 Callbacks only call the model (app/trackmap.py) and redraw through `refresh`. The plot is a plotly figure like the
-spectrum's: mounted when a track first opens, then never unmounted (a blank strip off a track: unmounting a plot
-with a redraw pending is a page error, app/panels.py); it is re-sent only when it changes. The overlay is a point
+spectrum's: shown when a track first opens, then never hidden (a blank strip off a track: unmounting a plot with a
+redraw pending is a page error, app/panels.py); it is re-sent only when it changes. The overlay is a point
 cloud of dots above the particles, sent only while ticked.
 """
 from __future__ import annotations
@@ -29,10 +30,16 @@ class TrackPanel:
         self.toggle = gui.add_checkbox("D²min of the next window", initial_value=False, visible=False)
         self.toggle.on_update(lambda _: self.run(self._toggled))
         self.note = gui.add_markdown("", visible=False)
-        self.plot = gui.add_plotly(_blank(), aspect=BLANK_ASPECT, visible=False)
+        self.plot = None                     # add_plot: in the side panel, beside the spectrum
         self._plot_json = None
         self._dots = None                    # digest of the overlay shown (None: none)
         self.model: TrackModel | None = None
+
+    def add_plot(self, gui) -> None:
+        """The λ_min(t)/stress(t) plot, hidden until a track opens, in the tab being built: the left panel's, as the
+        spectrum plot. In the main panel it threw `_redrawFromAutoMarginCount` on most loads (that panel remounts its
+        contents once the page has measured itself, purging a plot whose first redraw is pending)."""
+        self.plot = gui.add_plotly(_blank(), aspect=BLANK_ASPECT, visible=False)
 
     def _toggled(self) -> None:
         if self.model is not None and self.model.show_d2min(self.toggle.value):
@@ -47,15 +54,19 @@ class TrackPanel:
             if self.toggle.value != model.overlay:
                 self.toggle.value = model.overlay
             self.note.content = LEGEND if model.overlay else "Tick it to see where the packing moved non-affinely next."
-        if model is not None or self.plot.visible:      # figure and size first, then shown: a plot that mounts
-            figure = track_figure(model.series()) if model is not None else _blank()    # and redraws at once
-            text = figure.to_json()                                                        # throws a page error
-            if text != self._plot_json:
-                self._plot_json = text
-                self.plot.figure = figure
-            self.plot.aspect = PLOT_ASPECT if model is not None else BLANK_ASPECT
-            self.plot.visible = True
+        if model is not None or self.plot.visible:
+            self._write_plot(model)
         self._draw_dots(model, session)
+
+    def _write_plot(self, model) -> None:
+        """The figure, re-sent only when it changed; shown from the first track on, then never hidden."""
+        figure = track_figure(model.series()) if model is not None else _blank()
+        text = figure.to_json()
+        if text != self._plot_json:
+            self._plot_json = text
+            self.plot.figure = figure
+        self.plot.aspect = PLOT_ASPECT if model is not None else BLANK_ASPECT
+        self.plot.visible = True
 
     def _draw_dots(self, model, session) -> None:
         got = None if model is None else model.overlay_points()

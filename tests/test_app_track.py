@@ -129,8 +129,9 @@ def test_a_track_without_scan_draws_grey_and_opens_no_cluster(tmp_path):
 @pytest.mark.browser
 def test_a_track_in_the_page(track_dir, tmp_path):
     """`granstab-app --preset DIR` on the track: the D²min overlay ticked (dots sent), the Frame slider moved to
-    frame 1 (map and plot follow), then a real click on particle 9's disk in the canvas opens its cluster (UNSTABLE,
-    the scan's row). GRANSTAB_APP_SHOTS=DIR keeps the two pictures (app-track.png: frame 1's map)."""
+    frame 1 (map and plot follow), the overlay unticked (dots removed), then a real click on particle 9's disk in the
+    canvas opens its cluster (UNSTABLE, the scan's row). GRANSTAB_APP_SHOTS=DIR keeps the two pictures
+    (app-track-d2min.png: frame 0 with the overlay; app-track.png: frame 1's map)."""
     import os
     import shutil
 
@@ -155,6 +156,8 @@ def test_a_track_in_the_page(track_dir, tmp_path):
             page.get_by_label("D²min of the next window").check()
             wait_for(lambda: s.model.overlay and ui.track._dots is not None, what="the D²min dots")
             page.get_by_text("D²min overlay").wait_for(timeout=20_000)              # its legend
+            for close in page.locator("button.mantine-Notification-closeButton").all():    # viser's notices
+                close.click()
             page.wait_for_timeout(1500)
             page.screenshot(path=str(tmp_path / "frame0.png"))
             box = number_box(page, ui.frame)
@@ -164,6 +167,8 @@ def test_a_track_in_the_page(track_dir, tmp_path):
             with ui.lock:                                   # its refresh has run: the plot marks frame 1
                 assert {sh.x0 for sh in ui.track.plot.figure.layout.shapes if sh.type == "line"} == {1}
             page.get_by_text("track out, frame 1 (step 2)").first.wait_for(timeout=20_000)
+            page.get_by_label("D²min of the next window").uncheck()             # frame 1's map, dots gone
+            wait_for(lambda: not s.model.overlay and ui.track._dots is None, what="the dots removed")
             page.wait_for_timeout(1500)
             page.screenshot(path=str(tmp_path / "frame1.png"))
             with ui.lock:
