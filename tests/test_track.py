@@ -4,18 +4,16 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pyarrow.parquet as pq
 import pytest
 
-pytest.importorskip("pyarrow")
-import pyarrow.parquet as pq  # noqa: E402
-
-import granstab  # noqa: E402
-from granstab.cli import main  # noqa: E402
-from granstab.model.errors import Interrupted  # noqa: E402
-from granstab.model.packings import lattice  # noqa: E402
-from granstab.model.scene import SceneError  # noqa: E402
-from granstab.track import track  # noqa: E402
-from granstab.track.motion import d2min  # noqa: E402
+import granstab
+from granstab.cli import main
+from granstab.model.errors import Interrupted
+from granstab.model.packings import lattice
+from granstab.model.scene import SceneError
+from granstab.track import track
+from granstab.track.motion import d2min
 
 ANNULUS = Path(__file__).resolve().parents[2] / "shared" / "data" / "rigidlibrary" / "DataAnnulus" / "10"
 F = np.array([[1.02, 0.05], [0.01, 0.97]])      # an affine deformation of the whole packing
@@ -237,7 +235,6 @@ def test_events_are_stress_drops_over_the_threshold():
     assert events[0]["drop"] == pytest.approx(0.3) and events[0]["relative_drop"] == pytest.approx(0.3 / mean)
 
 
-@pytest.mark.skipif(not ANNULUS.is_dir(), reason="RigidLibrary's annulus data (../shared/data) not here")
 def test_the_annulus_experiment_reads_as_a_sequence(tmp_path, capsys):
     """Its 20 frames are listed; --frames 0:20:19 tracks the first and the last, each row as that frame read
     alone."""
@@ -296,8 +293,7 @@ def test_mercury_and_datasim_inputs_list_their_frames(tmp_path):
     assert frames["step"] == [0.5, 1.0] and frames["n_contacts"] == [ref.n_contacts] * 2
     d2 = pq.read_table(tmp_path / "out" / "particles.parquet").to_pydict()["d2min"]
     assert np.allclose(d2[:3], 0.0, atol=1e-20)      # a rigid translation by (1, 1): no non-affine motion
-    if DATASIM.is_dir():
-        assert granstab.io.frames(DATASIM) == [5000]
+    assert granstab.io.frames(DATASIM) == [5000]
 
 
 def test_a_scene_file_is_a_sequence_of_one_frame(tmp_path, capsys):
