@@ -48,7 +48,8 @@ def test_a_track_opens_frame_by_frame_as_its_scan_maps(track_dir):
     """Each frame: every particle of particles.parquet at its position (the rattler too, grey: in no cluster), the
     others in the colours of the frame's own scan folder, which are red exactly on the members of its unstable
     clusters (mechanism not boundary); the plot marks the frame and the event."""
-    s = Session(str(track_dir))
+    s = Session()
+    assert s.open_typed(str(track_dir))                            # typed into *Path on server*
     assert s.error is None and isinstance(s.model, TrackModel) and s.kind == "scan_map" and s.analysis is None
     assert s.model.frames == [0, 1, 2] and s.model.headline[1] == "track"
     rows = pq.read_table(track_dir / "particles.parquet").to_pydict()
@@ -132,9 +133,6 @@ def test_a_track_in_the_page(track_dir, tmp_path):
     frame 1 (map and plot follow), the overlay unticked (dots removed), then a real click on particle 9's disk in the
     canvas opens its cluster (UNSTABLE, the scan's row). GRANSTAB_APP_SHOTS=DIR keeps the two pictures
     (app-track-d2min.png: frame 0 with the overlay; app-track.png: frame 1's map)."""
-    import os
-    import shutil
-
     from playwright.sync_api import sync_playwright
     from test_app_browser import verdict_on_page, wait_for
 
@@ -158,8 +156,7 @@ def test_a_track_in_the_page(track_dir, tmp_path):
             page.get_by_text("D²min overlay").wait_for(timeout=20_000)              # its legend
             for close in page.locator("button.mantine-Notification-closeButton").all():    # viser's notices
                 close.click()
-            page.wait_for_timeout(1500)
-            page.screenshot(path=str(tmp_path / "frame0.png"))
+            picture(page, "app-track-d2min.png")
             box = number_box(page, ui.frame)
             box.fill("2")
             box.press("Enter")
@@ -169,8 +166,7 @@ def test_a_track_in_the_page(track_dir, tmp_path):
             page.get_by_text("track out, frame 1 (step 2)").first.wait_for(timeout=20_000)
             page.get_by_label("D²min of the next window").uncheck()             # frame 1's map, dots gone
             wait_for(lambda: not s.model.overlay and ui.track._dots is None, what="the dots removed")
-            page.wait_for_timeout(1500)
-            page.screenshot(path=str(tmp_path / "frame1.png"))
+            picture(page, "app-track.png")
             with ui.lock:
                 cam = ui.client.camera
                 centre, look, fov = np.asarray(cam.position), np.asarray(cam.look_at), float(cam.fov)
@@ -186,7 +182,12 @@ def test_a_track_in_the_page(track_dir, tmp_path):
     finally:
         app.stop()
     assert errors == []
+
+
+def picture(page, name: str) -> None:
+    """The page as `name` in $GRANSTAB_APP_SHOTS when set (docs/app-track*.png are made that way)."""
+    import os
     shots = os.environ.get("GRANSTAB_APP_SHOTS")
     if shots:
-        shutil.copy(tmp_path / "frame1.png", Path(shots) / "app-track.png")
-        shutil.copy(tmp_path / "frame0.png", Path(shots) / "app-track-d2min.png")
+        page.wait_for_timeout(1500)                  # the drawing has arrived
+        page.screenshot(path=str(Path(shots) / name))
