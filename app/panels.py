@@ -19,6 +19,7 @@ import numpy as np
 
 from .field import field_picture
 from .params import PARAMS
+from .trackview import TrackPanel
 from .views import MESH_MAX, SceneView
 
 TITLE = "granstab explorer"
@@ -108,6 +109,7 @@ class ClientUI:
             self.path.on_update(self._after_typing(self._open_path))
             self.frame = gui.add_slider("Frame", min=1, max=2, step=1, initial_value=1, visible=False)
             self.frame.on_update(lambda _: self.run(self._pick_frame))
+            self.track = TrackPanel(gui, self.client.scene, self.run, self.refresh)     # a tracked folder's frame
             self.analyse = gui.add_button("Analyse the whole packing", visible=False)
             self.analyse.on_click(lambda _: self.run(self._analyse))
             self.cluster_name = gui.add_text("Open cluster of", initial_value="", visible=False)
@@ -180,6 +182,7 @@ class ClientUI:
             self._spectrum_default = None        # the scene size the checkbox default was last set for
             self._spectrum_json = None
             self.spectrum = gui.add_plotly(_empty_figure(), aspect=SPECTRUM_ASPECT, visible=False)
+            self.track.add_plot(gui)                         # a track's λ_min(t)/stress(t): no modes on its map
         self.field_panel = gui.add_panel()
         self.field_panel.dock_above(self.side)
         with self.field_panel.add_tab("λ⁽⁶⁾ field"):
@@ -466,6 +469,7 @@ class ClientUI:
         self._write_legend(legend)
         self._write_field()
         self._write_modes()
+        self.track.refresh(s)
         if camera:
             if not self._view_picked:       # the pair opens oblique: its λ⁽⁶⁾ height surface is flat seen from above
                 with self._quiet():
@@ -570,11 +574,12 @@ class ClientUI:
         if s.deferred:
             title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (Analyse the whole packing)"
             verdict = "not analysed"
-        if s.kind == "scan_map":
-            title, verdict = f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map"
-        if apart:       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
+        if s.kind == "scan_map":      # a scan's map, or a track's frame (its own headline)
+            title, verdict = getattr(s.model, "headline", None) or (
+                f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map")
+        if apart and s.kind != "scan_map":       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
-        reason = "" if verdict in (None, "no contact", "not analysed", "scan map") else s.headline()[1]
+        reason = "" if verdict in (None, "no contact", "not analysed", "scan map", "track") else s.headline()[1]
         self.headline.content = (
             f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
             f'data-revision="{s.revision}" style="background:'

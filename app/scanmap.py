@@ -101,23 +101,28 @@ class ScanMapModel:
                                         f"{self.own[center] or '—'}; {len(self.members[center])} particles")
 
     def pick(self, origin, direction) -> str | None:
-        """The particle under a click ray (2D: where the ray meets the plane z = 0; 3D: the centre nearest the
-        ray), if the ray passes within the particle's drawn radius; else None."""
-        o, d = np.asarray(origin, float), np.asarray(direction, float)
-        d = d / np.linalg.norm(d)
-        x = np.zeros((self.scene.n_particles, 3))
-        x[:, :self.scene.dim] = self.scene.x
-        if self.scene.dim == 2:
-            if abs(d[2]) < 1e-12:
-                return None
-            hit = o - o[2] / d[2] * d
-            dist = np.linalg.norm(x - hit, axis=1)
-        else:
-            t = np.maximum((x - o) @ d, 0.0)
-            dist = np.linalg.norm(x - (o + t[:, None] * d), axis=1)
-        radius = np.array([b.axes[0] for b in self.bodies({})])
-        i = int(np.argmin(dist / radius))
-        return self.scene.names[i] if dist[i] <= radius[i] else None
+        """The particle under a click ray (`pick_particle`), or None."""
+        i = pick_particle(self.scene.x, np.array([b.axes[0] for b in self.bodies({})]), origin, direction)
+        return None if i is None else self.scene.names[i]
+
+
+def pick_particle(x: np.ndarray, radius: np.ndarray, origin, direction) -> int | None:
+    """The index of the particle (centres `x` (N, d), drawn radii (N,)) under a click ray (2D: where the ray meets
+    the plane z = 0; 3D: the centre nearest the ray), if the ray passes within its drawn radius; else None."""
+    o, d = np.asarray(origin, float), np.asarray(direction, float)
+    d = d / np.linalg.norm(d)
+    x3 = np.zeros((len(x), 3))
+    x3[:, :x.shape[1]] = x
+    if x.shape[1] == 2:
+        if abs(d[2]) < 1e-12:
+            return None
+        hit = o - o[2] / d[2] * d
+        dist = np.linalg.norm(x3 - hit, axis=1)
+    else:
+        t = np.maximum((x3 - o) @ d, 0.0)
+        dist = np.linalg.norm(x3 - (o + t[:, None] * d), axis=1)
+    i = int(np.argmin(dist / radius))
+    return i if dist[i] <= radius[i] else None
 
 
 def load_scan_map(path) -> ScanMapModel:

@@ -26,6 +26,7 @@ from .modes import label_mode, mode_offsets, rotation_matrix
 from .params import PARAMS
 from .paths import PathRefused, folder_choice, typed_path
 from .scanmap import is_scan_dir, load_scan_map
+from .trackmap import is_track_dir, load_track
 
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
 DEFAULT_PRESET = "two_particle"
@@ -109,7 +110,8 @@ class Session:
         """Switch to a preset name or scene file. On failure keep the current scene and set `error`."""
         path = self.resolve(str(name_or_path))
         try:
-            model = load_scan_map(path) if is_scan_dir(path) else load_model(path)
+            model = (load_track(path) if is_track_dir(path) else load_scan_map(path) if is_scan_dir(path)
+                     else load_model(path))
         except Exception as exc:  # noqa: BLE001 — any bad file must end up as a message, not a crash
             self.error = one_line(exc) if isinstance(exc, granstab.SceneError) else f"{path}: {one_line(exc)}"
             return False
@@ -268,11 +270,12 @@ class Session:
                 and self.analysis is None)
 
     def set_frame(self, frame) -> bool:
-        """Show another frame of an imported snapshot (its validation report follows)."""
+        """Show another frame of an imported snapshot (its validation report follows) or of a track (at_frame)."""
         if getattr(self.model, "frames", None) is None or frame == self.model.frame:
             return False
         try:
-            self.model = load_model(self.model.path, frame=frame)
+            at = getattr(self.model, "at_frame", None)
+            self.model = at(frame) if at is not None else load_model(self.model.path, frame=frame)
         except Exception as exc:  # noqa: BLE001
             self.error = one_line(exc)
             return False
