@@ -20,7 +20,7 @@ from ..model.errors import SceneError
 from ..model.scene import Scene, mean_contact_radius
 from .frame import WALL_NAMES, WALL_OPTIONS, Frame, from_scene
 from .pebble import pebble_game
-from .physical import physical
+from .physical import DENSE_MAX, TOL_RULE, physical
 from .prestress import prestress
 
 MODELS = ("physical", "generic", "both")
@@ -35,42 +35,58 @@ def rigidity(scene: Scene, model: str = "physical", walls: str = "free", wall_fl
     frame = from_scene(scene, walls, wall_flags)
     out = {"source": scene.source, "dim": scene.dim, "walls": walls, "periodic": scene.periodic,
            "wall_bodies": frame.walls}
-    for name in (("physical", "generic") if model == "both" else (model,)):
-        out[name] = (analyse_physical if name == "physical" else analyse_generic)(scene, frame)
+    game = None
+    if model in ("generic", "both"):
+        start = time.perf_counter()
+        game = play(frame)
+        out["generic"] = analyse_generic(scene, frame, game, time.perf_counter() - start)
+    if model in ("physical", "both"):
+        out["physical"] = analyse_physical(scene, frame, game)
     if model == "both":
         out["differ"] = differing_contacts(out["physical"], out["generic"])
     return out
 
 
-def analyse_generic(scene: Scene, frame: Frame) -> dict:
-    """The pebble game: bars in RigidLibrary's order (one bar of every contact, then the further bars)."""
-    start = time.perf_counter()
-    k = frame.per
+def play(frame: Frame, components: bool = True):
+    """The pebble game on the frame's bars in RigidLibrary's order (one bar of every contact, then the further
+    bars)."""
     bars = frame.bars
-    extra = np.repeat(np.arange(len(bars)), bars - 1)
-    order = np.r_[np.arange(len(bars)), extra]
-    game = pebble_game(frame.n_bodies, frame.p[order], frame.q[order], k)
-    independent = int(game.independent.sum())
-    counts = {"dofs": k * frame.n_bodies, "constraints": len(order), "rank": independent,
+    order = np.r_[np.arange(len(bars)), np.repeat(np.arange(len(bars)), bars - 1)]
+    return pebble_game(frame.n_bodies, frame.p[order], frame.q[order], frame.per, components=components)
+
+
+def analyse_generic(scene: Scene, frame: Frame, game=None, seconds: float = 0.0) -> dict:
+    """The generic model's report (the game played here unless given, with the seconds it took)."""
+    start = time.perf_counter()
+    game = game or play(frame)
+    k = frame.per
+    counts = {"dofs": k * frame.n_bodies, "constraints": len(game.independent), "rank": int(game.independent.sum()),
               "floppy": game.free, "trivial": k}
-    return report(scene, frame, game.component, counts, time.perf_counter() - start,
-                  {"method": f"({k},{k}) pebble game on the body-bar graph",
+    return report(scene, frame, game.component, counts, seconds + time.perf_counter() - start,
+                  {"method": f"({k},{k}) pebble game on the body-bar graph, rigid sets contracted as found",
                    "trivial_modes_note": "the game counts k rigid motions of the whole; a periodic cell is ignored"})
 
 
-def analyse_physical(scene: Scene, frame: Frame) -> dict:
+def analyse_physical(scene: Scene, frame: Frame, game=None) -> dict:
+    """The physical model's report with its rank tolerance, gap and the prestress's second-order verdict; the
+    sparse path starts from `game`'s floppy count (played here without components when not given)."""
     start = time.perf_counter()
     length = mean_contact_radius(scene)
-    ph = physical(frame, length)
+    game = game or play(frame, components=False)
+    ph = physical(frame, length, game.free_per_body)
     trivial = frame.dim if frame.periodic else frame.per
     counts = {"dofs": frame.per * frame.n_bodies, "constraints": int(frame.bars.sum()), "rank": ph.rank,
               "floppy": ph.nullity, "trivial": trivial}
-    extra = {"method": "dense SVD per connected block of the sparse compatibility matrix",
-             "rotation_length": length,
-             "rank_tolerance": {"rule": "sigma > max(rows, cols) * eps * sigma_max of each block",
+    extra = {"method": f"SVD per connected block up to {DENSE_MAX} columns (dense), else inverse iteration on "
+                       "CᵀC + δI (one sparse LU), a projection step and the SVD of C on that subspace",
+             "blocks": ph.paths, "rotation_length": length,
+             "rank_tolerance": {"rule": f"sigma <= {TOL_RULE:g} * max(rows, cols) * eps * sigma_max_bound",
+                                "sigma_max_bound": ph.sigma_max_bound,
+                                "sigma_max_bound_is": "sqrt(|C|_1 |C|_inf) >= sigma_max of C",
                                 "largest": ph.tolerance,
                                 "gap": ph.gap if np.isfinite(ph.gap) else None,
-                                "gap_is": "sigma_rank / sigma_rank+1, smallest over the blocks (null: full rank)"},
+                                "gap_is": "sigma_rank / sigma_rank+1 (smallest non-zero over largest zero), "
+                                          "smallest over the blocks (null: no block has both)"},
              "rigid_contact_strain": ph.strain_gap}
     result = report(scene, frame, ph.component, counts, time.perf_counter() - start, extra)
     t = time.perf_counter()
