@@ -26,10 +26,11 @@ from .prestress import prestress
 MODELS = ("physical", "generic", "both")
 
 
-def rigidity(scene: Scene, model: str = "physical", walls: str = "free", wall_flags=None) -> dict:
+def rigidity(scene: Scene, model: str = "physical", walls: str = "free", wall_flags=None,
+             second_order: bool = True) -> dict:
     """The rigidity analysis of a scene as a JSON-able dict: one entry per model ("physical", "generic"), and with
     model="both" also "differ" (the contacts whose cluster membership differs); `walls` "free" or "bodies"
-    (RigidLibrary's annulus convention, needs `wall_flags`)."""
+    (RigidLibrary's annulus convention, needs `wall_flags`); `second_order` False skips the prestress check."""
     if model not in MODELS:
         raise SceneError(f"--model: must be one of {', '.join(MODELS)}, got {model!r}")
     frame = from_scene(scene, walls, wall_flags)
@@ -41,7 +42,7 @@ def rigidity(scene: Scene, model: str = "physical", walls: str = "free", wall_fl
         game = play(frame)
         out["generic"] = analyse_generic(scene, frame, game, time.perf_counter() - start)
     if model in ("physical", "both"):
-        out["physical"] = analyse_physical(scene, frame, game)
+        out["physical"] = analyse_physical(scene, frame, game, second_order)
     if model == "both":
         out["differ"] = differing_contacts(out["physical"], out["generic"])
     return out
@@ -67,7 +68,7 @@ def analyse_generic(scene: Scene, frame: Frame, game=None, seconds: float = 0.0)
                    "trivial_modes_note": "the game counts k rigid motions of the whole; a periodic cell is ignored"})
 
 
-def analyse_physical(scene: Scene, frame: Frame, game=None) -> dict:
+def analyse_physical(scene: Scene, frame: Frame, game=None, second_order: bool = True) -> dict:
     """The physical model's report with its rank tolerance, gap and the prestress's second-order verdict; the
     sparse path starts from `game`'s floppy count (played here without components when not given)."""
     start = time.perf_counter()
@@ -90,7 +91,8 @@ def analyse_physical(scene: Scene, frame: Frame, game=None) -> dict:
              "rigid_contact_strain": ph.strain_gap}
     result = report(scene, frame, ph.component, counts, time.perf_counter() - start, extra)
     t = time.perf_counter()
-    result["prestress"] = prestress(scene, ph.null, length)
+    result["prestress"] = prestress(scene, ph.null, length) if second_order else {"evaluated": False,
+                                                                                  "why": "not asked"}
     result["prestress"]["seconds"] = time.perf_counter() - t
     return result
 

@@ -7,7 +7,7 @@ same rule on both paths: σ counted zero when σ ≤ TOL_RULE·max(K, n)·ε·σ
 - A block of up to DENSE_MAX columns: one dense SVD. All dense work runs on one BLAS thread (solve/threads.py: a
   two-thread pool on a busy machine waits for a core at every call).
 - A larger block, the sparse path (`_null_sparse`): block inverse iteration with one sparse LU of CᵀC + δI
-  (δ = SHIFT·σ̄², minimum-degree ordering, symmetric mode), started from `start` + MARGIN vectors (the pebble
+  (δ = SHIFT·σ̄², minimum-degree ordering, symmetric mode), STEPS steps from `start` + MARGIN vectors (the pebble
   game's floppy count: the physical nullity is never below the generic one), then one step of the projection
   X - (CᵀC + δI)⁻¹Cᵀ(CX) (which removes the √ε error of working with CᵀC), then a thin SVD of C X: its singular
   values are C's on that subspace with absolute error ~ε·σ̄, not the √ε·σ̄ of CᵀC's Ritz values. The vectors
@@ -40,6 +40,9 @@ DENSE_MAX = 600      # columns of a block solved by dense SVD; larger ones take 
 TOL_RULE = 10.0      # rank tolerance TOL_RULE·max(K, n)·ε·σ̄: numpy's rule with a margin for σ̄ being a bound
 SHIFT = 1e-12        # δ = SHIFT·σ̄²: σ above 1e-5·σ̄ is damped ≥ 100x a step against the null space
 MARGIN = 16          # vectors beyond the expected nullity in the sparse path
+PROJECTIONS = 2      # projection steps X - (CᵀC + δI)⁻¹Cᵀ(CX), each computed from C
+STEPS = 2            # inverse iteration steps before the projection: the margin's modes (σ_k+1² >> δ) are damped
+                     # by δ/σ_k+1² a step, the projection damps them once more, and the SVD of C X decides
 RIGID_RTOL = 1e-7    # strain of a contact counted as zero: sqrt(ε)-level, far above an accurate null vector's
 
 
@@ -148,11 +151,13 @@ def _null_sparse(block: sp.csr_matrix, sigma: float, start: int):
     k = min(n, start + MARGIN)
     rng = np.random.default_rng(0)
     while True:
-        X = rng.standard_normal((n, k))
-        for _ in range(3):
+        X = np.asfortranarray(rng.standard_normal((n, k)))          # SuperLU solves column by column
+        for _ in range(STEPS):
             X = lu.solve(X)
             X /= np.linalg.norm(X, axis=0)
-        X, _ = np.linalg.qr(X - lu.solve(np.asarray(block.T @ (block @ X))))
+        for _ in range(PROJECTIONS):
+            X -= lu.solve(np.asfortranarray(block.T @ (block @ X)))
+        X, _ = np.linalg.qr(X)
         _, s, Wt = la.svd(np.asarray(block @ X), full_matrices=False)
         zero = int(np.sum(s <= tol))
         if k - zero >= MARGIN // 2 or k == n:
