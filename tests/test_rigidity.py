@@ -226,3 +226,69 @@ def test_cli_json_contract_and_walls_error(tmp_path, capsys):
     assert main(["rigidity", str(path), "--walls", "bodies"]) == 2
     err = capsys.readouterr().err
     assert "--walls bodies" in err and len(err.strip().splitlines()) == 1
+
+
+def spin_residual(frame: Frame, body: int, length: float) -> float:
+    """|C e| / σ̄ for e the unit spin (L dθ) of one body: how much its contacts resist it turning in place."""
+    from granstab.mechanics.compatibility import compatibility_matrix
+    from granstab.rigidity.physical import norm_bound
+    C, _ = compatibility_matrix(frame.p, frame.q, frame.r_pq, frame.r_qp, frame.normal, frame.sliding,
+                                frame.rolling, frame.n_bodies, length)
+    e = np.zeros(C.shape[1])
+    e[body * frame.per + 2] = 1.0
+    return float(np.linalg.norm(C @ e) / norm_bound(C))
+
+
+def test_datasim_with_its_cell_against_a_cell_ignoring_game():
+    """DataSim step 5000 read with its Lees–Edwards cell (seam contacts through q's image). The fixed cell forbids
+    turning the whole: the physical model has d = 2 trivial modes, the game 3, so the physical rank is one more
+    and it has one self-stress fewer; both find every disk in one rigid cluster. Three disks have all 3 contacts
+    sliding: on the true geometry they would spin freely (normals through the centre), but the file's normals are
+    ~3e-7 rad off the centre lines, so the spin is resisted at |C e| ~ 1e-7 σ̄: counted non-zero (far above the
+    ε-level tolerance) and reported nearly floppy. Made exactly radial, the three spins are floppy modes the game
+    cannot see."""
+    from granstab.model.scene import mean_contact_radius
+    from granstab.rigidity import analyse_generic, analyse_physical
+    s = load(DATA / "DataSim").scene
+    assert s.periodic and np.any(s.image != 0)
+    r = rigidity(s, "both", second_order=False)
+    ph, ge = r["physical"], r["generic"]
+    assert (ph["trivial_modes"]["count"], ge["trivial_modes"]["count"]) == (2, 3)
+    assert ph["counts"]["maxwell"]["rank"] == ge["counts"]["maxwell"]["rank"] + 1
+    assert ph["self_stresses"] == ge["self_stresses"] - 1
+    assert ph["floppy_modes"]["count"] == ge["floppy_modes"]["count"] == 0
+    assert r["differ"]["same_partition"] and ph["counts"]["largest_cluster_particles"] == s.n_particles
+    frame, length = from_scene(s), mean_contact_radius(s)
+    N = s.n_particles
+    sliding = s.at_yield()
+    every = np.bincount(np.r_[s.p, s.q], minlength=N)
+    slide = np.bincount(np.r_[s.p[sliding], s.q[sliding]], minlength=N)
+    spinners = np.flatnonzero((every >= 2) & (slide == every))
+    assert len(spinners) == 3
+    for body in spinners:
+        # resisted only at the file's rounding: above the rank tolerance (~1e-11 of σ̄), below NEAR_RTOL
+        assert ph["rank_tolerance"]["largest"] / ph["rank_tolerance"]["sigma_max_bound"] < spin_residual(frame, body, length) < 1e-6
+    assert ph["nearly_floppy"]["count"] >= 3
+    b = frame.branch / np.linalg.norm(frame.branch, axis=1)[:, None]
+    radial = dataclasses.replace(frame, normal=b, r_pq=np.sum(frame.r_pq * b, 1)[:, None] * b,
+                                 r_qp=np.sum(frame.r_qp * b, 1)[:, None] * b)
+    exact, game = analyse_physical(s, radial, second_order=False), analyse_generic(s, radial)
+    # 4 internal floppy modes, none generic: the 3 spins and one gear train (below)
+    assert (exact["floppy_modes"]["count"], game["floppy_modes"]["count"]) == (4, 0)
+    N_exact = null_space(radial, length)
+    for body in spinners:
+        spin = np.zeros(N_exact.shape[0])
+        spin[body * 3 + 2] = 1.0
+        assert in_span(N_exact, spin) < ZERO
+    # the gear train: disks 361 - 607 - 895 (file ids) joined by sticking contacts, their other contacts sliding; turning in
+    # place they roll without slip when ω_q R_q = -ω_p R_p at each sticking contact (R: centre to contact point)
+    gear = np.zeros(N_exact.shape[0])
+    chain = [s.names.index(n) for n in ("361", "607", "895")]
+    omega = 1.0
+    for a_, b_ in zip(chain, chain[1:]):
+        c = np.flatnonzero(((s.p == a_) & (s.q == b_)) | ((s.p == b_) & (s.q == a_)))
+        assert len(c) == 1 and not sliding[c[0]]
+        Ra, Rb = (np.linalg.norm(frame.r_pq[c[0]]), np.linalg.norm(frame.r_qp[c[0]]))[:: 1 if s.p[c[0]] == a_ else -1]
+        gear[a_ * 3 + 2], omega = omega, -omega * Ra / Rb
+    gear[chain[-1] * 3 + 2] = omega
+    assert in_span(N_exact, gear) < ZERO

@@ -20,7 +20,7 @@ from ..model.errors import SceneError
 from ..model.scene import Scene, mean_contact_radius
 from .frame import WALL_NAMES, WALL_OPTIONS, Frame, from_scene
 from .pebble import pebble_game
-from .physical import DENSE_MAX, TOL_RULE, physical
+from .physical import DENSE_MAX, NEAR_RTOL, TOL_RULE, physical
 from .prestress import prestress
 
 MODELS = ("physical", "generic", "both")
@@ -88,7 +88,10 @@ def analyse_physical(scene: Scene, frame: Frame, game=None, second_order: bool =
                                 "gap": ph.gap if np.isfinite(ph.gap) else None,
                                 "gap_is": "sigma_rank / sigma_rank+1 (smallest non-zero over largest zero), "
                                           "smallest over the blocks (null: no block has both)"},
-             "rigid_contact_strain": ph.strain_gap}
+             "rigid_contact_strain": ph.strain_gap,
+             "nearly_floppy": {"count": ph.nearly_floppy, "below": NEAR_RTOL * ph.sigma_max_bound,
+                               "note": "singular values above the tolerance but below 1e-6 sigma_max_bound: counted "
+                                       "rigid, floppy to a data file's precision (a lower bound on the sparse path)"}}
     result = report(scene, frame, ph.component, counts, time.perf_counter() - start, extra)
     t = time.perf_counter()
     result["prestress"] = prestress(scene, ph.null, length) if second_order else {"evaluated": False,

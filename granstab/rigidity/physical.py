@@ -43,6 +43,7 @@ MARGIN = 16          # vectors beyond the expected nullity in the sparse path
 PROJECTIONS = 2      # projection steps X - (CᵀC + δI)⁻¹Cᵀ(CX), each computed from C
 STEPS = 2            # inverse iteration steps before the projection: the margin's modes (σ_k+1² >> δ) are damped
                      # by δ/σ_k+1² a step, the projection damps them once more, and the SVD of C X decides
+NEAR_RTOL = 1e-6     # σ in (tolerance, NEAR_RTOL·σ̄]: counted non-zero, but floppy to a data file's precision
 RIGID_RTOL = 1e-7    # strain of a contact counted as zero: sqrt(ε)-level, far above an accurate null vector's
 
 
@@ -51,7 +52,8 @@ class Physical:
     """rank, nullity, self_stresses; null: per connected block (its columns, its orthonormal null vectors); gap (smallest
     over the blocks of σ_rank / σ_rank+1, inf when no block has both); tolerance (largest rank tolerance used);
     sigma_max_bound; strain (M,) each contact's relative strain; rigid_contact (M,) bool; component (N_b,)
-    cluster label (-1 none); strain_gap; paths: blocks by the dense and the sparse path."""
+    cluster label (-1 none); strain_gap; paths: blocks by the dense and the sparse path; nearly_floppy: σ counted
+    non-zero but below NEAR_RTOL·σ̄ (a lower bound on the sparse path: only its subspace's σ are seen)."""
 
     rank: int
     nullity: int
@@ -65,6 +67,7 @@ class Physical:
     component: np.ndarray
     strain_gap: dict
     paths: dict
+    nearly_floppy: int
 
 
 def norm_bound(C: sp.spmatrix) -> float:
@@ -89,7 +92,7 @@ def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = Non
     rows_of = _groups(body_comp[frame.p][row_contact])
     contacts_of = _groups(body_comp[frame.p])
     E = pair_strain_operator(frame, length)
-    blocks, rank, gap, tol = [], 0, np.inf, 0.0
+    blocks, rank, gap, tol, near = [], 0, np.inf, 0.0, 0
     strain = np.zeros(len(frame.p))
     paths = {"dense": 0, "sparse": 0, "free_bodies": int(np.sum(body_comp < 0))}
     if -1 in cols_of:
@@ -100,10 +103,10 @@ def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = Non
         block = C[rows_of[c]][:, cols]
         start = free_per_body[body_comp == c].sum() if free_per_body is not None else max(len(cols) - len(rows_of[c]), per)
         with blas_threads(1):
-            r, g, t, V = _null_dense(block.toarray(), sigma) if len(cols) <= DENSE_MAX else \
+            r, g, t, V, nf = _null_dense(block.toarray(), sigma) if len(cols) <= DENSE_MAX else \
                 _null_sparse(block, sigma, int(start))
         paths["dense" if len(cols) <= DENSE_MAX else "sparse"] += 1
-        rank, gap, tol = rank + r, min(gap, g), max(tol, t)
+        rank, gap, tol, near = rank + r, min(gap, g), max(tol, t), near + nf
         blocks.append((cols, V))
         mine = contacts_of[c]
         strain[mine] = contact_strain(E, mine, cols, V, per) / (1 + np.linalg.norm(frame.branch[mine], axis=1) / length)
@@ -112,7 +115,7 @@ def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = Non
     strain_gap = {"largest_counted_rigid": float(counted.max()) if counted.size else None,
                   "smallest_counted_moving": float(moving.min()) if moving.size else None, "rtol": RIGID_RTOL}
     return Physical(rank, C.shape[1] - rank, C.shape[0] - rank, blocks, gap, tol, sigma, strain, rigid,
-                    _clusters(frame, rigid), strain_gap, paths)
+                    _clusters(frame, rigid), strain_gap, paths, near)
 
 
 def _groups(labels: np.ndarray) -> dict:
@@ -122,14 +125,15 @@ def _groups(labels: np.ndarray) -> dict:
     return {int(c): ix for c, ix in zip(found, np.split(order, start[1:]))}
 
 
-def _resolved(s: np.ndarray, tol: float, n: int):
-    """rank, gap σ_rank/σ_rank+1 (inf when all or none are zero) of singular values s (descending) of n columns;
-    the columns beyond len(s) are zero."""
+def _resolved(s: np.ndarray, tol: float, n: int, sigma: float):
+    """rank, gap σ_rank/σ_rank+1 (inf when all or none are zero) and the nearly floppy count of singular values s
+    (descending) of n columns; the columns beyond len(s) are zero."""
     rank = int(np.sum(s > tol))
+    near = int(np.sum((s > tol) & (s <= NEAR_RTOL * sigma)))
     if rank == 0 or rank == n:
-        return rank, np.inf
+        return rank, np.inf, near
     below = s[rank] if rank < len(s) else 0.0
-    return rank, float(s[rank - 1] / below) if below > 0 else np.inf
+    return rank, float(s[rank - 1] / below) if below > 0 else np.inf, near
 
 
 def _null_dense(block: np.ndarray, sigma: float):
@@ -137,8 +141,8 @@ def _null_dense(block: np.ndarray, sigma: float):
     K, n = block.shape
     tol = TOL_RULE * max(K, n) * np.finfo(float).eps * sigma
     _, s, Vt = la.svd(block, full_matrices=True, lapack_driver="gesdd")
-    rank, gap = _resolved(s, tol, n)
-    return rank, gap, float(tol), _canonical(Vt[rank:].T)
+    rank, gap, near = _resolved(s, tol, n, sigma)
+    return rank, gap, float(tol), _canonical(Vt[rank:].T), near
 
 
 def _null_sparse(block: sp.csr_matrix, sigma: float, start: int):
@@ -163,8 +167,8 @@ def _null_sparse(block: sp.csr_matrix, sigma: float, start: int):
         if k - zero >= MARGIN // 2 or k == n:
             break
         k = min(n, 2 * k)
-    rank, gap = _resolved(np.r_[np.full(n - k, np.inf), s], tol, n)
-    return rank, gap, float(tol), _canonical(X @ Wt[k - zero:].T)
+    rank, gap, near = _resolved(np.r_[np.full(n - k, np.inf), s], tol, n, sigma)
+    return rank, gap, float(tol), _canonical(X @ Wt[k - zero:].T), near
 
 
 def _canonical(V: np.ndarray) -> np.ndarray:
