@@ -14,7 +14,7 @@ from granstab.io import load
 from granstab.model import packings
 from granstab.model.packings import random_packing
 from granstab.model.scene import build_scene
-from granstab.rigidity import largest_rigid_cluster, partition, rigidity
+from granstab.rigidity import largest_cluster, largest_rigid_cluster, partition, rigidity
 from granstab.rigidity.frame import Frame, from_scene
 from granstab.rigidity.pebble import pebble_game
 from granstab.rigidity.physical import physical
@@ -194,7 +194,11 @@ def test_annulus_frames_match_rigidlibrarys_pebble_game(frame):
     strain = r["physical"]["rigid_contact_strain"]
     assert strain["smallest_counted_moving"] > 1e5 * strain["largest_counted_rigid"]
     if frame == 1:
-        assert largest_rigid_cluster(r, "generic")["particles"] == 1141      # 1143 bodies less the two walls
+        assert largest_rigid_cluster(r, "generic")["size_particles"] == 1141      # 1143 bodies less the two walls
+        # the per-frame API of track: the same cluster, its share of the 1,781 disks
+        one = largest_cluster(loaded.scene, "generic", "bodies", loaded.wall_flags)
+        assert (one["size_particles"], one["size_contacts"]) == (1141, len(r["generic"]["clusters"][0]["contacts"]))
+        assert one["fraction"] == pytest.approx(1141 / 1781, rel=1e-12)
 
 
 def test_periodic_cell_has_only_translations_as_trivial_modes():
