@@ -306,17 +306,24 @@ def test_a_large_packing_stays_responsive(app, browser, tmp_path):
     assert errors == []
 
 
-def test_scan_map_in_the_page(app, browser, scan_dir):
-    """A scan folder typed into *Path on server*: the packing coloured by the map (the planted sharp particle dark red),
-    its cluster opened by name (UNSTABLE, as the scan's row), and *Back to the map*."""
-    errors: list[str] = []
+def open_map(browser, app, folder, errors):
+    """A new page, its first preset shown, then `folder` (a scan or a rigidity result) typed into *Path on server*
+    and shown as a map: the page and its UI."""
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
     ui = ui_of(app, page)
     box = page.locator("input.mantine-TextInput-input:visible").first  # Path on server
-    box.fill(str(scan_dir))
+    box.fill(str(folder))
     box.press("Enter")
     verdict_on_page(page, "scan-map", timeout=120_000)
+    return page, ui
+
+
+def test_scan_map_in_the_page(app, browser, scan_dir):
+    """A scan folder typed into *Path on server*: the packing coloured by the map (the planted sharp particle dark red),
+    its cluster opened by name (UNSTABLE, as the scan's row), and *Back to the map*."""
+    errors: list[str] = []
+    page, ui = open_map(browser, app, scan_dir, errors)
     page.get_by_text("click one (or type its name) for its cluster").wait_for(timeout=30_000)
     page.get_by_text("The scan map has no modes").wait_for(timeout=30_000)      # the Eigenmodes panel says why
     from granstab_app.scanmap import fraction_colours  # p40's own cluster geometric, its six neighbours' boundary:
@@ -718,13 +725,7 @@ def test_rigidity_map_in_the_page(app, browser, tmp_path):
     assert [len(c["particles"]) for c in clusters] == [5, 5, 3]
     rigid = {name for c in clusters for name in c["particles"]}
     errors: list[str] = []
-    page = open_page(browser, app, errors)
-    verdict_on_page(page, "unstable", timeout=60_000)
-    ui = ui_of(app, page)
-    box = page.locator("input.mantine-TextInput-input:visible").first  # Path on server
-    box.fill(str(out))
-    box.press("Enter")
-    verdict_on_page(page, "scan-map", timeout=120_000)
+    page, ui = open_map(browser, app, out, errors)
     page.get_by_text("rigid clusters of 31 particles").wait_for(timeout=30_000)
     for k, c in enumerate(clusters):            # every member of the clusters 0-2 (no hinge here) in its colour
         for name in c["particles"]:

@@ -25,6 +25,7 @@ from .physical import DENSE_MAX, NEAR_RTOL, TOL_RULE, physical
 from .prestress import prestress
 
 MODELS = ("physical", "generic", "both")
+GAME_START_MAX = 5000     # bodies up to which the physical model alone plays the game for its start
 
 
 def rigidity(scene: Scene, model: str = "physical", walls: str = "free", wall_flags=None,
@@ -71,11 +72,13 @@ def analyse_generic(scene: Scene, frame: Frame, game=None, seconds: float = 0.0)
 
 def analyse_physical(scene: Scene, frame: Frame, game=None, second_order: bool = True) -> dict:
     """The physical model's report with its rank tolerance, gap and the prestress's second-order verdict; the
-    sparse path starts from `game`'s floppy count (played here without components when not given)."""
+    sparse path starts from `game`'s floppy count (played here up to GAME_START_MAX bodies, where it costs < 1 s;
+    beyond, Maxwell's count n - K, whose underestimate the sparse path doubles away)."""
     start = time.perf_counter()
     length = mean_contact_radius(scene)
-    game = game or play(frame, components=False)
-    ph = physical(frame, length, game.free_per_body)
+    if game is None and frame.n_bodies <= GAME_START_MAX:
+        game = play(frame, components=False)
+    ph = physical(frame, length, game.free_per_body if game is not None else None)
     trivial = frame.dim if frame.periodic else frame.per
     counts = {"dofs": frame.per * frame.n_bodies, "constraints": int(frame.bars.sum()), "rank": ph.rank,
               "floppy": ph.nullity, "trivial": trivial}

@@ -8,10 +8,11 @@ same rule on both paths: σ counted zero when σ ≤ TOL_RULE·max(K, n)·ε·σ
   two-thread pool on a busy machine waits for a core at every call).
 - A larger block, the sparse path (`_null_sparse`): block inverse iteration with one sparse LU of CᵀC + δI
   (δ = SHIFT·σ̄², minimum-degree ordering, symmetric mode), STEPS steps from `start` + MARGIN vectors (the pebble
-  game's floppy count: the physical nullity is never below the generic one), then one step of the projection
+  game's floppy count where it was played, the physical nullity never being below the generic one, else
+  Maxwell's n - K; plus the free spins, which the game counts constrained), then PROJECTIONS steps of the projection
   X - (CᵀC + δI)⁻¹Cᵀ(CX) (which removes the √ε error of working with CᵀC), then a thin SVD of C X: its singular
   values are C's on that subspace with absolute error ~ε·σ̄, not the √ε·σ̄ of CᵀC's Ritz values. The vectors
-  are doubled until the subspace holds MARGIN/2 clearly non-zero σ.
+  are doubled (and the iteration restarted) until the subspace holds MARGIN/2 clearly non-zero σ.
 Either way the gap σ_rank / σ_rank+1 (the smallest non-zero over the largest zero) says how clearly the rank is
 resolved. The null vectors are the floppy modes (trivial ones included); the self-stresses are K - rank.
 
@@ -80,7 +81,8 @@ def norm_bound(C: sp.spmatrix) -> float:
 
 def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = None) -> Physical:
     """Rank, null space, self-stress count and rigid clusters of a frame; `length` L of the scaled dofs;
-    `free_per_body` the pebble game's free pebbles (the sparse path's start; else Maxwell's bound)."""
+    `free_per_body` the pebble game's free pebbles (the sparse path's start, else Maxwell's count n - K; the free
+    spins added)."""
     C, row_contact = compatibility_matrix(frame.p, frame.q, frame.r_pq, frame.r_qp, frame.normal, frame.sliding,
                                           frame.rolling, frame.n_bodies, length)
     per, nb = frame.per, frame.n_bodies
@@ -88,6 +90,7 @@ def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = Non
                                         directed=False)
     body_comp = np.where(np.bincount(frame.p, minlength=nb) + np.bincount(frame.q, minlength=nb) > 0, body_comp, -1)
     sigma = norm_bound(C)
+    spins = free_spins(frame)
     cols_of = _groups(np.repeat(body_comp, per))
     rows_of = _groups(body_comp[frame.p][row_contact])
     contacts_of = _groups(body_comp[frame.p])
@@ -101,7 +104,9 @@ def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = Non
         if c < 0:
             continue
         block = C[rows_of[c]][:, cols]
-        start = free_per_body[body_comp == c].sum() if free_per_body is not None else max(len(cols) - len(rows_of[c]), per)
+        mine_b = body_comp == c
+        start = (free_per_body[mine_b].sum() if free_per_body is not None else
+                 max(len(cols) - len(rows_of[c]), per)) + spins[mine_b].sum()
         with blas_threads(1):
             r, g, t, V, nf = _null_dense(block.toarray(), sigma) if len(cols) <= DENSE_MAX else \
                 _null_sparse(block, sigma, int(start))
@@ -116,6 +121,21 @@ def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = Non
                   "smallest_counted_moving": float(moving.min()) if moving.size else None, "rtol": RIGID_RTOL}
     return Physical(rank, C.shape[1] - rank, C.shape[0] - rank, blocks, gap, tol, sigma, strain, rigid,
                     _clusters(frame, rigid), strain_gap, paths, near)
+
+
+def free_spins(frame: Frame, rtol: float = 1e-9) -> np.ndarray:
+    """(N_b,) rotations each body can make in place (r where every contact of it slides, has no rolling
+    stiffness and a normal through its reference point, |r × n| <= rtol·|r|; else 0): the sparse path adds them
+    to its start, since a pebble game counts them constrained."""
+    def through(r):
+        cross = np.cross(r, frame.normal) if frame.dim == 3 else r[:, 0] * frame.normal[:, 1] - r[:, 1] * frame.normal[:, 0]
+        return np.abs(cross).reshape(len(r), -1).max(axis=1) <= rtol * np.linalg.norm(r, axis=1)
+
+    free = frame.sliding & ~frame.rolling
+    blocked = np.zeros(frame.n_bodies, bool)
+    blocked[frame.p[~(free & through(frame.r_pq))]] = True
+    blocked[frame.q[~(free & through(frame.r_qp))]] = True
+    return np.where(blocked, 0, frame.per - frame.dim)
 
 
 def _groups(labels: np.ndarray) -> dict:
