@@ -296,3 +296,35 @@ def test_datasim_with_its_cell_against_a_cell_ignoring_game():
         gear[a_ * 3 + 2], omega = omega, -omega * Ra / Rb
     gear[chain[-1] * 3 + 2] = omega
     assert in_span(N_exact, gear) < ZERO
+
+
+def test_prestress_on_floppy_modes_matches_the_exact_geometry():
+    """Second order: the all-unloading (all sticking) eigenvalues of Fᵀ sym(H̃) F on the floppy space F of a chain
+    of 4 ellipses/disks pressed to f/k = 1e-2 (4 bodies, 3 sticking contacts: 12 - 6 - 3 = 3 internal floppy
+    modes) equal those of the same F with H_exact, the complex-step derivative of the exact nonlinear statics
+    (tests/exact_geometry.py, independent of granstab's stiffness). A floppy mode deforms no contact, so Hm adds
+    nothing: the eigenvalues are geometric, O(f), and not all neutral. Tolerance: H and H_exact agree to
+    1e-12 ‖H‖ (test_fd_exact), the eigenvalues to 1e-9 of the largest."""
+    from exact_geometry import cluster_from_scene, press, stiffness_exact
+    from test_fd_exact import CLUSTERS, LAW
+
+    from granstab.mechanics.rigid import dof_scale
+    from granstab.model import shapes
+    from granstab.model.scene import mean_contact_radius
+    from granstab.rigidity.prestress import floppy_space
+    parts, pairs, _ = CLUSTERS["chain2d"]
+    parts = press(parts, pairs, 1e-2)
+    scene = shapes.scene_from_shapes(2, parts, **LAW)
+    r = rigidity(scene, "physical")["physical"]
+    assert r["floppy_modes"]["count"] == 3 and not scene.at_yield().any()
+    length = mean_contact_radius(scene)
+    F = floppy_space(scene, physical(from_scene(scene), length).null, length)
+    D = dof_scale(scene.n_particles, 2, length)
+    Ht = D[:, None] * stiffness_exact(cluster_from_scene(scene, parts)) * D[None, :]
+    exact = np.linalg.eigvalsh(F.T @ (0.5 * (Ht + Ht.T)) @ F)
+    ours = r["prestress"]["all_unloading"]
+    assert np.allclose(ours["lowest"], exact, rtol=0, atol=1e-9 * np.abs(exact).max())
+    assert np.abs(exact).max() < 1.0                                          # O(f), f = 1e-2: geometric only
+    # the verdict by sign (measured: one floppy direction stabilised, two destabilised)
+    assert (ours["stabilised"], ours["destabilised"]) == (int(np.sum(exact > ours["tolerance"])),
+                                                          int(np.sum(exact < -ours["tolerance"]))) == (1, 2)
