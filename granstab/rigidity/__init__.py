@@ -83,7 +83,7 @@ def analyse_physical(scene: Scene, frame: Frame, game=None, second_order: bool =
     counts = {"dofs": frame.per * frame.n_bodies, "constraints": int(frame.bars.sum()), "rank": ph.rank,
               "floppy": ph.nullity, "trivial": trivial}
     extra = {"method": f"SVD per connected block up to {DENSE_MAX} columns (dense), else inverse iteration on "
-                       "CᵀC + δI (one sparse LU), a projection step and the SVD of C on that subspace",
+                       "CᵀC + δI (one sparse LU), two projection steps and the SVD of C on that subspace",
              "blocks": ph.paths, "rotation_length": length,
              "rank_tolerance": {"rule": f"sigma <= {TOL_RULE:g} * max(rows, cols) * eps * sigma_max_bound",
                                 "sigma_max_bound": ph.sigma_max_bound,
