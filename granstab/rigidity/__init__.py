@@ -25,6 +25,9 @@ from .physical import DENSE_MAX, NEAR_RTOL, TOL_RULE, physical
 from .prestress import prestress
 
 MODELS = ("physical", "generic", "both")
+CELL_IGNORED = ("periodic cell ignored: seam contacts are bars like any other and the whole may turn, so the game "
+                "counts k trivial modes where the fixed cell has d (RigidLibrary treats the cell as a free body); "
+                "compare --model physical, which constrains through the images")
 GAME_START_MAX = 5000     # bodies up to which the physical model alone plays the game for its start
 
 
@@ -67,7 +70,8 @@ def analyse_generic(scene: Scene, frame: Frame, game=None, seconds: float = 0.0)
               "floppy": game.free, "trivial": k}
     return report(scene, frame, game.component, counts, seconds + time.perf_counter() - start,
                   {"method": f"({k},{k}) pebble game on the body-bar graph, rigid sets contracted as found",
-                   "trivial_modes_note": "the game counts k rigid motions of the whole; a periodic cell is ignored"})
+                   "trivial_modes_note": CELL_IGNORED if frame.periodic else "the game counts k rigid motions of "
+                                                                              "the whole"})
 
 
 def analyse_physical(scene: Scene, frame: Frame, game=None, second_order: bool = True) -> dict:
