@@ -1,6 +1,6 @@
 """A rigidity result (`granstab rigidity INPUT --out DIR`) as a map of the explorer, in the scan map's style: the
-packing with each particle coloured by the rigid cluster it belongs to (the largest first: blue, orange, green, …
-as the rigidity figure's contacts), particles in no cluster grey; a click opens the particle's neighbourhood
+packing with each contact (centre to centre) and each particle coloured by its rigid cluster (the largest first:
+blue, orange, green, … as the rigidity figure), floppy contacts and particles in no cluster grey; a click opens the particle's neighbourhood
 (one contact ring, the scan's cut) as a contact-level model. The folder's own packing.npz is drawn, so the
 contact labels of rigidity.json point into exactly that scene."""
 from __future__ import annotations
@@ -13,10 +13,19 @@ import numpy as np
 import granstab
 
 from .models import ContactModel
-from .scanmap import GREY, ScanMapModel
+from .scanmap import CUT_GREY, ScanMapModel
 
 TAB10 = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189], [140, 86, 75],
                   [227, 119, 194], [127, 127, 127], [188, 189, 34], [23, 190, 207]], np.uint8)   # matplotlib's tab10
+
+
+LIGHT_GREY = CUT_GREY        # particles in no cluster: lighter than the floppy contacts over them
+FLOPPY = (100, 100, 100)     # floppy contacts: darker than GREY, to stand out over light grey particles
+
+
+def tint(rgb: np.ndarray) -> np.ndarray:
+    """A cluster colour lightened for the particles: 40 % of it, 60 % white."""
+    return np.round(0.4 * rgb + 0.6 * 255).astype(np.uint8)
 
 
 def particle_clusters(scene: granstab.Scene, contacts: list) -> np.ndarray:
@@ -44,9 +53,19 @@ class RigidityMapModel(ScanMapModel):
 
     @property
     def colours(self) -> np.ndarray:
+        """(N, 3) uint8 per particle: its cluster's colour lightened (`tint`), so that the contacts drawn over it
+        in full colour stand out; light grey in no cluster."""
         labels = self.labels
+        rgb = tint(TAB10[np.mod(np.maximum(labels, 0), len(TAB10))])
+        rgb[labels < 0] = LIGHT_GREY
+        return rgb
+
+    @property
+    def contact_colours(self) -> np.ndarray:
+        """(M, 3) uint8 per contact of the packing: its cluster's colour, dark grey when floppy (label -1)."""
+        labels = np.array([c[2] for c in self.result[self.model]["contacts"][:self.scene.n_contacts]], int)
         rgb = TAB10[np.mod(np.maximum(labels, 0), len(TAB10))].copy()
-        rgb[labels < 0] = GREY
+        rgb[labels < 0] = FLOPPY
         return rgb
 
     @property
@@ -66,8 +85,9 @@ class RigidityMapModel(ScanMapModel):
 
     @property
     def legend(self) -> str:
-        return ("**Legend** — particle colour: its rigid cluster (the largest blue, then orange, green, red, …, "
-                "cyclically); grey: floppy, in no rigid cluster (docs/rigidity.md).")
+        return ("**Legend** — contact (centre to centre) colour: its rigid cluster (the largest blue, then orange, "
+                "green, red, …, cyclically); grey: floppy. Particles: their cluster's colour, lighter; light grey "
+                "in no rigid cluster (docs/rigidity.md).")
 
     def cluster(self, name: str) -> ContactModel:
         """The particle's one-ring neighbourhood (the scan's cut, loads at the boundary) as a contact model."""

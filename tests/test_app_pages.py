@@ -716,8 +716,7 @@ def test_rigidity_map_in_the_page(app, browser, tmp_path):
     import json as _json
 
     from granstab.cli import main
-    from granstab_app.rigiditymap import TAB10
-    from granstab_app.scanmap import GREY
+    from granstab_app.rigiditymap import FLOPPY, LIGHT_GREY, TAB10, tint
     out = tmp_path / "rigidity"
     assert main(["rigidity", str(REPO / "tests" / "data" / "io" / "annulus"), "--frame", "2", "--mu", "0.05",
                  "--out", str(out), "--json"]) == 0
@@ -729,9 +728,13 @@ def test_rigidity_map_in_the_page(app, browser, tmp_path):
     page.get_by_text("rigid clusters of 31 particles").wait_for(timeout=30_000)
     for k, c in enumerate(clusters):            # every member of the clusters 0-2 (no hinge here) in its colour
         for name in c["particles"]:
-            assert tuple(ui.view.colours[name]) == tuple(int(v) for v in TAB10[k])
+            assert tuple(ui.view.colours[name]) == tuple(int(v) for v in tint(TAB10[k]))
     floppy = [n for n in ui.session.scene.names if n not in rigid]
-    assert len(floppy) == 31 - 13 and all(tuple(ui.view.colours[n]) == GREY for n in floppy)
+    assert len(floppy) == 31 - 13 and all(tuple(ui.view.colours[n]) == LIGHT_GREY for n in floppy)
+    labels = [c[2] for c in _json.loads((out / "rigidity.json").read_text())["physical"]["contacts"]]
+    drawn = ui.session.model.contact_colours                 # the contacts, centre to centre, by cluster
+    assert ui.view.contacts_frame is not None and len(drawn) == len(labels) == 31
+    assert all(tuple(rgb) == (FLOPPY if k < 0 else tuple(int(v) for v in TAB10[k])) for rgb, k in zip(drawn, labels))
     name = page.locator("input.mantine-TextInput-input:visible").nth(1)   # Open cluster of
     name.fill(clusters[0]["particles"][0])
     wait_for(lambda: ui.session.kind == "contacts", timeout=120, what="the neighbourhood opened")
