@@ -574,9 +574,11 @@ class ClientUI:
         if s.deferred:
             title = f"{title} — {s.scene.n_particles} particles: drawn, not analysed (Analyse the whole packing)"
             verdict = "not analysed"
-        if s.kind == "scan_map":      # a scan's map, or a track's frame (its own headline)
+        if s.kind == "scan_map":      # a scan's map, a track's frame (its own headline) or a rigidity map
             title, verdict = getattr(s.model, "headline", None) or (
                 f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map")
+            if hasattr(s.model, "legend"):
+                title = f"rigid clusters of {s.scene.n_particles} particles: click one (or type its name) to open it"
         if apart and s.kind != "scan_map":       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
         reason = "" if verdict in (None, "no contact", "not analysed", "scan map", "track") else s.headline()[1]
@@ -601,7 +603,9 @@ class ClientUI:
         self.info.content = (f"{note}\n\n" if note else "") + (
             f"{s.kind.replace('_', ' ')} scene" + (f" · {params}." if params else ".")) + drag + (
             f"\n\n**Import report**\n\n{wrapped(report)}" if report else "")
-        if s.kind == "scan_map":
+        if s.kind == "scan_map" and hasattr(s.model, "details"):
+            self.details.content = s.model.details
+        elif s.kind == "scan_map":
             self.details.content = (f"**Scan map.** {s.model.report}.\n\nColour: the fraction of the clusters "
                                     "containing a particle that are unstable (white 0 → dark red 1; grey: in no "
                                     "scanned cluster). Click a particle, or type its name under *Scene*, to open its "
@@ -664,6 +668,9 @@ class ClientUI:
                           for x in m["metrics"])
 
     def _write_legend(self, legend: dict) -> None:
+        if self.session.kind == "scan_map" and hasattr(self.session.model, "legend"):
+            self.legend.content = self.session.model.legend
+            return
         if self.session.kind == "scan_map":
             self.legend.content = ("**Legend** — particle colour: the share of the scanned clusters containing it that "
                                    "are unstable by the packing (mechanism frictional, geometric or mixed; white 0 → "

@@ -18,6 +18,7 @@ import numpy as np
 import granstab
 from granstab.analysis import analyze
 from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
+from granstab.rigidity.output import is_rigidity_dir
 from granstab.solve.threads import blas_threads
 
 from .field import Field, field_png, lambda6_field
@@ -25,6 +26,7 @@ from .models import Body, ShapeModel, TwoParticleModel, load_model
 from .modes import label_mode, mode_offsets, rotation_matrix
 from .params import PARAMS
 from .paths import PathRefused, folder_choice, typed_path
+from .rigiditymap import load_rigidity_map
 from .scanmap import is_scan_dir, load_scan_map
 from .trackmap import is_track_dir, load_track
 
@@ -111,7 +113,7 @@ class Session:
         path = self.resolve(str(name_or_path))
         try:
             model = (load_track(path) if is_track_dir(path) else load_scan_map(path) if is_scan_dir(path)
-                     else load_model(path))
+                     else load_rigidity_map(path) if is_rigidity_dir(path) else load_model(path))
         except Exception as exc:  # noqa: BLE001 — any bad file must end up as a message, not a crash
             self.error = one_line(exc) if isinstance(exc, granstab.SceneError) else f"{path}: {one_line(exc)}"
             return False
@@ -554,7 +556,7 @@ def opens_as_folder(folder: Path, most: int = 64) -> bool:
     (at most `most`, those granstab.io.load would take) one format reads together (a LAMMPS run's dumps)."""
     from granstab.io import SKIPPED_IN_FOLDERS
     from granstab.io.registry import detect, reads_folder
-    if is_scan_dir(folder) or reads_folder(folder):
+    if is_scan_dir(folder) or is_rigidity_dir(folder) or reads_folder(folder):
         return True
     files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
                    and p.suffix.lower() not in SKIPPED_IN_FOLDERS)

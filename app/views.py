@@ -401,12 +401,12 @@ class SceneView:
         Each of the two groups is re-sent only when what it shows changed (`digest` of its data and options): a μ
         slider move on a 143-disk frame used to re-send 1.5 MB of drawings and cost the browser ≈ 8 s."""
         scene, size, o = session.scene, session.size, self.options
-        if scene is None or scene.n_contacts == 0 or session.kind == "scan_map":     # the map shows particles only
-            if self._contact_keys:
-                self.api.remove_by_name("/contacts")
-                self.contacts_frame = None
-                self._contact_keys = {}
+        if scene is None or scene.n_contacts == 0 or session.kind == "scan_map":     # a map: particles, and a
+            self._draw_map_contacts(session)                                         # rigidity map's contacts
             return {"max_force": 0.0, "arrow": 0.0}
+        if "map" in self._contact_keys:                  # back from a rigidity map: its contacts go
+            self.api.remove_by_name("/contacts")
+            self.contacts_frame, self._contact_keys = None, {}
         z = 0.1 * size if scene.dim == 2 else 0.0
         P = to3(scene.point, z)
         self._contacts_parent()
@@ -426,6 +426,26 @@ class SceneView:
             if o["forces"] and fmax > 0:
                 self._draw_forces(scene, size, P, fmag, fmax, arrow, yielding)
         return {"max_force": fmax, "arrow": arrow / size, "lines": scene.n_contacts > MAX_ARROWS}
+
+    def _draw_map_contacts(self, session) -> None:
+        """On a map, the contacts the model colours (a rigidity map: centre to centre, by cluster, floppy grey;
+        `contact_colours`), above the particles; none on a scan map, nor off the map."""
+        scene = session.scene
+        colours = getattr(session.model, "contact_colours", None) if scene is not None else None
+        key = None if colours is None else digest((session.size,), scene.x, scene.branch, colours)
+        if self._contact_keys.get("map") == key and (key is not None or not self._contact_keys):
+            return
+        self.api.remove_by_name("/contacts")
+        self.contacts_frame, self._contact_keys = None, {}
+        if key is None:
+            return
+        self._contacts_parent()
+        self._contact_keys["map"] = key
+        z = 0.15 * session.size if scene.dim == 2 else 0.0
+        start = scene.x[scene.p]
+        segments = np.stack([to3(start, z), to3(start + scene.branch, z)], axis=1)
+        self.api.add_line_segments("/contacts/clusters", segments, np.repeat(colours[:, None], 2, axis=1),
+                                   thickness=3.0, thickness_units="screen")
 
     def _draw_geometry(self, scene, size, P, z) -> None:
         for part in ("points", "normals", "osculating"):

@@ -184,7 +184,7 @@ def cmd_analyze(args) -> int:
                                                                       enabled=not bars) as beat:
         beat.stage("reading")
         with strict_numerics(source_of(args.scene)):
-            loaded = load(args.scene, progress=bars, **periodic_options(args))
+            loaded = load_with_import_options(args.scene, args)
             scene = loaded.scene
             dense, beat.estimate = refuse_unfinishable(
                 scene, args, args.timeout and args.timeout - (time.perf_counter() - start))
@@ -311,6 +311,9 @@ def cmd_rigidity(args) -> int:
     if args.figure:
         from .rigidity.figure import write_figure
         result["figure"] = str(write_figure(loaded.scene, result, args.figure))
+    if args.out:
+        from .rigidity.output import write_result
+        result["out"] = str(write_result(loaded.scene, result, args.out))
     print(json.dumps(result, allow_nan=False) if args.json else "\n".join([format_rigidity(result),
                                                                           *import_lines(loaded)]))
     return 0
@@ -348,6 +351,8 @@ def format_rigidity(result: dict) -> str:
                      f"models differ on {d['count']} contacts (--json: differ.contacts)")
     if "figure" in result:
         lines.append(f"wrote {result['figure']}")
+    if "out" in result:
+        lines.append(f"wrote {result['out']} (rigidity.json, packing.npz): granstab-app --preset {result['out']}")
     return "\n".join(lines)
 
 
@@ -430,7 +435,7 @@ def cmd_scan(args) -> int:
     """Every local cluster of a packing → DIR/clusters, particles, summary.json, map (issue 10)."""
     from .scan import scan
     from .solve.device import DeviceError
-    loaded = load(args.input, **periodic_options(args))
+    loaded = load_with_import_options(args.input, args)
     try:
         summary = scan(loaded.scene, args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
@@ -526,7 +531,7 @@ def add_scan(sub) -> None:
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
     p.add_argument("--json", action="store_true", help="print summary.json")
-    periodic_arguments(p)
+    import_arguments(p, rename={"format": "--input-format", "progress": None})
     p.set_defaults(run=cmd_scan)
 
 
@@ -624,17 +629,26 @@ def frame_number(text: str):
     return int(value) if value.is_integer() else value
 
 
-def import_arguments(p) -> None:
+def import_arguments(p, rename: dict | None = None) -> None:
     """The import options of a snapshot (convert's, and every command that reads one through them): format,
-    frame or timestep, region, contact law, geometry, cone policy, units, columns, rattlers, progress."""
-    p.add_argument("--format", default="auto", help="auto (from the files) or a name of granstab.io.formats()")
-    p.add_argument("--progress", action="store_true",
-                   help="a progress bar on stderr while large files are read (default when stderr is a terminal)")
+    frame or timestep, region, contact law, geometry, cone policy, units, columns, rattlers, progress. `rename`
+    gives another flag to an option the command already uses otherwise (analyze's --k, scan's --format): its value
+    is then kept as import_<name>; a command with its own --progress keeps it (rename {"progress": None})."""
+    rename = rename or {}
+
+    def flag(name: str) -> dict:
+        return {"dest": f"import_{name}"} if name in rename else {"dest": name}
+
+    p.add_argument(rename.get("format", "--format"), default="auto", **flag("format"),
+                   help="auto (from the files) or a name of granstab.io.formats()")
+    if "progress" not in rename:
+        p.add_argument("--progress", action="store_true",
+                       help="a progress bar on stderr while large files are read (default when stderr is a terminal)")
     which = p.add_mutually_exclusive_group()
     which.add_argument("--frame", type=frame_number, default=None, help="frame to read (default: the first)")
     which.add_argument("--timestep", type=frame_number, default=None, help="timestep to read (default: the first)")
     p.add_argument("--region", help="box:lo,hi,lo,hi[,lo,hi] | ids:ID,... | ids:@FILE (keep these particles)")
-    p.add_argument("--k", type=float, help="normal stiffness (overrides the file's law)")
+    p.add_argument(rename.get("k", "--k"), type=float, help="normal stiffness (overrides the file's law)", **flag("k"))
     p.add_argument("--alpha", type=float, help="tangential/normal stiffness ratio")
     p.add_argument("--mu", type=float, help="friction coefficient")
     p.add_argument("--geometry", choices=["centres", "touching"], default=None,
@@ -656,9 +670,12 @@ def import_arguments(p) -> None:
 
 def import_options(args) -> dict:
     """The load() options `import_arguments` defined, only those given (a scene file takes none)."""
-    options = {key: getattr(args, key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
-                                                   "length_scale", "units", "region", "columns", "density")
-               if getattr(args, key) is not None}
+    def given(key):
+        return getattr(args, f"import_{key}", getattr(args, key, None))
+
+    options = {key: given(key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
+                                           "length_scale", "units", "region", "columns", "density")
+               if given(key) is not None}
     if args.keep_rattlers:
         options["keep_rattlers"] = True
     options.update(periodic_options(args))
@@ -668,7 +685,8 @@ def import_options(args) -> dict:
 def load_with_import_options(inputs, args):
     """`granstab.io.load` of `inputs` with the options `import_arguments` defined (only those given are passed,
     so that a scene file, which takes none, is read as written)."""
-    return load(inputs, format=args.format, frame=args.frame, timestep=args.timestep,
+    fmt = getattr(args, "import_format", args.format)
+    return load(inputs, format=fmt, frame=args.frame, timestep=args.timestep,
                 progress=args.progress or sys.stderr.isatty(), **import_options(args))
 
 
@@ -744,6 +762,8 @@ def add_rigidity(sub) -> None:
     p.add_argument("--walls", choices=list(WALL_OPTIONS), default="free",
                    help="free: wall forces are loads (default); bodies: each annulus wall one body (RigidLibrary)")
     p.add_argument("--figure", default=None, help="write the packing with contacts coloured by cluster (PNG/SVG)")
+    p.add_argument("--out", default=None, help="write the result and its packing to this folder (rigidity.json, "
+                                               "packing.npz): the explorer opens it (granstab-app --preset DIR)")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     import_arguments(p)
     p.set_defaults(run=cmd_rigidity)
@@ -784,7 +804,7 @@ def build_parser() -> Parser:
                         "auto: the GPU when CuPy sees one")
     p.add_argument("--all", action="store_true", help="list every eigenvalue in the table (default: the lowest "
                    f"{TABLE_LOWEST} per branch and the counts)")
-    periodic_arguments(p)
+    import_arguments(p, rename={"k": "--contact-k", "progress": None})
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("moduli", help="elastic moduli, stress and stability at fixed stress of a periodic packing")
     input_argument(p, "scene")

@@ -306,17 +306,24 @@ def test_a_large_packing_stays_responsive(app, browser, tmp_path):
     assert errors == []
 
 
-def test_scan_map_in_the_page(app, browser, scan_dir):
-    """A scan folder typed into *Path on server*: the packing coloured by the map (the planted sharp particle dark red),
-    its cluster opened by name (UNSTABLE, as the scan's row), and *Back to the map*."""
-    errors: list[str] = []
+def open_map(browser, app, folder, errors):
+    """A new page, its first preset shown, then `folder` (a scan or a rigidity result) typed into *Path on server*
+    and shown as a map: the page and its UI."""
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
     ui = ui_of(app, page)
     box = page.locator("input.mantine-TextInput-input:visible").first  # Path on server
-    box.fill(str(scan_dir))
+    box.fill(str(folder))
     box.press("Enter")
     verdict_on_page(page, "scan-map", timeout=120_000)
+    return page, ui
+
+
+def test_scan_map_in_the_page(app, browser, scan_dir):
+    """A scan folder typed into *Path on server*: the packing coloured by the map (the planted sharp particle dark red),
+    its cluster opened by name (UNSTABLE, as the scan's row), and *Back to the map*."""
+    errors: list[str] = []
+    page, ui = open_map(browser, app, scan_dir, errors)
     page.get_by_text("click one (or type its name) for its cluster").wait_for(timeout=30_000)
     page.get_by_text("The scan map has no modes").wait_for(timeout=30_000)      # the Eigenmodes panel says why
     from granstab_app.scanmap import fraction_colours  # p40's own cluster geometric, its six neighbours' boundary:
@@ -700,3 +707,37 @@ def test_no_tooltip_covers_an_input(playwright, tmp_path):
     finally:
         ctx.close()
         every.stop()
+
+
+def test_rigidity_map_in_the_page(app, browser, tmp_path):
+    """`granstab rigidity … --out DIR` typed into *Path on server*: the packing coloured by rigid cluster in the scan
+    map's style (the small annulus frame 2 at μ = 0.05: clusters of 5, 5 and 3 disks, the rest floppy grey), a
+    particle's neighbourhood opened by name, and *Back to the map*."""
+    import json as _json
+
+    from granstab.cli import main
+    from granstab_app.rigiditymap import FLOPPY, LIGHT_GREY, TAB10, tint
+    out = tmp_path / "rigidity"
+    assert main(["rigidity", str(REPO / "tests" / "data" / "io" / "annulus"), "--frame", "2", "--mu", "0.05",
+                 "--out", str(out), "--json"]) == 0
+    clusters = _json.loads((out / "rigidity.json").read_text())["physical"]["clusters"]
+    assert [len(c["particles"]) for c in clusters] == [5, 5, 3]
+    rigid = {name for c in clusters for name in c["particles"]}
+    errors: list[str] = []
+    page, ui = open_map(browser, app, out, errors)
+    page.get_by_text("rigid clusters of 31 particles").wait_for(timeout=30_000)
+    for k, c in enumerate(clusters):            # every member of the clusters 0-2 (no hinge here) in its colour
+        for name in c["particles"]:
+            assert tuple(ui.view.colours[name]) == tuple(int(v) for v in tint(TAB10[k]))
+    floppy = [n for n in ui.session.scene.names if n not in rigid]
+    assert len(floppy) == 31 - 13 and all(tuple(ui.view.colours[n]) == LIGHT_GREY for n in floppy)
+    labels = [c[2] for c in _json.loads((out / "rigidity.json").read_text())["physical"]["contacts"]]
+    drawn = ui.session.model.contact_colours                 # the contacts, centre to centre, by cluster
+    assert ui.view.contacts_frame is not None and len(drawn) == len(labels) == 31
+    assert all(tuple(rgb) == (FLOPPY if k < 0 else tuple(int(v) for v in TAB10[k])) for rgb, k in zip(drawn, labels))
+    name = page.locator("input.mantine-TextInput-input:visible").nth(1)   # Open cluster of
+    name.fill(clusters[0]["particles"][0])
+    wait_for(lambda: ui.session.kind == "contacts", timeout=120, what="the neighbourhood opened")
+    page.get_by_role("button", name="Back to the map").click()
+    verdict_on_page(page, "scan-map", timeout=120_000)
+    close_page(page, errors, "app-rigidity-map.png")

@@ -155,3 +155,25 @@ def test_every_command_that_reads_an_input_prints_the_import_warnings(tmp_path, 
     cut = granstab.load(DATASIM, periodic=False).report["contacts"]["cut_around_periodic_cell"]
     assert cut > 0 and any(x.startswith(f"warning: import: {cut} contact(s) closing a loop around the periodic "
                                         "cell cut") for x in lines[1:])
+
+
+def test_analyze_and_scan_take_converts_import_options(tmp_path, capsys):
+    """analyze and scan read an annulus folder with convert's import options (issue 28): --frame 2 and --mu 0.05
+    (the file gives no μ; the default 0.5 leaves every contact inside the cone, 0.05 puts 3 at yield). analyze's
+    JSON is the analysis of the scene loaded with those options; scan's summary
+    reports the same import; analyze's --k stays its eigenpair count (the stiffness is --contact-k there)."""
+    options = {"frame": 2, "mu": 0.05}
+    loaded = granstab.load(ANNULUS, **options)
+    assert loaded.report["contacts"]["sliding"] == 3 and granstab.load(ANNULUS, frame=2).report["contacts"]["sliding"] == 0
+    assert main(["analyze", str(ANNULUS), "--frame", "2", "--mu", "0.05", "--metric", "L", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["import"]["frame"] == 2 and d["import"]["contacts"]["sliding"] == 3
+    expected = granstab.analyze(loaded.scene, metric="L").to_dict()
+    assert {k: v for k, v in d.items() if k not in ("import", "timings")} == json.loads(json.dumps(
+        {k: v for k, v in expected.items() if k != "timings"}))
+    assert main(["scan", str(ANNULUS), "--out", str(tmp_path / "s"), "--workers", "1", "--frame", "2", "--mu", "0.05",
+                 "--input-format", "auto", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["import"]["frame"] == 2 and summary["import"]["contacts"]["sliding"] == 3
+    assert main(["analyze", str(ANNULUS), "--contact-k", "-1"]) == 2
+    assert "k" in capsys.readouterr().err

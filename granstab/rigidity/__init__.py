@@ -2,6 +2,7 @@
 
     result = granstab.rigidity.rigidity(scene, model="both", walls="free")
     result["physical"]["clusters"][0]          # the largest rigid cluster: its particles and contacts
+    granstab.rigidity.largest_cluster(scene)   # per frame, for track: size_particles, size_contacts, fraction
 
 Two models of the same body-bar frame (frame.py: particles as rigid bodies, a sticking contact d constraints, a
 sliding one 1, rolling stiffness r more):
@@ -20,61 +21,89 @@ from ..model.errors import SceneError
 from ..model.scene import Scene, mean_contact_radius
 from .frame import WALL_NAMES, WALL_OPTIONS, Frame, from_scene
 from .pebble import pebble_game
-from .physical import physical
+from .physical import DENSE_MAX, NEAR_RTOL, TOL_RULE, physical
 from .prestress import prestress
 
 MODELS = ("physical", "generic", "both")
+CELL_IGNORED = ("periodic cell ignored: seam contacts are bars like any other and the whole may turn, so the game "
+                "counts k trivial modes where the fixed cell has d (RigidLibrary treats the cell as a free body); "
+                "compare --model physical, which constrains through the images")
+GAME_START_MAX = 5000     # bodies up to which the physical model alone plays the game for its start
 
 
-def rigidity(scene: Scene, model: str = "physical", walls: str = "free", wall_flags=None) -> dict:
+def rigidity(scene: Scene, model: str = "physical", walls: str = "free", wall_flags=None,
+             second_order: bool = True) -> dict:
     """The rigidity analysis of a scene as a JSON-able dict: one entry per model ("physical", "generic"), and with
     model="both" also "differ" (the contacts whose cluster membership differs); `walls` "free" or "bodies"
-    (RigidLibrary's annulus convention, needs `wall_flags`)."""
+    (RigidLibrary's annulus convention, needs `wall_flags`); `second_order` False skips the prestress check."""
     if model not in MODELS:
         raise SceneError(f"--model: must be one of {', '.join(MODELS)}, got {model!r}")
     frame = from_scene(scene, walls, wall_flags)
     out = {"source": scene.source, "dim": scene.dim, "walls": walls, "periodic": scene.periodic,
            "wall_bodies": frame.walls}
-    for name in (("physical", "generic") if model == "both" else (model,)):
-        out[name] = (analyse_physical if name == "physical" else analyse_generic)(scene, frame)
+    game = None
+    if model in ("generic", "both"):
+        start = time.perf_counter()
+        game = play(frame)
+        out["generic"] = analyse_generic(scene, frame, game, time.perf_counter() - start)
+    if model in ("physical", "both"):
+        out["physical"] = analyse_physical(scene, frame, game, second_order)
     if model == "both":
         out["differ"] = differing_contacts(out["physical"], out["generic"])
     return out
 
 
-def analyse_generic(scene: Scene, frame: Frame) -> dict:
-    """The pebble game: bars in RigidLibrary's order (one bar of every contact, then the further bars)."""
-    start = time.perf_counter()
-    k = frame.per
+def play(frame: Frame, components: bool = True):
+    """The pebble game on the frame's bars in RigidLibrary's order (one bar of every contact, then the further
+    bars)."""
     bars = frame.bars
-    extra = np.repeat(np.arange(len(bars)), bars - 1)
-    order = np.r_[np.arange(len(bars)), extra]
-    game = pebble_game(frame.n_bodies, frame.p[order], frame.q[order], k)
-    independent = int(game.independent.sum())
-    counts = {"dofs": k * frame.n_bodies, "constraints": len(order), "rank": independent,
+    order = np.r_[np.arange(len(bars)), np.repeat(np.arange(len(bars)), bars - 1)]
+    return pebble_game(frame.n_bodies, frame.p[order], frame.q[order], frame.per, components=components)
+
+
+def analyse_generic(scene: Scene, frame: Frame, game=None, seconds: float = 0.0) -> dict:
+    """The generic model's report (the game played here unless given, with the seconds it took)."""
+    start = time.perf_counter()
+    game = game or play(frame)
+    k = frame.per
+    counts = {"dofs": k * frame.n_bodies, "constraints": len(game.independent), "rank": int(game.independent.sum()),
               "floppy": game.free, "trivial": k}
-    return report(scene, frame, game.component, counts, time.perf_counter() - start,
-                  {"method": f"({k},{k}) pebble game on the body-bar graph",
-                   "trivial_modes_note": "the game counts k rigid motions of the whole; a periodic cell is ignored"})
+    return report(scene, frame, game.component, counts, seconds + time.perf_counter() - start,
+                  {"method": f"({k},{k}) pebble game on the body-bar graph, rigid sets contracted as found",
+                   "trivial_modes_note": CELL_IGNORED if frame.periodic else "the game counts k rigid motions of "
+                                                                              "the whole"})
 
 
-def analyse_physical(scene: Scene, frame: Frame) -> dict:
+def analyse_physical(scene: Scene, frame: Frame, game=None, second_order: bool = True) -> dict:
+    """The physical model's report with its rank tolerance, gap and the prestress's second-order verdict; the
+    sparse path starts from `game`'s floppy count (played here up to GAME_START_MAX bodies, where it costs < 1 s;
+    beyond, Maxwell's count n - K, whose underestimate the sparse path doubles away)."""
     start = time.perf_counter()
     length = mean_contact_radius(scene)
-    ph = physical(frame, length)
+    if game is None and frame.n_bodies <= GAME_START_MAX:
+        game = play(frame, components=False)
+    ph = physical(frame, length, game.free_per_body if game is not None else None)
     trivial = frame.dim if frame.periodic else frame.per
     counts = {"dofs": frame.per * frame.n_bodies, "constraints": int(frame.bars.sum()), "rank": ph.rank,
               "floppy": ph.nullity, "trivial": trivial}
-    extra = {"method": "dense SVD per connected block of the sparse compatibility matrix",
-             "rotation_length": length,
-             "rank_tolerance": {"rule": "sigma > max(rows, cols) * eps * sigma_max of each block",
+    extra = {"method": f"SVD per connected block up to {DENSE_MAX} columns (dense), else inverse iteration on "
+                       "CᵀC + δI (one sparse LU), two projection steps and the SVD of C on that subspace",
+             "blocks": ph.paths, "rotation_length": length,
+             "rank_tolerance": {"rule": f"sigma <= {TOL_RULE:g} * max(rows, cols) * eps * sigma_max_bound",
+                                "sigma_max_bound": ph.sigma_max_bound,
+                                "sigma_max_bound_is": "sqrt(|C|_1 |C|_inf) >= sigma_max of C",
                                 "largest": ph.tolerance,
                                 "gap": ph.gap if np.isfinite(ph.gap) else None,
-                                "gap_is": "sigma_rank / sigma_rank+1, smallest over the blocks (null: full rank)"},
-             "rigid_contact_strain": ph.strain_gap}
+                                "gap_is": "sigma_rank / sigma_rank+1 (smallest non-zero over largest zero), "
+                                          "smallest over the blocks (null: no block has both)"},
+             "rigid_contact_strain": ph.strain_gap,
+             "nearly_floppy": {"count": ph.nearly_floppy, "below": NEAR_RTOL * ph.sigma_max_bound,
+                               "note": "singular values above the tolerance but below 1e-6 sigma_max_bound: counted "
+                                       "rigid, floppy to a data file's precision (a lower bound on the sparse path)"}}
     result = report(scene, frame, ph.component, counts, time.perf_counter() - start, extra)
     t = time.perf_counter()
-    result["prestress"] = prestress(scene, ph.null, length)
+    result["prestress"] = prestress(scene, ph.null, length) if second_order else {"evaluated": False,
+                                                                                  "why": "not asked"}
     result["prestress"]["seconds"] = time.perf_counter() - t
     return result
 
@@ -165,14 +194,25 @@ def differing_contacts(a: dict, b: dict) -> dict:
 
 
 def largest_rigid_cluster(result: dict, model: str | None = None) -> dict:
-    """The largest rigid cluster of a `rigidity` result (for `track`: one frame's entry): its particle and contact
-    counts and its share of the particles; `model` defaults to the physical one when present."""
+    """The largest rigid cluster of a `rigidity` result: its particles (wall bodies not counted), contacts and
+    share of the scene's particles; `model` defaults to the physical one when present."""
     name = model or ("physical" if "physical" in result else "generic")
     r = result[name]
     first = r["clusters"][0] if r["clusters"] else {"particles": [], "contacts": []}
     particles = [p for p in first["particles"] if p not in WALL_NAMES]
-    return {"model": name, "particles": len(particles), "contacts": len(first["contacts"]),
+    return {"model": name, "size_particles": len(particles), "size_contacts": len(first["contacts"]),
             "fraction": len(particles) / max(r["counts"]["particles"], 1)}
 
 
-__all__ = ["MODELS", "WALL_OPTIONS", "largest_rigid_cluster", "partition", "rigidity"]
+def largest_cluster(scene: Scene, model: str = "generic", walls: str = "free", wall_flags=None) -> dict:
+    """One frame's largest rigid cluster for `track`: {model, size_particles, size_contacts, fraction, seconds}.
+    The generic model (default) costs one pebble game, near-linear (10⁴ disks in ~3 s); "physical" adds the
+    sparse rank (~8 s there) but no prestress check."""
+    if model not in ("physical", "generic"):
+        raise SceneError(f"model: must be physical or generic, got {model!r}")
+    start = time.perf_counter()
+    result = rigidity(scene, model, walls, wall_flags, second_order=False)
+    return {**largest_rigid_cluster(result, model), "seconds": time.perf_counter() - start}
+
+
+__all__ = ["MODELS", "WALL_OPTIONS", "largest_cluster", "largest_rigid_cluster", "partition", "rigidity"]

@@ -1,14 +1,20 @@
 """The physical model: the rank and null space of the compatibility matrix at the actual geometry.
 
 C (mechanics/compatibility.py) is split into the connected components of its body graph (bodies joined by a
-contact). A block of up to DENSE_MAX columns: one dense SVD, rank tolerance (numpy's matrix_rank rule)
-σ > max(K, n)·ε·σ_max. A larger block: the sparse path, the lowest eigenpairs of CᵀC by block inverse iteration
-(one sparse LU of CᵀC + δI, δ = 1e-14·σ_max²) on as many vectors as the pebble game's floppy count plus 16 (the physical nullity is never below the
-generic one: rank can only drop at special geometry), doubled until
-the last is clearly non-zero; tolerance σ² ≤ max(K, n)·ε·σ_max² (CᵀC squares the conditioning, so the sparse
-path resolves σ down to √(max(K, n)ε)·σ_max, about 1e-6 of it). Either way the gap σ_rank / σ_rank+1 says how
-clearly the rank is resolved. The null vectors are the floppy modes (trivial ones included); the self-stresses
-are counted, K - rank.
+contact); a body without contacts is d + r free dofs with no linear algebra. σ_max of C is bounded by
+‖C‖₂ ≤ √(‖C‖₁‖C‖_∞) (`norm_bound`, cheap, at most √K above it) and every rank tolerance is relative to it, the
+same rule on both paths: σ counted zero when σ ≤ TOL_RULE·max(K, n)·ε·σ̄ (numpy's matrix_rank rule times 10).
+- A block of up to DENSE_MAX columns: one dense SVD. All dense work runs on one BLAS thread (solve/threads.py: a
+  two-thread pool on a busy machine waits for a core at every call).
+- A larger block, the sparse path (`_null_sparse`): block inverse iteration with one sparse LU of CᵀC + δI
+  (δ = SHIFT·σ̄², minimum-degree ordering, symmetric mode), STEPS steps from `start` + MARGIN vectors (the pebble
+  game's floppy count where it was played, the physical nullity never being below the generic one, else
+  Maxwell's n - K; plus the free spins, which the game counts constrained), then PROJECTIONS steps of the projection
+  X - (CᵀC + δI)⁻¹Cᵀ(CX) (which removes the √ε error of working with CᵀC), then a thin SVD of C X: its singular
+  values are C's on that subspace with absolute error ~ε·σ̄, not the √ε·σ̄ of CᵀC's Ritz values. The vectors
+  are doubled (and the iteration restarted) until the subspace holds MARGIN/2 clearly non-zero σ.
+Either way the gap σ_rank / σ_rank+1 (the smallest non-zero over the largest zero) says how clearly the rank is
+resolved. The null vectors are the floppy modes (trivial ones included); the self-stresses are K - rank.
 
 Rigid clusters. Bodies p and q move rigidly together in a velocity Ũ = [du, L dθ] when du^q - du^p - dθ^p × b^pq = 0
 and dθ^q - dθ^p = 0 (b^pq the branch vector to q's copy). Every allowed velocity is a combination of the null
@@ -30,17 +36,25 @@ from ..mechanics.compatibility import compatibility_matrix
 from ..model.vec import rotate_matrix
 from ..solve.threads import blas_threads
 from .frame import Frame
-from .pebble import pebble_game
 
 DENSE_MAX = 600      # columns of a block solved by dense SVD; larger ones take the sparse path
-RIGID_RTOL = 1e-7     # strain of a contact counted as zero: sqrt(ε)-level, well above an SVD's ε·κ null vectors
+TOL_RULE = 10.0      # rank tolerance TOL_RULE·max(K, n)·ε·σ̄: numpy's rule with a margin for σ̄ being a bound
+SHIFT = 1e-12        # δ = SHIFT·σ̄²: σ above 1e-5·σ̄ is damped ≥ 100x a step against the null space
+MARGIN = 16          # vectors beyond the expected nullity in the sparse path
+PROJECTIONS = 2      # projection steps X - (CᵀC + δI)⁻¹Cᵀ(CX), each computed from C
+STEPS = 2            # inverse iteration steps before the projection: the margin's modes (σ_k+1² >> δ) are damped
+                     # by δ/σ_k+1² a step, the projection damps them once more, and the SVD of C X decides
+NEAR_RTOL = 1e-6     # σ in (tolerance, NEAR_RTOL·σ̄]: counted non-zero, but floppy to a data file's precision
+RIGID_RTOL = 1e-7    # strain of a contact counted as zero: sqrt(ε)-level, far above an accurate null vector's
 
 
 @dataclass(frozen=True, eq=False)
 class Physical:
-    """rank, nullity, self_stresses; null: per connected block (its columns, its orthonormal null vectors); gap (smallest over the blocks of
-    σ_rank / σ_rank+1, inf when a block has full rank); tolerance (largest rank tolerance used); strain (M,) each
-    contact's relative strain; rigid_contact (M,) bool; component (N_b,) cluster label (-1 none); seconds."""
+    """rank, nullity, self_stresses; null: per connected block (its columns, its orthonormal null vectors); gap (smallest
+    over the blocks of σ_rank / σ_rank+1, inf when no block has both); tolerance (largest rank tolerance used);
+    sigma_max_bound; strain (M,) each contact's relative strain; rigid_contact (M,) bool; component (N_b,)
+    cluster label (-1 none); strain_gap; paths: blocks by the dense and the sparse path; nearly_floppy: σ counted
+    non-zero but below NEAR_RTOL·σ̄ (a lower bound on the sparse path: only its subspace's σ are seen)."""
 
     rank: int
     nullity: int
@@ -48,93 +62,133 @@ class Physical:
     null: list
     gap: float
     tolerance: float
+    sigma_max_bound: float
     strain: np.ndarray
     rigid_contact: np.ndarray
     component: np.ndarray
     strain_gap: dict
+    paths: dict
+    nearly_floppy: int
 
 
-def physical(frame: Frame, length: float) -> Physical:
-    """Rank, null space, self-stress count and rigid clusters of a frame; `length` L of the scaled dofs."""
+def norm_bound(C: sp.spmatrix) -> float:
+    """σ̄ = √(‖C‖₁‖C‖_∞) ≥ ‖C‖₂ (Hölder)."""
+    if C.nnz == 0:
+        return 0.0
+    A = abs(C)
+    return float(np.sqrt(A.sum(axis=0).max() * A.sum(axis=1).max()))
+
+
+def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = None) -> Physical:
+    """Rank, null space, self-stress count and rigid clusters of a frame; `length` L of the scaled dofs;
+    `free_per_body` the pebble game's free pebbles (the sparse path's start, else Maxwell's count n - K; the free
+    spins added)."""
     C, row_contact = compatibility_matrix(frame.p, frame.q, frame.r_pq, frame.r_qp, frame.normal, frame.sliding,
-                                frame.rolling, frame.n_bodies, length)
-    per = frame.per
-    n_comp, body_comp = connected_components(
-        sp.coo_matrix((np.ones(len(frame.p)), (frame.p, frame.q)), shape=(frame.n_bodies,) * 2), directed=False)
-    col_comp = np.repeat(body_comp, per)
-    row_comp = body_comp[frame.p][row_contact]
-    contact_comp = body_comp[frame.p]
-    generic = _generic_nullity(frame, body_comp, n_comp)
-    blocks, rank, gap, tol = [], 0, np.inf, 0.0
+                                          frame.rolling, frame.n_bodies, length)
+    per, nb = frame.per, frame.n_bodies
+    _, body_comp = connected_components(sp.coo_matrix((np.ones(len(frame.p)), (frame.p, frame.q)), shape=(nb, nb)),
+                                        directed=False)
+    body_comp = np.where(np.bincount(frame.p, minlength=nb) + np.bincount(frame.q, minlength=nb) > 0, body_comp, -1)
+    sigma = norm_bound(C)
+    spins = free_spins(frame)
+    cols_of = _groups(np.repeat(body_comp, per))
+    rows_of = _groups(body_comp[frame.p][row_contact])
+    contacts_of = _groups(body_comp[frame.p])
+    E = pair_strain_operator(frame, length)
+    blocks, rank, gap, tol, near = [], 0, np.inf, 0.0, 0
     strain = np.zeros(len(frame.p))
-    for c in range(n_comp):
-        cols = np.flatnonzero(col_comp == c)
-        block = C[np.flatnonzero(row_comp == c)][:, cols]
-        with blas_threads(len(cols)):
-            r, g, t, V = _null_block(block.toarray()) if len(cols) <= DENSE_MAX else _null_sparse(block, generic[c])
-        rank, gap, tol = rank + r, min(gap, g), max(tol, t)
+    paths = {"dense": 0, "sparse": 0, "free_bodies": int(np.sum(body_comp < 0))}
+    if -1 in cols_of:
+        blocks.append((cols_of[-1], np.eye(len(cols_of[-1]))))
+    for c, cols in cols_of.items():
+        if c < 0:
+            continue
+        block = C[rows_of[c]][:, cols]
+        mine_b = body_comp == c
+        start = (free_per_body[mine_b].sum() if free_per_body is not None else
+                 max(len(cols) - len(rows_of[c]), per)) + spins[mine_b].sum()
+        with blas_threads(1):
+            r, g, t, V, nf = _null_dense(block.toarray(), sigma) if len(cols) <= DENSE_MAX else \
+                _null_sparse(block, sigma, int(start))
+        paths["dense" if len(cols) <= DENSE_MAX else "sparse"] += 1
+        rank, gap, tol, near = rank + r, min(gap, g), max(tol, t), near + nf
         blocks.append((cols, V))
-        mine = np.flatnonzero(contact_comp == c)
-        where = np.full(C.shape[1], -1)
-        where[cols] = np.arange(len(cols))
-        strain[mine] = contact_strain(frame, mine, V, where, length)
+        mine = contacts_of[c]
+        strain[mine] = contact_strain(E, mine, cols, V, per) / (1 + np.linalg.norm(frame.branch[mine], axis=1) / length)
     rigid = strain <= RIGID_RTOL
-    component = _clusters(frame, rigid)
-    counted = strain[rigid]
-    moving = strain[~rigid]
+    counted, moving = strain[rigid], strain[~rigid]
     strain_gap = {"largest_counted_rigid": float(counted.max()) if counted.size else None,
                   "smallest_counted_moving": float(moving.min()) if moving.size else None, "rtol": RIGID_RTOL}
-    return Physical(rank, C.shape[1] - rank, C.shape[0] - rank, blocks, gap, tol, strain, rigid, component,
-                    strain_gap)
+    return Physical(rank, C.shape[1] - rank, C.shape[0] - rank, blocks, gap, tol, sigma, strain, rigid,
+                    _clusters(frame, rigid), strain_gap, paths, near)
 
 
-def _generic_nullity(frame: Frame, body_comp: np.ndarray, n_comp: int) -> np.ndarray:
-    """The pebble game's floppy count of every connected block (near-linear; the sparse path's start)."""
-    bars = frame.bars
-    order = np.repeat(np.arange(len(bars)), bars)
-    game = pebble_game(frame.n_bodies, frame.p[order], frame.q[order], frame.per, components=False)
-    return np.bincount(body_comp, weights=game.free_per_body, minlength=n_comp).astype(int)
+def free_spins(frame: Frame, rtol: float = 1e-9) -> np.ndarray:
+    """(N_b,) rotations each body can make in place (r where every contact of it slides, has no rolling
+    stiffness and a normal through its reference point, |r × n| <= rtol·|r|; else 0): the sparse path adds them
+    to its start, since a pebble game counts them constrained."""
+    def through(r):
+        cross = np.cross(r, frame.normal) if frame.dim == 3 else r[:, 0] * frame.normal[:, 1] - r[:, 1] * frame.normal[:, 0]
+        return np.abs(cross).reshape(len(r), -1).max(axis=1) <= rtol * np.linalg.norm(r, axis=1)
+
+    free = frame.sliding & ~frame.rolling
+    blocked = np.zeros(frame.n_bodies, bool)
+    blocked[frame.p[~(free & through(frame.r_pq))]] = True
+    blocked[frame.q[~(free & through(frame.r_qp))]] = True
+    return np.where(blocked, 0, frame.per - frame.dim)
 
 
-def _null_block(block: np.ndarray):
-    """rank, gap σ_rank/σ_rank+1, tolerance and the null vectors (n, n - rank) of one dense block, by SVD."""
-    K, n = block.shape
-    if K == 0:
-        return 0, np.inf, 0.0, np.eye(n)
-    _, s, Vt = la.svd(block, full_matrices=True, lapack_driver="gesdd")
-    tol = max(K, n) * np.finfo(float).eps * s[0]
+def _groups(labels: np.ndarray) -> dict:
+    """{label: the indices with that label, ascending}, in one sort."""
+    order = np.argsort(labels, kind="stable")
+    found, start = np.unique(labels[order], return_index=True)
+    return {int(c): ix for c, ix in zip(found, np.split(order, start[1:]))}
+
+
+def _resolved(s: np.ndarray, tol: float, n: int, sigma: float):
+    """rank, gap σ_rank/σ_rank+1 (inf when all or none are zero) and the nearly floppy count of singular values s
+    (descending) of n columns; the columns beyond len(s) are zero."""
     rank = int(np.sum(s > tol))
-    gap = np.inf if rank == len(s) and rank == n else (s[rank - 1] / s[rank] if rank < len(s) and s[rank] > 0
-                                                       else np.inf)
-    null = Vt[rank:].T
-    return rank, float(gap), float(tol), _canonical(null)
+    near = int(np.sum((s > tol) & (s <= NEAR_RTOL * sigma)))
+    if rank == 0 or rank == n:
+        return rank, np.inf, near
+    below = s[rank] if rank < len(s) else 0.0
+    return rank, float(s[rank - 1] / below) if below > 0 else np.inf, near
 
 
-def _null_sparse(block: sp.csr_matrix, start: int):
-    """rank, gap, tolerance (on σ) and null vectors of a large block: block inverse iteration on CᵀC + δI (one
-    sparse LU) from `start` + 16 vectors (the pebble game's count, a lower bound of the nullity), then
-    Rayleigh–Ritz. A null direction grows by 1/δ a step, a mode with σ² = λ by 1/(λ + δ): for
-    σ above 1e-5·σ_max three steps damp it below 1e-12."""
+def _null_dense(block: np.ndarray, sigma: float):
+    """rank, gap, tolerance and the null vectors (n, n - rank) of one dense block, by SVD."""
     K, n = block.shape
+    tol = TOL_RULE * max(K, n) * np.finfo(float).eps * sigma
+    _, s, Vt = la.svd(block, full_matrices=True, lapack_driver="gesdd")
+    rank, gap, near = _resolved(s, tol, n, sigma)
+    return rank, gap, float(tol), _canonical(Vt[rank:].T), near
+
+
+def _null_sparse(block: sp.csr_matrix, sigma: float, start: int):
+    """rank, gap, tolerance and null vectors of a large block (the module's sparse path)."""
+    K, n = block.shape
+    tol = TOL_RULE * max(K, n) * np.finfo(float).eps * sigma
     A = (block.T @ block).tocsc()
-    top = float(abs(A).sum(axis=0).max())                  # ‖CᵀC‖₁ >= σ_max²
-    tol = max(K, n) * np.finfo(float).eps * top
-    lu = spla.splu((A + 1e-14 * top * sp.identity(n, format="csc")).tocsc())
-    k = min(n, start + 16)
+    lu = spla.splu((A + SHIFT * sigma ** 2 * sp.identity(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A",
+                   diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    k = min(n, start + MARGIN)
+    rng = np.random.default_rng(0)
     while True:
-        X = np.random.default_rng(0).standard_normal((n, k))
-        for _ in range(3):
+        X = np.asfortranarray(rng.standard_normal((n, k)))          # SuperLU solves column by column
+        for _ in range(STEPS):
             X = lu.solve(X)
             X /= np.linalg.norm(X, axis=0)
+        for _ in range(PROJECTIONS):
+            X -= lu.solve(np.asfortranarray(block.T @ (block @ X)))
         X, _ = np.linalg.qr(X)
-        lam, W = la.eigh(X.T @ (A @ X))
-        zero = int(np.sum(lam <= tol))
-        if zero < k or k == n:
+        _, s, Wt = la.svd(np.asarray(block @ X), full_matrices=False)
+        zero = int(np.sum(s <= tol))
+        if k - zero >= MARGIN // 2 or k == n:
             break
         k = min(n, 2 * k)
-    floor = np.finfo(float).eps * top                       # the Ritz values' own round-off
-    gap = float(np.sqrt(lam[zero] / max(lam[zero - 1], floor))) if 0 < zero < k else np.inf
-    return n - zero, gap, float(np.sqrt(tol)), _canonical(X @ W[:, :zero])
+    rank, gap, near = _resolved(np.r_[np.full(n - k, np.inf), s], tol, n, sigma)
+    return rank, gap, float(tol), _canonical(X @ Wt[k - zero:].T), near
 
 
 def _canonical(V: np.ndarray) -> np.ndarray:
@@ -158,16 +212,26 @@ def pair_strain_matrix(frame: Frame, length: float):
     return E
 
 
-def contact_strain(frame: Frame, contacts: np.ndarray, null: np.ndarray, where: np.ndarray, length: float):
-    """Per contact |E_pq N|_F / (1 + |b|/L): how far the floppy modes move its two bodies relative to each other;
-    null (n_block, f) the block's null vectors, where[dof] the dof's row in it."""
-    per = frame.per
-    E = pair_strain_matrix(frame, length)[contacts]
-    p, q = frame.p[contacts], frame.q[contacts]
-    idx = np.c_[p[:, None] * per + np.arange(per), q[:, None] * per + np.arange(per)]
-    local = null[where[idx]]                                  # (m, 2 per, f)
-    res = np.einsum("mij,mjf->mif", E, local)
-    return np.sqrt(np.sum(res ** 2, axis=(1, 2))) / (1 + np.linalg.norm(frame.branch[contacts], axis=1) / length)
+def pair_strain_operator(frame: Frame, length: float) -> sp.csr_matrix:
+    """The E of every contact as one sparse (M·(d + r), N_b·(d + r)) matrix, contact by contact."""
+    per, M = frame.per, len(frame.p)
+    E = pair_strain_matrix(frame, length)
+    local = np.concatenate([frame.p[:, None] * per + np.arange(per), frame.q[:, None] * per + np.arange(per)], axis=1)
+    cols = np.broadcast_to(local[:, None, :], E.shape)
+    rows = np.broadcast_to(np.arange(M * per).reshape(M, per, 1), E.shape)
+    return sp.csr_matrix((E.ravel(), (rows.ravel(), cols.ravel())), shape=(M * per, frame.n_bodies * per))
+
+
+def contact_strain(E: sp.csr_matrix, contacts: np.ndarray, cols: np.ndarray, null: np.ndarray, per: int,
+                   chunk: int = 256) -> np.ndarray:
+    """Per contact |E_pq N|_F: how far the floppy modes (null (len(cols), f), on the block's columns `cols`) move
+    its two bodies relative to each other, in chunks of modes."""
+    rows = (contacts[:, None] * per + np.arange(per)).ravel()
+    Eb = E[rows][:, cols]
+    total = np.zeros(len(rows))
+    for j in range(0, null.shape[1], chunk):
+        total += np.sum(np.asarray(Eb @ null[:, j:j + chunk]) ** 2, axis=1)
+    return np.sqrt(total.reshape(-1, per).sum(axis=1))
 
 
 def _clusters(frame: Frame, rigid: np.ndarray) -> np.ndarray:

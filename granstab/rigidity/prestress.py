@@ -16,6 +16,7 @@ import scipy.linalg as la
 from ..mechanics.rigid import dof_scale, rigid_basis, rotations, translations
 from ..mechanics.stiffness import stiffness
 from ..model.scene import Scene
+from ..solve.threads import blas_threads
 
 MAX_FLOPPY = 4000          # floppy directions beyond this are not evaluated (a dense f x f problem)
 ZERO_RTOL = 1e-9           # eigenvalue counted zero below ZERO_RTOL · max|H̃| (H's round-off is ~ε·|H|·√n)
@@ -43,6 +44,11 @@ def floppy_space(scene: Scene, blocks: list, length: float) -> np.ndarray:
 
 def prestress(scene: Scene, blocks: list, length: float) -> dict:
     """Eigenvalues of Fᵀ sym(H̃) F on the all-loading and all-unloading branches, counted by sign."""
+    with blas_threads(1):
+        return _prestress(scene, blocks, length)
+
+
+def _prestress(scene: Scene, blocks: list, length: float) -> dict:
     F = floppy_space(scene, blocks, length)
     f = F.shape[1]
     if f == 0 or f > MAX_FLOPPY:

@@ -107,11 +107,11 @@ def rigid(core: Scene, wall_flags) -> tuple[dict, np.ndarray]:
     """The largest rigid cluster (granstab.rigidity, physical model, walls free) and per particle whether it is in
     it (1.0 / 0.0)."""
     from ..rigidity import largest_rigid_cluster, rigidity
-    result = rigidity(core, "physical", "free", wall_flags)
+    result = rigidity(core, "physical", "free", wall_flags, second_order=False)    # no prestress: not a column
     largest = largest_rigid_cluster(result)
     clusters = result["physical"]["clusters"]
     inside = np.isin(np.asarray(core.names, dtype=object), clusters[0]["particles"] if clusters else [])
-    return {"rigid_largest_particles": largest["particles"], "rigid_largest_fraction": largest["fraction"]}, \
+    return {"rigid_largest_particles": largest["size_particles"], "rigid_largest_fraction": largest["fraction"]}, \
         inside.astype(float)
 
 

@@ -3,6 +3,9 @@ DataAnnulus/10 frame 1 with its two boundary bodies. RigidLibrary is GPL-3.0 and
 checkout of github.com/silkehenkes/RigidLibrary (commit ca1b63a):
 
     python3 rigidlibrary_reference.py ../shared/data/rigidlibrary/DataAnnulus/10 1 0.3 > out.json
+
+rigidlibrary_annulus10_heldout_pebbles.json: the same run on frames 5, 12 and 20, each output then kept compact
+(free pebbles, failed bars, contact count, each cluster's contacts as "p q"; see `compact`).
 """
 import contextlib
 import io
@@ -28,4 +31,16 @@ with contextlib.redirect_stdout(io.StringIO()):
 names = [str(int(i)) for i in conf.id[:-2]] + ["inner_wall", "outer_wall"]
 con = [[names[int(conf.I[k])], names[int(conf.J[k])], int(peb.cluster[k]), int(conf.fullmobi[k])]
        for k in range(conf.ncon)]
+
+
+def compact(full: dict) -> dict:
+    """One frame's entry of the held-out file: the clusters as lists of "p q", contacts in none left out."""
+    clusters = {}
+    for a, b, label, _ in full["contacts"]:
+        if label >= 0:
+            clusters.setdefault(label, []).append(f"{a} {b}")
+    return {"free_pebbles": full["free_pebbles"], "failed_bars": full["failed_bars"],
+            "contacts": len(full["contacts"]), "clusters": [clusters[k] for k in sorted(clusters)]}
+
+
 print(json.dumps({"free_pebbles": int(peb.freepeb), "failed_bars": int(peb.fail), "contacts": con}))
