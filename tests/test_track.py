@@ -194,7 +194,7 @@ def test_each_frame_row_equals_the_analyses_of_that_frame_alone(tracked, tmp_pat
         assert frames["scan_clusters"][position] == out["clusters"]
         with blas_threads(1):                           # as track runs it (the SVDs of a 16-disk frame take
             largest = largest_rigid_cluster(rigidity(scene))   # seconds with BLAS threads on a busy machine)
-        assert frames["rigid_largest_particles"][position] == largest["particles"]
+        assert frames["rigid_largest_particles"][position] == largest["size_particles"]
         assert frames["n_contacts"][position] == scene.n_contacts and frames["n_particles"][position] == 17
 
 
