@@ -13,7 +13,8 @@ import pytest
 from granstab.io import load
 from granstab.mechanics.cell import stress
 
-SCRIPT = Path(__file__).parents[1] / "examples" / "track" / "in.shear2d_track"
+TRACK = Path(__file__).parents[1] / "examples" / "track"
+SCRIPT = TRACK / "in.shear2d_track"
 RATE, DT = 0.003, 0.004          # the script's defaults: engineering shear rate, timestep
 
 
@@ -53,6 +54,23 @@ def test_contact_stress_equals_lammps_pressure_on_every_frame(sheared):
         assert np.abs(virial[[0, 1, 0], [0, 1, 1]] - P).max() <= 1e-12 * np.abs(P).max()
         s = stress(scene)
         assert np.abs(-s[[0, 1, 1], [0, 1, 0]] - P).max() <= 1e-6 * np.abs(P).max(), step
+
+
+@pytest.mark.dem
+def test_3d_contact_stress_equals_lammps_pressure(tmp_path):
+    """in.shear3d_track, shortened (6 frames, no pre-shear): the same identity in 3D, P = (1/V) Σ del ⊗ f with
+    V = xprd·yprd·zprd and LAMMPS's six components xx yy zz xy xz yz = Σ delx fy, delx fz, dely fz, so
+    σ_yx = −P_xy, σ_zx = −P_xz, σ_zy = −P_yz. Tolerance as in 2D (the cone policy; 15 digits)."""
+    subprocess.run(["lmp", "-in", str(TRACK / "in.shear3d_track"), "-var", "frames", "6", "-var", "preshear", "0",
+                    "-log", "none", "-screen", "none"], cwd=tmp_path, check=True, timeout=120)
+    pressure = np.loadtxt(tmp_path / "pressure_shear3d.txt")
+    assert pressure.shape == (6, 7)
+    files = [tmp_path / "atoms_shear3d_track.dump", tmp_path / "contacts_shear3d_track.dump",
+             TRACK / "in.shear3d_track"]
+    for step, *P in pressure:
+        s = stress(load(files, timestep=int(step)).scene)
+        mine = -s[[0, 1, 2, 1, 2, 2], [0, 1, 2, 0, 0, 1]]
+        assert np.abs(mine - P).max() <= 1e-6 * np.abs(P).max(), step
 
 
 @pytest.mark.dem
