@@ -116,6 +116,7 @@ def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
     assert rows[("d2min_top10", "cluster_lambda_min")]["auc"] == planted["auc"]    # −λ = unstable: negated
     assert rows[("d2min_top10", "random")]["ci_low"] < 0.5 < rows[("d2min_top10", "random")]["ci_high"]
     assert ("d2min_top10", "soft_participation") not in rows                      # all NaN: not computed
+    assert ("event", "n_negative_unloading") not in rows                          # the fill −1: not computed
     assert "soft_participation" in result["verdict"]
     # the event target over the frames whose window is inside the run; λ_min counted independently
     ev = rows[("event", "lambda_min_loading")]

@@ -1,6 +1,7 @@
 """A synthetic track folder in the output contract of `granstab track` (frames.parquet, particles.parquet,
 events.json, summary.json), with planted answers: particles whose `unstable_fraction` is high are the ones whose
-D²min is large, λ_min dips below zero the frame before each stress drop, and `random` is noise."""
+D²min is large, λ_min dips below zero the frame before each stress drop, and `random` is noise. n_negative_unloading carries the
+contract's fill −1 (not computed)."""
 from __future__ import annotations
 
 import json
@@ -27,7 +28,7 @@ def write(out: Path, seed: int = 0) -> dict:
               "stress": [[-2.0, s, s, -2.0] for s in shear], "shear_stress": shear, "pressure": np.full(N_FRAMES, 2.0),
               "stress_ratio": shear / 2.0, "z": 4 + 0.1 * rng.random(N_FRAMES),
               "mobilised_fraction": rng.random(N_FRAMES), "lambda_min_unloading": lam + 0.1,
-              "lambda_min_loading": lam, "n_negative_unloading": np.zeros(N_FRAMES, int),
+              "lambda_min_loading": lam, "n_negative_unloading": np.full(N_FRAMES, -1),
               "n_negative_loading": (lam < 0).astype(int)}
     pq.write_table(pa.table(frames), out / "frames.parquet")
     movers = rng.random((N_FRAMES, n)) < 0.15
@@ -48,5 +49,5 @@ def write(out: Path, seed: int = 0) -> dict:
     events = [{"frame": e, "next_frame": e + 1, "quantity": "shear_stress", "drop": 0.3,
                "relative_drop": float(0.3 / shear[e])} for e in EVENTS]
     (out / "events.json").write_text(json.dumps(events))
-    (out / "summary.json").write_text(json.dumps({"window": WINDOW, "frames": N_FRAMES}))
+    (out / "summary.json").write_text(json.dumps({"windows": {"window": WINDOW}, "frames": list(range(N_FRAMES))}))
     return {"movers": movers, "events": EVENTS}

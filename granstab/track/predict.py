@@ -6,7 +6,7 @@ Everything here is fixed before any result is seen, and stated in the output:
 - **Targets.** `rearranges` (per particle): its D²min over (t, t+W] is in the top 10 % of that window's particles
   (`TOP_FRACTION`), or one of its contacts was made or broken; its two halves `d2min_top10` and `contacts_changed`
   are reported too. `event` (per frame): a stress drop of events.json ends in (t, t+W]. A row whose window runs past
-  the last frame (D²min NaN) has no target and is left out.
+  the last frame (D²min or the contact count NaN) has no target and is left out.
 - **Sign.** Every predictor is oriented so that a larger score means "more likely to rearrange" (`PARTICLE`,
   `FRAME`): λ_min, the coordination, the force and the distance to the nearest sliding contact are negated, so an
   AUC above 0.5 always means predictive and one below 0.5 anti-predictive.
@@ -32,11 +32,14 @@ SEED = 0
 #: per-particle predictors → +1 when larger means more unstable, −1 when smaller does (then negated)
 PARTICLE = {"unstable_fraction": 1, "unstable_fraction_nonboundary": 1, "cluster_lambda_min": -1,
             "soft_participation": 1, "coordination": -1, "mobilised_fraction": 1, "force_magnitude": -1,
-            "sliding_distance": -1, "random": 1}
+            "sliding_distance": -1, "in_largest_rigid_cluster": -1, "random": 1}
 #: frame-level predictors of the event target; `mean_unstable_fraction` is the frame's mean of the particles'
 FRAME = {"lambda_min_unloading": -1, "lambda_min_loading": -1, "n_negative_unloading": 1, "n_negative_loading": 1,
-         "mean_unstable_fraction": 1, "mobilised_fraction": 1, "stress_ratio": 1, "z": -1, "random": 1}
+         "mean_unstable_fraction": 1, "mobilised_fraction": 1, "stress_ratio": 1, "z": -1,
+         "rigid_largest_fraction": -1, "random": 1}
 BASELINES = ("coordination", "mobilised_fraction", "force_magnitude", "sliding_distance", "stress_ratio", "z")
+#: integer columns whose negative values mean "not computed" (the track contract's fill)
+FILLED = ("n_negative_unloading", "n_negative_loading")
 TARGETS = {
     "rearranges": f"D²min over (t, t+W] in the top {TOP_FRACTION:.0%} of that window, or a contact made or broken",
     "d2min_top10": f"D²min over (t, t+W] in the top {TOP_FRACTION:.0%} of that window",
@@ -103,12 +106,12 @@ def frame_positions(frames: np.ndarray, order: np.ndarray) -> np.ndarray:
 def particle_targets(frame_pos: np.ndarray, d2min: np.ndarray, changed: np.ndarray) -> dict:
     """{target: labels} per row, and `valid` (the window is inside the run: D²min finite). The top-10 % threshold
     is the (1 − TOP_FRACTION) quantile of the finite D²min of the row's own frame."""
-    valid = np.isfinite(d2min)
+    valid = np.isfinite(d2min) & np.isfinite(np.asarray(changed, float))
     top = np.zeros(len(d2min), bool)
     for f in np.unique(frame_pos[valid]):
         rows = valid & (frame_pos == f)
         top[rows] = d2min[rows] >= np.quantile(d2min[rows], 1.0 - TOP_FRACTION)
-    moved = np.nan_to_num(np.asarray(changed, float)) > 0
+    moved = valid & (np.nan_to_num(np.asarray(changed, float)) > 0)
     return {"valid": valid, "rearranges": top | moved, "d2min_top10": top, "contacts_changed": moved}
 
 
@@ -165,7 +168,8 @@ def particle_table(cols: dict, order: np.ndarray) -> list[dict]:
 
 def frame_predictors(frames: dict, particles: dict, order: np.ndarray) -> dict:
     """The frame-level scores, in frame order: frames.parquet's columns and the frames' mean unstable fraction."""
-    out = {k: np.asarray(frames[k], float) for k in FRAME if k in frames and k != "random"}
+    out = {k: np.where(np.asarray(frames[k]) < 0, np.nan, frames[k]) if k in FILLED else np.asarray(frames[k], float)
+           for k in FRAME if k in frames and k != "random"}
     if "unstable_fraction" in particles:
         pos = frame_positions(particles["frame"], order)
         v = particles["unstable_fraction"]
@@ -242,11 +246,12 @@ def read_columns(path: Path, skip: tuple = ()) -> dict:
 
 
 def run(out_dir) -> dict:
-    """Read a track folder (frames.parquet, particles.parquet, events.json, summary.json's `window`), write
+    """Read a track folder (frames.parquet, particles.parquet, events.json, the window W of summary.json), write
     prediction.json (the AUC list), prediction_lead.json (λ_min before each event) and prediction.txt (the targets,
     the conventions and the verdict); return {rows, lead, verdict}."""
     out_dir = Path(out_dir)
-    window = int(json.loads((out_dir / "summary.json").read_text())["window"])
+    summary = json.loads((out_dir / "summary.json").read_text())
+    window = int(summary["window"] if "window" in summary else summary["windows"]["window"])
     frames, particles = read_columns(out_dir / "frames.parquet"), read_columns(out_dir / "particles.parquet")
     order = np.sort(frames["frame"])
     frames = {k: v[np.argsort(frames["frame"])] for k, v in frames.items()}
