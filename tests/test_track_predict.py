@@ -129,3 +129,13 @@ def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
     lead = result["lead"]["loading"]
     assert [e["lead_frames"] for e in lead["events"]] == [1, 1, 1]                # λ < 0 exactly at each event
     assert truth["movers"].mean() > predict.TOP_FRACTION and "event (6 of 22 positive)" in (tmp_path / "prediction.txt").read_text()
+
+
+def test_roc_curve_area_is_the_auc():
+    rng = np.random.default_rng(5)
+    score = rng.integers(0, 8, 200).astype(float)                   # ties: each distinct score one step
+    label = rng.random(200) < 0.4
+    fpr, tpr = predict.roc_curve(score, label)
+    assert fpr[0] == tpr[0] == 0 and fpr[-1] == tpr[-1] == 1 and len(fpr) == len(np.unique(score)) + 1
+    assert np.all(np.diff(fpr) >= 0) and np.all(np.diff(tpr) >= 0)
+    assert np.sum(np.diff(fpr) * (tpr[1:] + tpr[:-1]) / 2) == pytest.approx(brute_auc(score, label), abs=1e-12)

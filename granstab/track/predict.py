@@ -153,17 +153,16 @@ def _num(v) -> float | None:
 
 # ------------------------------------------------------------------------------------------------------ the table
 
-def particle_table(cols: dict, order: np.ndarray) -> list[dict]:
-    """The AUC rows of the per-particle targets; `cols` the columns of particles.parquet as arrays. Blocks: frames."""
+def particle_cases(cols: dict, order: np.ndarray):
+    """(target, predictor, oriented score, label, block) of every per-particle test with a finite score; `cols`
+    the columns of particles.parquet. Blocks: frames."""
     pos = frame_positions(cols["frame"], order)
     targets = particle_targets(pos, cols["d2min"], cols["contacts_changed"])
-    valid, rows = targets.pop("valid"), []
+    valid = targets.pop("valid")
     for target, label in targets.items():
         for name, sign in PARTICLE.items():
             if name in cols and np.isfinite(cols[name][valid]).any():
-                rows.append({"target": target, "predictor": name,
-                             **auc_with_interval(sign * cols[name][valid], label[valid], pos[valid])})
-    return rows
+                yield target, name, sign * cols[name][valid], label[valid], pos[valid]
 
 
 def frame_predictors(frames: dict, particles: dict, order: np.ndarray) -> dict:
@@ -181,12 +180,43 @@ def frame_predictors(frames: dict, particles: dict, order: np.ndarray) -> dict:
     return out
 
 
-def event_table(scores: dict, label: np.ndarray, valid: np.ndarray, window: int) -> list[dict]:
-    """The AUC rows of the event target; blocks: runs of `window` consecutive frames."""
+def event_cases(scores: dict, label: np.ndarray, valid: np.ndarray, window: int):
+    """(target, predictor, oriented score, label, block) of the event tests; blocks: runs of W frames."""
     block = np.arange(len(label)) // max(window, 1)
-    return [{"target": "event", "predictor": name, **auc_with_interval(FRAME[name] * s[valid], label[valid],
-                                                                       block[valid])}
-            for name, s in scores.items() if np.isfinite(s[valid]).any()]
+    for name, s in scores.items():
+        if np.isfinite(s[valid]).any():
+            yield "event", name, FRAME[name] * s[valid], label[valid], block[valid]
+
+
+def cases(out_dir) -> tuple[list, dict]:
+    """Every test of a track folder as (target, predictor, score, label, block), and the folder's context
+    (window, frames, events' positions, steps), read once for the table and the figures."""
+    out_dir = Path(out_dir)
+    summary = json.loads((out_dir / "summary.json").read_text())
+    window = int(summary["window"] if "window" in summary else summary["windows"]["window"])
+    frames, particles = read_columns(out_dir / "frames.parquet"), read_columns(out_dir / "particles.parquet")
+    order = np.sort(frames["frame"])
+    frames = {k: v[np.argsort(frames["frame"])] for k, v in frames.items()}
+    events = json.loads((out_dir / "events.json").read_text())
+    start = frame_positions(np.array([e["frame"] for e in events], np.int64), order)
+    end = frame_positions(np.array([e["next_frame"] for e in events], np.int64), order)
+    label, valid = event_target(len(order), window, end)
+    found = [*particle_cases(particles, order), *event_cases(frame_predictors(frames, particles, order), label,
+                                                               valid, window)]
+    return found, {"window": window, "frames": frames, "order": order, "start": start, "end": end}
+
+
+def roc_curve(score, label) -> tuple[np.ndarray, np.ndarray]:
+    """(false positive rate, true positive rate) at every distinct threshold, from (0, 0) to (1, 1); tied scores
+    form one step, so the trapezoid area equals the Mann–Whitney AUC."""
+    score, label = np.asarray(score, float), np.asarray(label, bool)
+    keep = np.isfinite(score)
+    score, label = score[keep], label[keep]
+    idx = np.argsort(-score, kind="stable")
+    s, y = score[idx], label[idx]
+    last = np.r_[np.flatnonzero(np.diff(s)), len(s) - 1]          # the last row of each run of equal scores
+    tp, fp = np.cumsum(y)[last], np.cumsum(~y)[last]
+    return np.r_[0.0, fp / max(fp[-1], 1)], np.r_[0.0, tp / max(tp[-1], 1)]
 
 
 def verdict(rows: list[dict], lead: dict | None) -> str:
@@ -250,25 +280,17 @@ def run(out_dir) -> dict:
     prediction.json (the AUC list), prediction_lead.json (λ_min before each event) and prediction.txt (the targets,
     the conventions and the verdict); return {rows, lead, verdict}."""
     out_dir = Path(out_dir)
-    summary = json.loads((out_dir / "summary.json").read_text())
-    window = int(summary["window"] if "window" in summary else summary["windows"]["window"])
-    frames, particles = read_columns(out_dir / "frames.parquet"), read_columns(out_dir / "particles.parquet")
-    order = np.sort(frames["frame"])
-    frames = {k: v[np.argsort(frames["frame"])] for k, v in frames.items()}
-    events = json.loads((out_dir / "events.json").read_text())
-    start = frame_positions(np.array([e["frame"] for e in events], np.int64), order)
-    end = frame_positions(np.array([e["next_frame"] for e in events], np.int64), order)
-    rows = particle_table(particles, order)
-    label, valid = event_target(len(order), window, end)
-    rows += event_table(frame_predictors(frames, particles, order), label, valid, window)
-    steps = frames.get("step", order.astype(float))
-    lead = {b: lead_times(frames[f"lambda_min_{b}"], steps, start) for b in ("unloading", "loading")
+    found, ctx = cases(out_dir)
+    rows = [{"target": t, "predictor": p, **auc_with_interval(s, y, b)} for t, p, s, y, b in found]
+    frames = ctx["frames"]
+    steps = frames.get("step", ctx["order"].astype(float))
+    lead = {b: lead_times(frames[f"lambda_min_{b}"], steps, ctx["start"]) for b in ("unloading", "loading")
             if f"lambda_min_{b}" in frames and np.isfinite(frames[f"lambda_min_{b}"]).any()}
     text = verdict(rows, lead)
     clean = [{k: (_num(v) if k.startswith(("auc", "ci")) else v) for k, v in r.items()} for r in rows]
     (out_dir / "prediction.json").write_text(json.dumps(clean, indent=1))
     (out_dir / "prediction_lead.json").write_text(json.dumps(lead, indent=1))
-    (out_dir / "prediction.txt").write_text(header(window) + "\n" + text + "\n")
+    (out_dir / "prediction.txt").write_text(header(ctx["window"]) + "\n" + text + "\n")
     return {"rows": clean, "lead": lead, "verdict": text}
 
 
