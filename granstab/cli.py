@@ -569,17 +569,75 @@ def import_arguments(p) -> None:
     periodic_arguments(p, cell=True)
 
 
-def load_with_import_options(inputs, args):
-    """`granstab.io.load` of `inputs` with the options `import_arguments` defined (only those given are passed,
-    so that a scene file, which takes none, is read as written)."""
+def import_options(args) -> dict:
+    """The load() options `import_arguments` defined, only those given (a scene file takes none)."""
     options = {key: getattr(args, key) for key in ("k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol",
                                                    "length_scale", "units", "region", "columns", "density")
                if getattr(args, key) is not None}
     if args.keep_rattlers:
         options["keep_rattlers"] = True
     options.update(periodic_options(args))
+    return options
+
+
+def load_with_import_options(inputs, args):
+    """`granstab.io.load` of `inputs` with the options `import_arguments` defined (only those given are passed,
+    so that a scene file, which takes none, is read as written)."""
     return load(inputs, format=args.format, frame=args.frame, timestep=args.timestep,
-                progress=args.progress or sys.stderr.isatty(), **options)
+                progress=args.progress or sys.stderr.isatty(), **import_options(args))
+
+
+def cmd_track(args) -> int:
+    """A sequence of frames → DIR/frames.parquet, particles.parquet, events.json, summary.json (issue 27)."""
+    from .track import track
+    if args.frame is not None or args.timestep is not None:
+        raise InputError(f"--{'frame' if args.frame is not None else 'timestep'}: track reads every frame of the "
+                         "input; choose them with --frames A:B:STEP")
+    options = {k: v for k, v in import_options(args).items() if k != "keep_rattlers"}   # track keeps them always
+    summary = track(args.inputs, args.out, format=args.format, frames=args.frames, whole=args.whole,
+                    scan=args.scan, rigidity=args.rigidity, predict=args.predict, figures=not args.no_figures,
+                    window=args.window, d2min_radius=args.d2min_radius, event_quantity=args.event_quantity,
+                    event_threshold=args.event_threshold, soft_modes=args.soft_modes, rings=args.rings,
+                    boundary=args.boundary, workers=args.workers, progress=args.progress, seed=args.seed,
+                    **options)
+    resumed = summary["cost"]["resumed"]
+    lines = [f"{summary['frames']} frames ({resumed} already in the folder) in {summary['cost']['seconds']:.1f} s; "
+             f"{summary['events']} events ({summary['thresholds']['event_quantity']} drops over "
+             f"{summary['thresholds']['event_threshold']:g} × its mean); wrote {args.out}",
+             f"ran {summary['cost']['workers']['where']} ({summary['cost']['workers']['why']})",
+             *[f"{name}: {what}" for name, what in summary.get("after", {}).items()]]
+    print(json.dumps(summary) if args.json else "\n".join(lines))
+    return 0
+
+
+def add_track(sub) -> None:
+    p = sub.add_parser("track", help="a sequence of frames: per-frame stress, analyses, D²min, contact changes, "
+                                     "events (docs/track.md)")
+    p.add_argument("inputs", nargs="+", help="a snapshot with frames: its folder or its files")
+    p.add_argument("--out", required=True, help="output directory (an interrupted track there resumes)")
+    p.add_argument("--frames", default=None, metavar="A:B:STEP",
+                   help="positions in the input's frame list, 0-based, B excluded (default: all)")
+    p.add_argument("--whole", action="store_true",
+                   help="per frame the whole-packing analysis (all-unloading and all-loading branches, soft spots)")
+    p.add_argument("--scan", action="store_true", help="per frame the local scan map (granstab scan)")
+    p.add_argument("--rigidity", action="store_true", help="per frame the largest rigid cluster")
+    p.add_argument("--predict", action="store_true", help="then the prediction test (prediction.json)")
+    p.add_argument("--no-figures", action="store_true", help="skip the figures")
+    p.add_argument("--window", type=count(1), default=1, help="D²min and contact changes over W frames (default 1)")
+    p.add_argument("--d2min-radius", type=positive_number, default=None,
+                   help="D²min neighbourhood radius in input length units (default 2.5 mean contact branch lengths)")
+    p.add_argument("--event-quantity", choices=["shear_stress", "stress_ratio"], default="shear_stress")
+    p.add_argument("--event-threshold", type=positive_number, default=0.05,
+                   help="an event: a drop over this fraction of the run's mean (default 0.05)")
+    p.add_argument("--soft-modes", type=count(1), default=5, help="lowest consistent modes of the soft-spot measure")
+    p.add_argument("--rings", type=count(1), default=1, help="--scan: contact hops from each centre (default 1)")
+    boundary_argument(p, DEFAULT_BOUNDARY)
+    p.add_argument("--workers", type=int, default=None,
+                   help="local Dask workers over frames (1: in this process; default: by the measured cost)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random predictor")
+    p.add_argument("--json", action="store_true", help="print summary.json")
+    import_arguments(p)
+    p.set_defaults(run=cmd_track)
 
 
 def add_convert(sub) -> None:
@@ -673,6 +731,7 @@ def build_parser() -> Parser:
     add_convert(sub)
     add_scan(sub)
     add_rigidity(sub)
+    add_track(sub)
     return parser
 
 

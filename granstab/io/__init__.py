@@ -89,6 +89,15 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, prog
         return build(read, Options(**options), progress=bar, tol=tol)
 
 
+def frames(path_or_paths, *, format: str = "auto", **options) -> list:
+    """The frames a snapshot input holds, in order: the keys `load(..., frame=key)` takes (an annulus frame number,
+    a LAMMPS or DataSim timestep, a table's `frame` value, a MercuryDPM time); [None] for an input of one frame or a
+    scene file. Reads the input's default frame with the same `options` (an unreadable input fails here, in one
+    line)."""
+    held = load(path_or_paths, format=format, **options).frames
+    return [None] if held is None else list(held)
+
+
 def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Scene:
     """Read a scene file (TOML, JSON or NPZ) or a snapshot into a validated `Scene`: the scene of `load(path)`.
 
@@ -152,5 +161,5 @@ def is_snapshot(path) -> bool:
     return not any(fmt.sniff([path]) for fmt in map(get, formats()) if fmt.scene_file)
 
 
-__all__ = ["GEOMETRY", "OUTSIDE_CONE", "Format", "Loaded", "Request", "detect", "format_report", "formats",
+__all__ = ["GEOMETRY", "OUTSIDE_CONE", "Format", "Loaded", "Request", "detect", "format_report", "formats", "frames",
            "is_snapshot", "load", "load_scene", "parse_region", "register"]

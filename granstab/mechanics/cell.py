@@ -49,10 +49,11 @@ def to_mandel(tensor: np.ndarray) -> np.ndarray:
     return np.einsum("aij,ijkl,bkl->ab", E, tensor, E)
 
 
-def stress(scene: Scene) -> np.ndarray:
+def stress(scene: Scene, volume: float | None = None) -> np.ndarray:
     """σ = (1/V) Σ_c f^pq ⊗ b^pq (d, d), tension positive: f^pq the force on p by q, b^pq the branch vector to q's
-    copy (compressed contacts give a negative trace). Not symmetrised: its skew part is the contacts' net couple."""
-    return np.einsum("mi,mj->ij", scene.force, scene.branch) / scene.volume
+    copy (compressed contacts give a negative trace). Not symmetrised: its skew part is the contacts' net couple.
+    V: the cell's (default) or, for a scene without a cell, the `volume` the caller states."""
+    return np.einsum("mi,mj->ij", scene.force, scene.branch) / (scene.volume if volume is None else volume)
 
 
 def strain_columns(scene: Scene) -> np.ndarray:

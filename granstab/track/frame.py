@@ -1,0 +1,171 @@
+"""One frame of a sequence, the unit of work of `track` (serial or a Dask task): read it, and compute its row of
+frames.parquet and its rows of particles.parquet, without what needs the next frame (run.py adds D²min and the
+contact changes).
+
+The frame is read with every particle (rattlers kept: they can rearrange too); the analyses (`--whole`, `--scan`,
+`--rigidity`) run on the particles that have a contact, which is the scene `granstab.load` gives of that frame
+with the same import options (rattlers dropped, the default): each equals `analyze`/`scan`/`rigidity` of the frame
+taken alone.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis import analyze
+from ..io import load
+from ..mechanics.branches import RIGID
+from ..model.scene import Scene
+from ..scan.clusters import cut, piece
+from ..solve.threads import blas_threads
+from .motion import contact_keys
+from .quantities import macroscopic, per_particle
+
+PREDICTORS = ("unstable_fraction", "unstable_fraction_nonboundary", "cluster_lambda_min", "soft_participation",
+              "in_largest_rigid_cluster")          # NaN where the stage that computes them was not asked for
+WHOLE = {"metric": "L", "max_sliding": 0, "sample_branches": 0, "keep": "all", "attribution": False}
+# the whole packing: its all-loading and all-unloading branches only (sample_masks), in the scan's metric L
+
+
+def core_scene(scene: Scene, wall_flags):
+    """The scene without its particles that have no contact (what `load` keeps by default), and its wall flags."""
+    touched = np.zeros(scene.n_particles, bool)
+    touched[scene.p] = touched[scene.q] = True
+    if touched.all():
+        return scene, wall_flags, np.arange(scene.n_particles)
+    keep = np.flatnonzero(touched)
+    sub = piece({**cut(scene, keep), "title": scene.title})
+    return sub, None if wall_flags is None else np.asarray(wall_flags)[keep], keep
+
+
+def whole(core: Scene, soft_modes: int) -> tuple[dict, np.ndarray]:
+    """The whole-packing analysis (WHOLE): λ_min (non-rigid) and the consistent negative count of the all-unloading
+    and all-loading branches, and each particle's soft-spot participation: the mean over the `soft_modes` lowest
+    consistent modes (both branches pooled; where none is consistent, the lowest non-rigid modes of the
+    all-unloading branch, said in `soft_modes_from`) of its share of the mode's squared translation."""
+    res = analyze(core, k=max(6, soft_modes), **WHOLE)
+    sliding = np.flatnonzero(core.at_yield()) if core.n_contacts else np.zeros(0, int)
+    row, modes, elastic = {}, [], []
+    for name, sign in (("unloading", -1), ("loading", 1)):
+        branch = next((b for b in res.branches if np.all(b.mask[sliding] == sign)), None)
+        if branch is None:
+            row[f"lambda_min_{name}"], row[f"n_negative_{name}"] = float("nan"), -1
+            continue
+        lam = branch.stability_eigenvalues
+        nonrigid = np.flatnonzero(branch.codes != RIGID)
+        row[f"lambda_min_{name}"] = float(lam[nonrigid].min()) if nonrigid.size else float("nan")
+        consistent = branch.consistent()
+        row[f"n_negative_{name}"] = int(sum(c["eigenvalue"] < -branch.accuracy[c["index"]] for c in consistent))
+        modes += [(c["eigenvalue"], branch.stability_vectors[:, c["index"]]) for c in consistent]
+        if sign == -1:
+            elastic = [(lam[j], branch.stability_vectors[:, j]) for j in nonrigid]
+    row["whole_verdict"] = res.verdict.verdict
+    row["whole_method"] = res.backend
+    row["soft_modes_from"] = "consistent modes, both branches" if modes else \
+        "no consistent mode: the lowest non-rigid modes of the all-unloading branch"
+    share = np.zeros(core.n_particles)
+    lowest = sorted(modes or elastic, key=lambda m: m[0])[:soft_modes]
+    for _, v in lowest:
+        u = res.motion(v).reshape(core.n_particles, core.dof_per_particle)[:, :core.dim]
+        t = np.sum(u * u, axis=1)
+        share += t / t.sum() if t.sum() > 0 else 0.0
+    row["soft_modes"] = len(lowest)
+    return row, share / len(lowest) if lowest else np.full(core.n_particles, np.nan)
+
+
+def scan_map(core: Scene, folder: Path, scan_options: dict) -> tuple[dict, dict]:
+    """The local scan of the frame (granstab.scan.scan, serial, into `folder`: it resumes there) → the frame's scan
+    summary and per particle: the unstable fraction of the clusters containing it, the same counting only unstable
+    clusters whose mechanism is not `boundary` (docs/attribution.md), the lowest λ_min of those clusters."""
+    from ..scan import read_map, scan
+    scan(core, folder, workers=1, figures=False, progress=False, **scan_options)
+    got = read_map(folder)
+    c = got["clusters"]
+    sizes = np.array([len(m) for m in c["members"]], dtype=np.int64)
+    flat = np.concatenate(list(c["members"])).astype(np.int64) if len(sizes) else np.zeros(0, np.int64)
+    unstable = c["verdict"] == "unstable"
+    own = unstable & (c["mechanism"] != "boundary")
+    N = core.n_particles
+    contains = np.bincount(flat, minlength=N).astype(float)
+    lam = np.full(N, np.inf)
+    np.minimum.at(lam, flat, np.repeat(np.asarray(c["lambda_min"], float), sizes))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        nonboundary = np.where(contains > 0, np.bincount(flat, np.repeat(own, sizes).astype(float), N) / contains,
+                               np.nan)
+    per = {"unstable_fraction": np.asarray(got["particles"]["unstable_fraction"], float),
+           "unstable_fraction_nonboundary": nonboundary, "cluster_lambda_min": np.where(np.isinf(lam), np.nan, lam)}
+    verdicts = got["summary"]["verdicts"]
+    row = {"scan_clusters": int(len(sizes)), "scan_unstable": int(unstable.sum()),
+           "scan_unstable_nonboundary": int(own.sum()), "scan_verdicts": json.dumps(verdicts)}
+    return row, per
+
+
+def rigid(core: Scene, wall_flags) -> tuple[dict, np.ndarray]:
+    """The largest rigid cluster (granstab.rigidity, physical model, walls free) and per particle whether it is in
+    it (1.0 / 0.0)."""
+    from ..rigidity import largest_rigid_cluster, rigidity
+    result = rigidity(core, "physical", "free", wall_flags)
+    largest = largest_rigid_cluster(result)
+    clusters = result["physical"]["clusters"]
+    inside = np.isin(np.asarray(core.names, dtype=object), clusters[0]["particles"] if clusters else [])
+    return {"rigid_largest_particles": largest["particles"], "rigid_largest_fraction": largest["fraction"]}, \
+        inside.astype(float)
+
+
+def frame_task(spec: dict, position: int, key) -> dict:
+    """Frame `position` (key `key`, the reader's frame) of the input in `spec` (run.py) → its parts in
+    spec["out"]/parts: the particle rows, the contacts (for the changes between frames) and, last, the frame row
+    (JSON: its presence marks the frame done). Returns the frame row."""
+    times = {}
+    start = time.perf_counter()
+    loaded = load(spec["inputs"], format=spec["format"], frame=key, keep_rattlers=True, **spec["import"])
+    scene = loaded.scene
+    times["read"] = time.perf_counter() - start
+    core, walls, index = core_scene(scene, loaded.wall_flags)
+    row = {"frame": position, "step": float("nan") if key is None else float(key), **macroscopic(scene),
+           "n_rattlers": scene.n_particles - core.n_particles, "dim": scene.dim,
+           "cell": [] if scene.cell is None else scene.cell.ravel().tolist(),
+           "import_warnings": list(loaded.warnings), "import_report": json.dumps(loaded.report, default=str)}
+    part = {"frame": np.full(scene.n_particles, position, np.int64), "name": np.asarray(scene.names, dtype=object),
+            **{a: scene.x[:, k] for k, a in enumerate("xyz"[:scene.dim])}, **per_particle(scene),
+            "random": np.random.default_rng([spec["seed"], position]).random(scene.n_particles)}
+    part.update({name: np.full(scene.n_particles, np.nan) for name in PREDICTORS})
+    times["frame"] = time.perf_counter() - start - times["read"]
+    for stage, run in (("whole", lambda: whole(core, spec["soft_modes"])),
+                       ("scan", lambda: scan_map(core, Path(spec["out"]) / "scans" / f"frame-{position:06d}",
+                                                 spec["scan_options"])),
+                       ("rigidity", lambda: rigid(core, walls))):
+        if not spec[stage]:
+            continue
+        begun = time.perf_counter()
+        with blas_threads(1):
+            got, values = run()
+        row.update(got)
+        for name, column in (values.items() if isinstance(values, dict) else
+                             [("soft_participation" if stage == "whole" else "in_largest_rigid_cluster", values)]):
+            part[name][index] = column
+        times[stage] = time.perf_counter() - begun
+    row["seconds"] = times
+    write_parts(Path(spec["out"]) / "parts", position, part, scene, row)
+    return row
+
+
+def write_parts(parts: Path, position: int, particles: dict, scene: Scene, row: dict) -> None:
+    """The frame's particle rows and contacts (Arrow IPC), then its row (JSON), each written whole then renamed:
+    an interrupted run leaves no torn part, and a frame counts as done only once its JSON is there."""
+    import pyarrow as pa
+    import pyarrow.feather as feather
+    names = np.asarray(scene.names, dtype=object)
+    contacts = {"key": contact_keys(names, scene.p, scene.q), "a": names[scene.p].astype(str),
+                "b": names[scene.q].astype(str), "sliding": scene.at_yield()}
+    stem = f"frame-{position:06d}"
+    for suffix, table in (("particles", particles), ("contacts", contacts)):
+        tmp = parts / f"{stem}.{suffix}.tmp"
+        feather.write_feather(pa.table({k: pa.array(v) for k, v in table.items()}), tmp, compression="uncompressed")
+        tmp.rename(parts / f"{stem}.{suffix}.arrow")
+    tmp = parts / f"{stem}.json.tmp"
+    tmp.write_text(json.dumps(row, allow_nan=True), encoding="utf-8")
+    tmp.rename(parts / f"{stem}.json")

@@ -1,0 +1,245 @@
+"""`track`: a sequence of frames → frames.parquet, particles.parquet, events.json, summary.json (the CONTRACT of
+granstab/track/__init__.py). Frames are independent tasks (frame.py), run in this process or on local Dask workers
+as the scan's are (scan/workers.py: the default rule, Ctrl-C), each leaving its parts in DIR/parts, so that an
+interrupted run resumes with the frames it had; what needs two frames (D²min, contact changes, events) is computed
+at the end from the parts (motion.py, quantities.py).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..io import frames as list_frames
+from ..io.progress import Heartbeat
+from ..model.errors import Interrupted, require
+from ..model.scene import SceneError
+from ..scan.clusters import DEFAULT_BOUNDARY, boundary_rings
+from .frame import frame_task
+from .tables import finish
+
+DEFAULTS = {"window": 1, "d2min_radius": None, "radius_diameters": 2.5, "event_quantity": "shear_stress",
+            "event_threshold": 0.05, "soft_modes": 5, "rings": 1, "boundary": DEFAULT_BOUNDARY, "seed": 0}
+EVENT_QUANTITIES = ("shear_stress", "stress_ratio")
+POLL_SECONDS = 0.05
+
+
+def select(text: str | None, n: int) -> list[int]:
+    """--frames A:B:STEP (positions in the input's frame list, as a Python slice: B excluded; any part may be
+    left out) → the positions; a one-line error for anything else or an empty selection."""
+    if text is None:
+        return list(range(n))
+    parts = text.split(":")
+    try:
+        if len(parts) > 3:
+            raise ValueError
+        values = [int(v) if v.strip() else None for v in parts] + [None] * (3 - len(parts))
+        if len(parts) == 1:
+            values = [values[0], values[0] + 1 if values[0] != -1 else None, None]
+        chosen = list(range(n))[slice(*values)]
+    except ValueError:
+        raise SceneError(f"--frames: expected A:B:STEP (whole numbers, positions in the input's {n} frames), "
+                         f"got {text!r}") from None
+    if not chosen:
+        raise SceneError(f"--frames {text}: selects none of the input's {n} frames (positions 0..{n - 1})")
+    return chosen
+
+
+def check_options(window: int, d2min_radius, event_quantity: str, event_threshold: float, soft_modes: int,
+                  boundary: str, rings: int) -> None:
+    if window < 1:
+        raise SceneError(f"--window: must be a whole number of frames >= 1, got {window}")
+    if d2min_radius is not None and not d2min_radius > 0:
+        raise SceneError(f"--d2min-radius: must be > 0, got {d2min_radius}")
+    if event_quantity not in EVENT_QUANTITIES:
+        raise SceneError(f"--event-quantity: one of {', '.join(EVENT_QUANTITIES)}, got {event_quantity!r}")
+    if not event_threshold > 0:
+        raise SceneError(f"--event-threshold: must be > 0, got {event_threshold}")
+    if soft_modes < 1:
+        raise SceneError(f"--soft-modes: must be >= 1, got {soft_modes}")
+    if rings < 1:
+        raise SceneError(f"--rings: must be >= 1, got {rings}")
+    boundary_rings(boundary)
+
+
+def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, whole: bool = False,
+          scan: bool = False, rigidity: bool = False, predict: bool = False, figures: bool = True,
+          window: int = 1, d2min_radius: float | None = None, event_quantity: str = "shear_stress",
+          event_threshold: float = 0.05, soft_modes: int = 5, rings: int = 1, boundary: str = DEFAULT_BOUNDARY,
+          workers: int | None = None, progress: bool = False, seed: int = 0, **import_options) -> dict:
+    """Track a sequence of frames (docs/track.md).
+
+    Parameters
+    ----------
+    inputs : path or list of paths
+        A snapshot with frames: a LAMMPS dump pair with many timesteps, a RigidLibrary annulus or DataSim folder,
+        generic tables with a `frame` column, MercuryDPM output.
+    out_dir : path
+        The folder (granstab/track/__init__.py: CONTRACT); one holding an interrupted run with the same options
+        resumes.
+    frames : "A:B:STEP", optional
+        Positions in the input's frame list (0-based, B excluded); default all.
+    whole, scan, rigidity : bool
+        Per frame: the whole-packing analysis (all-unloading and all-loading branches, soft-spot participation in
+        the `soft_modes` lowest consistent modes), the local scan (granstab.scan, `rings`, `boundary`), the largest
+        rigid cluster.
+    predict, figures : bool
+        Afterwards granstab.track.predict.run(out_dir) (prediction.json) and granstab.track.figures.write(out_dir),
+        where those modules are installed.
+    window, d2min_radius : int, float
+        D²min and contact changes from a frame to the W-th next selected frame; neighbours within the radius
+        (default 2.5 × the first frame's mean contact branch length ≈ 2.5 mean diameters, input length units).
+    event_quantity, event_threshold : {"shear_stress", "stress_ratio"}, float
+        An event: a drop of the quantity from one selected frame to the next larger than threshold × its mean
+        magnitude over the run.
+    workers, progress, seed : int or None, bool, int
+        Local Dask workers (1: this process; default by the measured cost, scan/workers.py); a bar; the seed of the
+        `random` predictor.
+    **import_options
+        As `granstab.io.load` (mu, k, alpha, columns, length_scale, periodic, …); rattlers are always kept.
+
+    Returns
+    -------
+    dict
+        summary.json.
+    """
+    check_options(window, d2min_radius, event_quantity, event_threshold, soft_modes, boundary, rings)
+    require("pyarrow", "scan", "the track's tables")
+    paths = [str(p) for p in ([inputs] if isinstance(inputs, (str, Path)) else inputs)]
+    options = {k: v for k, v in import_options.items() if v is not None}
+    options["keep_rattlers"] = True
+    begun = time.perf_counter()
+    keys = list_frames(paths, format=format, **options)
+    options.pop("keep_rattlers")
+    positions = select(frames, len(keys))
+    out = Path(out_dir)
+    spec = {"inputs": paths, "format": format, "import": {k: v for k, v in options.items()}, "out": str(out),
+            "whole": whole, "scan": scan, "rigidity": rigidity, "soft_modes": soft_modes, "seed": seed,
+            "scan_options": {"rings": rings, "boundary": boundary}}
+    stated = {**{k: v for k, v in spec.items() if k != "out"}, "frames": frames, "window": window,
+              "d2min_radius": d2min_radius, "event_quantity": event_quantity, "event_threshold": event_threshold}
+    _open(out, stated)
+    todo = [k for k in positions if not (out / "parts" / f"frame-{k:06d}.json").exists()]
+    with Heartbeat(f"track {out_dir}", enabled=not progress) as beat:      # a line a minute without a bar
+        beat.stage("frames", total=len(todo))
+        bar = (_bar(len(todo)) if progress else None) or beat
+        try:
+            try:
+                ran = run_frames(spec, todo, keys, workers, bar)
+            finally:
+                bar.close()
+        except KeyboardInterrupt:
+            kept = sum((out / "parts" / f"frame-{k:06d}.json").exists() for k in positions)
+            raise Interrupted(f"granstab track: interrupted (Ctrl-C): {kept} of {len(positions)} frames kept in "
+                              f"{out_dir}; the same command (the same --out and options) resumes from "
+                              "there") from None
+        beat.stage("between frames: D²min, contacts, events")
+        summary = finish(out, positions, keys, stated, {"resumed": len(positions) - len(todo),
+                                                        "frames_this_run": len(todo), "workers": ran,
+                                                        "started": begun})
+    return _after(out, summary, predict, figures)
+
+
+def _open(out: Path, stated: dict) -> None:
+    """The folder and options.json (a folder with other options: a one-line error, as the scan's)."""
+    (out / "parts").mkdir(parents=True, exist_ok=True)
+    saved = out / "options.json"
+    text = json.loads(json.dumps(stated, default=str))
+    if saved.exists():
+        before = json.loads(saved.read_text(encoding="utf-8"))
+        if before != text:
+            raise SceneError(f"{out}: holds a track with other options ({before}); resume with the same options or "
+                             "choose another --out")
+    else:
+        saved.write_text(json.dumps(text), encoding="utf-8")
+
+
+def run_frames(spec: dict, todo: list, keys: list, workers: int | None, bar) -> dict:
+    """The frames `todo` here or on local Dask workers (`workers`; default: the first frame here measures the
+    cost of the rest, scan/workers.py's rule decides). Returns how they ran (summary "workers")."""
+    from ..scan.workers import dask_installed, default_workers, machine
+    if not todo:
+        return {"count": 0, "where": "nowhere", "why": "every frame was already in the folder"}
+    if workers is not None and workers <= 1:
+        _serial(spec, todo, keys, bar)
+        return {"count": 1, "where": "in this process", "why": f"--workers {workers}"}
+    if workers is not None:
+        require("dask.distributed", "scan", f"--workers {workers}")
+        _dask(spec, todo, keys, workers, bar)
+        return {"count": workers, "where": f"on {workers} local Dask workers", "why": f"--workers {workers}"}
+    start = time.perf_counter()
+    _serial(spec, todo[:1], keys, bar)
+    cores, load = machine()
+    n, why = default_workers((time.perf_counter() - start) * (len(todo) - 1), cores, load, dask=dask_installed())
+    if n > 1:
+        _dask(spec, todo[1:], keys, n, bar)
+        return {"count": n, "where": f"on {n} local Dask workers", "why": f"default: {why}"}
+    _serial(spec, todo[1:], keys, bar)
+    return {"count": 1, "where": "in this process", "why": f"default: {why}"}
+
+
+def _serial(spec, todo, keys, bar) -> None:
+    for k in todo:
+        frame_task(spec, k, keys[k])
+        bar.update(1)
+
+
+def _dask(spec, todo, keys, n: int, bar) -> None:
+    """One task a frame on `n` local workers (one thread each), results as they finish; Ctrl-C as the scan's."""
+    import dask
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    from ..scan.run import WORKER_ENVIRON
+    from ..scan.workers import close_quietly, sigint_flag, sigint_ignored
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored():
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+    client = Client(cluster)
+    try:
+        with sigint_flag() as stop:
+            running = as_completed([client.submit(frame_task, spec, k, keys[k], pure=False, retries=1)
+                                    for k in todo])
+            while not running.is_empty():
+                if stop.is_set():
+                    raise KeyboardInterrupt
+                batch = running.next_batch(block=False)
+                if not batch:
+                    time.sleep(POLL_SECONDS)
+                    continue
+                for future in batch:
+                    future.result()                    # a frame's error: its one line, here
+                    bar.update(1)
+    except BaseException:
+        close_quietly(client, cluster)
+        raise
+    client.close()
+    cluster.close()
+
+
+def _after(out: Path, summary: dict, predict: bool, figures: bool) -> dict:
+    """granstab.track.predict and .figures where they are installed (another part of issue 27); what ran, in the
+    summary."""
+    import importlib
+    import importlib.util
+    done = {}
+    for name, wanted, call in (("predict", predict, "run"), ("figures", figures, "write")):
+        if not wanted:
+            continue
+        if importlib.util.find_spec(f"granstab.track.{name}") is None:
+            done[name] = f"granstab.track.{name} is not installed in this tree: not run"
+            continue
+        getattr(importlib.import_module(f"granstab.track.{name}"), call)(out)
+        done[name] = "written"
+    if done:
+        summary["after"] = done
+        (out / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
+    return summary
+
+
+def _bar(total: int):
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:
+        return None
+    return tqdm(total=total, desc="frames", unit="frame", mininterval=0.5)
