@@ -4,7 +4,8 @@
   mode) above the shear stress and the pressure, the events of events.json shaded on both;
 - `maps`: for chosen frames (the frame each of the largest events starts from, else evenly spaced ones), the
   instability map (the share of a particle's clusters that are unstable, the scan's colours; the soft-mode
-  participation where no scan was run) beside the D²min of the window that starts there (logarithmic);
+  participation where no scan was run), its clusters' lowest λ_min where the scan gave it, and the D²min of the
+  window that starts there (logarithmic);
 - `roc`: the ROC curves of the prediction test, one panel a target, the same scores and labels as prediction.json
   (`predict.cases`).
 
@@ -95,11 +96,13 @@ def drawing_radii(xy: np.ndarray, cols: dict, rows: np.ndarray) -> np.ndarray:
 
 
 def maps(plt, cols: dict, chosen: list[int], window: int, stem: Path) -> list[Path]:
-    """One row a chosen frame: the instability map beside the D²min of the window that starts there."""
-    from matplotlib.colors import LogNorm
-    field = "unstable_fraction" if np.isfinite(cols.get("unstable_fraction", [np.nan])).any() else (
-        "soft_participation" if np.isfinite(cols.get("soft_participation", [np.nan])).any() else None)
-    fig, axes = plt.subplots(max(len(chosen), 1), 2, figsize=(10, 4.6 * max(len(chosen), 1)), squeeze=False)
+    """One row a chosen frame: the instability map, the clusters' λ_min where the scan gave it, and the D²min of
+    the window that starts there."""
+    field = "unstable_fraction" if _finite(cols, "unstable_fraction") else (
+        "soft_participation" if _finite(cols, "soft_participation") else None)
+    panels = 3 if _finite(cols, "cluster_lambda_min") else 2
+    fig, axes = plt.subplots(max(len(chosen), 1), panels, figsize=(5 * panels, 4.6 * max(len(chosen), 1)),
+                             squeeze=False)
     for row, frame in zip(axes, chosen):
         rows = cols["frame"] == frame
         xy = np.stack([cols["x"][rows], cols["y"][rows]], 1)
@@ -109,17 +112,33 @@ def maps(plt, cols: dict, chosen: list[int], window: int, stem: Path) -> list[Pa
         row[0].set_title(f"frame {frame}: {field or 'no instability map (track without --scan/--whole)'}",
                          fontsize=9)
         fig.colorbar(pc, ax=row[0], shrink=0.8)
-        d2 = cols["d2min"][rows]
-        pd = _disks(row[1], xy, r, d2, np.zeros(len(xy), bool))
-        pos = d2[np.isfinite(d2) & (d2 > 0)]
-        pd.set_cmap("viridis")
-        if pos.size:
-            pd.set_norm(LogNorm(vmin=max(pos.min(), pos.max() * 1e-6), vmax=pos.max()))
-        row[1].set_title(f"D²min over frames ({frame}, {frame} + {window}]", fontsize=9)
-        fig.colorbar(pd, ax=row[1], shrink=0.8)
+        if panels == 3:
+            _scaled(fig, row[1], xy, r, cols["cluster_lambda_min"][rows], "RdBu", symmetric=True)
+            row[1].set_title(f"frame {frame}: its clusters' lowest λ_min (< 0: unstable)", fontsize=9)
+        _scaled(fig, row[-1], xy, r, cols["d2min"][rows], "viridis", symmetric=False)
+        row[-1].set_title(f"D²min over frames ({frame}, {frame} + {window}]", fontsize=9)
     if not chosen:
         axes[0][0].text(0.5, 0.5, "no frame has a window inside the run", ha="center", transform=axes[0][0].transAxes)
     return _save(fig, stem)
+
+
+def _finite(cols: dict, key: str) -> bool:
+    return key in cols and bool(np.isfinite(cols[key]).any())
+
+
+def _scaled(fig, ax, xy, r, value, cmap: str, symmetric: bool) -> None:
+    """Disks coloured on a logarithmic scale (D²min) or a symmetric one, linear within the median |value| (λ_min)."""
+    from matplotlib.colors import LogNorm, SymLogNorm
+    pc = _disks(ax, xy, r, value, np.zeros(len(xy), bool))
+    pc.set_cmap(cmap)
+    ok = value[np.isfinite(value)]
+    if symmetric and ok.size:
+        top = float(np.abs(ok).max()) or 1.0
+        pc.set_norm(SymLogNorm(linthresh=float(np.median(np.abs(ok))) or top, vmin=-top, vmax=top))
+    elif (ok > 0).any():
+        pos = ok[ok > 0]
+        pc.set_norm(LogNorm(vmin=max(pos.min(), pos.max() * 1e-6), vmax=pos.max()))
+    fig.colorbar(pc, ax=ax, shrink=0.8)
 
 
 def roc(plt, found: list, stem: Path) -> list[Path]:
