@@ -98,12 +98,18 @@ def test_targets_top_tenth_per_frame_and_events_in_the_window():
 
 def test_lead_times_count_the_unstable_run_before_each_event():
     lam = np.array([1.0, -0.1, -0.2, 0.5, 0.4, -0.3, 0.2])
+    n_negative = np.array([0, 0, 1, 0, 0, 0, 0])                       # only frame 2 is proven unstable
     steps = 100 * np.arange(7)
-    lt = predict.lead_times(lam, steps, np.array([2, 5]))
-    assert [e["lead_frames"] for e in lt["events"]] == [2, 1]
-    assert [e["lead_steps"] for e in lt["events"]] == [100, 0]
-    assert lt["unstable_frame_rate"] == pytest.approx(3 / 7)
+    lt = predict.lead_times(lam, n_negative, steps, np.array([2, 5]))
+    assert [e["lead_frames_negative"] for e in lt["events"]] == [2, 1]
+    assert [e["lead_steps_negative"] for e in lt["events"]] == [100, 0]
+    assert [e["lead_frames_proven"] for e in lt["events"]] == [1, 0]
+    assert lt["unstable_frame_rate"] == {"negative": pytest.approx(3 / 7), "proven": pytest.approx(1 / 7)}
     assert lt["frames_to_next_event"] == [2, 1, 0, 2, 1, 0, -1]
+    # Spearman's ρ of λ_min against the frames to the next event, over frames 0..5 (frame 6 has none)
+    from scipy.stats import spearmanr
+    assert lt["spearman_rho"] == pytest.approx(spearmanr(lam[:6], [2, 1, 0, 2, 1, 0])[0], abs=1e-12)
+    assert "proven" not in predict.lead_times(lam, np.full(7, -1), steps, np.array([2]))["readings"]   # the fill
 
 
 def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
@@ -127,7 +133,8 @@ def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
     assert ev["n"] == len(t) and ev["n_positive"] == label.sum() == 2 * len(EVENTS)
     assert ev["auc"] == pytest.approx(brute_auc(-lam[t], label), abs=1e-15)
     lead = result["lead"]["loading"]
-    assert [e["lead_frames"] for e in lead["events"]] == [1, 1, 1]                # λ < 0 exactly at each event
+    assert [e["lead_frames_negative"] for e in lead["events"]] == [1, 1, 1]       # λ < 0 exactly at each event
+    assert [e["lead_frames_proven"] for e in lead["events"]] == [1, 1, 1]         # n_negative_loading = (λ < 0)
     assert truth["movers"].mean() > predict.TOP_FRACTION and "event (6 of 22 positive)" in (tmp_path / "prediction.txt").read_text()
 
 

@@ -122,10 +122,12 @@ def event_target(n_frames: int, window: int, event_end: np.ndarray) -> tuple[np.
     return label, t + window < n_frames
 
 
-def lead_times(lam: np.ndarray, steps: np.ndarray, event_start: np.ndarray) -> dict:
-    """λ_min before each event (eq:instab: λ_min < 0 is a consistent negative mode): per event, how many frames up
-    to its start had λ_min < 0 without a break (the lead), beside the base rate of such frames; per frame, the
-    frames to the next event's start, and Spearman's ρ of λ_min against it (negative ρ: λ_min falls as an event
+def lead_times(lam: np.ndarray, n_negative, steps: np.ndarray, event_start: np.ndarray) -> dict:
+    """λ_min before each event. Two readings of "unstable at frame t": `negative`, λ_min(t) < 0 (any negative
+    eigenvalue, consistent or not: no proof), and `proven`, a consistent negative mode (n_negative > 0, eq:instab;
+    None when not computed). Per event and reading, how many frames up to its start were unstable without a break
+    (the lead, in frames and steps from the first of them), beside the base rate of such frames; per frame, the
+    frames to the next event's start, and Spearman's ρ of λ_min against it (positive ρ: λ_min falls as an event
     nears)."""
     from scipy.stats import spearmanr
     n = len(lam)
@@ -133,18 +135,25 @@ def lead_times(lam: np.ndarray, steps: np.ndarray, event_start: np.ndarray) -> d
     for e in sorted(event_start, reverse=True):
         nxt[: e + 1] = e
     to_next = np.where(nxt >= 0, nxt - np.arange(n), -1)
+    readings = {"negative": lam < 0}
+    if n_negative is not None and np.all(np.asarray(n_negative) >= 0):
+        readings["proven"] = np.asarray(n_negative) > 0
     events = []
     for e in np.unique(event_start):
-        k = 0
-        while e - k >= 0 and lam[e - k] < 0:
-            k += 1
-        events.append({"frame_position": int(e), "lambda_min": _num(lam[e]), "lead_frames": k,
-                       "lead_steps": int(steps[e] - steps[e - k + 1]) if k else 0})
+        row = {"frame_position": int(e), "lambda_min": _num(lam[e])}
+        for name, unstable in readings.items():
+            k = 0
+            while e - k >= 0 and unstable[e - k]:
+                k += 1
+            row[f"lead_frames_{name}"] = k
+            row[f"lead_steps_{name}"] = _num(steps[e] - steps[e - k + 1]) if k else 0.0
+        events.append(row)
     ok = (to_next >= 0) & np.isfinite(lam)
     rho, p = spearmanr(lam[ok], to_next[ok]) if ok.sum() > 2 and np.ptp(lam[ok]) > 0 else (np.nan, np.nan)
-    return {"events": events, "unstable_frame_rate": _num(np.mean(lam[np.isfinite(lam)] < 0)) if
-            np.isfinite(lam).any() else None, "spearman_rho": _num(rho), "spearman_p": _num(p),
-            "frames_to_next_event": to_next.tolist()}
+    return {"events": events, "readings": sorted(readings),
+            "unstable_frame_rate": {k: _num(np.mean(v[np.isfinite(lam)])) if np.isfinite(lam).any() else None
+                                    for k, v in readings.items()},
+            "spearman_rho": _num(rho), "spearman_p": _num(p), "frames_to_next_event": to_next.tolist()}
 
 
 def _num(v) -> float | None:
@@ -251,11 +260,14 @@ def verdict(rows: list[dict], lead: dict | None) -> str:
         if not ev:
             lines.append(f"λ_min ({branch}): no events to precede.")
             continue
-        led = sum(e["lead_frames"] > 0 for e in ev)
-        rate = lt["unstable_frame_rate"]
-        lines.append(f"λ_min ({branch}) < 0 at the frame an event starts from for {led} of {len(ev)} events "
-                     f"(base rate of such frames {rate:.2f}); Spearman ρ(λ_min, frames to next event) = "
-                     f"{lt['spearman_rho'] if lt['spearman_rho'] is None else round(lt['spearman_rho'], 3)}.")
+        for name in lt["readings"]:
+            led = sum(e[f"lead_frames_{name}"] > 0 for e in ev)
+            what = "λ_min < 0" if name == "negative" else "a consistent negative mode (eq:instab)"
+            lines.append(f"all-{branch}: {what} at the frame an event starts from for {led} of {len(ev)} events "
+                         f"(base rate of such frames {lt['unstable_frame_rate'][name]:.2f}).")
+        rho, p = lt["spearman_rho"], lt["spearman_p"]
+        lines.append(f"all-{branch}: Spearman ρ(λ_min, frames to the next event) = "
+                     + ("n/a." if rho is None else f"{rho:.3f} (p = {p:.2f})."))
     return "\n".join(lines)
 
 
@@ -284,7 +296,8 @@ def run(out_dir) -> dict:
     rows = [{"target": t, "predictor": p, **auc_with_interval(s, y, b)} for t, p, s, y, b in found]
     frames = ctx["frames"]
     steps = frames.get("step", ctx["order"].astype(float))
-    lead = {b: lead_times(frames[f"lambda_min_{b}"], steps, ctx["start"]) for b in ("unloading", "loading")
+    lead = {b: lead_times(frames[f"lambda_min_{b}"], frames.get(f"n_negative_{b}"), steps, ctx["start"])
+            for b in ("unloading", "loading")
             if f"lambda_min_{b}" in frames and np.isfinite(frames[f"lambda_min_{b}"]).any()}
     text = verdict(rows, lead)
     clean = [{k: (_num(v) if k.startswith(("auc", "ci")) else v) for k, v in r.items()} for r in rows]
