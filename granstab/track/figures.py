@@ -10,7 +10,7 @@
   (`predict.cases`).
 
 3D packings are drawn as their projection on x-y. Particles are drawn with the dump's radius where the folder has a
-`radius` column, else with half the distance to their nearest neighbour.
+`radius` column, else with half the distance to their nearest neighbour (in 3D, in space).
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scan.figure import _disks, _save
+from ..scan.figure import GREY, _disks, _save
 from . import predict
 
 N_MAPS = 3
@@ -85,7 +85,8 @@ def chosen_frames(ctx: dict, particles: dict, events: list[dict]) -> list[int]:
 
 
 def drawing_radii(xy: np.ndarray, cols: dict, rows: np.ndarray) -> np.ndarray:
-    """The folder's `radius` where it has one, else half the distance to the nearest other centre."""
+    """The folder's `radius` where it has one, else half the distance to the nearest other centre (in 3D over all
+    three coordinates, not the projection)."""
     if "radius" in cols:
         return cols["radius"][rows]
     from scipy.spatial import cKDTree
@@ -105,8 +106,8 @@ def maps(plt, cols: dict, chosen: list[int], window: int, stem: Path) -> list[Pa
                              squeeze=False)
     for row, frame in zip(axes, chosen):
         rows = cols["frame"] == frame
-        xy = np.stack([cols["x"][rows], cols["y"][rows]], 1)
-        r = drawing_radii(xy, cols, rows)
+        centres = np.stack([cols[k][rows] for k in ("x", "y", "z") if k in cols], 1)
+        xy, r = centres[:, :2], drawing_radii(centres, cols, rows)
         value = cols[field][rows] if field else np.full(len(xy), np.nan)
         pc = _disks(row[0], xy, r, value, np.zeros(len(xy), bool))
         row[0].set_title(f"frame {frame}: {field or 'no instability map (track without --scan/--whole)'}",
@@ -128,9 +129,10 @@ def _finite(cols: dict, key: str) -> bool:
 
 def _scaled(fig, ax, xy, r, value, cmap: str, symmetric: bool) -> None:
     """Disks coloured on a logarithmic scale (D²min) or a symmetric one, linear within the median |value| (λ_min)."""
+    from matplotlib import colormaps
     from matplotlib.colors import LogNorm, SymLogNorm
     pc = _disks(ax, xy, r, value, np.zeros(len(xy), bool))
-    pc.set_cmap(cmap)
+    pc.set_cmap(colormaps[cmap].with_extremes(bad=GREY))            # NaN grey, as in the scan's map
     ok = value[np.isfinite(value)]
     if symmetric and ok.size:
         top = float(np.abs(ok).max()) or 1.0
