@@ -4,18 +4,16 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pyarrow.parquet as pq
 import pytest
 
-pytest.importorskip("pyarrow")
-import pyarrow.parquet as pq  # noqa: E402
-
-import granstab  # noqa: E402
-from granstab.cli import main  # noqa: E402
-from granstab.model.errors import Interrupted  # noqa: E402
-from granstab.model.packings import lattice  # noqa: E402
-from granstab.model.scene import SceneError  # noqa: E402
-from granstab.track import track  # noqa: E402
-from granstab.track.motion import d2min  # noqa: E402
+import granstab
+from granstab.cli import main
+from granstab.model.errors import Interrupted
+from granstab.model.packings import lattice
+from granstab.model.scene import SceneError
+from granstab.track import track
+from granstab.track.motion import d2min
 
 ANNULUS = Path(__file__).resolve().parents[2] / "shared" / "data" / "rigidlibrary" / "DataAnnulus" / "10"
 F = np.array([[1.02, 0.05], [0.01, 0.97]])      # an affine deformation of the whole packing
@@ -164,7 +162,7 @@ def test_stress_from_the_contacts_is_the_hand_sum(tracked):
     contacts = np.loadtxt(paths[1], delimiter=",", skiprows=1)
     at = {(int(r[0]), int(r[1])): r[2:4] for r in parts}
     sigma = np.zeros((2, 2))
-    for f, a, b, fx, fy in contacts[contacts[:, 0] == 1]:
+    for _, a, b, fx, fy in contacts[contacts[:, 0] == 1]:
         sigma += np.outer([fx, fy], at[(1, int(b))] - at[(1, int(a))])
     s = 1.999
     sigma /= (3 * s) ** 2
@@ -237,7 +235,6 @@ def test_events_are_stress_drops_over_the_threshold():
     assert events[0]["drop"] == pytest.approx(0.3) and events[0]["relative_drop"] == pytest.approx(0.3 / mean)
 
 
-@pytest.mark.skipif(not ANNULUS.is_dir(), reason="RigidLibrary's annulus data (../shared/data) not here")
 def test_the_annulus_experiment_reads_as_a_sequence(tmp_path, capsys):
     """Its 20 frames are listed; --frames 0:20:19 tracks the first and the last, each row as that frame read
     alone."""
@@ -259,3 +256,50 @@ def test_cli_refuses_frame_and_bad_selections(tmp_path, capsys):
     assert capsys.readouterr().err.strip().startswith("--frame: track reads every frame")
     assert main(["track", *paths, "--out", str(tmp_path / "o"), "--mu", "0.5", "--frames", "5:9"]) == 2
     assert "selects none of the input's 3 frames" in capsys.readouterr().err
+
+
+LAMMPS = Path(__file__).parent / "data" / "io" / "lammps"
+DATASIM = ANNULUS.parents[1] / "DataSim"
+
+
+def test_a_periodic_lammps_run_is_a_sequence_with_its_cell_stress(tmp_path):
+    """The 2D LAMMPS fixture (two timesteps of a sheared periodic box): both are tracked in order, and σ is the
+    hand sum Σ f ⊗ b / det(cell), b the branch vector to q's image (the seam contacts' images counted)."""
+    paths = [LAMMPS / "atoms2d.dump", LAMMPS / "contacts2d.dump", Path(__file__).parents[1] / "examples" / "dem"
+             / "in.disks2d"]
+    assert granstab.io.frames(paths) == [18000, 21000]
+    summary = track(paths, tmp_path, workers=1, figures=False)
+    frames = pq.read_table(tmp_path / "frames.parquet").to_pydict()
+    assert summary["steps"] == [18000.0, 21000.0] and frames["frame"] == [0, 1]
+    scene = granstab.load(paths, timestep=21000, keep_rattlers=True).scene
+    sigma = sum(np.outer(f, scene.x[q] + image @ scene.cell - scene.x[p])
+                for f, p, q, image in zip(scene.force, scene.p, scene.q, scene.image)) / np.linalg.det(scene.cell)
+    got = np.reshape(frames["stress"][1], (2, 2))
+    assert np.abs(got - sigma).max() <= 1e-12 * np.abs(sigma).max()     # summation order only
+    assert frames["volume_from"][1].startswith("the periodic cell") and len(frames["cell"][1]) == 4
+    d2 = pq.read_table(tmp_path / "particles.parquet").to_pydict()["d2min"]
+    assert np.isfinite(d2[:frames["n_particles"][0]]).mean() > 0.9    # matched by id through the seam
+
+
+def test_mercury_and_datasim_inputs_list_their_frames(tmp_path):
+    from test_io_mercury import table_scene, write_mercury
+    ref = table_scene().scene
+    steps = [(0.5, ref.x + 1.0, np.ones(3), ref.p, ref.q, ref.force * 2, []),
+             (1.0, ref.x, np.ones(3), ref.p, ref.q, ref.force, [])]
+    files = write_mercury(tmp_path / "run", steps)
+    assert granstab.io.frames(files, k=2.0, alpha=0.5, mu=0.4) == [0.5, 1.0]
+    track(files, tmp_path / "out", k=2.0, alpha=0.5, mu=0.4, workers=1, figures=False)
+    frames = pq.read_table(tmp_path / "out" / "frames.parquet").to_pydict()
+    assert frames["step"] == [0.5, 1.0] and frames["n_contacts"] == [ref.n_contacts] * 2
+    d2 = pq.read_table(tmp_path / "out" / "particles.parquet").to_pydict()["d2min"]
+    assert np.allclose(d2[:3], 0.0, atol=1e-20)      # a rigid translation by (1, 1): no non-affine motion
+    assert granstab.io.frames(DATASIM) == [5000]
+
+
+def test_a_scene_file_is_a_sequence_of_one_frame(tmp_path, capsys):
+    preset = Path(__file__).parents[1] / "presets" / "two_particle.toml"
+    assert main(["track", str(preset), "--out", str(tmp_path), "--workers", "1", "--no-figures", "--predict"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("1 frames") and "predict: " in out          # said whether the prediction ran
+    frames = pq.read_table(tmp_path / "frames.parquet").to_pydict()
+    assert frames["frame"] == [0] and np.isnan(frames["step"][0]) and np.isnan(frames["n_made"][0])

@@ -41,6 +41,7 @@ from .workers import (
     close_quietly,
     dask_installed,
     default_workers,
+    finished,
     machine,
     require_extras,
     sigint_flag,
@@ -416,19 +417,12 @@ def _run_dask(scene, todo, chunk, options, out, bar, *, scheduler, workers):
                                                                      contacts_of), options, retries=3, pure=False))
 
             fill()
-            while not running.is_empty():
-                if stop.is_set():
-                    raise KeyboardInterrupt
-                batch = running.next_batch(block=False)
-                if not batch:
-                    time.sleep(POLL_SECONDS)
-                    continue
-                for future in batch:
-                    table = future.result()
-                    out.write(table)
-                    guide.measured(table)
-                    if bar is not None:
-                        bar.update(table.num_rows)
+            for future in finished(running, stop, POLL_SECONDS):
+                table = future.result()
+                out.write(table)
+                guide.measured(table)
+                if bar is not None:
+                    bar.update(table.num_rows)
                 fill()
     except KeyboardInterrupt:                   # Ctrl-C: what is on disk stays; no tracebacks from Dask's closing
         close_quietly(client, cluster)
@@ -473,10 +467,10 @@ class Guide:
         return part
 
 
-def _progress(total: int):
-    """A tqdm bar with the time left (tqdm is optional: None without it)."""
+def _progress(total: int, unit: str = "cluster"):
+    """A tqdm bar of `unit`s with the time left (tqdm is optional: None without it); track's counts frames."""
     try:
         from tqdm.auto import tqdm
     except ImportError:
         return None
-    return tqdm(total=total, desc="clusters", unit="cluster", mininterval=0.5)
+    return tqdm(total=total, desc=f"{unit}s", unit=unit, mininterval=0.5)

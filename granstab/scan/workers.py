@@ -18,6 +18,7 @@ import math
 import os
 import signal
 import threading
+import time
 from contextlib import contextmanager, suppress
 
 from ..model.errors import require
@@ -108,6 +109,19 @@ def sigint_flag():
         yield stop
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def finished(running, stop, poll: float):
+    """The futures of `running` (Dask's as_completed) as they finish, polling every `poll` seconds when none is
+    ready; KeyboardInterrupt once `stop` (sigint_flag's Event) is set."""
+    while not running.is_empty():
+        if stop.is_set():
+            raise KeyboardInterrupt
+        batch = running.next_batch(block=False)
+        if not batch:
+            time.sleep(poll)
+            continue
+        yield from batch
 
 
 LOGGERS = ("distributed", "tornado", "asyncio")

@@ -15,7 +15,8 @@ DIR/frames.parquet — one row a selected frame, in order:
     (list<float64>, d×d lattice rows; empty: no cell), mean_contact_distance, z (2M / particles with a contact),
     mobilised_fraction (contacts at yield / contacts), import_warnings (list<string>), import_report (JSON text),
     lambda_min_unloading, lambda_min_loading (float64, NaN), n_negative_unloading, n_negative_loading (int64,
-    −1), whole_verdict, whole_method, soft_modes (how many), soft_modes_from           [--whole; else the fill]
+    −1; sparse path: among the max(6, soft_modes) lowest eigenpairs computed), whole_verdict, whole_method,
+    soft_modes (how many), soft_modes_from                                          [--whole; else the fill]
     scan_clusters, scan_unstable, scan_unstable_nonboundary (int64, −1), scan_verdicts (JSON text)   [--scan]
     rigid_largest_particles (int64, −1), rigid_largest_fraction (float64, NaN)                   [--rigidity]
     n_made, n_broken, n_slid (float64: contacts from this frame to frame + W; NaN for the last W frames),

@@ -18,7 +18,7 @@ import numpy as np
 from ..analysis import analyze
 from ..io import load
 from ..mechanics.branches import RIGID
-from ..model.scene import Scene
+from ..model.scene import Scene, SceneError
 from ..scan.clusters import cut, piece
 from ..solve.threads import blas_threads
 from .motion import contact_keys
@@ -121,7 +121,7 @@ def frame_task(spec: dict, position: int, key) -> dict:
     (JSON: its presence marks the frame done). Returns the frame row."""
     times = {}
     start = time.perf_counter()
-    loaded = load(spec["inputs"], format=spec["format"], frame=key, keep_rattlers=True, **spec["import"])
+    loaded = load(spec["inputs"], format=spec["format"], frame=key, **spec["import"])
     scene = loaded.scene
     times["read"] = time.perf_counter() - start
     core, walls, index = core_scene(scene, loaded.wall_flags)
@@ -141,8 +141,11 @@ def frame_task(spec: dict, position: int, key) -> dict:
         if not spec[stage]:
             continue
         begun = time.perf_counter()
-        with blas_threads(1):
-            got, values = run()
+        try:
+            with blas_threads(1):
+                got, values = run()
+        except SceneError as exc:                    # which frame and stage, then what failed: one line
+            raise SceneError(f"frame {position} (step {key}): --{stage}: {exc}") from None
         row.update(got)
         for name, column in (values.items() if isinstance(values, dict) else
                              [("soft_participation" if stage == "whole" else "in_largest_rigid_cluster", values)]):

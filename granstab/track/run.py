@@ -10,18 +10,16 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
 from ..io import frames as list_frames
+from ..io import is_snapshot
 from ..io.progress import Heartbeat
 from ..model.errors import Interrupted, require
 from ..model.scene import SceneError
 from ..scan.clusters import DEFAULT_BOUNDARY, boundary_rings
+from ..scan.run import _progress
 from .frame import frame_task
 from .tables import finish
 
-DEFAULTS = {"window": 1, "d2min_radius": None, "radius_diameters": 2.5, "event_quantity": "shear_stress",
-            "event_threshold": 0.05, "soft_modes": 5, "rings": 1, "boundary": DEFAULT_BOUNDARY, "seed": 0}
 EVENT_QUANTITIES = ("shear_stress", "stress_ratio")
 POLL_SECONDS = 0.05
 
@@ -33,7 +31,7 @@ def select(text: str | None, n: int) -> list[int]:
         return list(range(n))
     parts = text.split(":")
     try:
-        if len(parts) > 3:
+        if len(parts) > 3 or not text.strip():
             raise ValueError
         values = [int(v) if v.strip() else None for v in parts] + [None] * (3 - len(parts))
         if len(parts) == 1:
@@ -98,7 +96,8 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
         Local Dask workers (1: this process; default by the measured cost, scan/workers.py); a bar; the seed of the
         `random` predictor.
     **import_options
-        As `granstab.io.load` (mu, k, alpha, columns, length_scale, periodic, …); rattlers are always kept.
+        As `granstab.io.load` (mu, k, alpha, columns, length_scale, periodic, …); a snapshot's rattlers are always
+        kept.
 
     Returns
     -------
@@ -109,10 +108,10 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     require("pyarrow", "scan", "the track's tables")
     paths = [str(p) for p in ([inputs] if isinstance(inputs, (str, Path)) else inputs)]
     options = {k: v for k, v in import_options.items() if v is not None}
-    options["keep_rattlers"] = True
+    if len(paths) > 1 or is_snapshot(paths[0]):
+        options["keep_rattlers"] = True              # a scene file (one frame) is read as written
     begun = time.perf_counter()
     keys = list_frames(paths, format=format, **options)
-    options.pop("keep_rattlers")
     positions = select(frames, len(keys))
     out = Path(out_dir)
     spec = {"inputs": paths, "format": format, "import": {k: v for k, v in options.items()}, "out": str(out),
@@ -124,7 +123,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     todo = [k for k in positions if not (out / "parts" / f"frame-{k:06d}.json").exists()]
     with Heartbeat(f"track {out_dir}", enabled=not progress) as beat:      # a line a minute without a bar
         beat.stage("frames", total=len(todo))
-        bar = (_bar(len(todo)) if progress else None) or beat
+        bar = (_progress(len(todo), "frame") if progress else None) or beat
         try:
             try:
                 ran = run_frames(spec, todo, keys, workers, bar)
@@ -192,7 +191,7 @@ def _dask(spec, todo, keys, n: int, bar) -> None:
     from dask.distributed import Client, LocalCluster, as_completed
 
     from ..scan.run import WORKER_ENVIRON
-    from ..scan.workers import close_quietly, sigint_flag, sigint_ignored
+    from ..scan.workers import close_quietly, finished, sigint_flag, sigint_ignored
     with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored():
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
     client = Client(cluster)
@@ -200,16 +199,9 @@ def _dask(spec, todo, keys, n: int, bar) -> None:
         with sigint_flag() as stop:
             running = as_completed([client.submit(frame_task, spec, k, keys[k], pure=False, retries=1)
                                     for k in todo])
-            while not running.is_empty():
-                if stop.is_set():
-                    raise KeyboardInterrupt
-                batch = running.next_batch(block=False)
-                if not batch:
-                    time.sleep(POLL_SECONDS)
-                    continue
-                for future in batch:
-                    future.result()                    # a frame's error: its one line, here
-                    bar.update(1)
+            for future in finished(running, stop, POLL_SECONDS):
+                future.result()                        # a frame's error: its one line, here
+                bar.update(1)
     except BaseException:
         close_quietly(client, cluster)
         raise
@@ -236,10 +228,3 @@ def _after(out: Path, summary: dict, predict: bool, figures: bool) -> dict:
         (out / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
     return summary
 
-
-def _bar(total: int):
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:
-        return None
-    return tqdm(total=total, desc="frames", unit="frame", mininterval=0.5)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..scan.clusters import DEFAULT_BOUNDARY
 from .motion import contact_changes, d2min
 from .quantities import stress_drops
 
@@ -113,8 +114,9 @@ def finish(out: Path, positions: list, keys: list, stated: dict, extra: dict) ->
         "positions": positions, "steps": [None if keys[k] is None else float(keys[k]) for k in positions],
         "options": stated,
         "defaults": {"window": 1, "d2min_radius": "2.5 mean contact branch lengths", "event_quantity":
-                     "shear_stress", "event_threshold": 0.05, "soft_modes": 5, "seed": 0,
-                     "whole": "metric L, the all-unloading and all-loading branches only"},
+                     "shear_stress", "event_threshold": 0.05, "soft_modes": 5, "seed": 0, "rings": 1,
+                     "boundary": DEFAULT_BOUNDARY, "whole": "metric L, the all-unloading and all-loading branches "
+                     "only", "rattlers": "kept in the tables; the analyses run without them (as load's default)"},
         "units": {"length": report.get("units", {}).get("length"), "force": "as in the input",
                   "stress": "force / length^(d−1) of the input, tension positive; pressure compression positive",
                   "d2min": "length²", "lambda": "the L metric's stability eigenvalues (docs/equations.md)"},
