@@ -282,7 +282,8 @@ def focus(analysis: Analysis, inside, share: float) -> Analysis:
     dofs = dofs if problem.free is None else dofs[problem.free]
     branches = []
     for b in analysis.branches:
-        there = np.sum(b.stability_vectors[dofs] ** 2, axis=0) / np.sum(b.stability_vectors ** 2, axis=0)
+        V = np.asarray(b.stability_vectors)          # the low-rank path's vectors are computed when asked (LazyVectors)
+        there = np.sum(V[dofs] ** 2, axis=0) / np.sum(V ** 2, axis=0)
         low = b.stability_eigenvalues <= b.accuracy
         branches.append(replace(b, codes=np.where((there < share) & low, RIGID, b.codes).astype(b.codes.dtype)))
     verdict = finalize(summarize(branches), analysis.errors, int(np.sum(contact_blocks(scene).rolling_undetermined)),
