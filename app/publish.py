@@ -36,8 +36,9 @@ AMPLITUDE = 0.25                                   # the explorer's default mode
 MAX_BYTES = 5_000_000                              # the largest page written
 VIEWPORT = SimpleNamespace(fov=75.0 * np.pi / 180.0, image_width=1600, image_height=1000)   # viser's default fov
 NOTE = ("<b>A recording</b> of the granstab explorer ({title}). It plays {what}. The playback bar at the bottom "
-        "pauses it (its left button) and scrubs through it; drag the view to turn the camera. A recording has no controls of its "
-        "own: the particles cannot be dragged and there are no sliders — run <code>granstab-app</code> for those.")
+        "pauses it (its left button) and scrubs through it; drag the view to turn the camera. A recording has no "
+        "controls of its own: the particles cannot be dragged and there are no sliders — run <code>granstab-app</code> "
+        "for those.")
 
 
 def publish(preset: str, out: Path | str) -> dict:
@@ -57,8 +58,11 @@ def publish(preset: str, out: Path | str) -> dict:
     if session.analysis is None:
         raise granstab.SceneError(f"granstab publish: {preset}: no analysis to record: {session.error}")
     page = Recording(session)
-    steps = page.sweep() if session.kind == "two_particle" else page.modes()
-    text = page.html(steps)
+    try:
+        steps = page.sweep() if session.kind == "two_particle" else page.modes()
+        text = page.html(steps)
+    finally:
+        page.close()
     size = len(text.encode())
     if size > MAX_BYTES:
         raise granstab.SceneError(f"granstab publish: {preset}: the page would be {size / 1e6:.1f} MB, over the "
@@ -85,6 +89,10 @@ class Recording:
         self.view = SceneView(scene)
         self.view.static = True
 
+    def close(self) -> None:
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server.stop()
+
     def sleep(self, seconds: float) -> None:
         self.recorder.insert_sleep(seconds)
         self.seconds += seconds
@@ -100,11 +108,12 @@ class Recording:
             field = s.field()
             if field is not None:
                 view.draw_field(s, field, (s.params["rho_r"], s.params["f_kr"], s.rolling_eigenvalue()))
-            pose = camera_pose(s, s.scene_dim == 2 and field is not None, True,
-                               lambda w, h: fit_distance(w, h, VIEWPORT, covered=0.0))
-            camera = self.server.initial_camera
-            camera.position, camera.look_at, camera.up = pose["position"], pose["look_at"], pose["up_direction"]
-            camera.near, camera.far = pose["near"], pose["far"]
+            if not self.badges[1:]:                          # the camera of the first step, kept (no jumps)
+                pose = camera_pose(s, s.scene_dim == 2 and field is not None, True,
+                                   lambda w, h: fit_distance(w, h, VIEWPORT, covered=0.0))
+                camera = self.server.initial_camera
+                camera.position, camera.look_at, camera.up = pose["position"], pose["look_at"], pose["up_direction"]
+                camera.near, camera.far = pose["near"], pose["far"]
             x = np.array([b.x for b in s.bodies()])
             top = float(x[:, 1].max()) + 1.6 * s.size if s.scene_dim == 2 else float(x[:, 2].max()) + 1.6 * s.size
             at = (float(x[:, 0].mean()), top, 0.0) if s.scene_dim == 2 else (float(x[:, 0].mean()),
@@ -172,8 +181,6 @@ class Recording:
         title = title if len(str(title)) <= 90 else f"{str(title)[:89]}…"
         note = NOTE.format(title=html.escape(str(title)), what=what)
         text = self.recorder.as_html()
-        with contextlib.redirect_stdout(io.StringIO()):
-            self.server.stop()
         box = (f'<div id="granstab-note" style="position:fixed;top:8px;right:8px;max-width:340px;z-index:1000;'
                f'background:rgba(255,255,255,0.92);border:1px solid #bbb;border-radius:6px;padding:8px 10px;'
                f'font:13px/1.35 sans-serif;color:#222">{note}</div>')
