@@ -25,7 +25,7 @@ from granstab.solve.threads import cap_process
 
 from .panels import ClientUI
 from .paths import is_loopback
-from .state import DEFAULT_PRESET, Session
+from .state import DEFAULT_PRESET, Session, close_pool
 
 
 class App:
@@ -62,7 +62,7 @@ class App:
 
     def _open(self, client) -> None:
         try:
-            ui = ClientUI(client, Session(self.preset, self.presets_dir, self.data_root, self.typed_paths))
+            ui = ClientUI(client, Session(self.preset, self.presets_dir, self.data_root, self.typed_paths, offload=True))
         except Exception as exc:  # a broken page, not a broken server
             client.gui.add_markdown(f"⚠️ the explorer failed to start for this tab: {type(exc).__name__}: {exc}")
             raise
@@ -87,6 +87,7 @@ class App:
         for ui in list(self.uis.values()):
             ui.close()
         self.server.stop()
+        close_pool()
 
 
 class PasswordGate:

@@ -143,3 +143,20 @@ def test_a_password_opens_the_explorer_and_a_wrong_one_nothing(tmp_path):
     finally:
         app.stop()
     assert errors == []
+
+
+def test_an_offloaded_analysis_is_the_same_analysis():
+    """A server's large scene is analysed in a worker process (app/state.py offloaded): the same verdict and
+    spectrum as in the server's own process. Same code, one BLAS thread each: only the summation order of a library
+    could differ, so 1e-12 of the largest |λ|."""
+    from granstab_app.state import OFFLOAD, Session, close_pool
+    here, there = Session("annulus_frame"), Session("annulus_frame", offload=True)
+    try:
+        assert there.scene.n_particles >= OFFLOAD and there.error is None and here.verdict == there.verdict
+        for a, b in zip(here.analysis.branches, there.analysis.branches, strict=True):
+            lam, mu = np.asarray(a.stability_eigenvalues), np.asarray(b.stability_eigenvalues)
+            assert np.allclose(lam, mu, rtol=0, atol=1e-12 * np.abs(lam).max())
+        assert there.set_params(mu=0.4) and here.set_params(mu=0.4) and there.error is None      # a second call
+        assert there.verdict == here.verdict and len(there.modes()) == len(here.modes())
+    finally:
+        close_pool()
