@@ -287,19 +287,19 @@ def markdown(r: dict) -> str:
 
 
 def _ceiling(r: dict) -> str:
-    """What limits the class here, from the measured parts: the server's one process (the analyses hold the GIL
-    between LAPACK calls) against the work the pages ask for, on a machine shared with other work."""
+    """What limits the class here, from the measured parts: the server process's share of the machine against the
+    work the pages ask of it."""
     pair, ring = r["two_particle_server_p50_s"], r["annulus_frame_server_p50_s"]
     return (f"Where the time goes: the server process got {r['server_cpu_share']:.2f} of a core while the class moved "
-            f"(1-minute load {r['load_moving'][1]:.0f} on 2 cores: other work on this shared machine took the rest). "
-            f"Its part of a pair move (lock wait, scene build and analysis, drawing, sent) was {pair * 1e3:.0f} ms "
-            "median, where the pair's own scene build and analysis is about 14 ms (browser_latency): the rest is "
-            f"waiting, for the GIL behind the annulus_frame analyses ({ring:.1f} s each at the server, waiting "
-            f"included; {r['annulus_pages']} pages each moving every {r['period_s']:g} s fill one core once a move "
-            f"costs over {r['period_s'] / r['annulus_pages']:.1f} s of CPU, and one costs 1.2–4.7 s here, "
-            "browser_latency) and for a core. The ceiling on this machine is "
-            "therefore the single server process: the annulus_frame pages alone exceed it, and the pair's p95 goal is "
-            "not met beside them. Not done yet: analysing the large scenes outside the server process (a process "
-            "pool), which would leave a pair move waiting only for its own work. Moves slower than the period queue "
-            "behind the tab's lock and only the latest value is analysed (app/panels.py): a busy server delays pages, "
-            "it never mixes their states (every page held its own).")
+            f"(1-minute load {r['load_moving'][1]:.0f} on 2 cores: the Chromium pages, the analysis workers and other "
+            "work on this shared machine took the rest). Its part of a pair move (lock wait, scene build and analysis, "
+            f"drawing, sent) was {pair * 1e3:.0f} ms median, where the pair's own scene build and analysis is about "
+            "14 ms (browser_latency): the rest is waiting for a core and for the process's GIL. Scenes of 50 particles "
+            "and more are analysed in worker processes (app/state.py `offloaded`, one per core), but an annulus_frame "
+            "move still costs the server process about 0.5 s of Python (its 429 modes labelled, 143 particles drawn): "
+            f"{r['annulus_pages']} such pages moving every {r['period_s']:g} s ask it for more than one core's worth, "
+            f"and their moves took {ring:.1f} s (median) at the server. The ceiling on this machine is the server "
+            "process's share of 2 busy cores: the pair's p95 goal is not met here, and no number of the class can "
+            "be told apart from the load beside it. Moves slower than the period queue behind the tab's lock and only "
+            "the latest value is analysed (app/panels.py): a busy server delays pages, it never mixes their states "
+            "(every page held its own).")
