@@ -47,6 +47,10 @@ class HeadlessPage:
                         self.timeout, "the page's session")
         return self
 
+    def send(self, message: dict) -> None:
+        """Send one message of viser's protocol as a browser would (msgpack): a GuiUpdateMessage moves a slider."""
+        self._ws.send(msgspec.msgpack.encode(message))
+
     def _read(self) -> None:
         try:
             for message in self._ws:

@@ -792,33 +792,42 @@ class ClientUI:
                                      "100 % of the largest." if self.view.colours_by_mode else ""))
 
     def _set_camera(self) -> None:
-        s = self.session
-        bodies = s.bodies()
-        x = np.array([b.x for b in bodies])
-        reach = 1.2 * np.array([max(b.axes) for b in bodies])[:, None]   # each body by its own size (hand_in_glove's
-                                                                          # q is larger than the mean)
-        lo, hi = (x - reach).min(axis=0), (x + reach).max(axis=0)
-        span = float(np.max(hi - lo))
-        self.client.camera.near, self.client.camera.far = 1e-3 * span, 1e2 * span   # packings in px or in m
-        if s.scene_dim == 2:
-            if s.field() is not None and self.view.options["surface"]:
-                lo[1] = min(lo[1], -4.9 * s.field_scale)
+        pose = camera_pose(self.session, self.camera_view.value == OBLIQUE and self.session.scene_dim == 2,
+                           self.view.options["surface"], lambda w, h: fit_distance(w, h, self.client.camera))
+        for key, value in pose.items():
+            setattr(self.client.camera, key, value)
+
+
+def camera_pose(s, oblique: bool, surface: bool, fit) -> dict:
+    """Where the camera looks at session `s` from: near, far, up_direction, position, look_at (in the order to set
+    them). 2D from above (or `oblique`: from the front and above, heights readable; the λ⁽⁶⁾ surface included when
+    `surface` is shown), `fit(half_w, half_h)` the distance that fits the scene; 3D from an oblique corner. The
+    explorer's camera (ClientUI._set_camera) and the published page's (app/publish.py)."""
+    bodies = s.bodies()
+    x = np.array([b.x for b in bodies])
+    reach = 1.2 * np.array([max(b.axes) for b in bodies])[:, None]   # each body by its own size (hand_in_glove's
+                                                                      # q is larger than the mean)
+    lo, hi = (x - reach).min(axis=0), (x + reach).max(axis=0)
+    span = float(np.max(hi - lo))
+    pose = {"near": 1e-3 * span, "far": 1e2 * span}                     # packings in px or in m
+    c = 0.5 * (lo + hi)
+    if s.scene_dim == 2:
+        if s.field() is not None and surface:
+            lo[1] = min(lo[1], -4.9 * s.field_scale)
             c = 0.5 * (lo + hi)
-            distance = fit_distance(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), self.client.camera)
-            if self.camera_view.value == OBLIQUE:        # from the front and above: heights become readable
-                self.client.camera.up_direction = (0.0, 0.0, 1.0)
-                self.client.camera.position = (float(c[0]), float(c[1]) - 0.8 * distance, 0.75 * distance)
-            else:
-                self.client.camera.up_direction = (0.0, 1.0, 0.0)
-                self.client.camera.position = (float(c[0]), float(c[1]), distance)
-            self.client.camera.look_at = (float(c[0]), float(c[1]), 0.0)
+        distance = fit(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]))
+        if oblique:
+            pose.update(up_direction=(0.0, 0.0, 1.0),
+                        position=(float(c[0]), float(c[1]) - 0.8 * distance, 0.75 * distance))
         else:
-            c = 0.5 * (lo + hi)
-            extent = float(np.max(hi - lo))
-            self.client.camera.up_direction = (0.0, 0.0, 1.0)
-            view = np.array([0.55, -0.65, 0.5])
-            self.client.camera.position = tuple((c + 1.3 * extent * view / np.linalg.norm(view)).tolist())
-            self.client.camera.look_at = tuple(c.tolist())
+            pose.update(up_direction=(0.0, 1.0, 0.0), position=(float(c[0]), float(c[1]), distance))
+        pose["look_at"] = (float(c[0]), float(c[1]), 0.0)
+        return pose
+    extent = float(np.max(hi - lo))
+    view = np.array([0.55, -0.65, 0.5])
+    pose.update(up_direction=(0.0, 0.0, 1.0), position=tuple((c + 1.3 * extent * view / np.linalg.norm(view)).tolist()),
+                look_at=tuple(c.tolist()))
+    return pose
 
 
 def fit_distance(half_w: float, half_h: float, camera, covered: float = COVERED_PX, fill: float = 0.9) -> float:

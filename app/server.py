@@ -1,9 +1,11 @@
 """`granstab-app`: the viser server, one session (state + GUI + scene) per browser tab.
 
-    granstab-app [--preset NAME_OR_FILE] [--host 127.0.0.1] [--port 8080] [--data-root DIR]
+    granstab-app [--preset NAME_OR_FILE] [--host 127.0.0.1] [--port 8080] [--data-root DIR] [--password WORD]
 
 Each connection gets its own `Session` (app/state.py) and `ClientUI` (app/panels.py) built on client.gui /
-client.scene, so several tabs each have their own state. The server binds 127.0.0.1 unless told otherwise.
+client.scene, so several tabs each have their own state. The server binds 127.0.0.1 unless told otherwise; bound
+beyond it, it says that every machine that reaches this one can open the page. viser has no log-in of its own: with a
+`password` a tab is first asked for it (PasswordGate) and gets its session only once it is given.
 """
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import argparse
 import ctypes
 import functools
 import gc
+import hmac
 import sys
 import threading
 import time
@@ -22,15 +25,16 @@ from granstab.solve.threads import cap_process
 
 from .panels import ClientUI
 from .paths import is_loopback
-from .state import DEFAULT_PRESET, Session
+from .state import DEFAULT_PRESET, Session, close_pool
 
 
 class App:
     """The running explorer: the viser server and the per-client UIs (`uis`, keyed by client id)."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, preset: str = DEFAULT_PRESET, presets_dir=None,
-                 verbose: bool = False, data_root=None):
+                 verbose: bool = False, data_root=None, password: str | None = None):
         self.preset = preset
+        self.password = password or None            # None: every tab opens at once
         self.presets_dir = presets_dir
         self.data_root = data_root                  # typed paths: confined to it (app/paths.py)
         self.typed_paths = is_loopback(host) or data_root is not None
@@ -51,8 +55,14 @@ class App:
         return f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.port}"
 
     def _connect(self, client) -> None:
+        if self.password is not None:
+            PasswordGate(client, self.password, lambda: self._open(client))
+            return
+        self._open(client)
+
+    def _open(self, client) -> None:
         try:
-            ui = ClientUI(client, Session(self.preset, self.presets_dir, self.data_root, self.typed_paths))
+            ui = ClientUI(client, Session(self.preset, self.presets_dir, self.data_root, self.typed_paths, offload=True))
         except Exception as exc:  # a broken page, not a broken server
             client.gui.add_markdown(f"⚠️ the explorer failed to start for this tab: {type(exc).__name__}: {exc}")
             raise
@@ -77,6 +87,47 @@ class App:
         for ui in list(self.uis.values()):
             ui.close()
         self.server.stop()
+        close_pool()
+
+
+class PasswordGate:
+    """The page asks for the server's password before the tab gets a session: nothing of the explorer (scene, panels,
+    files) is sent until it is given. MAX_TRIES wrong answers end the tab's tries (a reload starts again)."""
+
+    MAX_TRIES = 5
+
+    def __init__(self, client, password: str, open_tab):
+        gui = client.gui
+        self.password, self.open_tab, self.tries, self.lock = password, open_tab, 0, threading.Lock()
+        self.note = gui.add_markdown("**This explorer asks for a password** (the one its teacher started it with).")
+        self.box = gui.add_text("Password", initial_value="")
+        self.button = gui.add_button("Open the explorer")
+        self.button.on_click(lambda _: self.check())
+
+    def check(self) -> None:
+        with self.lock:
+            if self.tries >= self.MAX_TRIES or self.box is None:
+                return
+            if hmac.compare_digest(self.box.value.encode(), self.password.encode()):
+                for handle in (self.note, self.box, self.button):
+                    handle.remove()
+                self.box = None
+                self.open_tab()
+                return
+            self.tries += 1
+            last = self.tries >= self.MAX_TRIES
+            self.note.content = ("**Wrong password** — " + ("too many tries: reload the page to try again." if last
+                                                             else f"try again ({self.MAX_TRIES - self.tries} left)."))
+            self.box.disabled = self.button.disabled = last
+
+
+def host_warning(host: str, password: str | None) -> str | None:
+    """What `granstab-app` says when bound beyond this machine (None on a loopback address)."""
+    if is_loopback(host):
+        return None
+    return (f"granstab-app: warning: bound to {host}: every machine on the network that reaches this one can open the "
+            "explorer" + (" (each page asks for the --password first)." if password else
+                          "; --password WORD makes each page ask for a password first."))
 
 
 def release_memory() -> None:
@@ -109,6 +160,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--data-root", metavar="DIR", default=None,
                     help="paths typed into the page are read inside DIR only (no '..', no link out); without it a "
                          "server bound beyond 127.0.0.1 turns typed paths off")
+    ap.add_argument("--password", metavar="WORD", default=None,
+                    help="each page asks for WORD before it opens (viser has no log-in; WORD is visible to other users "
+                         "of this machine in its process list, and travels unencrypted over plain http)")
     return ap.parse_args(argv)
 
 
@@ -123,7 +177,10 @@ def main(argv=None) -> int:
     if args.data_root is not None and not Path(args.data_root).is_dir():
         print(f"granstab-app: --data-root: {args.data_root}: not a folder", file=sys.stderr)
         return 2
-    app = App(args.host, args.port, args.preset, data_root=args.data_root)
+    app = App(args.host, args.port, args.preset, data_root=args.data_root, password=args.password)
+    warning = host_warning(args.host, args.password)
+    if warning:
+        print(warning, file=sys.stderr, flush=True)
     print(f"granstab explorer running at {app.url}  (Ctrl+C to stop)", flush=True)
     try:
         while True:

@@ -36,6 +36,8 @@ CONSISTENT = (PLUS, MINUS, BOTH)
 LARGE = 500               # particles: above this the whole packing is analysed only on request (`analyse`)
 MAX_UPLOAD = 5_000_000     # bytes: a scene file larger than this is refused before it is parsed
 SAME_MODE = 0.999          # |cos| of two unit motions above which they are one mode (distinct_modes)
+OFFLOAD = 50               # particles: from here a server's session analyses in a worker process (analysis_pool)
+_POOL: list = []           # the worker processes, made when first needed (analysis_pool)
 
 
 @dataclass(frozen=True)
@@ -68,7 +70,9 @@ def one_line(exc: BaseException) -> str:
 class Session:
     """State of one browser tab. `error` is None or the one-line message of the last failure."""
 
-    def __init__(self, preset: str | None = None, presets_dir=None, data_root=None, typed_paths: bool = True):
+    def __init__(self, preset: str | None = None, presets_dir=None, data_root=None, typed_paths: bool = True,
+                 offload: bool = False):
+        self.offload = offload               # large scenes analysed in a worker process (the server's sessions)
         self.presets_dir = Path(presets_dir) if presets_dir else PRESETS_DIR
         self.data_root = Path(data_root) if data_root else None   # typed paths: read inside it (app/paths.py)
         self.typed_paths = typed_paths or self.data_root is not None
@@ -337,8 +341,10 @@ class Session:
             if self.metric not in self.metric_choices:
                 self.notice = f"this scene has no masses: metric {self.metric} → L"
                 self.metric = "L"
-            with blas_threads(1):       # small problems: BLAS thread start-up costs more than it saves
-                self.analysis = analyze(self.scene, metric=self.metric)
+            if self.offload and self.scene.n_particles >= OFFLOAD:
+                self.analysis = offloaded(self.scene, self.metric)
+            else:
+                self.analysis = analysed(self.scene, self.metric)
             self.error = None
         except Exception as exc:  # noqa: BLE001 — shown in the page, never raised into the server
             self.error = one_line(exc)
@@ -539,6 +545,42 @@ class Session:
         if field is None:
             raise ValueError("the λ⁽⁶⁾ contour exists for the two-particle pair only")
         return "lambda6-contour.png", field_png(field, (self.params["rho_r"], self.params["f_kr"]))
+
+
+def analysed(scene, metric: str):
+    """The analysis on one BLAS thread (small problems: thread start-up costs more than it saves)."""
+    with blas_threads(1):
+        return analyze(scene, metric=metric)
+
+
+def offloaded(scene, metric: str):
+    """`analysed` in a worker process of analysis_pool: a server's large analyses (annulus_frame: ~1 s of mostly
+    Python) then hold another process's GIL, not the one the server's other tabs answer from (benchmarks/classroom.py:
+    a pair's slider move waited seconds behind them). A worker that died is replaced at the next call."""
+    from concurrent.futures.process import BrokenProcessPool
+    try:
+        return analysis_pool().submit(analysed, scene, metric).result()
+    except BrokenProcessPool:
+        close_pool()
+        raise
+
+
+def analysis_pool():
+    """Worker processes for offloaded analyses, one per core (spawned: the server runs threads, which fork would copy
+    half-way)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from granstab.solve.threads import cores
+    if not _POOL:
+        _POOL.append(ProcessPoolExecutor(max_workers=cores(), mp_context=multiprocessing.get_context("spawn")))
+    return _POOL[0]
+
+
+def close_pool() -> None:
+    """Stop the worker processes (the server's stop; a later offloaded analysis starts new ones)."""
+    while _POOL:
+        _POOL.pop().shutdown(wait=False, cancel_futures=True)
 
 
 def metric_family(scene) -> dict:

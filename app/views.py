@@ -229,6 +229,7 @@ class SceneView:
         self._cell_key: object = False            # what /cell shows now (None: nothing; False: not drawn yet)
         self.ghosts = None                        # (point cloud, scene names, periodic_images, z) of /cell/images
         self.dim = 2
+        self.static = False                       # a recording (app/publish.py): no drag handles, plain frames
 
     # particles ---------------------------------------------------------------------------------
     def draw_particles(self, session, skip: str | None = None) -> None:
@@ -249,7 +250,7 @@ class SceneView:
             self.key = key
             for body in bodies:
                 name = f"/particles/{body.name}"
-                if session.draggable:
+                if session.draggable and not self.static:
                     node = self.api.add_transform_controls(
                         name, scale=0.55 * size, active_axes=(True, True, self.dim == 3), disable_sliders=self.dim == 2,
                         depth_test=False, opacity=0.9, position=to3(body.x, 0.0), wxyz=wxyz(body.R))

@@ -20,7 +20,7 @@ from .io.syntax import paused_gc
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.metric import CHOICES as METRIC_CHOICES
 from .mechanics.stiffness import MaskError, stiffness
-from .model.errors import Interrupted, MissingExtra
+from .model.errors import Interrupted, MissingExtra, require
 from .model.scene import SceneError
 from .moduli import moduli
 from .scan.clusters import DEFAULT_BOUNDARY
@@ -377,6 +377,17 @@ def cmd_bench(args) -> int:
         run(quick=args.quick, out=Path(args.out), only=args.only, device=args.device)
     except NotGenerated as exc:
         raise InputError(str(exc)) from None
+    return 0
+
+
+def cmd_publish(args) -> int:
+    """A scene recorded into one self-contained HTML page (issue 29): the explorer's drawing, played offline."""
+    require("viser", "app", "granstab publish")
+    from granstab_app.publish import publish  # outside the core package (it needs viser); only this command needs it
+    done = publish(args.scene, Path(args.out))
+    print(f"wrote {args.out}: {done['bytes'] / 1e6:.2f} MB, {done['seconds']:.0f} s of recording, {done['steps']} "
+          f"{'steps of ρ/r' if done['sweep'] else 'modes'}; it opens offline in a browser (no dragging, no sliders: "
+          "its playback bar plays the recording)")
     return 0
 
 
@@ -833,6 +844,10 @@ def build_parser() -> Parser:
     p.add_argument("--device", choices=["cpu", "gpu"], default="cpu",
                    help="gpu: the GPU topics (branches, scan: GPU beside CPU) into BENCHMARKS-gpu.md")
     p.set_defaults(run=cmd_bench)
+    p = sub.add_parser("publish", help="a scene recorded as one HTML page that plays offline (needs the app extra)")
+    p.add_argument("scene", help="a preset name (presets/) or a scene file; two_particle: a sweep of ρ/r across 1")
+    p.add_argument("--out", required=True, help="the HTML file to write (at most 5 MB)")
+    p.set_defaults(run=cmd_publish)
     add_convert(sub)
     add_scan(sub)
     add_rigidity(sub)

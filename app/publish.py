@@ -1,0 +1,204 @@
+"""`granstab publish`: a scene recorded into one self-contained HTML page that plays offline, without Python.
+
+viser 1.1 records what a server sends (`ViserServer.get_scene_serializer()` → `StateSerializer`, `insert_sleep(dt)`
+between frames, `as_html()`: its single-file client with the recording embedded). The page is drawn by the explorer's
+own SceneView (app/views.py) from a Session (app/state.py), with the explorer's camera (panels.camera_pose):
+  - the pair preset (two_particle): a sweep of ρ/r across 1 (SWEEP), each step held, then its rolling mode played;
+    the particles, contact, force arrows, osculating circles and the λ⁽⁶⁾ surface with its current-state marker;
+  - any other scene: its lowest consistent modes (MODES at most, each motion once), each played in turn.
+A recording carries no GUI: the verdict badge is a scene label that changes at each step, and a note on the page
+(NOTE) says what the recording cannot do.
+"""
+from __future__ import annotations
+
+import contextlib
+import html
+import io
+import re
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import viser
+
+import granstab
+
+from .panels import camera_pose, fit_distance
+from .state import SAME_MODE, Session
+from .views import SceneView
+
+SWEEP = np.round(np.linspace(0.5, 1.5, 11), 2)     # ρ/r of the pair's steps: sharp, round (1: neutral), flat
+FPS = 20                                           # frames per second of a played mode
+CYCLE = 1.6                                        # s: one period of a played mode
+HOLD = 0.8                                         # s: a step shown at rest (contact drawings on) before its mode plays
+MODES = 3                                          # the other scenes: their lowest consistent modes played, at most
+AMPLITUDE = 0.25                                   # the explorer's default mode amplitude (× particle size)
+MAX_BYTES = 5_000_000                              # the largest page written
+VIEWPORT = SimpleNamespace(fov=75.0 * np.pi / 180.0, image_width=1600, image_height=1000)   # viser's default fov
+NOTE = ("<b>A recording</b> of the granstab explorer ({title}). It plays {what}. The playback bar at the bottom "
+        "pauses it (its left button) and scrubs through it; drag the view to turn the camera. A recording has no "
+        "controls of its own: the particles cannot be dragged and there are no sliders — run <code>granstab-app</code> "
+        "for those.")
+
+
+def publish(preset: str, out: Path | str) -> dict:
+    """Write the page of `preset` (a preset name or a scene file) to `out`; returns {"bytes", "seconds", "steps",
+    "sweep", "badges"}: badges lists each step's (ρ/r or mode eigenvalue, verdict word, λ⁽⁶⁾/k or None) as drawn.
+    Raises granstab.SceneError (one line) when the scene cannot be read or analysed, or the page would be too large."""
+    folder = Path(out).resolve().parent
+    if not folder.is_dir():
+        raise granstab.SceneError(f"granstab publish: --out {out}: no folder {folder}")
+    session = Session(preset)
+    if session.error:
+        raise granstab.SceneError(f"granstab publish: {session.error}")
+    if session.kind == "scan_map":
+        raise granstab.SceneError(f"granstab publish: {preset}: a scan folder; publish one scene file of it")
+    if session.deferred:
+        session.analyse()
+    if session.analysis is None:
+        raise granstab.SceneError(f"granstab publish: {preset}: no analysis to record: {session.error}")
+    page = Recording(session)
+    try:
+        steps = page.sweep() if session.kind == "two_particle" else page.modes()
+        text = page.html(steps)
+    finally:
+        page.close()
+    size = len(text.encode())
+    if size > MAX_BYTES:
+        raise granstab.SceneError(f"granstab publish: {preset}: the page would be {size / 1e6:.1f} MB, over the "
+                                  f"{MAX_BYTES / 1e6:.0f} MB limit")
+    Path(out).write_text(text, encoding="utf-8")
+    return {"bytes": size, "seconds": page.seconds, "steps": steps, "sweep": session.kind == "two_particle",
+            "badges": page.badges}
+
+
+class Recording:
+    """A viser server nobody connects to, whose scene is recorded while the explorer's SceneView draws into it."""
+
+    def __init__(self, session: Session):
+        self.session = session
+        self.title = getattr(session.scene, "title", None) or session.preset      # the scene as it opens
+        with contextlib.redirect_stdout(io.StringIO()):      # viser prints its address: nobody is to connect
+            self.server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+        self.recorder = self.server.get_scene_serializer()
+        self.seconds = 0.0
+        self.badges: list[tuple] = []                       # what each step's badge states (publish's return)
+        scene = self.server.scene
+        scene.configure_environment_map(hdri=None)          # as the explorer: no HDR map, plain lights
+        scene.configure_default_lights(enabled=True, cast_shadow=False)
+        self.view = SceneView(scene)
+        self.view.static = True
+
+    def close(self) -> None:
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server.stop()
+
+    def sleep(self, seconds: float) -> None:
+        self.recorder.insert_sleep(seconds)
+        self.seconds += seconds
+
+    def draw(self, badge: str, detail: str) -> None:
+        """The scene at rest as the explorer draws it, the camera, and the badge (two scene labels over it)."""
+        s, view = self.session, self.view
+        with self.server.atomic():
+            view.stop_animation()
+            view.draw_particles(s)
+            view.draw_contacts(s)
+            view.draw_cell(s)
+            field = s.field()
+            if field is not None:
+                view.draw_field(s, field, (s.params["rho_r"], s.params["f_kr"], s.rolling_eigenvalue()))
+            if not self.badges[1:]:                          # the camera of the first step, kept (no jumps)
+                pose = camera_pose(s, s.scene_dim == 2 and field is not None, True,
+                                   lambda w, h: fit_distance(w, h, VIEWPORT, covered=0.0))
+                camera = self.server.initial_camera
+                camera.position, camera.look_at, camera.up = pose["position"], pose["look_at"], pose["up_direction"]
+                camera.near, camera.far = pose["near"], pose["far"]
+            x = np.array([b.x for b in s.bodies()])
+            top = float(x[:, 1].max()) + 1.6 * s.size if s.scene_dim == 2 else float(x[:, 2].max()) + 1.6 * s.size
+            at = (float(x[:, 0].mean()), top, 0.0) if s.scene_dim == 2 else (float(x[:, 0].mean()),
+                                                                               float(x[:, 1].mean()), top)
+            self.server.scene.add_label("/badge", badge, position=at, font_screen_scale=1.6, anchor="bottom-center")
+            self.server.scene.add_label("/badge/detail", detail, position=(0.0, 0.0, 0.0), font_screen_scale=0.9,
+                                        anchor="top-center")
+
+    def colour(self, mode) -> None:
+        """Particles coloured by their share of `mode` where the explorer does so (more than two particles)."""
+        s = self.session
+        names = [b.name for b in s.bodies()]
+        index = {n: i for i, n in enumerate(s.scene.names)}
+        on = mode is not None and s.scene.n_particles > 2
+        self.view.colour_particles(names, s.particle_shares(mode)[[index[n] for n in names]] if on else None)
+
+    def play(self, mode) -> None:
+        """One period of `mode` at FPS frames per second (the explorer's animation: SceneView.animate)."""
+        s = self.session
+        for k in range(int(round(CYCLE * FPS))):
+            with self.server.atomic():
+                self.view.animate(s.mode_bodies(mode, AMPLITUDE, 2 * np.pi * k / (CYCLE * FPS)))
+            self.sleep(1.0 / FPS)
+
+    def sweep(self) -> int:
+        """The pair: each ρ/r of SWEEP held, then its rolling mode played; the badge states the step's verdict."""
+        s = self.session
+        for rho_r in SWEEP:
+            s.set_params(rho_r=float(rho_r))
+            word, reason = s.headline()
+            lam = s.rolling_eigenvalue()
+            self.badges.append((float(rho_r), word, lam))
+            self.draw(f"ρ/r = {rho_r:.2f}: {(word or 'no verdict').upper()}",
+                      f"rolling eigenvalue λ⁽⁶⁾/k = {0 if lam is None else lam:.3g} · {reason}")
+            self.sleep(HOLD)
+            rolling = next((m for m in s.modes() if m.branch == 0 and m.label == "rolling"), None)
+            if rolling is not None:
+                self.play(rolling)
+        return len(SWEEP)
+
+    def modes(self) -> int:
+        """Any other scene: its lowest consistent modes (each motion once), each held, then played."""
+        s = self.session
+        word, reason = s.headline()
+        chosen = lowest_modes(s, MODES)
+        for i, m in enumerate(chosen, 1):
+            self.badges.append((m.eigenvalue, word, None))
+            self.draw(f"{(word or 'no verdict').upper()} · mode {i} of {len(chosen)}: {m.label}, λ = {m.eigenvalue:.3g}",
+                      reason)
+            self.colour(m)
+            self.sleep(HOLD)
+            self.play(m)
+        if not chosen:
+            self.draw(f"{(word or 'no verdict').upper()} · no consistent mode to play", reason)
+            self.sleep(HOLD)
+        return len(chosen)
+
+    def html(self, steps: int) -> str:
+        """The recording as one HTML document (viser's as_html) with the page's title and NOTE."""
+        s = self.session
+        what = (f"a sweep of ρ/r across 1 in {steps} steps, each step's verdict on its badge and its rolling mode "
+                "animated" if s.kind == "two_particle" else
+                f"the {steps} lowest consistent mode(s) of the scene, animated, the verdict on the badge")
+        title = self.title
+        title = title if len(str(title)) <= 90 else f"{str(title)[:89]}…"
+        note = NOTE.format(title=html.escape(str(title)), what=what)
+        text = self.recorder.as_html()
+        box = (f'<div id="granstab-note" style="position:fixed;top:8px;right:8px;max-width:340px;z-index:1000;'
+               f'background:rgba(255,255,255,0.92);border:1px solid #bbb;border-radius:6px;padding:8px 10px;'
+               f'font:13px/1.35 sans-serif;color:#222">{note}</div>')
+        text = re.sub(r"<title>.*?</title>", f"<title>granstab: {html.escape(str(title))}</title>", text, count=1)
+        return text.replace("</body>", box + "</body>", 1)
+
+
+def lowest_modes(session: Session, most: int) -> list:
+    """The `most` lowest consistent non-rigid modes of the session, a motion in several branches once (|cos| ≥
+    SAME_MODE, as Session.distinct_modes counts them)."""
+    a, out, seen = session.analysis, [], []
+    for m in sorted((m for m in session.modes() if m.consistent and m.label != "rigid"), key=lambda m: m.eigenvalue):
+        v = a.motion(a.branches[m.branch].stability_vectors[:, m.index])
+        v = v / max(float(np.linalg.norm(v)), 1e-300)
+        if any(abs(float(v @ w)) >= SAME_MODE for w in seen):
+            continue
+        seen.append(v)
+        out.append(m)
+        if len(out) == most:
+            break
+    return out
