@@ -151,7 +151,7 @@ def test_a_3000_disk_chain_is_solved_and_says_where_it_is(tmp_path, monkeypatch,
 
 def test_the_3d_chain_is_sliced_too():
     """A 3D zig-zag chain of 1,000 spheres (6,000 dofs, shift-invert): the same slicing, proven unstable, the lowest
-    modes inertia-verified (the 3,000-sphere chain: the same in ~10 s, docs/bounds.md)."""
+    modes inertia-verified (the 3,000-sphere chain: the same in 7-13 s at load 11-18, docs/cli.md)."""
     from granstab.model.packings import chain
     from granstab.solve import sparse
     sc = chain(3, 1000, zigzag=0.3)
