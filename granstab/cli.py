@@ -180,8 +180,9 @@ def cmd_analyze(args) -> int:
     bars = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
     advice = [DENSE_ADVICE]
-    with deadline(args.timeout, source_of(args.scene), advice), Heartbeat(f"analyze {source_of(args.scene)}",
-                                                                      enabled=not bars) as beat:
+    # the heartbeat outside the deadline: an alarm inside Heartbeat's own enter or exit would leave its thread running
+    with Heartbeat(f"analyze {source_of(args.scene)}", enabled=not bars) as beat, \
+            deadline(args.timeout, source_of(args.scene), advice):
         beat.stage("reading")
         with strict_numerics(source_of(args.scene)):
             loaded = load_with_import_options(args.scene, args)

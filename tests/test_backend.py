@@ -107,6 +107,37 @@ def test_an_outer_limit_bounds_the_inner_policy():
     assert threads.for_size(big) == threads.cores()
 
 
+def test_results_do_not_depend_on_blas_threads_above_small(monkeypatch):
+    """The rule (docs/design.md, solve/threads.py): above SMALL dofs the full path takes every core, and nothing a
+    result reports depends on it. A 150-dof packing with two contacts at the limit (four branches) analysed on one
+    BLAS thread and on two (cores() set to 2, so a one-core machine runs two too): the same verdict, counts and
+    consistency codes, every eigenvalue within the sum of the two bounds, and each isolated eigenvector (relative
+    gap > 1e-6) the same canonical vector to 1e-8 (its perturbation is ~ε‖A‖/gap <= 2e-10): the sign rule
+    (branches.column_signs) picks the same entry whatever the thread count's round-off."""
+    pytest.importorskip("threadpoolctl", reason="threadpoolctl (test extra) applies the policy")
+    scene = packings.random_packing(2, 50, n_sliding=2, seed=3)
+    assert scene.n_dof > threads.SMALL
+    with threads.blas_threads(1):
+        one = granstab.analyze(scene, metric="L", method="dense", attribution=False)
+    monkeypatch.setattr(threads, "cores", lambda: 2)
+    assert threads.for_size(scene.n_dof) == 2
+    two = granstab.analyze(scene, metric="L", method="dense", attribution=False)
+    for key in ("verdict", "sufficient", "n_branches", "consistent_negative", "consistent_positive", "consistent_zero",
+                "reason"):
+        assert one.summary[key] == two.summary[key], key
+    assert len(one.branches) == len(two.branches) == 4
+    for a, b in zip(one.branches, two.branches):
+        np.testing.assert_array_equal(a.codes, b.codes)
+        lam = a.stability_eigenvalues
+        assert np.all(np.abs(lam - b.stability_eigenvalues) <= a.accuracy + b.accuracy)
+        scale = np.abs(lam).max()
+        gap = np.minimum(np.r_[np.inf, np.diff(lam)], np.r_[np.diff(lam), np.inf])
+        isolated = gap > 1e-6 * scale
+        assert isolated.sum() > len(lam) // 2
+        diff = np.abs(a.stability_vectors[:, isolated] - b.stability_vectors[:, isolated]).max()
+        assert diff <= 1e-8, diff
+
+
 # ------------------------------------------------------------------------------------------------- GPU only
 
 def honest_bounds(A, got):

@@ -5,8 +5,8 @@ clusters. And no verdict is called `sufficient` that the truth contradicts.
 The truth: tests/mp_truth.py forms H from the scene's own float data in mpmath at 50 digits (per contact, the
 paper's equations; checked here against granstab's H on generic clusters and against eq:exampleH2 for the pair) and
 takes the spectrum of sym(𝓗) on the complement of the exact rigid motions. Its own error is ~1e-50 relative, so
-|λ_granstab - λ_true| <= bound is the whole test: no tolerance is added. For 2D pairs whose tensors a reader formed
-from scalar curvatures κ t⊗t, a second truth takes the scalars as the data (the tensors formed in mp).
+|λ_granstab - λ_true| <= bound is the whole test: no tolerance is added. For 2D pairs read from
+scalar curvatures (a file's data), the truth takes the scalars as the data (the tensors formed in mp).
 """
 from __future__ import annotations
 
@@ -25,14 +25,24 @@ ELASTIC = ("p", "q", "normal", "force", "moment", "k", "alpha", "mu", "rolling",
 RATIOS: list = []          # |error| / bound of every eigenvalue checked (the worst is printed at the end)
 
 
-def pair_2d(kp: float, kq: float, angle: float, f: float = 0.01, rq: float = 1.0, tangential: float = 0.2):
-    """Two disks on a normal at `angle`, x^p = 0, r^p = 1, scalar curvatures κp, κq (κ < 0 convex) turned into
-    tensors κ t⊗t in float64 as the readers do (io/schema.py), an elastic contact with a tangential force."""
+def pair_2d(kp: float, kq: float, angle: float, f: float = 0.01, rq: float = 1.0, tangential: float = 0.2,
+            tensors: bool = False):
+    """Two disks on a normal at `angle`, x^p = 0, r^p = 1, scalar curvatures κp, κq (κ < 0 convex), an elastic
+    contact with a tangential force. Read as a file gives it (scalars: io/schema.py adds κp + κq before forming
+    tensors), or with `tensors` built from the tensors κ t⊗t formed in float64 (then those are the data)."""
     n = np.array([np.cos(angle), np.sin(angle)])
     t = tangent_basis(n[None])[0, :, 0]
+    force = -f * n + tangential * f * t
+    if not tensors:
+        return granstab.scene_from_dict({
+            "dim": 2, "title": "<pair>", "particles": [{"name": "p", "x": [0.0, 0.0]},
+                                                      {"name": "q", "x": ((1.0 + rq) * n).tolist()}],
+            "contacts": [{"p": "p", "q": "q", "point": n.tolist(), "normal": n.tolist(), "curvature_p": kp,
+                          "curvature_q": kq, "force": force.tolist(), "k": 1.0, "alpha": 1.0, "mu": 1.0,
+                          "state": "elastic"}]})
     arrays = {"p": np.array([0]), "q": np.array([1]), "point": n[None] * 1.0, "normal": n[None],
               "curvature_p": (kp * np.outer(t, t))[None], "curvature_q": (kq * np.outer(t, t))[None],
-              "force": (-f * n + tangential * f * t)[None], "moment": np.zeros((1, 1)), "k": np.ones(1),
+              "force": force[None], "moment": np.zeros((1, 1)), "k": np.ones(1),
               "alpha": np.ones(1), "mu": np.ones(1), "rolling": np.zeros((1, 1, 1)), "state": ("elastic",)}
     return granstab.build_scene(2, ["p", "q"], np.stack([np.zeros(2), (1.0 + rq) * n]), arrays, source="<pair>")
 
@@ -58,7 +68,7 @@ def pair_3d(k: float, eta: float, seed: int, f: float = 0.01):
 
 def shifted(scene, offset):
     """The same contacts with every position moved by `offset` (x and points rounded there: the far scene's data)."""
-    arrays = {key: getattr(scene, key) for key in ELASTIC + ("curvature_p", "curvature_q")}
+    arrays = {key: getattr(scene, key) for key in ELASTIC + ("curvature_p", "curvature_q", "curvature_sum")}
     arrays["point"] = scene.point + offset
     return granstab.build_scene(scene.dim, list(scene.names), scene.x + offset, arrays, source="<far>")
 
@@ -96,8 +106,12 @@ def check(scene, truths, method: str = "auto") -> dict:
     return res.summary
 
 
-def truth(scene, **kw):
+def truth(scene, kappas=None):
+    """The mp spectrum of `scene`'s data; `kappas` (κp, κq): a 2D file's scalars as the curvature data, the tensors
+    κ t⊗t formed in mp at DPS digits (formed at mp's default 15 digits they would carry an error ε|κ| of their own)."""
     with mp.workdps(DPS):
+        kw = {} if kappas is None else {"curvature_p": scalar_tensors(scene, [kappas[0]]),
+                                         "curvature_q": scalar_tensors(scene, [kappas[1]])}
         return spectrum(scene, stiffness(scene, **kw))
 
 
@@ -124,10 +138,12 @@ ISSUE_KAPPA = (-0.0120479607, 0.0120479606)
 @pytest.mark.parametrize("kappas", [ISSUE_KAPPA, (-1.0, 1.0 - 1e-6), (-1.0, 1.0 - 1e-9), (-0.5, 0.25)])
 def test_near_conforming_2d_pairs(angle, kappas):
     """The issue's pair (κp = -0.0120479607, κq = +0.0120479606: |K^p + K^q| = 8.3e-9 |K|), others down to 1e-9, in
-    rotated frames: against the tensors as data and against the scalars as data."""
+    rotated frames: read from scalars against the scalars as data (the tensors formed in mp), and built from float64
+    tensors against those tensors as data."""
     sc = pair_2d(*kappas, angle)
-    check(sc, [truth(sc), truth(sc, curvature_p=scalar_tensors(sc, [kappas[0]]),
-                                curvature_q=scalar_tensors(sc, [kappas[1]]))])
+    check(sc, [truth(sc, kappas)])
+    sc = pair_2d(*kappas, angle, tensors=True)
+    check(sc, [truth(sc)])
 
 
 def test_the_issue_pair_is_no_longer_a_confident_wrong_verdict():
@@ -135,8 +151,37 @@ def test_the_issue_pair_is_no_longer_a_confident_wrong_verdict():
     against a true λ_min of order -1e-7 (sign set by the last bits of the curvatures). Now the bound covers the
     truth, so the verdict is either the truth's or not sufficient."""
     sc = pair_2d(*ISSUE_KAPPA, 0.3, f=0.01, rq=0.5)
-    summary = check(sc, [truth(sc)])
+    summary = check(sc, [truth(sc, ISSUE_KAPPA)])
     assert summary["sufficient"] is False or summary["verdict"] == "unstable"
+
+
+# the force at which the issue pair's lowest eigenvalue is -1.26e-7 in the mp truth (found by bisection on the truth):
+# the sign rests on κp + κq = -1e-10, which the tensors κ t⊗t carry only to ε|κ| = 2.7e-18, a relative 3e-8 of it
+NEAR_ZERO_FORCE = 6.889266014099119e-05
+
+
+@pytest.mark.parametrize("angle", [0.3, 1.1, 2.5])
+def test_the_scalars_are_summed_so_the_issue_pair_is_decided(angle):
+    """The issue's κ pair read from a file in oblique frames, at the force where its lowest eigenvalue is -1.26e-7:
+    the reader adds the scalars (exact here, Sterbenz) and the bound needs no ε|κ| term, so the verdict is proven
+    and is the truth's (unstable). On main (tensors summed, the scalars' rounding bounded by 4ε(|κp| + |κq|)) the
+    bound was 0.30 and the verdict 'neutral, not sufficient'."""
+    sc = pair_2d(*ISSUE_KAPPA, angle, f=NEAR_ZERO_FORCE)
+    lam = truth(sc, ISSUE_KAPPA)
+    assert -2e-7 < min(lam) < -5e-8                  # the case is what it claims: a negative eigenvalue ~1e-7
+    summary = check(sc, [lam])
+    assert summary["sufficient"] is True and summary["verdict"] == "unstable"
+
+
+def test_a_curvature_sum_that_is_not_the_sum_is_refused():
+    """build_scene checks a given curvature_sum against K^p + K^q (input_rtol of |K|): one line naming the entry."""
+    sc = pair_2d(*ISSUE_KAPPA, 0.3)
+    np.testing.assert_array_equal(sc.curvature_sum[0], (ISSUE_KAPPA[0] + ISSUE_KAPPA[1])
+                                  * np.outer(*[tangent_basis(sc.normal)[0, :, 0]] * 2))
+    arrays = {key: getattr(sc, key) for key in ELASTIC + ("point", "curvature_p", "curvature_q")}
+    arrays["curvature_sum"] = sc.curvature_p + 1e-3 * sc.curvature_q
+    with pytest.raises(granstab.SceneError, match=r"^<bad>: contacts\[0\]: curvature_sum: differs from"):
+        granstab.build_scene(2, list(sc.names), sc.x, arrays, source="<bad>")
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -164,6 +164,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         "p": p, "q": q, "point": point, "normal": normal[c],
         "curvature_p": _curvature(-1.0 / geom["rho_p"][c], normal[c]),
         "curvature_q": _curvature(-1.0 / geom["rho_q"][c], normal[c]),
+        "curvature_sum": _curvature(-1.0 / geom["rho_p"][c] - 1.0 / geom["rho_q"][c], normal[c]),   # summed first
         "force": force[c], "moment": np.zeros((len(c), r)) if snap.moment is None else snap.moment[c],
         "k": law["k"][c], "alpha": law["alpha"][c], "mu": law["mu"][c],
         "rolling": np.zeros((len(c), r, r)), "state": tuple(state[c]),

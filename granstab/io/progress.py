@@ -60,7 +60,7 @@ class Heartbeat:
         self.what, self.estimate, self.enabled = what, estimate, enabled
         self.stream = stream if stream is not None else sys.stderr
         self.name, self.done, self.total = "starting", 0, None
-        self._stop = None
+        self._stop = self._thread = None
 
     def __enter__(self):
         import threading
@@ -68,11 +68,15 @@ class Heartbeat:
         self._start = time.monotonic()
         self._stop = threading.Event()
         if self.enabled:
-            threading.Thread(target=self._beat, daemon=True, name="granstab-heartbeat").start()
+            self._thread = threading.Thread(target=self._beat, daemon=True, name="granstab-heartbeat")
+            self._thread.start()
         return self
 
     def __exit__(self, *exc):
+        """Stop, and wait for a line being written: none may follow the run's own output (or its closed stream)."""
         self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
 
     def _beat(self) -> None:
         wait = HEARTBEAT_FIRST

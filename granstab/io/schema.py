@@ -144,8 +144,7 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol, cell=N
         c = first(bad)
         contacts.fail(c, "normal", f"must be a unit vector, |n| = {norm[c]:.9g}")
     arrays = {"p": p, "q": q, "point": contacts.numbers("point", (dim,)), "normal": normal,
-              "curvature_p": _curvature_column(contacts, "curvature_p", dim, normal, tol),
-              "curvature_q": _curvature_column(contacts, "curvature_q", dim, normal, tol),
+              **_curvature_columns(contacts, dim, normal, tol),
               "force": contacts.numbers("force", (dim,)),
               "moment": contacts.numbers("moment", moment_shape, 0.0).reshape(M, r)}
     for key, low, strict in (("k", 0.0, True), ("alpha", 0.0, False), ("mu", 0.0, False)):
@@ -225,11 +224,21 @@ def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, names: list, image=
         table.fail(c, "q", f"duplicate contact between {names[p[c]]!r} and {names[q[c]]!r} (also contacts[{j}])")
 
 
-def _curvature_column(table, key: str, dim: int, normal: np.ndarray, tol: Tolerances) -> np.ndarray:
-    """2D: scalar κ along t (convex < 0, κ = -1/ρ) → κ t⊗t; 3D: symmetric 3x3 with K·n = 0 (input_rtol·|K|)."""
-    if dim == 2:
-        t = tangent_basis(normal)[:, :, 0]
-        return table.numbers(key, ())[:, None, None] * (t[:, :, None] * t[:, None, :])
+def _curvature_columns(table, dim: int, normal: np.ndarray, tol: Tolerances) -> dict:
+    """curvature_p, curvature_q and their sum. 2D: scalars κ along t (convex < 0, κ = -1/ρ) → κ t⊗t, and the sum
+    (κp + κq) t⊗t of the scalars themselves (docs/bounds.md: near a conforming contact the sum of the tensors would
+    carry an error ε|κ| on a quantity of size |κp + κq|); 3D: the tensors (`_curvature_column`), summed later."""
+    if dim == 3:
+        return {key: _curvature_column(table, key, normal, tol) for key in ("curvature_p", "curvature_q")}
+    t = tangent_basis(normal)[:, :, 0]
+    tt = t[:, :, None] * t[:, None, :]
+    kp, kq = table.numbers("curvature_p", ()), table.numbers("curvature_q", ())
+    return {"curvature_p": kp[:, None, None] * tt, "curvature_q": kq[:, None, None] * tt,
+            "curvature_sum": (kp + kq)[:, None, None] * tt}
+
+
+def _curvature_column(table, key: str, normal: np.ndarray, tol: Tolerances) -> np.ndarray:
+    """3D: a symmetric 3x3 tensor with K·n = 0 (input_rtol·|K|)."""
     K = table.numbers(key, (3, 3))
     scale = np.maximum(np.abs(K).max(axis=(1, 2), initial=0.0), 1e-300)
     asym = np.abs(K - np.swapaxes(K, 1, 2)).max(axis=(1, 2), initial=0.0)

@@ -135,16 +135,17 @@ def relative_motion(r_pq: np.ndarray, r_qp: np.ndarray):
 
 
 def tangent_plane(scene: Scene):
-    """The contacts' tangent bases T (M, d, d-1), the curvature sum K^p + K^q added in the input frame and then
-    projected on the tangent plane and symmetrised (M, d-1, d-1), and the scale max(|K^p|, |K^q|) (M,), the largest
-    |eigenvalue| of either on the tangent plane.
+    """The contacts' tangent bases T (M, d, d-1), the curvature sum K^p + K^q projected on the tangent plane and
+    symmetrised (M, d-1, d-1), and the scale max(|K^p|, |K^q|) (M,), the largest |eigenvalue| of either on the
+    tangent plane.
 
-    The sum is formed before the projection: near a conforming contact (K^p + K^q ≈ 0) the input-frame sum is exact
-    or rounded relative to the sum itself (Sterbenz), whereas projecting first rounds each term to ε|K| and leaves
-    an absolute error ε|K| on a sum of size η: a relative error ε|K|/η in (K^p + K^q)^+ (docs/bounds.md)."""
+    The sum is the scene's `curvature_sum`, formed from the input before anything else (the readers add the 2D
+    scalars; otherwise the tensors are added in the input frame): near a conforming contact (K^p + K^q ≈ 0) it is
+    exact or rounded relative to the sum itself (Sterbenz), whereas projecting first rounds each term to ε|K| and
+    leaves an absolute error ε|K| on a sum of size η: a relative error ε|K|/η in (K^p + K^q)^+ (docs/bounds.md)."""
     T = tangent_basis(scene.normal)
     Tt = np.swapaxes(T, 1, 2)
-    ks = Tt @ (scene.curvature_p + scene.curvature_q) @ T
+    ks = Tt @ scene.curvature_sum @ T
     ks = 0.5 * (ks + np.swapaxes(ks, 1, 2))
     kp = Tt @ scene.curvature_p @ T
     kq = Tt @ scene.curvature_q @ T
@@ -154,18 +155,11 @@ def tangent_plane(scene: Scene):
 
 
 def curvature_sum_error(scene: Scene) -> np.ndarray:
-    """A bound (M,) of ‖(T^T (K^p + K^q) T) as computed − exact‖₂ on the tangent plane (docs/bounds.md): the
-    input-frame sum is rounded entrywise (u |K^p + K^q|), the projection and the computed basis T (orthonormal and
-    normal to n within a few ε) add at most 30ε‖K^p + K^q‖_F; in 2D the tensors κ t⊗t were themselves formed from
-    the scalars κ by the readers (io/schema.py, io/build.py), which rounds each entry to u|κ|: 4ε(|κp| + |κq|)
-    where the normal is oblique (the scalars are not kept, so their sum is bounded, not recovered)."""
-    Ks = scene.curvature_p + scene.curvature_q
-    out = 32 * EPS * np.linalg.norm(Ks, axis=(1, 2))
-    if scene.dim == 2:                # κ t⊗t is exact where t is along an axis (its products are 0 and ±κ)
-        oblique = np.all(scene.normal != 0, axis=1)
-        out = out + 4 * EPS * oblique * (np.linalg.norm(scene.curvature_p, axis=(1, 2))
-                                         + np.linalg.norm(scene.curvature_q, axis=(1, 2)))
-    return out
+    """A bound (M,) of ‖(T^T (K^p + K^q) T) as computed − exact‖₂ on the tangent plane (docs/bounds.md), the exact
+    sum being that of the input data: `curvature_sum` is rounded entrywise relative to the sum (u |K^p + K^q|:
+    the tensors added in the input frame, or the 2D scalars added and times t⊗t), and the projection with the
+    computed basis T (orthonormal and normal to n within a few ε) adds at most 30ε‖K^p + K^q‖_F."""
+    return 32 * EPS * np.linalg.norm(scene.curvature_sum, axis=(1, 2))
 
 
 def tangent_curvatures(scene: Scene):

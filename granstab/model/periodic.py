@@ -116,7 +116,8 @@ def tile(scene, reps) -> object:
     target = copies[:, None, :] + scene.image[None]                                          # (T, M, d)
     new_image, where = np.divmod(target, reps)
     contact = {key: np.tile(getattr(scene, key), (T,) + (1,) * (getattr(scene, key).ndim - 1))
-               for key in ("normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling")}
+               for key in ("normal", "curvature_p", "curvature_q", "curvature_sum", "force", "moment", "k", "alpha", "mu",
+                           "rolling")}
     names = tuple(f"{name}@{'.'.join(map(str, t))}" for t in copies for name in scene.names)
     per_particle = lambda a: None if a is None else np.tile(a, (T,) + (1,) * (a.ndim - 1))  # noqa: E731
     return replace(scene, names=names, x=(scene.x[None] + shift[:, None]).reshape(T * N, d),

@@ -2,7 +2,8 @@
 
 A `Scene` holds arrays over particles (N) and contacts (M); d = dim, r = 1 (2D) or 3 (3D):
 x (N, d), load b (N, d), load_moment w (N, r); per contact p, q (M,), point (M, d),
-normal n^pq (M, d), curvature_p/q K (M, d, d) on the tangent plane (2D: κ t⊗t), force f^pq (M, d),
+normal n^pq (M, d), curvature_p/q K (M, d, d) on the tangent plane (2D: κ t⊗t), their sum curvature_sum
+K^p + K^q (M, d, d) as formed from the input (2D: (κp + κq) t⊗t from the scalars), force f^pq (M, d),
 moment m^pq (M, r), k, alpha, mu (M,), rolling M^pq (M, r, r) and state ("auto" | "elastic" | "sliding").
 A periodic scene also has `cell` (d, d), the lattice vectors a_i as rows, and per contact `image` (M, d) integers:
 q's copy sits at x^q + Σ_i image_i a_i (`Scene.q_copy`); the branch vector b^pq runs from x^p to that copy and r^qp
@@ -23,8 +24,8 @@ from .tolerances import COORDINATE_RATIO, DEFAULT, MAX_MAGNITUDE, MIN_SCALE, Tol
 from .vec import cross, rot_dim, sum_at
 
 STATES = ("auto", "elastic", "sliding")
-CONTACT_FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu",
-                  "rolling", "image")     # the per-contact arrays (state, a tuple, besides): slice them together
+CONTACT_FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "curvature_sum", "force", "moment", "k",
+                  "alpha", "mu", "rolling", "image")     # the per-contact arrays (state, a tuple, besides): slice them together
 LAW_KEYS = ("k", "alpha", "mu", "rolling_stiffness")
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5, "rolling_stiffness": 0.0}
 
@@ -47,6 +48,11 @@ class Scene:
         Contact point, unit normal n^pq from p toward q, force f^pq on p by q (compression: f·n < 0).
     curvature_p, curvature_q : ndarray, (M, d, d)
         Surface curvature tensors K^p, K^q on the tangent plane (2D: κ t⊗t, convex κ < 0).
+    curvature_sum : ndarray, (M, d, d)
+        K^p + K^q formed from the input data before anything else (eq:rolling inverts it): the readers add the 2D
+        scalars, (κp + κq) t⊗t, and a sphere's (κp + κq)(I − n⊗n), so that a nearly conforming sum is rounded
+        relative to itself, not to |K| (docs/bounds.md). Default: curvature_p + curvature_q, entrywise (the tensors
+        as the data). A scene that replaces curvature_p or curvature_q must replace it too.
     moment : ndarray, (M, r)
         Contact moment m^pq on p by q.
     k, alpha, mu : ndarray, (M,)
@@ -87,10 +93,13 @@ class Scene:
     fixed: np.ndarray | None = None       # (N,) bool: particles held fixed (supports: no dofs, no rigid modes)
     cell: np.ndarray | None = None        # (d, d) lattice vectors as rows; None: not periodic
     image: np.ndarray | None = None       # (M, d) int: q's copy is x^q + image @ cell; None → zeros
+    curvature_sum: np.ndarray | None = None   # (M, d, d) K^p + K^q from the input; None → the tensors' sum
 
     def __post_init__(self):
         if self.image is None:
             object.__setattr__(self, "image", np.zeros((len(self.p), self.dim), dtype=np.int64))
+        if self.curvature_sum is None:
+            object.__setattr__(self, "curvature_sum", self.curvature_p + self.curvature_q)
 
     @property
     def periodic(self) -> bool:
@@ -211,7 +220,8 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
     arrays : dict
         The contact fields of `Scene`: ``p``, ``q`` (M,) int, ``point``, ``normal``, ``force`` (M, dim),
         ``curvature_p``, ``curvature_q`` (M, dim, dim), ``moment`` (M, r), ``k``, ``alpha``, ``mu`` (M,),
-        ``rolling`` (M, r, r), ``state`` (M,) str.
+        ``rolling`` (M, r, r), ``state`` (M,) str; optionally ``curvature_sum`` (M, dim, dim), K^p + K^q as formed
+        from the input (it must agree with the tensors' sum to input_rtol·max(|K^p|, |K^q|)).
     loads, load_moments : None, list or (values, given)
         External b (N, dim) and w (N, r): None for the equilibrium values (eq:equil1), a list with None where
         the equilibrium value is meant, or values with a (N,) bool of those given; given ones must balance.
@@ -245,6 +255,7 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
     given_b, has_b = _given(loads, N, dim)
     given_w, has_w = _given(load_moments, N, r)
     check_ranges(base, contact_name, particle_name, (given_b, given_w))
+    _check_curvature_sum(base, contact_name)
     check_points(base, contact_name)
     _check_friction(base, contact_name)
     b_eq, w_eq = equilibrium_loads(base)
@@ -295,8 +306,9 @@ def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
     COORDINATE_RATIO mean contact radii of the origin (beyond it r^pq = point - x loses more than input_rtol to
     rounding). The first offender is named with its entry and field."""
     per_contact = {"point": scene.point, "normal": scene.normal, "curvature_p": scene.curvature_p,
-                   "curvature_q": scene.curvature_q, "force": scene.force, "moment": scene.moment, "k": scene.k,
-                   "alpha": scene.alpha, "mu": scene.mu, "rolling_stiffness": scene.rolling}
+                   "curvature_q": scene.curvature_q, "curvature_sum": scene.curvature_sum, "force": scene.force,
+                   "moment": scene.moment, "k": scene.k, "alpha": scene.alpha, "mu": scene.mu,
+                   "rolling_stiffness": scene.rolling}
     M = scene.n_contacts
     for key, arr in per_contact.items():
         _check_magnitude(_rows(arr, M), scene.source, contact_name, key)
@@ -348,6 +360,18 @@ def _check_magnitude(arr: np.ndarray, source: str, name, key: str) -> None:
 def _fmt(v) -> str:
     v = np.asarray(v).reshape(-1)
     return "[" + ", ".join(f"{a:.6g}" for a in v) + "]" if v.size > 1 else f"{v[0]:.6g}"
+
+
+def _check_curvature_sum(scene: Scene, name) -> None:
+    """A given curvature_sum must be K^p + K^q to input_rtol of the larger curvature (the same data, summed first)."""
+    scale = np.maximum(np.abs(scene.curvature_p).max(axis=(1, 2), initial=0.0),
+                       np.abs(scene.curvature_q).max(axis=(1, 2), initial=0.0))
+    off = np.abs(scene.curvature_sum - scene.curvature_p - scene.curvature_q).max(axis=(1, 2), initial=0.0)
+    bad = off > scene.tol.input_rtol * scale
+    if bad.any():
+        c = first(bad)
+        raise SceneError(f"{scene.source}: {name(c)}: curvature_sum: differs from curvature_p + curvature_q by "
+                         f"{off[c]:.3g} (more than input_rtol of |K| = {scale[c]:.3g})")
 
 
 def _check_friction(scene: Scene, name) -> None:

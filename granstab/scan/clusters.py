@@ -20,7 +20,8 @@ import scipy.sparse as sp
 from ..model.scene import Scene, SceneError, equilibrium_loads
 from ..model.vec import rot_dim
 
-CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling")
+CONTACT_FIELDS = ("point", "normal", "curvature_p", "curvature_q", "curvature_sum", "force", "moment", "k", "alpha", "mu",
+                  "rolling")
 
 
 def adjacency(scene: Scene) -> sp.csr_matrix:

@@ -21,7 +21,10 @@ correction; it is applied as a LinearOperator. Its lowest eigenpairs come from o
   the low-rank update gives the number ν of eigenvalues of B below σ,
       ν(B - σI) = ν(Hs - σI) + ν(-K⁻¹ - UᵀM⁻¹U) - ν(-K⁻¹).
   When every eigenvalue below σ was found (always the case when ν = 0) the k returned eigenvalues are provably the
-  lowest k; otherwise σ is lowered below a Lanczos estimate of λ_min and the solve repeated. `Modes.verified`
+  lowest k; otherwise (or when more than 4k + 20 lie below σ: a floppy chain has thousands, clustered, on which
+  Lanczos stalled) σ is moved by bisection on the inertia count, one LU a step (spectrum slicing, `_slice`), until
+  between k and 4k + 20 eigenvalues lie below it, and exactly those are computed: the most negative eigenvalues
+  of (B - σI)⁻¹. A Lanczos estimate of λ_min is the fallback where no count is available. `Modes.verified`
   says whether that check passed. Memory: the LU fill, ~n log n in 2D and ~n^{4/3} in 3D (`info["lu_nnz"]`).
 * LOBPCG (default for larger 3D scenes): scipy.sparse.linalg.lobpcg on B with the rigid modes as constraints and
   the `TwoLevel` preconditioner (smoothed aggregation of per-aggregate rigid motions over the elastic Hm + τI,
@@ -446,25 +449,69 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
     else:
         lam = np.array([sig])
     if not verified:
-        # some eigenvalues below σ were not reached (or the inertia is unknown): move σ below a Lanczos estimate
-        # of λ_min and solve again
-        try:
-            est = spla.eigsh(Bop, k=1, which="SA", tol=1e-3, v0=v0, return_eigenvectors=False,
-                             maxiter=max(1000, 20 * n))[0]
-        except spla.ArpackNoConvergence as exc:                     # fall back on the crude bound -‖Hs‖
-            est = float(np.min(exc.eigenvalues)) if len(exc.eigenvalues) else -sp_.norm
-        sig = min(lam.min(), est) - 0.05 * abs(min(lam.min(), est)) - SIGMA_REL * sp_.norm
+        # some eigenvalues below σ were not reached, or too many lie below it (a floppy structure's thousands of
+        # clustered negative eigenvalues, on which Lanczos stalls): slice the spectrum by inertia counts
         t2 = time.perf_counter()
-        fac = factor(sp_, sig)
+        shifted = _slice(sp_, U, K, shifted, k, 4 * k + 20) if nu is not None else None
+        if shifted is None:
+            shifted = _below_lanczos(sp_, Bop, U, K, lam, v0, n)
         info["factor"] += time.perf_counter() - t2
+        fac = shifted.lu
+        sig, nu = shifted.sigma, shifted.n_below
         info["factorization"] = fac
         info["lu_nnz"] = fac.nnz
-        shifted = Shifted(fac, U, K, sig, fac.n_neg)
-        nu = shifted.n_below
-        lam, V = _eigsh_near(shifted, Bop, n, k + (nu or 0), tol, maxiter, v0)
+        if nu is not None and nu >= k:       # exactly ν below σ: the most negative values of (B - σI)⁻¹ are they
+            lam, V = _eigsh_near(shifted, Bop, n, nu, tol, maxiter, v0, which="SA")
+        else:
+            lam, V = _eigsh_near(shifted, Bop, n, k + (nu or 0), tol, maxiter, v0)
         verified = nu is not None and int(np.sum(lam < sig)) >= nu
     info["solve"] = time.perf_counter() - t
     return _finish(sp_, Bop, lam[:k], V[:, :k], mask_arr, sig, verified, nu, method, info)
+
+
+SLICE_STEPS = 60   # inertia counts (one sparse LU each) allowed to find a shift with few eigenvalues below it
+
+
+def _slice(sp_: SparseProblem, U, K, above: Shifted, least: int, target: int) -> Shifted | None:
+    """A shift σ with least <= ν(σ) <= target eigenvalues of B below it (or, where a cluster makes ν jump past that
+    window, the highest σ found with fewer), by bisection on σ between -1.01 s (no eigenvalue of B lies below
+    -‖Hs‖ >= -s) and `above` (ν > target), each step one LU of Hs - σI and its inertia (Sylvester, Haynsworth: the
+    module docstring), geometric in |σ| (the eigenvalues of a floppy structure crowd near 0): spectrum slicing,
+    O(steps · LU) whatever the clustering. Then the ν eigenvalues below σ are exactly the ν most negative of
+    (B - σI)⁻¹ (`lowest_modes`). None where the counts are unknown or s is not above ‖Hs‖."""
+    lo, hi = None, above
+    for _ in range(SLICE_STEPS + 1):
+        if lo is None:
+            mid = -1.01 * sp_.norm
+        else:
+            mid = 0.5 * (lo.sigma + hi.sigma) if hi.sigma >= 0 else -np.sqrt(lo.sigma * hi.sigma)
+        fac = factor(sp_, mid)
+        if fac.n_neg is None:
+            return None
+        cut = Shifted(fac, U, K, mid, fac.n_neg)
+        if lo is None and cut.n_below != 0:
+            return None
+        if lo is not None and least <= cut.n_below <= target:
+            return cut
+        if cut.n_below < least:
+            lo = cut
+        else:
+            hi = cut
+        if hi.sigma - lo.sigma <= 1e-12 * sp_.norm:
+            break
+    return lo
+
+
+def _below_lanczos(sp_: SparseProblem, Bop, U, K, lam, v0, n) -> Shifted:
+    """A shift below a Lanczos estimate of λ_min (where no inertia count is available)."""
+    try:
+        est = spla.eigsh(Bop, k=1, which="SA", tol=1e-3, v0=v0, return_eigenvectors=False,
+                         maxiter=max(1000, 20 * n))[0]
+    except spla.ArpackNoConvergence as exc:                     # fall back on the crude bound -‖Hs‖
+        est = float(np.min(exc.eigenvalues)) if len(exc.eigenvalues) else -sp_.norm
+    sig = min(lam.min(), est) - 0.05 * abs(min(lam.min(), est)) - SIGMA_REL * sp_.norm
+    fac = factor(sp_, sig)
+    return Shifted(fac, U, K, sig, fac.n_neg)
 
 
 DENSE_FALLBACK_MAX_DOF = 4000   # ARPACK failures below this size are solved densely instead
@@ -480,8 +527,8 @@ def _drop_rigid(sp_: SparseProblem, lam, V):
     return lam[keep], V[:, keep]
 
 
-def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0):
-    """The kk eigenpairs of B nearest σ by shift-invert ARPACK. If ARPACK does not converge (clustered
+def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0, which: str = "LM"):
+    """The kk eigenpairs of B nearest σ by shift-invert ARPACK (which="SA": the kk nearest below σ). If ARPACK does not converge (clustered
     eigenvalues at σ), retry with a larger Krylov space and a round-off tolerance; small problems (at most
     DENSE_FALLBACK_MAX_DOF dofs, where ARPACK gets DENSE_FALLBACK_PATIENCE restarts) then fall back on a dense eigh
     of B, large ones raise a RuntimeError that says so."""
@@ -493,7 +540,7 @@ def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0):
     attempts = [dict(tol=tol), dict(tol=tol, ncv=wide), dict(tol=max(tol, 1e-12), ncv=wide)]
     for options in attempts:
         try:
-            lam, V = spla.eigsh(Bop, k=kk, sigma=shifted.sigma, which="LM", OPinv=OPinv, v0=v0,
+            lam, V = spla.eigsh(Bop, k=kk, sigma=shifted.sigma, which=which, OPinv=OPinv, v0=v0,
                                 maxiter=maxiter, **options)
             break
         except spla.ArpackNoConvergence:
@@ -504,7 +551,9 @@ def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0):
                                f"{shifted.sigma:.3g} ({n} dofs); try method='lobpcg'")
         B = Bop.matmat(np.eye(n))
         lam, V = np.linalg.eigh(0.5 * (B + B.T))
-        near = np.sort(np.argsort(np.abs(lam - shifted.sigma), kind="stable")[:kk])
+        dist = np.abs(lam - shifted.sigma) if which == "LM" else np.where(lam < shifted.sigma, shifted.sigma - lam,
+                                                                           np.inf)
+        near = np.sort(np.argsort(dist, kind="stable")[:kk])
         lam, V = lam[near], V[:, near]
     order = np.argsort(lam)
     return lam[order], V[:, order]
