@@ -45,7 +45,7 @@ def planted(n: int = 5, centre: int = 12):
     scene = packings.lattice(2, n, curvature_ratio=2.0, n_sliding=3, mobilised=0.5)
     at = (scene.p == centre) | (scene.q == centre)
     factor = np.where(at, 2.0 / 0.4, 1.0)[:, None, None]
-    arrays = {k: getattr(scene, k) for k in CONTACT_FIELDS + ("state",) if k != "image"}
+    arrays = {k: getattr(scene, k) for k in CONTACT_FIELDS + ("state",) if k not in ("image", "curvature_sum")}
     arrays.update(curvature_p=scene.curvature_p * factor, curvature_q=scene.curvature_q * factor,
                   alpha=np.where(at, 1e-4, scene.alpha))
     return granstab.build_scene(2, scene.names, scene.x, arrays, source="planted")

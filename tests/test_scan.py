@@ -305,7 +305,7 @@ def planted_lattice(center: int, rho_over_r: float):
     scene = packings.lattice(2, 9, curvature_ratio=2.0)
     planted = (scene.p == center) | (scene.q == center)
     factor = np.where(planted, 2.0 / rho_over_r, 1.0)[:, None, None]
-    arrays = {name: getattr(scene, name) for name in CONTACT_FIELDS + ("p", "q", "state")}
+    arrays = {name: getattr(scene, name) for name in CONTACT_FIELDS + ("p", "q", "state") if name != "curvature_sum"}
     arrays.update(curvature_p=scene.curvature_p * factor, curvature_q=scene.curvature_q * factor,
                   alpha=np.where(planted, 1e-4, scene.alpha))
     return granstab.build_scene(2, scene.names, scene.x, arrays), planted
