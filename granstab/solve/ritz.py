@@ -7,26 +7,9 @@ import numpy as np
 
 from .device import backend
 from .lowrank import stack, sym_updates
-from .sparse import Shifted, _finish, _lowrank, lowest_modes, operator
+from .sparse import Shifted, _finish, _lowrank, _sym, extend, lowest_modes, operator
 
 GUARD = 6            # extra Ritz vectors carried by the refinement (faster convergence of the kk lowest)
-
-
-def _sym(M):
-    return 0.5 * (M + M.swapaxes(-1, -2))
-
-
-def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
-    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): twice, B is
-    projected off X (block Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
-    only, no Householder QR of n × m); directions below `cut` are dropped."""
-    for _ in range(2):
-        B = B - X @ (X.T @ B)
-        B = B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)
-        s, U = np.linalg.eigh(_sym(B.T @ B))
-        keep = s > cut * max(s[-1], 1e-300)
-        B = B @ (U[:, keep] / np.sqrt(s[keep]))
-    return B
 
 
 class SparseRitz:

@@ -497,6 +497,23 @@ def _drop_rigid(sp_: SparseProblem, lam, V):
     return lam[keep], V[:, keep]
 
 
+def _sym(M):
+    return 0.5 * (M + M.swapaxes(-1, -2))
+
+
+def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
+    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): twice, B is
+    projected off X (block Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
+    only, no Householder QR of n × m); directions below `cut` are dropped."""
+    for _ in range(2):
+        B = B - X @ (X.T @ B)
+        B = B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+        s, U = np.linalg.eigh(_sym(B.T @ B))
+        keep = s > cut * max(s[-1], 1e-300)
+        B = B @ (U[:, keep] / np.sqrt(s[keep]))
+    return B
+
+
 BLOCK = 8        # _block_near: columns per block solve …
 BLOCK_STEPS = 6  # … Krylov blocks per cycle …
 BLOCK_CYCLES = 6  # … and restarts before ARPACK takes over
@@ -509,7 +526,6 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
     with Rayleigh-Ritz on the exact B and thick restarts; None if not converged to BLOCK_RTOL after BLOCK_CYCLES
     (the caller then runs ARPACK). Ritz values are upper bounds of the eigenvalues (Cauchy interlacing), each
     within its residual of one; which eigenvalues they are is settled by the caller's inertia count."""
-    from .ritz import extend
     R, n = sp_.R, sp_.n
     X = rng.standard_normal((n, BLOCK))
     basis = extend(R, X - R @ (R.T @ X))
