@@ -47,7 +47,9 @@ def _goal(d: dict) -> str:
     if abs(d["particles"] - size) > 0.02 * size:
         return "—"
     t = d["t_scene"] + d["t_run"]
-    over = ([f"time {t:.0f} s, {t / seconds:.1f}× the goal"] if t > seconds else []) + \
+    cpu = (f" (CPU time {d['cpu_run']:.0f} s, 1-minute load {max(d['load']):.0f} on 2 cores)"
+           if "cpu_run" in d else "")
+    over = ([f"time {t:.0f} s, {t / seconds:.1f}× the goal{cpu}"] if t > seconds else []) + \
            ([f"memory {d['peak_mb']:.0f} MB, {d['peak_mb'] - mb:.0f} MB ({d['peak_mb'] / mb - 1:.0%}) over"]
             if mb is not None and d["peak_mb"] > mb else [])
     goal = f"≤ {seconds:g} s" + ("" if mb is None else f", ≤ {mb / 1024:g} GB")
