@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg.blas import dsyrk, dtrmm
 from scipy.linalg.lapack import dpotrf, dtrtri
 
 from .threads import blas_threads
@@ -82,41 +83,45 @@ class Multifrontal:
         self.nnz = int(sum(G.size + W.size for G, W, *_ in self.factors))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """x = A⁻¹ b: L̂ z = b (nodes in order), z ← S z, L̂ᵀ x = z (nodes in reverse order)."""
+        """x = A⁻¹ b where every front is Cholesky (`definite`; G = L11⁻¹ lower triangular, S = I): L̂ z = b (nodes in
+        order), L̂ᵀ x = z (nodes in reverse order); G applied by dtrmm, which reads only its lower triangle."""
+        if not self.definite:
+            raise ValueError("Multifrontal.solve needs every front positive definite (definite)")
         x = np.array(b, dtype=float, copy=True)
+        X = x.reshape(self.n, -1)
         bounds, structs = self.bounds, self.structs
         with blas_threads(1):                                          # small blocks: one thread (threads.py)
             for i, (G, W, _, _) in enumerate(self.factors):
                 s, e = bounds[i], bounds[i + 1]
-                x[s:e] = G @ x[s:e]
+                X[s:e] = dtrmm(1.0, G, X[s:e], lower=1)
                 if W.size:
-                    x[structs[i]] -= W @ x[s:e]
+                    X[structs[i]] -= W @ X[s:e]
             for i in range(len(self.factors) - 1, -1, -1):
-                G, W, signs, chol = self.factors[i]
+                G, W, _, _ = self.factors[i]
                 s, e = bounds[i], bounds[i + 1]
-                z = x[s:e] if chol else x[s:e] * (signs if x.ndim == 1 else signs[:, None])
-                if W.size:
-                    z = z - W.T @ x[structs[i]]
-                x[s:e] = G.T @ z
+                z = X[s:e] - W.T @ X[structs[i]] if W.size else X[s:e]
+                X[s:e] = dtrmm(1.0, G, z, lower=1, trans_a=1)
         return x
 
 
 def _eliminate(A, node: int, s: int, e: int, st: np.ndarray, parent: int, loc: np.ndarray, updates: dict,
                scale: float):
     """One node's front: assemble (A's lower columns s:e and the children's updates), split F11 = G⁻¹ S G⁻ᵀ, pass
-    the update F22 - W S Wᵀ (W = F21 Gᵀ) to `parent`; (G, W, S), or None where refused (module docstring)."""
+    the update F22 - W S Wᵀ (W = F21 Gᵀ) to `parent`; (G, W, S), or None where refused (module docstring). Fronts
+    and updates hold their lower triangles only (rows are in increasing order, so a child's lower triangle lands in
+    its parent's): W by dtrmm and the update by dsyrk where F11 is Cholesky, half a full product's flops each."""
     k = e - s
     rows = np.concatenate([np.arange(s, e), st])
     loc[rows] = np.arange(len(rows))
     F = np.zeros((len(rows), len(rows)))
     lo, hi = A.indptr[s], A.indptr[e]
     r, c = A.indices[lo:hi], np.repeat(np.arange(k), np.diff(A.indptr[s:e + 1]))
-    keep = r >= s
+    keep = r >= s + c                                                 # the lower triangle
     F[loc[r[keep]], c[keep]] = A.data[lo:hi][keep]
     for child_rows, U in updates.pop(node, []):
         li = loc[child_rows]
         F[np.ix_(li, li)] += U
-    F11 = 0.5 * (F[:k, :k] + F[:k, :k].T)
+    F11 = F[:k, :k]
     L, info = dpotrf(F11, lower=1, clean=1, overwrite_a=0)
     chol = info == 0
     if chol:                                                         # positive definite: G = L11⁻¹, S = I
@@ -124,14 +129,15 @@ def _eliminate(A, node: int, s: int, e: int, st: np.ndarray, parent: int, loc: n
         signs = np.ones(k)
         chol = info == 0
     if not chol:
-        lam, V = np.linalg.eigh(F11)
+        lam, V = np.linalg.eigh(F11, UPLO="L")
         if np.abs(lam).min() <= SINGULAR_RTOL * scale:
             return None
         signs = np.sign(lam)
         G = (V / np.sqrt(np.abs(lam))).T
-    W = F[k:, :k] @ G.T
+    W = dtrmm(1.0, G, F[k:, :k], side=1, lower=1, trans_a=1) if chol else F[k:, :k] @ G.T
     if st.size:
-        U = F[k:, k:] - (W * signs) @ W.T
+        U = (dsyrk(-1.0, W, beta=1.0, c=F[k:, k:], lower=1) if chol
+             else np.tril(F[k:, k:] - (W * signs) @ W.T))
         if np.abs(U).max(initial=0.0) > GROWTH_MAX * scale:
             return None
         updates.setdefault(parent, []).append((st, U))

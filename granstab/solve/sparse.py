@@ -458,7 +458,10 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
     verified = False
     if nu is not None and nu <= 4 * k + 20:
         found = _block_near(shifted, Bop, sp_, k + nu, rng) if fac.lu is None and tol == 0 else None
-        lam, V = found if found is not None else _eigsh_near(shifted, Bop, n, k + nu, tol, maxiter, v0)
+        if found is not None:
+            lam, V, info["krylov"] = found
+        else:
+            lam, V = _eigsh_near(shifted, Bop, n, k + nu, tol, maxiter, v0)
         verified = int(np.sum(lam < sig)) >= nu
     else:
         lam = np.array([sig])
@@ -525,25 +528,26 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
     one block solve each: BLAS-3 on the multifrontal factor, where ARPACK makes one single-vector solve per step)
     with Rayleigh-Ritz on the exact B and thick restarts; None if not converged to BLOCK_RTOL after BLOCK_CYCLES
     (the caller then runs ARPACK). Ritz values are upper bounds of the eigenvalues (Cauchy interlacing), each
-    within its residual of one; which eigenvalues they are is settled by the caller's inertia count."""
+    within its residual of one; which eigenvalues they are is settled by the caller's inertia count. Also returns
+    the whole orthonormal Krylov basis (n × m, rigid-free: SparseRitz starts from it)."""
     R, n = sp_.R, sp_.n
     X = rng.standard_normal((n, BLOCK))
     basis = extend(R, X - R @ (R.T @ X))
-    block = basis
+    block, BV = basis, Bop.matmat(basis)
     for _ in range(BLOCK_CYCLES):
         for _ in range(BLOCK_STEPS):
             block = extend(np.concatenate([R, basis], axis=1), shifted.solve(block))
             if not block.shape[1]:
                 break
             basis = np.concatenate([basis, block], axis=1)
-        BV = Bop.matmat(basis)
+            BV = np.concatenate([BV, Bop.matmat(block)], axis=1)     # B applied once per vector (restarts rotate it)
         theta, Y = np.linalg.eigh(0.5 * (basis.T @ BV + BV.T @ basis))
         V = basis @ Y[:, :kk]
         res = np.linalg.norm(BV @ Y[:, :kk] - V * theta[:kk], axis=0)
         if res.max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
-            return theta[:kk], V
+            return theta[:kk], V, basis
         keep = min(kk + BLOCK, Y.shape[1])
-        basis = basis @ Y[:, :keep]                                   # thick restart on the lowest Ritz vectors
+        basis, BV = basis @ Y[:, :keep], BV @ Y[:, :keep]             # thick restart on the lowest Ritz vectors
         block = basis[:, -BLOCK:]
     return None
 
