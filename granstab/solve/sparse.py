@@ -531,25 +531,37 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
     within its residual of one; which eigenvalues they are is settled by the caller's inertia count. Also returns
     the whole orthonormal Krylov basis (n × m, rigid-free: SparseRitz starts from it)."""
     R, n = sp_.R, sp_.n
-    X = rng.standard_normal((n, BLOCK))
-    basis = extend(R, X - R @ (R.T @ X))
-    block, BV = basis, Bop.matmat(basis)
+    d, cap = R.shape[1], max(kk, 0) + BLOCK * (BLOCK_STEPS + 1)      # the widest basis: kept + new blocks
+    X, BV = np.empty((n, d + cap)), np.empty((n, cap))                # [R, basis] and B·basis, filled in place
+    X[:, :d] = R
+    block = rng.standard_normal((n, BLOCK))
+    block = extend(R, block - R @ (R.T @ block))
+    G, m = _append(X, BV, np.zeros((0, 0)), 0, block, Bop)          # G = basisᵀ B basis, m basis columns
     for _ in range(BLOCK_CYCLES):
         for _ in range(BLOCK_STEPS):
-            block = extend(np.concatenate([R, basis], axis=1), shifted.solve(block))
-            if not block.shape[1]:
+            block = extend(X[:, :d + m], shifted.solve(block))
+            if not block.shape[1] or m + block.shape[1] > cap:
                 break
-            basis = np.concatenate([basis, block], axis=1)
-            BV = np.concatenate([BV, Bop.matmat(block)], axis=1)     # B applied once per vector (restarts rotate it)
-        theta, Y = np.linalg.eigh(0.5 * (basis.T @ BV + BV.T @ basis))
-        V = basis @ Y[:, :kk]
-        res = np.linalg.norm(BV @ Y[:, :kk] - V * theta[:kk], axis=0)
+            G, m = _append(X, BV, G, m, block, Bop)
+        theta, Y = np.linalg.eigh(_sym(G))
+        V = X[:, d:d + m] @ Y[:, :kk]
+        res = np.linalg.norm(BV[:, :m] @ Y[:, :kk] - V * theta[:kk], axis=0)
         if res.max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
-            return theta[:kk], V, basis
-        keep = min(kk + BLOCK, Y.shape[1])
-        basis, BV = basis @ Y[:, :keep], BV @ Y[:, :keep]             # thick restart on the lowest Ritz vectors
-        block = basis[:, -BLOCK:]
+            return theta[:kk], V, X[:, d:d + m]
+        keep = min(kk + BLOCK, m)                                     # thick restart on the lowest Ritz vectors
+        X[:, d:d + keep], BV[:, :keep] = X[:, d:d + m] @ Y[:, :keep], BV[:, :m] @ Y[:, :keep]
+        m, G = keep, np.diag(theta[:keep])
+        block = X[:, d + max(0, m - BLOCK):d + m]
     return None
+
+
+def _append(X, BV, G, m, block, Bop):
+    """Put `block` after the m basis columns of X (after R's d) and B·block in BV (B is applied once per vector;
+    restarts rotate it); G grows by the block's rows and columns (B symmetric). Returns (G, m)."""
+    b, d = block.shape[1], X.shape[1] - BV.shape[1]
+    X[:, d + m:d + m + b], BV[:, m:m + b] = block, Bop.matmat(block)
+    C = X[:, d:d + m + b].T @ BV[:, m:m + b]
+    return np.block([[G, C[:m]], [C[:m].T, _sym(C[m:])]]), m + b
 
 
 def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0):
