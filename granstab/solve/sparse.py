@@ -532,7 +532,8 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
     the whole orthonormal Krylov basis (n × m, rigid-free: SparseRitz starts from it)."""
     R, n = sp_.R, sp_.n
     d, cap = R.shape[1], max(kk, 0) + BLOCK * (BLOCK_STEPS + 1)      # the widest basis: kept + new blocks
-    X, BV = np.empty((n, d + cap)), np.empty((n, cap))                # [R, basis] and B·basis, filled in place
+    X, BV = np.empty((n, d + cap), order="F"), np.empty((n, cap), order="F")   # [R, basis], B·basis: in place,
+                                                                      # column slices contiguous (BLAS, no copy)
     X[:, :d] = R
     block = rng.standard_normal((n, BLOCK))
     block = extend(R, block - R @ (R.T @ block))
