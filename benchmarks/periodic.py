@@ -47,7 +47,9 @@ def _goal(d: dict) -> str:
     if abs(d["particles"] - size) > 0.02 * size:
         return "—"
     t = d["t_scene"] + d["t_run"]
-    over = ([f"time {t:.0f} s, {t / seconds:.1f}× the goal"] if t > seconds else []) + \
+    cpu = (f" (CPU time {d['cpu_run']:.0f} s, 1-minute load {max(d['load']):.0f} on 2 cores)"
+           if "cpu_run" in d else "")
+    over = ([f"time {t:.0f} s, {t / seconds:.1f}× the goal{cpu}"] if t > seconds else []) + \
            ([f"memory {d['peak_mb']:.0f} MB, {d['peak_mb'] - mb:.0f} MB ({d['peak_mb'] / mb - 1:.0%}) over"]
             if mb is not None and d["peak_mb"] > mb else [])
     goal = f"≤ {seconds:g} s" + ("" if mb is None else f", ≤ {mb / 1024:g} GB")
@@ -58,7 +60,7 @@ def markdown(results: dict) -> str:
     rows = []
     for d in results["cases"]:
         if "failed" in d:
-            rows.append([d["kind"], f"{d['particles']:,}", "failed: " + d["failed"]] + [""] * 7)
+            rows.append([d["kind"], f"{d['particles']:,}", "failed: " + d["failed"]] + [""] * 9)
             continue
         what = (f"{d['backend']}, {d['branches']} branches, {d['verdict']}, rigid zeros {d['rigid']}, counts "
                 f"{'exact' if d['exact_counts'] else 'not proven'}, λ_min {d['lambda_min']:.3g}, error "
@@ -67,7 +69,8 @@ def markdown(results: dict) -> str:
                 f"{d['residual']:.1e}, symmetry defect {d['symmetry_defect']:.1e}")
         rows.append([d["kind"], f"{d['particles']:,}", f"{d['contacts']:,} ({d['seam']:,} across the seam)",
                      f"{d['dof']:,}", str(d["sliding"]), fmt_t(d["t_scene"]), fmt_t(d["t_run"]),
-                     f"{d['peak_mb']:.0f} MB", what, _goal(d)])
+                     fmt_t(d["cpu_run"]), "{:.1f} → {:.1f}".format(*d["load"]), f"{d['peak_mb']:.0f} MB", what,
+                     _goal(d)])
     return "\n".join([
         "## Whole periodic packings: analyze and moduli",
         "",
@@ -77,8 +80,10 @@ def markdown(results: dict) -> str:
         "memory above the interpreter's baseline. `analyze` is `granstab.analyze(scene, k=6, metric=\"L\")` (the "
         "sparse path above `sparse.DENSE_MAX_DOF` dofs: the lowest 6 eigenpairs of every branch, the count below σ "
         "by inertia; the two translations are the only rigid motions of a periodic scene); `moduli` is "
-        "`granstab.moduli(scene)` (the elastic and all-loading branches). The goals are the issue's (issue 24).",
+        "`granstab.moduli(scene)` (the elastic and all-loading branches). The goals are the issue's (issue 24). "
+        "*run CPU*: the process's CPU time over the run (every thread); *load*: the 1-minute load average at the "
+        "case's start and end, on 2 cores shared with other work: wall times above a load of 2 are stretched by it.",
         "",
-        table(["", "particles", "contacts", "dofs", "sliding", "build", "run", "peak memory", "result",
-               "goal"], rows),
+        table(["", "particles", "contacts", "dofs", "sliding", "build", "run", "run CPU", "load", "peak memory",
+               "result", "goal"], rows),
     ])

@@ -9,6 +9,7 @@ packing (the loads b = -Σf balance it, as in packings.random_packing)."""
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
@@ -54,9 +55,10 @@ def measure(kind: str, n: int, n_sliding: int) -> dict:
     """Build the packing, then `granstab.analyze` (the whole packing: the sparse path above the dense limit) or
     `granstab.moduli`; time and peak resident memory above the interpreter's baseline of each step."""
     base = memory_kb("VmRSS")
+    load = os.getloadavg()[0]
     t0 = time.perf_counter()
     scene = periodic_packing(n, n_sliding)
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     out = {"kind": kind, "particles": scene.n_particles, "contacts": scene.n_contacts, "dof": scene.n_dof,
            "sliding": n_sliding, "seam": int(np.sum(np.any(scene.image != 0, axis=1))), "t_scene": t1 - t0}
     if kind == "analyze":
@@ -70,7 +72,8 @@ def measure(kind: str, n: int, n_sliding: int) -> dict:
         m = granstab.moduli(scene)
         out.update(branches=len(m.branches), bulk=m.bulk, shear=m.shear, residual=m.errors["residual"],
                    symmetry_defect=m.errors["symmetry_defect"])
-    out.update(t_run=time.perf_counter() - t1, peak_mb=(memory_kb("VmHWM") - base) / 1024)
+    out.update(t_run=time.perf_counter() - t1, cpu_run=time.process_time() - c1,
+               peak_mb=(memory_kb("VmHWM") - base) / 1024, load=[load, os.getloadavg()[0]])
     return out
 
 

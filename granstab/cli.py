@@ -260,10 +260,15 @@ def parse_strain(text: str | None, dim: int):
 
 
 def cmd_moduli(args) -> int:
-    with strict_numerics(source_of(args.scene)):
+    from .io.progress import Heartbeat
+    with strict_numerics(source_of(args.scene)), Heartbeat(f"moduli {source_of(args.scene)}",
+                                                           enabled=not sys.stderr.isatty()) as beat:
+        beat.stage("reading")
         loaded = load(args.scene)
         scene = loaded.scene
-        result = moduli(scene, strain=parse_strain(args.strain, scene.dim), max_sliding=args.max_sliding)
+        result = moduli(scene, strain=parse_strain(args.strain, scene.dim), max_sliding=args.max_sliding,
+                        progress=beat)
+        beat.stage("writing the result")
         data = {**result.to_dict(), "import": loaded.report}
         require_finite(data, scene.source)
     print(json.dumps(data, allow_nan=False) if args.json else "\n".join([format_moduli(result, scene),

@@ -24,6 +24,7 @@ from .mechanics.stiffness import assemble_parts, contact_blocks
 from .model.scene import Scene, SceneError
 from .model.tolerances import EPS
 from .model.vec import rot_dim
+from .solve.threads import blas_threads
 
 __all__ = ["CellBranch", "Moduli", "moduli"]
 
@@ -220,7 +221,14 @@ def _branch(name, mask, on, solver, parts, volume, Q) -> CellBranch:
                       s_values=s_values)
 
 
-def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches: int = 64, seed: int = 0) -> Moduli:
+def _stage(progress, name: str, total: int | None = None) -> None:
+    """Report a stage to a reporter with stages (io.progress.Heartbeat), if any."""
+    if progress is not None:
+        progress.stage(name, total)
+
+
+def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches: int = 64, seed: int = 0,
+           progress=None) -> Moduli:
     """Elastic moduli, stress and cell stability of a periodic `scene` (docs/periodic.md).
 
     Parameters
@@ -232,6 +240,8 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
         to the cell's response), by enumerating the 2^Ms branches up to `max_sliding` potentially sliding
         contacts; above, the range over the all-loading, all-unloading and `sample_branches` seeded random
         branches (a sample, not a bound).
+    progress : a reporter with stages (granstab.io.progress.Heartbeat: a line a minute), optional
+        Told the stage (assembly, factorisation, branches i of n, fixed-cell check) as the work goes.
 
     Returns
     -------
@@ -242,6 +252,7 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     start = time.perf_counter()
     if not scene.periodic:
         raise SceneError(f"{scene.source}: moduli need a periodic scene (a `cell`); this one has none")
+    _stage(progress, "assembly")
     blocks = contact_blocks(scene)
     H = assemble_parts(scene, blocks)["H"].tocsr()
     sliding = np.flatnonzero(scene.at_yield())
@@ -250,6 +261,7 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     scale = max(_inf_norm(H), 1e-300)
     untouched = np.zeros(scene.n_dof, bool)
     untouched[untouched_dofs(H, parts.Xi, parts.Xi_left.T, A, S, scale=scale)] = True
+    _stage(progress, "factorisation")
     solver = _factor(scene, H, untouched, A, S)
     volume, sigma = scene.volume, stress(scene)
     Q = stress_work(sigma)
@@ -257,7 +269,13 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     partial = Ms > max_sliding
     masks = (sample_masks(sliding, scene.n_contacts, sample_branches, seed) if partial
              else enumerate_masks(sliding, scene.n_contacts))
-    every = [_branch("tangent", mk, mk[sliding] == 1, solver, parts, volume, Q) for mk in masks]
+    _stage(progress, "branches", len(masks))
+    every = []
+    with blas_threads(1):            # small dense Woodbury solves per branch: one BLAS thread (solve/threads.py)
+        for mk in masks:
+            every.append(_branch("tangent", mk, mk[sliding] == 1, solver, parts, volume, Q))
+            if progress is not None:
+                progress.update()
     signs = masks[:, sliding]
     named = [("elastic", int(np.flatnonzero(np.all(signs == -1, axis=1))[0]))]
     if Ms:
@@ -266,6 +284,7 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     s_tol = s_limits(np.vstack([solver.S, parts.S_cell]), scene.tol)[0]
     direction = None if strain is None else _direction(scene, strain, sliding, every, s_tol, partial)
     zero = {**_zero_modes(scene, untouched), "mechanisms": solver.mechanisms}
+    _stage(progress, "fixed-cell check")
     return Moduli(dim=scene.dim, volume=volume, stress=sigma, branches=branches, zero_modes=zero,
                   verdicts=_verdicts(every, sliding, s_tol, partial, _asymmetry(solver, parts), _held(solver)),
                   errors=_errors(scene, sigma, every),

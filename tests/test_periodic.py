@@ -390,3 +390,51 @@ def test_many_sliding_contacts_are_sampled_and_said_so():
     assert "a sample, not a bound" in direction["note"] and direction["range"][0] <= direction["range"][1]
     assert {b.name for b in result.branches} == {"elastic", "all loading"}
     assert not result.verdicts["fixed_stress"]["sufficient"] or result.verdicts["fixed_stress"]["verdict"] == "unstable"
+
+
+def test_cli_moduli_heartbeat_keeps_the_json_clean(tmp_path, monkeypatch, capsys):
+    """`granstab moduli` off a terminal: no silent minute. With the heartbeat interval set small and each branch
+    slowed, stderr carries heartbeat lines naming the stage (branches i of n) and stdout the JSON alone."""
+    import sys
+    import time
+
+    from granstab.cli import main
+    from granstab.io import progress
+    monkeypatch.setattr(progress, "HEARTBEAT_FIRST", 0.1)
+    monkeypatch.setattr(progress, "HEARTBEAT_EVERY", 0.1)
+    gm = sys.modules["granstab.moduli"]                              # the module (granstab.moduli is the function)
+    branch = gm._branch
+
+    def slowed(*args, **kwargs):                                      # a few heartbeats long on any machine
+        time.sleep(0.2)
+        return branch(*args, **kwargs)
+
+    monkeypatch.setattr(gm, "_branch", slowed)
+    scene = frictional(2)
+    path = tmp_path / "cell.json"
+    granstab.save_scene(scene, path)
+    assert main(["moduli", str(path), "--json"]) == 0
+    out, err = capsys.readouterr()
+    data = __import__("json").loads(out)
+    assert np.allclose(np.array(data["C"]), moduli(scene).C, rtol=0, atol=0)
+    beats = err.splitlines()
+    assert len(beats) >= 2 and all(line.startswith(f"granstab: moduli {path}: ") for line in beats)
+    assert any("branches (" in line and "of 4)" in line for line in beats)
+
+
+def test_cli_moduli_json_of_a_3d_jammed_packing_is_the_contract(tmp_path, capsys):
+    """`granstab moduli --json` of a 3D frictionless harmonic periodic scene written to a file (the held-out set's
+    form): C as nested 3×3×3×3 lists equal to the independent energy Hessian's moduli (MODULI_RTOL of max|C|), the
+    stress 3×3 and the volume |det(cell)| (1e-12 relative: a product of three numbers)."""
+    from granstab.cli import main
+    scene = jammed(3, 0.68)
+    path = tmp_path / "jammed3d.json"
+    granstab.save_scene(scene, path)
+    assert main(["moduli", str(path), "--json"]) == 0
+    data = __import__("json").loads(capsys.readouterr().out)
+    C = np.array(data["C"])
+    assert C.shape == (3, 3, 3, 3) and np.array(data["stress"]).shape == (3, 3)
+    reference = to_tensor(harmonic_moduli(scene))
+    assert np.abs(C - reference).max() < MODULI_RTOL * np.abs(reference).max()
+    assert data["volume"] == pytest.approx(abs(np.linalg.det(scene.cell)), rel=1e-12)
+    assert np.allclose(np.array(data["stress"]), stress(scene), rtol=0, atol=1e-15 * np.abs(stress(scene)).max())

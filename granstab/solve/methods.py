@@ -272,10 +272,13 @@ class SparseMethod:
     def solve(self, problem: SparseBranchProblem, masks: np.ndarray, on_branch=None, progress: bool = False,
               label: str = "branches", keep_all: bool = True):
         from .sparse import sparse_branch
+        from .threads import blas_threads
         spb, k = problem.sp, self.k
         bar = _progress_bar(len(masks), f"{label} (sparse)", progress) if progress else None
         branches, unverified, cut, ritz = [], 0, 0, 0
-        for mask, modes in zip(masks, self._modes(spb, masks, k + 1)):
+        with blas_threads(1):     # tall-skinny products and block solves: a 2-thread pool waiting for a core on a
+            found = list(zip(masks, self._modes(spb, masks, k + 1)))   # busy machine cost 3× (threads.py)
+        for mask, modes in found:
             ritz += modes.method == "ritz"
             b, was_cut = sparse_branch(problem.core, spb, modes, mask, k)
             unverified += not modes.verified

@@ -13,19 +13,22 @@ subspace, so the non-trivial spectrum is that of the DEFLATED operator
 (the rigid modes are moved to s, an upper bound of ‖Hs‖). B is a sparse matrix plus a rank-≤(2r+d+2Ms)
 correction; it is applied as a LinearOperator. Its lowest eigenpairs come from one of two solvers:
 
-* shift-invert (default in 2D and for 3D up to LU_MAX_DOF_3D dofs): ARPACK (scipy.sparse.linalg.eigsh) around σ
-  slightly below 0, with (B - σI)⁻¹ applied by ONE sparse LU of Hs - σI (SuperLU in a geometric nested-dissection
-  order, diagonal pivots) and the Woodbury identity; the same LU serves every loading branch (the branches differ
-  only in the low-rank part). Verified by Sylvester's law of inertia: with diagonal pivots the LU is an LDLᵀ, so
-  the number of negative pivots is the number of eigenvalues of Hs below σ, and Haynsworth's inertia formula for
-  the low-rank update gives the number ν of eigenvalues of B below σ,
+* shift-invert (default in 2D and for 3D up to LU_MAX_DOF_3D dofs): the lowest eigenpairs of B around σ slightly
+  below 0, with (B - σI)⁻¹ applied by ONE factorisation of Hs - σI in a geometric nested-dissection order and the
+  Woodbury identity; the same factorisation serves every loading branch (the branches differ only in the low-rank
+  part). The factorisation is multifrontal.py's block elimination Hs - σI = L̂ S L̂ᵀ (a Cholesky per front where it
+  is positive definite, else an eigendecomposition of the front): a congruence, so by Sylvester's law of inertia
+  the number of -1 in S is the number of eigenvalues of Hs below σ, and Haynsworth's inertia formula for the
+  low-rank update gives the number ν of eigenvalues of B below σ,
       ν(B - σI) = ν(Hs - σI) + ν(-K⁻¹ - UᵀM⁻¹U) - ν(-K⁻¹).
+  Where every front is positive definite its factors also do the solves, in blocks (_block_near: block
+  shift-invert Krylov, BLAS-3); otherwise SuperLU's LU does them and ARPACK (eigsh) finds the pairs.
   When every eigenvalue below σ was found (always the case when ν = 0) the k returned eigenvalues are provably the
   lowest k; otherwise (or when more than 4k + 20 lie below σ: a floppy chain has thousands, clustered, on which
-  Lanczos stalled) σ is moved by bisection on the inertia count, one LU a step (spectrum slicing, `_slice`), until
+  Lanczos stalled) σ is moved by bisection on the inertia count, one factorisation a step (spectrum slicing, `_slice`), until
   between k and 4k + 20 eigenvalues lie below it, and exactly those are computed: the most negative eigenvalues
   of (B - σI)⁻¹. A Lanczos estimate of λ_min is the fallback where no count is available. `Modes.verified`
-  says whether that check passed. Memory: the LU fill, ~n log n in 2D and ~n^{4/3} in 3D (`info["lu_nnz"]`).
+  says whether that check passed. Memory: the factor's fill, ~n log n in 2D and ~n^{4/3} in 3D (`info["lu_nnz"]`).
 * LOBPCG (default for larger 3D scenes): scipy.sparse.linalg.lobpcg on B with the rigid modes as constraints and
   the `TwoLevel` preconditioner (smoothed aggregation of per-aggregate rigid motions over the elastic Hm + τI,
   block-Jacobi smoothing, a small coarse LU): memory O(contacts), 30-100 iterations, not inertia-verified; one
@@ -266,8 +269,9 @@ class Shifted:
         return y - self.Z @ sla.lu_solve(self.cap, self.U.T @ y)
 
 
-def dissection_order(x: np.ndarray, p: np.ndarray, q: np.ndarray, leaf: int = 32) -> np.ndarray:
-    """Geometric nested dissection of the contact graph: a particle order (N,) with separators last.
+def dissection_order(x: np.ndarray, p: np.ndarray, q: np.ndarray, leaf: int = 32, nodes: bool = False):
+    """Geometric nested dissection of the contact graph: a particle order (N,) with separators last (and, with
+    `nodes`, the sizes of its leaves and separators in that order: the nodes of multifrontal.negative_count).
 
     Each part is split at the median of its longest extent; its separator is the set of particles on the lower
     side with a contact across the cut. Fill of the LU ~ n log n in 2D, n^{4/3} in 3D (SuperLU's minimum degree
@@ -303,32 +307,44 @@ def dissection_order(x: np.ndarray, p: np.ndarray, q: np.ndarray, leaf: int = 32
         stack.append((sep, None, None))
         stack.append((right, ep[in_right], eq[in_right]))
         stack.append((left, ep[in_left], eq[in_left]))
-    return np.concatenate(order) if order else np.arange(N)
+    order = [o for o in order if len(o)]
+    perm = np.concatenate(order) if order else np.arange(N)
+    return (perm, np.array([len(o) for o in order] or [N], dtype=np.intp)) if nodes else perm
 
 
 class Factor:
-    """LU of Hs - σI in a nested-dissection order with diagonal pivots (SuperLU, symmetric mode): an LDLᵀ in
-    disguise. n_neg = number of negative pivots = eigenvalues of Hs below σ (None if SuperLU pivoted off the
-    diagonal, when the count is not an inertia); nnz = nonzeros of the factors."""
+    """Hs - σI factorised in a nested-dissection order (dissection_order).
+
+    n_neg, the number of eigenvalues of Hs below σ, is the inertia of a congruence: the multifrontal block
+    elimination of multifrontal.py (a Cholesky or an eigendecomposition per front; Sylvester's law holds for it,
+    within its stated rounding), None where that refuses to count (an eigenvalue within ~1e-13‖Hs‖ of σ, or growth).
+    Solves use the same factors where every front was positive definite (Cholesky all through: backward stable,
+    block solves BLAS-3 on one thread); otherwise SuperLU's LU (diagonal pivots, symmetric mode), whose pivots are
+    no longer read (that copied and kept both factors). nnz: stored factor entries."""
 
     def __init__(self, sp_: SparseProblem, sigma: float):
+        from .multifrontal import Multifrontal
         scene = sp_.scene
         per = scene.dof_per_particle
-        order = dissection_order(scene.x, scene.p, scene.q)
+        order, sizes = dissection_order(scene.x, scene.p, scene.q, nodes=True)
         self.perm = (order[:, None] * per + np.arange(per)).reshape(-1)
         self.inv = np.empty_like(self.perm)
         self.inv[self.perm] = np.arange(len(self.perm))
         M = (sp_.Hs - sigma * sp.identity(sp_.n, format="csr"))[self.perm][:, self.perm].tocsc()
-        self.lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        del M
+        self.mf = Multifrontal(M, np.r_[0, np.cumsum(sizes) * per])
         self.sigma = sigma
-        self.nnz = int(self.lu.nnz)
-        self.n_neg = None
-        if np.array_equal(self.lu.perm_r, self.lu.perm_c):
-            self.n_neg = int(np.sum(self.lu.U.diagonal() < 0))
+        self.n_neg = self.mf.negative
+        self.lu = None
+        if not (self.mf.ok and self.n_neg == 0 and self.mf.definite):
+            self.mf.factors = []                                       # only its count is kept
+            self.lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        self.nnz = int(self.mf.nnz if self.lu is None else self.lu.nnz)
+        del M
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        return self.lu.solve(b[self.perm])[self.inv]
+        if self.lu is not None:
+            return self.lu.solve(b[self.perm])[self.inv]
+        return self.mf.solve(b[self.perm])[self.inv]
 
 
 def factor(sp_: SparseProblem, sigma: float) -> Factor:
@@ -444,7 +460,11 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
     t = time.perf_counter()
     verified = False
     if nu is not None and nu <= 4 * k + 20:
-        lam, V = _eigsh_near(shifted, Bop, n, k + nu, tol, maxiter, v0)
+        found = _block_near(shifted, Bop, sp_, k + nu, rng) if fac.lu is None and tol == 0 else None
+        if found is not None:
+            lam, V, info["krylov"] = found
+        else:
+            lam, V = _eigsh_near(shifted, Bop, n, k + nu, tol, maxiter, v0)
         verified = int(np.sum(lam < sig)) >= nu
     else:
         lam = np.array([sig])
@@ -527,8 +547,74 @@ def _drop_rigid(sp_: SparseProblem, lam, V):
     return lam[keep], V[:, keep]
 
 
+def _sym(M):
+    return 0.5 * (M + M.swapaxes(-1, -2))
+
+
+def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
+    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): twice, B is
+    projected off X (block Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
+    only, no Householder QR of n × m); directions below `cut` are dropped."""
+    for _ in range(2):
+        B = B - X @ (X.T @ B)
+        B = B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+        s, U = np.linalg.eigh(_sym(B.T @ B))
+        keep = s > cut * max(s[-1], 1e-300)
+        B = B @ (U[:, keep] / np.sqrt(s[keep]))
+    return B
+
+
+BLOCK = 8        # _block_near: columns per block solve …
+BLOCK_STEPS = 6  # … Krylov blocks per cycle …
+BLOCK_CYCLES = 6  # … and restarts before ARPACK takes over
+BLOCK_RTOL = 1e-13   # … converged: every residual ‖Bv - θv‖ below this · ‖Hs‖ (ARPACK's tol=0 reaches ~1e-15)
+
+
+def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tuple | None:
+    """The kk lowest eigenpairs of B by block shift-invert Krylov (blocks of BLOCK columns, (B - σI)⁻¹ applied by
+    one block solve each: BLAS-3 on the multifrontal factor, where ARPACK makes one single-vector solve per step)
+    with Rayleigh-Ritz on the exact B and thick restarts; None if not converged to BLOCK_RTOL after BLOCK_CYCLES
+    (the caller then runs ARPACK). Ritz values are upper bounds of the eigenvalues (Cauchy interlacing), each
+    within its residual of one; which eigenvalues they are is settled by the caller's inertia count. Also returns
+    the whole orthonormal Krylov basis (n × m, rigid-free: SparseRitz starts from it)."""
+    R, n = sp_.R, sp_.n
+    d, cap = R.shape[1], max(kk, 0) + BLOCK * (BLOCK_STEPS + 1)      # the widest basis: kept + new blocks
+    X, BV = np.empty((n, d + cap), order="F"), np.empty((n, cap), order="F")   # [R, basis], B·basis: in place,
+                                                                      # column slices contiguous (BLAS, no copy)
+    X[:, :d] = R
+    block = rng.standard_normal((n, BLOCK))
+    block = extend(R, block - R @ (R.T @ block))
+    G, m = _append(X, BV, np.zeros((0, 0)), 0, block, Bop)          # G = basisᵀ B basis, m basis columns
+    for _ in range(BLOCK_CYCLES):
+        for _ in range(BLOCK_STEPS):
+            block = extend(X[:, :d + m], shifted.solve(block))
+            if not block.shape[1] or m + block.shape[1] > cap:
+                break
+            G, m = _append(X, BV, G, m, block, Bop)
+        theta, Y = np.linalg.eigh(_sym(G))
+        V = X[:, d:d + m] @ Y[:, :kk]
+        res = np.linalg.norm(BV[:, :m] @ Y[:, :kk] - V * theta[:kk], axis=0)
+        if res.max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
+            return theta[:kk], V, X[:, d:d + m]
+        keep = min(kk + BLOCK, m)                                     # thick restart on the lowest Ritz vectors
+        X[:, d:d + keep], BV[:, :keep] = X[:, d:d + m] @ Y[:, :keep], BV[:, :m] @ Y[:, :keep]
+        m, G = keep, np.diag(theta[:keep])
+        block = X[:, d + max(0, m - BLOCK):d + m]
+    return None
+
+
+def _append(X, BV, G, m, block, Bop):
+    """Put `block` after the m basis columns of X (after R's d) and B·block in BV (B is applied once per vector;
+    restarts rotate it); G grows by the block's rows and columns (B symmetric). Returns (G, m)."""
+    b, d = block.shape[1], X.shape[1] - BV.shape[1]
+    X[:, d + m:d + m + b], BV[:, m:m + b] = block, Bop.matmat(block)
+    C = X[:, d:d + m + b].T @ BV[:, m:m + b]
+    return np.block([[G, C[:m]], [C[:m].T, _sym(C[m:])]]), m + b
+
+
 def _eigsh_near(shifted: Shifted, Bop, n, kk, tol, maxiter, v0, which: str = "LM"):
-    """The kk eigenpairs of B nearest σ by shift-invert ARPACK (which="SA": the kk nearest below σ). If ARPACK does not converge (clustered
+    """The kk eigenpairs of B nearest σ by shift-invert ARPACK (which="SA": the kk nearest below σ). If ARPACK
+    does not converge (clustered
     eigenvalues at σ), retry with a larger Krylov space and a round-off tolerance; small problems (at most
     DENSE_FALLBACK_MAX_DOF dofs, where ARPACK gets DENSE_FALLBACK_PATIENCE restarts) then fall back on a dense eigh
     of B, large ones raise a RuntimeError that says so."""

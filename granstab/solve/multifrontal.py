@@ -1,0 +1,147 @@
+"""Inertia of a sparse symmetric matrix by multifrontal block elimination (a congruence), for the sparse path's
+count of eigenvalues below the shift σ (sparse.Factor).
+
+Sylvester's law of inertia holds for congruences A = L D Lᵀ with L invertible; a sparse LU with diagonal pivots
+is one only in exact arithmetic and without pivoting, and reading its pivots from scipy's SuperLU copies (and
+keeps) both factors. Here A (already in a fill-reducing order, e.g. sparse.dissection_order) is eliminated node by
+node, a node being a contiguous range of its dofs (a leaf or a separator of the dissection). For a node X with
+front rows [X, struct(X)] (struct: the later rows its columns and its children's updates reach) the front
+
+    F = [[F11, F21ᵀ], [F21, F22]]     (F11 = the current Schur complement on X)
+
+is split as F11 = G⁻¹ S G⁻ᵀ with S = diag(±1): G⁻¹ = L11 (Cholesky, S = I) where F11 is positive definite, else
+G⁻¹ = V|Λ|^{1/2} from F11 = VΛVᵀ (S = sign Λ). Then F = [[G⁻¹, 0], [W, I]] diag(S, F22 - W S Wᵀ) [[G⁻ᵀ, Wᵀ], [0, I]]
+with W = F21 Gᵀ S, and the update F22 - W S Wᵀ is added to the parent's front (the node of struct(X)'s first row).
+Each step is a congruence (Haynsworth: In(A) = In(F11) + In(A/F11)), so the number of negative eigenvalues of A is
+the number of -1 in all the S. In floating point each front is a backward-stable dense factorisation (Cholesky;
+the symmetric eigendecomposition) of a front that carries the rounding of the updates before it: the count is the
+inertia of A + E with ‖E‖ ≲ c·f·eps·‖A‖·g (f the largest front, g the growth of the updates over ‖A‖, 1 while every
+front is positive definite). The count is refused (None) where a front's |λ| falls below SINGULAR_RTOL·‖A‖ (an
+eigenvalue too close to σ to count) or the growth exceeds GROWTH_MAX; the caller then moves σ.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg.blas import dsyrk, dtrmm
+from scipy.linalg.lapack import dpotrf, dtrtri
+
+from .threads import blas_threads
+
+SINGULAR_RTOL = 1e-13   # |λ| of a front's F11 below this · ‖A‖: too close to σ to count
+GROWTH_MAX = 1e8        # an update larger than this · ‖A‖: the elimination is not trusted
+
+
+def _fronts(A: sp.csc_matrix, bounds: np.ndarray):
+    """Symbolic step: for each node (dofs bounds[i]:bounds[i+1]) its struct (sorted later rows) and parent (-1 at
+    a root), from the lower triangle of its columns and its children's structs."""
+    n_nodes = len(bounds) - 1
+    node_of = np.repeat(np.arange(n_nodes), np.diff(bounds))
+    structs, parents = [None] * n_nodes, np.full(n_nodes, -1)
+    pending = {}
+    for i in range(n_nodes):
+        s, e = bounds[i], bounds[i + 1]
+        rows = A.indices[A.indptr[s]:A.indptr[e]]
+        parts = [rows[rows >= e]] + pending.pop(i, [])
+        st = np.unique(np.concatenate(parts))
+        st = st[st >= e]
+        structs[i] = st
+        if st.size:
+            parents[i] = node_of[st[0]]
+            pending.setdefault(parents[i], []).append(st)
+    return structs, parents
+
+
+class Multifrontal:
+    """The block elimination of the symmetric A (n × n, in its own order) with nodes `bounds` (increasing dof offsets
+    from 0 to n): A = L̂ S L̂ᵀ (module docstring). `negative`: the number of negative eigenvalues of A (None where
+    refused, and then `ok` is False and nothing can be solved); `nnz`: the stored factor entries; `solve(b)`:
+    A⁻¹ b for b (n,) or (n, m)."""
+
+    def __init__(self, A: sp.spmatrix, bounds: np.ndarray):
+        A = sp.csc_matrix(A)
+        A.sum_duplicates()
+        A.sort_indices()
+        self.n, self.bounds = A.shape[0], np.asarray(bounds, dtype=np.intp)
+        scale = max(float(abs(A).sum(axis=0).max()) if A.nnz else 0.0, 1e-300)
+        self.structs, parents = _fronts(A, self.bounds)
+        self.factors = []
+        loc = np.empty(self.n, dtype=np.intp)
+        updates: dict[int, list] = {}
+        self.negative = 0
+        with blas_threads(1):        # thousands of small fronts: a BLAS pool costs more than it gains (threads.py)
+            for i in range(len(self.bounds) - 1):
+                out = _eliminate(A, i, int(self.bounds[i]), int(self.bounds[i + 1]), self.structs[i],
+                                 int(parents[i]), loc, updates, scale)
+                if out is None:
+                    self.negative, self.factors = None, []
+                    break
+                self.factors.append(out)
+                self.negative += int(np.sum(out[2] < 0))
+        self.ok = self.negative is not None
+        self.definite = self.ok and all(chol for *_, chol in self.factors)      # Cholesky in every front
+        self.nnz = int(sum(G.size + W.size for G, W, *_ in self.factors))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """x = A⁻¹ b where every front is Cholesky (`definite`; G = L11⁻¹ lower triangular, S = I): L̂ z = b (nodes in
+        order), L̂ᵀ x = z (nodes in reverse order); G applied by dtrmm, which reads only its lower triangle."""
+        if not self.definite:
+            raise ValueError("Multifrontal.solve needs every front positive definite (definite)")
+        x = np.array(b, dtype=float, copy=True)
+        X = x.reshape(self.n, -1)
+        bounds, structs = self.bounds, self.structs
+        with blas_threads(1):                                          # small blocks: one thread (threads.py)
+            for i, (G, W, _, _) in enumerate(self.factors):
+                s, e = bounds[i], bounds[i + 1]
+                X[s:e] = dtrmm(1.0, G, X[s:e], lower=1)
+                if W.size:
+                    X[structs[i]] -= W @ X[s:e]
+            for i in range(len(self.factors) - 1, -1, -1):
+                G, W, _, _ = self.factors[i]
+                s, e = bounds[i], bounds[i + 1]
+                z = X[s:e] - W.T @ X[structs[i]] if W.size else X[s:e]
+                X[s:e] = dtrmm(1.0, G, z, lower=1, trans_a=1)
+        return x
+
+
+def _eliminate(A, node: int, s: int, e: int, st: np.ndarray, parent: int, loc: np.ndarray, updates: dict,
+               scale: float):
+    """One node's front: assemble (A's lower columns s:e and the children's updates), split F11 = G⁻¹ S G⁻ᵀ, pass
+    the update F22 - W S Wᵀ (W = F21 Gᵀ) to `parent`; (G, W, S), or None where refused (module docstring). Fronts
+    and updates hold their lower triangles only (rows are in increasing order, so a child's lower triangle lands in
+    its parent's): W by dtrmm and the update by dsyrk where F11 is Cholesky, half a full product's flops each."""
+    k = e - s
+    rows = np.concatenate([np.arange(s, e), st])
+    loc[rows] = np.arange(len(rows))
+    F = np.zeros((len(rows), len(rows)))
+    lo, hi = A.indptr[s], A.indptr[e]
+    r, c = A.indices[lo:hi], np.repeat(np.arange(k), np.diff(A.indptr[s:e + 1]))
+    keep = r >= s + c                                                 # the lower triangle
+    F[loc[r[keep]], c[keep]] = A.data[lo:hi][keep]
+    for child_rows, U in updates.pop(node, []):
+        li = loc[child_rows]
+        F[np.ix_(li, li)] += U
+    F11 = F[:k, :k]
+    L, info = dpotrf(F11, lower=1, clean=1, overwrite_a=0)
+    chol = info == 0
+    if chol:                                                         # positive definite: G = L11⁻¹, S = I
+        G, info = dtrtri(L, lower=1)
+        signs = np.ones(k)
+        chol = info == 0
+    if not chol:
+        lam, V = np.linalg.eigh(F11, UPLO="L")
+        if np.abs(lam).min() <= SINGULAR_RTOL * scale:
+            return None
+        signs = np.sign(lam)
+        G = (V / np.sqrt(np.abs(lam))).T
+    W = dtrmm(1.0, G, F[k:, :k], side=1, lower=1, trans_a=1) if chol else F[k:, :k] @ G.T
+    if st.size:
+        U = (dsyrk(-1.0, W, beta=1.0, c=F[k:, k:], lower=1) if chol
+             else np.tril(F[k:, k:] - (W * signs) @ W.T))
+        if np.abs(U).max(initial=0.0) > GROWTH_MAX * scale:
+            return None
+        updates.setdefault(parent, []).append((st, U))
+    return G, W, signs, chol
+
+
+__all__ = ["GROWTH_MAX", "SINGULAR_RTOL", "Multifrontal"]
