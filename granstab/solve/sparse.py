@@ -468,9 +468,18 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
         verified = int(np.sum(lam < sig)) >= nu
     else:
         lam = np.array([sig])
+    if not verified and nu is not None and 0 < nu <= 4 * k + 20:
+        # a few lie below σ but the solve nearest σ missed some (far below, past closer ones above): they are
+        # exactly the ν most negative values of (B - σI)⁻¹, and the lowest above σ are among those found
+        below, V_below = _eigsh_near(shifted, Bop, n, nu, tol, maxiter, v0, which="SA")
+        above = lam >= sig
+        lam, V = np.r_[below, lam[above]], np.hstack([V_below, V[:, above]])
+        order = np.argsort(lam, kind="stable")
+        lam, V = lam[order], V[:, order]
+        verified = int(np.sum(below < sig)) == nu
     if not verified:
-        # some eigenvalues below σ were not reached, or too many lie below it (a floppy structure's thousands of
-        # clustered negative eigenvalues, on which Lanczos stalls): slice the spectrum by inertia counts
+        # too many lie below σ (a floppy structure's thousands of clustered negative eigenvalues, on which Lanczos
+        # stalls), or the ν below were not all reached: slice the spectrum by inertia counts
         t2 = time.perf_counter()
         shifted = _slice(sp_, U, K, shifted, k, 4 * k + 20) if nu is not None else None
         if shifted is None:
