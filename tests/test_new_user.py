@@ -6,9 +6,11 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
+from contextlib import suppress
 from pathlib import Path
 
 import numpy as np
@@ -241,10 +243,17 @@ def _centers(part: Path) -> np.ndarray:
 @pytest.mark.slow
 def test_ctrl_c_in_a_scan_on_dask_workers_is_one_line(tmp_path):
     """Two local Dask workers get Ctrl-C too (the terminal's process group): they printed 28–59 lines of
-    KeyboardInterrupt and CancelledError tracebacks. Now: one line, exit 130, what is kept stays on disk."""
+    KeyboardInterrupt and CancelledError tracebacks. Now: one line, exit 130, what is kept stays on disk. Dask's
+    port 8787 is held meanwhile (as by another cluster on the machine: CI once printed distributed's "Port 8787 is
+    already in use" warning above the line)."""
     scene_file, out = packing_file(tmp_path, 2000, 200), tmp_path / "scan"
-    proc = started("scan", scene_file, "--out", out, "--metric", "family", "--workers", "2")
-    _, err = interrupt_when(proc, lambda: any((out / "parts").glob("*.arrow")) if (out / "parts").is_dir() else False)
+    with socket.socket() as taken:
+        with suppress(OSError):                   # already taken by someone else: the case under test all the same
+            taken.bind(("0.0.0.0", 8787))
+            taken.listen()
+        proc = started("scan", scene_file, "--out", out, "--metric", "family", "--workers", "2")
+        _, err = interrupt_when(proc, lambda: any((out / "parts").glob("*.arrow")) if (out / "parts").is_dir()
+                                else False)
     line = one_interrupt_line(err, "scan")
     assert proc.returncode == 130 and " clusters kept in " in line
     kept = int(line.split("interrupted (Ctrl-C): ")[1].split(" of ")[0])

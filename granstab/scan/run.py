@@ -392,17 +392,27 @@ def _run_serial(scene, todo, chunk, options, out, bar, cost=None, graphs=None) -
     return cost
 
 
+
+def local_cluster(workers: int):
+    """`workers` local processes, one thread and one BLAS thread each (WORKER_ENVIRON), Ctrl-C ignored while they
+    start. No dashboard; the scheduler's own HTTP server takes a free port when 8787 is taken (another cluster on the
+    machine) without distributed's warning on stderr, since nothing of it is the user's to act on."""
+    import warnings
+
+    import dask
+    from dask.distributed import LocalCluster
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored(), \
+            warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+
 def _run_dask(scene, todo, chunk, options, out, bar, *, scheduler, workers):
     """Tasks of centres cut by a `Guide`, each with its own `Chunk` (rerun if a worker dies), results streamed to
     disk in the order they finish. At most IN_FLIGHT tasks per worker thread are out at a time: the client cuts the
     next chunk while the workers compute, and holds a few chunks, never all of them. Ctrl-C (workers.py): the
     workers ignore it, this loop stops at the next poll and closes the cluster quietly."""
-    import dask
-    from dask.distributed import Client, LocalCluster, as_completed
-    cluster = None
-    if scheduler is None:
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored():
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+    from dask.distributed import Client, as_completed
+    cluster = None if scheduler is not None else local_cluster(workers)
     graph, contacts_of = adjacency(scene), incidence(scene)
     guide = Guide(todo, chunk)
     client = Client(scheduler or cluster)

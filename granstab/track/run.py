@@ -187,13 +187,11 @@ def _serial(spec, todo, keys, bar) -> None:
 
 def _dask(spec, todo, keys, n: int, bar) -> None:
     """One task a frame on `n` local workers (one thread each), results as they finish; Ctrl-C as the scan's."""
-    import dask
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import Client, as_completed
 
-    from ..scan.run import WORKER_ENVIRON
-    from ..scan.workers import close_quietly, finished, sigint_flag, sigint_ignored
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored():
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+    from ..scan.run import local_cluster
+    from ..scan.workers import close_quietly, finished, sigint_flag
+    cluster = local_cluster(n)
     client = Client(cluster)
     try:
         with sigint_flag() as stop:
