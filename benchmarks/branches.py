@@ -44,7 +44,7 @@ def per_branch_loop(problem, masks):
         lam, V = np.linalg.eigh(Hsym[0])
         mu, W = np.linalg.eig(HH[0])
         codes, hinges = test_codes(problem, mask[None], V[None])
-        out.append(_branch(problem, mask, Hsym[0], HH[0], lam, V, codes[0], hinges[0], mu, W))
+        out.append(_branch(problem, mask, Hsym[0], HH[0], lam, V, codes[0], hinges[0], (mu, W)))
     return out
 
 

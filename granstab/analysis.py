@@ -165,7 +165,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
             device: str = "cpu", lowrank: bool | None = None, keep: str = "auto", attribution: bool = True,
-            rim=None) -> Analysis:
+            rim=None, uniqueness: bool = True) -> Analysis:
     """Analyse every loading branch of `scene`: spectra, consistent modes and verdicts (Sec. 3, Appendix D).
 
     Parameters
@@ -181,10 +181,10 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         More than `max_sliding` potentially sliding contacts (2^Ms branches) are refused unless `sample_branches`
         is given: then the all-loading, all-unloading and that many seeded random branches are examined
         (``summary["branches"] == "partial"``; a proof only of instability, eq:instab).
-    method, k : {"auto", "dense", "sparse"}, int
-        "dense": every eigenpair, ℍ^i spectra and Type-2 (eq:newstiffnesses); "sparse": the lowest `k`
-        eigenpairs of each sym(𝓗^i) and its exact negative count, no (n_dof, n_dof) matrix; "auto": dense up to
-        granstab.solve.sparse.DENSE_MAX_DOF dofs. `warnings` says what a method leaves out.
+    method, k, uniqueness : {"auto", "dense", "sparse"}, int, bool
+        "dense": every eigenpair, ℍ^i spectra and Type-2 (eq:newstiffnesses; uniqueness=False: ℍ^i left out, the
+        same stability); "sparse": the lowest `k` eigenpairs of each sym(𝓗^i) and its exact negative count, no
+        (n_dof, n_dof) matrix; "auto": dense up to DENSE_MAX_DOF dofs. `warnings` says what a method leaves out.
     device, lowrank, keep : {"cpu", "gpu", "auto"}, bool or None, {"auto", "all", "verdict"}
         Where stacked eigenproblems run (granstab.solve.device); branches as low-rank updates of the elastic
         problem (None: from 2^10 branches on, or branches · n³ >= 5e8, or on a GPU); which branches the result keeps ("verdict": those the
@@ -208,7 +208,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     _check_options(metric, keep, method, rotation_length)
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
-    backend = choose_method(scene, method, k, device, lowrank)
+    backend = choose_method(scene, method, k, device, lowrank, uniqueness)
     timer = Timer()
     with timer("total"):
         state = backend.prepare(scene, timer)

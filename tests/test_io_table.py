@@ -116,3 +116,33 @@ def test_a_folder_of_tables_is_a_snapshot_for_analyze(tmp_path, capsys):
     (folder / "particles.csv").unlink()
     assert main(["analyze", str(folder)]) == 2
     assert "no snapshot files in this folder" in capsys.readouterr().err
+
+
+def test_a_sequence_is_parsed_once_for_all_its_frames_and_again_when_it_changes(tmp_path, monkeypatch):
+    """`track` loads every frame of a table with a frame column: the file is parsed once (held_table), each frame
+    is the scene a first read gives, and a rewritten file is read anew."""
+    import granstab.io.generic as generic
+    from granstab.io.lines import read_table
+    pos = np.loadtxt(DATA / "annulus" / "particle_positions.txt", delimiter=",")
+    adj = np.loadtxt(DATA / "annulus" / "Adjacency_list.txt", delimiter=",")
+    paths = [tmp_path / "particles.csv", tmp_path / "contacts.txt"]
+    np.savetxt(paths[0], pos[:, :5], delimiter=",", header="frame,id,x,y,radius", comments="")
+    np.savetxt(paths[1], adj, header="frame id1 id2 ft fn", comments="")
+    opts = dict(geometry="touching", mu=0.3, outside_cone="elastic")
+    fresh = {}
+    for frame in (1, 2):
+        generic._held.clear()
+        fresh[frame] = load(paths, frame=frame, **opts).scene
+    parsed = []
+    monkeypatch.setattr(generic, "read_table", lambda path, *a, **k: parsed.append(path) or read_table(path, *a, **k))
+    generic._held.clear()
+    for frame in (1, 2, 1):
+        s = load(paths, frame=frame, **opts).scene
+        assert s.names == fresh[frame].names and np.array_equal(s.x, fresh[frame].x)
+        assert np.array_equal(s.force, fresh[frame].force) and s.state == fresh[frame].state
+    assert parsed == paths                                             # each table once for the three loads
+    np.savetxt(paths[0], pos[:, :5] + [0, 0, 1e-3, 0, 0], delimiter=",", header="frame,id,x,y,radius",
+               comments="")                                            # moved in x by 1e-3: read anew
+    moved = load(paths, frame=1, **opts).scene
+    assert parsed == paths + [paths[0]]
+    assert np.allclose(moved.x[:, 0] - fresh[1].x[:, 0], 1e-3, rtol=0, atol=1e-9)

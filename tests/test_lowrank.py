@@ -221,3 +221,26 @@ def test_keeping_only_what_the_verdict_rests_on_changes_no_number():
     assert few.summary["branches_kept"] == len(kept) and any("branches kept" in w for w in few.warnings)
     for b in few.branches:
         assert np.array_equal(b.stability_eigenvalues, by_mask[b.mask.tobytes()].stability_eigenvalues)
+
+
+@pytest.mark.parametrize("lowrank", [False, True])
+def test_without_uniqueness_the_stability_is_the_same_and_no_eig_runs(lowrank, monkeypatch):
+    """uniqueness=False (track --whole): every branch's sym(𝓗^i) eigenvalues, codes and bounds as with ℍ^i, on the
+    full and the low-rank path, and ℍ^i is not touched (np.linalg.eig, its only user, raises)."""
+    scene = packings.random_packing(2, 16, n_sliding=4, mobilised=0.3, seed=1)
+    with_u = granstab.analyze(scene, metric="L", lowrank=lowrank)
+    monkeypatch.setattr(np.linalg, "eig", lambda *a: pytest.fail("ℍ^i's eig ran with uniqueness=False"))
+    without = granstab.analyze(scene, metric="L", lowrank=lowrank, uniqueness=False)
+    assert len(without.branches) == len(with_u.branches) == 2 ** 4
+    for a, b in zip(with_u.branches, without.branches):
+        # the same eigh of the same matrix on the same path: equal to round-off (1e-12 of the largest |λ|; the
+        # low-rank path's special branches are solved on the full path in both)
+        assert np.abs(a.stability_eigenvalues - b.stability_eigenvalues).max() <= \
+            1e-12 * np.abs(a.stability_eigenvalues).max()
+        assert np.array_equal(a.codes, b.codes) and np.array_equal(a.hinges, b.hinges)
+        assert np.allclose(a.accuracy, b.accuracy, rtol=1e-9, atol=0)
+        assert b.uniqueness_n_zero == -1 and b.uniqueness_eigenvalues.size == 0 and b.type2 == []
+        assert a.uniqueness_n_zero >= 3                                 # with ℍ^i: at least the rigid motions
+    assert without.verdict.verdict == with_u.verdict.verdict
+    assert "eigen_residual_uniqueness" in with_u.errors and "eigen_residual_uniqueness" not in without.errors
+    assert any("uniqueness=False" in w for w in without.warnings)

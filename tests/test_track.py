@@ -198,6 +198,33 @@ def test_each_frame_row_equals_the_analyses_of_that_frame_alone(tracked, tmp_pat
         assert frames["n_contacts"][position] == scene.n_contacts and frames["n_particles"][position] == 17
 
 
+def test_the_whole_stage_examines_two_branches_without_uniqueness_and_its_row_is_unchanged(tracked, monkeypatch):
+    """--whole needs the stability of the all-unloading and all-loading branches only: two branches, one metric,
+    no ℍ^i (its eig, the costly half on 300 spheres, never runs), and the row and the soft-spot shares are those
+    the same stage gives with ℍ^i evaluated (the options before it was left out)."""
+    from granstab.track import frame
+    paths = tracked[0]
+    scene = granstab.load(paths, frame=2.0, mu=0.5).scene
+    assert scene.at_yield().sum() == 2                                 # 2^2 = 4 branches if all were enumerated
+    monkeypatch.setitem(frame.WHOLE, "uniqueness", True)
+    row_u, share_u = frame.whole(scene, 5)
+    monkeypatch.setitem(frame.WHOLE, "uniqueness", False)
+    examined = []
+    monkeypatch.setattr(np.linalg, "eig", lambda *a: pytest.fail("ℍ^i's eig ran in the whole stage"))
+    res = granstab.analyze(scene, k=6, on_branch=examined.append, **frame.WHOLE)
+    assert len(examined) == 2 and res.cost["metrics"] == 1 and res.cost["paths"] == {"full": 2}
+    assert {tuple(np.unique(b.mask[scene.at_yield()])) for b in examined} == {(-1,), (1,)}
+    assert all(b.uniqueness_n_zero == -1 for b in examined) and res.attribution is None
+    row, share = frame.whole(scene, 5)
+    assert row.keys() == row_u.keys()
+    for key, value in row.items():
+        if key.startswith("lambda_min"):       # the same eigh of the same 48 × 48 matrix: round-off (1e-12 relative)
+            assert value == pytest.approx(row_u[key], rel=1e-12, abs=1e-12 * abs(row_u["lambda_min_loading"]))
+        else:
+            assert value == row_u[key]
+    assert np.allclose(share, share_u, rtol=1e-9, atol=1e-12)         # unit-normalised shares: round-off of the modes
+
+
 def test_resume_after_an_interruption(tmp_path, monkeypatch):
     """Ctrl-C in the second frame: one line saying 1 of 3 frames is kept; the same call then does only the rest
     and writes the same tables as an uninterrupted run."""

@@ -119,8 +119,8 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
         raise SceneError(f"{ppath}: line {pline}: radius: missing column (radius, r or diameter)")
     if progress is not None:
         progress.stage("parse")
-    P = read_table(ppath, pnames, delimiter=pdelim, skiprows=pline, min_rows=1, progress=update)
-    C = read_table(cpath, cnames, delimiter=cdelim, skiprows=cline, progress=update)
+    P = held_table(ppath, pnames, delimiter=pdelim, skiprows=pline, min_rows=1, progress=update)
+    C = held_table(cpath, cnames, delimiter=cdelim, skiprows=cline, progress=update)
     pcol = {n: P[:, k] for k, n in enumerate(pnames)}
     ccol = {n: C[:, k] for k, n in enumerate(cnames) if n != "-"}
     prow, crow, frames, which = _frame_rows(ppath, cpath, pcol, ccol, frame)
@@ -168,6 +168,34 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
                     notes={"duplicates": duplicates, "forces_from": how, "walls": walls,
                            "columns": column_note(cpath, header_names, cnames, bool(columns))},
                     particle_line=pline_of, contact_line=lambda c: cline_of(keep[c]))
+
+
+HELD_TABLES = 2      # the particle and the contact table of one sequence
+_held: dict = {}     # path → ((size, mtime, options), rows): the sequences' tables read in this process
+
+
+def held_table(path: Path, fields, **options) -> np.ndarray:
+    """`read_table`, kept in this process for a table with a frame column: a sequence is read once, not once for
+    each of its frames (`track` loads every frame; the whole table was parsed each time, a cost growing with the
+    square of the run's length), and read again when the file changes (its size or modification time). At most
+    HELD_TABLES tables are kept; the rows are read-only (frames are selected by copying)."""
+    if "frame" not in fields:
+        return read_table(path, fields, **options)
+    try:
+        stat = path.stat()
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    key = str(path.resolve())
+    stamp = (stat.st_size, stat.st_mtime_ns, tuple(fields), tuple(sorted((k, v) for k, v in options.items()
+                                                                          if k != "progress")))
+    if key not in _held or _held[key][0] != stamp:
+        _held.pop(key, None)
+        while len(_held) >= HELD_TABLES:
+            _held.pop(next(iter(_held)))
+        rows = read_table(path, fields, **options)
+        rows.flags.writeable = False
+        _held[key] = (stamp, rows)
+    return _held[key][1]
 
 
 def _frame_rows(ppath, cpath, pcol, ccol, frame):

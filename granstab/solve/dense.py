@@ -21,8 +21,11 @@ from ..model.tolerances import EPS
 from .threads import sized
 
 
-def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None, on_branch=None) -> list[Branch]:
+def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None, on_branch=None,
+                   uniqueness: bool = True) -> list[Branch]:
     """Spectra and consistent modes of every branch in `masks`, stacked in chunks; `on_branch(b)` streams results.
+    uniqueness=False leaves out ℍ^i (its eig and SVDs, Type-2: uniqueness eigenvalues empty, uniqueness_n_zero -1);
+    the stability results (sym(𝓗^i) spectra, codes, bounds) are the same.
 
     Everything that is the same computation on every branch runs batched over the chunk (eigh, eig, SVD,
     residuals, the zero/repeated-eigenvalue tests, the rigid part of the null spaces); only branches with a
@@ -38,15 +41,16 @@ def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None
             _, HH, Hsym = branch_matrices(problem, part)
             lam, V = np.linalg.eigh(Hsym)
             V = canonical_signs(V)
-            mu, W = np.linalg.eig(HH)
+            mu, W = np.linalg.eig(HH) if uniqueness else (None, None)
             codes, hinges = test_codes(problem, part, V)
             batch = _batched(problem, Hsym, HH, lam, V, mu, W)
         for i, mask in enumerate(part):
+            eig = None if mu is None else (mu[i], W[i])
             if batch["special"][i]:
-                b = _branch(problem, mask, Hsym[i], HH[i], lam[i], V[i], codes[i], hinges[i], mu[i], W[i],
+                b = _branch(problem, mask, Hsym[i], HH[i], lam[i], V[i], codes[i], hinges[i], eig,
                             svd=batch["svd"].get(i))
             else:
-                b = _plain_branch(problem, mask, batch, i, lam[i], V[i], codes[i], hinges[i], mu[i])
+                b = _plain_branch(problem, mask, batch, i, lam[i], V[i], codes[i], hinges[i], eig)
             out.append(b)
             if on_branch is not None:
                 on_branch(b)
@@ -55,7 +59,7 @@ def solve_branches(problem: Problem, masks: np.ndarray, chunk: int | None = None
 
 def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
     """Per-chunk arrays of `_branch` for L branches at once: zero tolerances, which branches need the per-branch
-    subspace search ("special"), the ℍ null-space counts and both eigen-residuals.
+    subspace search ("special"), the ℍ null-space counts and both eigen-residuals (mu None: no ℍ, `_uniqueness`).
 
     The rigid motions are exact null vectors of sym(𝓗^i) and ℍ^i, so a branch whose zero count equals the number
     of rigid motions has nothing else in its null space; only branches with more zeros are examined further
@@ -74,22 +78,32 @@ def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
     more = np.flatnonzero(zero.sum(axis=1) > n_rigid)
     if more.size:
         extra_z[more] = _count_nonrigid(R, V[more] * zero[more][:, None, :])
+    u = _uniqueness(problem, HH, mu, W) if mu is not None else \
+        {"n_null": np.full(L, -1), "extra": np.zeros(L, dtype=int), "res_u": np.zeros(L), "svd": {}}
+    res_s = resid.max(axis=1) / norm if n else np.zeros(L)
+    return {"tol": tol, "bounds": bounds, "zero": zero, "special": repeated | (extra_z > 0) | (u["extra"] > 0),
+            "n_null": u["n_null"], "res_s": res_s, "res_u": u["res_u"], "svd": u["svd"]}
+
+
+def _uniqueness(problem, HH, mu, W) -> dict:
+    """The ℍ^i part of `_batched`: null-space counts (SVD), how many null vectors are not rigid, the singular
+    vectors of the branches that have some (for `_branch`), and the residuals of eig."""
+    L, n = mu.shape
+    R = problem.rigid
     sv = np.linalg.svd(HH, compute_uv=False)
     norm_u = np.maximum(sv.max(axis=1), 1e-300)
     tol_u = problem.tol.zero_factor * max(n, 1) * EPS * norm_u
     null = sv <= tol_u[:, None]
     extra_u = np.zeros(L, dtype=int)
-    more = np.flatnonzero(null.sum(axis=1) > n_rigid)
+    more = np.flatnonzero(null.sum(axis=1) > R.shape[1])
     svd = {}
     if more.size:
         _, sv_m, Vt_m = np.linalg.svd(HH[more])
         null_m = sv_m <= tol_u[more, None]
         extra_u[more] = _count_nonrigid(R, np.swapaxes(Vt_m, 1, 2) * null_m[:, None, :])
         svd = {int(i): (sv_m[j], Vt_m[j]) for j, i in enumerate(more)}
-    res_s = resid.max(axis=1) / norm if n else np.zeros(L)
     res_u = np.linalg.norm(HH @ W - W * mu[:, None, :], axis=1).max(axis=1) / norm_u if n else np.zeros(L)
-    return {"tol": tol, "bounds": bounds, "zero": zero, "special": repeated | (extra_z > 0) | (extra_u > 0),
-            "n_null": null.sum(axis=1), "res_s": res_s, "res_u": res_u, "svd": svd}
+    return {"n_null": null.sum(axis=1), "extra": extra_u, "res_u": res_u, "svd": svd}
 
 
 def formation(problem, Hsym: np.ndarray):
@@ -108,7 +122,12 @@ def _count_nonrigid(R: np.ndarray, W: np.ndarray) -> np.ndarray:
     return np.sum(np.linalg.svd(Wp, compute_uv=False) > 0.5, axis=1)
 
 
-def _plain_branch(problem, mask, batch, i, lam, V, codes, hinges, mu) -> Branch:
+def _sorted(eig) -> np.ndarray:
+    """The eigenvalues of ℍ^i by real part (eig: (mu, W) or None where ℍ^i is left out: empty)."""
+    return np.zeros(0, complex) if eig is None else eig[0][np.argsort(eig[0].real, kind="stable")]
+
+
+def _plain_branch(problem, mask, batch, i, lam, V, codes, hinges, eig) -> Branch:
     """`_branch` for a branch without repeated non-zero eigenvalues, non-rigid zeros or Type-2 null vectors:
     the zero eigenvalues are the rigid motions and nothing needs a subspace search."""
     zero = batch["zero"][i]
@@ -116,15 +135,15 @@ def _plain_branch(problem, mask, batch, i, lam, V, codes, hinges, mu) -> Branch:
     hinges = hinges.copy()
     codes[zero] = RIGID
     hinges[zero] = False
-    order = np.argsort(mu.real, kind="stable")
     return Branch(mask=mask, stability_eigenvalues=lam, stability_vectors=V.copy(), codes=codes, hinges=hinges,
-                  n_zero=int(zero.sum()), zero_tol=float(batch["tol"][i]), uniqueness_eigenvalues=mu[order],
+                  n_zero=int(zero.sum()), zero_tol=float(batch["tol"][i]), uniqueness_eigenvalues=_sorted(eig),
                   uniqueness_n_zero=int(batch["n_null"][i]), type2=[],
                   residual_stability=float(batch["res_s"][i]), residual_uniqueness=float(batch["res_u"][i]),
                   bounds=batch["bounds"][i])
 
 
-def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> Branch:
+def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, eig, svd=None) -> Branch:
+    """One branch with the subspace search of Appendix D; eig: ℍ^i's (mu, W), or None to leave ℍ^i out."""
     n = len(lam)
     norm = max(np.abs(lam).max(), 1e-300)
     bounds, _ = eigen_bounds(Hsym, lam, V, formation(problem, Hsym))
@@ -137,18 +156,19 @@ def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, mu, W, svd=None) -> 
     codes[zero] = RIGID
     hinges[zero] = False
     search_eigenspaces(problem, mask, lam, bounds, V, codes, hinges, zero[len(zero) - extra.shape[1]:], extra)
-    order = np.argsort(mu.real, kind="stable")
-    sv, Vt = svd if svd is not None else np.linalg.svd(HH)[1:]
-    norm_u = max(sv.max(), 1e-300)
-    tol_u = problem.tol.zero_tol(norm_u, n)
-    null = Vt[sv <= tol_u].T
     res_cols = np.linalg.norm(Hsym @ V - V * lam, axis=0)
     res_s = float(res_cols.max(initial=0.0) / norm)
-    res_u = float(np.linalg.norm(HH @ W - W * mu, axis=0).max() / norm_u) if n else 0.0
+    n_null, type2, res_u = -1, [], 0.0
+    if eig is not None:
+        sv, Vt = svd if svd is not None else np.linalg.svd(HH)[1:]
+        norm_u = max(sv.max(), 1e-300)
+        null = Vt[sv <= problem.tol.zero_tol(norm_u, n)].T
+        n_null, type2 = int(null.shape[1]), _type2(problem, mask, null)
+        res_u = float(np.linalg.norm(HH @ eig[1] - eig[1] * eig[0], axis=0).max() / norm_u) if n else 0.0
     return Branch(mask=mask, stability_eigenvalues=lam, stability_vectors=V, codes=codes, hinges=hinges,
-                  n_zero=int(zero.size), zero_tol=tol, uniqueness_eigenvalues=mu[order],
-                  uniqueness_n_zero=int(null.shape[1]), type2=_type2(problem, mask, null),
-                  residual_stability=res_s, residual_uniqueness=res_u, bounds=bounds)
+                  n_zero=int(zero.size), zero_tol=tol, uniqueness_eigenvalues=_sorted(eig),
+                  uniqueness_n_zero=n_null, type2=type2, residual_stability=res_s, residual_uniqueness=res_u,
+                  bounds=bounds)
 
 
 def _type2(problem, mask, null) -> list:

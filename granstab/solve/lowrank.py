@@ -93,11 +93,12 @@ def spectral_upper(X: np.ndarray) -> float:
     return float(np.sqrt(np.abs(X).sum(axis=0).max() * np.abs(X).sum(axis=1).max()))
 
 
-def use_lowrank(n_branches: int, n: int) -> bool:
+def use_lowrank(n_branches: int, n: int, uniqueness: bool = True) -> bool:
     """Whether `DenseMethod` takes this path by default (on a CPU): from MIN_BRANCHES branches, or when the full
     path's per-branch eig + SVD would cost more than MIN_WORK (a rule on sizes, not on the machine, so that the
-    result's contents do not depend on load)."""
-    return n_branches >= MIN_BRANCHES or n_branches * float(n) ** 3 >= MIN_WORK
+    result's contents do not depend on load). Without ℍ^i (uniqueness False) the full path does no eig or SVD: a
+    few large branches cost it one eigh each, as here, without this path's set-up."""
+    return n_branches >= MIN_BRANCHES or (uniqueness and n_branches * float(n) ** 3 >= MIN_WORK)
 
 
 def sym_updates(a: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -132,7 +133,7 @@ def leakage(xp, red: Reduced, on, updates=None):
 
 
 def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "cpu", chunk: int | None = None,
-                           on_branch=None, keep_all: bool = True):
+                           on_branch=None, keep_all: bool = True, uniqueness: bool = True):
     """Every branch in `masks` (L, M): a list of `branches.Branch` in mask order, and info (device, unit round-off,
     how many branches took the full path, the largest leakage and backward error relative to ‖M_i‖, the largest
     residual_stability).
@@ -140,7 +141,8 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
     Plain branches come from the stacked reduced problems; the others from `solve_branches` (module docstring).
     keep_all=False: only the branches a verdict rests on are returned — those with a consistent eigenpair of sign
     ≤ 0 (resolved or not) or Type-2, and the branch with the lowest non-rigid eigenvalue — and info["tally"] holds
-    the counts over all L branches (verdicts.tally): memory no longer grows with 2^Ms.
+    the counts over all L branches (verdicts.tally): memory no longer grows with 2^Ms. uniqueness=False: no ℍ^i
+    nullity test (`_special`), uniqueness_n_zero -1, and the full path without ℍ^i (dense.solve_branches).
     """
     be = backend(device)
     xp = be.xp
@@ -149,7 +151,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
     L = len(masks)
     info = {"device": be.name, "eps": be.eps, "full_path": 0, "leakage": 0.0, "backward_error": 0.0}
     if k == 0 or L == 0:
-        out = solve_branches(problem, masks, on_branch=on_branch)
+        out = solve_branches(problem, masks, on_branch=on_branch, uniqueness=uniqueness)
         info["full_path"] = len(out)
         return out, info
     workers = cores() if be.name == "cpu" else min(GPU_THREADS, cores())
@@ -176,7 +178,8 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
         host = {key: be.to_host(v) for key, v in got.items()}          # O(L·k): the S values stay on the device
         host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
                                        problem.formation_error, k) + host["leak"][:, None]
-        return part, host, _special(problem, red, host, on_h, be), _plain_arrays(problem, host)
+        special = _special(problem, red, host, on_h, be, uniqueness)
+        return part, host, special, _plain_arrays(problem, host, uniqueness)
 
     kept = Kept(keep_all)
     info["residual_stability"] = 0.0
@@ -184,7 +187,8 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
         for start, (part, host, special, plain) in zip(range(0, L, size), pool.map(solve, range(0, L, size))):
             with be.threads(n if workers == 1 else 1):
                 full = dict(zip(np.flatnonzero(special),
-                                solve_branches(problem, part[special]) if special.any() else []))
+                                solve_branches(problem, part[special], uniqueness=uniqueness) if special.any()
+                                else []))
             info["full_path"] += len(full)
             norm = np.maximum(np.abs(host["lam"]).max(axis=1), 1e-300)
             info["leakage"] = max(info["leakage"], float((host["leak"] / norm).max()))
@@ -276,12 +280,15 @@ def full_signs(xp, N, W):
     return column_signs(xp.matmul(N[None], W), xp)[:, 0, :]
 
 
-def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray, be) -> np.ndarray:
+def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray, be, uniqueness: bool = True) -> np.ndarray:
     """Branches that need the full path: a non-rigid zero or a repeated eigenvalue within the accuracy bounds
-    (branches.needs_search), or an ℍ^i whose smallest singular value on N is not proven above its zero tolerance."""
+    (branches.needs_search), or (uniqueness) an ℍ^i whose smallest singular value on N is not proven above its zero
+    tolerance."""
     lam, bounds = h["lam"], h["bounds"]
     n = red.n
     search = needs_search(lam, bounds)
+    if not uniqueness:
+        return search
     upper = red.HN_norm + on @ red.AS_norm                            # ≥ ‖H^i N‖₂ = ‖ℍ^i‖₂
     tol_u = problem.tol.zero_tol(1.0, n) * upper
     lower = lam[:, 0] - bounds[:, 0]                                  # ≤ λ_min(M_i) ≤ σ_min(H^i N)
@@ -324,9 +331,10 @@ def fingerprint(xp, S) -> dict:
     return {"finger": finger, "sign": xp.sign(xp.take_along_axis(S, finger[:, None, :], axis=1)[:, 0, :])}
 
 
-def _plain_arrays(problem: Problem, h: dict) -> dict:
+def _plain_arrays(problem: Problem, h: dict, uniqueness: bool = True) -> dict:
     """Per-chunk arrays of the plain branches' Branch fields: the rigid motions as exact zeros (code RIGID, error
-    bound ‖E_i‖_F) sorted in with the reduced eigenvalues."""
+    bound ‖E_i‖_F) sorted in with the reduced eigenvalues; ℍ^i's nullity (the rigid motions, proven by `_special`;
+    -1 without uniqueness: not evaluated)."""
     L = h["lam"].shape[0]
     r = problem.rigid.shape[1]
     lam = np.concatenate([np.zeros((L, r)), h["lam"]], axis=1)
@@ -339,7 +347,8 @@ def _plain_arrays(problem: Problem, h: dict) -> dict:
     res = (np.sqrt(2.0) * h["res"].max(axis=1, initial=0.0) + h["leak"]) / norm
     take = lambda a: np.take_along_axis(a, order, axis=1)              # noqa: E731
     return {"lam": take(lam), "err": take(err), "codes": take(codes), "hinges": take(hinges), "order": order,
-            "tol": err.max(axis=1), "res": res, "finger": h["finger"], "sign": h["sign"]}
+            "tol": err.max(axis=1), "res": res, "finger": h["finger"], "sign": h["sign"],
+            "n_null": np.full(L, r if uniqueness else -1)}
 
 
 def _plain(problem: Problem, red: Reduced, mask, p: dict) -> Branch:
@@ -348,8 +357,8 @@ def _plain(problem: Problem, red: Reduced, mask, p: dict) -> Branch:
     return Branch(mask=mask, stability_eigenvalues=p["lam"], stability_vectors=LazyVectors(
                       problem, red, mask, p["order"], p["finger"], p["sign"]), codes=p["codes"], hinges=p["hinges"],
                   n_zero=r, zero_tol=float(p["tol"]), uniqueness_eigenvalues=np.zeros(0, complex),
-                  uniqueness_n_zero=r, type2=[], residual_stability=float(p["res"]), residual_uniqueness=0.0,
-                  bounds=p["err"])
+                  uniqueness_n_zero=int(p["n_null"]), type2=[], residual_stability=float(p["res"]),
+                  residual_uniqueness=0.0, bounds=p["err"])
 
 
 class LazyVectors:

@@ -59,8 +59,10 @@ class State:
     parts: dict | None = None
 
 
-def choose_method(scene: Scene, method: str, k: int, device: str = "cpu", lowrank: bool | None = None):
-    """"dense", "sparse" or "auto" (sparse above sparse.DENSE_MAX_DOF dofs); device and lowrank: see DenseMethod."""
+def choose_method(scene: Scene, method: str, k: int, device: str = "cpu", lowrank: bool | None = None,
+                  uniqueness: bool = True):
+    """"dense", "sparse" or "auto" (sparse above sparse.DENSE_MAX_DOF dofs); device, lowrank, uniqueness: see
+    DenseMethod (the sparse path never evaluates ℍ^i)."""
     from .device import backend
     from .sparse import DENSE_MAX_DOF
     backend(device)                                                   # an unusable device fails before any work
@@ -69,7 +71,7 @@ def choose_method(scene: Scene, method: str, k: int, device: str = "cpu", lowran
             raise SceneError(f"{scene.source}: fixed particles are supported on the dense path only (at most "
                              f"{DENSE_MAX_DOF} dofs; method='dense')")
         return SparseMethod(k, device=device)
-    return DenseMethod(device, lowrank)
+    return DenseMethod(device, lowrank, uniqueness)
 
 
 def _progress_bar(total: int, desc: str = "branches", progress=True):
@@ -162,12 +164,14 @@ class DenseMethod:
     """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. Where lowrank.use_lowrank says
     so (many branches, or large ones), or when `device` resolves to a GPU (device.py), the branches are solved as
     low-rank updates of the elastic problem (lowrank.py; `lowrank` True/False forces the choice): it leaves out the ℍ^i spectra of the
-    branches it solves (their ℍ^i nullity is proven instead) and says so."""
+    branches it solves (their ℍ^i nullity is proven instead) and says so. uniqueness=False leaves ℍ^i out altogether
+    (no eig, SVD or Type-2; uniqueness_n_zero -1, no eigen_residual_uniqueness) and says so: what needs only the
+    stability of the branches (track --whole) is spared the costlier half of the work."""
 
     name = "dense"
 
-    def __init__(self, device: str = "cpu", lowrank: bool | None = None):
-        self.device, self.lowrank = device, lowrank
+    def __init__(self, device: str = "cpu", lowrank: bool | None = None, uniqueness: bool = True):
+        self.device, self.lowrank, self.uniqueness = device, lowrank, uniqueness
 
     def prepare(self, scene: Scene, timer: Timer) -> State:
         with timer("blocks"):
@@ -193,22 +197,25 @@ class DenseMethod:
         from .lowrank import solve_branches_lowrank, use_lowrank
         lowrank = self.lowrank
         if lowrank is None:
-            lowrank = use_lowrank(len(masks), problem.H_el.shape[0]) or backend(self.device).name == "gpu"
-        notes = {"complete": True, "paths": {"full": len(masks)}}
+            lowrank = use_lowrank(len(masks), problem.H_el.shape[0], self.uniqueness) or \
+                backend(self.device).name == "gpu"
+        notes = {"complete": True, "paths": {"full": len(masks)}, "warnings": [] if self.uniqueness else [
+            "uniqueness=False: ℍ^i (uniqueness eigenvalues, Type-2 non-uniqueness) not evaluated"]}
         if lowrank:
             branches, info = solve_branches_lowrank(problem, masks, device=self.device, keep_all=keep_all,
-                                                    on_branch=stream if bar is not None or on_branch else None)
+                                                    on_branch=stream if bar is not None or on_branch else None,
+                                                    uniqueness=self.uniqueness)
             notes["lowrank"] = info
             notes["paths"] = {"low_rank": len(masks) - info["full_path"], "full": info["full_path"]}
             notes["residual_stability"] = info["residual_stability"]
             if not keep_all:
                 notes.update(tally=info["tally"], n_branches=info["n_branches"])
-            notes["warnings"] = [f"low-rank branch path on {info['device']} (unit round-off {info['eps']:.1e}): "
-                                 f"{len(branches) - info['full_path']} of {len(branches)} branches without ℍ^i "
-                                 "spectra (ℍ^i nullity proven from a bound on its smallest singular value), "
-                                 f"{info['full_path']} on the full path"]
+            proven = " (ℍ^i nullity proven from a bound on its smallest singular value)" if self.uniqueness else ""
+            notes["warnings"].append(f"low-rank branch path on {info['device']} (unit round-off {info['eps']:.1e}): "
+                                     f"{len(branches) - info['full_path']} of {len(branches)} branches without ℍ^i "
+                                     f"spectra{proven}, {info['full_path']} on the full path")
         else:
-            branches = solve_branches(problem, masks, on_branch=stream)
+            branches = solve_branches(problem, masks, on_branch=stream, uniqueness=self.uniqueness)
         if bar is not None:
             bar.close()
         return branches, notes
@@ -219,7 +226,8 @@ class DenseMethod:
         errors.update(problem.projection.errors())
         errors["equilibrium_residual"] = equilibrium_residual(state.scene)
         errors["eigen_residual_stability"] = max(b.residual_stability for b in branches)
-        errors["eigen_residual_uniqueness"] = max(b.residual_uniqueness for b in branches)
+        if self.uniqueness:
+            errors["eigen_residual_uniqueness"] = max(b.residual_uniqueness for b in branches)
         return errors
 
 

@@ -26,8 +26,11 @@ from .quantities import macroscopic, per_particle
 
 PREDICTORS = ("unstable_fraction", "unstable_fraction_nonboundary", "cluster_lambda_min", "soft_participation",
               "in_largest_rigid_cluster")          # NaN where the stage that computes them was not asked for
-WHOLE = {"metric": "L", "max_sliding": 0, "sample_branches": 0, "keep": "all", "attribution": False}
-# the whole packing: its all-loading and all-unloading branches only (sample_masks), in the scan's metric L
+WHOLE = {"metric": "L", "max_sliding": 0, "sample_branches": 0, "keep": "all", "attribution": False,
+         "uniqueness": False}
+# the whole packing: its all-loading and all-unloading branches only (sample_masks), in the scan's metric L, their
+# stability only: no metric family or robustness, no attribution, no ℍ^i (uniqueness, Type-2), none of which the
+# row uses (on 300 spheres ℍ^i's eig and SVDs were most of a frame's time)
 
 
 def core_scene(scene: Scene, wall_flags):
@@ -54,14 +57,14 @@ def whole(core: Scene, soft_modes: int) -> tuple[dict, np.ndarray]:
         if branch is None:
             row[f"lambda_min_{name}"], row[f"n_negative_{name}"] = float("nan"), -1
             continue
-        lam = branch.stability_eigenvalues
+        lam, V = branch.stability_eigenvalues, np.asarray(branch.stability_vectors)   # once (lowrank.LazyVectors)
         nonrigid = np.flatnonzero(branch.codes != RIGID)
         row[f"lambda_min_{name}"] = float(lam[nonrigid].min()) if nonrigid.size else float("nan")
         consistent = branch.consistent()
         row[f"n_negative_{name}"] = int(sum(c["eigenvalue"] < -branch.accuracy[c["index"]] for c in consistent))
-        modes += [(c["eigenvalue"], branch.stability_vectors[:, c["index"]]) for c in consistent]
+        modes += [(c["eigenvalue"], V[:, c["index"]]) for c in consistent]
         if sign == -1:
-            elastic = [(lam[j], branch.stability_vectors[:, j]) for j in nonrigid]
+            elastic = [(lam[j], V[:, j]) for j in nonrigid]
     row["whole_verdict"] = res.verdict.verdict
     row["whole_method"] = res.backend
     row["soft_modes_from"] = "consistent modes, both branches" if modes else \
