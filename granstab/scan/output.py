@@ -33,15 +33,8 @@ class ScanOutput:
         self.parts = self.path / "parts"
         self.parts.mkdir(parents=True, exist_ok=True)
         stated = {**options, "source": scene.source, "packing": PACKING, "format": fmt}
-        saved = self.path / "options.json"
-        if saved.exists():
-            before = json.loads(saved.read_text(encoding="utf-8"))
-            if before != stated:
-                raise SceneError(f"{out_dir}: holds a scan with other options ({before}); resume with the same "
-                                 "options or choose another --out")
-        else:
-            _save_packing(scene, self.path / PACKING)             # before options.json: a scan folder has its packing
-            saved.write_text(json.dumps(stated), encoding="utf-8")
+        # the packing before options.json: a scan folder has its packing
+        hold_options(self.path, stated, "scan", first=lambda: _save_packing(scene, self.path / PACKING))
         self.options = stated
         self.tables = [_feather().read_table(f) for f in sorted(self.parts.glob("*.arrow"))]   # an interrupted scan's
 
@@ -81,6 +74,21 @@ class ScanOutput:
                    "options": self.options, **(extra or {})}
         (self.path / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
         return summary
+
+
+def hold_options(folder: Path, stated: dict, what: str, first=None) -> None:
+    """A resumable folder's options.json (scan, track): written when new (after `first()`, what must precede it);
+    a folder holding a `what` with other options is a one-line error, so that a resume never mixes two runs."""
+    saved = folder / "options.json"
+    if saved.exists():
+        before = json.loads(saved.read_text(encoding="utf-8"))
+        if before != stated:
+            raise SceneError(f"{folder}: holds a {what} with other options ({before}); resume with the same options "
+                             "or choose another --out")
+        return
+    if first is not None:
+        first()
+    saved.write_text(json.dumps(stated), encoding="utf-8")
 
 
 def mechanism_counts(clusters) -> dict:

@@ -16,6 +16,7 @@ from ..io.progress import Heartbeat
 from ..model.errors import Interrupted, require
 from ..model.scene import SceneError
 from ..scan.clusters import DEFAULT_BOUNDARY, boundary_rings
+from ..scan.output import hold_options
 from ..scan.run import _progress
 from .frame import frame_task
 from .tables import finish
@@ -144,15 +145,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
 def _open(out: Path, stated: dict) -> None:
     """The folder and options.json (a folder with other options: a one-line error, as the scan's)."""
     (out / "parts").mkdir(parents=True, exist_ok=True)
-    saved = out / "options.json"
-    text = json.loads(json.dumps(stated, default=str))
-    if saved.exists():
-        before = json.loads(saved.read_text(encoding="utf-8"))
-        if before != text:
-            raise SceneError(f"{out}: holds a track with other options ({before}); resume with the same options or "
-                             "choose another --out")
-    else:
-        saved.write_text(json.dumps(text), encoding="utf-8")
+    hold_options(out, json.loads(json.dumps(stated, default=str)), "track")
 
 
 def run_frames(spec: dict, todo: list, keys: list, workers: int | None, bar) -> dict:
