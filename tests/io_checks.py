@@ -41,3 +41,26 @@ def check_region_analyses(paths, region: str, min_particles: int):
     result = granstab.analyze(s, method="dense", max_sliding=8)
     assert max(result.errors.values()) <= 1e-10
     assert result.branches[0].n_zero >= 6
+
+
+def with_atom_columns(src, dst, names, values_of_row):
+    """A LAMMPS atom dump with columns `names` appended to every block, `values_of_row(row)` giving their values
+    from the row's own columns ({name: float}, and "row": its index in the block): written here, independently of
+    granstab's reader."""
+    out, columns, row = [], None, 0
+    for line in src.read_text().splitlines():
+        if line.startswith("ITEM: ATOMS"):
+            columns, row = line.split()[2:], 0
+            out.append(" ".join([line, *names]))
+        elif line.startswith("ITEM:"):
+            columns = None
+            out.append(line)
+        elif columns is not None:
+            values = values_of_row({"row": row, **dict(zip(columns, map(float, line.split())))})
+            out.append(" ".join([line, *(f"{v:.17g}" for v in values)]))
+            row += 1
+        else:
+            out.append(line)
+    dst.write_text("\n".join(out) + "\n")
+    return dst
+

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+from pathlib import Path
 from xml.etree import ElementTree
 
 import ase.io as ase_io
@@ -203,7 +204,7 @@ def ovito_matches(data, fields: dict, positions, typed: bool = True) -> None:
     float64 it reads is within 2 ulp of the written one (seen: 1.4e-16 relative), and it keeps Radius as float32,
     within one float32 rounding; integers exact (typed: as integers; a dump's columns carry no type, OVITO reads
     them as reals). Text fields are not compared (OVITO keeps them as types)."""
-    renamed = {"radius": "Radius"}                       # OVITO maps standard names onto its own properties
+    renamed = {"radius": "Radius", "orientation": "Orientation"}   # OVITO maps standard names onto its own
     eps = {np.dtype(np.float64): 2 * np.finfo(float).eps, np.dtype(np.float32): np.finfo(np.float32).eps}
     for key, values in [("positions", positions), *fields.items()]:
         if values.dtype.kind in "US":
@@ -318,6 +319,76 @@ def test_a_track_folder_gives_the_frames_and_its_particle_fields(tmp_path):
     expect = dict(zip(names, d2min))
     assert atoms.info["Time"] == 2 and same(atoms.arrays["d2min"], [expect[n] for n in frames[2].names])
     assert same(atoms.arrays["rattler"], np.zeros(len(frames[2].names))) and "x" not in atoms.arrays
+
+
+def unit_quaternions(rows: int, seed: int = 5) -> np.ndarray:
+    """Seeded random unit quaternions (w, x, y, z), rounded to 9 digits as a dump would print them, then scaled to
+    unit norm to round-off (|q| − 1 ≤ 4e-16, inside the reader's 1e-6)."""
+    q = np.round(np.random.default_rng(seed).normal(size=(rows, 4)), 9)
+    return q / np.linalg.norm(q, axis=1)[:, None]
+
+
+def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """v (3,) turned by each unit quaternion q (n, 4) as (w, x, y, z): v + 2w (u × v) + 2 u × (u × v)."""
+    w, u = q[:, :1], q[:, 1:]
+    t = 2 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def test_orientation_from_the_dump_in_every_format(tmp_path):
+    """A LAMMPS 3D dump with quatw quati quatj quatk (appended here) → Loaded.orientation in the scene's particle
+    order → OVITO's Orientation (x, y, z, w) from the extended XYZ and from the dump, vtk's `orientation` array:
+    every one the file's quaternion (OVITO keeps Orientation in float32: one float32 rounding, as ovito_matches)."""
+    from io_checks import with_atom_columns
+    from test_io_lammps import inputs
+
+    quats = unit_quaternions(5000)
+    atoms, contacts, script = inputs(3)
+    dumped = with_atom_columns(atoms, tmp_path / "atoms.dump", ["quatw", "quati", "quatj", "quatk"],
+                               lambda row: quats[int(row["id"])])
+    loaded = granstab.load([dumped, contacts, script])
+    ids = np.array([int(n) for n in loaded.scene.names])   # LAMMPS scenes name particles by their ids
+    assert same(loaded.orientation, quats[ids])            # the file's numbers, in the scene's order, not renormalised
+    out = tmp_path / "out"
+    for fmt in ("xyz", "dump", "vtp"):
+        assert main(["export", str(dumped), str(contacts), str(script), "--out", str(out), "--format", fmt]) == 0
+    xyzw, positions = quats[ids][:, [1, 2, 3, 0]], loaded.scene.x
+    for path in (out / "atoms.xyz", out / "atoms.atoms.dump"):       # OVITO keeps Orientation as float32
+        ovito_matches(ovito_io.import_file(str(path)).compute(0), {"orientation": xyzw}, positions, typed=False)
+    assert same(vtk_arrays(read_vtp(out / "atoms.particles.vtp").GetPointData())["orientation"], xyzw)
+
+
+def test_a_2d_angle_is_a_turn_about_e3(tmp_path):
+    """A table's `angle` column (2D, radians) → q = (cos θ/2, 0, 0, sin θ/2): OVITO's Orientation turns e1 onto
+    (cos θ, sin θ, 0), the physical meaning, checked against the angles written."""
+    src = Path(__file__).parent / "data" / "io" / "table"
+    lines = (src / "particles.csv").read_text().splitlines()
+    angles = np.array([0.3, -2.5, 3.0])
+    rows = [lines[0], lines[1] + ",angle"] + [f"{r},{a:.17g}" for r, a in zip(lines[2:], angles)]
+    (tmp_path / "particles.csv").write_text("\n".join(rows) + "\n")
+    shutil.copy(src / "contacts.csv", tmp_path / "contacts.csv")
+    tables = [str(tmp_path / "particles.csv"), str(tmp_path / "contacts.csv")]
+    assert main(["export", *tables, "--out", str(tmp_path / "out"), "--format", "xyz"]) == 0
+    xyzw = np.asarray(ovito_io.import_file(str(tmp_path / "out" / "particles.xyz")).compute(0).particles["Orientation"])
+    turned = rotate(xyzw[:, [3, 0, 1, 2]].astype(float), np.array([1.0, 0.0, 0.0]))
+    # OVITO's float32 quaternion: each component within 6e-8, the turned vector within a few of those
+    assert np.allclose(turned, np.c_[np.cos(angles), np.sin(angles), np.zeros(3)], rtol=0, atol=5e-7)
+
+
+@pytest.mark.parametrize("columns, values, says", [
+    (["quatw", "quati", "quatj", "quatk"], [0.9, 0.1, 0.1, 0.1], "quatw quati quatj quatk: not a unit quaternion"),
+    (["quatw", "quati", "quatj"], [1.0, 0.0, 0.0], "quatk: missing column"),
+    (["angle"], [0.5], "angle: only for 2D"),
+])
+def test_bad_orientation_is_one_line(tmp_path, capsys, columns, values, says):
+    from io_checks import with_atom_columns
+    from test_io_lammps import inputs
+
+    atoms, contacts, script = inputs(3)
+    dumped = with_atom_columns(atoms, tmp_path / "atoms.dump", columns, lambda row: values)
+    assert main(["convert", str(dumped), str(contacts), str(script), "--out", str(tmp_path / "s.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and says in err and str(dumped) in err, err
 
 
 @pytest.mark.parametrize("what, argv, says", [

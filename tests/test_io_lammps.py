@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from io_checks import check_contact_geometry
+from io_checks import check_contact_geometry, with_atom_columns
 
 import granstab
 from granstab.cli import main
@@ -162,21 +162,7 @@ def test_analyse_the_2d_fixture_dense_and_the_3d_fixture_sparse():
 
 def with_mass_column(src, dst, mass_of_radius):
     """The atom dump with a `mass` column appended (written here, independently of granstab's reader)."""
-    out = []
-    columns = None
-    for line in src.read_text().splitlines():
-        if line.startswith("ITEM: ATOMS"):
-            columns = line.split()[2:]
-            out.append(line + " mass")
-        elif line.startswith("ITEM:"):
-            columns = None
-            out.append(line)
-        elif columns is not None:
-            out.append(f"{line} {mass_of_radius(float(line.split()[columns.index('radius')])):.17g}")
-        else:
-            out.append(line)
-    dst.write_text("\n".join(out) + "\n")
-    return dst
+    return with_atom_columns(src, dst, ["mass"], lambda row: [mass_of_radius(row["radius"])])
 
 
 def test_masses_from_the_file_or_a_density_give_the_inertia_metric(tmp_path, capsys):

@@ -15,7 +15,7 @@ from pathlib import Path
 from ..model.errors import SceneError
 from ..model.scene import Scene
 from . import dump, xyz
-from .fields import STATE_CODES, VERDICT_CODES, Frame, add_scan, scene_frame
+from .fields import STATE_CODES, VERDICT_CODES, Frame, add_scan, quaternion_xyzw, scene_frame
 from .modes import add_modes
 
 FORMATS = ("vtp", "xyz", "dump")
@@ -23,10 +23,14 @@ FORMATS = ("vtp", "xyz", "dump")
 __all__ = ["FORMATS", "STATE_CODES", "VERDICT_CODES", "Frame", "export", "frame_of", "write"]
 
 
-def frame_of(scene: Scene, *, scan=None, modes: int = 0, time: float = 0.0, extra: dict | None = None) -> Frame:
+def frame_of(scene: Scene, *, scan=None, modes: int = 0, time: float = 0.0, extra: dict | None = None,
+             orientation=None) -> Frame:
     """One frame's fields: the scene's own, the scan folder's verdicts (`scan`: a granstab scan output of this
-    packing), the `modes` lowest consistent modes of the whole packing, and `extra` per-particle arrays (N,)."""
+    packing), the `modes` lowest consistent modes of the whole packing, `extra` per-particle arrays (N,) and the
+    particles' `orientation` where the input gives it ((N, 4) unit quaternions w, x, y, z: `io.Loaded.orientation`)."""
     frame = scene_frame(scene, time)
+    if orientation is not None:
+        frame.particles["orientation"] = quaternion_xyzw(orientation, scene)
     if scan is not None:
         add_scan(frame, scene, scan)
     add_modes(frame, scene, modes)

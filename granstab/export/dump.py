@@ -43,15 +43,21 @@ def box(frame: Frame, where: str) -> str:
     return "ITEM: BOX BOUNDS xy xz yz pp pp pp\n" + "\n".join(rows) + "\n"
 
 
+#: vector fields whose components LAMMPS names itself (OVITO maps these to its Orientation property)
+COMPONENT_NAMES = {"orientation": ["quati", "quatj", "quatk", "quatw"]}
+
+
 def numeric_columns(fields: dict) -> tuple[list[str], np.ndarray]:
-    """The numeric fields as dump columns: names (vectors as NAME[1..3]) and the (n, k) table as text."""
+    """The numeric fields as dump columns: names (vectors as NAME[1..3], or LAMMPS's own component names) and the
+    (n, k) table as text."""
     names, parts = [], []
     for name, values in fields.items():
         values = np.asarray(values)
         if values.dtype.kind not in "fiu":
             continue
         flat = values.reshape(len(values), -1)
-        names += [name] if values.ndim == 1 else [f"{name}[{i + 1}]" for i in range(flat.shape[1])]
+        names += ([name] if values.ndim == 1 else
+                  COMPONENT_NAMES.get(name, [f"{name}[{i + 1}]" for i in range(flat.shape[1])]))
         fmt = "{:.17g}" if values.dtype.kind == "f" else "{:d}"
         parts.append(np.vectorize(fmt.format, otypes=[str])(flat) if flat.size else flat.astype(str))
     return names, np.concatenate(parts, axis=1) if parts else np.zeros((0, 0), dtype=str)

@@ -60,6 +60,15 @@ def contact_radius(scene: Scene) -> np.ndarray:
     return np.divide(total, count, out=np.full(scene.n_particles, np.nan), where=count > 0)
 
 
+def quaternion_xyzw(orientation, scene: Scene) -> np.ndarray:
+    """(N, 4) unit quaternions (w, x, y, z), as readers give them, in OVITO's order (x, y, z, w): its Orientation
+    property, which extended XYZ's `orientation` column and a dump's quati quatj quatk quatw fill."""
+    q = np.asarray(orientation, dtype=float)
+    if q.shape != (scene.n_particles, 4):
+        raise SceneError(f"{scene.source}: orientation: shape {q.shape}, expected ({scene.n_particles}, 4)")
+    return q[:, [1, 2, 3, 0]]
+
+
 def contact_state(scene: Scene) -> np.ndarray:
     """STATE_CODES per contact: 2 declared sliding, 1 at yield (Q = 0 within tolerance, `Scene.at_yield`), else 0."""
     state = np.asarray(scene.state)

@@ -71,6 +71,7 @@ class Snapshot:
     wall_flags: np.ndarray | None = None  # (N,) nonzero: touches a wall whose force the file does not give
     wall_load: np.ndarray | None = None  # (N, d) wall forces the file gives
     mass: np.ndarray | None = None       # (N,) per-particle masses the file gives (e.g. LAMMPS `mass`)
+    orientation: np.ndarray | None = None  # (N, 4) unit quaternions (w, x, y, z) the file gives (columns.ORIENTATION_NAMES)
     law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
     length_unit: str = "file units"
     frame: object = None
@@ -193,7 +194,8 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     report.update({k: v for k, v in snap.notes.items() if k not in report})
     report["warnings"] = import_warnings(report)
     return Loaded(scene=scene, report=report, frames=snap.frames,
-                  wall_flags=None if snap.wall_flags is None else snap.wall_flags[keep_p])
+                  wall_flags=None if snap.wall_flags is None else snap.wall_flags[keep_p],
+                  orientation=None if snap.orientation is None else snap.orientation[keep_p])
 
 
 # ------------------------------------------------------------------------------------------------ checks

@@ -1,5 +1,6 @@
 """Named columns of per-contact tables (LAMMPS local dumps, generic tables): the names, the --columns mapping,
-forces from whichever columns a file has, and ids → particle indices, with one-line errors."""
+forces from whichever columns a file has, ids → particle indices and the particles' orientations, with one-line
+errors."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -128,3 +129,42 @@ def unique_ids(ids: np.ndarray, line_of_row, what: str) -> None:
     if same.size:
         row = order[same[0] + 1]
         raise SceneError(f"{line_of_row(row)}: id: {ids[row]} listed twice {what}")
+
+
+#: per-particle orientation columns a reader takes: LAMMPS's quaternion (dump custom quatw quati quatj quatk) or,
+#: in 2D, the angle about e3 (radians)
+ORIENTATION_NAMES = ("quatw", "quati", "quatj", "quatk", "angle")
+QUAT_TOL = 1e-6     # |q| - 1 allowed: files write quaternions to ~7+ digits; more than that is not a rotation
+
+
+def particle_orientation(col: dict, dim: int, line_of_row, where: str) -> np.ndarray | None:
+    """The particles' orientations as unit quaternions (N, 4), (w, x, y, z), from a table's columns (None when it
+    has none): all four quat columns, or `angle` in 2D (q = (cos θ/2, 0, 0, sin θ/2)). A quaternion that is not of
+    unit norm within QUAT_TOL, or a 2D one not about e3, is a one-line error naming the row: never renormalised."""
+    quat = [n for n in ORIENTATION_NAMES[:4] if n in col]
+    if not quat and "angle" not in col:
+        return None
+    if quat and "angle" in col:
+        raise SceneError(f"{where}: angle: give the quaternion columns or angle, not both")
+    if "angle" in col:
+        if dim != 2:
+            raise SceneError(f"{where}: angle: only for 2D (3D orientations are quatw quati quatj quatk)")
+        half = np.asarray(col["angle"], dtype=float) / 2
+        zero = np.zeros_like(half)
+        return np.stack([np.cos(half), zero, zero, np.sin(half)], axis=1)
+    if len(quat) != 4:
+        missing = next(n for n in ORIENTATION_NAMES[:4] if n not in col)
+        raise SceneError(f"{where}: {missing}: missing column (an orientation needs quatw quati quatj quatk)")
+    q = np.stack([np.asarray(col[n], dtype=float) for n in ORIENTATION_NAMES[:4]], axis=1)
+    off = np.abs(np.linalg.norm(q, axis=1) - 1.0)
+    bad = np.flatnonzero(~(off <= QUAT_TOL))
+    if len(bad):
+        raise SceneError(f"{line_of_row(bad[0])}: quatw quati quatj quatk: not a unit quaternion "
+                         f"(|q| = {np.linalg.norm(q[bad[0]]):.9g})")
+    if dim == 2:
+        tilted = np.flatnonzero(np.abs(q[:, 1:3]).max(axis=1) > QUAT_TOL)
+        if len(tilted):
+            raise SceneError(f"{line_of_row(tilted[0])}: quati quatj: a 2D orientation turns about e3 "
+                             f"(quati = quatj = 0), got {q[tilted[0], 1]:.6g} {q[tilted[0], 2]:.6g}")
+    return q
+

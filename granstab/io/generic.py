@@ -2,6 +2,7 @@
 line naming the columns after any `#` comment lines), optionally many frames (a `frame` column in both).
 
     particles: id x y [z] radius       (or r, or diameter; 3D when there is a z column)
+               [angle | quatw quati quatj quatk]    the orientation, where known (2D angle about e3, radians)
     contacts:  id1 id2 fx fy [fz]      (force on id1 by id2; or fnx … + ftx …; or fn ft in 2D with
                [nx ny [nz]] [m | mx my mz] [mobilised]      f = −f_n n + f_t t, t = e3 × n)
 
@@ -22,10 +23,12 @@ from ..model.errors import SceneError
 from .build import Snapshot, branch_vectors, parse_cell
 from .columns import (
     CONTACT_NAMES,
+    ORIENTATION_NAMES,
     column_note,
     columns_option,
     contact_forces,
     contact_moments,
+    particle_orientation,
     to_indices,
     unique_ids,
 )
@@ -33,7 +36,7 @@ from .lines import line_of, pick_frame, read_table
 from .registry import Format, register
 
 SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
-PARTICLE_NAMES = {"id", "x", "y", "z", "radius", "r", "diameter", "frame"}
+PARTICLE_NAMES = {"id", "x", "y", "z", "radius", "r", "diameter", "frame", *ORIENTATION_NAMES}
 
 
 def header(path: Path):
@@ -133,6 +136,7 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     dim = 3 if "z" in pcol else 2
     x = np.stack([pcol[a] for a in "xyz"[:dim]], axis=1)
     radius = pcol.get("radius", pcol.get("r", pcol.get("diameter", np.zeros(0)) / 2))
+    orientation = particle_orientation(pcol, dim, pline_of, str(ppath))
     what = "not in the particle table" + ("" if which is None else f" at frame {which:g}")
     wall = ccol["id2"] < 0
     p = to_indices(ids, ccol["id1"], "id1", cline_of, what)
@@ -163,6 +167,7 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     return Snapshot(source=f"{ppath} + {cpath}", format="table", dim=dim, ids=ids.astype(np.int64)
                     if np.all(ids == np.round(ids)) else ids, x=x, radius=radius, p=p, q=q, force=force,
                     normal=normal, moment=moment, mobilised=mobilised, wall_load=wall_load, law=law,
+                    orientation=orientation,
                     lattice=lattice,
                     frame=None if which is None else float(which), frames=frames,
                     notes={"duplicates": duplicates, "forces_from": how, "walls": walls,

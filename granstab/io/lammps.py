@@ -31,10 +31,12 @@ from ..model.errors import SceneError
 from .build import Snapshot, branch_vectors
 from .columns import (
     CONTACT_NAMES,
+    ORIENTATION_NAMES,
     column_note,
     columns_option,
     contact_forces,
     contact_moments,
+    particle_orientation,
     to_indices,
     unique_ids,
 )
@@ -384,11 +386,13 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, pr
     ablock, cblock = ablocks[a_steps.index(step)], cblocks[c_steps.index(step)]
     if progress is not None:
         progress.stage("parse", total=ablock.end - ablock.start + cblock.end - cblock.start)
-    ids, x, radius, mass, dim_hint = _atoms(apath, ablock, update)
+    ids, x, radius, mass, dim_hint, turns = _atoms(apath, ablock, update)
     names = _contact_columns(cpath, cblock, columns, script)
     data = read_window(cpath, cblock.start, cblock.end, cblock.first_line, names, cblock.count, "entries", update)
     col = {name: data[:, k] for k, name in enumerate(names) if name != "-"}
     dim = script["dimension"] if script and script["dimension"] else dim_hint
+    orientation = particle_orientation(turns, dim, lambda row: f"{apath}: line {ablock.first_line + row}",
+                                       f"{apath}: timestep {step}")
     for need in ("id1", "id2"):
         if need not in col:
             raise SceneError(f"{cpath}: timestep {step}: {need}: no column (name the columns with --columns)")
@@ -414,6 +418,7 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, pr
     rows = np.flatnonzero(touching)
     return Snapshot(
         source=f"{apath} + {cpath}", format="lammps", dim=dim, ids=ids, x=x[:, :dim], radius=radius, mass=mass,
+        orientation=orientation,
         p=p[touching], q=q[touching], force=force[touching], lattice=lattice, law=law, frame=int(step),
         moment=None if moment is None else moment[touching],
         frames=sorted(set(a_steps) & set(c_steps)),
@@ -453,7 +458,8 @@ def _atoms(path: Path, block: Block, progress=None):
     else:
         raise SceneError(f"{path}: timestep {block.timestep}: x: no x/xu/xs column in ITEM: ATOMS")
     flat = np.ptp(x[:, 2]) == 0 if len(x) else True
-    return ids, x, radius, col.get("mass"), 2 if flat else 3
+    turns = {n: col[n] for n in ORIENTATION_NAMES if n in col}
+    return ids, x, radius, col.get("mass"), 2 if flat else 3, turns
 
 
 def _contact_columns(path: Path, block: Block, columns: str | None, script) -> list:

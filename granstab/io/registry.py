@@ -30,6 +30,7 @@ class Loaded:
     report: dict
     frames: list | None = None
     wall_flags: object = None     # (N,) per scene particle: -1 / +1 at a wall the file flags (annulus), else None
+    orientation: object = None    # (N, 4) per scene particle: the file's unit quaternions (w, x, y, z), else None
 
     @property
     def warnings(self) -> list[str]:
