@@ -330,3 +330,21 @@ def test_a_scene_file_is_a_sequence_of_one_frame(tmp_path, capsys):
     assert out.startswith("1 frames") and "predict: " in out          # said whether the prediction ran
     frames = pq.read_table(tmp_path / "frames.parquet").to_pydict()
     assert frames["frame"] == [0] and np.isnan(frames["step"][0]) and np.isnan(frames["n_made"][0])
+
+
+def test_a_cluster_without_lambda_min_does_not_hide_its_members_lowest(monkeypatch, tmp_path):
+    """scan_map's per-particle lowest λ_min over the clusters containing it: a cluster whose λ_min is NaN (an error
+    row, or no analysis) is skipped, not spread over its members (np.minimum.at would make every member NaN)."""
+    import granstab.scan as scan_room
+    from granstab.track.frame import scan_map
+
+    core = lattice(2, 3)                     # 9 particles; the map below is made up, the scan is not run
+    clusters = {"members": [np.array([0, 1, 2]), np.array([1, 2, 3]), np.array([4])],
+                "lambda_min": np.array([0.5, np.nan, np.nan]), "verdict": np.array(["stable", "error", "error"]),
+                "mechanism": np.array(["", "", ""])}
+    monkeypatch.setattr(scan_room, "scan", lambda *a, **k: None)
+    monkeypatch.setattr(scan_room, "read_map", lambda folder: {
+        "clusters": clusters, "particles": {"unstable_fraction": np.zeros(9)}, "summary": {"verdicts": {}}})
+    lam = scan_map(core, tmp_path, {})[1]["cluster_lambda_min"]
+    assert np.array_equal(lam, [0.5, 0.5, 0.5, np.nan, np.nan, *[np.nan] * 4], equal_nan=True)
+

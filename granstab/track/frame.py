@@ -94,7 +94,7 @@ def scan_map(core: Scene, folder: Path, scan_options: dict) -> tuple[dict, dict]
     N = core.n_particles
     contains = np.bincount(flat, minlength=N).astype(float)
     lam = np.full(N, np.inf)
-    np.minimum.at(lam, flat, np.repeat(np.asarray(c["lambda_min"], float), sizes))
+    np.fmin.at(lam, flat, np.repeat(np.asarray(c["lambda_min"], float), sizes))   # a cluster without λ_min: skipped
     with np.errstate(invalid="ignore", divide="ignore"):
         nonboundary = np.where(contains > 0, np.bincount(flat, np.repeat(own, sizes).astype(float), N) / contains,
                                np.nan)
