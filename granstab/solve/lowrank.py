@@ -35,12 +35,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..mechanics.accuracy import abs_norm_inf, resolved_sign, values_backward_error, vector_bounds
+from ..mechanics.accuracy import abs_norm_inf, gamma, resolved_sign, tightened, values_backward_error, vector_bounds
 from ..mechanics.branches import RIGID, Branch, Problem, column_signs, consistency, needs_search
 from ..mechanics.rigid import on_complement, rigid_basis
 from ..mechanics.verdicts import CONSISTENT, merge_tallies, tally
 from ..model.tolerances import EPS
-from .dense import solve_branches
+from .dense import formation_rest, projection_defect, solve_branches, tightenable
 from .device import backend, residual_norms
 from .threads import blas_threads, cores
 
@@ -179,6 +179,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
         host = {key: be.to_host(v) for key, v in got.items()}          # O(L·k): the S values stay on the device
         host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
                                        problem.formation_error, k) + host["leak"][:, None]
+        host["bounds"] = tighten_unresolved(problem, red, host, W, be)
         special = _special(problem, red, host, on_h, be, uniqueness)
         return part, host, special, _plain_arrays(problem, host, uniqueness)
 
@@ -212,6 +213,28 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
     if not keep_all:
         info["tally"], info["n_branches"] = kept.tally, L
     return out, info
+
+
+def tighten_unresolved(problem: Problem, red: Reduced, h: dict, W, be) -> np.ndarray:
+    """h["bounds"] with those of unresolved eigenvalues (|λ| <= bound: where a verdict's `sufficient` may depend on
+    it) tightened by accuracy.tightened, as on the full path (dense.tighten), on their full vectors u = N w. The
+    rigid motions count among the others (exact zeros, bound ‖E_i‖ + F), and u's residual for the whole branch
+    matrix is that of w for M_i plus the leakage ‖E_i‖ (in the basis [N, R], sym(𝓗^i) u = N M_i w + R E_i w)."""
+    lam, bounds = h["lam"], h["bounds"]
+    todo = np.abs(lam) <= bounds
+    if not tightenable(problem) or not todo.any():
+        return bounds
+    out, r, k = bounds.copy(), problem.rigid.shape[1], red.k
+    rest = formation_rest(problem, problem.formation_error)
+    for i in np.flatnonzero(todo.any(axis=1)):
+        idx = np.flatnonzero(todo[i])
+        U = red.N @ be.to_host(W[i][:, idx])
+        lam_all = np.concatenate([np.zeros(r), lam[i]])
+        bounds_all = np.concatenate([np.full(r, h["leak"][i] + problem.formation_error), bounds[i]])
+        r_bar = h["res"][i, idx] + gamma(k + 2) * (h["scale"][i] + np.abs(lam[i, idx])) + h["leak"][i]
+        out[i, idx] = tightened(lam_all, bounds_all, idx + r, U, r_bar, problem.curvature_entrywise,
+                                problem.curvature_bound, rest, projection_defect(problem, U))
+    return out
 
 
 class Kept:
