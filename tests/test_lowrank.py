@@ -84,6 +84,7 @@ def test_vectors_on_demand_are_the_eigenvectors_their_codes_describe():
         assert np.allclose(b.stability_vectors[:, 3], V[:, 3])          # indexing like an array
         cols = [5, 0, len(V) - 1, 3]                # columns alone (subset eigh): the same vectors, signs included
         assert np.abs(b.stability_vectors[:, cols] - V[:, cols]).max() <= 1e-8
+        assert np.abs(b.stability_vectors[:, keep] - V[:, keep]).max() <= 1e-8              # a boolean mask too
 
 
 def test_kept_memory_per_branch_is_linear_in_the_dofs():

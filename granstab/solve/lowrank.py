@@ -426,6 +426,7 @@ class LazyVectors:
         to tridiagonal form and a few vectors, a fifth of a full eigh at 900 dofs; attribution asks for the few
         negative modes of a branch)."""
         cols = np.arange(len(self.order)) if columns is None else np.atleast_1d(np.asarray(columns))
+        cols = np.flatnonzero(cols) if cols.dtype == bool else cols
         r = self.problem.rigid.shape[1]
         picked = self.order[cols]
         reduced = picked[picked >= r] - r
