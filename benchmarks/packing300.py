@@ -9,6 +9,7 @@ import dataclasses
 import shutil
 import subprocess
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from .timing import once
 
 SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "dem" / "in.disks300"
 STEP = 18000     # the end of the shear: contacts at the friction limit
+CPU_RATIO = (0.5, 3.0)   # the estimate's CPU seconds (budget.estimate, one worker) over the analysis's CPU time
 
 
 def packing(n_sliding: int):
@@ -45,10 +47,14 @@ def _case(name: str, scene, metric: str, **options) -> dict:
     n_branches = 2 ** int(np.sum(scene.at_yield()))
     lowrank = options.get("lowrank", use_lowrank(n_branches, scene.n_dof))
     guess = estimate(scene.n_dof, n_branches, n_metrics, lowrank=lowrank, workers=cores())
+    cpu_guess = estimate(scene.n_dof, n_branches, n_metrics, lowrank=lowrank, workers=1)
+    cpu = time.process_time()
     seconds, result = once(lambda: granstab.analyze(scene, metric=metric, **options))
+    cpu = time.process_time() - cpu
     return {"case": name, "metrics": n_metrics, "branches": n_branches, "paths": result.cost["paths"],
-            "estimate_s": guess, "seconds": seconds, "verdict": result.summary["verdict"],
-            "consistent_negative": result.summary["consistent_negative"]}
+            "estimate_s": guess, "seconds": seconds, "cpu_s": cpu, "estimate_cpu_s": cpu_guess,
+            "estimate_within": bool(CPU_RATIO[0] <= cpu_guess / cpu <= CPU_RATIO[1]),
+            "verdict": result.summary["verdict"], "consistent_negative": result.summary["consistent_negative"]}
 
 
 def run(quick: bool = False) -> dict:
@@ -72,10 +78,16 @@ def markdown(results: dict) -> str:
              "the friction limit kept sliding (the others elastic). `estimate` is what `granstab analyze` "
              f"computes before any work (`solve/budget.py`, CPU time of {r['cores']} free cores) to refuse work over "
              "10 s or over `--timeout`; `paths` counts the branches each path solved over all metrics.", "",
-             table(["case", "metrics", "branches", "paths", "estimate", "measured", "verdict"],
+             table(["case", "metrics", "branches", "paths", "estimate", "measured", "estimate / CPU time",
+                    "verdict"],
                    [[c["case"], c["metrics"], c["branches"], ", ".join(f"{k} {v}" for k, v in c["paths"].items()),
                      fmt_t(c["estimate_s"]), fmt_t(c["seconds"]),
-                     f"{c['verdict']} ({c['consistent_negative']} consistent negative)"] for c in r["rows"]])]
+                     f"{fmt_t(c['estimate_cpu_s'])} / {fmt_t(c['cpu_s'])}"
+                     + ("" if c["estimate_within"] else " **(outside 0.5–3)**"),
+                     f"{c['verdict']} ({c['consistent_negative']} consistent negative)"] for c in r["rows"]]),
+             "", "`estimate / CPU time`: the estimate for one core (`estimate(..., workers=1)`) beside the process's "
+             f"CPU time for the analysis (all its threads; not wall time, so the load of the moment counts less): "
+             f"the estimate is checked to lie within {CPU_RATIO[0]}–{CPU_RATIO[1]}× of it (flagged otherwise)."]
     if len(r["rows"]) > 2:
         full, low = r["rows"][-2], r["rows"][-1]
         lines += ["", f"One branch of this packing: the full path {fmt_t(full['seconds'])}, the low-rank path "

@@ -307,12 +307,13 @@ def mode_works(analysis: Analysis, rim: np.ndarray, blocks: ContactBlocks | None
     out = []
     for i, b in enumerate(analysis.branches):
         negative = np.isin(b.codes, (PLUS, MINUS, BOTH)) & (resolved_sign(b.stability_eigenvalues, b.accuracy) < 0)
-        for j in np.flatnonzero(negative):
+        js = np.flatnonzero(negative)
+        vectors = b.stability_vectors[:, js] if js.size else None     # once a branch (lowrank.LazyVectors: these only)
+        for c, j in enumerate(js):
             v = np.zeros(scene.n_dof)
-            v[problem.free if problem.free is not None else slice(None)] = b.stability_vectors[:, j]
+            v[problem.free if problem.free is not None else slice(None)] = vectors[:, c]
             u = np.zeros(scene.n_dof)
-            u[problem.free if problem.free is not None else slice(None)] = problem.projection.apply(
-                b.stability_vectors[:, j])
+            u[problem.free if problem.free is not None else slice(None)] = problem.projection.apply(vectors[:, c])
             U = metric.physical(u)[blocks.index]
             parts = contact_work(blocks, np.arange(scene.n_contacts), U, np.asarray(b.mask) == 1).sum(axis=0)
             weights = (v ** 2).reshape(scene.n_particles, -1).sum(axis=1)

@@ -308,3 +308,82 @@ def test_a_contactless_pair_of_ellipses_at_1e_78_is_analysed(tmp_path):
     assert all(m["verdict"] == "neutral" for m in res.summary["metrics"])     # free particles: zero modes
     for b in res.branches:
         assert np.all(b.stability_eigenvalues == 0) and np.all(np.isfinite(b.accuracy))
+
+
+def test_the_tightened_kernel_holds_and_is_tighter_away_from_the_entrywise_error():
+    """accuracy.tightened on a synthetic A = A_t + X + Y with |X| <= E entrywise (E on the last 3 dofs only, ‖E‖ =
+    1e-6) and ‖Y‖₂ <= 1e-9: every eigenvalue of A_t lies within the tightened bound, which never exceeds the
+    Weyl-type one, and an eigenvector that lives away from E's dofs (gap ~1, ρ ~ 1e-9) sees only ~|u|ᵀE|u| + 1e-9:
+    its bound is under a tenth of the Weyl one (1e-6 + 1e-9). The truth's own error (float64 eigvalsh of A_t,
+    ~1e-15 ‖A_t‖) is added to the check, far below the bounds."""
+    from granstab.mechanics.accuracy import gamma, tightened
+    rng = np.random.default_rng(7)
+    n = 30
+    Q = np.linalg.qr(rng.standard_normal((n - 3, n - 3)))[0]
+    At = np.zeros((n, n))
+    At[:n - 3, :n - 3] = (Q * np.arange(1.0, n - 2)) @ Q.T        # eigenvalues 1 … 27 away from E's dofs
+    At[n - 3:, n - 3:] = np.diag([40.0, 50.0, 60.0])
+    E = np.zeros((n, n))
+    E[n - 3:, n - 3:] = 1e-6 / 3
+    X = E * rng.uniform(-1, 1, (n, n))
+    X = 0.5 * (X + X.T)
+    Y = rng.standard_normal((n, n))
+    Y = 1e-9 * (Y + Y.T) / np.linalg.norm(Y + Y.T, 2)
+    A = At + X + Y
+    lam, V = np.linalg.eigh(A)
+    res = np.linalg.norm(A @ V - V * lam, axis=0)
+    r_bar = res + gamma(n + 2) * (np.abs(A).sum(axis=1).max() + np.abs(lam))
+    e_K = float(np.sqrt(E.sum(axis=0).max() * E.sum(axis=1).max()))
+    weyl = np.sqrt(2) * res + r_bar - res + e_K + 1e-9
+    new = tightened(lam, weyl, np.arange(n), V, r_bar, E, e_K, 1e-9, np.zeros(n))
+    exact = np.linalg.eigvalsh(At)
+    assert np.all(np.abs(exact - lam) <= new + 64 * n * np.finfo(float).eps * 60.0)
+    assert np.all(new <= weyl)
+    away = np.abs(V[n - 3:]).max(axis=0) < 1e-3                   # the 27 vectors off E's dofs
+    assert away.sum() == n - 3 and np.all(new[away] <= 0.1 * weyl[away])
+
+
+def fixed_pair(f: float):
+    """The near-conforming pair (κp = -1, κq = 1 - 1e-9, tensors as data) with p held: 3 free dofs, no rigid
+    motion; at f = ZERO_FORCE the lowest eigenvalue is ~4e-12 (found by bisection on f), inside the Weyl-type bound
+    (~8e-12, mostly e_K: the tensors carry ε|κ| on a sum of 1e-9) but not the tightened one (~2e-12)."""
+    import dataclasses
+    sc = pair_2d(-1.0, 1 - 1e-9, 0.3, f=f, tensors=True)
+    return dataclasses.replace(sc, fixed=np.array([True, False]))
+
+
+ZERO_FORCE = 1.000000009610403e-07
+
+
+def fixed_truth(sc) -> list:
+    """The mp spectrum of sym(H̃) on the free dofs (q's; L the mean contact radius, as granstab's L metric)."""
+    with mp.workdps(DPS):
+        H = stiffness(sc)
+        radii = [mp.norm(mp.matrix([mp.mpf(float(v)) for v in sc.point[0] - sc.x[i]])) for i in (0, 1)]
+        scale = [1, 1, 2 / (radii[0] + radii[1])]
+        Ht = mp.matrix(3, 3)
+        for i in range(3):
+            for j in range(3):
+                Ht[i, j] = scale[i] * scale[j] * (H[3 + i, 3 + j] + H[3 + j, 3 + i]) / 2
+        return sorted(mp.eigsy(Ht)[0])
+
+
+@pytest.mark.parametrize("lowrank", [False, True])
+def test_a_sign_the_weyl_bound_leaves_open_is_proven_by_the_tightened_one(lowrank, monkeypatch):
+    """The fixed near-conforming pair at ZERO_FORCE: λ_min ≈ 3.9e-12 > 0 in the mp truth. The Weyl-type bound
+    (formation norm, e_K ≈ 6e-12 of it) leaves it unresolved: 'neutral, not sufficient'. The tightened bound
+    (the eigenvector barely touches the rolling dof, gap 0.2) is under half of it on both paths (dense: every
+    eigenvalue; low-rank: the unresolved ones), covers the truth, and proves 'stable'."""
+    from granstab.solve import dense
+    from granstab.solve import lowrank as low
+    sc = fixed_pair(ZERO_FORCE)
+    truth_low = float(fixed_truth(sc)[0])
+    new = granstab.analyze(sc, metric="L", lowrank=lowrank)
+    monkeypatch.setattr(dense, "tighten", lambda problem, Hsym, lam, V, bounds, resid: bounds)
+    monkeypatch.setattr(low, "tighten_unresolved", lambda problem, red, h, W, be: h["bounds"])
+    old = granstab.analyze(sc, metric="L", lowrank=lowrank)
+    lam, b_new, b_old = new.branches[0].stability_eigenvalues[0], new.branches[0].accuracy[0], \
+        old.branches[0].accuracy[0]
+    assert 0 < truth_low < 1e-11 and abs(lam - truth_low) <= b_new
+    assert b_new <= 0.5 * b_old and b_old >= lam
+    assert (old.summary["sufficient"], new.summary["verdict"], new.summary["sufficient"]) == (False, "stable", True)

@@ -49,7 +49,8 @@ def test_the_estimate_counts_every_metric_of_the_family(disks300_file, monkeypat
     n_metrics = len(family(scene, None))
     per_branch = 1.0                                              # a fixed measured cost: the estimate is exact
     monkeypatch.setattr(budget, "branch_seconds", lambda n, stack=4, lowrank=False: per_branch)
-    one = 4 * per_branch / cores()                                # 4 low-rank branches shared by the cores
+    # 4 low-rank branches shared by the cores, and the path's once-per-metric work (budget.SETUP_BRANCHES)
+    one = (4 / cores() + budget.SETUP_BRANCHES) * per_branch
     timeout = one * (n_metrics - 0.5)                             # the family does not fit, one metric does
     assert main(["analyze", str(disks300_file), "--timeout", f"{timeout}"]) == 2
     err = capsys.readouterr().err.strip()

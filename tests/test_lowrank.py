@@ -82,6 +82,9 @@ def test_vectors_on_demand_are_the_eigenvectors_their_codes_describe():
         # the sign is canonical)
         assert np.abs(V[:, keep] - f.stability_vectors[:, keep]).max() <= 1e-8
         assert np.allclose(b.stability_vectors[:, 3], V[:, 3])          # indexing like an array
+        cols = [5, 0, len(V) - 1, 3]                # columns alone (subset eigh): the same vectors, signs included
+        assert np.abs(b.stability_vectors[:, cols] - V[:, cols]).max() <= 1e-8
+        assert np.abs(b.stability_vectors[:, keep] - V[:, keep]).max() <= 1e-8              # a boolean mask too
 
 
 def test_kept_memory_per_branch_is_linear_in_the_dofs():
@@ -244,3 +247,41 @@ def test_without_uniqueness_the_stability_is_the_same_and_no_eig_runs(lowrank, m
     assert without.verdict.verdict == with_u.verdict.verdict
     assert "eigen_residual_uniqueness" in with_u.errors and "eigen_residual_uniqueness" not in without.errors
     assert any("uniqueness=False" in w for w in without.warnings)
+
+
+def test_the_svd_floor_tells_a_singular_h_from_one_the_gram_floor_cannot():
+    """lowrank.svd_floor on X = H^i N with singular values 1 … 1e-7 (σ_min/σ_max = 1e-7: the Gram matrix's floor,
+    4nε‖X‖_F² ~ 1e-11, cannot tell it from 0) proves σ_min above the zero tolerance; with σ_min = 0 (a non-rigid
+    null vector, Type-2) it does not."""
+    from types import SimpleNamespace
+
+    from granstab.model.tolerances import DEFAULT
+    from granstab.solve.lowrank import svd_floor
+    rng = np.random.default_rng(3)
+    n, k = 60, 57
+    U = np.linalg.qr(rng.standard_normal((n, k)))[0]
+    W = np.linalg.qr(rng.standard_normal((k, k)))[0]
+    floors = []
+    for smallest in (1e-7, 0.0):
+        X = (U * np.r_[np.logspace(0, -6, k - 1), smallest]) @ W.T
+        red = SimpleNamespace(HN=X, s=np.zeros((k, 1)), n=n)
+        problem = SimpleNamespace(A=np.zeros((n, 1)), tol=DEFAULT)
+        floors.append(svd_floor(problem, red, np.ones((1, 1)))[0])
+        assert np.linalg.eigvalsh(X.T @ X)[0] - 4 * n * np.finfo(float).eps * np.sum(X * X) <= 0   # Gram: no
+    assert floors[0] > 0 and floors[1] <= 0
+
+
+def test_an_unstable_branch_the_gram_floor_cannot_tell_stays_on_the_low_rank_path(monkeypatch):
+    """Before, an unstable branch whose Gram floor could not tell (L/10 and 10L of the 300-disk packing) went to the
+    full path (eig + SVD + search, seconds a branch at 900 dofs); the SVD floor now decides it. Forced here on the
+    Ms = 5 packing's unstable branches: the same results as the full path, none on it."""
+    from granstab.solve import lowrank
+    calls = []
+    monkeypatch.setattr(lowrank, "gram_floor", lambda be, A, red, on: calls.append(len(on)) or
+                        (np.full(len(on), -1.0), np.ones(len(on))))
+    scene = packings.random_packing(**CASES["2D, f/k = 0.2, sharp tips"])
+    problem, full, low, info = both_paths(scene)
+    assert sum(calls) > 0 and info["full_path"] == 0
+    for f, lo in zip(full, low):
+        assert np.all(np.abs(f.stability_eigenvalues - lo.stability_eigenvalues) <= f.accuracy + lo.accuracy)
+        assert np.array_equal(f.codes, lo.codes) and f.uniqueness_n_zero == lo.uniqueness_n_zero

@@ -109,3 +109,31 @@ def value_bounds(lam: np.ndarray, scale, formation, n: int) -> np.ndarray:
 def resolved_sign(lam: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     """+1 / -1 where the bound resolves the sign of λ, 0 where it does not (a zero within accuracy)."""
     return np.where(lam > bounds, 1, np.where(lam < -bounds, -1, 0)).astype(np.int8)
+
+
+def tightened(lam, bounds, idx, U, resid, E, e_K: float, rest: float, eta):
+    """Per-eigenvector bounds (docs/bounds.md, "Tighter where the gap allows"), min with the Weyl-type `bounds`.
+
+    lam, bounds (..., m): every eigenvalue of the branch with its bound (a one-to-one match with the exact ones);
+    idx (c,): the columns to tighten, U (..., n, c) their computed vectors, resid (..., c) bounds of their exact
+    residuals ‖A u - λ u‖ (‖r̂‖ + its rounding), eta (..., c) bounds of ‖(I - P)u‖. The formation error splits into
+    an entrywise part |ΔH̃| <= E (n, n; the curvature sum, ‖E‖ <= e_K) and the `rest` (2-norm). With the exact
+    matrix A_t and θ_t = uᵀA_t u: |θ_t - λ| <= t = r + |u|ᵀE|u| + e_K(2η + η²) + rest, the residual of u for A_t is
+    <= ρ = r + ‖E|u|‖ + e_K η + rest, and every other exact eigenvalue lies outside the others' intervals, at least
+    g = min_{k≠j}(|λ_k - λ_j| - δ_k) - t from θ_t: if ρ < g the exact eigenvalue matched with λ_j is within ρ²/g of
+    θ_t (Kato–Temple), so within t + ρ²/g of λ_j."""
+    if len(idx) == 0 or not np.isfinite(e_K) or E is None:
+        return bounds[..., idx]
+    absU = np.abs(U)
+    n, c = absU.shape[-2:]
+    flat = np.moveaxis(absU, -2, 0).reshape(n, -1)
+    EU = np.moveaxis(np.asarray(E @ flat).reshape((n,) + absU.shape[:-2] + (c,)), 0, -2)
+    quad = np.sum(absU * EU, axis=-2) + e_K * (2 * eta + eta ** 2)
+    t = resid + quad + rest
+    rho = resid + np.linalg.norm(EU, axis=-2) + e_K * eta + rest
+    others = np.abs(lam[..., None, :] - lam[..., idx, None]) - bounds[..., None, :]      # (..., c, m)
+    np.put_along_axis(others, np.broadcast_to(np.asarray(idx)[:, None], others.shape[:-1] + (1,)).copy(), np.inf,
+                      axis=-1)
+    gap = others.min(axis=-1, initial=np.inf) - t
+    new = np.where(gap > rho, t + rho ** 2 / np.where(gap > 0, gap, 1.0), np.inf)
+    return np.minimum(bounds[..., idx], new)

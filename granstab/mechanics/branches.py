@@ -40,6 +40,8 @@ class Problem:
     formation_error: float = 0.0   # bound of ‖sym(𝓗) computed − exact‖₂ from forming it (accuracy.formation_error)
     free: np.ndarray | None = None  # the scene's dofs these n are (Scene.free_dofs), None: all of them
     free_spins: int = 0             # rotation dofs no contact feels (rigid.untouched_dofs), set aside with the rigid ones
+    curvature_entrywise: object = None  # sym. entrywise bound (n, n, sparse) of H̃'s error from K^p + K^q, or None
+    curvature_bound: float = np.inf    # its 2-norm bound e_K, part of formation_error (accuracy.tightened)
 
     @property
     def s_tol(self) -> float:

@@ -5,8 +5,22 @@ The full dense path solves, per branch, an n×n symmetric eigenproblem, a non-sy
 projections and residuals with a few matrix products (dense.py, mechanics/branches.py); the low-rank path an n×n
 symmetric eigenproblem, a Gram matrix's eigenvalues and a few products (lowrank.py); both are repeated for every
 metric of the family. Their cost is measured here on this machine, on a stack of random matrices of the same
-size (up to MEASURE_DIM; larger sizes scale as n³), in CPU time, so the estimate follows the machine it runs on
-but not its load of the moment.
+size (up to MEASURE_DIM; larger sizes scale as n^SCALE_EXPONENT up to EFFICIENT_DIM, n³ beyond), in CPU time, so the
+estimate follows the machine it runs on but not its load of the moment.
+
+Calibration (2026-11-26, AMD EPYC, one OpenBLAS thread, CPU time): the timed kernels at their true size took, per
+matrix, low-rank 0.0043 / 0.019 / 0.11 / 0.24 s and full 0.016 / 0.076 / 0.44 / 0.90 s at n = 160 / 320 / 640 /
+880, a growth of n^2.4 (BLAS-3 grows more efficient with size; scaled from 160 as n³ they were 2.4× too high at 880).
+Against the CPU time of whole analyses (time.process_time, all threads: set-up, reduction, ℍ^i floors and an
+unstable result's attribution included), estimate / measured: the 300-disk packing of benchmarks/packing300.py (879
+dofs, low-rank) with 7 sliding contacts (128 branches), metric L, 29.8 / 30.4 s; with 1 (2 branches) metric L
+0.87 / 1.24 s and the family 2.94 / 3.62 s; its all-elastic branch, L 0.64 / 0.74 s and the family 2.26 / 2.06 s;
+random packings of 300 dofs (low-rank, 4 branches) L 0.09 / 0.06 s, family 0.26 / 0.22 s, and of 192 and 363 dofs
+(full path, 8 and 4 branches) 0.17 / 0.17 s and 0.37 / 0.37 s: 0.7-1.4×. benchmarks/packing300.py reports the ratio
+for each of its cases and flags one outside 0.5-3×. The family of that packing measured 12× its estimate before
+(issue 26: "3× too low"): the unstable branches of L/10 and 10L left the low-rank path for the full one
+(lowrank._special: the Gram matrix's floor could not tell; now `lowrank.svd_floor` does), and the estimate, which
+assumes the path `use_lowrank` chooses for every metric, counted them as low-rank.
 """
 from __future__ import annotations
 
@@ -17,9 +31,13 @@ from contextlib import contextmanager
 
 import numpy as np
 
-MEASURE_DIM = 160      # matrices larger than this are timed at this size and scaled by (n / MEASURE_DIM)³
+MEASURE_DIM = 160      # matrices larger than this are timed at this size and scaled (`scaled`, calibration above)
+SCALE_EXPONENT = 2.4   # cost ∝ n^2.4 from MEASURE_DIM to EFFICIENT_DIM (measured; module docstring) …
+EFFICIENT_DIM = 1000   # … and ∝ n³ beyond, where BLAS-3 runs at its full rate (an assumption on the safe side)
 MEASURE_STACK = 4      # matrices timed at once (a few tenths of a second in all, only for work that may be long)
 ASK_SECONDS = 10.0     # without --timeout, the CLI refuses work estimated longer than this (one line, what to do)
+SETUP_BRANCHES = 2.0   # the low-rank path's work once a metric (the reduction, ℍ^i floors, an unstable result's
+                       # attribution and its control analysis), in branches' worth: 0.5 s of 0.72 at 879 dofs
 TRIVIAL_WORK = 2e7     # metrics · branches · n³ below this is certainly under a second: nothing is measured
 
 
@@ -51,17 +69,26 @@ def branch_seconds(n: int, stack: int = MEASURE_STACK, lowrank: bool = False) ->
         for _ in range(3 if lowrank else 4):                # projections, residuals, Gram matrix, signs
             A @ S
         per = (time.thread_time() - start) / stack
-    return per * (n / m) ** 3
+    return per * scaled(n, m)
+
+
+def scaled(n: int, m: int) -> float:
+    """The cost of n×n over that of m×m (m <= n): (n/m)^SCALE_EXPONENT up to EFFICIENT_DIM, n³ beyond."""
+    knee = max(min(n, EFFICIENT_DIM), m)
+    return (knee / m) ** SCALE_EXPONENT * (max(n, knee) / knee) ** 3
 
 
 def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = False, workers: int = 1) -> float:
     """Estimated seconds for `n_branches` dense branches of `n_dof` dofs in each of `n_metrics` metrics (the
     family repeats every branch per metric), on the full or the low-rank path (`workers` cores share the low-rank
-    branches). One measurement, at most a few tenths of a second, skipped (0) for trivially small work."""
+    branches; its once-per-metric work counts SETUP_BRANCHES branches more). One measurement, at most a few tenths
+    of a second, skipped (0) for trivially small work."""
     if n_metrics * n_branches * float(n_dof) ** 3 < TRIVIAL_WORK:
         return 0.0
     per = branch_seconds(n_dof, min(MEASURE_STACK, n_branches), lowrank)
-    return n_metrics * n_branches * per / (max(workers, 1) if lowrank else 1)
+    if lowrank:
+        return n_metrics * per * (n_branches / max(workers, 1) + SETUP_BRANCHES)
+    return n_metrics * n_branches * per
 
 
 def refuse_over(source: str, seconds: float, timeout: float | None, work: str, alternatives: str = "") -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mechanics.accuracy import eigen_bounds
+from ..mechanics.accuracy import eigen_bounds, gamma, tightened
 from ..mechanics.branches import (
     RIGID,
     Branch,
@@ -69,6 +69,7 @@ def _batched(problem, Hsym, HH, lam, V, mu, W) -> dict:
     n_rigid = R.shape[1]
     norm = np.maximum(np.abs(lam).max(axis=1), 1e-300)
     bounds, resid = eigen_bounds(Hsym, lam, V, formation(problem, Hsym))   # accuracy.py: |λ - λ̂| <= bound
+    bounds = tighten(problem, Hsym, lam, V, bounds, resid)
     tol = bounds.max(axis=1) if n else np.zeros(L)
     zero = np.abs(lam) <= bounds
     close = np.diff(lam, axis=1) <= bounds[:, :-1] + bounds[:, 1:]   # adjacent eigenvalues in one group
@@ -114,6 +115,42 @@ def formation(problem, Hsym: np.ndarray):
     return problem.formation_error + np.asarray(leak)[..., None]
 
 
+def tighten(problem, Hsym: np.ndarray, lam: np.ndarray, V: np.ndarray, bounds: np.ndarray, resid: np.ndarray) -> \
+        np.ndarray:
+    """`bounds` (..., n) tightened by accuracy.tightened where that is smaller: where the formation error is mostly
+    the curvature sum's (near-conforming contacts), an eigenvalue away from the others' intervals is bounded by
+    |u|ᵀE|u| + ρ²/gap instead of ‖E‖ (docs/bounds.md). The residual's rounding is taken per vector,
+    γ_{n+2}(‖|A||u|‖ + |λ|), instead of γ_{n+2}(‖|A|‖∞ + |λ|)."""
+    n = lam.shape[-1]
+    if not tightenable(problem) or n == 0:
+        return bounds
+    idx = np.arange(n)
+    r_bar = resid + gamma(n + 2) * (np.linalg.norm(np.abs(Hsym) @ np.abs(V), axis=-2) + np.abs(lam))
+    return tightened(lam, bounds, idx, V, r_bar, problem.curvature_entrywise, problem.curvature_bound,
+                     formation_rest(problem, formation(problem, Hsym)), projection_defect(problem, V))
+
+
+def tightenable(problem) -> bool:
+    """Whether the problem's formation error has an entrywise part to tighten with (accuracy.tightened)."""
+    e_K = problem.curvature_bound
+    return problem.curvature_entrywise is not None and bool(np.isfinite(e_K)) and e_K > 0
+
+
+def formation_rest(problem, form):
+    """The formation bound less its curvature part e_K (the 2-norm rest of accuracy.tightened), rounded up."""
+    return form - problem.curvature_bound + 2 * EPS * form
+
+
+def projection_defect(problem, U: np.ndarray) -> np.ndarray:
+    """A bound of ‖(I - P)u‖ per column of U (..., n, c): ‖C C⁺ u‖ as computed plus its rounding, 2γ_n κ(C̃) (the
+    projection's term of accuracy.formation_error)."""
+    C, Cplus = problem.projection.C, problem.projection.Cplus
+    if not C.size:
+        return np.zeros(U.shape[:-2] + U.shape[-1:])
+    kappa = float(np.linalg.norm(C) * np.linalg.norm(Cplus))
+    return np.linalg.norm(C @ (Cplus @ U), axis=-2) + 2 * gamma(C.shape[0]) * kappa
+
+
 def _count_nonrigid(R: np.ndarray, W: np.ndarray) -> np.ndarray:
     """Stacked version of `non_rigid_part(...).shape[1]`: singular values > 0.5 of (I - R Rᵀ) W, W (L, n, k)."""
     if W.shape[2] == 0:
@@ -146,7 +183,8 @@ def _branch(problem, mask, Hsym, HH, lam, V, codes, hinges, eig, svd=None) -> Br
     """One branch with the subspace search of Appendix D; eig: ℍ^i's (mu, W), or None to leave ℍ^i out."""
     n = len(lam)
     norm = max(np.abs(lam).max(), 1e-300)
-    bounds, _ = eigen_bounds(Hsym, lam, V, formation(problem, Hsym))
+    bounds, resid = eigen_bounds(Hsym, lam, V, formation(problem, Hsym))
+    bounds = tighten(problem, Hsym, lam, V, bounds, resid)
     tol = float(bounds.max()) if n else 0.0
     V = V.copy()
     codes = codes.copy()

@@ -33,13 +33,14 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
-from ..mechanics.accuracy import abs_norm_inf, resolved_sign, vector_bounds
+from ..mechanics.accuracy import abs_norm_inf, gamma, resolved_sign, tightened, values_backward_error, vector_bounds
 from ..mechanics.branches import RIGID, Branch, Problem, column_signs, consistency, needs_search
 from ..mechanics.rigid import on_complement, rigid_basis
 from ..mechanics.verdicts import CONSISTENT, merge_tallies, tally
 from ..model.tolerances import EPS
-from .dense import solve_branches
+from .dense import formation_rest, projection_defect, solve_branches, tightenable
 from .device import backend, residual_norms
 from .threads import blas_threads, cores
 
@@ -178,6 +179,7 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
         host = {key: be.to_host(v) for key, v in got.items()}          # O(L·k): the S values stay on the device
         host["bounds"] = vector_bounds(host["lam"], host["res"], host["scale"][:, None],
                                        problem.formation_error, k) + host["leak"][:, None]
+        host["bounds"] = tighten_unresolved(problem, red, host, W, be)
         special = _special(problem, red, host, on_h, be, uniqueness)
         return part, host, special, _plain_arrays(problem, host, uniqueness)
 
@@ -211,6 +213,28 @@ def solve_branches_lowrank(problem: Problem, masks: np.ndarray, device: str = "c
     if not keep_all:
         info["tally"], info["n_branches"] = kept.tally, L
     return out, info
+
+
+def tighten_unresolved(problem: Problem, red: Reduced, h: dict, W, be) -> np.ndarray:
+    """h["bounds"] with those of unresolved eigenvalues (|λ| <= bound: where a verdict's `sufficient` may depend on
+    it) tightened by accuracy.tightened, as on the full path (dense.tighten), on their full vectors u = N w. The
+    rigid motions count among the others (exact zeros, bound ‖E_i‖ + F), and u's residual for the whole branch
+    matrix is that of w for M_i plus the leakage ‖E_i‖ (in the basis [N, R], sym(𝓗^i) u = N M_i w + R E_i w)."""
+    lam, bounds = h["lam"], h["bounds"]
+    todo = np.abs(lam) <= bounds
+    if not tightenable(problem) or not todo.any():
+        return bounds
+    out, r, k = bounds.copy(), problem.rigid.shape[1], red.k
+    rest = formation_rest(problem, problem.formation_error)
+    for i in np.flatnonzero(todo.any(axis=1)):
+        idx = np.flatnonzero(todo[i])
+        U = red.N @ be.to_host(W[i][:, idx])
+        lam_all = np.concatenate([np.zeros(r), lam[i]])
+        bounds_all = np.concatenate([np.full(r, h["leak"][i] + problem.formation_error), bounds[i]])
+        r_bar = h["res"][i, idx] + gamma(k + 2) * (h["scale"][i] + np.abs(lam[i, idx])) + h["leak"][i]
+        out[i, idx] = tightened(lam_all, bounds_all, idx + r, U, r_bar, problem.curvature_entrywise,
+                                problem.curvature_bound, rest, projection_defect(problem, U))
+    return out
 
 
 class Kept:
@@ -298,7 +322,28 @@ def _special(problem: Problem, red: Reduced, h: dict, on: np.ndarray, be, unique
         smin2, gmax = gram_floor(be, problem.A, red, on[unsure])
         tol_g = problem.tol.zero_tol(1.0, n) * np.sqrt(np.maximum(gmax, 0.0))
         singular[unsure] = smin2 <= tol_g ** 2
+        again = unsure[singular[unsure]]
+        if again.size and be.name == "cpu":
+            singular[again] = svd_floor(problem, red, on[again]) <= 0.0
     return search | singular
+
+
+def svd_floor(problem: Problem, red: Reduced, on: np.ndarray) -> np.ndarray:
+    """σ_min(H^i N) less its zero tolerance, proven from below, per branch, where `gram_floor` cannot tell: squaring
+    X = H^i N into the Gram matrix loses what lies below √(nε)‖X‖ (an unstable branch at L/10 of a 300-disk packing,
+    σ_min/σ_max ~ 1e-6, went to the full path for it). The singular values (LAPACK gesdd, no vectors: 0.3 s at 900
+    dofs against the full path's eig + SVD + search, seconds) are backward stable, those of X + E with
+    ‖E‖₂ <= γ_{n²}‖X‖₂ (accuracy.values_backward_error, the a-priori bound taken for every eigenvalue computed
+    without vectors), and ‖X‖₂ <= spectral_upper(X); the tolerance is that of the Gram test and of the full path
+    (zero_tol of σ_max)."""
+    n = red.n
+    out = np.empty(len(on))
+    for i, row in enumerate(on):
+        X = red.HN + (problem.A * row[None, :]) @ red.s.T
+        sv = np.linalg.svd(X, compute_uv=False)
+        upper = spectral_upper(X)
+        out[i] = sv[-1] - values_backward_error(upper, n) - problem.tol.zero_tol(1.0, n) * upper
+    return out
 
 
 def gram_floor(be, A: np.ndarray, red: Reduced, on: np.ndarray):
@@ -375,19 +420,42 @@ class LazyVectors:
     def shape(self):
         return (self.red.n, self.red.n)
 
-    def array(self) -> np.ndarray:
-        on = (self.mask[None, self.problem.sliding] == 1).astype(float)
-        with backend("cpu").threads(self.red.k):
-            _, W = np.linalg.eigh(branch_stack(np, self.red, on)[0])
-        if self.red.s.size:
-            flip = np.sign((self.red.s.T @ W)[self.finger, np.arange(W.shape[1])]) * self.sign
-            W = W * np.where(flip == 0, 1.0, flip)[None, :]
-        V = np.concatenate([self.problem.rigid, self.red.N @ W], axis=1)
-        return V[:, self.order]
+    def array(self, columns=None) -> np.ndarray:
+        """The vectors (n, n), or only the sorted `columns` (an index array): then only the reduced eigenvectors
+        between the lowest and the highest of them are computed (scipy's eigh with subset_by_index: the reduction
+        to tridiagonal form and a few vectors, a fifth of a full eigh at 900 dofs; attribution asks for the few
+        negative modes of a branch)."""
+        cols = np.arange(len(self.order)) if columns is None else np.atleast_1d(np.asarray(columns))
+        cols = np.flatnonzero(cols) if cols.dtype == bool else cols
+        r = self.problem.rigid.shape[1]
+        picked = self.order[cols]
+        reduced = picked[picked >= r] - r
+        V = np.zeros((self.red.n, len(cols)))
+        V[:, picked < r] = self.problem.rigid[:, picked[picked < r]]
+        if reduced.size:
+            lo, hi = int(reduced.min()), int(reduced.max())
+            on = (self.mask[None, self.problem.sliding] == 1).astype(float)
+            with backend("cpu").threads(self.red.k):
+                M = branch_stack(np, self.red, on)[0]
+                W = np.linalg.eigh(M)[1] if hi - lo + 1 == self.red.k else \
+                    scipy.linalg.eigh(M, subset_by_index=[lo, hi])[1]
+            W = W[:, reduced - lo]
+            if self.red.s.size:
+                finger = self.finger[reduced]
+                flip = np.sign((self.red.s.T @ W)[finger, np.arange(W.shape[1])]) * self.sign[reduced]
+                W = W * np.where(flip == 0, 1.0, flip)[None, :]
+            V[:, picked >= r] = self.red.N @ W
+        return V
 
     def __array__(self, dtype=None, copy=None):
         V = self.array()
         return V if dtype is None else V.astype(dtype)
 
     def __getitem__(self, index):
+        """V[index]; V[:, j] (j an int or an index array) computes only the columns asked for (`array`)."""
+        if isinstance(index, tuple) and len(index) == 2 and index[0] == slice(None) and \
+                isinstance(index[1], (int, np.integer, list, np.ndarray)):
+            one = np.ndim(index[1]) == 0
+            V = self.array(index[1])
+            return V[:, 0] if one else V
         return self.array()[index]

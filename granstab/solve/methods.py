@@ -116,16 +116,23 @@ def centre_term(scene: Scene, metric: Metric, C: np.ndarray) -> float:
     return float(centre_error(C, defect, weight))
 
 
-def metric_error(error, metric: Metric, free=None) -> float:
-    """‖|D| E |D|‖₂ bound (accuracy.curvature_error) of an assembled error bound E in the metric's dofs; inf for
-    None (unresolved)."""
+def metric_entrywise(error, metric: Metric, free=None):
+    """|D| E |D| (CSR, symmetrised: it bounds |sym ΔH̃|) of an assembled error bound E, in the metric's dofs; None
+    for None (unresolved)."""
     if error is None:
-        return np.inf
+        return None
     D = abs(metric.matrix())
     E = D @ error @ D
     if free is not None:
         E = E[free][:, free]
-    return curvature_error(E.tocsr())
+    return (0.5 * (E + E.T)).tocsr()
+
+
+def metric_error(error, metric: Metric, free=None) -> float:
+    """‖|D| E |D|‖₂ bound (accuracy.curvature_error) of an assembled error bound E in the metric's dofs; inf for
+    None (unresolved)."""
+    E = metric_entrywise(error, metric, free)
+    return np.inf if E is None else curvature_error(E)
 
 
 def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metric) -> Problem:
@@ -149,12 +156,13 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
         C = R = rigid = np.zeros((len(free), 0))
     projection = Projection.from_rotations(C)
     scales = part_scales(mechanical, Hg, A, S)
+    E = metric_entrywise(parts["curvature_error"], metric, free)
+    e_K = np.inf if E is None else curvature_error(E)
     return Problem(H_el=H_el, A=A, S=S, projection=projection, rigid=rigid, sliding=np.flatnonzero(scene.at_yield()),
                    n_contacts=scene.n_contacts, tol=scene.tol,
-                   formation_error=formation_error(scales, projection.C, projection.Cplus,
-                                                   metric_error(parts["curvature_error"], metric, free),
+                   formation_error=formation_error(scales, projection.C, projection.Cplus, e_K,
                                                    centre_term(scene, metric, R)), free=free,
-                   free_spins=len(spins))
+                   free_spins=len(spins), curvature_entrywise=E, curvature_bound=e_K)
 
 
 RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
