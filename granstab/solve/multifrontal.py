@@ -150,7 +150,8 @@ def _eliminate(A, node: int, s: int, e: int, st: np.ndarray, parent: int, loc: n
     return G, W, signs, chol
 
 
-RUNS_MAX = 16   # _extend_add: slice by slice up to this many contiguous runs of rows, one fancy index above
+RUNS_MAX = 16   # _extend_add: slice by slice up to this many contiguous runs of rows, one fancy index above …
+SLICE_MIN = 64  # … and below this many rows (a loop of slices costs more than it saves there)
 
 
 def _extend_add(F: np.ndarray, li: np.ndarray, U: np.ndarray) -> None:
@@ -158,14 +159,17 @@ def _extend_add(F: np.ndarray, li: np.ndarray, U: np.ndarray) -> None:
     parent's rows (90% of the entries within ≤ 10 runs on a 2D dissection), each pair of runs added as a slice; the
     upper triangle, which no front reads, is left out."""
     cut = np.flatnonzero(np.diff(li) != 1) + 1
-    if len(cut) >= RUNS_MAX:
+    if len(cut) >= RUNS_MAX or len(li) < SLICE_MIN:
         F[np.ix_(li, li)] += U
         return
-    starts, ends = np.r_[0, cut], np.r_[cut, len(li)]
-    for a, (sa, ea) in enumerate(zip(starts, ends)):
-        ra = slice(li[sa], li[sa] + ea - sa)
-        for sb, eb in zip(starts[:a + 1], ends[:a + 1]):
-            F[ra, li[sb]:li[sb] + eb - sb] += U[sa:ea, sb:eb]
+    bounds = [0, *cut.tolist(), len(li)]
+    for a in range(len(bounds) - 1):
+        sa, ea = bounds[a], bounds[a + 1]
+        fa = int(li[sa])
+        for b in range(a + 1):
+            sb, eb = bounds[b], bounds[b + 1]
+            fb = int(li[sb])
+            F[fa:fa + ea - sa, fb:fb + eb - sb] += U[sa:ea, sb:eb]
 
 
 __all__ = ["GROWTH_MAX", "SINGULAR_RTOL", "Multifrontal"]

@@ -631,7 +631,7 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
     X, BV = np.empty((n, d + cap), order="F"), np.empty((n, cap), order="F")   # [R, basis], B·basis: in place,
                                                                       # column slices contiguous (BLAS, no copy)
     X[:, :d] = R
-    block = rng.standard_normal((n, w))
+    block = rng.standard_normal((n, kk + BLOCK_GUARD))
     block = extend(R, block - R @ (R.T @ block))
     G, m = _append(X, BV, np.zeros((0, 0)), 0, block, Bop)          # G = basisᵀ B basis, m basis columns
     for _ in range(BLOCK_CYCLES):
@@ -644,13 +644,14 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
         want = _cluster_end(theta, kk, shifted.sigma)
         top = min(want + BLOCK_GUARD, m)
         V = X[:, d:d + m] @ Y[:, :top]
-        resid = BV[:, :m] @ Y[:, :top] - V * theta[:top]
+        BVY = BV[:, :m] @ Y[:, :min(2 * w, m)]                        # B·(Ritz vectors kept at a restart)
+        resid = BVY[:, :top] - V * theta[:top]
         res = np.linalg.norm(resid, axis=0)
         if res[:want].max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
             return theta[:kk], V[:, :kk], X[:, d:d + m]
-        keep = min(2 * w, m)                                          # thick restart on the lowest Ritz vectors
+        keep = BVY.shape[1]                                           # thick restart on the lowest Ritz vectors
         X[:, d:d + top], X[:, d + top:d + keep] = V, X[:, d:d + m] @ Y[:, top:keep]
-        BV[:, :keep] = BV[:, :m] @ Y[:, :keep]
+        BV[:, :keep] = BVY
         m, G = keep, np.diag(theta[:keep])
         active = res > BLOCK_RTOL * sp_.norm
         block = resid[:, active] / res[active]
