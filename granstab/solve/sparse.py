@@ -22,7 +22,7 @@ correction; it is applied as a LinearOperator. Its lowest eigenpairs come from o
   low-rank update gives the number ν of eigenvalues of B below σ,
       ν(B - σI) = ν(Hs - σI) + ν(-K⁻¹ - UᵀM⁻¹U) - ν(-K⁻¹).
   Where every front is positive definite its factors also do the solves, in blocks (_block_near: block
-  shift-invert Krylov, BLAS-3); otherwise SuperLU's LU does them and ARPACK (eigsh) finds the pairs.
+  shift-invert Krylov, BLAS-3, with a float32 copy of the factor as its preconditioner: residuals in float64); otherwise SuperLU's LU does them and ARPACK (eigsh) finds the pairs.
   When every eigenvalue below σ was found (always the case when ν = 0) the k returned eigenvalues are provably the
   lowest k; otherwise (or when more than 4k + 20 lie below σ: a floppy chain has thousands, clustered, on which
   Lanczos stalled) σ is moved by bisection on the inertia count, one factorisation a step (spectrum slicing, `_slice`), until
