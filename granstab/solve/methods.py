@@ -342,7 +342,7 @@ class SparseMethod:
 
     def errors(self, state: State, problem: SparseBranchProblem, branches) -> dict:
         from .sparse import identity_errors as sparse_identities
-        errors = sparse_identities(problem.sp)
+        errors = sparse_identities(problem.sp, parts=state.parts)
         errors["equilibrium_residual"] = equilibrium_residual(state.scene)
         errors["eigen_residual_stability"] = max(b.residual_stability for b in branches)
         return errors

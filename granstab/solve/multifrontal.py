@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg.blas import dsyrk, dtrmm
+from scipy.linalg.blas import dsyrk, dtrmm, strmm
 from scipy.linalg.lapack import dpotrf, dtrtri
 
 from .threads import blas_threads
@@ -81,27 +81,34 @@ class Multifrontal:
         self.ok = self.negative is not None
         self.definite = self.ok and all(chol for *_, chol in self.factors)      # Cholesky in every front
         self.nnz = int(sum(G.size + W.size for G, W, *_ in self.factors))
+        self.single = None                                             # float32 copies of the factors (solve)
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
+    def solve(self, b: np.ndarray, single: bool = False) -> np.ndarray:
         """x = A⁻¹ b where every front is Cholesky (`definite`; G = L11⁻¹ lower triangular, S = I): L̂ z = b (nodes in
-        order), L̂ᵀ x = z (nodes in reverse order); G applied by dtrmm, which reads only its lower triangle."""
+        order), L̂ᵀ x = z (nodes in reverse order); G applied by dtrmm, which reads only its lower triangle. `single`:
+        in float32 with float32 copies of the factors (made at the first such call, half the memory traffic and
+        twice the flop rate), x then has a relative error ~cond(A)·1e-7: only for preconditioning, where the caller
+        computes its residuals in float64 (sparse._block_near); returned in float64."""
         if not self.definite:
             raise ValueError("Multifrontal.solve needs every front positive definite (definite)")
-        x = np.array(b, dtype=float, copy=True)
+        if single and self.single is None:
+            self.single = [(G.astype(np.float32), W.astype(np.float32)) for G, W, *_ in self.factors]
+        factors, trmm = (self.single, strmm) if single else (self.factors, dtrmm)
+        x = np.array(b, dtype=np.float32 if single else float, copy=True)
         X = x.reshape(self.n, -1)
         bounds, structs = self.bounds, self.structs
         with blas_threads(1):                                          # small blocks: one thread (threads.py)
-            for i, (G, W, _, _) in enumerate(self.factors):
+            for i, (G, W, *_) in enumerate(factors):
                 s, e = bounds[i], bounds[i + 1]
-                X[s:e] = dtrmm(1.0, G, X[s:e], lower=1)
+                X[s:e] = trmm(1.0, G, X[s:e], lower=1)
                 if W.size:
                     X[structs[i]] -= W @ X[s:e]
-            for i in range(len(self.factors) - 1, -1, -1):
-                G, W, _, _ = self.factors[i]
+            for i in range(len(factors) - 1, -1, -1):
+                G, W, *_ = factors[i]
                 s, e = bounds[i], bounds[i + 1]
                 z = X[s:e] - W.T @ X[structs[i]] if W.size else X[s:e]
-                X[s:e] = dtrmm(1.0, G, z, lower=1, trans_a=1)
-        return x
+                X[s:e] = trmm(1.0, G, z, lower=1, trans_a=1)
+        return x.astype(float, copy=False)
 
 
 def _eliminate(A, node: int, s: int, e: int, st: np.ndarray, parent: int, loc: np.ndarray, updates: dict,
@@ -119,8 +126,7 @@ def _eliminate(A, node: int, s: int, e: int, st: np.ndarray, parent: int, loc: n
     keep = r >= s + c                                                 # the lower triangle
     F[loc[r[keep]], c[keep]] = A.data[lo:hi][keep]
     for child_rows, U in updates.pop(node, []):
-        li = loc[child_rows]
-        F[np.ix_(li, li)] += U
+        _extend_add(F, loc[child_rows], U)
     F11 = F[:k, :k]
     L, info = dpotrf(F11, lower=1, clean=1, overwrite_a=0)
     chol = info == 0
@@ -142,6 +148,28 @@ def _eliminate(A, node: int, s: int, e: int, st: np.ndarray, parent: int, loc: n
             return None
         updates.setdefault(parent, []).append((st, U))
     return G, W, signs, chol
+
+
+RUNS_MAX = 16   # _extend_add: slice by slice up to this many contiguous runs of rows, one fancy index above …
+SLICE_MIN = 64  # … and below this many rows (a loop of slices costs more than it saves there)
+
+
+def _extend_add(F: np.ndarray, li: np.ndarray, U: np.ndarray) -> None:
+    """F[li, li] += U on the lower triangle (li increasing): a child's update is mostly a few contiguous runs of the
+    parent's rows (90% of the entries within ≤ 10 runs on a 2D dissection), each pair of runs added as a slice; the
+    upper triangle, which no front reads, is left out."""
+    cut = np.flatnonzero(np.diff(li) != 1) + 1
+    if len(cut) >= RUNS_MAX or len(li) < SLICE_MIN:
+        F[np.ix_(li, li)] += U
+        return
+    bounds = [0, *cut.tolist(), len(li)]
+    for a in range(len(bounds) - 1):
+        sa, ea = bounds[a], bounds[a + 1]
+        fa = int(li[sa])
+        for b in range(a + 1):
+            sb, eb = bounds[b], bounds[b + 1]
+            fb = int(li[sb])
+            F[fa:fa + ea - sa, fb:fb + eb - sb] += U[sa:ea, sb:eb]
 
 
 __all__ = ["GROWTH_MAX", "SINGULAR_RTOL", "Multifrontal"]

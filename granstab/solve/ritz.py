@@ -30,7 +30,7 @@ class SparseRitz:
     residuals exceed `rtol`·‖Hs‖, is solved again by shift-invert ARPACK with the same LU (sparse.lowest_modes).
     """
 
-    def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 8, rtol: float = 1e-12, device: str = "cpu"):
+    def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 0, rtol: float = 1e-12, device: str = "cpu"):
         self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
         elastic = lowest_modes(spb, k + extra, None, tol=tol)
         self.factorization = elastic.info.get("factorization")
@@ -104,10 +104,13 @@ class SparseRitz:
         return np.concatenate([z["Q"], ZY, z["T"], z["A"][:, on], z["S"][:, on]], axis=1)
 
     def _refine(self, spb, Bop, shifted, V):
-        """Rayleigh-Ritz on span[W, V, (B - σ)⁻¹V, (B - σ)⁻²V] (block shift-invert with the branch's Woodbury
-        operator): as many of the lowest Ritz vectors as V has columns."""
-        Z1 = shifted.solve(V)
-        Z2 = shifted.solve(Z1)
+        """Rayleigh-Ritz on span[W, V, (B - σ)⁻¹R, (B - σ)⁻²R] with R the residuals BV - VΘ (block shift-invert with the
+        branch's Woodbury operator, as sparse._block_near: float32 solves of the residuals, whose error is relative to
+        them, so the refinement converges to float64 round-off): as many of the lowest Ritz vectors as V has columns."""
+        BV = Bop.matmat(V)
+        R = BV - V * np.einsum("ij,ij->j", V, BV)
+        Z1 = shifted.solve(R / np.maximum(np.linalg.norm(R, axis=0), 1e-300), single=True)
+        Z2 = shifted.solve(Z1 / np.maximum(np.linalg.norm(Z1, axis=0), 1e-300), single=True)
         basis = self.W
         for block in (V, Z1, Z2):
             basis = np.concatenate([basis, extend(np.concatenate([spb.R, basis], axis=1), block)], axis=1)

@@ -22,7 +22,7 @@ correction; it is applied as a LinearOperator. Its lowest eigenpairs come from o
   low-rank update gives the number ν of eigenvalues of B below σ,
       ν(B - σI) = ν(Hs - σI) + ν(-K⁻¹ - UᵀM⁻¹U) - ν(-K⁻¹).
   Where every front is positive definite its factors also do the solves, in blocks (_block_near: block
-  shift-invert Krylov, BLAS-3); otherwise SuperLU's LU does them and ARPACK (eigsh) finds the pairs.
+  shift-invert Krylov, BLAS-3, with a float32 copy of the factor as its preconditioner: residuals in float64); otherwise SuperLU's LU does them and ARPACK (eigsh) finds the pairs.
   When every eigenvalue below σ was found (always the case when ν = 0) the k returned eigenvalues are provably the
   lowest k; otherwise (or when more than 4k + 20 lie below σ: a floppy chain has thousands, clustered, on which
   Lanczos stalled) σ is moved by bisection on the inertia count, one factorisation a step (spectrum slicing, `_slice`), until
@@ -145,6 +145,22 @@ class SparseParts:
     local: ContactBlocks
     timings: dict
     curvature_error: sp.csr_matrix | None = None   # stiffness.assembled_error: H's error from rounding K^p + K^q
+    rigid_applied: dict | None = None   # Hg1, Hg2, Hm times the rigid basis (_apply_rigid), for identity_errors
+
+
+def _rigid_columns(scene: Scene) -> np.ndarray:
+    """The translations and unit rotations (physical dofs) that checks.identity_errors applies the parts to."""
+    return np.concatenate([translations(scene), rotations(scene, 1.0)], axis=1)
+
+
+def _apply_rigid(applied: dict, cb: ContactBlocks, rigid: np.ndarray, n_dof: int) -> None:
+    """Add the chunk's Hg1, Hg2, Hm blocks times the rigid basis, contact by contact, scattered to `applied`."""
+    local = rigid[cb.index]                                          # (m, n_loc, d + r)
+    owner = np.zeros(len(cb.index), dtype=np.intp)
+    for name, acc in applied.items():
+        contrib = cb.blocks[name] @ local
+        for j in range(rigid.shape[1]):
+            acc[:, j] += stack_blocks(contrib[:, :, j], owner, cb.index, 1, n_dof)[0]
 
 
 def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
@@ -160,8 +176,11 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     index = np.empty((M, n_loc), dtype=np.intp)
     undetermined = np.zeros(M, bool)
     error = np.empty((M, n_loc, n_loc))
+    rigid = _rigid_columns(scene)
+    applied = {name: np.zeros(rigid.shape) for name in ("Hg1", "Hg2", "Hm")}
     for sl, cb in contact_chunks(scene, chunk):
         b = cb.blocks
+        _apply_rigid(applied, cb, rigid, scene.n_dof)
         total[sl] = b["Hm"] + geometric(b)
         mech[sl] = b["Hm"]
         a[sl], s[sl], index[sl] = cb.slide_left, cb.slide_right, cb.index
@@ -179,7 +198,7 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
                           rolling_undetermined=undetermined)
     A, S = sliding_factors(local, sliding)
     return SparseParts(H=H, Hm=Hm, A=A, S=S, sliding=sliding, local=local, curvature_error=curvature_error,
-                       timings={"blocks": t1 - t0, "assembly": time.perf_counter() - t1})
+                       rigid_applied=applied, timings={"blocks": t1 - t0, "assembly": time.perf_counter() - t1})
 
 
 def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK, *,
@@ -262,8 +281,9 @@ class Shifted:
             pos_K = int(np.sum(np.linalg.eigvalsh(self.K) > 0)) if self.K.size else 0
             self.n_below = self.n_neg_M + pos_cap - pos_K
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        y = self.lu.solve(b)
+    def solve(self, b: np.ndarray, single: bool = False) -> np.ndarray:
+        """(B - σI)⁻¹ b; `single`: the factor's float32 solve (Factor.solve), an approximation for preconditioning."""
+        y = self.lu.solve(b, single)
         if self.cap is None:
             return y
         return y - self.Z @ sla.lu_solve(self.cap, self.U.T @ y)
@@ -341,10 +361,12 @@ class Factor:
         self.nnz = int(self.mf.nnz if self.lu is None else self.lu.nnz)
         del M
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
+    def solve(self, b: np.ndarray, single: bool = False) -> np.ndarray:
+        """(Hs - σI)⁻¹ b; `single`: in float32 where the multifrontal factors solve (Multifrontal.solve: relative
+        error ~cond·1e-7, a preconditioner only; SuperLU's solves are always float64)."""
         if self.lu is not None:
             return self.lu.solve(b[self.perm])[self.inv]
-        return self.mf.solve(b[self.perm])[self.inv]
+        return self.mf.solve(b[self.perm], single)[self.inv]
 
 
 def factor(sp_: SparseProblem, sigma: float) -> Factor:
@@ -573,42 +595,66 @@ def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
     return B
 
 
-BLOCK = 8        # _block_near: columns per block solve …
-BLOCK_STEPS = 6  # … Krylov blocks per cycle …
-BLOCK_CYCLES = 6  # … and restarts before ARPACK takes over
+BLOCK_GUARD = 1   # _block_near: Ritz vectors beyond those wanted whose residuals start a cycle …
+BLOCK_STEPS = 3   # … block solves per cycle …
+BLOCK_CYCLES = 8  # … and restarts before ARPACK takes over
 BLOCK_RTOL = 1e-13   # … converged: every residual ‖Bv - θv‖ below this · ‖Hs‖ (ARPACK's tol=0 reaches ~1e-15)
 
 
+CLUSTER = 0.1   # _block_near: Ritz values within this relative distance (from σ) of the kk-th converge with it
+
+
+def _cluster_end(theta: np.ndarray, kk: int, sigma: float) -> int:
+    """kk, or more where the Ritz values after the kk-th continue its cluster (each within CLUSTER·(θ - σ) of the one
+    before, at most 2kk in all): a cluster cut in two converges slowly, as a whole fast."""
+    end = min(kk, len(theta))
+    while 0 < end < min(2 * kk, len(theta)) and theta[end] - theta[end - 1] <= CLUSTER * (theta[end - 1] - sigma):
+        end += 1
+    return end
+
+
 def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tuple | None:
-    """The kk lowest eigenpairs of B by block shift-invert Krylov (blocks of BLOCK columns, (B - σI)⁻¹ applied by
-    one block solve each: BLAS-3 on the multifrontal factor, where ARPACK makes one single-vector solve per step)
-    with Rayleigh-Ritz on the exact B and thick restarts; None if not converged to BLOCK_RTOL after BLOCK_CYCLES
-    (the caller then runs ARPACK). Ritz values are upper bounds of the eigenvalues (Cauchy interlacing), each
-    within its residual of one; which eigenvalues they are is settled by the caller's inertia count. Also returns
-    the whole orthonormal Krylov basis (n × m, rigid-free: SparseRitz starts from it)."""
+    """The kk lowest eigenpairs of B by restarted block shift-invert Krylov: a cycle starts from the residuals
+    Bv - θv of the kk + BLOCK_GUARD lowest Ritz vectors not yet converged, applies (B - σI)⁻¹ to that block BLOCK_STEPS
+    times (one block solve each, BLAS-3 on the multifrontal factor, where ARPACK makes one single-vector solve per
+    step), then Rayleigh-Ritz on the exact B and a thick restart. With exact solves span{V, (B - σ)⁻¹R} =
+    span{V, (B - σ)⁻¹V}. The solves are the factor's float32 ones (Factor.solve(single=True)): a cycle's first
+    block, (B - σ)⁻¹ of the residuals, has an error relative to those residuals, so the iteration converges to
+    float64 round-off (applied to the Ritz vectors themselves they would stall at ~1e-8), and every eigenvalue and
+    residual is computed with the exact B in float64. None if not converged to BLOCK_RTOL after BLOCK_CYCLES (the
+    caller then runs ARPACK). Ritz values are upper bounds of the eigenvalues (Cauchy interlacing), each within its
+    residual of one; which eigenvalues they are is settled by the caller's inertia count. Also returns the whole
+    orthonormal basis (n × m, rigid-free: SparseRitz starts from it)."""
     R, n = sp_.R, sp_.n
-    d, cap = R.shape[1], max(kk, 0) + BLOCK * (BLOCK_STEPS + 1)      # the widest basis: kept + new blocks
+    w = 2 * kk + BLOCK_GUARD                                          # the widest block (_cluster_end: ≤ 2kk)
+    d, cap = R.shape[1], w * (BLOCK_STEPS + 2)                       # the widest basis: kept + new blocks
     X, BV = np.empty((n, d + cap), order="F"), np.empty((n, cap), order="F")   # [R, basis], B·basis: in place,
                                                                       # column slices contiguous (BLAS, no copy)
     X[:, :d] = R
-    block = rng.standard_normal((n, BLOCK))
+    block = rng.standard_normal((n, kk + BLOCK_GUARD))
     block = extend(R, block - R @ (R.T @ block))
     G, m = _append(X, BV, np.zeros((0, 0)), 0, block, Bop)          # G = basisᵀ B basis, m basis columns
     for _ in range(BLOCK_CYCLES):
         for _ in range(BLOCK_STEPS):
-            block = extend(X[:, :d + m], shifted.solve(block))
+            block = extend(X[:, :d + m], shifted.solve(block, single=True))
             if not block.shape[1] or m + block.shape[1] > cap:
                 break
             G, m = _append(X, BV, G, m, block, Bop)
         theta, Y = np.linalg.eigh(_sym(G))
-        V = X[:, d:d + m] @ Y[:, :kk]
-        res = np.linalg.norm(BV[:, :m] @ Y[:, :kk] - V * theta[:kk], axis=0)
-        if res.max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
-            return theta[:kk], V, X[:, d:d + m]
-        keep = min(kk + BLOCK, m)                                     # thick restart on the lowest Ritz vectors
-        X[:, d:d + keep], BV[:, :keep] = X[:, d:d + m] @ Y[:, :keep], BV[:, :m] @ Y[:, :keep]
+        want = _cluster_end(theta, kk, shifted.sigma)
+        top = min(want + BLOCK_GUARD, m)
+        V = X[:, d:d + m] @ Y[:, :top]
+        BVY = BV[:, :m] @ Y[:, :min(2 * w, m)]                        # B·(Ritz vectors kept at a restart)
+        resid = BVY[:, :top] - V * theta[:top]
+        res = np.linalg.norm(resid, axis=0)
+        if res[:want].max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
+            return theta[:kk], V[:, :kk], X[:, d:d + m]
+        keep = BVY.shape[1]                                           # thick restart on the lowest Ritz vectors
+        X[:, d:d + top], X[:, d + top:d + keep] = V, X[:, d:d + m] @ Y[:, top:keep]
+        BV[:, :keep] = BVY
         m, G = keep, np.diag(theta[:keep])
-        block = X[:, d + max(0, m - BLOCK):d + m]
+        active = res > BLOCK_RTOL * sp_.norm
+        block = resid[:, active] / res[active]
     return None
 
 
@@ -866,22 +912,20 @@ class _Applied:
         return self.value
 
 
-def identity_errors(sp_: SparseProblem, chunk: int = CHUNK) -> dict:
+def identity_errors(sp_: SparseProblem, chunk: int = CHUNK, parts: SparseParts | None = None) -> dict:
     """The identities of the dense path (granstab.mechanics.checks; Frobenius norms) without assembling the parts: H in
-    physical dofs from the scaled H̃, and Hg1, Hg2, Hm applied to the rigid basis contact by contact (chunked, then
-    scattered); plus the rigid leakage of ℍ = H̃ P on all rigid motions and the projection's own checks."""
+    physical dofs from the scaled H̃, and Hg1, Hg2, Hm applied to the rigid basis contact by contact (taken from
+    `parts`, where sparse_parts made them with the blocks, else chunked again); plus the rigid leakage of ℍ = H̃ P on
+    all rigid motions and the projection's own checks."""
     scene = sp_.scene
     Dinv = sp_.metric.inverse_matrix()
     H = (Dinv @ sp_.H @ Dinv).tocsr()
-    rigid = np.concatenate([translations(scene), rotations(scene, 1.0)], axis=1)
-    applied = {name: np.zeros(rigid.shape) for name in ("Hg1", "Hg2", "Hm")}
-    for _, cb in contact_chunks(scene, chunk):
-        local = rigid[cb.index]                                      # (m, n_loc, d + r)
-        owner = np.zeros(len(cb.index), dtype=np.intp)
-        for name, acc in applied.items():
-            contrib = cb.blocks[name] @ local
-            for j in range(rigid.shape[1]):
-                acc[:, j] += stack_blocks(contrib[:, :, j], owner, cb.index, 1, scene.n_dof)[0]
+    applied = parts.rigid_applied if parts is not None and parts.rigid_applied is not None else None
+    if applied is None:
+        rigid = _rigid_columns(scene)
+        applied = {name: np.zeros(rigid.shape) for name in ("Hg1", "Hg2", "Hm")}
+        for _, cb in contact_chunks(scene, chunk):
+            _apply_rigid(applied, cb, rigid, scene.n_dof)
     errs = checks.identity_errors(scene, {"H": H, **{k: _Applied(v) for k, v in applied.items()}})
     proj = sp_.projection
     errs["rigid_leakage_modified"] = modified_leakage(sp_.H, sp_.R, proj)
