@@ -230,7 +230,7 @@ class Session:
                 groups[name].append(U[:, np.isin(b.codes, CONSISTENT) & (sign == s)])
         out = {}
         for name, parts in groups.items():
-            W = np.concatenate(parts, axis=1)
+            W = np.concatenate(parts, axis=1) if parts else np.zeros((0, 0))     # (no branch: nothing counted)
             same = np.abs(W.T @ W) >= SAME_MODE
             kept: list[int] = []
             for j in range(W.shape[1]):                # a motion counts unless an earlier counted one is the same
