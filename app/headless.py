@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import dataclass
 
 import msgspec
 import viser
@@ -25,10 +26,11 @@ _OPENED = 0
 class HeadlessPage:
     """`with HeadlessPage(app) as page:` one connected tab; `page.ui` is its ClientUI (app.server.App.uis)."""
 
-    def __init__(self, app, timeout: float = 120.0):
-        self.app, self.timeout = app, timeout
+    def __init__(self, app, timeout: float = 120.0, record: bool = False):
+        self.app, self.timeout, self.record = app, timeout, record
         self.ui = None
         self.received = 0                    # bytes the server sent this page
+        self.messages: list[Sent] = []       # with `record`: every message received, in order (read_window)
         self._ws = None
         self._reader = None
 
@@ -55,6 +57,8 @@ class HeadlessPage:
         try:
             for message in self._ws:
                 self.received += len(message)
+                if self.record:
+                    self.messages += read_window(message)
         except Exception:  # noqa: BLE001 — the connection closed: the page is gone
             return
 
@@ -63,6 +67,44 @@ class HeadlessPage:
         self._reader.join(self.timeout)
         released = self.ui.released
         _wait(lambda: released.is_set() or None, self.timeout, "the session to be released")
+
+
+@dataclass(frozen=True)
+class Sent:
+    """One message the server sent: its type, the scene node's name or the GUI element's id, the properties it writes
+    (an update) and its size: msgpack bytes plus the binary arrays it carries (vertices, points)."""
+
+    type: str
+    name: str
+    props: tuple
+    size: int
+
+
+def read_window(raw: bytes) -> list[Sent]:
+    """The messages of one websocket window of viser's wire format (viser/infra/_infra.py `_message_producer`): the
+    decompressed and compressed sizes of a zstd-compressed msgpack {"messages", "binaryBufferLengths"}, then the
+    binary buffers (each 8-byte aligned), which messages name by index."""
+    import zstandard
+    size, packed = int.from_bytes(raw[:8], "little"), int.from_bytes(raw[8:16], "little")
+    window = msgspec.msgpack.decode(zstandard.ZstdDecompressor().decompress(raw[16:16 + packed],
+                                                                             max_output_size=size))
+    lengths = window.get("binaryBufferLengths", ())
+    out = []
+    for m in window["messages"]:
+        props = m.get("updates") or m.get("props") or {}
+        out.append(Sent(m["type"], str(m.get("name") or m.get("uuid") or ""), tuple(props),
+                        len(msgspec.msgpack.encode(m)) + sum(lengths[i] for i in _buffers(m))))
+    return out
+
+
+def _buffers(value) -> list[int]:
+    """The indices of the binary buffers a decoded message refers to (placeholders {"__binary_index": i, "dtype": …})."""
+    if isinstance(value, dict):
+        own = [value["__binary_index"]] if isinstance(value.get("__binary_index"), int) else []
+        return own + [i for v in value.values() for i in _buffers(v)]
+    if isinstance(value, (list, tuple)):
+        return [i for v in value for i in _buffers(v)]
+    return []
 
 
 def _wait(fn, timeout: float, what: str):

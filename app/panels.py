@@ -47,6 +47,10 @@ SEND_PAUSE = 0.02         # s the scene waits after the verdict was flushed, for
 SPECTRUM_PARTICLES = 30   # above this the spectrum plot is off until asked for (seconds of browser work per update)
 LINES_MAX = 5_000         # contacts: above this force lines and normals are off until asked for (seconds per frame
                           # in a browser without a GPU: 10⁴ disks 0.38 s, 10⁵ disks 10 s)
+PLOT_LOOK = {"layout": {"plot_bgcolor": "#E5ECF6", "font": {"color": "#2a3f5f"}, "xaxis": {"gridcolor": "white"},
+                        "yaxis": {"gridcolor": "white", "zerolinecolor": "white"}}}
+                          # plotly's default look in 0.2 kB: its default template is 7.1 kB of the spectrum's 8.1 kB,
+                          # sent again with every slider move that changes an eigenvalue
 SPECTRUM_ASPECT, BLANK_ASPECT = 1.3, 0.1    # height/width of the spectrum plot, and of the blank strip while it is off
 COVERED_PX = 430 + 400    # the side panels' widths over the canvas (set_width in _build/_build_side)
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
@@ -72,7 +76,6 @@ class ClientUI:
         self._checking: int | None = None         # the revision whose metric family is being checked
         self._player: threading.Thread | None = None
         self._mode_keys: dict[str, tuple] = {}
-        self._spectrum_json = None
         self.selected: tuple | None = None
         self._modes_of = None                     # the model whose modes are listed (selection kept within it)
         self.errors_shown = 0
@@ -180,7 +183,7 @@ class ClientUI:
             self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True)
             self.show_spectrum.on_update(lambda _: self.run(self._write_modes))
             self._spectrum_default = None        # the scene size the checkbox default was last set for
-            self._spectrum_json = None
+            self._spectrum_shown = None          # what the spectrum plot shows now (a redraw only on a change)
             self.spectrum = gui.add_plotly(_empty_figure(), aspect=SPECTRUM_ASPECT, visible=False)
             self.track.add_plot(gui)                         # a track's λ_min(t)/stress(t): no modes on its map
         self.field_panel = gui.add_panel()
@@ -188,6 +191,8 @@ class ClientUI:
         with self.field_panel.add_tab("λ⁽⁶⁾ field"):
             self.field_note = gui.add_markdown("")
             self.contour = gui.add_html("")        # a picture, not a plotly plot: this panel comes and goes
+            self.star = gui.add_html("")           # the current state over it (contour_star)
+            self._contour_of = None                # the field the picture shows
 
     def _preset_option(self) -> str:
         options = self.session.presets()
@@ -449,10 +454,13 @@ class ClientUI:
     # --------------------------------------------------------------------------------------- refresh
     def refresh(self, camera: bool = False, particles: bool = True, skip: str | None = None) -> None:
         """Write every handle from the session: the verdict first, sent on its own (what a slider move is for), then
-        the scene (only the parts that changed are re-sent: SceneView keys each drawing by its data), plots and modes."""
+        the scene (only the parts that changed are re-sent: SceneView keys each drawing by its data), plots and modes.
+        Each part is written as one atomic group: viser then wakes its event loop once per group, not once per
+        message (a pair's move writes about 20)."""
         s = self.session
-        self._sync_controls()
-        self._write_verdict()
+        with self.client.atomic():
+            self._sync_controls()
+            self._write_verdict()
         self._send_now()
         with self.client.atomic():
             if particles:
@@ -466,9 +474,9 @@ class ClientUI:
                 self.view.clear_field()
             else:
                 self.view.draw_field(s, field, current)
-        self._write_legend(legend)
-        self._write_field()
-        self._write_modes()
+            self._write_legend(legend)
+            self._write_field()
+            self._write_modes()
         self.track.refresh(s)
         if camera:
             if not self._view_picked:       # the pair opens oblique: its λ⁽⁶⁾ height surface is flat seen from above
@@ -707,7 +715,10 @@ class ClientUI:
                else f" (λ⁽⁶⁾/k = {lam:.4g})")
         self.field_note.content = (f"Rolling eigenvalue λ⁽⁶⁾/k over (ρ/r, f/(kr)) at α = {field.alpha:g}; "
                                    f"★ = now{now}")
-        self.contour.content = contour_html(field, (s.params["rho_r"], s.params["f_kr"]))
+        if self._contour_of is not field:                 # the picture: once per field (α, rolling stiffness)
+            self._contour_of = field
+            self.contour.content = contour_html(field)
+        self.star.content = contour_star(field, (s.params["rho_r"], s.params["f_kr"]))
 
     def _write_modes(self) -> None:
         s = self.session
@@ -735,11 +746,11 @@ class ClientUI:
         self._mode_keys = keys
         listed = set(keys.values())
         shown = [m for m in modes if (m.branch, m.index) in listed or (m.label == "rigid" and len(modes) <= 60)]
-        figure = (spectrum_figure(shown, hidden=len(modes) - len(shown)) if plot
-                  else _empty_figure() if self.spectrum.visible else None)
-        if figure is not None and figure.to_json() != self._spectrum_json:   # a redraw costs the browser: on change
-            self._spectrum_json = figure.to_json()
-            self.spectrum.figure = figure
+        drawn = (tuple((m.branch, m.eigenvalue, m.code, m.label) for m in shown), len(modes) - len(shown)) if plot \
+            else "empty" if self.spectrum.visible else None
+        if drawn is not None and drawn != self._spectrum_shown:   # a redraw costs the browser (and plotly's build and
+            self._spectrum_shown = drawn                          # JSON the server): only on a change of what it shows
+            self.spectrum.figure = spectrum_figure(shown, hidden=drawn[1]) if plot else _empty_figure()
         if self._modes_of is not s.model:            # another scene: its own lowest mode, not the old index
             self._modes_of, self.selected = s.model, None
         if self.selected not in keys.values():
@@ -852,57 +863,66 @@ def wrapped(text: str) -> str:
 def _empty_figure():
     """A blank figure: no axes, no grid (the spectrum plot while it is off)."""
     import plotly.graph_objects as go
-    return go.Figure(layout={"margin": {"l": 0, "r": 0, "t": 0, "b": 0}, "xaxis": {"visible": False},
+    return go.Figure(layout={"template": PLOT_LOOK, "margin": {"l": 0, "r": 0, "t": 0, "b": 0}, "xaxis": {"visible": False},
                             "yaxis": {"visible": False}, "plot_bgcolor": "rgba(0,0,0,0)"})
 
 
-def contour_html(field, mark) -> str:
-    """The λ⁽⁶⁾/k contour as a picture (field.field_picture, drawn once per field) with the current state ★ placed
-    over it at `mark` = (ρ/r, f/(kr)) (within the field's grid: the sliders' ranges)."""
+def contour_html(field) -> str:
+    """The λ⁽⁶⁾/k contour as a picture (field.field_picture, drawn once per field): sent once per field, the ★ beside it
+    (contour_star) at each move (the picture is 49 kB, the ★ 0.4 kB)."""
+    png, _ = field_picture(field)
+    return (f'<div class="granstab-contour" style="margin:0 8px">'
+            f'<img alt="λ⁽⁶⁾/k over ρ/r and f/(kr)" style="width:100%;display:block" '
+            f'src="data:image/png;base64,{base64.b64encode(png).decode()}"></div>')
+
+
+def contour_star(field, mark) -> str:
+    """The current state ★ at `mark` = (ρ/r, f/(kr)) (within the field's grid: the sliders' ranges), drawn over the
+    picture of contour_html, the element just above it: a box of the picture's width and aspect ratio moved up by its
+    own height, in a strip of no height (viser's HTML elements follow one another without a gap)."""
     png, (x0, y0, x1, y1) = field_picture(field)
+    width, height = int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")     # the PNG's IHDR
     u = (mark[0] - field.rho_r[0]) / (field.rho_r[-1] - field.rho_r[0])
     v = (mark[1] - field.f_kr[0]) / (field.f_kr[-1] - field.f_kr[0])
     left, top = 100 * (x0 + u * (x1 - x0)), 100 * (1 - y0 - v * (y1 - y0))
-    return (f'<div class="granstab-contour" style="position:relative;margin:0 8px">'
-            f'<img alt="λ⁽⁶⁾/k over ρ/r and f/(kr)" style="width:100%;display:block" '
-            f'src="data:image/png;base64,{base64.b64encode(png).decode()}">'
+    return (f'<div style="height:0;margin:0 8px"><div style="position:relative;width:100%;'
+            f'aspect-ratio:{width}/{height};transform:translateY(-100%);pointer-events:none">'
             f'<div class="granstab-star" style="position:absolute;left:{left:.2f}%;top:{top:.2f}%;'
             'transform:translate(-50%,-52%);font-size:26px;line-height:1;color:gold;-webkit-text-stroke:1px black">'
-            '★</div></div>')
+            '★</div></div></div>')
 
 
 def spectrum_figure(modes, hidden: int = 0):
     """Eigenvalues of sym(𝓗^i) per branch on a signed log scale: ● consistent, ○ not consistent, × rigid
-    (`hidden`: how many higher eigenvalues are left out, said in the title)."""
+    (`hidden`: how many higher eigenvalues are left out, said in the title). Built in one call from plain data
+    (plotly checks each object it is given: trace by trace and a layout update cost 7 ms of a pair's slider move)."""
     import plotly.graph_objects as go
-    fig = go.Figure()
     lam = np.array([m.eigenvalue for m in modes]) if modes else np.zeros(0)
     eps = 1e-4 * (float(np.abs(lam).max()) if lam.size and np.abs(lam).max() > 0 else 1.0)
 
     def slog(v):
         return np.sign(v) * np.log10(1.0 + np.abs(v) / eps)
 
+    traces = []
     for kind, symbol, colour, pick in (
             ("consistent, negative", "circle", NEGATIVE, lambda m: m.consistent and m.eigenvalue < 0),
             ("consistent, ≥ 0", "circle", OTHER, lambda m: m.consistent and m.eigenvalue >= 0),
             ("not consistent", "circle-open", OTHER, lambda m: not m.consistent and m.label != "rigid"),
             ("rigid", "x-thin-open", OTHER, lambda m: m.label == "rigid")):
         sel = [m for m in modes if pick(m)]          # one colour per trace: its legend entry shows that colour
-        if not sel:
-            continue
-        y = slog(np.array([m.eigenvalue for m in sel]))
-        fig.add_trace(go.Scatter(
-            x=[f"branch {m.branch}" for m in sel], y=y, mode="markers", name=kind,
-            marker={"symbol": symbol, "size": 11, "color": colour, "line": {"width": 1.5, "color": colour}},
-            text=[f"λ = {m.eigenvalue:.5g}<br>{m.label}<br>{kind}" for m in sel],
-            hovertemplate="%{text}<extra></extra>"))
+        if sel:
+            traces.append({
+                "type": "scatter", "x": [f"branch {m.branch}" for m in sel], "mode": "markers", "name": kind,
+                "y": slog(np.array([m.eigenvalue for m in sel])),
+                "marker": {"symbol": symbol, "size": 11, "color": colour, "line": {"width": 1.5, "color": colour}},
+                "text": [f"λ = {m.eigenvalue:.5g}<br>{m.label}<br>{kind}" for m in sel],
+                "hovertemplate": "%{text}<extra></extra>"})
     top = int(np.ceil(float(np.abs(slog(lam)).max()))) if lam.size else 1
     ticks = np.arange(-top, top + 1)
-    if hidden:
-        fig.add_annotation(text=f"lowest {len(modes)} shown, {hidden} higher left out", showarrow=False,
-                           xref="paper", yref="paper", x=1, y=1, xanchor="right", font={"size": 10})
-    fig.update_layout(
-        margin={"l": 60, "r": 10, "t": 10, "b": 30}, legend={"orientation": "h", "y": 1.08},
-        yaxis={"title": "eigenvalue (signed log scale)", "tickvals": ticks.tolist(),
-               "ticktext": [f"{np.sign(t) * eps * (10 ** abs(t) - 1):.1g}" for t in ticks], "zeroline": True})
-    return fig
+    note = [{"text": f"lowest {len(modes)} shown, {hidden} higher left out", "showarrow": False, "xref": "paper",
+             "yref": "paper", "x": 1, "y": 1, "xanchor": "right", "font": {"size": 10}}] if hidden else []
+    return go.Figure({"data": traces, "layout": {
+        "template": PLOT_LOOK, "margin": {"l": 60, "r": 10, "t": 10, "b": 30}, "annotations": note,
+        "legend": {"orientation": "h", "y": 1.08},
+        "yaxis": {"title": {"text": "eigenvalue (signed log scale)"}, "tickvals": ticks.tolist(), "zeroline": True,
+                  "ticktext": [f"{np.sign(t) * eps * (10 ** abs(t) - 1):.1g}" for t in ticks]}}})

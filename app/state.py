@@ -8,6 +8,7 @@ except programming errors (an unknown parameter name). Not thread-safe: the GUI 
 from __future__ import annotations
 
 import json
+import os
 import tempfile
 import time
 from dataclasses import dataclass
@@ -23,7 +24,7 @@ from granstab.solve.threads import blas_threads
 
 from .field import Field, field_png, lambda6_field
 from .models import Body, ShapeModel, TwoParticleModel, load_model
-from .modes import label_mode, mode_offsets, rotation_matrix
+from .modes import label_modes, mode_offsets, rotation_matrix
 from .params import PARAMS
 from .paths import PathRefused, folder_choice, typed_path
 from .rigiditymap import load_rigidity_map
@@ -38,6 +39,7 @@ MAX_UPLOAD = 5_000_000     # bytes: a scene file larger than this is refused bef
 SAME_MODE = 0.999          # |cos| of two unit motions above which they are one mode (distinct_modes)
 OFFLOAD = 50               # particles: from here a server's session analyses in a worker process (analysis_pool)
 _POOL: list = []           # the worker processes, made when first needed (analysis_pool)
+WORKER_NICE = 10           # the workers' priority below the server's (os.nice steps: 10 of 19)
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,7 @@ class Session:
         self.elapsed = 0.0
         self.revision = 0
         self._modes: tuple[int, list] = (-1, [])
+        self._motions: tuple[int, dict] = (-1, {})      # per branch, for this revision (motions)
         self._pair: TwoParticleModel | None = None   # the slider-driven pair a drag turned into shapes
         self.map = None                              # the scan map a cluster was opened from (back_to_map)
         if not self.load_preset(preset or DEFAULT_PRESET) and self.model is None and preset not in (None, DEFAULT_PRESET):
@@ -216,19 +219,42 @@ class Session:
         """Consistent modes by sign, each counted once: the same motion in several branches (a rolling mode that no
         sliding contact takes part in) is one mode. Two unit motions are the same where |cos| ≥ SAME_MODE.
         Returns {"negative": n, "zero": n, "positive": n}; the core's counts (report()["counts"]) are per branch."""
-        out = {"negative": [], "zero": [], "positive": []}
+        names = ("negative", "zero", "positive")
         if self.analysis is None:
-            return {k: 0 for k in out}
-        for m in self.modes():
-            if not m.consistent:
-                continue
-            b = self.analysis.branches[m.branch]
-            sign = "negative" if m.eigenvalue < -b.zero_tol else "positive" if m.eigenvalue > b.zero_tol else "zero"
-            v = self.analysis.motion(b.stability_vectors[:, m.index])
-            v = v / max(float(np.linalg.norm(v)), 1e-300)
-            if not any(abs(float(v @ w)) >= SAME_MODE for w in out[sign]):
-                out[sign].append(v)
-        return {k: len(v) for k, v in out.items()}
+            return dict.fromkeys(names, 0)
+        groups = {name: [] for name in names}          # consistent unit motions by sign, in (branch, index) order
+        for i, b in enumerate(self.analysis.branches):
+            lam, U = b.stability_eigenvalues, self.motions(i)
+            sign = np.where(lam < -b.zero_tol, 0, np.where(lam > b.zero_tol, 2, 1))
+            for s, name in enumerate(names):
+                groups[name].append(U[:, np.isin(b.codes, CONSISTENT) & (sign == s)])
+        out = {}
+        for name, parts in groups.items():
+            W = np.concatenate(parts, axis=1) if parts else np.zeros((0, 0))     # (no branch: nothing counted)
+            same = np.abs(W.T @ W) >= SAME_MODE
+            kept: list[int] = []
+            for j in range(W.shape[1]):                # a motion counts unless an earlier counted one is the same
+                if not same[j, kept].any():
+                    kept.append(j)
+            out[name] = len(kept)
+        return out
+
+    def motions(self, branch: int) -> np.ndarray:
+        """The unit physical motions (n_dof, K) of every eigenvector of a branch (Analysis.motion, all at once;
+        cached per analysis)."""
+        if self._motions[0] != self.revision:
+            self._motions = (self.revision, {})
+        cache = self._motions[1]
+        if branch not in cache:
+            a = self.analysis
+            V = a.branches[branch].stability_vectors
+            if a.problem.free is not None:
+                full = np.zeros((a.scene.n_dof, V.shape[1]))
+                full[a.problem.free] = V
+                V = full
+            U = a.metric.physical(V)
+            cache[branch] = U / np.linalg.norm(U, axis=0)
+        return cache[branch]
 
     @property
     def draggable(self) -> bool:
@@ -448,10 +474,9 @@ class Session:
         if self.analysis is not None:
             a = self.analysis
             for i, b in enumerate(a.branches):
-                for j, (lam, code) in enumerate(zip(b.stability_eigenvalues, b.codes)):
-                    U = a.motion(b.stability_vectors[:, j])
-                    lab = label_mode(self.scene, U, b.mask, a.length, rigid=code == RIGID)
-                    out.append(Mode(i, j, float(lam), int(code), lab.label, lab.shares, bool(b.hinges[j])))
+                labels = label_modes(self.scene, self.motions(i), b.mask, a.length, b.codes == RIGID)
+                out += [Mode(i, j, float(lam), int(code), lab.label, lab.shares, bool(b.hinges[j]))
+                        for j, (lam, code, lab) in enumerate(zip(b.stability_eigenvalues, b.codes, labels))]
         self._modes = (self.revision, out)
         return out
 
@@ -567,14 +592,23 @@ def offloaded(scene, metric: str):
 
 def analysis_pool():
     """Worker processes for offloaded analyses, one per core (spawned: the server runs threads, which fork would copy
-    half-way)."""
+    half-way), at a lower priority (WORKER_NICE) than the server: on a busy machine a core goes first to the server's
+    process, which answers every page (its event loop, the small scenes' analyses), then to the large analyses
+    (benchmarks/classroom.py: 5 annulus_frame pages kept both cores busy and a pair's move waited behind them)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     from granstab.solve.threads import cores
     if not _POOL:
-        _POOL.append(ProcessPoolExecutor(max_workers=cores(), mp_context=multiprocessing.get_context("spawn")))
+        _POOL.append(ProcessPoolExecutor(max_workers=cores(), mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=_lower_priority))
     return _POOL[0]
+
+
+def _lower_priority() -> None:
+    """A worker's start: WORKER_NICE steps below the server (where the system lets a process lower itself)."""
+    if hasattr(os, "nice"):
+        os.nice(WORKER_NICE)
 
 
 def close_pool() -> None:

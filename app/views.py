@@ -215,6 +215,7 @@ class SceneView:
         self.inner: dict[str, object] = {}        # particle name → /body frame (animation offset)
         self.mesh_keys: dict[str, tuple] = {}
         self.meshes: dict[str, object] = {}       # particle name → mesh handle
+        self.markers: dict[str, object] = {}      # particle name → its body-axis marker (mesh in 2D, sphere in 3D)
         self.colours: dict[str, tuple] = {}       # particle name → colour shown now
         self.colours_by_mode = False
         self.cloud = None                         # the point cloud of a large packing (one node for all)
@@ -226,8 +227,12 @@ class SceneView:
         self.options = {"normals": True, "forces": True, "osculating": True, "surface": True, "force_scale": 1.0}
         self.base = {}                            # particle name → Body drawn (pose of its frame)
         self._contact_keys: dict[str, bytes] = {}     # what /contacts shows now: digest per group
+        self._contact_nodes: dict[str, tuple] = {}    # /contacts/… node name → (its kind, its handle): see _put
         self._cell_key: object = False            # what /cell shows now (None: nothing; False: not drawn yet)
         self.ghosts = None                        # (point cloud, scene names, periodic_images, z) of /cell/images
+        self._field_key = None                    # (field id, scale) the λ⁽⁶⁾ surface shows; None: none drawn
+        self._marker = None                       # its current-state marker
+        self._field_lim = 1.0                     # the largest |λ⁽⁶⁾/k| of the surface shown (its height scale)
         self.dim = 2
         self.static = False                       # a recording (app/publish.py): no drag handles, plain frames
 
@@ -246,7 +251,7 @@ class SceneView:
         if rebuilt:
             self.api.remove_by_name("/particles")
             self.cloud = None
-            self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
+            self.nodes, self.inner, self.mesh_keys, self.meshes, self.markers, self.colours = {}, {}, {}, {}, {}, {}
             self.key = key
             for body in bodies:
                 name = f"/particles/{body.name}"
@@ -270,21 +275,31 @@ class SceneView:
             mkey = (body.axes, body.sockets, round(size, 9))
             if self.mesh_keys.get(body.name) != mkey:
                 self.mesh_keys[body.name] = mkey
-                V, F = body_mesh(body, 0.15 * size, size)
-                base = f"/particles/{body.name}/body"
-                self.meshes[body.name] = self.api.add_mesh_simple(
-                    f"{base}/mesh", V, F, color=self.colours.get(body.name, PALETTE[i % len(PALETTE)]),
-                    flat_shading=False, side="double", opacity=None if self.dim == 2 else 0.45)
-                a, b = body.axes[0], body.axes[1]
-                if self.dim == 2:   # along body e2: clear of the force arrows of the pair (along e1)
-                    w = 0.06 * size
-                    stripe = np.array([[-w / 2, 0.2 * b], [w / 2, 0.2 * b], [w / 2, 0.92 * b], [-w / 2, 0.92 * b]])
-                    Vs = to3(stripe, 0.08 * size)
-                    self.api.add_mesh_simple(f"{base}/marker", Vs, np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
-                                             color=MARKER, side="double")
-                else:
-                    self.api.add_icosphere(f"{base}/marker", radius=0.12 * size, color=MARKER, position=(a, 0.0, 0.0))
+                self._draw_body(body, PALETTE[i % len(PALETTE)], size)
         self.base = {b.name: b for b in bodies}
+
+    def _draw_body(self, body, colour, size: float) -> None:
+        """A particle's shape and its body-axis marker, in body axes: added once, then only their vertices (and faces
+        where they differ) are sent when the shape changes (a pair's ρ/r: the outline, not a new node)."""
+        V, F = body_mesh(body, 0.15 * size, size)
+        b, w = body.axes[1], 0.06 * size       # 2D: the marker along body e2, clear of the pair's force arrows (e1)
+        Vs = to3(np.array([[-w / 2, 0.2 * b], [w / 2, 0.2 * b], [w / 2, 0.92 * b], [-w / 2, 0.92 * b]]), 0.08 * size)
+        mesh, marker = self.meshes.get(body.name), self.markers.get(body.name)
+        if mesh is not None:                   # the tree is rebuilt when the dimension changes (draw_particles)
+            mesh.vertices, mesh.faces = V, F
+            if self.dim == 2:
+                marker.vertices = Vs
+            else:
+                marker.radius, marker.position = 0.12 * size, (body.axes[0], 0.0, 0.0)
+            return
+        base = f"/particles/{body.name}/body"
+        self.meshes[body.name] = self.api.add_mesh_simple(
+            f"{base}/mesh", V, F, color=self.colours.get(body.name, colour), flat_shading=False, side="double",
+            opacity=None if self.dim == 2 else 0.45)
+        self.markers[body.name] = (
+            self.api.add_mesh_simple(f"{base}/marker", Vs, np.array([[0, 1, 2], [0, 2, 3]], np.uint32), color=MARKER,
+                                     side="double") if self.dim == 2 else
+            self.api.add_icosphere(f"{base}/marker", radius=0.12 * size, color=MARKER, position=(body.axes[0], 0.0, 0.0)))
 
     def _draw_cloud(self, bodies, key) -> None:
         """A large packing: one point cloud of the centres (sized by the median radius), no per-particle nodes."""
@@ -293,7 +308,7 @@ class SceneView:
         if cloud == self.key:
             return
         self.api.remove_by_name("/particles")
-        self.nodes, self.inner, self.mesh_keys, self.meshes, self.colours = {}, {}, {}, {}, {}
+        self.nodes, self.inner, self.mesh_keys, self.meshes, self.markers, self.colours = {}, {}, {}, {}, {}, {}
         self.key = cloud
         radius = float(np.median([max(b.axes) for b in bodies]))
         self._cloud_colours = None
@@ -407,7 +422,7 @@ class SceneView:
             return {"max_force": 0.0, "arrow": 0.0}
         if "map" in self._contact_keys:                  # back from a rigidity map: its contacts go
             self.api.remove_by_name("/contacts")
-            self.contacts_frame, self._contact_keys = None, {}
+            self.contacts_frame, self._contact_keys, self._contact_nodes = None, {}, {}
         z = 0.1 * size if scene.dim == 2 else 0.0
         P = to3(scene.point, z)
         self._contacts_parent()
@@ -423,9 +438,10 @@ class SceneView:
         forces = digest((size, o["forces"], o["force_scale"]), scene.point, scene.normal, scene.force, yielding)
         if self._contact_keys.get("forces") != forces:
             self._contact_keys["forces"] = forces
-            self.api.remove_by_name("/contacts/forces")
             if o["forces"] and fmax > 0:
                 self._draw_forces(scene, size, P, fmag, fmax, arrow, yielding)
+            else:
+                self._drop("/contacts/forces")
         return {"max_force": fmax, "arrow": arrow / size, "lines": scene.n_contacts > MAX_ARROWS}
 
     def _draw_map_contacts(self, session) -> None:
@@ -437,7 +453,7 @@ class SceneView:
         if self._contact_keys.get("map") == key and (key is not None or not self._contact_keys):
             return
         self.api.remove_by_name("/contacts")
-        self.contacts_frame, self._contact_keys = None, {}
+        self.contacts_frame, self._contact_keys, self._contact_nodes = None, {}, {}
         if key is None:
             return
         self._contacts_parent()
@@ -449,22 +465,42 @@ class SceneView:
                                    thickness=3.0, thickness_units="screen")
 
     def _draw_geometry(self, scene, size, P, z) -> None:
-        for part in ("points", "normals", "osculating"):
-            self.api.remove_by_name(f"/contacts/{part}")
-        self.api.add_point_cloud("/contacts/points", points=P, colors=COLORS["point"], point_size=0.08 * size,
-                                 point_shape="circle")
+        self._put("/contacts/points", "points", P, COLORS["point"], point_size=0.08 * size, point_shape="circle")
         if self.options["normals"]:
             n = to3(scene.normal, 0.0)
-            self.api.add_line_segments("/contacts/normals", np.stack([P, P + 0.5 * size * n], axis=1),
-                                       COLORS["normal"], thickness=2.5, thickness_units="screen")
-        if self.options["osculating"] and scene.n_contacts <= MESH_MAX:     # arcs of thousands of contacts: clutter
-            data = circle_data(scene, size)
-            if data is not None:
-                pts, cen, rad, nout, tan = data
-                cen = cen + np.array([0, 0, z]) if scene.dim == 2 else cen
-                segs = osculating_arcs(pts, cen, rad, nout, tan, size)
-                self.api.add_line_segments("/contacts/osculating", segs, COLORS["osculating"], thickness=1.5,
-                                           thickness_units="screen")
+            self._put("/contacts/normals", "lines", np.stack([P, P + 0.5 * size * n], axis=1), COLORS["normal"],
+                      thickness=2.5, thickness_units="screen")
+        else:
+            self._drop("/contacts/normals")
+        data = circle_data(scene, size) if self.options["osculating"] and scene.n_contacts <= MESH_MAX else None
+        if data is None:                                 # (arcs of thousands of contacts: clutter)
+            self._drop("/contacts/osculating")
+            return
+        pts, cen, rad, nout, tan = data
+        cen = cen + np.array([0, 0, z]) if scene.dim == 2 else cen
+        self._put("/contacts/osculating", "lines", osculating_arcs(pts, cen, rad, nout, tan, size),
+                  COLORS["osculating"], thickness=1.5, thickness_units="screen")
+
+    def _put(self, name: str, kind: str, points, colors, **style) -> None:
+        """Show node `name` of `kind` ("points", "lines", "arrows"): where it is there with as many points, only its
+        changed properties are sent (viser skips equal ones); else it is added anew (a new node: its data, pose and
+        visibility, after the old one's removal)."""
+        old = self._contact_nodes.get(name)
+        if old is not None and old[0] == kind and old[1].points.shape == np.shape(points):
+            handle = old[1]
+            handle.points, handle.colors = points, np.asarray(colors, np.uint8)
+            for key, value in style.items():
+                setattr(handle, key, value)
+            return
+        add = {"points": self.api.add_point_cloud, "lines": self.api.add_line_segments,
+               "arrows": self.api.add_arrows}[kind]
+        self._contact_nodes[name] = (kind, add(name, points=points, colors=colors, **style))
+
+    def _drop(self, name: str) -> None:
+        """Remove node `name` if it is shown."""
+        old = self._contact_nodes.pop(name, None)
+        if old is not None:
+            old[1].remove()
 
     def _draw_forces(self, scene, size, P, fmag, fmax, arrow, yielding) -> None:
         f = to3(scene.force, 0.0) / fmax * arrow                  # f^pq: on p; -f^pq on q
@@ -476,12 +512,12 @@ class SceneView:
         ends = np.concatenate([P[keep] + f[keep], P[keep] - f[keep]])
         colors = np.concatenate([color[keep], color[keep]]).astype(np.uint8)
         if scene.n_contacts > MAX_ARROWS:      # arrow meshes cost the browser ~25 ms each to rebuild: lines instead
-            self.api.add_line_segments("/contacts/forces", np.stack([starts, ends], axis=1),
-                                       np.repeat(colors[:, None], 2, axis=1), thickness=3.0, thickness_units="screen")
+            self._put("/contacts/forces", "lines", np.stack([starts, ends], axis=1),
+                      np.repeat(colors[:, None], 2, axis=1), thickness=3.0, thickness_units="screen")
             return
         shaft = 0.035 * size
-        self.api.add_arrows("/contacts/forces", np.stack([starts, ends], axis=1), colors,
-                            shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
+        self._put("/contacts/forces", "arrows", np.stack([starts, ends], axis=1), colors,
+                  shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
 
     # the λ⁽⁶⁾ surface --------------------------------------------------------------------------
     def field_frame(self, field, size: float):
@@ -495,18 +531,30 @@ class SceneView:
         return place, (x0, x1, y0, y1)
 
     def draw_field(self, session, field, current) -> None:
-        """The λ⁽⁶⁾/k field as a coloured height surface (red < 0, blue > 0) with the current state marked."""
+        """The λ⁽⁶⁾/k field as a coloured height surface (red < 0, blue > 0) with the current state marked: the surface
+        is sent once per field, then only the marker moves (its position: one small message per slider move)."""
         if field is None or not self.options["surface"]:
-            self.api.remove_by_name("/field")
+            self.clear_field()
             return
-        import trimesh
         size = session.field_scale      # fixed per pair: the cached surface and the marker share it
+        key = (id(field), size)
+        if self._field_key != key:
+            self._field_key = key
+            self._draw_surface(field, size)
+        place, _ = self.field_frame(field, size)
+        rho_r, f_kr, lam = current
+        cx, cy = place(rho_r, f_kr)
+        cz = (0.0 if lam is None else float(np.clip(lam / self._field_lim, -1.5, 1.5))) * 0.8 * size
+        self._marker.position = (float(cx), float(cy), cz + 0.05 * size)
+
+    def _draw_surface(self, field, size: float) -> None:
+        """The surface, its frame, axis labels and the current-state marker (placed by draw_field)."""
+        import trimesh
         place, (x0, x1, y0, y1) = self.field_frame(field, size)
-        lim = float(np.abs(field.lam).max()) or 1.0
-        height = 0.8 * size
+        lim = self._field_lim = float(np.abs(field.lam).max()) or 1.0       # the height scale (1: a zero field)
         R, F = np.meshgrid(field.rho_r, field.f_kr)
         X, Y = place(R, F)
-        Z = field.lam / lim * height
+        Z = field.lam / lim * 0.8 * size
         V = np.stack([X, Y, Z], axis=-1).reshape(-1, 3)
         nr, nf = len(field.rho_r), len(field.f_kr)
         idx = np.arange(nr * nf).reshape(nf, nr)
@@ -514,23 +562,16 @@ class SceneView:
         faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
         v = field.lam.reshape(-1) / lim
         colors = diverging(np.sign(v) * np.sqrt(np.abs(v)))     # √ stretch: the small values near 0 show too
-        key = (id(field), size)
-        if getattr(self, "_field_key", None) != key:
-            self._field_key = key
-            mesh = trimesh.Trimesh(V, faces, vertex_colors=colors, process=False)
-            surface = self.api.add_mesh_trimesh("/field/surface", mesh)
-            surface.on_click(lambda event: self._picked(event, field, place, Z))
-            self.api.add_line_segments("/field/frame", np.array([
-                [[x0, y0, 0], [x1, y0, 0]], [[x1, y0, 0], [x1, y1, 0]], [[x1, y1, 0], [x0, y1, 0]],
-                [[x0, y1, 0], [x0, y0, 0]]]), (90, 90, 90), thickness=1.5, thickness_units="screen")
-            self.api.add_label("/field/xlabel", "ρ/r →", position=(0.5 * (x0 + x1), y0 - 0.25 * size, 0))
-            self.api.add_label("/field/ylabel", "f/(kr) ↑", position=(x0 - 0.55 * size, 0.5 * (y0 + y1), 0))
-            self.api.add_label("/field/title", "λ⁽⁶⁾/k: red < 0 < blue",
-                               position=(0.5 * (x0 + x1), y1 + 0.25 * size, 0))
-        rho_r, f_kr, lam = current
-        cx, cy = place(rho_r, f_kr)
-        cz = (0.0 if lam is None else float(np.clip(lam / lim, -1.5, 1.5))) * height
-        self.api.add_icosphere("/field/current", radius=0.09 * size, color=(255, 200, 0), position=(cx, cy, cz + 0.05 * size))
+        mesh = trimesh.Trimesh(V, faces, vertex_colors=colors, process=False)
+        surface = self.api.add_mesh_trimesh("/field/surface", mesh)
+        surface.on_click(lambda event: self._picked(event, field, place, Z))
+        self.api.add_line_segments("/field/frame", np.array([
+            [[x0, y0, 0], [x1, y0, 0]], [[x1, y0, 0], [x1, y1, 0]], [[x1, y1, 0], [x0, y1, 0]],
+            [[x0, y1, 0], [x0, y0, 0]]]), (90, 90, 90), thickness=1.5, thickness_units="screen")
+        self.api.add_label("/field/xlabel", "ρ/r →", position=(0.5 * (x0 + x1), y0 - 0.25 * size, 0))
+        self.api.add_label("/field/ylabel", "f/(kr) ↑", position=(x0 - 0.55 * size, 0.5 * (y0 + y1), 0))
+        self.api.add_label("/field/title", "λ⁽⁶⁾/k: red < 0 < blue", position=(0.5 * (x0 + x1), y1 + 0.25 * size, 0))
+        self._marker = self.api.add_icosphere("/field/current", radius=0.09 * size, color=(255, 200, 0))
 
     def _picked(self, event, field, place, Z) -> None:
         """A click on the surface: march along the ray to where it meets the height field, report (ρ/r, f/(kr))."""
@@ -541,8 +582,11 @@ class SceneView:
             self.on_pick(*hit)
 
     def clear_field(self) -> None:
-        self._field_key = None
-        self.api.remove_by_name("/field")
+        """No surface (another scene, or switched off): removed once, nothing sent while there is none."""
+        if self._field_key is not None:
+            self._field_key = self._marker = None
+            self.api.remove_by_name("/field")
+
 
 
 def digest(small, *arrays) -> bytes:

@@ -110,6 +110,38 @@ def test_no_page_error_over_many_loads(app, browser):
     assert errors == []
 
 
+def test_the_star_sits_on_the_contour_where_the_sliders_are(app, browser):
+    """The ★ is an element of its own under the contour's picture (sent at each move, the 49 kB picture once per
+    field), moved up over it by CSS: its centre must land where the sliders' (ρ/r, f/(kr)) lie on the picture's plot
+    area. Tolerance 3 px: the glyph is 26 px, the grid's ρ/r step about 6 px on the panel's picture."""
+    from granstab_app.browser import number_box
+    from granstab_app.field import field_picture
+    errors: list[str] = []
+    page = open_page(browser, app, errors)
+    verdict_on_page(page, "unstable", timeout=60_000)
+    ui = ui_of(app, page)
+    page.get_by_role("tab", name="λ⁽⁶⁾ field").click()
+    for rho_r in (None, 2.4):
+        if rho_r is not None:
+            box = number_box(page, ui.sliders["rho_r"])
+            box.fill(f"{rho_r:g}")
+            box.press("Enter")
+            wait_for(lambda r=rho_r: ui.session.params["rho_r"] == r, what="ρ/r on the server")
+            shows_last_sent(page, ui)
+        field, (mark_rho, mark_f) = ui.session.field(), (ui.session.params["rho_r"], ui.session.params["f_kr"])
+        _, (x0, y0, x1, y1) = field_picture(field)
+        u = (mark_rho - field.rho_r[0]) / (field.rho_r[-1] - field.rho_r[0])
+        v = (mark_f - field.f_kr[0]) / (field.f_kr[-1] - field.f_kr[0])
+        picture = page.locator(".granstab-contour img").bounding_box()
+        star = page.locator(".granstab-star").bounding_box()
+        centre = (star["x"] + star["width"] / 2, star["y"] + 0.52 * star["height"])     # translate(-50%, -52%)
+        expected = (picture["x"] + (x0 + u * (x1 - x0)) * picture["width"],
+                    picture["y"] + (1 - y0 - v * (y1 - y0)) * picture["height"])
+        assert np.hypot(centre[0] - expected[0], centre[1] - expected[1]) <= 3.0, (rho_r, centre, expected)
+    page.close()
+    assert errors == []
+
+
 def test_panels_labels_and_reset(app, browser):
     errors: list[str] = []
     page = open_page(browser, app, errors)

@@ -357,15 +357,17 @@ def test_models_from_files():
 # ------------------------------------------------------------------------------------------ issue 13 defects
 
 class RecordingScene:
-    """A stand-in for viser's scene API that keeps what the λ⁽⁶⁾ surface view sends (mesh, marker position)."""
+    """A stand-in for viser's scene API that keeps what the λ⁽⁶⁾ surface view sends (mesh, marker position): each
+    node's arguments and its handle (whose properties the view then writes, as on viser's handles)."""
 
     def __init__(self):
         self.sent = {}
 
     def __getattr__(self, name):
         def add(node, *args, **kwargs):
-            self.sent[node] = (args, kwargs)
-            return SimpleNamespace(on_click=lambda fn: None)
+            handle = SimpleNamespace(on_click=lambda fn: None, **kwargs)
+            self.sent[node] = (args, kwargs, handle)
+            return handle
         return add
 
 
@@ -385,7 +387,7 @@ def test_current_state_ball_sits_on_the_cached_surface_for_every_rho(pair):
         assert pair.field() is field                                        # the cached surface is kept
         view.draw_field(pair, pair.field(), (rho_r, f_kr, pair.rolling_eigenvalue()))
         assert view.api.sent["/field/surface"][0][0] is mesh
-        cx, cy, cz = view.api.sent["/field/current"][1]["position"]
+        cx, cy, cz = view.api.sent["/field/current"][2].position
         # the ball is over its (ρ/r, f/(kr)) on the surface (λ⁽⁶⁾ = f(ρ - r) is bilinear, so is the grid's
         # interpolation: exact) and lifted by 0.05 r; tolerance 1e-9 r
         assert (cx, cy) == (pytest.approx(np.interp(rho_r, field.rho_r, xs), abs=1e-9),
@@ -519,7 +521,7 @@ def test_a_concave_side_is_drawn_as_a_socket():
     s = Session("hand_in_glove")
     view = SceneView(RecordingScene())
     view.draw_particles(s)
-    (V, _), _ = view.api.sent["/particles/q/body/mesh"]
+    (V, _), _, _ = view.api.sent["/particles/q/body/mesh"]
     q = s.bodies()[1]
     ring = V[(V[:, 2] > 0) & (np.abs(V[:, :2]).max(axis=1) > 0), :2] + q.x   # the top outline (not the centre), world
     point, r = s.scene.point[0], 1.0
