@@ -585,11 +585,10 @@ class ClientUI:
         if s.kind == "scan_map":      # a scan's map, a track's frame (its own headline) or a rigidity map
             title, verdict = getattr(s.model, "headline", None) or (
                 f"{s.scene.n_particles} particles: click one (or type its name) for its cluster", "scan map")
-            if hasattr(s.model, "legend"):
-                title = f"rigid clusters of {s.scene.n_particles} particles: click one (or type its name) to open it"
         if apart and s.kind != "scan_map":       # pulled apart: the file's title ("tips touching") no longer holds, nor does a verdict
             title, verdict = "no contact: the particles are apart (every motion is free)", "no contact"
-        reason = "" if verdict in (None, "no contact", "not analysed", "scan map", "track") else s.headline()[1]
+        reason = ("" if verdict in (None, "no contact", "not analysed", "scan map", "rigidity map", "track")
+                  else s.headline()[1])
         self.headline.content = (
             f'<div class="granstab-verdict" data-verdict="{(verdict or "none").replace(" ", "-")}" '
             f'data-revision="{s.revision}" style="background:'
@@ -608,8 +607,9 @@ class ClientUI:
         drag = ("" if s.kind == "scan_map" else " Drag a particle by its arrows (the arc turns it): contacts and "
                 "forces follow the geometry." if s.draggable else " Its contacts are given in the file (points, "
                 "normals, curvatures, forces), not shapes: the particles cannot be dragged.")
+        kind = verdict if s.kind == "scan_map" else s.kind.replace("_", " ")      # a map says which map
         self.info.content = (f"{note}\n\n" if note else "") + (
-            f"{s.kind.replace('_', ' ')} scene" + (f" · {params}." if params else ".")) + drag + (
+            f"{kind} scene" + (f" · {params}." if params else ".")) + drag + (
             f"\n\n**Import report**\n\n{wrapped(report)}" if report else "")
         if s.kind == "scan_map" and hasattr(s.model, "details"):
             self.details.content = s.model.details
@@ -785,7 +785,7 @@ class ClientUI:
             s = self.session              # say why this panel is empty, and how to fill it
             self.mode_info.content = (
                 "No mode to show." if s.analysis is not None else
-                "The scan map has no modes: open a particle's cluster (click it, or type its name under *Scene*) "
+                "A map has no modes: open a particle's cluster (click it, or type its name under *Scene*) "
                 "for its eigenmodes." if s.kind == "scan_map" else
                 "Not analysed yet: *Analyse the whole packing* (under *Scene*) computes the modes." if s.deferred else
                 f"No analysis: {s.error}")

@@ -77,6 +77,12 @@ class RigidityMapModel(ScanMapModel):
                 f"{r['self_stresses']} self-stresses")
 
     @property
+    def headline(self) -> tuple[str, str]:
+        """(title, badge) of the page's headline: a map of rigid clusters, not a verdict."""
+        return (f"rigid clusters of {self.scene.n_particles} particles: click one (or type its name) to open it",
+                "rigidity map")
+
+    @property
     def details(self) -> str:
         return (f"**Rigidity map.** {self.report}.\n\nColour: the rigid cluster of each particle (largest first: blue, "
                 "orange, green, …; a hinge particle takes its largest cluster's colour); grey: in no rigid cluster "

@@ -359,16 +359,16 @@ def test_a_large_packing_stays_responsive(app, browser, tmp_path):
     assert errors == []
 
 
-def open_map(browser, app, folder, errors):
+def open_map(browser, app, folder, errors, badge="scan-map"):
     """A new page, its first preset shown, then `folder` (a scan or a rigidity result) typed into *Path on server*
-    and shown as a map: the page and its UI."""
+    and shown as a map under `badge`: the page and its UI."""
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)
     ui = ui_of(app, page)
     box = page.locator("input.mantine-TextInput-input:visible").first  # Path on server
     box.fill(str(folder))
     box.press("Enter")
-    verdict_on_page(page, "scan-map", timeout=120_000)
+    verdict_on_page(page, badge, timeout=120_000)
     return page, ui
 
 
@@ -378,7 +378,7 @@ def test_scan_map_in_the_page(app, browser, scan_dir):
     errors: list[str] = []
     page, ui = open_map(browser, app, scan_dir, errors)
     page.get_by_text("click one (or type its name) for its cluster").wait_for(timeout=30_000)
-    page.get_by_text("The scan map has no modes").wait_for(timeout=30_000)      # the Eigenmodes panel says why
+    page.get_by_text("A map has no modes").wait_for(timeout=30_000)      # the Eigenmodes panel says why
     from granstab_app.scanmap import fraction_colours  # p40's own cluster geometric, its six neighbours' boundary:
     shade = tuple(int(c) for c in fraction_colours(np.array([1 / 7]))[0])      # 1 of 7 unstable for a packing reason
     assert tuple(ui.view.colours["p40"]) == shade and ui.view.colours["p00"] == (250, 250, 250)
@@ -775,7 +775,7 @@ def test_rigidity_map_in_the_page(app, browser, tmp_path):
     assert [len(c["particles"]) for c in clusters] == [5, 5, 3]
     rigid = {name for c in clusters for name in c["particles"]}
     errors: list[str] = []
-    page, ui = open_map(browser, app, out, errors)
+    page, ui = open_map(browser, app, out, errors, badge="rigidity-map")    # the badge names the map, not a scan's
     page.get_by_text("rigid clusters of 31 particles").wait_for(timeout=30_000)
     for k, c in enumerate(clusters):            # every member of the clusters 0-2 (no hinge here) in its colour
         for name in c["particles"]:
@@ -790,5 +790,5 @@ def test_rigidity_map_in_the_page(app, browser, tmp_path):
     name.fill(clusters[0]["particles"][0])
     wait_for(lambda: ui.session.kind == "contacts", timeout=120, what="the neighbourhood opened")
     page.get_by_role("button", name="Back to the map").click()
-    verdict_on_page(page, "scan-map", timeout=120_000)
+    verdict_on_page(page, "rigidity-map", timeout=120_000)
     close_page(page, errors, "app-rigidity-map.png")
