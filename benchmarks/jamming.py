@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 import granstab
 
@@ -161,19 +162,23 @@ def plot(results: dict, figdir: Path):
         sel = [s for s in summary if s["n"] == n]
         p = np.array([s["p"] for s in sel])
         for key, color in (("B", "C0"), ("G", "C1"), ("dz", "C2")):
-            y = np.array([s[key] for s in sel])
-            left.loglog(p[y > 0], y[y > 0], mk + "-", color=color, ms=4, label=f"{key}, N = {n}")
+            y, err = np.array([s[key] for s in sel]), np.array([s[f"{key}_sem"] for s in sel])
+            left.errorbar(p[y > 0], y[y > 0], yerr=np.minimum(err, 0.95 * y)[y > 0], fmt=mk + "-", color=color,
+                          ms=4, capsize=2, label=f"{key}, N = {n}")
         ratio, dz = np.array([s["G"] / s["B"] for s in sel]), np.array([s["dz"] for s in sel])
         right.loglog(dz[ratio > 0], ratio[ratio > 0], mk, color="C3", label=f"N = {n}")
     p = np.array([min(results["pressures"]), max(results["pressures"])])
-    left.loglog(p, 0.6 * np.sqrt(p / p[1]) * 0.1, "k:", label="∝ p^½")
+    left.loglog(p, 0.6 * np.sqrt(p), "k:", label="0.6 (p/k)^½")
     dz = np.array([0.02, 0.6])
-    right.loglog(dz, 0.25 * dz, "k:", label="∝ Δz")
+    right.loglog(dz, 0.2 * dz, "k:", label="0.2 Δz")
     left.set_xlabel("pressure p / k")
     left.set_ylabel("B, G (units of k), Δz")
     right.set_xlabel("Δz")
     right.set_ylabel("G / B")
     for ax in (left, right):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=6)
     save(fig, figdir / "jamming.png")
