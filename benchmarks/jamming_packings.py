@@ -15,6 +15,8 @@ force on p by q f^pq = −k δ n, σ = (1/V) Σ f^pq ⊗ b^pq (tension positive)
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 DIAMETER_SMALL = 1.0
@@ -238,17 +240,20 @@ def scene_dict(x, radius, cell, k: float = 1.0, title: str = "") -> dict:
 
 
 def save(path, made: list) -> None:
-    """Packings (dicts of `packings`, each with its "seed") to one NPZ: positions and radii concatenated, `count`
-    the particles of each, `cell` (K, d, d), `pressure`, `seed`."""
-    np.savez_compressed(path, x=np.concatenate([m["x"] for m in made]),
-                        radius=np.concatenate([m["radius"] for m in made]),
-                        count=np.array([len(m["x"]) for m in made]), cell=np.array([m["cell"] for m in made]),
-                        pressure=np.array([m["pressure"] for m in made]), seed=np.array([m["seed"] for m in made]))
+    """Packings (dicts of `packings`, each with its "seed") to JSON: Python writes each float as its shortest exact
+    repr, so the positions read back bit for bit (the stress to 1e-10 needs them to ~1e-15)."""
+    import json
+
+    keep = ("seed", "pressure", "cell", "x", "radius")
+    rows = [{k: (np.asarray(m[k]).tolist() if k in ("cell", "x", "radius") else m[k]) for k in keep} for m in made]
+    Path(path).write_text(json.dumps({"model": "frictionless harmonic disks, k = 1 (granstab_bench.jamming_packings)",
+                                      "packings": rows}, separators=(",", ":")) + "\n", encoding="utf-8")
 
 
 def load(path) -> list:
-    """The packings of `save`."""
-    with np.load(path) as f:
-        edges = np.r_[0, np.cumsum(f["count"])]
-        return [{"x": f["x"][a:b], "radius": f["radius"][a:b], "cell": f["cell"][i], "pressure": float(f["pressure"][i]),
-                 "seed": int(f["seed"][i])} for i, (a, b) in enumerate(zip(edges[:-1], edges[1:]))]
+    """The packings of `save`, as arrays."""
+    import json
+
+    rows = json.loads(Path(path).read_text(encoding="utf-8"))["packings"]
+    return [{"seed": int(r["seed"]), "pressure": float(r["pressure"]), "cell": np.array(r["cell"]),
+             "x": np.array(r["x"]), "radius": np.array(r["radius"])} for r in rows]

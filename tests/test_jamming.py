@@ -1,10 +1,12 @@
 """Moduli of jammed packings against the published scaling near jamming (issue 24, docs/jamming.md), and the moduli
 of one packing against finite differences of its energy with the particles relaxed at each strain.
 
-The packings (tests/data/jammed_disks_n128.npz) are frictionless harmonic bidisperse disks made without granstab by
-`granstab_bench.jamming_packings` (FIRE and Newton; the pressure found to 1e-10):
+The packings (tests/data/jammed_disks_n128_p*.json, one file per pressure, 64 kB each) are frictionless harmonic
+bidisperse disks made without granstab by `granstab_bench.jamming_packings` (FIRE and Newton; the pressure found to
+1e-10):
     made = [dict(m, seed=s) for s in range(12) for m in jamming_packings.packings(128, P, seed=s, onset=1e-5)]
-    jamming_packings.save("tests/data/jammed_disks_n128.npz", made)      # P = 1e-3, 10^-2.5, 1e-2
+    for p, name in zip(P, NAMES): jamming_packings.save(DATA / f"jammed_disks_n128_p{name}.json",
+                                                        [m for m in made if m["pressure"] == p])
 12 seeds × 3 pressures, 117-126 particles once the rattlers are removed (p N² = 16-160: above the finite-size
 crossover p N² ~ 1 of Goodrich, Liu & Nagel 2012, so the bulk scaling applies).
 """
@@ -22,14 +24,15 @@ from granstab.solve.threads import blas_threads
 from granstab_bench import jamming_packings as jp
 from granstab_bench.jamming import fit
 
-DATA = Path(__file__).parent / "data" / "jammed_disks_n128.npz"
+DATA = Path(__file__).parent / "data"
 PRESSURES = (1e-3, 10 ** -2.5, 1e-2)
+NAMES = ("1e-3", "3e-3", "1e-2")
 
 
 @cache
 def ensemble():
     """(packings, their granstab moduli) of the committed ensemble, each through the documented scene schema."""
-    made = jp.load(DATA)
+    made = [m for name in NAMES for m in jp.load(DATA / f"jammed_disks_n128_p{name}.json")]
     with blas_threads(1):
         return made, [granstab.moduli(granstab.scene_from_dict(jp.scene_dict(m["x"], m["radius"], m["cell"])))
                       for m in made]
