@@ -96,6 +96,48 @@ def fire(x, radius, cell, k: float = 1.0, ftol: float = 1e-9, max_steps: int = 2
     return x, max_steps
 
 
+def enthalpy_forces(x, radius, cell, pressure_: float, k: float = 1.0):
+    """Minus the gradient of the enthalpy H = U + p V over the positions (N, d) and the cell's deformation D
+    (cell = cell₀ D, x = X D at D = I): (−∂U/∂x, −∂H/∂D) with ∂U/∂D = Σ b ⊗ ∂U/∂b and ∂(pV)/∂D = p V I."""
+    p, q, _, b, s, delta = pairs(x, radius, cell)
+    g = -(k * delta / s)[:, None] * b                        # ∂U/∂b
+    grad = np.zeros_like(x)
+    np.add.at(grad, p, -g)
+    np.add.at(grad, q, g)
+    return -grad, -(b.T @ g + pressure_ * abs(np.linalg.det(cell)) * np.eye(x.shape[1]))
+
+
+def fire_cell(x, radius, cell, target: float, k: float = 1.0, ftol: float = 1e-9, max_steps: int = 400_000,
+              dt_max: float = 0.2):
+    """FIRE on the enthalpy at pressure `target` over the positions and the cell's shape and size (the cell's
+    coordinates D·L, L = √V, so that its stiffness is ~B like a particle's): the shear stress relaxes to zero
+    and the packing settles where it is stable at fixed stress (Dagois-Bohy et al. 2012's remedy). Until every
+    force (the cell's: |∂H/∂D| / L) is below ftol; returns (x, cell, steps)."""
+    d = x.shape[1]
+    L = np.sqrt(abs(np.linalg.det(cell)))
+    v, w = np.zeros_like(x), np.zeros((d, d))
+    dt, alpha, since = 0.1 * dt_max, 0.1, 0
+    for step in range(max_steps):
+        F, T = enthalpy_forces(x, radius, cell, target, k)
+        T = T / L
+        if max(np.abs(F).max(), np.abs(T).max()) < ftol:
+            return x, cell, step
+        power = float(np.vdot(F, v) + np.vdot(T, w))
+        if power > 0:
+            scale = np.sqrt((np.vdot(v, v) + np.vdot(w, w)) / (np.vdot(F, F) + np.vdot(T, T)))
+            v, w = (1 - alpha) * v + alpha * scale * F, (1 - alpha) * w + alpha * scale * T
+            since += 1
+            if since > 5:
+                dt, alpha = min(1.1 * dt, dt_max), 0.99 * alpha
+        else:
+            v[:], w[:] = 0.0, 0.0
+            dt, alpha, since = 0.5 * dt, 0.1, 0
+        v, w = v + dt * F, w + dt * T
+        D = np.eye(d) + dt * w / L                             # x → (x + dt v) D, cell → cell D
+        x, cell = (x + dt * v) @ D, cell @ D
+    return x, cell, max_steps
+
+
 def newton(x, radius, cell, k: float = 1.0, floor: float = 0.0, steps: int = 6):
     """Newton steps on the force balance (least squares, QR with pivoting: the translations and rattlers' dofs are
     null) until max |force| < floor; only taken from a state FIRE brought close to a minimum."""
@@ -182,12 +224,14 @@ def at_pressure(x, radius, cell, target: float, k: float = 1.0, rtol: float = 1e
 
 
 def packings(n: int, pressures, seed: int = 0, ratio: float = 1.4, k: float = 1.0, phi0: float = 0.90,
-             onset: float | None = None):
+             onset: float | None = None, relax_shape: bool = False):
     """One seed's packings at each pressure, rattlers removed: a list of dicts {pressure (the target), x (N', d),
     radius (N',), cell (d, d), rattlers (how many were removed), steps (FIRE steps)}. n bidisperse disks, half of
     diameter 1, half of diameter `ratio`, random positions at phi0. `onset` (a pressure): first decompressed to it
     (near the jamming onset, p N² ≲ 1), then compressed to the pressures in increasing order, each from the last,
-    as O'Hern et al. make states above φ_c; None: decompressed from phi0 to each pressure in decreasing order."""
+    as O'Hern et al. make states above φ_c; None: decompressed from phi0 to each pressure in decreasing order.
+    `relax_shape`: at each pressure the cell's shape relaxes too (`fire_cell`: zero shear stress, stable at fixed
+    stress, Dagois-Bohy et al. 2012), before the size is set to the exact pressure at that shape."""
     rng = np.random.default_rng(seed)
     radius = 0.5 * DIAMETER_SMALL * np.where(np.arange(n) < n // 2, 1.0, ratio)
     side = np.sqrt(np.pi * (radius ** 2).sum() / phi0)
@@ -202,6 +246,10 @@ def packings(n: int, pressures, seed: int = 0, ratio: float = 1.4, k: float = 1.
         while True:                                         # at the pressure, then without its rattlers, again
             x, cell, s = at_pressure(x, radius, cell, target, k)
             total += s
+            if relax_shape:
+                x, cell, s = fire_cell(x, radius, cell, target, k, ftol=1e-8 * target)
+                x, cell, s2 = at_pressure(x, radius, cell, target, k)
+                total += s + s2
             gone = rattlers(x, radius, cell)
             if not gone.any():
                 break

@@ -2,9 +2,10 @@
 of one packing against finite differences of its energy with the particles relaxed at each strain.
 
 The packings (tests/data/jammed_disks_n128_p*.json, one file per pressure, 64 kB each) are frictionless harmonic
-bidisperse disks made without granstab by `granstab_bench.jamming_packings` (FIRE and Newton; the pressure found to
-1e-10):
-    made = [dict(m, seed=s) for s in range(12) for m in jamming_packings.packings(128, P, seed=s, onset=1e-5)]
+bidisperse disks made without granstab by `granstab_bench.jamming_packings` (FIRE and Newton; the cell's shape
+relaxed to zero shear stress, Dagois-Bohy et al. 2012; the pressure found to 1e-10):
+    made = [dict(m, seed=s) for s in range(12)
+            for m in jamming_packings.packings(128, P, seed=s, onset=1e-5, relax_shape=True)]
     for p, name in zip(P, NAMES): jamming_packings.save(DATA / f"jammed_disks_n128_p{name}.json",
                                                         [m for m in made if m["pressure"] == p])
 12 seeds × 3 pressures, 117-126 particles once the rattlers are removed (p N² = 16-160: above the finite-size
@@ -49,13 +50,25 @@ def grid(key: str) -> np.ndarray:
 
 
 def test_the_stress_of_each_scene_is_the_target_pressure():
-    """granstab's σ = (1/V) Σ f ⊗ b of the written scene gives p = −tr σ / 2 equal to the pressure the generator
-    aimed at to 1e-9 (the generator stops at 1e-10; the round-off of p is ~ε/δ ~ 1e-12 of it), and the scene's
-    particles are in equilibrium (load residual below 1e-9 of the largest force)."""
+    """granstab's σ = (1/V) Σ f ⊗ b of the written scene is −p I: p = −tr σ / 2 equals the pressure the generator
+    aimed at to 1e-9 (the generator stops at 1e-10; the round-off of p is ~ε/δ ~ 1e-12 of it) and the shear stress
+    is below 1e-7 p (the shape's FIRE stops at forces of 1e-8 p); the scene's particles are in equilibrium (load
+    residual below 1e-9 of the largest force)."""
     made, results = ensemble()
     for m, r in zip(made, results):
         assert abs(r.pressure / m["pressure"] - 1) < 1e-9, (m["seed"], m["pressure"], r.pressure)
+        deviator = r.stress + r.pressure * np.eye(2)
+        assert np.abs(deviator).max() < 1e-7 * m["pressure"]
         assert r.errors["load_residual"] < 1e-9
+
+
+def test_shape_relaxed_packings_are_stable_at_fixed_stress():
+    """Relaxing the cell's shape at fixed pressure leaves every packing at a minimum of the enthalpy, so C − Q
+    (granstab's fixed-stress stiffness) is positive definite: its smallest eigenvalue above 1e-3 of G's mean at
+    that pressure; held at fixed shape instead, Dagois-Bohy et al. find negative shear moduli."""
+    G = grid(lambda m, r: r.shear).mean(0)
+    smallest = grid(lambda m, r: r.branches[0].fixed_stress_eigenvalues.min())
+    assert (smallest > 1e-3 * G).all(), smallest.min()
 
 
 def test_contacts_at_least_the_jammed_minimum():
@@ -69,19 +82,20 @@ def test_contacts_at_least_the_jammed_minimum():
 
 def test_shear_modulus_scales_as_root_pressure_and_bulk_is_flat():
     """O'Hern et al. (PRE 68, 011306, 2003), harmonic repulsion: G ~ p^½, B ~ p⁰ (a jump at jamming), Δz ~ p^½.
-    Bands (why): with 12 seeds the ensemble mean of G has a bootstrap standard error of ~0.1 on its exponent (a
-    finite share of fixed-shape packings has a soft or negative shear direction, Dagois-Bohy et al. 2012), so
-    |a − ½| < 0.25; that still fails for the affine (Born) shear modulus, which like B is ~p⁰, i.e. for a C without
-    its non-affine part Ξᵀ H⁺ Ξ. B's exponent is small positive (corrections of relative order p^½): |b| < 0.15,
-    and B must vary less than G by a factor 3 over the decade. Δz: |c − ½| < 0.25 likewise."""
+    Bands (why): with 12 shape-relaxed seeds the bootstrap standard error of G's exponent is ~0.04, and at N = 128
+    (p N² = 16-160, near the finite-size crossover p N² ~ 1-10²) the measured exponent is 0.37, below ½ as the
+    G of small systems flattens towards ~1/N; so |a − ½| < 0.2. That still fails for the affine (Born) shear
+    modulus, which like B is ~p⁰, i.e. for a C without its non-affine part Ξᵀ H⁺ Ξ. B's exponent is small positive
+    (corrections of relative order p^½): |b| < 0.15, and B must vary less than G by a factor 1.5 over the decade
+    (measured: B 1.18×, G 2.3×). Δz (measured 0.49 ± 0.02): |c − ½| < 0.1."""
     G = grid(lambda m, r: r.shear)
     B = grid(lambda m, r: r.bulk)
     dz = grid(lambda m, r: jp.contact_numbers(m["x"], m["radius"], m["cell"])["dz"])
     a, b, c = (fit(PRESSURES, v)["exponent"] for v in (G, B, dz))
-    assert abs(a - 0.5) < 0.25, a
+    assert abs(a - 0.5) < 0.2, a
     assert abs(b) < 0.15, b
-    assert abs(c - 0.5) < 0.25, c
-    assert (G.mean(0)[-1] / G.mean(0)[0]) > 3 * (B.mean(0)[-1] / B.mean(0)[0])
+    assert abs(c - 0.5) < 0.1, c
+    assert (G.mean(0)[-1] / G.mean(0)[0]) > 1.5 * (B.mean(0)[-1] / B.mean(0)[0])
 
 
 def _relaxed_energy(m, eps: np.ndarray) -> tuple[float, int]:
