@@ -4,11 +4,13 @@ that granstab never sees (docs/jamming.md).
 
 The model of O'Hern, Silbert, Liu & Nagel (PRE 68, 011306, 2003): bidisperse disks (half of diameter 1, half of
 diameter `ratio` = 1.4) in a periodic square cell, pair energy U = ½ k δ² for an overlap δ = R_p + R_q − s > 0 (s the
-centre distance to the minimum image). Protocol: random positions at packing fraction 0.90, FIRE (Bitzek et al.,
-PRL 97, 170201, 2006) and Newton steps to force balance at round-off, then the cell is rescaled affinely (bracketed
-secant in the packing fraction, each step relaxed again) until p = −tr σ / d equals the target pressure to 1e-12;
-rattlers (fewer than d + 1 contacts, removed recursively, as the literature does) are taken out and the pressure
-found again. The pressures of one seed are reached one after another from the highest, each from the last.
+centre distance to the minimum image). Protocol:
+random positions at packing fraction 0.90, FIRE (Bitzek et al., PRL 97, 170201, 2006) and Newton steps to force
+balance at round-off, then the cell is rescaled affinely (a bracketed secant in its size, each step relaxed again)
+until p = −tr σ / d equals the target to 1e-10; rattlers (fewer than d + 1 contacts, removed recursively, as the
+literature does) are taken out and the pressure found again. With `onset`, a seed is first decompressed near its
+jamming onset and then compressed through the pressures, each from the last; with `relax_shape`, the cell's shape
+relaxes too at each pressure (FIRE on the enthalpy: zero shear stress, Dagois-Bohy et al., PRL 109, 095703, 2012).
 
 Conventions of the scene contract (docs/periodic.md): q's copy at x_q + image @ cell, branch b^pq = copy − x_p, the
 force on p by q f^pq = −k δ n, σ = (1/V) Σ f^pq ⊗ b^pq (tension positive), so p = Σ k δ s / (d V).
