@@ -30,7 +30,6 @@ BROWSERS = {True: 2, False: 8}     # all on the pair (how many fit: `_fit`)
 BUSY = 0.8                         # share of the cores the class and its Chromium pages may keep busy (`_fit`)
 MOVES = {True: 3, False: 10}
 VIEWPORT = {"width": 1200, "height": 800}   # px of each Chromium page (less software-rendered canvas than 1600 × 1000)
-BROWSER_NICE = 10                  # the Chromium pages' priority below the server's (`_niced_chromium`)
 PERIOD = 2.0                       # s between one page's slider moves
 LOST_S = 120.0                     # s after which a move that never showed is counted lost (as infinitely slow)
 GOAL_P95_S = 0.3                   # the pair's slider → verdict, 95th percentile
@@ -172,19 +171,6 @@ def _own_state(ui, key: str, value: float) -> bool:
         return ui.session.params[key] == value and _revision(ui) == str(ui.session.revision)
 
 
-def _niced_chromium(folder: str) -> str:
-    """Debian's Chromium started at nice BROWSER_NICE (a wrapper script in `folder`): in a class each student's
-    browser draws on the student's own machine; here the pages share the server's 2 cores, and at the server's
-    priority their software-drawn canvases (about 0.12 core a page) take the cores the server's moves need. Below it
-    they stand for machines of their own, as far as one machine can; their own drawing is still in the page's
-    latency."""
-    path = os.path.join(folder, "chromium-niced")
-    with open(path, "w") as fh:
-        fh.write(f'#!/bin/sh\nexec nice -n {BROWSER_NICE} /usr/bin/chromium "$@"\n')
-    os.chmod(path, 0o755)
-    return path
-
-
 async def _chromium_class(app, plan, moves: int, clock: dict, go, errors: list, out: dict) -> list:
     """Open the Chromium pages (`plan`: [(page index, (preset, slider))]), then (once the protocol pages are ready: `clock["ready"]`) start every page's moves;
     returns [(page's last shown revision, ui, latencies)] after closing them."""
@@ -193,7 +179,7 @@ async def _chromium_class(app, plan, moves: int, clock: dict, go, errors: list, 
     from granstab_app.browser import FLAGS
     async with async_playwright() as pw:
         with tempfile.TemporaryDirectory() as profile:
-            ctx = await pw.chromium.launch_persistent_context(profile, executable_path=_niced_chromium(profile),
+            ctx = await pw.chromium.launch_persistent_context(profile, executable_path="/usr/bin/chromium",
                                                               headless=True, viewport=VIEWPORT, args=FLAGS)
             t = time.perf_counter()
             opened = [await _open(ctx, app, errors, preset) for _, (preset, _) in plan]
