@@ -3,6 +3,7 @@ tracked build artefacts. Import arrows between rooms are checked in test_imports
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 import zipfile
@@ -14,6 +15,8 @@ ROOT = Path(__file__).resolve().parents[1]
 MAX_TOP_MODULES = 10        # modules directly in granstab/: the facade, the CLI, the pipeline; the rest lives in rooms
 MAX_FUNCTION_LINES = 100    # a function longer than this does more than one thing
 MAX_TRACKED_BYTES = 2**20   # a larger tracked file is data or a build artefact (figures and test data stay below)
+MAX_PAGE_BYTES = 5 * 2**20  # a published teaching page (examples/pages/*.html: viser's client + a recording), issue 29
+PAGES = Path("examples") / "pages"
 ARTEFACTS = (".whl", ".egg", ".so", ".pyc", ".tar.gz", ".zip")
 
 
@@ -59,8 +62,24 @@ def test_no_tracked_build_artefacts_or_large_files():
     names = tracked_files()
     assert "pyproject.toml" in names and len(names) > 100
     assert not [n for n in names if n.endswith(ARTEFACTS)]
-    large = [n for n in names if (ROOT / n).is_file() and (ROOT / n).stat().st_size > MAX_TRACKED_BYTES]
+    limit = {n: MAX_PAGE_BYTES if Path(n).parent == PAGES and n.endswith(".html") else MAX_TRACKED_BYTES for n in names}
+    large = [n for n in names if (ROOT / n).is_file() and (ROOT / n).stat().st_size > limit[n]]
     assert not large
+
+
+def test_every_tour_page_is_shipped_and_self_contained():
+    """build.sh's presets are the tour's pages: each one tracked, linked from the README, and self-contained (no
+    script, style or image fetched from the network: it opens offline)."""
+    presets = re.search(r"for preset in (.*?); do", (ROOT / PAGES / "build.sh").read_text(), re.S).group(1).split()
+    presets = [p for p in presets if p != "\\"]
+    names, readme = tracked_files(), (ROOT / "README.md").read_text()
+    assert len(presets) == 7
+    for preset in presets:
+        page = f"{PAGES.as_posix()}/{preset}.html"
+        assert page in names and f"]({page})" in readme, page
+        text = (ROOT / page).read_text()
+        assert text.lstrip().lower().startswith("<!doctype html") and "viser" in text.lower(), page
+        assert not re.search(r"""(src|href)\s*=\s*["']?(https?:)?//""", text), page
 
 
 @pytest.mark.slow
