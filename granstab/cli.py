@@ -31,6 +31,7 @@ from .solve.budget import (
     deadline,
     estimate,
     refuse_over,
+    sparse_estimate,
 )
 
 
@@ -277,9 +278,10 @@ def cmd_moduli(args) -> int:
 
 
 def refuse_unfinishable(scene, args, seconds_left: float | None) -> tuple[bool, float | None]:
-    """Refuse (one line, before any work) more sliding contacts than --max-sliding, and dense branch enumerations
-    whose measured cost, over every metric asked for, exceeds the time left of --timeout (without --timeout:
-    budget.ASK_SECONDS); each message says what to do. Returns whether the dense path will run and its estimate."""
+    """Refuse (one line, before any work) more sliding contacts than --max-sliding, and branch enumerations whose
+    estimated cost (dense path: measured here; sparse path: budget.sparse_estimate), over every metric asked for,
+    exceeds the time left of --timeout (without --timeout: budget.ASK_SECONDS); each message says what to do.
+    Returns whether the dense path will run and its estimate."""
     from .mechanics.metric import family
     from .solve.lowrank import use_lowrank
     from .solve.sparse import DENSE_MAX_DOF
@@ -292,17 +294,20 @@ def refuse_unfinishable(scene, args, seconds_left: float | None) -> tuple[bool, 
                          "raise --max-sliding (with --timeout to bound the time), set state = \"elastic\" for "
                          "contacts known to stick, or scan local clusters (granstab scan)")
     dense = args.method == "dense" or (args.method == "auto" and scene.n_dof <= DENSE_MAX_DOF)
-    if not dense or args.device != "cpu":
+    if args.device != "cpu":
         return dense, None
     n = scene.n_dof if scene.free_dofs is None else len(scene.free_dofs)
     n_branches = args.sample_branches + 2 if sampled else 2 ** n_sliding
     n_metrics = len(family(scene, args.rotation_length)) if args.metric == "family" else 1
-    lowrank = use_lowrank(n_branches, n)
-    seconds = estimate(n, n_branches, n_metrics, lowrank=lowrank, workers=cores())
+    if dense:
+        lowrank = use_lowrank(n_branches, n)
+        seconds = estimate(n, n_branches, n_metrics, lowrank=lowrank, workers=cores())
+        path, other = ("low-rank" if lowrank else "full"), "--method sparse with a small --k, "
+    else:
+        seconds, path, other = sparse_estimate(n, n_branches, n_metrics), "sparse", ""
     one = f"--metric L alone (about {seconds / n_metrics:.3g} s), " if n_metrics > 1 else ""
     refuse_over(scene.source, seconds, seconds_left,
-                f"{n_branches} branches × {n_metrics} metric(s) of {n} dofs ({'low-rank' if lowrank else 'full'} "
-                "path)", one + "--method sparse with a small --k, ")
+                f"{n_branches} branches × {n_metrics} metric(s) of {n} dofs ({path} path)", one + other)
     return dense, seconds
 
 

@@ -261,10 +261,12 @@ def chain(dim: int, n: int) -> granstab.Scene:
     return granstab.build_scene(dim, [f"b{i}" for i in range(n)], x, arrays, title="chain")
 
 
-def test_a_long_chain_stops_at_the_deadline_in_one_line(tmp_path):
-    """The issue's silent hang (a 3,000-particle chain ran for minutes without a word): --timeout stops it, and the
-    advice fits the sparse path it took."""
+def test_a_long_chain_is_refused_before_work_in_one_line(tmp_path):
+    """The issue's silent hang (a 3,000-particle chain ran for minutes without a word): a 20,000-sphere chain on the
+    sparse path, whose estimate (budget.sparse_estimate: 3 metrics × about 10 s) exceeds --timeout 0.5, is refused
+    before any work, in one line that names the path and what to do."""
     path = granstab.save_scene(chain(3, 20_000), tmp_path / "chain.npz")
     rc, out, err, caught = run(path, "--timeout", "0.5")
     assert_contract(path, rc, out, err, caught)
-    assert rc == 2 and "stopped after --timeout 0.5 s, unfinished; lower --k" in err
+    assert rc == 2 and "refused: 1 branches × 3 metric(s) of 120000 dofs (sparse path) need about" in err
+    assert "--metric L alone" in err

@@ -91,6 +91,24 @@ def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = Fa
     return n_metrics * n_branches * per
 
 
+#: the sparse path (sparse.py, ritz.py: one factorisation and block shift-invert of the elastic matrix per metric,
+#: then every branch as a Ritz update with its own checks), wall seconds on 2 free cores of the calibration machine
+#: (2026-11-26, AMD EPYC; the sparse path's kernels are not timed here, unlike the dense ones): a metric's set-up
+#: ∝ n (periodic packings of 3·10⁴ and 3·10⁵ dofs, 4 branches: 2.6 s and 23 s measured, 2.8 and 25 s estimated) and
+#: a branch's update a fixed cost plus ∝ n (a 3,072-dof random packing, 10 sliding contacts, 1,024 branches: metric L
+#: 51 s, its family of 3 metrics 386 s measured; 115 and 344 s estimated)
+SPARSE_SETUP_PER_DOF = 8e-5
+SPARSE_BRANCH_FIXED = 0.11
+SPARSE_BRANCH_PER_DOF = 6e-7
+
+
+def sparse_estimate(n_dof: int, n_branches: int, n_metrics: int = 1) -> float:
+    """Estimated wall seconds of the sparse path: per metric, the elastic solve's set-up and every branch's Ritz
+    update (calibration above: on the safe side for one metric, within 0.5-3× of the measured)."""
+    per_branch = SPARSE_BRANCH_FIXED + SPARSE_BRANCH_PER_DOF * n_dof
+    return n_metrics * (SPARSE_SETUP_PER_DOF * n_dof + n_branches * per_branch)
+
+
 def refuse_over(source: str, seconds: float, timeout: float | None, work: str, alternatives: str = "") -> None:
     """Raise OverBudget (one line, with what to do) when the estimate exceeds the time asked (`timeout`; None: the
     CLI's ASK_SECONDS, which --timeout lifts)."""
