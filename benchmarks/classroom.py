@@ -290,11 +290,11 @@ def run(quick: bool = False) -> dict:
     def pages(in_chromium: int) -> list[dict]:
         return [_spec(i, i, ring, RING, False, moves) if i < ring else
                 _spec(i, i - ring, n - ring, PAIR, i < ring + in_chromium, moves) for i in range(n)]
-    r = _class(pages(0), moves)
-    beside = _class(pages(browsers), moves)
+    r = _class(pages(browsers if quick else 0), moves)
+    beside = r if quick else _class(pages(browsers), moves)      # --quick: one class, with its Chromium page
     r.update(annulus_pages=ring, browsers=browsers, period_s=PERIOD, alone=_summary_alone(alone))
-    r.update(_summary(r))
-    beside.update(_summary(beside))
+    for run_ in {id(r): r, id(beside): beside}.values():
+        run_.update(_summary(run_))
     r["beside"] = {k: beside[k] for k in ("errors", "own_state", "not_own", "canvas", "browser_in_class",
                                           f"{PAIR[0]}_protocol", "cores", "load_moving", "gc_pauses_s", "released",
                                           "sessions_left")}
@@ -399,7 +399,7 @@ def markdown(r: dict) -> str:
         f"| · input → the server's callback starts · verdict queued → the frame | {_ms(own.get('send', {}))} · "
         f"{_ms(own.get('show', {}))} | |",
         f"| that page alone, typed → shown | {_ms(own.get('total', {}))} | |",
-        f"| the class with {r['browsers']} Chromium pages: in those pages, typed → shown | "
+        f"| the class with {r['browsers']} Chromium page(s): in those, typed → shown | "
         f"{_ms(b['browser_in_class'].get('total', {}))} | |",
         f"| · the protocol pages of that run, sent → received | {_ms(b[f'{PAIR[0]}_protocol']['total'])} | |",
         f"| annulus_frame, sent → received (its analysis in a worker) | {_ms(ring['total'], 's')} | |",
