@@ -1,22 +1,23 @@
 """A class on one server (issue 29): PAGES pages on one explorer, each moving a slider every PERIOD seconds, ANNULUS of
-them on annulus_frame (μ), the rest on the pair (ρ/r), every page typing values of its own.
+them on annulus_frame (μ), the rest on the pair (ρ/r), no value typed twice in the class.
 
 This process runs the server alone (app.server.App, as `granstab-app` does); the pages run in another process
-(benchmarks/classroom_pupils.py), as a class's pages run in the pupils' own browsers:
-- protocol pages speak viser's websocket protocol (each a real session, sent and decoding everything a browser is
-  sent); their latency is the message sent → the window carrying the new verdict received, on CLOCK_MONOTONIC
-  (time.perf_counter here and there, and viser's `timestampSec`), split by the server's own stamps (callback start,
-  verdict queued) into: reaching the callback, the callback's work up to the verdict, and the verdict's way out;
-- BROWSERS headless Chromium pages on the pair (software WebGL, on this machine's 2 cores beside the server: a real
-  page's check that no error is raised, its state is its own and its canvas draws), their latency stamped in the
-  page: the value's input event → the first frame after the badge shows the new revision.
-Before the class, one Chromium page alone on a server (QUIET_MOVES moves) gives the browser's own time: the verdict
-queued at the server (its time.time()) → that frame (the page's performance.timeOrigin + now(), the same system
-clock). A pupil's latency is then composed: the server's under the class (protocol pages) + the browser's own.
+(benchmarks/classroom_pupils.py), as a class's pages run in the pupils' own browsers. Three runs, a server each:
+- one Chromium page alone (QUIET_MOVES moves): the browser's own part of a move, stamped in the page against the
+  server's time.time (one system clock): its input event → the server's callback starts, and the verdict queued →
+  the first frame after the badge shows it;
+- the class of protocol pages (viser's websocket protocol, each a real session sent and decoding everything a browser
+  is sent): the server's part, message sent → the window with the new verdict received, on CLOCK_MONOTONIC in both
+  processes (time.perf_counter, viser's `timestampSec`), split by the server's own stamps (callback start, verdict
+  queued) into reaching the callback, the callback's work up to the verdict, and the verdict's way out;
+- the class again with BROWSERS of its pair pages in headless Chromium (software WebGL on this machine's cores beside
+  the server): no page error, the state its own, the canvas drawn, and the latency in those pages.
+A pupil's latency is composed: the server's part under the class + the browser's own.
 
 Also: the server's memory (RSS of this process) before, with all pages open, after the moves and after every page has
-closed; the CPU of the server, of its analysis workers (app/state.py `analysis_pool`), of the pages' process and of
-Chromium while the class moved; each move's own CPU in the server (its callback's thread time)."""
+closed; its garbage collections while moving; the CPU of the server, of its analysis workers (app/state.py
+`analysis_pool`), of the pages' process and of Chromium while the class moved; each move's own CPU in the server (its
+callback's thread time)."""
 from __future__ import annotations
 
 import contextlib
@@ -425,16 +426,25 @@ def markdown(r: dict) -> str:
 
 
 def _verdict(r: dict) -> str:
-    """What the numbers say: the goal, where the time goes, the ceiling."""
+    """What the numbers say: the goal, where a pupil's time goes, the ceiling."""
     comp, met = r["composed"], r["composed"].get("p95", float("inf")) <= GOAL_P95_S
-    return (f"The goal is {'met' if met else 'not met'} on this machine: a pupil's p95 is "
-            f"{comp.get('p95', float('nan')) * 1e3:.0f} ms. The server process took {r['cores']['server']:.2f} of a "
-            f"core, {r['server_cpu_per_move_s'] * 1e3:.0f} ms per move at this mix (a pair move's callback "
-            f"{r[f'{PAIR[0]}_cpu_p50_s'] * 1e3:.0f} ms, an annulus_frame move's {r[f'{RING[0]}_cpu_p50_s'] * 1e3:.0f} "
-            f"ms, its analysis {r['worker_cpu_per_ring_move_s']:.2f} s in a worker at a lower priority); the tail is "
-            "waiting for a core of the shared machine and for the GIL, not the server's work. Ceiling: one server "
-            f"process (one core of Python) serves about {r['ceiling_process_pages']:.0f} pages of this mix moving "
-            f"every {r['period_s']:g} s, the {CORES} cores with the workers' analyses about "
-            f"{r['ceiling_machine_pages']:.0f}; beyond that moves queue behind each tab's lock, where only the latest "
-            "value is analysed (app/panels.py): a busy server delays pages, it never mixes their states. The "
-            "Chromium pages draw in software on the server's cores, which a pupil's browser does not.")
+    server, own = r[f"{PAIR[0]}_protocol"]["total"], r["alone"]["parts"].get("own", {})
+    inpage = r["beside"]["browser_in_class"].get("total", {})
+    gc_max = max((d for _, _, d in r["gc_pauses_s"]), default=0.0)
+    return (f"**The goal is {'met' if met else 'not met'} on this machine**: a pupil's p95 is "
+            f"{comp.get('p95', float('nan')) * 1e3:.0f} ms, composed of the server's part under the class (p95 "
+            f"{server.get('p95', float('nan')) * 1e3:.0f} ms) and the browser's own (p95 "
+            f"{own.get('p95', float('nan')) * 1e3:.0f} ms, on a page alone). The Chromium pages drawing beside the "
+            f"class on its {CORES} cores saw p95 {inpage.get('p95', float('nan')) * 1e3:.0f} ms: a pupil's browser "
+            "draws on the pupil's machine, these on the server's. The server process took "
+            f"{r['cores']['server']:.2f} of a core, {r['server_cpu_per_move_s'] * 1e3:.0f} ms per move at this mix "
+            f"(a pair move's callback {r[f'{PAIR[0]}_cpu_p50_s'] * 1e3:.0f} ms; an annulus_frame move's "
+            f"{r[f'{RING[0]}_cpu_p50_s'] * 1e3:.0f} ms, and {r['worker_cpu_per_ring_move_s']:.2f} s of analysis in a "
+            f"worker at a lower priority); its longest garbage collection {gc_max * 1e3:.0f} ms (the open tabs' "
+            "objects are kept out of the collector's full passes, app/server.py settle_heap: with 30 tabs those "
+            "passes held the GIL 210-225 ms, twice in 20 s). Ceiling, from the CPU per move (not a latency measured "
+            f"there): one server process (one core of Python) saturates at about {r['ceiling_process_pages']:.0f} "
+            f"pages moving every {r['period_s']:g} s, the {CORES} cores with the workers' annulus_frame analyses at "
+            f"about {r['ceiling_machine_pages']:.0f} pages of this mix; the tail grows before. Beyond it moves queue "
+            "behind each tab's lock, where only the latest value is analysed (app/panels.py): a busy server delays "
+            "pages, it never mixes their states.")
