@@ -36,6 +36,8 @@ ANNULUS = {True: 2, False: 5}
 BROWSERS = {True: 1, False: 2}     # Chromium pages in the class, all on the pair
 QUIET_MOVES = {True: 4, False: 20}  # the Chromium page alone
 MOVES = {True: 3, False: 10}
+PROBES = {True: (), False: (60, 90)}    # larger classes of protocol pages, same mix: where the ceiling is
+PROBE_MOVES = 5
 VIEWPORT = {"width": 1200, "height": 800}   # px of each Chromium page
 PERIOD = 2.0                       # s between one page's slider moves
 LOST_S = 120.0                     # s after which a move that never showed is counted lost (as infinitely slow)
@@ -45,19 +47,20 @@ PAIR, RING = ("two_particle", "rho_r"), ("annulus_frame", "mu")
 CORES = os.cpu_count() or 1        # this machine's cores (the ceiling)
 
 
-def values_of(j: int, same: int, key: str, moves: int) -> list[float]:
+def values_of(j: int, same: int, key: str, moves: int, step: float = 0.01) -> list[float]:
     """The values the j-th of `same` pages on slider `key` types, one per move: no value twice in the class (no page
-    is served an analysis another page or an earlier move made, app/state.py `shared`), on the slider's 0.01 steps,
-    none the preset's (ρ/r 0.5 and μ 0.3 would change nothing at the first move)."""
+    is served an analysis another page or an earlier move made, app/state.py `shared`), `step` apart (the slider's
+    0.01, or half of it for a class too large for its steps), none the preset's (ρ/r 0.5 and μ 0.3 would change
+    nothing at the first move)."""
     low = 0.25 if key == "rho_r" else 0.31
-    return [round(low + 0.01 * (j + same * k), 2) for k in range(moves)]
+    return [round(low + step * (j + same * k), 3) for k in range(moves)]
 
 
-def _spec(i: int, j: int, same: int, preset_key: tuple, browser: bool, moves: int) -> dict:
+def _spec(i: int, j: int, same: int, preset_key: tuple, browser: bool, moves: int, step: float = 0.01) -> dict:
     from granstab_app.params import PARAMS
     preset, key = preset_key
     return {"i": i, "preset": preset, "default_preset": PAIR[0], "key": key, "label": PARAMS[key].label,
-            "values": values_of(j, same, key, moves), "browser": browser}
+            "values": values_of(j, same, key, moves, step), "browser": browser}
 
 
 def _rss() -> float:
@@ -303,7 +306,20 @@ def run(quick: bool = False) -> dict:
     r.update(_ceiling_numbers(r))
     r["composed"] = _composed(r)
     del r["matched"]                   # every move of every page: summarised above
+    r["probes"] = [_probe(size, size * ring // n) for size in PROBES[quick]]
     return r
+
+
+def _probe(size: int, ring: int) -> dict:
+    """A class of `size` protocol pages, `ring` of them on annulus_frame, PROBE_MOVES moves each (ρ/r half a slider
+    step apart: 0.005, which a protocol page can send): the server's latency, CPU and memory there."""
+    pages = [_spec(i, i, ring, RING, False, PROBE_MOVES) if i < ring else
+             _spec(i, i - ring, size - ring, PAIR, False, PROBE_MOVES, step=0.005) for i in range(size)]
+    p = _class(pages, PROBE_MOVES)
+    p.update(_summary(p))
+    return {"pages": size, "annulus_pages": ring, "pair": p[f"{PAIR[0]}_protocol"]["total"],
+            "annulus": p[f"{RING[0]}_protocol"]["total"], "cores": p["cores"], "load": p["load_moving"],
+            "per_page_mb": p["per_page_mb"], "own_state": p["own_state"], "gc": p["gc"]}
 
 
 def _parts(matched: list, preset: str, browser: bool) -> dict:
@@ -422,8 +438,23 @@ def markdown(r: dict) -> str:
         f"{b['load_moving'][1]:.1f} | |",
         f"| ceiling at this mix: pages one server process serves · pages {CORES} cores serve (server + workers) | "
         f"{r['ceiling_process_pages']:.0f} · {r['ceiling_machine_pages']:.0f} | ≥ {r['pages']} |",
-        "", _verdict(r), "",
+        "", _verdict(r), "", *_probe_table(r),
     ]) + "\n"
+
+
+def _probe_table(r: dict) -> list[str]:
+    """The class and the larger classes of protocol pages, side by side."""
+    if not r.get("probes"):
+        return []
+    rows = [{"pages": r["pages"], "annulus_pages": r["annulus_pages"], "pair": r[f"{PAIR[0]}_protocol"]["total"],
+             "annulus": r[f"{RING[0]}_protocol"]["total"], "cores": r["cores"], "load": r["load_moving"],
+             "per_page_mb": r["per_page_mb"], "own_state": r["own_state"]}, *r["probes"]]
+    return [f"Larger classes of protocol pages, the same mix ({PROBE_MOVES} moves each, one server each):", "",
+            "| pages (annulus_frame) | pair, server's part: median · p95 | annulus_frame: median · p95 | CPU: "
+            "server · workers | RSS per page | own state | load |", "|---|---|---|---|---|---|---|",
+            *(f"| {x['pages']} ({x['annulus_pages']}) | {_ms(x['pair'])} | {_ms(x['annulus'], 's')} | "
+              f"{x['cores']['server']:.2f} · {x['cores']['workers']:.2f} | {x['per_page_mb']:.1f} MB | "
+              f"{x['own_state']} of {x['pages']} | {x['load'][0]:.1f} → {x['load'][1]:.1f} |" for x in rows), ""]
 
 
 def _verdict(r: dict) -> str:
@@ -448,6 +479,9 @@ def _verdict(r: dict) -> str:
             "passes held the GIL 210-225 ms, twice in 20 s). Ceiling, from the CPU per move (not a latency measured "
             f"there): one server process (one core of Python) saturates at about {r['ceiling_process_pages']:.0f} "
             f"pages moving every {r['period_s']:g} s, the {CORES} cores with the workers' annulus_frame analyses at "
-            f"about {r['ceiling_machine_pages']:.0f} pages of this mix; the tail grows before. Beyond it moves queue "
+            f"about {r['ceiling_machine_pages']:.0f} pages of this mix; the tail grows before"
+            + "".join(f"; measured with {x['pages']} pages, the pair's p95 at the server "
+                      f"{x['pair'].get('p95', float('nan')) * 1e3:.0f} ms" for x in r.get("probes", ()))
+            + " (below). Beyond it moves queue "
             "behind each tab's lock, where only the latest value is analysed (app/panels.py): a busy server delays "
             "pages, it never mixes their states.")
