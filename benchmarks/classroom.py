@@ -40,7 +40,7 @@ PROBES = {True: (), False: (60, 90)}    # larger classes of protocol pages, same
 PROBE_MOVES = 5
 VIEWPORT = {"width": 1200, "height": 800}   # px of each Chromium page
 PERIOD = 2.0                       # s between one page's slider moves
-LOST_S = 120.0                     # s after which a move that never showed is counted lost (as infinitely slow)
+LOST_S = 30.0                      # s after which a move that never showed is counted lost (as infinitely slow)
 OPEN_S = 300.0                     # s a page may take to open
 GOAL_P95_S = 0.3                   # the pair's slider → verdict, 95th percentile
 PAIR, RING = ("two_particle", "rho_r"), ("annulus_frame", "mu")
@@ -50,10 +50,10 @@ CORES = os.cpu_count() or 1        # this machine's cores (the ceiling)
 def values_of(j: int, same: int, key: str, moves: int, step: float = 0.01) -> list[float]:
     """The values the j-th of `same` pages on slider `key` types, one per move: no value twice in the class (no page
     is served an analysis another page or an earlier move made, app/state.py `shared`), `step` apart (the slider's
-    0.01, or half of it for a class too large for its steps), none the preset's (ρ/r 0.5 and μ 0.3 would change
-    nothing at the first move)."""
-    low = 0.25 if key == "rho_r" else 0.31
-    return [round(low + step * (j + same * k), 3) for k in range(moves)]
+    0.01, or half of it, a quarter step off the slider's, for a class too large for its steps), none the preset's
+    (ρ/r 0.5 and μ 0.3 would change nothing at the first move: the move would never show)."""
+    low = (0.25 if key == "rho_r" else 0.31) + (0.01 - step) / 2
+    return [round(low + step * (j + same * k), 4) for k in range(moves)]
 
 
 def _spec(i: int, j: int, same: int, preset_key: tuple, browser: bool, moves: int, step: float = 0.01) -> dict:
@@ -301,7 +301,7 @@ def run(quick: bool = False) -> dict:
     for run_ in {id(r): r, id(beside): beside}.values():
         run_.update(_summary(run_))
     r["beside"] = {k: beside[k] for k in ("errors", "own_state", "not_own", "canvas", "browser_in_class",
-                                          f"{PAIR[0]}_protocol", "cores", "load_moving", "gc", "released",
+                                          f"{PAIR[0]}_protocol", "cores", "load_moving", "gc", "released", "lost",
                                           "sessions_left")}
     r.update(_ceiling_numbers(r))
     r["composed"] = _composed(r)
@@ -319,7 +319,7 @@ def _probe(size: int, ring: int) -> dict:
     p.update(_summary(p))
     return {"pages": size, "annulus_pages": ring, "pair": p[f"{PAIR[0]}_protocol"]["total"],
             "annulus": p[f"{RING[0]}_protocol"]["total"], "cores": p["cores"], "load": p["load_moving"],
-            "per_page_mb": p["per_page_mb"], "own_state": p["own_state"], "gc": p["gc"]}
+            "per_page_mb": p["per_page_mb"], "own_state": p["own_state"], "gc": p["gc"], "lost": p["lost"]}
 
 
 def _parts(matched: list, preset: str, browser: bool) -> dict:
@@ -345,7 +345,8 @@ def _summary(r: dict) -> dict:
     out = {"errors": [e for p in r["matched"] for e in p["errors"]], "own_state": sum(p["own"] for p in r["matched"]),
            "not_own": [(p["i"], p["preset"], p["why"]) for p in r["matched"] if not p["own"]],
            "canvas": [p["canvas"] for p in r["matched"] if p["browser"]],
-           "per_page_mb": (r["rss_open_mb"] - r["rss_start_mb"]) / r["pages"]}
+           "per_page_mb": (r["rss_open_mb"] - r["rss_start_mb"]) / r["pages"],
+           "lost": sum(m["total"] == float("inf") for p in r["matched"] for m in p["moves"])}
     for name in (PAIR[0], RING[0]):
         out[f"{name}_protocol"] = {k: _stats(v) for k, v in _parts(r["matched"], name, False).items()}
         out[f"{name}_cpu_p50_s"] = statistics.median([c for p in r["matched"] if p["preset"] == name
@@ -425,6 +426,7 @@ def markdown(r: dict) -> str:
         f" · {', '.join(str(x) for x in b['canvas'])} | 0 · drawn |",
         f"| pages keeping their own state (last value, last verdict, nothing written over): the class · with "
         f"Chromium | {r['own_state']} · {b['own_state']} of {r['pages']} | all |",
+        f"| moves lost (no verdict within {LOST_S:.0f} s): the class · with Chromium | {r['lost']} · {b['lost']} | 0 |",
         f"| server RSS: start · {r['pages']} pages open · after the moves · all closed | {r['rss_start_mb']:.0f} · "
         f"{r['rss_open_mb']:.0f} · {r['rss_moved_mb']:.0f} · {r['rss_closed_mb']:.0f} MB | bounded |",
         f"| per page (open − start, / pages) | {r['per_page_mb']:.1f} MB | |",
@@ -448,13 +450,14 @@ def _probe_table(r: dict) -> list[str]:
         return []
     rows = [{"pages": r["pages"], "annulus_pages": r["annulus_pages"], "pair": r[f"{PAIR[0]}_protocol"]["total"],
              "annulus": r[f"{RING[0]}_protocol"]["total"], "cores": r["cores"], "load": r["load_moving"],
-             "per_page_mb": r["per_page_mb"], "own_state": r["own_state"]}, *r["probes"]]
+             "per_page_mb": r["per_page_mb"], "own_state": r["own_state"], "lost": r["lost"]}, *r["probes"]]
     return [f"Larger classes of protocol pages, the same mix ({PROBE_MOVES} moves each, one server each):", "",
             "| pages (annulus_frame) | pair, server's part: median · p95 | annulus_frame: median · p95 | CPU: "
-            "server · workers | RSS per page | own state | load |", "|---|---|---|---|---|---|---|",
+            "server · workers | RSS per page | own state · moves lost | load |", "|---|---|---|---|---|---|---|",
             *(f"| {x['pages']} ({x['annulus_pages']}) | {_ms(x['pair'])} | {_ms(x['annulus'], 's')} | "
               f"{x['cores']['server']:.2f} · {x['cores']['workers']:.2f} | {x['per_page_mb']:.1f} MB | "
-              f"{x['own_state']} of {x['pages']} | {x['load'][0]:.1f} → {x['load'][1]:.1f} |" for x in rows), ""]
+              f"{x['own_state']} of {x['pages']} · {x['lost']} | {x['load'][0]:.1f} → {x['load'][1]:.1f} |" for x in rows),
+            ""]
 
 
 def _verdict(r: dict) -> str:
