@@ -84,10 +84,7 @@ def read_window(raw: bytes) -> list[Sent]:
     """The messages of one websocket window of viser's wire format (viser/infra/_infra.py `_message_producer`): the
     decompressed and compressed sizes of a zstd-compressed msgpack {"messages", "binaryBufferLengths"}, then the
     binary buffers (each 8-byte aligned), which messages name by index."""
-    import zstandard
-    size, packed = int.from_bytes(raw[:8], "little"), int.from_bytes(raw[8:16], "little")
-    window = msgspec.msgpack.decode(zstandard.ZstdDecompressor().decompress(raw[16:16 + packed],
-                                                                             max_output_size=size))
+    window = decode_window(raw)
     lengths = window.get("binaryBufferLengths", ())
     out = []
     for m in window["messages"]:
@@ -95,6 +92,17 @@ def read_window(raw: bytes) -> list[Sent]:
         out.append(Sent(m["type"], str(m.get("name") or m.get("uuid") or ""), tuple(props),
                         len(msgspec.msgpack.encode(m)) + sum(lengths[i] for i in _buffers(m))))
     return out
+
+
+def decode_window(raw: bytes, zstd=None) -> dict:
+    """One window of viser's wire format decoded: {"messages", "timestampSec" (the server's time.perf_counter when it
+    packed the window), "binaryBufferLengths"}; the binary buffers after it are left undecoded. `zstd`: a
+    zstandard.ZstdDecompressor to reuse."""
+    if zstd is None:
+        import zstandard
+        zstd = zstandard.ZstdDecompressor()
+    size, packed = int.from_bytes(raw[:8], "little"), int.from_bytes(raw[8:16], "little")
+    return msgspec.msgpack.decode(zstd.decompress(raw[16:16 + packed], max_output_size=size))
 
 
 def _buffers(value) -> list[int]:

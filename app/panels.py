@@ -71,6 +71,8 @@ class ClientUI:
         self._quiet_thread: int | None = None   # the thread writing handles: its own echo callbacks are ignored
         self._last_drag = 0.0
         self._closed = False
+        self._sliding = threading.Lock()          # guards the two flags below (_slider_moved)
+        self._slider_busy = self._slider_again = False
         self.released = threading.Event()         # set by the server once a closed tab's memory is handed back
         self._timers: set[threading.Timer] = set()    # typing pauses pending (cancelled on close)
         self._checking: int | None = None         # the revision whose metric family is being checked
@@ -123,7 +125,7 @@ class ClientUI:
             for key, p in PARAMS.items():
                 # what each slider is stands in the scene line below them
                 h = gui.add_slider(p.label, min=p.lo, max=p.hi, step=p.step, initial_value=p.default)
-                h.on_update(lambda _: self.run(self._apply_sliders))
+                h.on_update(lambda _: self._slider_moved())
                 self.sliders[key] = h
             self.reset = gui.add_button("Reset", visible=False)
             self.reset.on_click(lambda _: self.run(self._reset_poses))
@@ -223,6 +225,31 @@ class ClientUI:
                 self.errors_shown += 1
                 self._show_message(f"{type(exc).__name__}: {' '.join(str(exc).split())}")
                 return None
+
+    def _slider_moved(self) -> None:
+        """A slider's event. A tab's slider events are coalesced: while its slider callback runs, a new event only
+        marks it to run once more (reading the latest values), so that a dragged slider holds one of viser's pool
+        threads (32 for every tab of the server), not one per event waiting for the tab's lock while a large scene
+        is analysed."""
+        if self._closed or self._echo():
+            return
+        with self._sliding:
+            self._slider_again = True
+            if self._slider_busy:
+                return
+            self._slider_busy = True
+        try:
+            while True:
+                with self._sliding:
+                    if not self._slider_again:
+                        self._slider_busy = False        # under the lock: a later event starts its own run
+                        return
+                    self._slider_again = False
+                self.run(self._apply_sliders)          # `run` turns any Exception into a message in the page
+        except BaseException:
+            with self._sliding:
+                self._slider_busy = False
+            raise
 
     def _picking(self, fn):
         """The callback of a control that picks a scene (preset, upload): counted as it arrives, before it waits

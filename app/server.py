@@ -68,6 +68,7 @@ class App:
             raise
         with self._lock:
             self.uis[client.client_id] = ui
+        settle_heap()
 
     def _disconnect(self, client) -> None:
         """A closed tab: its UI stops (timers, animation) and is dropped, and the memory it held goes back to the
@@ -88,6 +89,8 @@ class App:
             ui.close()
         self.server.stop()
         close_pool()
+        with _HEAP:                  # nothing of this server stays out of the collector's reach (settle_heap)
+            gc.unfreeze()
 
 
 class PasswordGate:
@@ -130,15 +133,32 @@ def host_warning(host: str, password: str | None) -> str | None:
                           "; --password WORD makes each page ask for a password first."))
 
 
+_HEAP = threading.Lock()     # settle_heap and release_memory: one at a time
+
+
+def settle_heap() -> None:
+    """A new tab's objects live as long as the tab: the young generations are collected and everything alive is moved
+    out of the collector's reach (gc.freeze), so that its full passes no longer scan every open tab. With 30 tabs
+    open a full pass held the GIL 210-225 ms, twice in 20 s of slider moves, and every tab's move waited behind it
+    (benchmarks/classroom.py); the objects are still freed by reference counting, and release_memory unfreezes them to
+    collect a closed tab's cycles."""
+    with _HEAP:
+        gc.collect(1)
+        gc.freeze()
+
+
 def release_memory() -> None:
     """Collect the closed tab's objects and hand the freed heap back to the system. glibc keeps freed memory in the
     arena of the thread that freed it, and viser runs callbacks on a pool of up to 32 threads: a class of 10 tabs left
     +208 MB after every tab had closed (gear_packing, measured here), 0 after malloc_trim. Elsewhere (no glibc): the
-    collection only."""
-    gc.collect()
-    trim = _malloc_trim()
-    if trim is not None:
-        trim(0)
+    collection only. The open tabs' objects go back out of the collector's reach after (settle_heap)."""
+    with _HEAP:
+        gc.unfreeze()
+        gc.collect()
+        trim = _malloc_trim()
+        if trim is not None:
+            trim(0)
+        gc.freeze()
 
 
 @functools.cache

@@ -7,10 +7,14 @@ except programming errors (an unknown parameter name). Not thread-safe: the GUI 
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import pickle
 import tempfile
+import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,6 +44,9 @@ SAME_MODE = 0.999          # |cos| of two unit motions above which they are one 
 OFFLOAD = 50               # particles: from here a server's session analyses in a worker process (analysis_pool)
 _POOL: list = []           # the worker processes, made when first needed (analysis_pool)
 WORKER_NICE = 10           # the workers' priority below the server's (os.nice steps: 10 of 19)
+SHARED = 16                # offloaded analyses kept for every session (shared): ~3 MB each at annulus_frame's 143 disks
+_SHARED: OrderedDict = OrderedDict()     # (scene, metric) digest → Analysis, the most recently used last
+_SHARED_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -368,7 +375,7 @@ class Session:
                 self.notice = f"this scene has no masses: metric {self.metric} → L"
                 self.metric = "L"
             if self.offload and self.scene.n_particles >= OFFLOAD:
-                self.analysis = offloaded(self.scene, self.metric)
+                self.analysis = shared(self.scene, self.metric)
             else:
                 self.analysis = analysed(self.scene, self.metric)
             self.error = None
@@ -590,6 +597,24 @@ def offloaded(scene, metric: str):
         raise
 
 
+def shared(scene, metric: str):
+    """`offloaded`, once for every session of the server: an analysis is kept (the SHARED most recently used) by a
+    digest of its scene and metric, so that a class moving annulus_frame's μ through the same slider steps has each
+    step analysed once. Analyses are read-only once made (a Session's own caches, motions and modes, are its own);
+    two sessions asking at once for the same new scene both analyse it."""
+    key = hashlib.sha256(pickle.dumps((scene, metric), protocol=pickle.HIGHEST_PROTOCOL)).digest()
+    with _SHARED_LOCK:
+        if key in _SHARED:
+            _SHARED.move_to_end(key)
+            return _SHARED[key]
+    analysis = offloaded(scene, metric)
+    with _SHARED_LOCK:
+        _SHARED[key] = analysis
+        while len(_SHARED) > SHARED:
+            _SHARED.popitem(last=False)
+    return analysis
+
+
 def analysis_pool():
     """Worker processes for offloaded analyses, one per core (spawned: the server runs threads, which fork would copy
     half-way), at a lower priority (WORKER_NICE) than the server: on a busy machine a core goes first to the server's
@@ -612,9 +637,12 @@ def _lower_priority() -> None:
 
 
 def close_pool() -> None:
-    """Stop the worker processes (the server's stop; a later offloaded analysis starts new ones)."""
+    """Stop the worker processes and drop the shared analyses (the server's stop; a later offloaded analysis starts
+    new ones)."""
     while _POOL:
         _POOL.pop().shutdown(wait=False, cancel_futures=True)
+    with _SHARED_LOCK:
+        _SHARED.clear()
 
 
 def metric_family(scene) -> dict:

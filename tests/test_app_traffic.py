@@ -4,6 +4,7 @@ protocol, every message decoded), not timed: the bytes and the messages are what
 server's one process (the class benchmark, benchmarks/classroom.py, times it)."""
 from __future__ import annotations
 
+import threading
 import time
 
 import pytest
@@ -20,6 +21,7 @@ UPDATES = {"SceneNodeUpdateMessage", "SetPositionMessage", "SetOrientationMessag
 # contour's 49 kB picture, re-sent to move its ★, and a spectrum plot carrying plotly's 7 kB template).
 MOVE_BYTES = 24_000
 LARGEST = 6_000                # bytes of any one message of a move: one outline's vertices and their message
+BURST = 15                     # slider events sent at once (a drag of 0.75 s at viser's 50 ms)
 
 
 @pytest.fixture(scope="module")
@@ -83,3 +85,26 @@ def test_a_force_move_sends_no_shape(page):
     assert any(m.name == page.ui.star._impl.uuid for m in sent)                 # the ★ over the contour moved
     assert not any(m.name == page.ui.contour._impl.uuid for m in sent)          # its picture was not sent again
     assert sum(m.size for m in sent) <= MOVE_BYTES - 9_300                      # less the two outlines' vertices
+
+
+def test_a_burst_of_slider_events_runs_the_callback_a_few_times_and_ends_on_the_last_value(page):
+    """A dragged slider sends an event every 50 ms (viser's page); a tab's events are coalesced while its callback
+    runs (panels.ClientUI._slider_moved), so they hold one of viser's 32 pool threads, not one each waiting for the
+    tab's lock. BURST events sent at once: the first runs, the others arrive while it runs (a pair's analysis alone
+    takes ~10 ms of CPU here) and make at most a few runs more; the old code ran the callback once per event."""
+    ui, calls = page.ui, []
+    apply = ui._apply_sliders
+    ui._apply_sliders = lambda: (calls.append(threading.get_ident()), apply())[1]
+    try:
+        quiet(page)
+        uuid, values = ui.sliders["rho_r"]._impl.uuid, [round(0.8 + 0.01 * k, 2) for k in range(BURST)]
+        for value in values:
+            page.send({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": value}})
+        end = time.monotonic() + 60
+        while ui.session.params["rho_r"] != values[-1] and time.monotonic() < end:
+            time.sleep(0.01)
+        quiet(page)
+    finally:
+        ui._apply_sliders = apply
+    assert ui.session.params["rho_r"] == values[-1]                  # the last value wins
+    assert 1 <= len(calls) <= BURST // 3, len(calls)
