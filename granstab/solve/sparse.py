@@ -55,7 +55,7 @@ import scipy.sparse.linalg as spla
 
 from ..mechanics import checks
 from ..mechanics.accuracy import resolved_sign, vector_bounds
-from ..mechanics.assembly import assemble, sliding_factors, stack_blocks
+from ..mechanics.assembly import Assembly, sliding_factors, stack_blocks
 from ..mechanics.branches import RIGID, Branch, Problem, canonical_signs, search_eigenspaces, test_codes
 from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
@@ -165,7 +165,7 @@ def _apply_rigid(applied: dict, cb: ContactBlocks, rigid: np.ndarray, n_dof: int
 
 def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     """H and its mechanical part as CSR from the contact blocks, computed in chunks of contacts and scattered once
-    (assembly.assemble), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
+    (assembly.Assembly, one pattern for all three), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
     t0 = time.perf_counter()
     per = scene.dof_per_particle
     M, n_loc = scene.n_contacts, 2 * per
@@ -187,11 +187,12 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
         undetermined[sl] = cb.rolling_undetermined
         error[sl] = cb.curvature_error
     t1 = time.perf_counter()
-    curvature_error = assembled_error(scene, error)
+    assembly = Assembly(scene.p, scene.q, per, scene.n_dof)          # one pattern for H, Hm and H's error bound
+    curvature_error = assembled_error(scene, error, assembly)
     del error
-    H = assemble(total, scene.p, scene.q, per, scene.n_dof)
+    H = assembly(total)
     del total
-    Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
+    Hm = assembly(mech)
     del mech
     sliding = np.flatnonzero(scene.at_yield())
     local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=scene.n_dof,
@@ -210,10 +211,10 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
         metric = length_metric(scene, length or default_length(scene), name="L")
     parts = parts or sparse_parts(scene, chunk)
     t1 = time.perf_counter()
-    D = metric.matrix()
-    H = (D @ parts.H @ D).tocsr()
-    Hm = (D @ parts.Hm @ D).tocsr()
+    H = metric.sparse_congruence(parts.H)
+    Hm = metric.sparse_congruence(parts.Hm)
     Hs = ((H + H.T) * 0.5).tocsr()
+    D = metric.matrix()
     A, S = np.asarray(D @ parts.A), np.asarray(D @ parts.S)
     Ms = A.shape[1]
     C = metric.rotations(scene)
@@ -517,6 +518,7 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
             lam, V = _eigsh_near(shifted, Bop, n, k + (nu or 0), tol, maxiter, v0)
         verified = nu is not None and int(np.sum(lam < sig)) >= nu
     info["solve"] = time.perf_counter() - t
+    info["shifted"] = shifted                                          # (Hs - σI)⁻¹U of this branch (ritz.py)
     return _finish(sp_, Bop, lam[:k], V[:, :k], mask_arr, sig, verified, nu, method, info)
 
 
@@ -595,6 +597,16 @@ def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
     return B
 
 
+@dataclass(frozen=True, eq=False)
+class Krylov:
+    """_block_near's basis: X (n, m) orthonormal and rigid-free, BX = B X (the operator it was built with) and
+    G = Xᵀ B X (m, m), as the iteration maintained them (equal to B X and Xᵀ B X to round-off)."""
+
+    X: np.ndarray
+    BX: np.ndarray
+    G: np.ndarray
+
+
 BLOCK_GUARD = 1   # _block_near: Ritz vectors beyond those wanted whose residuals start a cycle …
 BLOCK_STEPS = 3   # … block solves per cycle …
 BLOCK_CYCLES = 8  # … and restarts before ARPACK takes over
@@ -624,7 +636,7 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
     residual is computed with the exact B in float64. None if not converged to BLOCK_RTOL after BLOCK_CYCLES (the
     caller then runs ARPACK). Ritz values are upper bounds of the eigenvalues (Cauchy interlacing), each within its
     residual of one; which eigenvalues they are is settled by the caller's inertia count. Also returns the whole
-    orthonormal basis (n × m, rigid-free: SparseRitz starts from it)."""
+    orthonormal basis with B applied to it and its Rayleigh quotient (Krylov: SparseRitz starts from them)."""
     R, n = sp_.R, sp_.n
     w = 2 * kk + BLOCK_GUARD                                          # the widest block (_cluster_end: ≤ 2kk)
     d, cap = R.shape[1], w * (BLOCK_STEPS + 2)                       # the widest basis: kept + new blocks
@@ -648,7 +660,7 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
         resid = BVY[:, :top] - V * theta[:top]
         res = np.linalg.norm(resid, axis=0)
         if res[:want].max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
-            return theta[:kk], V[:, :kk], X[:, d:d + m]
+            return theta[:kk], V[:, :kk], Krylov(X[:, d:d + m], BV[:, :m], _sym(G))
         keep = BVY.shape[1]                                           # thick restart on the lowest Ritz vectors
         X[:, d:d + top], X[:, d + top:d + keep] = V, X[:, d:d + m] @ Y[:, top:keep]
         BV[:, :keep] = BVY
@@ -918,8 +930,7 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK, parts: SparseParts |
     `parts`, where sparse_parts made them with the blocks, else chunked again); plus the rigid leakage of ℍ = H̃ P on
     all rigid motions and the projection's own checks."""
     scene = sp_.scene
-    Dinv = sp_.metric.inverse_matrix()
-    H = (Dinv @ sp_.H @ Dinv).tocsr()
+    H = sp_.metric.sparse_congruence(sp_.H, inverse=True)
     applied = parts.rigid_applied if parts is not None and parts.rigid_applied is not None else None
     if applied is None:
         rigid = _rigid_columns(scene)
@@ -938,6 +949,6 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK, parts: SparseParts |
 DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this many dofs, the sparse one above
 
 
-__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
+__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Krylov", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
            "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
            "operator", "rigid_leakage", "sparse_branch", "sparse_parts", "sparse_problem"]
