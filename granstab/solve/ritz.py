@@ -7,7 +7,7 @@ import numpy as np
 
 from .device import backend
 from .lowrank import stack, sym_updates
-from .sparse import Modes, Shifted, _finish, _lowrank, _sym, extend, lowest_modes, operator
+from .sparse import Modes, Shifted, _finish, _lowrank, _norms, _sym, extend, lowest_modes, operator
 
 GUARD = 6            # extra Ritz vectors carried by the refinement (faster convergence of the kk lowest)
 TAYLOR = 6           # powers (B_0 - σ)⁻ʲ[A, S] in the basis: each a block solve of 2·d·Ms columns; 2 powers left
@@ -32,22 +32,25 @@ class SparseRitz:
 
     def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 0, rtol: float = 1e-12, device: str = "cpu"):
         self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
-        elastic = lowest_modes(spb, k + extra, None, tol=tol)
+        Ms = spb.A.shape[1]
+        elastic = lowest_modes(spb, k + extra, None, tol=tol, rhs=np.concatenate([spb.A, spb.S], axis=1))
         self.factorization = elastic.info.get("factorization")
         shifted = elastic.info.pop("shifted", None)        # the elastic branch's (Hs - σI)⁻¹U, U = [Q, Hs Q, T]
         R, fac = spb.R, self.factorization
         krylov = elastic.info.pop("krylov", None)          # block Krylov space (sparse._block_near): orthonormal,
         base = extend(R, elastic.vectors) if krylov is None else krylov.X    # rigid-free, far more of the low
         blocks, self.solved = [], None                                       # spectrum than k + extra
-        if fac is not None:                    # (Hs - σI)⁻¹ of every column _lowrank uses: A and S in one block solve
-            Ms, r, d = spb.A.shape[1], spb.Q.shape[1], spb.scene.dim
-            AS = fac.solve(np.concatenate([spb.A, spb.S], axis=1)) if Ms else np.zeros((spb.n, 0))
+        if fac is not None:                    # (Hs - σI)⁻¹ of every column _lowrank uses: A and S solved with U
+            r, d = spb.Q.shape[1], spb.scene.dim
+            AS = shifted.rhs_solved
+            if AS is None:                                  # σ was moved (spectrum slicing): solved here
+                AS = fac.solve(np.concatenate([spb.A, spb.S], axis=1))
             self.solved = dict(zip(("Q", "HQ", "T"), np.split(shifted.Z[:, :2 * r + d], [r, 2 * r], axis=1)),
                                A=AS[:, :Ms], S=AS[:, Ms:])
             Z = AS
             for j in range(TAYLOR if Z.shape[1] else 0):
                 Z = Z - R @ (R.T @ Z)                        # (Hs - σI)⁻¹ amplifies the rigid part by ~1/|σ|
-                Z /= np.maximum(np.linalg.norm(Z, axis=0), 1e-300)
+                Z /= np.maximum(_norms(Z), 1e-300)
                 blocks.append(Z)
                 if j + 1 < TAYLOR:
                     Z = fac.solve(Z)
@@ -120,8 +123,8 @@ class SparseRitz:
         them, so the refinement converges to float64 round-off): as many of the lowest Ritz vectors as V has columns."""
         BV = Bop.matmat(V)
         R = BV - V * np.einsum("ij,ij->j", V, BV)
-        Z1 = shifted.solve(R / np.maximum(np.linalg.norm(R, axis=0), 1e-300), single=True)
-        Z2 = shifted.solve(Z1 / np.maximum(np.linalg.norm(Z1, axis=0), 1e-300), single=True)
+        Z1 = shifted.solve(R / np.maximum(_norms(R), 1e-300), single=True)
+        Z2 = shifted.solve(Z1 / np.maximum(_norms(Z1), 1e-300), single=True)
         basis = self.W
         for block in (V, Z1, Z2):
             basis = np.concatenate([basis, extend(np.concatenate([spb.R, basis], axis=1), block)], axis=1)
