@@ -69,9 +69,9 @@ class SparseRitz:
             return _sym(W.T @ (Hs @ W))
         U, K = shifted.U, shifted.K
         P = U.T @ krylov.X
-        HX = krylov.BX - U @ (K @ P)
-        side, corner = more.T @ HX, more.T @ (Hs @ more)
-        return _sym(np.block([[krylov.G - P.T @ (K @ P), side.T], [side, corner]]))
+        KP = K @ P
+        side, corner = more.T @ krylov.BX - (more.T @ U) @ KP, more.T @ (Hs @ more)
+        return _sym(np.block([[krylov.G - P.T @ KP, side.T], [side, corner]]))
 
     def modes(self, masks: np.ndarray, kk: int):
         """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""
