@@ -681,15 +681,14 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
         theta, Y = np.linalg.eigh(_sym(G))
         want = _cluster_end(theta, kk, shifted.sigma)
         top = min(want + BLOCK_GUARD, m)
-        V = X[:, d:d + m] @ Y[:, :top]
-        BVY = BV[:, :m] @ Y[:, :min(2 * w, m)]                        # B·(Ritz vectors kept at a restart)
+        keep = min(2 * w, m)                                          # Ritz vectors kept at a restart
+        XY, BVY = X[:, d:d + m] @ Y[:, :keep], BV[:, :m] @ Y[:, :keep]  # (one pass over X and BV each)
+        V = XY[:, :top]
         resid = BVY[:, :top] - V * theta[:top]
         res = _norms(resid)
         if res[:want].max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
             return theta[:kk], V[:, :kk], Krylov(X[:, d:d + m], BV[:, :m], _sym(G))
-        keep = BVY.shape[1]                                           # thick restart on the lowest Ritz vectors
-        X[:, d:d + top], X[:, d + top:d + keep] = V, X[:, d:d + m] @ Y[:, top:keep]
-        BV[:, :keep] = BVY
+        X[:, d:d + keep], BV[:, :keep] = XY, BVY                      # thick restart on the lowest Ritz vectors
         m, G = keep, np.diag(theta[:keep])
         active = res > BLOCK_RTOL * sp_.norm
         block = resid[:, active] / res[active]
