@@ -190,6 +190,28 @@ def test_sparse_congruence_equals_the_products(diagonal):
             assert np.abs(got - ref).max() <= 1e-14 * np.abs(ref).max()
 
 
+def test_untouched_dofs_of_a_sparse_matrix_equal_the_dense_ones():
+    """rigid.untouched_dofs on CSR (one pass over the entries) and on the same matrix dense (row and column maxima):
+    the same dofs, with rows or columns that are zero, below the threshold (64 eps·scale), felt only through the
+    other triangle (a non-symmetric H), or NaN (felt: never reported as a free motion)."""
+    from granstab.mechanics.rigid import untouched_dofs
+    rng = np.random.default_rng(6)
+    H = sp.random(40, 40, density=0.1, random_state=6, format="lil")
+    H[3, :], H[:, 3] = 0.0, 0.0                                     # untouched
+    H[7, :], H[:, 7] = 0.0, 0.0
+    H[7, 8] = 1e-17                                                 # below 64 eps: still untouched
+    H[11, :], H[:, 11] = 0.0, 0.0
+    H[2, 11] = 0.5                                                  # felt through its column only
+    H[13, :], H[:, 13] = 0.0, 0.0
+    H[13, 13] = np.nan
+    A = rng.standard_normal((40, 2))
+    A[[3, 7, 11, 13]] = 0.0
+    H = H.tocsr()
+    got = untouched_dofs(H, A, scale=1.0)
+    assert np.array_equal(got, untouched_dofs(H.toarray(), A, scale=1.0))
+    assert set(got) >= {3, 7} and not {11, 13} & set(got)
+
+
 def test_dissection_order_is_a_permutation():
     s = packings.random_packing(3, 500, seed=0)
     order = sparse.dissection_order(s.x, s.p, s.q)

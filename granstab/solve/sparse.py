@@ -437,9 +437,8 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
     n^{4/3} in 3D), "lobpcg" (LOBPCG with the TwoLevel preconditioner: memory O(contacts), not verified; tol is
     then the residual tolerance relative to ‖Hs‖, default 1e-8, which gives eigenvalues to ~1e-16 ‖Hs‖) or
     "auto" (shift-invert in 2D and up to LU_MAX_DOF_3D dofs in 3D, LOBPCG above). factorization: (sigma, lu, n_neg) from an earlier call, reused across
-    branches. rhs (n, c): columns to solve with the factorisation's first block solve (shift-invert only; ritz.py).
-    Returns Modes; info has the timings, the LU fill and, by shift-invert, "shifted" (the branch's Shifted; its
-    rhs_solved: (Hs - σI)⁻¹ rhs where that factorisation was kept, else None).
+    branches. rhs (n, c): solved with the first block solve (info["shifted"].rhs_solved, None if σ moved; ritz.py).
+    Returns Modes; info has the timings, the LU fill and, by shift-invert, "shifted" (the branch's Shifted).
     """
     sp_ = problem if isinstance(problem, SparseProblem) else sparse_problem(problem)
     n = sp_.n
