@@ -55,17 +55,20 @@ class SparseRitz:
                 if j + 1 < TAYLOR:
                     Z = fac.solve(Z)
         more = extend(np.concatenate([R, base], axis=1), np.concatenate(blocks, axis=1)) if blocks else base[:, :0]
+        self.M0 = self._rayleigh(krylov, base, more, shifted)
+        del krylov                                           # B X (n × m) is not needed past here: freed before W
         self.W = np.concatenate([base, more], axis=1)
-        self.M0 = self._rayleigh(krylov, more, shifted)
         self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
         self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
         self.steps = 4
 
-    def _rayleigh(self, krylov, more: np.ndarray, shifted) -> np.ndarray:
-        """Wᵀ Hs W for W = [X, more]: X's block from the Krylov iteration's own products (Hs X = B X - U K Uᵀ X and
-        Xᵀ Hs X = G - (UᵀX)ᵀ K UᵀX, B = Hs + U K Uᵀ the elastic operator it ran on), one sparse product for `more`."""
-        Hs, W = self.spb.Hs, self.W
+    def _rayleigh(self, krylov, base: np.ndarray, more: np.ndarray, shifted) -> np.ndarray:
+        """Wᵀ Hs W for W = [base, more]: with `krylov` (base = its X) X's block from the Krylov iteration's own
+        products (Hs X = B X - U K Uᵀ X and Xᵀ Hs X = G - (UᵀX)ᵀ K UᵀX, B = Hs + U K Uᵀ the elastic operator it ran
+        on) and one sparse product for `more`; without, directly."""
+        Hs = self.spb.Hs
         if krylov is None:
+            W = np.concatenate([base, more], axis=1)
             return _sym(W.T @ (Hs @ W))
         U, K = shifted.U, shifted.K
         P = U.T @ krylov.X
