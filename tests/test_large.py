@@ -329,8 +329,8 @@ def test_extend_orthonormal_in_one_pass_or_two():
 
 
 def test_sparse_ritz_reuses_the_krylov_products_and_solves(monkeypatch):
-    """SparseRitz takes Wᵀ Hs W's Krylov block from the block iteration's own products (B X and Xᵀ B X, less the
-    low-rank deflation) and (Hs − σI)⁻¹[A, S] from the elastic Woodbury solve: both must equal the direct products
+    """SparseRitz takes Wᵀ Hs W's Krylov block from the block iteration's own Xᵀ B X (less the low-rank deflation)
+    and (Hs − σI)⁻¹[A, S] from the elastic Woodbury solve: both must equal the direct products
     and a fresh solve (entries of Wᵀ Hs W: unit vectors through Hs, ~m·eps·‖Hs‖ of accumulated rounding; 1e-12
     relative leaves room for the restarts' rotations and is far below the Ritz residual test, 1e-12·‖Hs‖)."""
     from granstab.solve.ritz import SparseRitz

@@ -56,25 +56,24 @@ class SparseRitz:
                     Z = fac.solve(Z)
         more = extend(np.concatenate([R, base], axis=1), np.concatenate(blocks, axis=1)) if blocks else base[:, :0]
         self.M0 = self._rayleigh(krylov, base, more, shifted)
-        del krylov                                           # B X (n × m) is not needed past here: freed before W
         self.W = np.concatenate([base, more], axis=1)
         self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
         self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
         self.steps = 4
 
     def _rayleigh(self, krylov, base: np.ndarray, more: np.ndarray, shifted) -> np.ndarray:
-        """Wᵀ Hs W for W = [base, more]: with `krylov` (base = its X) X's block from the Krylov iteration's own
-        products (Hs X = B X - U K Uᵀ X and Xᵀ Hs X = G - (UᵀX)ᵀ K UᵀX, B = Hs + U K Uᵀ the elastic operator it ran
-        on) and one sparse product for `more`; without, directly."""
+        """Wᵀ Hs W for W = [base, more]: with `krylov` (base = its X) X's block from the iteration's own Xᵀ B X
+        (Xᵀ Hs X = G - (UᵀX)ᵀ K UᵀX, B = Hs + U K Uᵀ the elastic operator it ran on) and the rest from one sparse
+        product Hs·more (moreᵀ Hs X = (Hs more)ᵀ X: Hs is symmetric); without, directly."""
         Hs = self.spb.Hs
         if krylov is None:
             W = np.concatenate([base, more], axis=1)
             return _sym(W.T @ (Hs @ W))
         U, K = shifted.U, shifted.K
         P = U.T @ krylov.X
-        KP = K @ P
-        side, corner = more.T @ krylov.BX - (more.T @ U) @ KP, more.T @ (Hs @ more)
-        return _sym(np.block([[krylov.G - P.T @ KP, side.T], [side, corner]]))
+        Hmore = Hs @ more
+        side, corner = Hmore.T @ krylov.X, more.T @ Hmore
+        return _sym(np.block([[krylov.G - P.T @ (K @ P), side.T], [side, corner]]))
 
     def modes(self, masks: np.ndarray, kk: int):
         """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""

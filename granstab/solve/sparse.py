@@ -624,11 +624,10 @@ def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Krylov:
-    """_block_near's basis: X (n, m) orthonormal and rigid-free, BX = B X (the operator it was built with) and
-    G = Xᵀ B X (m, m), as the iteration maintained them (equal to B X and Xᵀ B X to round-off)."""
+    """_block_near's basis: X (n, m) orthonormal and rigid-free, and G = Xᵀ B X (m, m) with the operator B it was
+    built with, as the iteration maintained it (equal to Xᵀ B X to round-off)."""
 
     X: np.ndarray
-    BX: np.ndarray
     G: np.ndarray
 
 
@@ -661,7 +660,7 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
     residual is computed with the exact B in float64. None if not converged to BLOCK_RTOL after BLOCK_CYCLES (the
     caller then runs ARPACK). Ritz values are upper bounds of the eigenvalues (Cauchy interlacing), each within its
     residual of one; which eigenvalues they are is settled by the caller's inertia count. Also returns the whole
-    orthonormal basis with B applied to it and its Rayleigh quotient (Krylov: SparseRitz starts from them)."""
+    orthonormal basis and its Rayleigh quotient Xᵀ B X (Krylov: SparseRitz starts from them)."""
     R, n = sp_.R, sp_.n
     w = 2 * kk + BLOCK_GUARD                                          # the widest block (_cluster_end: ≤ 2kk)
     d, cap = R.shape[1], w * (BLOCK_STEPS + 2)                       # the widest basis: kept + new blocks
@@ -686,7 +685,7 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
         resid = BVY[:, :top] - V * theta[:top]
         res = _norms(resid)
         if res[:want].max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
-            return theta[:kk], V[:, :kk], Krylov(X[:, d:d + m], BV[:, :m], _sym(G))
+            return theta[:kk], V[:, :kk], Krylov(X[:, d:d + m], _sym(G))
         X[:, d:d + keep], BV[:, :keep] = XY, BVY                      # thick restart on the lowest Ritz vectors
         m, G = keep, np.diag(theta[:keep])
         active = res > BLOCK_RTOL * sp_.norm
