@@ -9,7 +9,7 @@ import pytest
 import scipy.sparse as sp
 
 import granstab
-from granstab.mechanics.assembly import assemble
+from granstab.mechanics.assembly import Assembly, assemble
 from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from granstab.mechanics.stiffness import contact_blocks
 from granstab.model import packings
@@ -155,6 +155,61 @@ def test_block_assembly_equals_scalar_assembly(dim):
     B = assemble(total, s.p, s.q, s.dof_per_particle, s.n_dof)
     assert sp.issparse(B) and B.format == "csr"
     assert abs(A - B).max() <= 1e-15 * abs(A).max()
+    # one Assembly (one pattern) scatters every part: each equals its own scalar reference, and the pattern is not
+    # shared by reference (a later in-place change of one matrix must not reach the others)
+    assembly = Assembly(s.p, s.q, s.dof_per_particle, s.n_dof)
+    for part in cb.blocks.values():
+        ref = sp.coo_matrix((part.reshape(-1), (rows, cols)), shape=(cb.n_dof, cb.n_dof)).tocsr()
+        got = assembly(part)
+        assert abs(ref - got).max() <= 1e-15 * max(abs(ref).max(), 1e-300)
+    assert assembly(total).indices is not assembly(total).indices
+
+
+@pytest.mark.parametrize("diagonal", [True, False])
+def test_sparse_congruence_equals_the_products(diagonal):
+    """D H D, D⁻¹ H D⁻¹ and |D| H |D| of a sparse H (Metric.sparse_congruence) against the sparse products with the
+    block-diagonal D: where every block is diagonal (the L metric) the entrywise scaling rounds as the products do
+    (bit-equal); with full blocks (as the inertia metric of ellipsoids has) it is the products, to round-off."""
+    from granstab.mechanics.metric import Metric, length_metric
+    s = packings.random_packing(3, 30, seed=5)
+    if diagonal:
+        metric = length_metric(s, 0.7)
+    else:
+        G = np.random.default_rng(2).standard_normal((s.n_particles, 6, 6))
+        metric = Metric(name="full", rotation_length=None, blocks=G @ np.swapaxes(G, 1, 2) + 6 * np.eye(6))
+    H = sp.random(s.n_dof, s.n_dof, density=0.05, random_state=1, format="csr")
+    for inverse, absolute in ((False, False), (True, False), (False, True)):
+        D = metric.inverse_matrix() if inverse else metric.matrix()
+        D = abs(D) if absolute else D
+        ref = (D @ H @ D).toarray()
+        got = metric.sparse_congruence(H, inverse=inverse, absolute=absolute).toarray()
+        assert (metric.diagonal is not None) == diagonal
+        if diagonal:
+            assert np.array_equal(got, ref)
+        else:     # sums of ≤ 36 products per entry: a few eps of the largest entry
+            assert np.abs(got - ref).max() <= 1e-14 * np.abs(ref).max()
+
+
+def test_untouched_dofs_of_a_sparse_matrix_equal_the_dense_ones():
+    """rigid.untouched_dofs on CSR (one pass over the entries) and on the same matrix dense (row and column maxima):
+    the same dofs, with rows or columns that are zero, below the threshold (64 eps·scale), felt only through the
+    other triangle (a non-symmetric H), or NaN (felt: never reported as a free motion)."""
+    from granstab.mechanics.rigid import untouched_dofs
+    rng = np.random.default_rng(6)
+    H = sp.random(40, 40, density=0.1, random_state=6, format="lil")
+    H[3, :], H[:, 3] = 0.0, 0.0                                     # untouched
+    H[7, :], H[:, 7] = 0.0, 0.0
+    H[7, 8] = 1e-17                                                 # below 64 eps: still untouched
+    H[11, :], H[:, 11] = 0.0, 0.0
+    H[2, 11] = 0.5                                                  # felt through its column only
+    H[13, :], H[:, 13] = 0.0, 0.0
+    H[13, 13] = np.nan
+    A = rng.standard_normal((40, 2))
+    A[[3, 7, 11, 13]] = 0.0
+    H = H.tocsr()
+    got = untouched_dofs(H, A, scale=1.0)
+    assert np.array_equal(got, untouched_dofs(H.toarray(), A, scale=1.0))
+    assert set(got) >= {3, 7} and not {11, 13} & set(got)
 
 
 def test_dissection_order_is_a_permutation():
@@ -231,6 +286,66 @@ def test_multifrontal_inertia_and_solves_against_dense():
     M, bounds = _dissected(spb, -1e-3 * spb.norm)
     x = Multifrontal(M, bounds).solve(b := np.random.default_rng(0).standard_normal((spb.n, 3)))
     assert np.abs(M @ x - b).max() <= 1e-12 * abs(M).sum(axis=1).max() * np.abs(x).max()
+
+
+def test_multifrontal_solve_against_dense_for_any_right_hand_side_shape():
+    """Multifrontal.solve (per front: x_s ← G x_s, x_struct −= W x_s, then back) against scipy's dense solve of the
+    same matrix, for one vector, one column and a block, in float64 and float32. Tolerance: a backward-stable solve
+    has a relative forward error ≲ c·n·eps·cond(M); here 10·n·eps·cond (~1e-9 with cond ~1e3), float32 the same
+    with its eps (the float32 solve is only a preconditioner: its error must be small, not round-off)."""
+    from granstab.solve.multifrontal import Multifrontal
+    spb = sparse.sparse_problem(packings.random_packing(3, 120, seed=2))
+    M, bounds = _dissected(spb, -1e-3 * spb.norm)
+    lam = np.linalg.eigvalsh(M.toarray())
+    cond = lam[-1] / lam[0]
+    f = Multifrontal(M, bounds)
+    assert f.definite and len(f.bounds) > 3
+    rng = np.random.default_rng(3)
+    for b in (rng.standard_normal(spb.n), rng.standard_normal((spb.n, 1)), rng.standard_normal((spb.n, 7))):
+        ref = np.linalg.solve(M.toarray(), b)
+        for single, eps in ((False, np.finfo(float).eps), (True, np.finfo(np.float32).eps)):
+            x = f.solve(b, single)
+            assert x.shape == b.shape and x.dtype == float
+            assert np.abs(x - ref).max() <= 10 * spb.n * eps * cond * np.abs(ref).max()
+
+
+def test_extend_orthonormal_in_one_pass_or_two():
+    """sparse.extend: the columns it returns are orthonormal and orthogonal to X to round-off (≤ 15·√m·eps, its
+    docstring's bound for a single pass) and span what B has outside span(X), both for a block well outside X
+    (one pass) and for one almost inside X, as shift-invert makes it (two passes); a dependent column is dropped."""
+    rng = np.random.default_rng(4)
+    n, m = 4000, 30
+    X, _ = np.linalg.qr(rng.standard_normal((n, m)))
+    outside = rng.standard_normal((n, 6))
+    for B in (outside, X @ rng.standard_normal((m, 6)) + 1e-6 * outside,
+              np.concatenate([outside, outside[:, :1] + X[:, :1]], axis=1)):
+        Q = sparse.extend(X, B)
+        tol = 15 * np.sqrt(m + Q.shape[1]) * np.finfo(float).eps
+        assert Q.shape[1] == 6
+        assert np.abs(X.T @ Q).max() <= tol
+        assert np.abs(Q.T @ Q - np.eye(Q.shape[1])).max() <= tol
+        rest = B - X @ (X.T @ B)                                        # what B has outside span(X) …
+        assert np.linalg.norm(rest - Q @ (Q.T @ rest)) <= 1e-8 * np.linalg.norm(rest)   # … lies in span(Q)
+
+
+def test_sparse_ritz_reuses_the_krylov_products_and_solves(monkeypatch):
+    """SparseRitz takes Wᵀ Hs W's Krylov block from the block iteration's own Xᵀ B X (less the low-rank deflation)
+    and (Hs − σI)⁻¹[A, S] from the elastic Woodbury solve: both must equal the direct products
+    and a fresh solve (entries of Wᵀ Hs W: unit vectors through Hs, ~m·eps·‖Hs‖ of accumulated rounding; 1e-12
+    relative leaves room for the restarts' rotations and is far below the Ritz residual test, 1e-12·‖Hs‖)."""
+    from granstab.solve.ritz import SparseRitz
+    from granstab_bench.periodic_child import periodic_packing
+    spb = sparse.sparse_problem(periodic_packing(300, 2))
+    found, block_near = [], sparse._block_near
+    monkeypatch.setattr(sparse, "_block_near", lambda *a: found.append(block_near(*a)) or found[-1])
+    ritz = SparseRitz(spb, 7)
+    assert len(found) == 1 and isinstance(found[0][2], sparse.Krylov)      # the Krylov path, not its fallback
+    W = ritz.W
+    assert np.abs(ritz.M0 - W.T @ (spb.Hs @ W)).max() <= 1e-12 * spb.norm
+    fac = ritz.factorization
+    for name, F in (("A", spb.A), ("S", spb.S), ("T", spb.R[:, :2])):
+        x = fac.solve(F)
+        assert np.abs(ritz.solved[name] - x).max() <= 1e-12 * np.abs(x).max()
 
 
 def test_float32_preconditioned_branches_match_dense_within_their_bounds(monkeypatch):

@@ -3,7 +3,8 @@
 One intermediate, the per-contact blocks (eq:piece) with an index map to the dofs they act on (`dof_index`), and
 two outputs:
 
-* one scene: `assemble`, CSR over the scene's dofs (analyze; the parts of H, eq:final1);
+* one scene: `assemble`, CSR over the scene's dofs (analyze; the parts of H, eq:final1), or `Assembly` where
+  several block arrays share the scene's contacts (its pattern is found once);
 * a stack of G clusters: `stack_blocks`, dense (G, n, n) arrays, each (cluster, contact) entry with its owner and its dofs
   numbered within that cluster (the scan's batch; a held dof of --boundary fixed is numbered n and dropped).
 
@@ -29,28 +30,51 @@ def dof_index(p: np.ndarray, q: np.ndarray, per: int, held: int | None = None) -
     return np.concatenate([side(p), side(q)], axis=1)
 
 
-def assemble(blocks: np.ndarray, p: np.ndarray, q: np.ndarray, per: int, n_dof: int) -> sp.csr_matrix:
-    """Scatter per-contact (M, 2·per, 2·per) blocks over [particle p, particle q] into CSR, summing duplicates.
+class Assembly:
+    """The CSR pattern of per-contact (M, 2·per, 2·per) blocks over [particle p, particle q], found once, and the
+    scatter of any number of block arrays into it (H, its mechanical part and its error bound share it).
 
     Built at the level of per×per particle blocks (4M of them instead of (2 per)² M scalars): one stable sort of
-    the block keys, one segmented sum in contact order, BSR → CSR. (A counting-sort variant that sums only the
-    diagonal blocks was tried: faster below 10⁴ contacts, slower above, so this one is kept.)
+    the block keys, then per array one segmented sum in contact order and a gather into CSR order (the BSR → CSR
+    map, also found once). (A counting-sort variant that sums only the diagonal blocks was tried: faster below 10⁴
+    contacts, slower above, so this one is kept.)
     """
-    M = len(p)
-    N = n_dof // per
-    if M == 0:
-        return sp.csr_matrix((n_dof, n_dof))
-    b = blocks.reshape(M, 2, per, 2, per).transpose(0, 1, 3, 2, 4).reshape(4 * M, per, per)
-    rows = np.stack([p, p, q, q], axis=1).reshape(-1).astype(np.int64)
-    cols = np.stack([p, q, p, q], axis=1).reshape(-1).astype(np.int64)
-    key = rows * N + cols
-    order = np.argsort(key, kind="stable")
-    key = key[order]
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    data = np.add.reduceat(b[order], starts, axis=0)
-    brow, bcol = np.divmod(key[starts], N)
-    indptr = np.r_[0, np.cumsum(np.bincount(brow, minlength=N))]
-    return sp.bsr_matrix((data, bcol, indptr), shape=(n_dof, n_dof)).tocsr()
+
+    def __init__(self, p: np.ndarray, q: np.ndarray, per: int, n_dof: int):
+        N = n_dof // per
+        self.per, self.n_dof, self.M = per, n_dof, len(p)
+        if self.M == 0:
+            return
+        rows = np.stack([p, p, q, q], axis=1).reshape(-1).astype(np.int64)
+        cols = np.stack([p, q, p, q], axis=1).reshape(-1).astype(np.int64)
+        key = rows * N + cols
+        order = np.argsort(key, kind="stable")                      # block 4c + 2a + b: contact c, sides a, b
+        self.contact, self.side_row, self.side_col = order // 4, (order // 2) % 2, order % 2
+        key = key[order]
+        self.starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        brow, bcol = np.divmod(key[self.starts], N)
+        indptr = np.r_[0, np.cumsum(np.bincount(brow, minlength=N))]
+        n_blocks = len(self.starts)
+        label = np.arange(1, n_blocks * per * per + 1, dtype=float).reshape(n_blocks, per, per)   # 1-based: exact
+        csr = sp.bsr_matrix((label, bcol, indptr), shape=(n_dof, n_dof)).tocsr()
+        self.take = csr.data.astype(np.int64) - 1                     # CSR entry j is BSR entry take[j]
+        self.indices, self.indptr = csr.indices, csr.indptr
+
+    def __call__(self, blocks: np.ndarray) -> sp.csr_matrix:
+        """Scatter (M, 2·per, 2·per) blocks into CSR, summing duplicates in contact order."""
+        if self.M == 0:
+            return sp.csr_matrix((self.n_dof, self.n_dof))
+        per = self.per
+        b = blocks.reshape(self.M, 2, per, 2, per)[self.contact, self.side_row, :, self.side_col, :]   # key order
+        data = np.add.reduceat(b, self.starts, axis=0)
+        return sp.csr_matrix((data.reshape(-1)[self.take], self.indices.copy(), self.indptr.copy()),
+                             shape=(self.n_dof, self.n_dof))
+
+
+def assemble(blocks: np.ndarray, p: np.ndarray, q: np.ndarray, per: int, n_dof: int) -> sp.csr_matrix:
+    """Scatter per-contact (M, 2·per, 2·per) blocks over [particle p, particle q] into CSR, summing duplicates
+    (one array; `Assembly` for several over the same contacts)."""
+    return Assembly(p, q, per, n_dof)(blocks)
 
 
 def stack_blocks(values: np.ndarray, owner: np.ndarray, index: np.ndarray, G: int, n: int) -> np.ndarray:

@@ -87,6 +87,20 @@ class Metric:
         out = out.T
         return out.toarray() if sp.issparse(out) else np.asarray(out)
 
+    def sparse_congruence(self, H, inverse: bool = False, absolute: bool = False) -> sp.csr_matrix:
+        """D H D for a sparse H as CSR (D⁻¹ H D⁻¹ with `inverse`, |D| H |D| with `absolute`): where every block is
+        diagonal an entrywise scaling of H's entries in H's pattern, (d_i h_ij) d_j as the sparse products round it,
+        O(nnz) instead of two sparse products; else those products."""
+        d = self.diagonal
+        if d is None:
+            D = self.inverse_matrix() if inverse else self.matrix()
+            D = abs(D) if absolute else D
+            return (D @ H @ D).tocsr()
+        d = np.abs(1.0 / d if inverse else d) if absolute else (1.0 / d if inverse else d)
+        H = sp.csr_matrix(H)
+        rows = np.repeat(np.arange(H.shape[0]), np.diff(H.indptr))
+        return sp.csr_matrix((d[rows] * H.data * d[H.indices], H.indices.copy(), H.indptr.copy()), shape=H.shape)
+
     def local(self, index: np.ndarray, per: int) -> np.ndarray:
         """Per contact the block diag(D_p, D_q) (M, 2per, 2per) over its local dofs `index` (M, 2per)."""
         M = len(index)

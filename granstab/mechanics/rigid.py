@@ -99,9 +99,13 @@ def untouched_dofs(H, *factors: np.ndarray, scale: float, dofs: np.ndarray | Non
     (F = k n⊗n, a round surface turning in place), particles without contacts. `dofs` (bool mask) limits the
     search (e.g. to rotation dofs)."""
     tiny = 64 * np.finfo(float).eps * scale
-    if hasattr(H, "tocsr"):
-        A = abs(H.tocsr())
-        rows = np.maximum(A.max(axis=1).toarray().ravel(), A.max(axis=0).toarray().ravel())
+    if hasattr(H, "tocsr"):                     # one pass over the entries (a column max of CSR converts it to CSC)
+        A = H.tocsr()
+        loud = ~(np.abs(A.data) <= tiny)                                 # NaN counts as felt
+        felt = np.zeros(A.shape[0], bool)
+        felt[np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))[loud]] = True
+        felt[A.indices[loud]] = True
+        rows = np.where(felt, np.inf, 0.0)
     else:
         rows = np.maximum(np.abs(H).max(axis=1, initial=0.0), np.abs(H).max(axis=0, initial=0.0))
     for F in factors:

@@ -36,7 +36,7 @@ from ..model.vec import (
     spin_matrix,
     tangent_basis,
 )
-from .assembly import assemble, dof_index
+from .assembly import Assembly, assemble, dof_index
 from .checks import identity_errors
 
 
@@ -67,20 +67,22 @@ def geometric(parts: dict):
 
 
 def assemble_parts(scene: Scene, blocks: ContactBlocks, hm: np.ndarray | None = None) -> dict:
-    """Hg1, Hg2, Hg3, Hm and H = their sum (eq:final1) as CSR over the scene's dofs (assembly.assemble); `hm`: the
-    Hm blocks of a branch (default the elastic ones)."""
-    per = scene.dof_per_particle
-    parts = {name: assemble(hm if name == "Hm" and hm is not None else b, scene.p, scene.q, per, blocks.n_dof)
-             for name, b in blocks.blocks.items()}
+    """Hg1, Hg2, Hg3, Hm and H = their sum (eq:final1) as CSR over the scene's dofs (assembly.Assembly: one pattern
+    for all parts); `hm`: the Hm blocks of a branch (default the elastic ones)."""
+    assembly = Assembly(scene.p, scene.q, scene.dof_per_particle, blocks.n_dof)
+    parts = {name: assembly(hm if name == "Hm" and hm is not None else b) for name, b in blocks.blocks.items()}
     parts["H"] = (geometric(parts) + parts["Hm"]).tocsr()
     return parts
 
 
-def assembled_error(scene: Scene, error: np.ndarray | None):
-    """The contacts' entrywise error bounds (M, n, n) summed into CSR over the scene's dofs; None where a contact's
-    is infinite (its pseudo-inverse unresolved: stiffness._inverse_error)."""
+def assembled_error(scene: Scene, error: np.ndarray | None, assembly=None):
+    """The contacts' entrywise error bounds (M, n, n) summed into CSR over the scene's dofs (with `assembly`, the
+    scene's assembly.Assembly where the caller has one); None where a contact's is infinite (its pseudo-inverse
+    unresolved: stiffness._inverse_error)."""
     if error is None or not np.all(np.isfinite(error)):
         return None
+    if assembly is not None:
+        return assembly(error)
     return assemble(error, scene.p, scene.q, scene.dof_per_particle, scene.n_dof)
 
 

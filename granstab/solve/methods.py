@@ -121,8 +121,7 @@ def metric_entrywise(error, metric: Metric, free=None):
     for None (unresolved)."""
     if error is None:
         return None
-    D = abs(metric.matrix())
-    E = D @ error @ D
+    E = metric.sparse_congruence(error, absolute=True)
     if free is not None:
         E = E[free][:, free]
     return (0.5 * (E + E.T)).tocsr()

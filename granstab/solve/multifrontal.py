@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg.blas import dsyrk, dtrmm, strmm
+from scipy.linalg.blas import dsyrk, dtrmm
 from scipy.linalg.lapack import dpotrf, dtrtri
 
 from .threads import blas_threads
@@ -81,33 +81,38 @@ class Multifrontal:
         self.ok = self.negative is not None
         self.definite = self.ok and all(chol for *_, chol in self.factors)      # Cholesky in every front
         self.nnz = int(sum(G.size + W.size for G, W, *_ in self.factors))
-        self.single = None                                             # float32 copies of the factors (solve)
+        self.plans = {}                                                # per dtype: the fronts as the solve reads them
+
+    def _plan(self, dtype) -> list:
+        """(s, e, G, W, struct, has W) per front in `dtype` (float32: copies made at the first such solve, half the
+        memory traffic; float64: the factors themselves), so that the solve's loop does no lookups or conversions."""
+        if dtype not in self.plans:
+            b, structs = self.bounds.tolist(), self.structs
+            self.plans[dtype] = [(b[i], b[i + 1], G.astype(dtype, copy=False), W.astype(dtype, copy=False),
+                                  structs[i], W.shape[0] > 0) for i, (G, W, *_) in enumerate(self.factors)]
+        return self.plans[dtype]
 
     def solve(self, b: np.ndarray, single: bool = False) -> np.ndarray:
-        """x = A⁻¹ b where every front is Cholesky (`definite`; G = L11⁻¹ lower triangular, S = I): L̂ z = b (nodes in
-        order), L̂ᵀ x = z (nodes in reverse order); G applied by dtrmm, which reads only its lower triangle. `single`:
-        in float32 with float32 copies of the factors (made at the first such call, half the memory traffic and
-        twice the flop rate), x then has a relative error ~cond(A)·1e-7: only for preconditioning, where the caller
-        computes its residuals in float64 (sparse._block_near); returned in float64."""
+        """x = A⁻¹ b where every front is Cholesky (`definite`; G = L11⁻¹ lower triangular with a zero upper triangle,
+        S = I): L̂ z = b (nodes in order), L̂ᵀ x = z (nodes in reverse order), each front two small products (numpy's
+        matmul: BLAS gemm, no conversions; the solve is bound by reading the factor once per pass, not by the loop).
+        `single`: in float32 with float32 copies of the factors (made at the first such call, half the memory
+        traffic), x then has a relative error ~cond(A)·1e-7: only for preconditioning, where the caller computes its
+        residuals in float64 (sparse._block_near); returned in float64."""
         if not self.definite:
             raise ValueError("Multifrontal.solve needs every front positive definite (definite)")
-        if single and self.single is None:
-            self.single = [(G.astype(np.float32), W.astype(np.float32)) for G, W, *_ in self.factors]
-        factors, trmm = (self.single, strmm) if single else (self.factors, dtrmm)
-        x = np.array(b, dtype=np.float32 if single else float, copy=True)
+        dtype = np.float32 if single else np.float64
+        plan = self._plan(dtype)
+        x = np.array(b, dtype=dtype, copy=True)
         X = x.reshape(self.n, -1)
-        bounds, structs = self.bounds, self.structs
         with blas_threads(1):                                          # small blocks: one thread (threads.py)
-            for i, (G, W, *_) in enumerate(factors):
-                s, e = bounds[i], bounds[i + 1]
-                X[s:e] = trmm(1.0, G, X[s:e], lower=1)
-                if W.size:
-                    X[structs[i]] -= W @ X[s:e]
-            for i in range(len(factors) - 1, -1, -1):
-                G, W, *_ = factors[i]
-                s, e = bounds[i], bounds[i + 1]
-                z = X[s:e] - W.T @ X[structs[i]] if W.size else X[s:e]
-                X[s:e] = trmm(1.0, G, z, lower=1, trans_a=1)
+            for s, e, G, W, st, has_w in plan:
+                y = G @ X[s:e]
+                X[s:e] = y
+                if has_w:
+                    X[st] -= W @ y
+            for s, e, G, W, st, has_w in reversed(plan):
+                X[s:e] = G.T @ (X[s:e] - W.T @ X[st] if has_w else X[s:e])
         return x.astype(float, copy=False)
 
 
@@ -144,7 +149,7 @@ def _eliminate(A, node: int, s: int, e: int, st: np.ndarray, parent: int, loc: n
     if st.size:
         U = (dsyrk(-1.0, W, beta=1.0, c=F[k:, k:], lower=1) if chol
              else np.tril(F[k:, k:] - (W * signs) @ W.T))
-        if np.abs(U).max(initial=0.0) > GROWTH_MAX * scale:
+        if max(U.max(initial=0.0), -U.min(initial=0.0)) > GROWTH_MAX * scale:      # max |U|, no temporary
             return None
         updates.setdefault(parent, []).append((st, U))
     return G, W, signs, chol

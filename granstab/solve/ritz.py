@@ -7,7 +7,7 @@ import numpy as np
 
 from .device import backend
 from .lowrank import stack, sym_updates
-from .sparse import Shifted, _finish, _lowrank, _sym, extend, lowest_modes, operator
+from .sparse import Modes, Shifted, _finish, _lowrank, _norms, _sym, extend, lowest_modes, operator
 
 GUARD = 6            # extra Ritz vectors carried by the refinement (faster convergence of the kk lowest)
 TAYLOR = 6           # powers (B_0 - σ)⁻ʲ[A, S] in the basis: each a block solve of 2·d·Ms columns; 2 powers left
@@ -32,33 +32,48 @@ class SparseRitz:
 
     def __init__(self, spb, k: int, tol: float = 0.0, extra: int = 0, rtol: float = 1e-12, device: str = "cpu"):
         self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
-        elastic = lowest_modes(spb, k + extra, None, tol=tol)
+        Ms = spb.A.shape[1]
+        elastic = lowest_modes(spb, k + extra, None, tol=tol, rhs=np.concatenate([spb.A, spb.S], axis=1))
         self.factorization = elastic.info.get("factorization")
+        shifted = elastic.info.pop("shifted", None)        # the elastic branch's (Hs - σI)⁻¹U, U = [Q, Hs Q, T]
         R, fac = spb.R, self.factorization
-        base = elastic.info.pop("krylov", None)            # block Krylov space (sparse._block_near): orthonormal,
-        if base is None:                                    # rigid-free, far more of the low spectrum than k + extra
-            base = extend(R, elastic.vectors)
-        blocks, self.solved = [], None
-        if fac is not None:                    # (Hs - σI)⁻¹ of every column _lowrank uses, in one block solve
-            T = R[:, :spb.scene.dim]
-            cols = {"A": spb.A, "S": spb.S, "Q": spb.Q, "HQ": spb.Hs @ spb.Q, "T": T}
-            out = np.split(fac.solve(np.concatenate(list(cols.values()), axis=1)),
-                           np.cumsum([c.shape[1] for c in cols.values()])[:-1], axis=1)
-            self.solved = dict(zip(cols, out))
-            Z = np.concatenate([self.solved["A"], self.solved["S"]], axis=1)
+        krylov = elastic.info.pop("krylov", None)          # block Krylov space (sparse._block_near): orthonormal,
+        base = extend(R, elastic.vectors) if krylov is None else krylov.X    # rigid-free, far more of the low
+        blocks, self.solved = [], None                                       # spectrum than k + extra
+        if fac is not None:                    # (Hs - σI)⁻¹ of every column _lowrank uses: A and S solved with U
+            r, d = spb.Q.shape[1], spb.scene.dim
+            AS = shifted.rhs_solved
+            if AS is None:                                  # σ was moved (spectrum slicing): solved here
+                AS = fac.solve(np.concatenate([spb.A, spb.S], axis=1))
+            self.solved = dict(zip(("Q", "HQ", "T"), np.split(shifted.Z[:, :2 * r + d], [r, 2 * r], axis=1)),
+                               A=AS[:, :Ms], S=AS[:, Ms:])
+            Z = AS
             for j in range(TAYLOR if Z.shape[1] else 0):
                 Z = Z - R @ (R.T @ Z)                        # (Hs - σI)⁻¹ amplifies the rigid part by ~1/|σ|
-                Z /= np.maximum(np.linalg.norm(Z, axis=0), 1e-300)
+                Z /= np.maximum(_norms(Z), 1e-300)
                 blocks.append(Z)
                 if j + 1 < TAYLOR:
                     Z = fac.solve(Z)
         more = extend(np.concatenate([R, base], axis=1), np.concatenate(blocks, axis=1)) if blocks else base[:, :0]
+        self.M0 = self._rayleigh(krylov, base, more, shifted)
         self.W = np.concatenate([base, more], axis=1)
-        HW = spb.Hs @ self.W
-        self.M0 = _sym(self.W.T @ HW)
         self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
         self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
         self.steps = 4
+
+    def _rayleigh(self, krylov, base: np.ndarray, more: np.ndarray, shifted) -> np.ndarray:
+        """Wᵀ Hs W for W = [base, more]: with `krylov` (base = its X) X's block from the iteration's own Xᵀ B X
+        (Xᵀ Hs X = G - (UᵀX)ᵀ K UᵀX, B = Hs + U K Uᵀ the elastic operator it ran on) and the rest from one sparse
+        product Hs·more (moreᵀ Hs X = (Hs more)ᵀ X: Hs is symmetric); without, directly."""
+        Hs = self.spb.Hs
+        if krylov is None:
+            W = np.concatenate([base, more], axis=1)
+            return _sym(W.T @ (Hs @ W))
+        U, K = shifted.U, shifted.K
+        P = U.T @ krylov.X
+        Hmore = Hs @ more
+        side, corner = Hmore.T @ krylov.X, more.T @ Hmore
+        return _sym(np.block([[krylov.G - P.T @ (K @ P), side.T], [side, corner]]))
 
     def modes(self, masks: np.ndarray, kk: int):
         """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""
@@ -84,8 +99,9 @@ class SparseRitz:
                 modes = _finish(spb, Bop, np.zeros(block), V, mask8, fac.sigma, False, shifted.n_below, "ritz", {})
                 nu, found = shifted.n_below, int(np.sum(modes.eigenvalues < fac.sigma))
                 if nu is not None and nu == found < kk and modes.residuals[:kk].max() <= self.rtol:
-                    out = _finish(spb, Bop, np.zeros(kk), modes.vectors[:, :kk], mask8, fac.sigma, True, nu, "ritz",
-                                  {"factorization": fac, "basis": self.W.shape[1], "refinements": step})
+                    out = Modes(modes.eigenvalues[:kk], modes.vectors[:, :kk], modes.residuals[:kk], mask8,
+                                fac.sigma, True, nu, "ritz",              # the kk lowest of those _finish made
+                                {"factorization": fac, "basis": self.W.shape[1], "refinements": step})
                     self.stats["ritz"] += 1
                     yield out
                     break
@@ -109,8 +125,8 @@ class SparseRitz:
         them, so the refinement converges to float64 round-off): as many of the lowest Ritz vectors as V has columns."""
         BV = Bop.matmat(V)
         R = BV - V * np.einsum("ij,ij->j", V, BV)
-        Z1 = shifted.solve(R / np.maximum(np.linalg.norm(R, axis=0), 1e-300), single=True)
-        Z2 = shifted.solve(Z1 / np.maximum(np.linalg.norm(Z1, axis=0), 1e-300), single=True)
+        Z1 = shifted.solve(R / np.maximum(_norms(R), 1e-300), single=True)
+        Z2 = shifted.solve(Z1 / np.maximum(_norms(Z1), 1e-300), single=True)
         basis = self.W
         for block in (V, Z1, Z2):
             basis = np.concatenate([basis, extend(np.concatenate([spb.R, basis], axis=1), block)], axis=1)

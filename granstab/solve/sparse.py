@@ -55,7 +55,7 @@ import scipy.sparse.linalg as spla
 
 from ..mechanics import checks
 from ..mechanics.accuracy import resolved_sign, vector_bounds
-from ..mechanics.assembly import assemble, sliding_factors, stack_blocks
+from ..mechanics.assembly import Assembly, sliding_factors, stack_blocks
 from ..mechanics.branches import RIGID, Branch, Problem, canonical_signs, search_eigenspaces, test_codes
 from ..mechanics.checks import modified_leakage
 from ..mechanics.metric import Metric, default_length, length_metric
@@ -165,7 +165,7 @@ def _apply_rigid(applied: dict, cb: ContactBlocks, rigid: np.ndarray, n_dof: int
 
 def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
     """H and its mechanical part as CSR from the contact blocks, computed in chunks of contacts and scattered once
-    (assembly.assemble), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
+    (assembly.Assembly, one pattern for all three), and the sliding factors. Memory O(contacts); no per-part block arrays are kept."""
     t0 = time.perf_counter()
     per = scene.dof_per_particle
     M, n_loc = scene.n_contacts, 2 * per
@@ -187,11 +187,12 @@ def sparse_parts(scene: Scene, chunk: int = CHUNK) -> SparseParts:
         undetermined[sl] = cb.rolling_undetermined
         error[sl] = cb.curvature_error
     t1 = time.perf_counter()
-    curvature_error = assembled_error(scene, error)
+    assembly = Assembly(scene.p, scene.q, per, scene.n_dof)          # one pattern for H, Hm and H's error bound
+    curvature_error = assembled_error(scene, error, assembly)
     del error
-    H = assemble(total, scene.p, scene.q, per, scene.n_dof)
+    H = assembly(total)
     del total
-    Hm = assemble(mech, scene.p, scene.q, per, scene.n_dof)
+    Hm = assembly(mech)
     del mech
     sliding = np.flatnonzero(scene.at_yield())
     local = ContactBlocks(blocks={}, slide_left=a, slide_right=s, index=index, n_dof=scene.n_dof,
@@ -210,10 +211,10 @@ def sparse_problem(scene: Scene, length: float | None = None, chunk: int = CHUNK
         metric = length_metric(scene, length or default_length(scene), name="L")
     parts = parts or sparse_parts(scene, chunk)
     t1 = time.perf_counter()
-    D = metric.matrix()
-    H = (D @ parts.H @ D).tocsr()
-    Hm = (D @ parts.Hm @ D).tocsr()
+    H = metric.sparse_congruence(parts.H)
+    Hm = metric.sparse_congruence(parts.Hm)
     Hs = ((H + H.T) * 0.5).tocsr()
+    D = metric.matrix()
     A, S = np.asarray(D @ parts.A), np.asarray(D @ parts.S)
     Ms = A.shape[1]
     C = metric.rotations(scene)
@@ -268,10 +269,15 @@ class Shifted:
     Z: np.ndarray = None
     cap: object = None
     n_below: int | None = None
+    rhs: np.ndarray | None = None      # more columns to solve with U's, in the same pass over the factor: rhs_solved
+    rhs_solved: np.ndarray | None = None
 
     def __post_init__(self):
         if self.Z is None:                                             # given: (Hs - σI)⁻¹U known (ritz.py)
-            self.Z = self.lu.solve(self.U) if self.U.shape[1] else self.U
+            u = self.U.shape[1]
+            both = self.U if self.rhs is None else np.concatenate([self.U, self.rhs], axis=1)
+            solved = self.lu.solve(both) if both.shape[1] else both
+            self.Z, self.rhs_solved = solved[:, :u], None if self.rhs is None else solved[:, u:]
         Kinv = np.linalg.inv(self.K) if self.K.size else self.K
         Cap = Kinv + self.U.T @ self.Z
         Cap = 0.5 * (Cap + Cap.T)
@@ -422,7 +428,7 @@ LU_MAX_DOF_3D = 30000   # method="auto": shift-invert (sparse LU) in 2D and up t
 
 def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, tol: float = 0.0,
                  method: str = "auto", maxiter: int | None = None, factorization=None,
-                 seed: int = 0) -> Modes:
+                 seed: int = 0, rhs: np.ndarray | None = None) -> Modes:
     """The k lowest eigenpairs of sym(𝓗^mask) off the rigid modes (see the module docstring).
 
     problem: a SparseProblem or a Scene. mask: +1 sliding per contact (default: all elastic).
@@ -431,7 +437,8 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
     n^{4/3} in 3D), "lobpcg" (LOBPCG with the TwoLevel preconditioner: memory O(contacts), not verified; tol is
     then the residual tolerance relative to ‖Hs‖, default 1e-8, which gives eigenvalues to ~1e-16 ‖Hs‖) or
     "auto" (shift-invert in 2D and up to LU_MAX_DOF_3D dofs in 3D, LOBPCG above). factorization: (sigma, lu, n_neg) from an earlier call, reused across
-    branches. Returns Modes; info has the timings and the LU fill.
+    branches. rhs (n, c): solved with the first block solve (info["shifted"].rhs_solved, None if σ moved; ritz.py).
+    Returns Modes; info has the timings, the LU fill and, by shift-invert, "shifted" (the branch's Shifted).
     """
     sp_ = problem if isinstance(problem, SparseProblem) else sparse_problem(problem)
     n = sp_.n
@@ -477,7 +484,7 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
     info["factor"] = time.perf_counter() - t
     info["lu_nnz"] = fac.nnz
     info["factorization"] = fac
-    shifted = Shifted(fac, U, K, sig, fac.n_neg)
+    shifted = Shifted(fac, U, K, sig, fac.n_neg, rhs=rhs)
     nu = shifted.n_below
     t = time.perf_counter()
     verified = False
@@ -517,6 +524,7 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
             lam, V = _eigsh_near(shifted, Bop, n, k + (nu or 0), tol, maxiter, v0)
         verified = nu is not None and int(np.sum(lam < sig)) >= nu
     info["solve"] = time.perf_counter() - t
+    info["shifted"] = shifted                                          # (Hs - σI)⁻¹U of this branch (ritz.py)
     return _finish(sp_, Bop, lam[:k], V[:, :k], mask_arr, sig, verified, nu, method, info)
 
 
@@ -582,17 +590,45 @@ def _sym(M):
     return 0.5 * (M + M.swapaxes(-1, -2))
 
 
+def _norms(B: np.ndarray) -> np.ndarray:
+    """The column norms of a tall B (n, m) without a temporary (np.linalg.norm squares B first: 4× slower)."""
+    return np.sqrt(np.einsum("ij,ij->j", B, B))
+
+
+REORTH_DROP = 0.2   # extend: one pass suffices where every column kept at least this share of its norm …
+REORTH_COND = 0.1   # … and the projected block's Gram matrix has no eigenvalue below this × its largest
+
+
 def extend(X: np.ndarray, B: np.ndarray, cut: float = 1e-10) -> np.ndarray:
-    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): twice, B is
-    projected off X (block Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
-    only, no Householder QR of n × m); directions below `cut` are dropped."""
+    """Orthonormal columns spanning the part of span(B) outside span(X) (X orthonormal; n × m, n ≫ m): B is projected
+    off X (block classical Gram-Schmidt), its columns rescaled and orthonormalised from their Gram matrix (BLAS-3
+    only, no Householder QR of n × m); directions below `cut` are dropped. A second pass follows where the first
+    can have lost orthogonality: the projection's rounding (~eps of a column's old norm) grows by 1/REORTH_DROP at
+    most relative to the new norm, and the orthonormalisation by 1/√REORTH_COND at most, so a single pass leaves
+    |XᵀQ| and |QᵀQ - I| within ~15·√m·eps (measured ≤ 3e-14 on 3·10⁴ disks, against ~1e-16 after two passes);
+    otherwise (a block mostly inside span(X), as shift-invert makes after a restart, or nearly dependent
+    columns) it is projected and orthonormalised twice ("twice is enough")."""
     for _ in range(2):
-        B = B - X @ (X.T @ B)
-        B = B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+        C = X.T @ B
+        B = B - X @ C
+        after = _norms(B)
+        before = np.sqrt(after ** 2 + np.einsum("ij,ij->j", C, C))     # ‖B‖² = ‖XᵀB‖² + ‖B - XXᵀB‖²
+        B = B / np.maximum(after, 1e-300)
         s, U = np.linalg.eigh(_sym(B.T @ B))
         keep = s > cut * max(s[-1], 1e-300)
         B = B @ (U[:, keep] / np.sqrt(s[keep]))
+        if keep.all() and np.all(after >= REORTH_DROP * before) and s[0] >= REORTH_COND * s[-1]:
+            break
     return B
+
+
+@dataclass(frozen=True, eq=False)
+class Krylov:
+    """_block_near's basis: X (n, m) orthonormal and rigid-free, and G = Xᵀ B X (m, m) with the operator B it was
+    built with, as the iteration maintained it (equal to Xᵀ B X to round-off)."""
+
+    X: np.ndarray
+    G: np.ndarray
 
 
 BLOCK_GUARD = 1   # _block_near: Ritz vectors beyond those wanted whose residuals start a cycle …
@@ -624,7 +660,7 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
     residual is computed with the exact B in float64. None if not converged to BLOCK_RTOL after BLOCK_CYCLES (the
     caller then runs ARPACK). Ritz values are upper bounds of the eigenvalues (Cauchy interlacing), each within its
     residual of one; which eigenvalues they are is settled by the caller's inertia count. Also returns the whole
-    orthonormal basis (n × m, rigid-free: SparseRitz starts from it)."""
+    orthonormal basis and its Rayleigh quotient Xᵀ B X (Krylov: SparseRitz starts from them)."""
     R, n = sp_.R, sp_.n
     w = 2 * kk + BLOCK_GUARD                                          # the widest block (_cluster_end: ≤ 2kk)
     d, cap = R.shape[1], w * (BLOCK_STEPS + 2)                       # the widest basis: kept + new blocks
@@ -643,15 +679,14 @@ def _block_near(shifted: Shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tupl
         theta, Y = np.linalg.eigh(_sym(G))
         want = _cluster_end(theta, kk, shifted.sigma)
         top = min(want + BLOCK_GUARD, m)
-        V = X[:, d:d + m] @ Y[:, :top]
-        BVY = BV[:, :m] @ Y[:, :min(2 * w, m)]                        # B·(Ritz vectors kept at a restart)
+        keep = min(2 * w, m)                                          # Ritz vectors kept at a restart
+        XY, BVY = X[:, d:d + m] @ Y[:, :keep], BV[:, :m] @ Y[:, :keep]  # (one pass over X and BV each)
+        V = XY[:, :top]
         resid = BVY[:, :top] - V * theta[:top]
-        res = np.linalg.norm(resid, axis=0)
+        res = _norms(resid)
         if res[:want].max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
-            return theta[:kk], V[:, :kk], X[:, d:d + m]
-        keep = BVY.shape[1]                                           # thick restart on the lowest Ritz vectors
-        X[:, d:d + top], X[:, d + top:d + keep] = V, X[:, d:d + m] @ Y[:, top:keep]
-        BV[:, :keep] = BVY
+            return theta[:kk], V[:, :kk], Krylov(X[:, d:d + m], _sym(G))
+        X[:, d:d + keep], BV[:, :keep] = XY, BVY                      # thick restart on the lowest Ritz vectors
         m, G = keep, np.diag(theta[:keep])
         active = res > BLOCK_RTOL * sp_.norm
         block = resid[:, active] / res[active]
@@ -818,10 +853,10 @@ def _lobpcg(sp_: SparseProblem, Bop, k, tol, maxiter, rng, info):
 
 def _finish(sp_, Bop, lam, V, mask, sig, verified, nu, method, info) -> Modes:
     V = V - sp_.R @ (sp_.R.T @ V)                                      # drop round-off along the rigid modes
-    V /= np.linalg.norm(V, axis=0)
+    V /= _norms(V)
     BV = Bop.matmat(V)
     lam = np.einsum("ij,ij->j", V, BV)                                 # Rayleigh quotients with the exact B
-    res = np.linalg.norm(BV - V * lam, axis=0) / sp_.norm
+    res = _norms(BV - V * lam) / sp_.norm
     order = np.argsort(lam)
     return Modes(eigenvalues=lam[order], vectors=V[:, order], residuals=res[order], mask=mask, sigma=sig,
                  verified=bool(verified), n_below=nu, method=method, info=info)
@@ -918,8 +953,7 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK, parts: SparseParts |
     `parts`, where sparse_parts made them with the blocks, else chunked again); plus the rigid leakage of ℍ = H̃ P on
     all rigid motions and the projection's own checks."""
     scene = sp_.scene
-    Dinv = sp_.metric.inverse_matrix()
-    H = (Dinv @ sp_.H @ Dinv).tocsr()
+    H = sp_.metric.sparse_congruence(sp_.H, inverse=True)
     applied = parts.rigid_applied if parts is not None and parts.rigid_applied is not None else None
     if applied is None:
         rigid = _rigid_columns(scene)
@@ -938,6 +972,6 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK, parts: SparseParts |
 DENSE_MAX_DOF = 2000   # analyze(method="auto") uses the dense path up to this many dofs, the sparse one above
 
 
-__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
+__all__ = ["DENSE_MAX_DOF", "LU_MAX_DOF_3D", "Factor", "Krylov", "Modes", "SparseParts", "SparseProblem", "TwoLevel",
            "contact_chunks", "dissection_order", "factor", "identity_errors", "lowest_modes", "norm_estimate",
            "operator", "rigid_leakage", "sparse_branch", "sparse_parts", "sparse_problem"]
