@@ -94,11 +94,11 @@ def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = Fa
 #: the sparse path (sparse.py, ritz.py: one factorisation and block shift-invert of the elastic matrix per metric,
 #: then every branch as a Ritz update with its own checks), wall seconds on 2 free cores of the calibration machine
 #: (2026-11-26, AMD EPYC; the sparse path's kernels are not timed here, unlike the dense ones): a metric's set-up
-#: ∝ n (periodic packings of 3·10⁴ and 3·10⁵ dofs, 4 branches: 2.6 s and 23 s measured, 2.9 and 25 s estimated;
-#: 2.0 s and 18.5 s since the solver's speed-up of issue 24, left on the safe side) and
+#: ∝ n (periodic packings of 3·10⁴ and 3·10⁵ dofs, 4 branches, since the solver's speed-up of issue 24: 2.0 s and
+#: 17.4-18.8 s measured at a load of 1-1.3, 2.3 s and 19.2 s estimated; before it, 2.6 s and 23 s) and
 #: a branch's update a fixed cost plus ∝ n (a 3,072-dof random packing, 10 sliding contacts, 1,024 branches: metric L
 #: 51 s, its family of 3 metrics 386 s measured; 115 and 344 s estimated)
-SPARSE_SETUP_PER_DOF = 8e-5
+SPARSE_SETUP_PER_DOF = 6e-5
 SPARSE_BRANCH_FIXED = 0.11
 SPARSE_BRANCH_PER_DOF = 6e-7
 
