@@ -396,3 +396,23 @@ def test_float32_preconditioned_branches_match_dense_within_their_bounds(monkeyp
 
     assert 1e-10 < backward(fac.solve(b, single=True)) < 1e-5
     assert backward(fac.solve(b)) <= 1e-14
+
+
+def test_branches_are_made_on_one_blas_thread(monkeypatch):
+    """sparse.sparse_branch (signs, codes, eigenspace search on the n × k vectors) runs under the one-BLAS-thread
+    bound of the sparse path, as the solves do: outside it, 10⁵ disks gave vectors differing by ~1e-18 between one
+    core and two (OpenBLAS splits large products by thread). threadpoolctl is a test dependency, so the bound is
+    always seen here: None would mean that the branches ran with the library's threads."""
+    from granstab.solve import threads
+    from granstab_bench.periodic_child import periodic_packing
+    seen = []
+    branch = sparse.sparse_branch
+
+    def spy(*args):
+        seen.append(threads.bound())
+        return branch(*args)
+
+    monkeypatch.setattr(sparse, "sparse_branch", spy)
+    r = granstab.analyze(periodic_packing(800, 1), k=4, metric="L", method="sparse")
+    assert r.backend == "sparse" and len(seen) == len(r.branches) == 2
+    assert seen == [1, 1]

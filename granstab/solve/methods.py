@@ -293,16 +293,16 @@ class SparseMethod:
         branches, unverified, cut, ritz = [], 0, 0, 0
         with blas_threads(1):     # tall-skinny products and block solves: a 2-thread pool waiting for a core on a
             found = list(zip(masks, self._modes(spb, masks, k + 1)))   # busy machine cost 3× (threads.py)
-        for mask, modes in found:
-            ritz += modes.method == "ritz"
-            b, was_cut = sparse_branch(problem.core, spb, modes, mask, k)
-            unverified += not modes.verified
-            cut += was_cut
-            branches.append(b)
-            if on_branch is not None:
-                on_branch(b)
-            if bar is not None:
-                bar.update()
+            for mask, modes in found:
+                ritz += modes.method == "ritz"
+                b, was_cut = sparse_branch(problem.core, spb, modes, mask, k)
+                unverified += not modes.verified
+                cut += was_cut
+                branches.append(b)
+                if on_branch is not None:
+                    on_branch(b)
+                if bar is not None:
+                    bar.update()
         if bar is not None:
             bar.close()
         n_free = spb.n - spb.n_rigid
