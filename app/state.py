@@ -253,14 +253,7 @@ class Session:
             self._motions = (self.revision, {})
         cache = self._motions[1]
         if branch not in cache:
-            a = self.analysis
-            V = a.branches[branch].stability_vectors
-            if a.problem.free is not None:
-                full = np.zeros((a.scene.n_dof, V.shape[1]))
-                full[a.problem.free] = V
-                V = full
-            U = a.metric.physical(V)
-            cache[branch] = U / np.linalg.norm(U, axis=0)
+            cache[branch] = self.analysis.motion(self.analysis.branches[branch].stability_vectors)
         return cache[branch]
 
     @property

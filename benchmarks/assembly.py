@@ -9,7 +9,8 @@ import numpy as np
 import scipy.sparse as sp
 from matplotlib.figure import Figure
 
-from granstab.mechanics.stiffness import assemble, contact_blocks, stiffness
+from granstab.mechanics.assembly import assemble
+from granstab.mechanics.stiffness import contact_blocks, stiffness
 from granstab.model.packings import random_packing
 from granstab.model.scene import CONTACT_FIELDS
 from granstab.solve.sparse import CHUNK, contact_chunks
@@ -48,7 +49,7 @@ def assemble_per_contact_loop(scene):
 
 def assemble_vectorised(scene, chunk=None):
     """contact_blocks over all contacts (in chunks of sparse.CHUNK) + one block-level scatter to CSR
-    (granstab.mechanics.stiffness.assemble)."""
+    (granstab.mechanics.assembly.assemble)."""
     M, n = scene.n_contacts, 2 * scene.dof_per_particle
     total = np.empty((M, n, n))
     for sl, cb in contact_chunks(scene, chunk or CHUNK):
@@ -120,7 +121,7 @@ def markdown(results: dict) -> str:
         "H = Hg1 + Hg2 + Hg3 + Hm as a CSR matrix: `contact_blocks` builds the (M, n, n) blocks of all contacts at "
         f"once (in chunks of {results['chunk']:,} contacts, so that its temporaries stay in cache and the cost per "
         "contact stays flat up to 10⁶ contacts), "
-        "`granstab.mechanics.stiffness.assemble` scatters them at the level of particle blocks (one sort of 4M keys). "
+        "`granstab.mechanics.assembly.assemble` scatters them at the level of particle blocks (one sort of 4M keys). "
         "The reference is a Python loop over contacts running the same kernel on one contact at a time.",
         "",
         table(["", "contacts", "per-contact loop", "vectorised", "speed-up", "max |ΔH|/|H|"], loop_rows),

@@ -67,15 +67,15 @@ class Analysis:
         return d
 
     def motion(self, vector: np.ndarray) -> np.ndarray:
-        """Physical motion U = D Ũ of a scaled eigenvector over every dof of the scene (fixed particles: zero),
-        normalised to unit length."""
+        """Physical motion U = D Ũ of a scaled eigenvector (n,) or of each column of a block (n, K) over every dof of
+        the scene (fixed particles: zero), normalised to unit length."""
         vector = np.asarray(vector, dtype=float)
         if self.problem.free is not None:
-            full = np.zeros(self.scene.n_dof)
+            full = np.zeros((self.scene.n_dof,) + vector.shape[1:])
             full[self.problem.free] = vector
             vector = full
         u = self.metric.physical(vector)
-        return u / np.linalg.norm(u)
+        return u / (np.linalg.norm(u, axis=0) if u.ndim > 1 else np.linalg.norm(u))
 
     def to_dict(self) -> dict:
         """The `granstab analyze --json` object."""

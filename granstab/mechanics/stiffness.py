@@ -36,7 +36,7 @@ from ..model.vec import (
     spin_matrix,
     tangent_basis,
 )
-from .assembly import Assembly, assemble, dof_index
+from .assembly import Assembly, dof_index
 from .checks import identity_errors
 
 
@@ -81,9 +81,7 @@ def assembled_error(scene: Scene, error: np.ndarray | None, assembly=None):
     unresolved: stiffness._inverse_error)."""
     if error is None or not np.all(np.isfinite(error)):
         return None
-    if assembly is not None:
-        return assembly(error)
-    return assemble(error, scene.p, scene.q, scene.dof_per_particle, scene.n_dof)
+    return (assembly or Assembly(scene.p, scene.q, scene.dof_per_particle, scene.n_dof))(error)
 
 
 @dataclass(frozen=True, eq=False)

@@ -338,12 +338,16 @@ def svd_floor(problem: Problem, red: Reduced, on: np.ndarray) -> np.ndarray:
     (zero_tol of σ_max)."""
     n = red.n
     out = np.empty(len(on))
-    for i, row in enumerate(on):
-        X = red.HN + (problem.A * row[None, :]) @ red.s.T
+    for i, X in enumerate(hinge_stack(backend("cpu"), problem.A, red, on)):
         sv = np.linalg.svd(X, compute_uv=False)
         upper = spectral_upper(X)
         out[i] = sv[-1] - values_backward_error(upper, n) - problem.tol.zero_tol(1.0, n) * upper
     return out
+
+
+def hinge_stack(be, A: np.ndarray, red: Reduced, on: np.ndarray):
+    """H^i N (L, n, k) per branch on the backend: H_el N + A diag(on) sᵀ (eq:newstiffnesses; ℍ^i in the basis N)."""
+    return be.asarray(red.HN)[None] + be.asarray(A)[None] * be.asarray(on)[:, None, :] @ be.asarray(red.s.T)
 
 
 def gram_floor(be, A: np.ndarray, red: Reduced, on: np.ndarray):
@@ -354,7 +358,7 @@ def gram_floor(be, A: np.ndarray, red: Reduced, on: np.ndarray):
     the solver: eigh's own residual gives the bound (accuracy.vector_bounds, Kahan), as for every other eigenvalue.
     """
     xp, n = be.xp, red.n
-    X = be.asarray(red.HN)[None] + be.asarray(A)[None] * be.asarray(on)[:, None, :] @ be.asarray(red.s.T)
+    X = hinge_stack(be, A, red, on)
     G = xp.swapaxes(X, 1, 2) @ X
     fro2 = be.to_host(xp.sum(X * X, axis=(1, 2)))
     if be.name == "cpu":

@@ -954,7 +954,7 @@ def identity_errors(sp_: SparseProblem, chunk: int = CHUNK, parts: SparseParts |
     all rigid motions and the projection's own checks."""
     scene = sp_.scene
     H = sp_.metric.sparse_congruence(sp_.H, inverse=True)
-    applied = parts.rigid_applied if parts is not None and parts.rigid_applied is not None else None
+    applied = getattr(parts, "rigid_applied", None)
     if applied is None:
         rigid = _rigid_columns(scene)
         applied = {name: np.zeros(rigid.shape) for name in ("Hg1", "Hg2", "Hm")}
