@@ -12,6 +12,7 @@ Three kinds, each with `params_used`, `initial_params()`, `build(params) -> Scen
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import json
 import tomllib
@@ -356,13 +357,27 @@ def model_from_dict(data, source: str):
     return model_for_scene(granstab.scene_from_dict(data, source=source))
 
 
+def _opened(path):
+    """granstab.io.open of `path`, kept while its files are unchanged: another frame is one read, not a re-index."""
+    import os
+    files = [e.path for e in os.scandir(path) if e.is_file()] if os.path.isdir(path) else [path]
+    stamp = tuple((f, s.st_mtime_ns, s.st_size) for f in files if (s := os.stat(f) if os.path.exists(f) else None))
+    return _open_cached(os.fspath(path), stamp)
+
+
+@functools.lru_cache(maxsize=4)
+def _open_cached(path: str, stamp: tuple):
+    from granstab.io import open as open_input
+    return open_input(path)
+
+
 def load_model(path, frame=None):
     """The model of a scene file (TOML/JSON, shape or contact format) or of anything else `granstab.load_scene`
     reads (DEM snapshots, RigidLibrary folders: granstab.io.load, with its validation report and frames);
     raises SceneError with one line."""
-    from granstab.io import format_report, is_snapshot, load
+    from granstab.io import format_report, is_snapshot
     if is_snapshot(path):
-        imported = load(path, frame=frame)
+        imported = _opened(path).read(frame)           # indexed once per file version (granstab.io.open)
         frames = list(imported.frames) if imported.frames else None
         return ContactModel(imported.scene, report=format_report(imported.report), frames=frames,
                             frame=imported.report.get("frame"), path=str(path))

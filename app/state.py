@@ -651,12 +651,11 @@ def metric_family(scene) -> dict:
 def opens_as_folder(folder: Path, most: int = 64) -> bool:
     """Whether a folder opens whole: a scan, a folder a format reads itself (RigidLibrary), or a snapshot whose files
     (at most `most`, those granstab.io.load would take) one format reads together (a LAMMPS run's dumps)."""
-    from granstab.io import SKIPPED_IN_FOLDERS
+    from granstab.io import snapshot_files
     from granstab.io.registry import detect, reads_folder
     if is_scan_dir(folder) or is_rigidity_dir(folder) or reads_folder(folder):
         return True
-    files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
-                   and p.suffix.lower() not in SKIPPED_IN_FOLDERS)
+    files = snapshot_files(folder)
     if not files or len(files) > most:
         return False
     try:

@@ -15,6 +15,7 @@ import numpy as np
 
 from .analysis import analyze
 from .io import load
+from .io import open as open_input
 from .io.scenes import save_scene, scene_to_dict
 from .io.syntax import paused_gc
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
@@ -102,6 +103,18 @@ def import_lines(loaded) -> list[str]:
     """The import's warnings (projected forces, dropped rattlers, cut contacts, ...; none for a scene file) as
     lines of a command's output."""
     return [f"warning: import: {w}" for w in loaded.warnings]
+
+
+def write_import_warnings(folder, report: dict, frames: list) -> list[str]:
+    """The import warnings of a run over `frames` [(frame, its warnings)], once each (io.validation.run_warnings),
+    into the output folder's import.json (source and format as `report` gives them, frames, warnings); the lines
+    of the command's output."""
+    from .io.validation import run_warnings
+    warnings = run_warnings(frames)
+    record = {"source": report["source"], "format": report["format"], "frames": [f for f, _ in frames],
+              "warnings": warnings}
+    (Path(folder) / "import.json").write_text(json.dumps(record, indent=1, default=str), encoding="utf-8")
+    return [f"warning: import: {w}" for w in warnings]
 
 
 def cmd_stiffness(args) -> int:
@@ -465,8 +478,9 @@ def cmd_scan(args) -> int:
                        device=args.device, attribution=not args.no_attribution)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
+    warned = write_import_warnings(args.out, loaded.report, [(loaded.report.get("frame"), loaded.warnings)])
     print(json.dumps({**summary, "import": loaded.report}, allow_nan=False) if args.json else "\n".join(
-        [*scan_lines(summary, args.out), *import_lines(loaded)]))
+        [*scan_lines(summary, args.out), *warned]))
     return 0
 
 
@@ -588,10 +602,11 @@ def cmd_export(args) -> int:
     if args.track and args.frames:
         raise InputError("--track: the track folder names the frames; give --frames or --track, not both")
     wanted = [(None, None)]                                      # (the track's position, the reader's frame)
+    source = open_input(args.input, **periodic_options(args))    # the frames indexed once, each read once
     if args.track or args.frames:
         if args.scan:
             raise InputError("--scan: a scan folder holds one packing; a sequence (--frames, --track) takes none")
-        available = load(args.input, **periodic_options(args)).frames
+        available = [f for f in source.frames if f is not None]
         if args.track:
             wanted = track_frames(args.track)
             keys = [k for _, k in wanted if k is not None]
@@ -606,7 +621,7 @@ def cmd_export(args) -> int:
     with Heartbeat(f"export {source}") as beat, deadline(args.timeout, source, advice):   # the alarm inside the beat
         for position, f in wanted:
             beat.stage(f"frame {f}" if f is not None else "reading")
-            loaded = load(args.input, frame=f, **periodic_options(args))
+            loaded = source.read(f)
             if args.modes:                       # the whole-packing analysis: refused before it starts if too long
                 modes_analysis = argparse.Namespace(max_sliding=16, sample_branches=None, method="auto", device="cpu",
                                                     metric="L", rotation_length=None)
@@ -616,11 +631,12 @@ def cmd_export(args) -> int:
             beat.stage(f"frame {f}: fields and modes" if f is not None else "fields and modes")
             frames.append(export_frame(loaded.scene, scan=args.scan, modes=args.modes, time=f or 0, extra=extra,
                                        orientation=loaded.orientation))
-            notes += import_lines(loaded)
+            notes.append((f, loaded.warnings))
     paths = write(frames, args.out, args.format, Path(args.input[0]).stem or "packing")
     names = [p.name for p in paths] if len(paths) <= 6 else [paths[0].name, "…", paths[-1].name]
+    warned = write_import_warnings(args.out, loaded.report, notes)
     print("\n".join([f"wrote {len(frames)} frame(s) as {args.format} in {time.perf_counter() - start:.1f} s: "
-                      f"{len(paths)} file(s) in {args.out} ({', '.join(names)})", *dict.fromkeys(notes)]))
+                      f"{len(paths)} file(s) in {args.out} ({', '.join(names)})", *warned]))
     return 0
 
 
@@ -731,7 +747,8 @@ def cmd_track(args) -> int:
              f"{summary['events']} events ({summary['thresholds']['event_quantity']} drops over "
              f"{summary['thresholds']['event_threshold']:g} × its mean); wrote {args.out}",
              f"ran {summary['cost']['workers']['where']} ({summary['cost']['workers']['why']})",
-             *[f"{name}: {what}" for name, what in summary.get("after", {}).items()]]
+             *[f"{name}: {what}" for name, what in summary.get("after", {}).items()],
+             *[f"warning: import: {w}" for w in summary["import_warnings"]]]
     print(json.dumps(summary) if args.json else "\n".join(lines))
     return 0
 

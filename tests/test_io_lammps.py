@@ -247,9 +247,9 @@ def test_timesteps_found_across_chunk_boundaries(monkeypatch, chunk, tmp_path):
     crlf = tmp_path / "contacts2d.dump"
     crlf.write_bytes((DATA / "contacts2d.dump").read_bytes().replace(b"\n", b"\r\n"))
     for path in (DATA / "contacts2d.dump", DATA / "atoms3d.dump", crlf):
-        whole = [(b.timestep, b.count, b.first_line, b.start, b.end) for b in lammps.scan_dump(path)]
+        whole = [(b.timestep, b.count, b.first_line, b.start, b.end) for b in lammps.index_dump(path)[0]]
         monkeypatch.setattr(lammps, "CHUNK", chunk)
-        assert [(b.timestep, b.count, b.first_line, b.start, b.end) for b in lammps.scan_dump(path)] == whole
+        assert [(b.timestep, b.count, b.first_line, b.start, b.end) for b in lammps.index_dump(path)[0]] == whole
         monkeypatch.undo()
         raw = path.read_bytes()
         marks = [m.start() for m in re.finditer(rb"^ITEM: TIMESTEP", raw, re.M)]

@@ -6,8 +6,9 @@
 
 Each reader module registers its formats (registry.py: a name, a sniff, a read): scene files (scenes.py: TOML,
 JSON, NPZ; contact-level and shape-based), RigidLibrary folders, LAMMPS dumps, MercuryDPM output and generic
-tables. `format="auto"` takes the one whose sniff accepts the paths; a snapshot reader's `Snapshot` goes through
-`build.build`, which applies the conventions every format shares (contact point, normal, curvature, cone policy,
+tables. `format="auto"` takes the one whose sniff accepts the paths; `open` indexes the input's frames once
+(source.py), `load` is `open(...).read(frame)`; a snapshot reader's `Snapshot` goes through `build.build`, which
+applies the conventions every format shares (contact point, normal, curvature, cone policy,
 loads) and writes the validation report (validation.py).
 """
 from __future__ import annotations
@@ -18,19 +19,25 @@ from ..model.errors import SceneError
 from ..model.scene import Scene
 from ..model.tolerances import DEFAULT, Tolerances
 from . import generic, lammps, mercury, rigidlibrary, scenes  # noqa: F401  (each registers its formats)
-from .build import GEOMETRY, OUTSIDE_CONE, Options, build
+from .build import GEOMETRY, OUTSIDE_CONE
 from .progress import ReadProgress
-from .registry import Format, Loaded, Request, detect, formats, get, reads_folder, register
+from .registry import Format, Loaded, Request, detect, formats, get, register
+from .source import OPTION_KEYS, SKIPPED_IN_FOLDERS, Source, open_source, resolve, snapshot_files  # noqa: F401
 from .validation import format_report
 
-OPTION_KEYS = {"k", "alpha", "mu", "geometry", "outside_cone", "yield_rtol", "length_scale", "units", "region",
-               "keep_rattlers", "density", "periodic", "cell"}
-SKIPPED_IN_FOLDERS = (".json", ".toml", ".npz", ".py", ".sh", ".md")   # a snapshot folder's other files
+
+def open(path_or_paths, *, format: str = "auto", progress: bool = False, tol: Tolerances = DEFAULT,  # noqa: A001
+         **options) -> Source:
+    """The input's frames, indexed once: `Source.frames` (the keys `read` takes, [None] for one frame or a scene
+    file) and `Source.read(frame)` → `Loaded`, each frame read alone (a LAMMPS dump: its timestep's rows only).
+    Arguments as `load`'s (without `frame`); source.py."""
+    return open_source(path_or_paths, format=format, progress=progress, tol=tol, **options)
 
 
 def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, progress: bool = False,
          tol: Tolerances = DEFAULT, **options) -> Loaded:
-    """Read a scene file or a snapshot (a file, a folder or several files) into a Scene with its validation report.
+    """Read a scene file or a snapshot (a file, a folder or several files) into a Scene with its validation report:
+    `open(...).read(frame)`.
 
     Parameters
     ----------
@@ -40,7 +47,8 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, prog
     format : str
         "auto" (the registered format whose sniff accepts the paths) or a name of `formats()`.
     frame, timestep : int or float, optional
-        The frame (or timestep, or time) of a snapshot with several; default the first.
+        The frame (or timestep, or time) of a snapshot with several; default the format's (the first; LAMMPS: the
+        last timestep both dumps have).
     progress : bool
         A bar on stderr while large inputs are read (bytes scanned and parsed), then the stages.
     tol : Tolerances
@@ -59,43 +67,17 @@ def load(path_or_paths, *, format: str = "auto", frame=None, timestep=None, prog
         scene; report (JSON-able; "warnings": what the import changed or assumed, none for a scene file);
         frames (the frames the input holds, or None).
     """
-    paths = [Path(p) for p in ([path_or_paths] if isinstance(path_or_paths, (str, Path)) else path_or_paths)]
-    if not paths:
-        raise SceneError("granstab.io.load: no input")
-    unknown = sorted(set(options) - OPTION_KEYS - {"columns"})
-    if unknown:
-        raise SceneError(f"granstab.io.load: unknown option {unknown[0]!r}")
-    chosen = None if format == "auto" else get(format)
-    if len(paths) == 1 and paths[0].is_dir() and not (chosen.folder if chosen else reads_folder(paths[0])):
-        paths = _files_in(paths[0])
-    fmt = chosen or get(detect(paths))
-    if options.get("columns") and not fmt.columns:
-        raise SceneError(f"--columns: the {fmt.name} format has fixed columns (only "
-                         f"{' and '.join(f.name for f in map(get, formats()) if f.columns)} name them)")
-    if fmt.scene_file and (options or frame is not None or timestep is not None):
-        given = next(iter(options), "frame" if frame is not None else "timestep")
-        raise SceneError(f"{paths[0]}: {given}: an option of snapshots; a scene file ({fmt.name}) is read as written")
-    if options.get("cell") is not None and fmt.name != "table":
-        raise SceneError(f"--cell: only the generic tables take a cell ({fmt.name} input gives its own or none)")
-    request = Request(frame=frame if frame is not None else timestep, columns=options.pop("columns", None), tol=tol,
-                      cell=options.pop("cell", None))
+    paths = resolve(path_or_paths, format)[0] if progress else path_or_paths     # the bar names the files read
     with ReadProgress(paths, progress) as bar:
-        read = fmt.read(paths, request, bar)
-        if fmt.scene_file:
-            return Loaded(read, {"source": str(paths[0]), "format": fmt.name, "read_as": "scene file",
-                                 "warnings": []})
-        if isinstance(options.get("region"), str):
-            options["region"] = parse_region(options["region"])
-        return build(read, Options(**options), progress=bar, tol=tol)
+        source = open_source(paths, format=format, frame=frame, timestep=timestep, tol=tol, bar=bar, **options)
+        return source.read(frame if frame is not None else timestep, bar=bar)
 
 
 def frames(path_or_paths, *, format: str = "auto", **options) -> list:
     """The frames a snapshot input holds, in order: the keys `load(..., frame=key)` takes (an annulus frame number,
     a LAMMPS or DataSim timestep, a table's `frame` value, a MercuryDPM time); [None] for an input of one frame or a
-    scene file. Reads the input's default frame with the same `options` (an unreadable input fails here, in one
-    line)."""
-    held = load(path_or_paths, format=format, **options).frames
-    return [None] if held is None else list(held)
+    scene file: `open(...).frames`."""
+    return open_source(path_or_paths, format=format, **options).frames
 
 
 def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Scene:
@@ -123,14 +105,6 @@ def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Sc
         An unreadable file or a failed check, in one line naming the file, the entry and the field.
     """
     return load(path, progress=progress, tol=tol).scene
-
-
-def _files_in(folder: Path) -> list[Path]:
-    paths = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
-                   and p.suffix.lower() not in SKIPPED_IN_FOLDERS)
-    if not paths:
-        raise SceneError(f"{folder}: no snapshot files in this folder")
-    return paths
 
 
 def parse_region(text: str):
@@ -161,5 +135,5 @@ def is_snapshot(path) -> bool:
     return not any(fmt.sniff([path]) for fmt in map(get, formats()) if fmt.scene_file)
 
 
-__all__ = ["GEOMETRY", "OUTSIDE_CONE", "Format", "Loaded", "Request", "detect", "format_report", "formats", "frames",
-           "is_snapshot", "load", "load_scene", "parse_region", "register"]
+__all__ = ["GEOMETRY", "OUTSIDE_CONE", "Format", "Loaded", "Request", "Source", "detect", "format_report", "formats",
+           "frames", "is_snapshot", "load", "load_scene", "open", "parse_region", "register", "snapshot_files"]

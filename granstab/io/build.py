@@ -12,8 +12,9 @@ the first particle, in the file's units); `build` turns it into a granstab Scene
   (3D: K = −(I − n⊗n)/ρ). `touching` (data whose radii do not match the distances, e.g. photoelastic frames):
   the point splits d in proportion to the radii, ρ_p = d R_p/(R_p+R_q), ρ_q = d − ρ_p.
 - **Forces** f^pq as given (the force on p by q; f^qp = −f^pq); compression has f·n < 0, checked.
-- **Cone policy** (eq:yield, Q = |f_t| + μ f·n): a contact with f_n > 0 and |f_t| within `yield_rtol` of μ f_n,
-  or flagged fully mobilised by the file, is put exactly on the cone and marked "sliding". One outside the cone
+- **Cone policy** (eq:yield, Q = |f_t| + μ f·n): a contact with f_n > 0 flagged fully mobilised by the file (where
+  the file flags contacts: the flag stands, `yield_rtol` is not used), or, in a file without flags, with |f_t|
+  within `yield_rtol` of μ f_n, is put exactly on the cone and marked "sliding". One outside the cone
   (|f_t| > μ f_n (1 + yield_rtol)) follows `outside_cone`: "sliding" (project onto the cone, mark at yield),
   "project" (project, treat as sticking: "elastic"), "elastic" (keep the force, "elastic") or "error".
   Contacts with f_n ≤ 0 and a force are "elastic" (tension is cohesion). Every change is counted and named.
@@ -105,6 +106,9 @@ class Options:
 
 
 LAW_DEFAULTS = {"k": 1.0, "alpha": 1.0, "mu": 0.5}
+YIELD_RULES = {False: "yield_rtol: |f_t| within yield_rtol of μ f_n (the file flags no contact)",
+               True: "the file's flag: a contact is at yield when the file flags it fully mobilised "
+                     "(yield_rtol not used)"}
 
 
 def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAULT) -> Loaded:
@@ -398,7 +402,8 @@ def _cone(snap: Snapshot, normal, mu, opts: Options, pair):
     outside = positive & (ft > limit * (1 + opts.yield_rtol))
     flagged = np.zeros(len(f), bool) if snap.mobilised is None else snap.mobilised.astype(bool)
     near = positive & (ft >= limit * (1 - opts.yield_rtol)) & ~outside
-    at_yield = (near | (flagged & positive & ~outside)) & (ft > 0) & (mu > 0)
+    decides = near if snap.mobilised is None else flagged & positive & ~outside     # the file's flag stands
+    at_yield = decides & (ft > 0) & (mu > 0)
     state = np.full(len(f), "auto", dtype=object)
     state[tension] = "elastic"
     projected = at_yield.copy()
@@ -421,7 +426,9 @@ def _cone(snap: Snapshot, normal, mu, opts: Options, pair):
               "elastic": "kept as in the file, treated as elastic",
               "error": "none outside"}[opts.outside_cone]
     cone = {"yield_rtol": opts.yield_rtol, "at_yield": int(at_yield.sum()),
+            "rule": YIELD_RULES[snap.mobilised is not None],
             "at_yield_by_file_flag": int(np.sum(at_yield & flagged & ~near)),
+            "within_tolerance_not_flagged": int(np.sum(near & ~flagged)) if snap.mobilised is not None else 0,
             "outside": {"count": int(outside.sum()), "fraction": float(outside.mean()) if len(f) else 0.0,
                         "policy": opts.outside_cone, "action": action, "names": _names(pair[outside])},
             "largest_ratio_ft_over_mu_fn": float(np.max(ft[positive] / np.maximum(limit[positive], 1e-300)))

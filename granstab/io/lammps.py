@@ -88,23 +88,45 @@ MARK = b"ITEM: TIMESTEP"
 HEADER_LINES = 25               # a timestep's header is read up to this many lines
 
 
-def scan_dump(path: Path, progress=None) -> list[Block]:
+def index_dump(path: Path, progress=None) -> tuple[list[Block], str | None]:
     """Split a dump into timesteps: one pass over its bytes in chunks (C-speed searches for the ITEM: TIMESTEP
     lines, newlines counted for line numbers; memory O(chunk), not the file), then each timestep's header. Rows
-    are parsed later, for the chosen timestep only (`rows`). `progress(n_bytes)` is called as bytes are read."""
+    are parsed later, for the chosen timestep only (`rows`). `progress(n_bytes)` is called as bytes are read.
+    A last timestep cut short (its header, or fewer rows than it says: a run still writing, or killed) is left
+    out: the blocks before it and the line that says so."""
     try:
         with open(path, "rb") as fh:
-            starts, lines, size = _marks(fh, progress)
+            starts, lines, size, newlines = _marks(fh, progress)
             if not starts:
                 raise SceneError(f"{path}: line 1: ITEM: TIMESTEP: missing (not a LAMMPS dump)")
             ends = starts[1:] + [size]
-            return [_header(path, fh, start, end, line) for start, end, line in zip(starts, ends, lines)]
+            blocks = [_header(path, fh, start, end, line)
+                      for start, end, line in zip(starts[:-1], ends[:-1], lines[:-1])]
+            try:
+                last = _header(path, fh, starts[-1], size, lines[-1])
+            except SceneError as exc:
+                return blocks, f"{path}: the last timestep (line {lines[-1]}) is cut short and left out ({exc})"
+            rows = _complete_rows(fh, last, size, newlines)
     except OSError as exc:
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    if rows < last.count:
+        return blocks, (f"{path}: timestep {last.timestep}: cut short ({rows} of {last.count} rows, from line "
+                        f"{last.first_line}): the last timestep is left out")
+    return blocks + [last], None
+
+
+def _complete_rows(fh, block: Block, size: int, newlines: int) -> int:
+    """The rows of the file's last block: its newline-terminated lines, and a last line without a newline when it
+    is as wide as the header says (a file cut mid-row ends in a short line)."""
+    rows = newlines - block.first_line + 1
+    fh.seek(max(block.start, size - 65536))
+    last = fh.read().rsplit(b"\n", 1)[-1]
+    return rows + int(bool(last.strip()) and len(last.split()) >= len(block.columns))
 
 
 def _marks(fh, progress=None):
-    """Byte offsets and 1-based line numbers of the lines that start with ITEM: TIMESTEP, and the file size."""
+    """Byte offsets and 1-based line numbers of the lines that start with ITEM: TIMESTEP, the file size and its
+    number of newlines."""
     pattern = b"\n" + MARK
     starts, lines = ([0], [1]) if fh.read(len(MARK)) == MARK else ([], [])
     fh.seek(0)
@@ -124,7 +146,7 @@ def _marks(fh, progress=None):
         size += len(chunk)
         newlines += chunk.count(b"\n")
         tail = buf[-(len(pattern) - 1):]
-    return starts, lines, size
+    return starts, lines, size, newlines
 
 
 def _header(path: Path, fh, start: int, end: int, line: int) -> Block:
@@ -360,30 +382,92 @@ def _is_number(text: str) -> bool:
 
 # ------------------------------------------------------------------------------------------------ reading
 
-def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, progress=None) -> Snapshot:
-    """The snapshot of one timestep; `progress`: a progress.ReadProgress (bytes scanned, then the rows parsed)."""
+@dataclass
+class DumpIndex:
+    """A LAMMPS run's dumps indexed once (`index_lammps`): each timestep's header and byte offsets in the atom and
+    the local dump, the timesteps both have (`frames`), what was left out (`warnings`) and the input script."""
+
+    atoms: Path
+    local: Path
+    script: dict | None
+    atom_blocks: dict             # timestep → Block
+    local_blocks: dict
+    frames: list
+    warnings: list
+
+    def read(self, frame, request, progress=None) -> Snapshot:
+        """One timestep (default the last both dumps have): its rows only (registry.Format.index)."""
+        return read_step(self, frame, request.columns, progress)
+
+
+def index_lammps(paths: list[Path], progress=None) -> DumpIndex:
+    """One pass over each dump (`index_dump`) and the script: the timesteps both dumps have. Timesteps that one
+    dump has and the other lacks are named in one warning line, a truncated last timestep in another; dumps of
+    two different runs (no timestep in common, or a different box at the same timestep) are refused."""
     update = None if progress is None else progress.update
     dumps = [p for p in paths if is_dump(p)]
     scripts = [p for p in paths if p not in dumps]
     if len(scripts) > 1:
         raise SceneError(f"{scripts[1]}: not a LAMMPS dump, and {scripts[0].name} is already the input script")
     script = read_script(scripts[0]) if scripts else None
-    indexed = [(p, scan_dump(p, update)) for p in dumps]
-    atoms = [(p, b) for p, b in indexed if b[0].kind == "ATOMS"]
-    local = [(p, b) for p, b in indexed if b[0].kind == "ENTRIES"]
+    indexed = [(p, *index_dump(p, update)) for p in dumps]
+    for path, blocks, cut in indexed:
+        if not blocks:
+            raise SceneError(cut or f"{path}: no timestep")
+    atoms = [(p, b) for p, b, _ in indexed if b[0].kind == "ATOMS"]
+    local = [(p, b) for p, b, _ in indexed if b[0].kind == "ENTRIES"]
     if len(atoms) != 1 or len(local) != 1:
         raise SceneError(f"{paths[0]}: need one per-atom dump (ITEM: ATOMS) and one local dump (ITEM: ENTRIES), "
                          f"got {len(atoms)} and {len(local)}")
     (apath, ablocks), (cpath, cblocks) = atoms[0], local[0]
-    a_steps = [b.timestep for b in ablocks]
-    c_steps = [b.timestep for b in cblocks]
-    step = a_steps[-1] if timestep is None else timestep
-    for path, steps in ((apath, a_steps), (cpath, c_steps)):
-        if step not in steps:
-            shown = ", ".join(map(str, steps[:5])) + (", …" if len(steps) > 5 else "")
-            which = "mismatched atom/contact timesteps: " if timestep is None else ""
-            raise SceneError(f"{path}: timestep {step}: timestep: {which}not in the file (it has {shown})")
-    ablock, cblock = ablocks[a_steps.index(step)], cblocks[c_steps.index(step)]
+    by_a, by_c = {b.timestep: b for b in ablocks}, {b.timestep: b for b in cblocks}
+    frames = sorted(set(by_a) & set(by_c))
+    if not frames:
+        raise SceneError(f"{cpath}: timestep: none in common with {apath.name} ({_steps(sorted(by_c))} against "
+                         f"{_steps(sorted(by_a))}): dumps of two different runs?")
+    _same_box(apath, cpath, by_a, by_c, frames)
+    warnings = [cut for _, _, cut in indexed if cut]
+    alone = [(path.name, sorted(set(mine) - set(frames))) for path, mine in ((apath, by_a), (cpath, by_c))]
+    if any(steps for _, steps in alone):
+        warnings.append("timesteps in one dump only, left out: " + "; ".join(
+            f"{len(steps)} in {name} only ({_steps(steps)})" for name, steps in alone if steps)
+            + f"; {len(frames)} timesteps in both")
+    return DumpIndex(apath, cpath, script, by_a, by_c, frames, warnings)
+
+
+def _steps(steps: list) -> str:
+    return ", ".join(map(str, steps[:5])) + (f", … {steps[-1]}" if len(steps) > 5 else "")
+
+
+def _same_box(apath: Path, cpath: Path, by_a: dict, by_c: dict, frames: list) -> None:
+    """The two dumps' boxes agree at every common timestep (to 1e-9 of the box size: the same run writes the same
+    numbers); else a one-line refusal."""
+    for step in frames:
+        a, c = by_a[step], by_c[step]
+        if a.bounds is None or c.bounds is None:
+            continue
+        box_a, box_c = np.r_[a.bounds.ravel(), a.tilt], np.r_[c.bounds.ravel(), c.tilt]
+        if np.abs(box_a - box_c).max() > 1e-9 * max(np.abs(box_a).max(), 1e-300):
+            raise SceneError(f"{cpath}: timestep {step}: box bounds: differ from {apath.name}'s at the same timestep "
+                             f"({' '.join(f'{v:g}' for v in box_c)} against {' '.join(f'{v:g}' for v in box_a)}): "
+                             "dumps of two different runs?")
+
+
+def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, progress=None) -> Snapshot:
+    """The snapshot of one timestep; `progress`: a progress.ReadProgress (bytes scanned, then the rows parsed)."""
+    return read_step(index_lammps(paths, progress), timestep, columns, progress)
+
+
+def read_step(index: DumpIndex, timestep=None, columns: str | None = None, progress=None) -> Snapshot:
+    """One timestep of indexed dumps (default the last both have): its atom and local rows only."""
+    update = None if progress is None else progress.update
+    apath, cpath, script = index.atoms, index.local, index.script
+    step = index.frames[-1] if timestep is None else timestep
+    for path, blocks in ((apath, index.atom_blocks), (cpath, index.local_blocks)):
+        if step not in blocks:
+            raise SceneError(f"{path}: timestep {step}: timestep: not in the file (it has {_steps(sorted(blocks))})"
+                             + "".join(f"; {w}" for w in index.warnings))
+    ablock, cblock = index.atom_blocks[step], index.local_blocks[step]
     if progress is not None:
         progress.stage("parse", total=ablock.end - ablock.start + cblock.end - cblock.start)
     ids, x, radius, mass, dim_hint, turns = _atoms(apath, ablock, update)
@@ -402,7 +486,7 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, pr
         raise SceneError(f"{cpath}: timestep {step}: {missing}: no column ({dim}D rolling resistance needs "
                          f"{', '.join('fr' + a for a in 'xyz'[:dim])})")
     line = lambda row: f"{cpath}: line {cblock.first_line + row}"  # noqa: E731
-    what = f"not in the atom dump at timestep {step}"
+    what = f"not in {apath.name} at timestep {step}: dumps of two different runs?"
     p, q = (to_indices(ids, col[name], name, line, what) for name in ("id1", "id2"))
     lattice = lattice_of(ablock, dim)
     branch = branch_vectors(x[:, :dim], p, q, lattice)[0]
@@ -421,7 +505,7 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, pr
         orientation=orientation,
         p=p[touching], q=q[touching], force=force[touching], lattice=lattice, law=law, frame=int(step),
         moment=None if moment is None else moment[touching],
-        frames=sorted(set(a_steps) & set(c_steps)),
+        frames=list(index.frames),
         notes={"non_touching_pairs": dropped, "law_notes": notes, "dimension": dim, "forces_from": how,
                **({} if lattice is None else {"periodic": {"kind": "LAMMPS " + (
                    f"triclinic box (tilt xy xz yz {' '.join(f'{t:g}' for t in ablock.tilt)})"
@@ -479,4 +563,5 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
 
 
 register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths), columns=True,
-                read=lambda paths, request, progress: read_lammps(paths, request.frame, request.columns, progress)))
+                read=lambda paths, request, progress: read_lammps(paths, request.frame, request.columns, progress),
+                index=lambda paths, request, progress: index_lammps(paths, progress)))

@@ -8,7 +8,9 @@ so that `granstab.io.load` finds them all here; this module imports none of them
     detect([Path("atoms.dump"), Path("contacts.dump")])        # "lammps": the one format whose sniff says yes
 
 A scene file's `read` gives the Scene itself; a snapshot's gives a `build.Snapshot`, which build.py turns into a
-Scene and its validation report.
+Scene and its validation report. A format whose files can be indexed (LAMMPS dumps: each timestep's byte offsets)
+also registers an `index`; `granstab.io.open` reads any other through its `read` (source.py: one read lists the
+frames, each further frame is one read).
 """
 from __future__ import annotations
 
@@ -52,7 +54,9 @@ class Request:
 class Format:
     """One readable format. sniff(paths) -> bool; read(paths, request, progress) -> Scene (scene_file) or
     build.Snapshot; `folder`: it reads a folder itself (a folder of any other format stands for its files);
-    `columns`: it takes --columns."""
+    `columns`: it takes --columns; `index` (optional): index(paths, request, progress) -> an object with `frames`
+    (the keys, in order), `warnings` (frames left out, one line each) and `read(frame, request, progress)` ->
+    build.Snapshot, the input's frames found in one pass and each read alone (source.py)."""
 
     name: str
     sniff: Callable[[list[Path]], bool]
@@ -60,6 +64,7 @@ class Format:
     scene_file: bool = False
     folder: bool = False
     columns: bool = False
+    index: Callable | None = None
 
 
 _FORMATS: dict[str, Format] = {}

@@ -2,6 +2,8 @@
 report as readable lines."""
 from __future__ import annotations
 
+import re
+
 NAMES_SHOWN = 8
 LAW_DEFAULT = "built-in default (not in the file)"    # the source of a law parameter neither file nor user gave
 
@@ -84,6 +86,25 @@ def import_warnings(report: dict) -> list[str]:
     return out
 
 
+def run_warnings(frames: list[tuple[object, list[str]]]) -> list[str]:
+    """The import warnings of a run over frames [(frame, its warnings)], once each: a warning of one kind (its text
+    without numbers and parenthesised lists) is written as the first frame gave it, with the frames it came from
+    where not every frame gave the same line. What every command prints once per run, not once per frame."""
+    kinds: dict[str, list] = {}
+    for frame, lines in frames:
+        for line in lines:
+            kinds.setdefault(re.sub(r"\(.*\)|[-+]?\d[\d.e+-]*", "#", line), []).append((frame, line))
+    out = []
+    for seen in kinds.values():
+        (first, line), texts = seen[0], {text for _, text in seen}
+        if len(seen) == len(frames) and len(texts) == 1:
+            out.append(line)
+        else:
+            out.append(f"{line} [frame {first}" + (f"; one like it in {len(seen)} of {len(frames)} frames]"
+                                                   if len(frames) > 1 else "]"))
+    return out
+
+
 def _periodic_line(pe: dict) -> str:
     """The periodic cell and which treatment was used: seam contacts kept with their images, or cut."""
     cell = "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in pe["lattice"]) + "]"
@@ -92,6 +113,15 @@ def _periodic_line(pe: dict) -> str:
                 f"kept with their images{_names(pe['seam_names'])}; {pe['treatment']}")
     return (f"periodic: {pe.get('kind', 'cell')} {cell}: {pe['contacts_cut']} contact(s) cut"
             f"{_names(pe['cut_names'])}; {pe['treatment']}")
+
+
+def _yield_rule(cone: dict) -> str:
+    """Which rule decided the contacts at yield: the file's flags, or the tolerance (files without flags)."""
+    if cone.get("rule", "").startswith("the file's flag"):
+        return (f"by the file's fully-mobilised flag, {cone['at_yield_by_file_flag']} of them beyond "
+                f"{cone['yield_rtol']:g} of |f_t| = μ f_n; {cone['within_tolerance_not_flagged']} within it not "
+                "flagged, kept sticking")
+    return f"within {cone['yield_rtol']:g} of |f_t| = μ f_n; the file flags none"
 
 
 def _states(co: dict) -> str:
@@ -142,8 +172,8 @@ def format_report(report: dict) -> str:
         f"normal vs centre line up to {geo['normal_to_centre_line_deg_max']:.3g}°",
         "law: " + "; ".join(f"{k} = {v['value'] if isinstance(v['value'], str) else format(v['value'], '.6g')} "
                             f"({v['source']})" for k, v in law.items()),
-        f"cone (all {co['in_file']} contacts of the frame): {cone['at_yield']} at yield (within {cone['yield_rtol']:g} of |f_t| = μ f_n, "
-        f"{cone['at_yield_by_file_flag']} by the file's flag); {out['count']} outside "
+        f"cone (all {co['in_file']} contacts of the frame): {cone['at_yield']} at yield ({_yield_rule(cone)}); "
+        f"{out['count']} outside "
         f"({percent(out['fraction'])}): {out['action']}{_names(out['names'])}",
         f"forces: {fo['convention']}; f_n <= 0: {fo['fn_nonpositive']['count']} "
         f"(treated as {fo['fn_nonpositive']['treated_as']}){_names(fo['fn_nonpositive']['names'])}",

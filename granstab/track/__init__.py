@@ -33,7 +33,8 @@ DIR/particles.parquet — one row a frame × particle (rattlers kept), frames in
     where the window runs past the last frame or the particle is gone at frame + W).
 DIR/events.json — a list of {frame, next_frame, quantity, drop, relative_drop}: drops of `quantity`
     (shear_stress or stress_ratio) from one selected frame to the next larger than threshold × the run's mean.
-DIR/summary.json — contract, source, frames_in_input, frames, positions, steps, options, defaults, units,
+DIR/summary.json — contract, source, frames_in_input, frames, import_warnings (the import's warnings of the run,
+    once each: io.validation.run_warnings), positions, steps, options, defaults, units,
     windows {window, d2min_radius, d2min_radius_from, last_frames_without_window}, thresholds {event_quantity,
     event_threshold, run_mean, rule}, events (count), inertial_number (null: not known) and its note,
     cost {seconds, stages {read, frame, whole, scan, rigidity, between}, resumed, frames_this_run, workers},

@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import analyze
-from ..io import load
 from ..mechanics.branches import RIGID
 from ..model.scene import Scene, SceneError
 from ..scan.clusters import cut, piece
@@ -119,12 +118,13 @@ def rigid(core: Scene, wall_flags) -> tuple[dict, np.ndarray]:
 
 
 def frame_task(spec: dict, position: int, key) -> dict:
-    """Frame `position` (key `key`, the reader's frame) of the input in `spec` (run.py) → its parts in
+    """Frame `position` (key `key`, the reader's frame) of the input in `spec` (run.py; spec["source"]: the input
+    opened once, granstab.io.open) → its parts in
     spec["out"]/parts: the particle rows, the contacts (for the changes between frames) and, last, the frame row
     (JSON: its presence marks the frame done). Returns the frame row."""
     times = {}
     start = time.perf_counter()
-    loaded = load(spec["inputs"], format=spec["format"], frame=key, **spec["import"])
+    loaded = spec["source"].read(key)                # granstab.io.Source: this frame's rows only
     scene = loaded.scene
     times["read"] = time.perf_counter() - start
     core, walls, index = core_scene(scene, loaded.wall_flags)

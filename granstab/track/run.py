@@ -10,8 +10,8 @@ import json
 import time
 from pathlib import Path
 
-from ..io import frames as list_frames
 from ..io import is_snapshot
+from ..io import open as open_input
 from ..io.progress import Heartbeat
 from ..model.errors import Interrupted, require
 from ..model.scene import SceneError
@@ -112,7 +112,8 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     if len(paths) > 1 or is_snapshot(paths[0]):
         options["keep_rattlers"] = True              # a scene file (one frame) is read as written
     begun = time.perf_counter()
-    keys = list_frames(paths, format=format, **options)
+    source = open_input(paths, format=format, **options)      # the frames indexed once, each read once
+    keys = source.frames
     positions = select(frames, len(keys))
     out = Path(out_dir)
     spec = {"inputs": paths, "format": format, "import": {k: v for k, v in options.items()}, "out": str(out),
@@ -121,6 +122,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     stated = {**{k: v for k, v in spec.items() if k != "out"}, "frames": frames, "window": window,
               "d2min_radius": d2min_radius, "event_quantity": event_quantity, "event_threshold": event_threshold}
     _open(out, stated)
+    spec["source"] = source
     todo = [k for k in positions if not (out / "parts" / f"frame-{k:06d}.json").exists()]
     with Heartbeat(f"track {out_dir}", enabled=not progress) as beat:      # a line a minute without a bar
         beat.stage("frames", total=len(todo))

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.validation import run_warnings
 from ..scan.clusters import DEFAULT_BOUNDARY
 from .motion import contact_changes, d2min
 from .quantities import stress_drops
@@ -111,6 +112,7 @@ def finish(out: Path, positions: list, keys: list, stated: dict, extra: dict) ->
     stage_seconds["between"] = time.perf_counter() - begun
     summary = {
         "contract": CONTRACT, "source": stated["inputs"], "frames_in_input": len(keys), "frames": len(positions),
+        "import_warnings": run_warnings([(r["frame"], r["import_warnings"]) for r in rows]),
         "positions": positions, "steps": [None if keys[k] is None else float(keys[k]) for k in positions],
         "options": stated,
         "defaults": {"window": 1, "d2min_radius": "2.5 mean contact branch lengths", "event_quantity":
