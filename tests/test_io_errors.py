@@ -183,10 +183,7 @@ def set_cell(path: Path, line: int, col: int, value: str):
     field(path, line, col, value, sep=" ")
 
 
-LAMMPS_CASES = {
-    "truncated": (lambda a, c: c.write_text(c.read_text()[: -400]), ["contacts2d.dump", "line", "truncated"]),
-    "truncated at a line end": (lambda a, c: c.write_text("".join(c.read_text().splitlines(True)[:-3])),
-                                ["contacts2d.dump", "line 548", "entries", "263 rows where the header says 266"]),
+LAMMPS_CASES = {    # a truncated last timestep and timesteps in one dump only: tests/test_io_source.py
     "short row": (lambda a, c: edit(c, last_block_line(c, 3), "25 800 1.0\n"), ["contacts2d.dump", "line",
                                                                                  "columns"]),
     "unknown id": (lambda a, c: set_cell(c, last_block_line(c, 2), 1, "99999"),
@@ -196,8 +193,6 @@ LAMMPS_CASES = {
                         ["atoms2d.dump", "radius", "must be > 0"]),
     "garbled header": (lambda a, c: c.write_text(c.read_text().replace("NUMBER OF ENTRIES\n266", "NUMBER OF ENTRIES\nabc")),
                        ["contacts2d.dump", "line 4", "number of rows", "not a number"]),
-    "mismatched timesteps": (lambda a, c: c.write_text("ITEM: TIMESTEP" + c.read_text().split("ITEM: TIMESTEP")[1]),
-                             ["contacts2d.dump", "timestep 21000", "mismatched atom/contact timesteps"]),
 }
 
 

@@ -105,7 +105,8 @@ def index_dump(path: Path, progress=None) -> tuple[list[Block], str | None]:
             try:
                 last = _header(path, fh, starts[-1], size, lines[-1])
             except SceneError as exc:
-                return blocks, f"{path}: the last timestep (line {lines[-1]}) is cut short and left out ({exc})"
+                return blocks, (f"{path}: the last timestep (line {lines[-1]}) is cut short and left out "
+                                f"({str(exc).removeprefix(f'{path}: ')})")
             rows = _complete_rows(fh, last, size, newlines)
     except OSError as exc:
         raise SceneError(f"{path}: cannot read file ({exc.strerror or exc})") from None
@@ -427,7 +428,10 @@ def index_lammps(paths: list[Path], progress=None) -> DumpIndex:
                          f"{_steps(sorted(by_a))}): dumps of two different runs?")
     _same_box(apath, cpath, by_a, by_c, frames)
     warnings = [cut for _, _, cut in indexed if cut]
-    alone = [(path.name, sorted(set(mine) - set(frames))) for path, mine in ((apath, by_a), (cpath, by_c))]
+    # past a dump's cut, the other's timesteps are said by the cut's line
+    known = min([b[-1].timestep for _, b, cut in indexed if cut], default=np.inf)
+    alone = [(path.name, sorted(t for t in set(mine) - set(frames) if t <= known))
+             for path, mine in ((apath, by_a), (cpath, by_c))]
     if any(steps for _, steps in alone):
         warnings.append("timesteps in one dump only, left out: " + "; ".join(
             f"{len(steps)} in {name} only ({_steps(steps)})" for name, steps in alone if steps)
