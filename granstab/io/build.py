@@ -150,14 +150,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         keep_c &= ~cut
     else:
         unwrapped, cut = x, np.zeros(len(d), bool)
-    if not opts.keep_rattlers:
-        touched = np.zeros(len(x), bool)
-        touched[snap.p[keep_c]] = touched[snap.q[keep_c]] = True
-        dropped = keep_p & ~touched
-        keep_p &= touched
-    else:
-        dropped = np.zeros(len(x), bool)
-    if not np.any(keep_p):
+    if not np.any(keep_p if opts.keep_rattlers else keep_c):
         raise SceneError(f"{snap.source}: contacts: none left in the scene ({len(d)} in the frame, "
                          f"{int(cut.sum())} cut around the cell, {selection['contacts']} outside the region)")
     index = np.cumsum(keep_p) - 1
@@ -182,9 +175,15 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     scene = build_scene(snap.dim, list(names[keep_p]), unwrapped[keep_p], arrays, title=title, source=snap.source,
                         tol=tol, entries=lambda k: f"contact {pair[c[k]]}", **periodic,
                         **({} if mass is None else {"mass": mass[keep_p], "inertia": inertia[keep_p]}))
+    inside = np.flatnonzero(keep_p)                        # the file's index of each scene particle
+    if not opts.keep_rattlers:
+        scene, kept = scene.without_rattlers()
+        dropped, inside = np.setdiff1d(inside, inside[kept]), inside[kept]
+    else:
+        dropped = np.zeros(0, np.int64)
     report.update({
-        "particles": {"in_file": len(x), "in_scene": int(keep_p.sum()), "outside_region": selection["particles"],
-                      "without_contacts_dropped": int(dropped.sum()), "dropped": _names(names[dropped])},
+        "particles": {"in_file": len(x), "in_scene": len(inside), "outside_region": selection["particles"],
+                      "without_contacts_dropped": len(dropped), "dropped": _names(names[dropped])},
         "contacts": {"in_file": len(d), "in_scene": len(c), "cut_by_region": selection["contacts"],
                      "cut_around_periodic_cell": int(cut.sum()), "sliding": int(np.sum(state[c] == "sliding")),
                      "elastic": int(np.sum(state[c] == "elastic"))},
@@ -198,8 +197,8 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     report.update({k: v for k, v in snap.notes.items() if k not in report})
     report["warnings"] = import_warnings(report)
     return Loaded(scene=scene, report=report, frames=snap.frames,
-                  wall_flags=None if snap.wall_flags is None else snap.wall_flags[keep_p],
-                  orientation=None if snap.orientation is None else snap.orientation[keep_p])
+                  wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
+                  orientation=None if snap.orientation is None else snap.orientation[inside])
 
 
 # ------------------------------------------------------------------------------------------------ checks

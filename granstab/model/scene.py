@@ -14,7 +14,7 @@ Loads default to equilibrium, b^p = -Σ f^pq and w^p = -Σ (r^pq × f^pq + m^pq)
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -100,6 +100,22 @@ class Scene:
             object.__setattr__(self, "image", np.zeros((len(self.p), self.dim), dtype=np.int64))
         if self.curvature_sum is None:
             object.__setattr__(self, "curvature_sum", self.curvature_p + self.curvature_q)
+
+    def without_rattlers(self) -> tuple[Scene, np.ndarray]:
+        """The scene without its particles that have no contact (rattlers: nothing to analyse) and the indices of
+        those kept. The contacts, their order and the kept particles' loads stay as they are (the one rattler drop:
+        the import's default and track's analyses)."""
+        touched = np.zeros(self.n_particles, bool)
+        touched[self.p] = touched[self.q] = True
+        keep = np.flatnonzero(touched)
+        if keep.size == self.n_particles:
+            return self, keep
+        index = np.cumsum(touched) - 1
+        fixed = None if self.fixed is None or not self.fixed[keep].any() else self.fixed[keep]
+        return replace(self, names=tuple(self.names[i] for i in keep), x=self.x[keep], p=index[self.p],
+                       q=index[self.q], load=self.load[keep], load_moment=self.load_moment[keep], fixed=fixed,
+                       mass=None if self.mass is None else self.mass[keep],
+                       inertia=None if self.inertia is None else self.inertia[keep]), keep
 
     @property
     def periodic(self) -> bool:

@@ -18,7 +18,6 @@ import numpy as np
 from ..analysis import analyze
 from ..mechanics.branches import RIGID
 from ..model.scene import Scene, SceneError
-from ..scan.clusters import cut, piece
 from ..solve.threads import blas_threads
 from .motion import contact_keys
 from .quantities import macroscopic, per_particle
@@ -33,14 +32,10 @@ WHOLE = {"metric": "L", "max_sliding": 0, "sample_branches": 0, "keep": "all", "
 
 
 def core_scene(scene: Scene, wall_flags):
-    """The scene without its particles that have no contact (what `load` keeps by default), and its wall flags."""
-    touched = np.zeros(scene.n_particles, bool)
-    touched[scene.p] = touched[scene.q] = True
-    if touched.all():
-        return scene, wall_flags, np.arange(scene.n_particles)
-    keep = np.flatnonzero(touched)
-    sub = piece({**cut(scene, keep), "title": scene.title})
-    return sub, None if wall_flags is None else np.asarray(wall_flags)[keep], keep
+    """The scene without its particles that have no contact (`Scene.without_rattlers`, what `load` keeps by
+    default), its wall flags and the kept particles' indices."""
+    core, keep = scene.without_rattlers()
+    return core, None if wall_flags is None or core is scene else np.asarray(wall_flags)[keep], keep
 
 
 def whole(core: Scene, soft_modes: int) -> tuple[dict, np.ndarray]:
