@@ -23,6 +23,8 @@ import numpy as np
 import granstab
 from granstab.analysis import analyze
 from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
+from granstab.mechanics.verdicts import frequencies_and_growth
+from granstab.model import errors
 from granstab.rigidity.output import is_rigidity_dir
 from granstab.solve.threads import blas_threads
 
@@ -72,7 +74,7 @@ class Mode:
 
 
 def one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split()) or type(exc).__name__
+    text = errors.one_line(exc) or type(exc).__name__
     return text if isinstance(exc, (granstab.SceneError, ValueError)) else f"{type(exc).__name__}: {text}"
 
 
@@ -398,9 +400,8 @@ class Session:
         if self.analysis is None or self.metric != "inertia":
             return None
         b = min(self.analysis.branches, key=lambda b: b.stability_eigenvalues.min())
-        lam, acc = b.stability_eigenvalues, b.accuracy
-        return {"frequencies": np.sqrt(np.sort(lam[lam > acc])[:4]),
-                "growth_rates": np.sqrt(-np.sort(lam[lam < -acc])[:3]), "branch": b.mask}
+        frequencies, growth = frequencies_and_growth(b.stability_eigenvalues, b.accuracy)
+        return {"frequencies": np.sort(frequencies)[:4], "growth_rates": -np.sort(-growth)[:3], "branch": b.mask}
 
     def check_metrics(self) -> dict | None:
         """The verdict in every metric of the family (L/10, L, 10L, inertia where masses are known), on request:

@@ -20,7 +20,16 @@ from .mechanics.branches import BOTH, MINUS, PLUS, RIGID, Problem, enumerate_mas
 from .mechanics.metric import CHOICES, Metric, family, has_masses, resolve
 from .mechanics.robustness import metric_robustness
 from .mechanics.stiffness import ContactBlocks, contact_blocks, curvature_warnings
-from .mechanics.verdicts import Attribution, ModeWork, Verdict, family_entry, finalize, mark_partial, summarize
+from .mechanics.verdicts import (
+    Attribution,
+    ModeWork,
+    Verdict,
+    family_entry,
+    finalize,
+    frequencies_and_growth,
+    mark_partial,
+    summarize,
+)
 from .model.scene import Scene, SceneError
 from .solve.methods import METHODS, Timer, choose_method
 
@@ -117,9 +126,8 @@ def _branch_dict(b, inertia: bool) -> dict:
     if b.negative_count is not None:
         out["negative_count"] = b.negative_count
     if inertia:                                                       # λ = ω²: frequencies and growth rates
-        lam, acc = b.stability_eigenvalues, b.accuracy
-        out["frequencies"] = [float(np.sqrt(v)) for v in lam[lam > acc]]
-        out["growth_rates"] = [float(np.sqrt(-v)) for v in lam[lam < -acc]]
+        frequencies, growth = frequencies_and_growth(b.stability_eigenvalues, b.accuracy)
+        out["frequencies"], out["growth_rates"] = frequencies.tolist(), growth.tolist()
     return out
 
 

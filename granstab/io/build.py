@@ -39,9 +39,11 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..model.errors import SceneError
+from ..model.periodic import minimum_image
 from ..model.scene import build_scene
 from ..model.tolerances import DEFAULT, Tolerances
 from ..model.vec import sum_at
+from .lines import is_number
 from .registry import Loaded
 from .validation import LAW_DEFAULT, import_warnings
 
@@ -286,24 +288,9 @@ def _stats(values) -> dict:
 # ------------------------------------------------------------------------------------------------ geometry
 
 def branch_vectors(x, p, q, lattice):
-    """x_q − x_p, minimum image when `lattice` (rows; NaN row = open axis) is given, and the integer lattice
-    shifts s used (M, d): the branch is x_q − s·lattice − x_p, so q's image is −s. Lower-triangular lattices
-    (Lees–Edwards, LAMMPS tilt) are reduced last axis first; any other full cell by rounding the fractional
-    coordinates (the same shifts for a lower-triangular one: branches far shorter than the cell)."""
-    raw = x[q] - x[p]
-    shifts = np.zeros(raw.shape, dtype=np.int64)
-    if lattice is None:
-        return raw, shifts
-    if not np.isnan(lattice).any() and np.any(np.triu(lattice, 1) != 0):
-        shifts = np.round(np.linalg.solve(lattice.T, raw.T).T).astype(np.int64)
-        return raw - shifts @ lattice, shifts
-    for i in range(x.shape[1] - 1, -1, -1):
-        if np.isnan(lattice[i, i]):
-            continue
-        s = np.round(raw[:, i] / lattice[i, i]).astype(np.int64)
-        raw = raw - s[:, None] * lattice[i][None, :]
-        shifts[:, i] = s
-    return raw, shifts
+    """x_q − x_p, their minimum image when `lattice` (rows; NaN row = open axis) is given, and the integer lattice
+    shifts s used (M, d): the branch is x_q − s·lattice − x_p, so q's image is −s (model.periodic.minimum_image)."""
+    return minimum_image(x[q] - x[p], lattice)
 
 
 def _geometry(rule, rad_p, rad_q, d, e, normal, snap, pair):
@@ -563,7 +550,7 @@ def parse_cell(value, dim: int, where: str) -> np.ndarray:
     try:
         numbers = np.array([float(w) for w in words])
     except ValueError:
-        bad = next(w for w in words if not _is_number(w))
+        bad = next(w for w in words if not is_number(w))
         raise SceneError(f"{where}: cell: not a number ({str(bad)[:40]!r})") from None
     if numbers.size == dim:
         numbers = np.diag(numbers).ravel()
@@ -578,14 +565,6 @@ def parse_cell(value, dim: int, where: str) -> np.ndarray:
         what = " (left-handed: swap two rows)" if det < -1e-12 * scale else ""
         raise SceneError(f"{where}: cell: the lattice vectors (rows) span no positive volume, det = {det:.6g}{what}")
     return cell
-
-
-def _is_number(text) -> bool:
-    try:
-        float(text)
-    except (TypeError, ValueError):
-        return False
-    return True
 
 
 def _periodic_report(snap: Snapshot, cut, pair, cell, why_cut, shifts, kept):

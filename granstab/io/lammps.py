@@ -40,7 +40,7 @@ from .columns import (
     to_indices,
     unique_ids,
 )
-from .lines import read_window
+from .lines import is_number, read_window
 from .registry import Format, register
 
 CHUNK = 1 << 23          # bytes per step of the scan for timesteps
@@ -362,7 +362,7 @@ def _liggghts_law(script: dict) -> tuple[dict, list]:
         try:
             numbers = np.array([float(c) for c in cells])
         except ValueError:
-            bad = next(c for c in cells if not _is_number(c))
+            bad = next(c for c in cells if not is_number(c))
             raise SceneError(f"{script['source']}: line {number}: {key}: not a number ({bad!r})") from None
         if numbers.size == 0 or (n and numbers.size != n):
             raise SceneError(f"{script['source']}: line {number}: {key}: expected {n or 'a'} value(s), got {numbers.size}")
@@ -371,14 +371,6 @@ def _liggghts_law(script: dict) -> tuple[dict, list]:
         value[key] = (float(numbers[0]), f"{name} line {number} (fix property/global {key})")
     (kn, kn_at), (kt, kt_at), (mu, mu_at) = value["kn"], value["kt"], value["coefficientFriction"]
     return {"k": (kn, kn_at), "alpha": (kt / kn, f"{kt_at} / kn"), "mu": (mu, mu_at)}, notes
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 # ------------------------------------------------------------------------------------------------ reading

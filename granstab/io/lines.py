@@ -49,6 +49,15 @@ def read_table(path, fields, *, delimiter=None, comments="#", skiprows=0, min_ro
     return data
 
 
+def is_number(text) -> bool:
+    """Whether float() reads `text` (the first cell that is not a number, for a one-line error)."""
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 def column_name(fields, col: int) -> str:
     return fields[col] if col < len(fields) else f"column {col + 1}"
 

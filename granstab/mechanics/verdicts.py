@@ -131,6 +131,12 @@ class Attribution:
                 f"{self.rim_share:.0%}; all elastic: {self.elastic_control}, rim held: {self.fixed_control}")
 
 
+def frequencies_and_growth(lam: np.ndarray, accuracy) -> tuple[np.ndarray, np.ndarray]:
+    """In the inertia metric (λ = ω²): the frequencies √λ of the eigenvalues resolved positive (λ > accuracy) and
+    the growth rates √(−λ) of those resolved negative (λ < −accuracy), each in the eigenvalues' order."""
+    return np.sqrt(lam[lam > accuracy]), np.sqrt(-lam[lam < -accuracy])
+
+
 def summarize(branches, notes: dict | None = None) -> Verdict:
     """Counts of consistent eigenvalues over all branches and the verdict with its reason (`tally`, `verdict_of`).
 

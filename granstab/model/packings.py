@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .periodic import minimum_image
 from .scene import Scene, build_scene
 from .tolerances import DEFAULT, Tolerances
 from .vec import rot_dim, tangent_basis
@@ -193,10 +194,8 @@ def harmonic_contacts(x: np.ndarray, radius: np.ndarray, cell: np.ndarray, k: fl
     (p, q, image, branch b (P, d), distance s (P,), overlap δ (P,)); q's copy is x^q + image @ cell."""
     N, d = x.shape
     p, q = np.triu_indices(N, 1)
-    inv = np.linalg.inv(cell)
-    frac = (x[q] - x[p]) @ inv
-    image = -np.round(frac).astype(np.int64)
-    b = (frac + image) @ cell
+    b, shifts = minimum_image(x[q] - x[p], cell)
+    image = -shifts
     s = np.linalg.norm(b, axis=1)
     delta = radius[p] + radius[q] - s
     on = delta > 0

@@ -21,6 +21,27 @@ def image_offset(image: np.ndarray, cell: np.ndarray | None) -> np.ndarray:
     return np.zeros(image.shape) if cell is None else image @ np.asarray(cell, float)
 
 
+def minimum_image(delta: np.ndarray, lattice: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """The minimum image of separations `delta` (M, d) in the lattice (rows a_i; a NaN row: an open axis) and the
+    integer shifts s (M, d) used: the image is delta − s @ lattice (so q's copy across the seam is image −s). A
+    lower-triangular lattice (Lees–Edwards, LAMMPS tilt) or one with an open axis is reduced last axis first; any
+    other full cell by rounding the fractional coordinates (the same shifts for a lower-triangular one: separations
+    far shorter than the cell). Without a lattice: delta and zero shifts."""
+    shifts = np.zeros(delta.shape, dtype=np.int64)
+    if lattice is None:
+        return delta, shifts
+    if not np.isnan(lattice).any() and np.any(np.triu(lattice, 1) != 0):
+        shifts = np.round(np.linalg.solve(lattice.T, delta.T).T).astype(np.int64)
+        return delta - shifts @ lattice, shifts
+    for i in range(delta.shape[1] - 1, -1, -1):
+        if np.isnan(lattice[i, i]):
+            continue
+        s = np.round(delta[:, i] / lattice[i, i]).astype(np.int64)
+        delta = delta - s[:, None] * lattice[i][None, :]
+        shifts[:, i] = s
+    return delta, shifts
+
+
 def neighbour_shifts(cell: np.ndarray) -> np.ndarray:
     """e @ cell for the 3^d - 1 integer vectors e ∈ {-1, 0, 1}^d \\ {0}: the neighbouring copies, (3^d - 1, d)."""
     d = cell.shape[0]

@@ -53,6 +53,20 @@ def _distinct(indices: np.ndarray, n: int) -> np.ndarray:
     return np.flatnonzero(mark)
 
 
+def particle_shares(flat: np.ndarray, sizes: np.ndarray, n: int, *flags: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per particle of `n`, from clusters given by their members (`flat`: every cluster's member indices in turn,
+    `sizes`: how many each has): the number of clusters containing it, then for each (G,) bool `flags` over the
+    clusters the share of those containing it that are flagged (NaN: in no cluster). The map's unstable fraction,
+    its split by mechanism and track's per-particle predictors all count this way."""
+    contains = np.bincount(flat, minlength=n).astype(float)
+    shares = []
+    for flag in flags:
+        count = np.bincount(flat, weights=np.repeat(flag, sizes).astype(float), minlength=n)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            shares.append(np.where(contains > 0, count / np.maximum(contains, 1), np.nan))
+    return (contains, *shares)
+
+
 def _reach(scene, centers, rings, graph) -> sp.csr_matrix:
     """(len(centers), n) boolean: row i marks the particles within `rings` contact hops of centres[i]."""
     graph = adjacency(scene) if graph is None else graph

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..mechanics.attribution import MECHANISMS
 from ..model.scene import Scene
+from .clusters import particle_shares
 from .output import read_map
 
 WHITE, RED, GREY = (250 / 255, 250 / 255, 250 / 255), (176 / 255, 20 / 255, 20 / 255), (150 / 255,) * 3
@@ -46,14 +47,7 @@ def map_fractions(scene: Scene, clusters: dict) -> tuple[np.ndarray, np.ndarray]
     unstable = np.asarray(clusters["verdict"]) == "unstable"
     label = np.asarray(clusters.get("mechanism", np.full(len(sizes), "")), dtype=object)
     boundary = unstable & (label == "boundary")
-    contains = np.bincount(flat, minlength=scene.n_particles).astype(float)
-
-    def share(flags):
-        count = np.bincount(flat, weights=np.repeat(flags, sizes).astype(float), minlength=scene.n_particles)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(contains > 0, count / np.maximum(contains, 1), np.nan)
-
-    return share(unstable & ~boundary), share(boundary)
+    return particle_shares(flat, sizes, scene.n_particles, unstable & ~boundary, boundary)[1:]
 
 
 def write_figures(scene: Scene, out_dir) -> list[Path]:

@@ -16,6 +16,7 @@ import numpy as np
 from ..io import load_scene
 from ..io.scenes import save_scene
 from ..model.scene import Scene, SceneError
+from .clusters import particle_shares
 from .rows import ParticleRow, Row, concat_rows, schema
 
 FORMATS = ("parquet", "csv")
@@ -134,11 +135,8 @@ def particle_map(scene: Scene, clusters) -> dict:
     members = clusters.column("members")
     flat = pc.list_flatten(members).to_numpy()
     sizes = pc.list_value_length(members).to_numpy(zero_copy_only=False).astype(np.int64)
-    contains = np.bincount(flat, minlength=scene.n_particles).astype(float)
-    weight = np.repeat(pc.equal(verdict, "unstable").to_numpy(zero_copy_only=False), sizes).astype(float)
-    unstable = np.bincount(flat, weights=weight, minlength=scene.n_particles)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        fraction = np.where(contains > 0, unstable / np.maximum(contains, 1), np.nan)
+    contains, fraction = particle_shares(flat, sizes, scene.n_particles,
+                                         pc.equal(verdict, "unstable").to_numpy(zero_copy_only=False))
     return {"name": pa.array(scene.names, type=pa.string()), "own_verdict": own, "unstable_fraction": fraction,
             "n_clusters": contains.astype(np.int64)}
 

@@ -18,6 +18,7 @@ import numpy as np
 from ..analysis import analyze
 from ..mechanics.branches import RIGID
 from ..model.scene import Scene, SceneError
+from ..scan.clusters import particle_shares
 from ..solve.threads import blas_threads
 from .motion import contact_keys
 from .quantities import macroscopic, per_particle
@@ -86,12 +87,9 @@ def scan_map(core: Scene, folder: Path, scan_options: dict) -> tuple[dict, dict]
     unstable = c["verdict"] == "unstable"
     own = unstable & (c["mechanism"] != "boundary")
     N = core.n_particles
-    contains = np.bincount(flat, minlength=N).astype(float)
+    nonboundary = particle_shares(flat, sizes, N, own)[1]
     lam = np.full(N, np.inf)
     np.fmin.at(lam, flat, np.repeat(np.asarray(c["lambda_min"], float), sizes))   # a cluster without λ_min: skipped
-    with np.errstate(invalid="ignore", divide="ignore"):
-        nonboundary = np.where(contains > 0, np.bincount(flat, np.repeat(own, sizes).astype(float), N) / contains,
-                               np.nan)
     per = {"unstable_fraction": np.asarray(got["particles"]["unstable_fraction"], float),
            "unstable_fraction_nonboundary": nonboundary, "cluster_lambda_min": np.where(np.isinf(lam), np.nan, lam)}
     verdicts = got["summary"]["verdicts"]

@@ -16,16 +16,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.periodic import minimum_image
+
 
 def pair_vectors(x: np.ndarray, i: np.ndarray, j: np.ndarray, cell: np.ndarray | None,
                  near: np.ndarray | None = None) -> np.ndarray:
     """x[j] − x[i] (P, d); with a cell: the image nearest to `near` (P, d), or the minimum image without it."""
     raw = x[j] - x[i]
-    if cell is None:
-        return raw
-    target = np.zeros_like(raw) if near is None else near
-    n = np.round((target - raw) @ np.linalg.inv(cell))
-    return raw + n @ cell
+    if near is None:
+        return minimum_image(raw, cell)[0]
+    return near + minimum_image(raw - near, cell)[0]
 
 
 def neighbours(x: np.ndarray, radius: float, cell: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
