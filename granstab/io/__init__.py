@@ -15,14 +15,21 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..model.errors import SceneError
 from ..model.scene import Scene
 from ..model.tolerances import DEFAULT, Tolerances
 from . import generic, lammps, mercury, rigidlibrary, scenes  # noqa: F401  (each registers its formats)
 from .build import GEOMETRY, OUTSIDE_CONE
 from .progress import ReadProgress
 from .registry import Format, Loaded, Request, detect, formats, get, register
-from .source import OPTION_KEYS, SKIPPED_IN_FOLDERS, Source, open_source, resolve, snapshot_files  # noqa: F401
+from .source import (  # noqa: F401
+    OPTION_KEYS,
+    SKIPPED_IN_FOLDERS,
+    Source,
+    open_source,
+    parse_region,
+    resolve,
+    snapshot_files,
+)
 from .validation import format_report
 
 
@@ -105,28 +112,6 @@ def load_scene(path, tol: Tolerances = DEFAULT, *, progress: bool = False) -> Sc
         An unreadable file or a failed check, in one line naming the file, the entry and the field.
     """
     return load(path, progress=progress, tol=tol).scene
-
-
-def parse_region(text: str):
-    """`box:lo0,hi0,lo1,hi1[,lo2,hi2]` (scaled centres), `ids:ID,ID,...` or `ids:@FILE` (a scene file's particle
-    names, or ids separated by blanks or commas) → the `region` option."""
-    kind, _, rest = text.partition(":")
-    if kind == "box":
-        try:
-            return {"box": [float(v) for v in rest.split(",")]}
-        except ValueError:
-            raise SceneError(f"--region: box: expected comma-separated numbers, got {rest!r}") from None
-    if kind != "ids" or not rest:
-        raise SceneError(f"--region: expected box:lo,hi,lo,hi[,lo,hi] or ids:ID,... or ids:@FILE, got {text!r}")
-    if not rest.startswith("@"):
-        return [v for v in rest.split(",") if v]
-    path = Path(rest[1:])
-    if path.suffix.lower() in (".json", ".toml"):
-        return list(load_scene(path).names)
-    try:
-        return path.read_text(encoding="utf-8").replace(",", " ").split()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{path}: cannot read file ({getattr(exc, 'strerror', None) or exc})") from None
 
 
 def is_snapshot(path) -> bool:

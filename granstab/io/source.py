@@ -122,6 +122,27 @@ def open_source(path_or_paths, *, format: str = "auto", progress: bool = False, 
         raise SceneError(f"--cell: only the generic tables take a cell ({fmt.name} input gives its own or none)")
     request = Request(frame=frame if frame is not None else timestep, columns=options.pop("columns", None), tol=tol, cell=options.pop("cell", None))
     if isinstance(options.get("region"), str):
-        from . import parse_region
         options["region"] = parse_region(options["region"])
     return Source(paths, fmt.name, request, options, progress, bar)
+
+
+def parse_region(text: str):
+    """`box:lo0,hi0,lo1,hi1[,lo2,hi2]` (scaled centres), `ids:ID,ID,...` or `ids:@FILE` (a scene file's particle
+    names, or ids separated by blanks or commas) → the `region` option."""
+    kind, _, rest = text.partition(":")
+    if kind == "box":
+        try:
+            return {"box": [float(v) for v in rest.split(",")]}
+        except ValueError:
+            raise SceneError(f"--region: box: expected comma-separated numbers, got {rest!r}") from None
+    if kind != "ids" or not rest:
+        raise SceneError(f"--region: expected box:lo,hi,lo,hi[,lo,hi] or ids:ID,... or ids:@FILE, got {text!r}")
+    if not rest.startswith("@"):
+        return [v for v in rest.split(",") if v]
+    path = Path(rest[1:])
+    if path.suffix.lower() in (".json", ".toml"):
+        return list(open_source(path).read().scene.names)
+    try:
+        return path.read_text(encoding="utf-8").replace(",", " ").split()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{path}: cannot read file ({getattr(exc, 'strerror', None) or exc})") from None
