@@ -199,3 +199,32 @@ def test_a_default_law_is_said_once_by_every_command(tmp_path, capsys):
         if record:
             held = json.loads(record.read_text())
             assert any(law in w for w in held.get("import_warnings", held.get("warnings", []))), argv[0]
+
+
+def test_a_reader_registered_with_read_alone_is_opened_through_it(tmp_path, monkeypatch):
+    """A format registered the old way (name, sniff, read: the shapes' and clumps' readers) works through io.open:
+    one read lists the frames and is kept for its frame, every other frame is one read, each with its own key;
+    the Source goes to a worker (pickled) without the kept read."""
+    import pickle
+
+    from granstab.io import Format, registry
+    from granstab.io.build import Snapshot
+    monkeypatch.setattr(registry, "_FORMATS", dict(registry._FORMATS))
+    asked = []
+
+    def frames_of_two_disks(paths, request, progress):
+        frame = 2 if request.frame is None else request.frame
+        asked.append(request.frame)
+        return Snapshot(source=str(paths[0]), format="toy-frames", dim=2, ids=np.array([1, 2]),
+                        x=np.array([[0.0, 0.0], [2.0 - 0.01 * frame, 0.0]]), radius=np.ones(2), p=np.array([0]),
+                        q=np.array([1]), force=np.array([[-float(frame), 0.0]]), frame=frame, frames=[1, 2, 3])
+    granstab.io.register(Format("toy-frames", sniff=lambda paths: paths[0].suffix == ".toy",
+                                read=frames_of_two_disks))
+    path = tmp_path / "x.toy"
+    path.write_text("")
+    source = granstab.io.open(path, k=1.0, alpha=1.0, mu=0.5)
+    assert source.frames == [1, 2, 3] and asked == [None]
+    forces = [float(source.read(f).scene.force[0, 0]) for f in (2, 1, 3)]
+    assert forces == [-2.0, -1.0, -3.0] and asked == [None, 1, 3]       # frame 2: the kept read
+    again = pickle.loads(pickle.dumps(source))
+    assert again.read(2).scene.force[0, 0] == -2.0 and asked == [None, 1, 3, 2]
