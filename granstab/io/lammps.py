@@ -239,6 +239,8 @@ def read_script(path: Path) -> dict:
             info["coeff"], info["coeff_line"] = words[3:], number
         elif words[:1] == ["fix"] and words[3:4] == ["property/global"] and len(words) >= 7:
             properties[words[4]] = (words[5:], number)    # LIGGGHTS: name peratomtype[pair] [n] values
+        elif words[:1] == ["fix"] and words[3:4] in (["gravity"], ["multisphere"]):
+            info[words[3]] = (words[4:], number)           # LIGGGHTS: magnitude vector gx gy gz; clumps
     info["computes"] = computes
     return info
 
@@ -259,9 +261,10 @@ def compute_columns(computes: dict, pair_style: str | None) -> dict:
                                 else {1: "ftx", 2: "fty", 3: "ftz"}.get(int(a[1:]), "-"))
                 else:
                     cols.append("-")
-        elif style == "pair/gran/local":
+        elif style in ("pair/gran/local", "wall/gran/local"):     # a wall's id: mesh, triangle, atom
             keys = [k for k in GRAN_LOCAL if k in args] if args else GRAN_LOCAL_DEFAULT
-            cols = [c for a in keys[:keys.index("history") if "history" in keys else None] for c in GRAN_LOCAL[a]]
+            cols = [c for a in keys[:keys.index("history") if "history" in keys else None]
+                    for c in (["-", "-", "id1"] if a == "id" and style == "wall/gran/local" else GRAN_LOCAL[a])]
             if "history" in keys:
                 names[f"c_{cid}[*]"] = "-"   # history and what follows it: width unknown here, ignored
         else:
@@ -478,5 +481,17 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
     return names
 
 
-register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths), columns=True,
+def multisphere_script(paths: list[Path]) -> bool:
+    """Whether one of the paths is a LIGGGHTS input script with `fix ID group multisphere` (multisphere.py reads
+    its dumps as clumps)."""
+    for path in paths:
+        if path.is_file() and not is_dump(path) and path.stat().st_size < 1 << 20:
+            text = path.read_text(encoding="utf-8", errors="replace")
+            if re.search(r"^\s*fix\s+\S+\s+\S+\s+multisphere(/nointegration)?(\s|$)", text, re.MULTILINE):
+                return True
+    return False
+
+
+register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths) and not multisphere_script(paths),
+                columns=True,
                 read=lambda paths, request, progress: read_lammps(paths, request.frame, request.columns, progress)))
