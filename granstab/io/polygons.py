@@ -73,6 +73,8 @@ def read_data_bodies(path: Path) -> dict:
                 raise SceneError(f"{path}: line {line}: body {ident}: diameter: rounding diameter {diameter:g}: "
                                  f"a polygon without rounding has {UNROUNDED}")
             out[ident] = (doubles[6:6 + 3 * n].reshape(n, 3)[:, :2], doubles[2], diameter / 2)
+    except SceneError:
+        raise
     except (ValueError, IndexError):
         raise SceneError(f"{path}: line {lines[min(k, len(lines) - 1)]}: Bodies: not a body entry "
                          "(atom-ID Ninteger Ndouble, then the values)") from None
