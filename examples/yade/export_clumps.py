@@ -9,7 +9,8 @@ Run by examples/yade/make_clumps.py (tests/test_io_clumps.py, Debian's yade 2023
 Conventions (docs/formats.md, "Clumps"): a clump (Body.isClump) is a row of bodies.csv: State.pos (the centre of
 mass), State.mass, State.ori (w x y z: YADE's Quaternion prints and indexes (x, y, z, w), so the components are
 named) and State.inertia (principal moments about the clump's own axes, rotated by ori). Its member spheres
-(Body.clumpId) are rows of members.csv. Every real interaction touching a member is a row of contacts.csv with
+(Body.clumpId) are rows of members.csv; a sphere outside any clump is a body of one member (itself); a clump
+member that is not a sphere (Polyhedra, LevelSet, …) is refused (no curvature at a sharp vertex or edge). Every real interaction touching a member is a row of contacts.csv with
 member ids: ScGeom's contactPoint (c), the force on id1 by id2 (YADE's F = normalForce + shearForce acts on id2,
 so f = −F), and kn, ks, tan(friction angle). A wall (any non-sphere body) is id2 = −(its id + 1), with the member
 first. The gravity of NewtonIntegrator is the `# gravity:` line. Export after a step with the integrator off
@@ -22,8 +23,15 @@ def export_clumps(bodies_path="bodies.csv", members_path="members.csv", contacts
     from yade import O
     from yade.wrapper import Sphere
 
-    members = {b.id: b for b in O.bodies if b is not None and b.isClumpMember and isinstance(b.shape, Sphere)}
+    for b in O.bodies:
+        if b is not None and b.isClumpMember and not isinstance(b.shape, Sphere):
+            raise ValueError(f"export_clumps: body {b.id}: shape {type(b.shape).__name__} in clump {b.clumpId}: no "
+                             "curvature at a sharp vertex or edge (clumps of spheres only)")
+    alone = {b.id: b for b in O.bodies if b is not None and isinstance(b.shape, Sphere) and not b.isClumpMember}
+    members = {b.id: b for b in O.bodies if b is not None and b.isClumpMember}
+    members.update(alone)                       # a sphere outside any clump: a body of one member, itself
     clumps = {b.id: b for b in O.bodies if b is not None and b.isClump}
+    clumps.update(alone)
     with open(bodies_path, "w") as out:
         out.write("# gravity: " + " ".join(repr(float(g)) for g in gravity) + "\n")
         out.write("body,x,y,z,mass,quatw,quati,quatj,quatk,inertia1,inertia2,inertia3\n")
@@ -36,7 +44,7 @@ def export_clumps(bodies_path="bodies.csv", members_path="members.csv", contacts
         out.write("id,body,x,y,z,radius\n")
         for i, b in members.items():
             x, y, z = b.state.pos
-            out.write(f"{i},{b.clumpId},{x!r},{y!r},{z!r},{b.shape.radius!r}\n")
+            out.write(f"{i},{i if i in alone else b.clumpId},{x!r},{y!r},{z!r},{b.shape.radius!r}\n")
     with open(contacts_path, "w") as out:
         out.write("id1,id2,fx,fy,fz,cx,cy,cz,kn,kt,mu\n")
         for i in O.interactions:
