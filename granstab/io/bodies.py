@@ -65,7 +65,9 @@ def body_snapshot(snap: Snapshot, parts: dict, walls: dict | None, gravity, what
     parts: "c1", "c2" (M, d) part centres (a side's: the foot point), "R1", "R2" (M,) part radii, "flat1",
     "flat2" (M,) bool sides, "name1", "name2" (M,) part ids (errors), optionally "point" (M, d) the engine's own
     contact points (checked, reported). walls: "body" (W,), "force" (W, d) on the body, "point" (W, d), or None.
-    gravity: (d,) or None (with masses: m g on each body). `what`: "clump"/"polygon", for messages."""
+    gravity: (d,) or None (with masses: m g on each body). `what`: "clump"/"polygon", for messages. Sets
+    snap.bodies (build.py reads it): "point" (M, d), "rho" (M, 2) (∞: flat), "inertia" (N, r, r) or None,
+    "wall_moment" (N, r) and "wall_moment_scale" (N,) (Σ r × f and Σ|r||f| of the walls about x), "geometry"."""
     pair = Pairs(np.array([str(i) for i in snap.ids], dtype=object), snap.p, snap.q)
     same = np.flatnonzero(snap.p == snap.q)
     if same.size:

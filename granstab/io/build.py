@@ -72,11 +72,8 @@ class Snapshot:
     wall_load: np.ndarray | None = None  # (N, d) wall forces the file gives
     mass: np.ndarray | None = None       # (N,) per-particle masses the file gives (e.g. LAMMPS `mass`)
     orientation: np.ndarray | None = None  # (N, 4) unit quaternions (w, x, y, z) the file gives (columns.ORIENTATION_NAMES)
-    bodies: dict | None = None  # rigid bodies (clumps, rounded polygons; io/bodies.py): x is each body's reference
-                                # point (centre of mass) and `radius` its bounding radius; "point" (M, d) contact
-                                # points, "rho" (M, 2) radii of p's and q's parallel surfaces through them (inf: a
-                                # flat side), "inertia" (N, r, r) or None, "wall_moment" (N, r) moments of wall_load
-                                # about x and "wall_moment_scale" (N,) their Σ|r||f|, "geometry" the report's entry
+    bodies: dict | None = None  # rigid bodies (x: centres of mass, radius: bounding radii): contact points, ρ of
+                                # both sides, inertia, wall moments and the geometry entry (io/bodies.py says which)
     law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
     length_unit: str = "file units"
     frame: object = None
