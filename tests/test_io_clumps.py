@@ -222,3 +222,10 @@ def test_gravity_left_out_shows_in_the_balance(tmp_path):
     files = [DATA / "liggghts_multisphere" / f"{n}.dump" for n in ("atoms", "contacts", "walls", "bodies")]
     report = granstab.io.load(files + [script]).report
     assert report["walls"]["gravity"] is None and report["imbalance"]["force"]["max"] > 0.3
+
+
+def test_liggghts_walls_dump_missing_is_refused_when_the_script_has_walls():
+    """The script has mesh walls (fix wall/gran): without wall/gran/local's dump their forces would be lost."""
+    files = [DATA / "liggghts_multisphere" / f"{n}.dump" for n in ("atoms", "contacts", "bodies")]
+    with pytest.raises(granstab.SceneError, match=r"need the dumps of .* no walls dump"):
+        granstab.io.load(files + [SCRIPT])

@@ -23,7 +23,16 @@ from ..model.errors import SceneError
 from .bodies import inertia_tensor, rotation
 from .clumps import clump_snapshot
 from .columns import to_indices, unique_ids
-from .lammps import compute_columns, contact_law, is_dump, lattice_of, multisphere_script, read_script, scan_dump
+from .lammps import (
+    _script_says,
+    compute_columns,
+    contact_law,
+    is_dump,
+    lattice_of,
+    multisphere_script,
+    read_script,
+    scan_dump,
+)
 from .lines import read_window
 from .registry import Format, register
 
@@ -100,10 +109,13 @@ def read_multisphere(paths: list[Path], timestep=None, progress=None):
         if kind in tables:
             raise SceneError(f"{path}: ENTRIES: a second {kind} dump ({tables[kind][2](0).split(':')[0]} is the first)")
         tables[kind] = (path, col, line)
+    if "walls" not in tables and not _script_says([scripts[0]], r"^\s*fix\s+\S+\s+\S+\s+wall/gran"):
+        empty = {n: np.zeros(0) for n in NEEDED["walls"] + ["fny", "fnz", "fy", "fz"]}
+        tables["walls"] = (scripts[0], empty, lambda row: f"{scripts[0]}: (no walls)")   # a box without walls
     for kind in ("bodies", "contacts", "walls"):
         if kind not in tables or atoms is None:
-            raise SceneError(f"{paths[0]}: need four dumps (atoms with mol, contacts, walls, bodies), "
-                             f"no {'atoms' if atoms is None else kind} dump")
+            raise SceneError(f"{paths[0]}: need the dumps of atoms (with mol), contacts, walls (wall/gran/local, "
+                             f"when the script has walls) and bodies: no {'atoms' if atoms is None else kind} dump")
     apath, ablock = atoms
     if lattice_of(ablock, 3) is not None:
         raise SceneError(f"{apath}: BOX BOUNDS: periodic: clumps are read in boxes with walls only")
