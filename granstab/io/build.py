@@ -75,6 +75,8 @@ class Snapshot:
     wall_load: np.ndarray | None = None  # (N, d) wall forces the file gives
     mass: np.ndarray | None = None       # (N,) per-particle masses the file gives (e.g. LAMMPS `mass`)
     orientation: np.ndarray | None = None  # (N, 4) unit quaternions (w, x, y, z) the file gives (columns.ORIENTATION_NAMES)
+    bodies: dict | None = None  # rigid bodies (x: centres of mass, radius: bounding radii): contact points, ρ of
+                                # both sides, inertia, wall moments and the geometry entry (io/bodies.py says which)
     law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
     length_unit: str = "file units"
     frame: object = None
@@ -137,12 +139,16 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
     e = branch / d[:, None]
     normal = e if snap.normal is None else _unit_normals(snap, pair)
-    geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
+    if snap.bodies is None:
+        geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
+        arm_p = geom["rho_p"][:, None] * e
+    else:                       # rigid bodies: the reader's contact points and parallel-surface radii
+        geom = {"rho_p": snap.bodies["rho"][:, 0] * scale, "rho_q": snap.bodies["rho"][:, 1] * scale}
+        geometry_report, arm_p = snap.bodies["geometry"], snap.bodies["point"] * scale - x[snap.p]
     law, law_report = _law(snap, opts, len(d))
     force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
     report = {"source": snap.source, "format": snap.format, "read_as": "snapshot", "frame": snap.frame,
               "frames_available": None if snap.frames is None else len(snap.frames)}
-    arm_p = geom["rho_p"][:, None] * e
     imbalance = _imbalance(snap, arm_p, arm_p - branch)
 
     keep_c, keep_p, selection = _select(snap, x, opts, names)
@@ -170,7 +176,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         "rolling": np.zeros((len(c), r, r)), "state": tuple(state[c]),
     }
     title = f"{snap.format} {snap.source}" + ("" if snap.frame is None else f" frame {snap.frame}")
-    mass, inertia, report["masses"] = _masses(snap, opts.density, radius)
+    mass, inertia, report["masses"] = _masses(snap, opts.density, radius, scale)
     if progress is not None:
         progress.stage("checks")
     periodic = {} if cell is None else {"cell": cell, "image": -shifts[c]}
@@ -205,17 +211,21 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
 
 # ------------------------------------------------------------------------------------------------ checks
 
-def _masses(snap: Snapshot, density: float | None, radius: np.ndarray):
+def _masses(snap: Snapshot, density: float | None, radius: np.ndarray, scale: float = 1.0):
     """(mass (N,), inertia (N, r, r), report line) of solid disks (2D) or spheres (3D); (None, None, None) when
     neither the file's masses nor a density are given. `radius` in scene units."""
     if density is not None and not (np.isfinite(density) and density > 0):
         raise SceneError(f"--density: must be a positive number, got {density}")
+    if snap.bodies is not None and (snap.mass is None or snap.bodies.get("inertia") is None):
+        return None, None, "none: the file gives no masses and inertia tensors of its rigid bodies"
     if snap.mass is not None:
         bad = np.flatnonzero(~(snap.mass > 0) | ~np.isfinite(snap.mass))
         if bad.size:
             raise SceneError(f"{snap.where('particle', bad[0])}: particle {snap.ids[bad[0]]}: mass: must be a "
                              f"positive number, got {snap.mass[bad[0]]}")
         mass, how = np.asarray(snap.mass, float), "the file's masses"
+        if snap.bodies is not None:
+            return mass, snap.bodies["inertia"] * scale**2, how + " and inertia tensors (rigid bodies)"
     elif density is not None:
         volume = np.pi * radius**2 if snap.dim == 2 else 4.0 / 3.0 * np.pi * radius**3
         mass, how = density * volume, f"density {density:g} x {'disk area' if snap.dim == 2 else 'sphere volume'}"
@@ -239,6 +249,8 @@ def _check_particles(snap: Snapshot) -> None:
     if bad.size:
         raise SceneError(f"{snap.where('particle', bad[0])}: particle {ids[bad[0]]}: radius: must be > 0, "
                          f"got {snap.radius[bad[0]]}")
+    if snap.bodies is not None:       # two bodies may touch at several points: the reader checks its own pairs
+        return
     lo, hi = np.minimum(snap.p, snap.q), np.maximum(snap.p, snap.q)
     key = lo.astype(np.int64) * len(ids) + hi
     _, first, counts = np.unique(key, return_index=True, return_counts=True)
@@ -448,6 +460,9 @@ def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
     if snap.wall_load is not None:
         net += snap.wall_load
         fscale += np.linalg.norm(snap.wall_load, axis=1)
+    if snap.bodies is not None and snap.bodies.get("wall_moment") is not None:
+        torque += snap.bodies["wall_moment"]
+        mscale += snap.bodies["wall_moment_scale"]
     counted = fscale > 0
     excluded = "particles without contacts"
     if snap.wall_flags is not None:

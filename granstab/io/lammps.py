@@ -262,6 +262,10 @@ def read_script(path: Path) -> dict:
             info["coeff"], info["coeff_line"] = words[3:], number
         elif words[:1] == ["fix"] and words[3:4] == ["property/global"] and len(words) >= 7:
             properties[words[4]] = (words[5:], number)    # LIGGGHTS: name peratomtype[pair] [n] values
+        elif words[0] == "atom_style":
+            info["atom_style"] = (words[1:], number)
+        elif words[:1] == ["fix"] and words[3:4] in (["gravity"], ["multisphere"]):
+            info[words[3]] = (words[4:], number)           # LIGGGHTS: magnitude vector gx gy gz; clumps
     info["computes"] = computes
     return info
 
@@ -282,9 +286,10 @@ def compute_columns(computes: dict, pair_style: str | None) -> dict:
                                 else {1: "ftx", 2: "fty", 3: "ftz"}.get(int(a[1:]), "-"))
                 else:
                     cols.append("-")
-        elif style == "pair/gran/local":
+        elif style in ("pair/gran/local", "wall/gran/local"):     # a wall's id: mesh, triangle, atom
             keys = [k for k in GRAN_LOCAL if k in args] if args else GRAN_LOCAL_DEFAULT
-            cols = [c for a in keys[:keys.index("history") if "history" in keys else None] for c in GRAN_LOCAL[a]]
+            cols = [c for a in keys[:keys.index("history") if "history" in keys else None]
+                    for c in (["-", "-", "id1"] if a == "id" and style == "wall/gran/local" else GRAN_LOCAL[a])]
             if "history" in keys:
                 names[f"c_{cid}[*]"] = "-"   # history and what follows it: width unknown here, ignored
         else:
@@ -403,6 +408,8 @@ def index_lammps(paths: list[Path], progress=None) -> DumpIndex:
     if len(scripts) > 1:
         raise SceneError(f"{scripts[1]}: not a LAMMPS dump, and {scripts[0].name} is already the input script")
     script = read_script(scripts[0]) if scripts else None
+    if script is not None:
+        _refuse_uncurved(script)
     indexed = [(p, *index_dump(p, update)) for p in dumps]
     for path, blocks, cut in indexed:
         if not blocks:
@@ -558,6 +565,44 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
     return names
 
 
-register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths), columns=True,
+def _script_says(paths: list[Path], pattern: str) -> bool:
+    """Whether one of the paths (not a dump, under 1 MB) has a line matching `pattern`."""
+    for path in paths:
+        if path.is_file() and not is_dump(path) and path.stat().st_size < 1 << 20:
+            if re.search(pattern, path.read_text(encoding="utf-8", errors="replace"), re.MULTILINE):
+                return True
+    return False
+
+
+def multisphere_script(paths: list[Path]) -> bool:
+    """Whether one of the paths is a LIGGGHTS input script with `fix ID group multisphere` (multisphere.py reads
+    its dumps as clumps)."""
+    return _script_says(paths, r"^\s*fix\s+\S+\s+\S+\s+multisphere(/nointegration)?(\s|$)")
+
+
+def body_script(paths: list[Path]) -> bool:
+    """Whether one of the paths is an input script with `atom_style body rounded/polygon` (polygons.py)."""
+    return _script_says(paths, r"^\s*atom_style\s+body\s+rounded/polygon(\s|$)")
+
+
+# shapes without a rounding radius or a smooth surface: no curvature at a sharp vertex or edge (issue 37)
+UNCURVED = {"tri": "triangles (a mesh)", "line": "line segments (a mesh)",
+            "body nparticle": "rigid bodies of point sub-particles",
+            "body rounded/polyhedron": "3D rounded polyhedra (not read yet: only 2D body rounded/polygon)"}
+
+
+def _refuse_uncurved(script: dict) -> None:
+    """One line for an atom style whose grains granstab cannot give a curvature (UNCURVED)."""
+    words, number = script.get("atom_style") or ([], 0)
+    key = " ".join(words[:2]) if words[:1] == ["body"] else " ".join(words[:1])
+    if key in UNCURVED:
+        raise SceneError(f"{script['source']}: line {number}: atom_style: {' '.join(words)}: {UNCURVED[key]}: no "
+                         "curvature at a sharp vertex or edge (granstab needs rounded or smooth grains: spheres, "
+                         "clumps, body rounded/polygon)")
+
+
+register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths) and not multisphere_script(paths)
+                and not body_script(paths),
+                columns=True,
                 read=lambda paths, request, progress: read_lammps(paths, request.frame, request.columns, progress),
                 index=lambda paths, request, progress: index_lammps(paths, progress)))

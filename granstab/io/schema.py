@@ -136,14 +136,15 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol, cell=N
     itself = (p == q) if image is None else (p == q) & ~np.any(image != 0, axis=1)
     if np.any(itself):
         contacts.fail(first(itself), "q", "a particle cannot touch itself (p = q) but across the cell (an image)")
-    _check_unique_pairs(contacts, p, q, names, image)
+    point = contacts.numbers("point", (dim,))
+    _check_unique_pairs(contacts, p, q, names, image, point)
     normal = contacts.numbers("normal", (dim,))
     norm = np.linalg.norm(normal, axis=1)
     bad = np.abs(norm - 1.0) > tol.input_rtol
     if bad.any():
         c = first(bad)
         contacts.fail(c, "normal", f"must be a unit vector, |n| = {norm[c]:.9g}")
-    arrays = {"p": p, "q": q, "point": contacts.numbers("point", (dim,)), "normal": normal,
+    arrays = {"p": p, "q": q, "point": point, "normal": normal,
               **_curvature_columns(contacts, dim, normal, tol),
               "force": contacts.numbers("force", (dim,)),
               "moment": contacts.numbers("moment", moment_shape, 0.0).reshape(M, r)}
@@ -202,9 +203,10 @@ def _particle_column(table, key: str, names: list, index: dict) -> np.ndarray:
     return np.array(found, dtype=np.intp).reshape(len(labels))
 
 
-def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, names: list, image=None) -> None:
-    """One contact per unordered pair and image (q's image seen from p; p's image seen from q is its negative):
-    the first repeat (in file order) is an error naming both entries."""
+def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, names: list, image=None, point=None) -> None:
+    """One contact per unordered pair, image (q's image seen from p; p's image seen from q is its negative) and
+    contact point (rigid bodies such as clumps touch at several points): the first repeat (in file order) is an
+    error naming both entries."""
     if len(p) < 2:
         return
     swap = p > q
@@ -214,6 +216,8 @@ def _check_unique_pairs(table, p: np.ndarray, q: np.ndarray, names: list, image=
         lead = np.take_along_axis(seen, np.argmax(seen != 0, axis=1)[:, None], axis=1)
         seen = np.where((p == q)[:, None] & (lead < 0), -seen, seen)     # a self-contact: e and -e are one
         rows += list(seen.T)
+    if point is not None:
+        rows += list(point.T)
     order = np.lexsort(rows[::-1])
     key = np.stack(rows, axis=1)[order]
     same = np.all(key[1:] == key[:-1], axis=1)

@@ -105,6 +105,16 @@ def run_warnings(frames: list[tuple[object, list[str]]]) -> list[str]:
     return out
 
 
+def _bodies_line(b: dict, offset) -> str:
+    """Rigid bodies (io/bodies.py): how many, their arms, the engine's contact points against the parts' geometry,
+    flat sides and conforming (flat on flat) contacts."""
+    engine = "" if offset is None else (f"; the engine's contact points differ by {_stats(offset)} of the smaller "
+                                        "part radius")
+    return (f"bodies: {b['bodies']} rigid {b['kind']}s, {b['parts_touching']} part(s) in contact; arms {b['arms']}"
+            f"{engine}; flat sides in contact {b['flat_sides_in_contact']}, conforming (flat on flat) "
+            f"{b['conforming_contacts']}")
+
+
 def _periodic_line(pe: dict) -> str:
     """The periodic cell and which treatment was used: seam contacts kept with their images, or cut."""
     cell = "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in pe["lattice"]) + "]"
@@ -183,6 +193,8 @@ def format_report(report: dict) -> str:
         f"imbalance over {imb['particles']} particles: force {_stats(imb['force'])}; moment {_stats(imb['moment'])}"
         f" ({imb['scale']})",
     ]
+    if r.get("bodies"):
+        lines.append(_bodies_line(r["bodies"], geo.get("engine_point_offset_over_radius")))
     if r.get("periodic"):
         lines.append(_periodic_line(r["periodic"]))
     for key in ("left_out",):

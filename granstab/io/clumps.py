@@ -1,0 +1,164 @@
+"""Clumps of spheres as rigid bodies: the clump tables (YADE's exporter, examples/yade/export_clumps.py, or any
+engine) and the conversion every clump reader shares (LIGGGHTS multisphere: multisphere.py).
+
+    bodies.csv    # gravity: gx gy gz                        (optional; m g acts at each centre of mass)
+                  body,x,y,z,mass,quatw,quati,quatj,quatk,inertia1,inertia2,inertia3
+    members.csv   id,body,x,y,z,radius
+    contacts.csv  id1,id2,fx,fy,fz,cx,cy,cz[,kn,kt,mu]
+
+x y z of a body: its centre of mass; quat: body → world rotation (w first); inertia1-3: the principal moments about
+the rotated body axes (YADE's State.inertia with State.ori). A contact names two member spheres (a negative id2 is
+a wall: its force is a load on the member's clump, with its moment about the centre of mass); f is the force on id1
+by id2; c the engine's contact point (checked against the members' geometry, and the point of a wall's force).
+bodies.py gives the geometry: arm from the centre of mass, normal and curvature of the member spheres.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..model.errors import SceneError
+from .bodies import body_snapshot, inertia_tensor, rotation
+from .build import Snapshot
+from .columns import to_indices, unique_ids
+from .generic import SUFFIXES, header
+from .lines import read_table
+from .registry import Format, register
+
+BODY_COLUMNS = ("body", "x", "y", "z", "mass", "quatw", "quati", "quatj", "quatk", "inertia1", "inertia2", "inertia3")
+MEMBER_COLUMNS = ("id", "body", "x", "y", "z", "radius")
+CONTACT_COLUMNS = ("id1", "id2", "fx", "fy", "fz", "cx", "cy", "cz")
+LAW_COLUMNS = ("kn", "kt", "mu")
+
+
+def clump_snapshot(source: str, fmt: str, bodies: dict, members: dict, contacts: dict, gravity, law: dict,
+                   lines: dict, notes: dict) -> Snapshot:
+    """The body snapshot of clumps. bodies: "id" (N,), "x" (N, 3), "mass" (N,), "inertia" (N, 3, 3) or None,
+    "quat" (N, 4) or None; members: "id", "body" (body ids), "x", "radius"; contacts: "id1", "id2" (member ids, id2
+    < 0 a wall), "force" on id1, "point"; lines: "body", "member", "contact" (row → "<file>: line L")."""
+    body_of = to_indices(bodies["id"], members["body"], "body", lines["member"], "not in the body table")
+    wall = contacts["id2"] < 0
+    m1 = to_indices(members["id"], contacts["id1"], "id1", lines["contact"], "not a member sphere")
+    rows = np.flatnonzero(~wall)
+    m2 = to_indices(members["id"], contacts["id2"][rows], "id2", lambda r: lines["contact"](rows[r]),
+                    "not a member sphere")
+    m1w, m1 = m1[wall], m1[rows]
+    x, R = members["x"], members["radius"]
+    reach = np.linalg.norm(x - bodies["x"][body_of], axis=1) + R
+    bound = np.zeros(len(bodies["id"]))
+    np.maximum.at(bound, body_of, reach)
+    snap = Snapshot(source=source, format=fmt, dim=3, ids=bodies["id"], x=bodies["x"], radius=bound,
+                    p=body_of[m1], q=body_of[m2], force=contacts["force"][rows], mass=bodies["mass"],
+                    orientation=bodies.get("quat"), law={k: (v[rows], w) for k, (v, w) in law.items()},
+                    notes=notes, particle_line=lines["body"], contact_line=lambda c: lines["contact"](rows[c]))
+    snap.bodies = {"inertia": bodies.get("inertia")}
+    parts = {"c1": x[m1], "c2": x[m2], "R1": R[m1], "R2": R[m2], "flat1": np.zeros(len(rows), bool),
+             "flat2": np.zeros(len(rows), bool), "name1": members["id"][m1], "name2": members["id"][m2],
+             "point": contacts["point"][rows]}
+    walls = {"body": body_of[m1w], "force": contacts["force"][wall], "point": contacts["point"][wall]}
+    return body_snapshot(snap, parts, walls, gravity, "clump")
+
+
+# ------------------------------------------------------------------------------------------------ clump tables
+
+def _kind(path: Path):
+    """"bodies", "members", "contacts" or None: which clump table a file's header says it is."""
+    if path.suffix.lower() not in SUFFIXES or not path.is_file():
+        return None
+    try:
+        names = header(path)[0]
+    except SceneError:
+        return None
+    for kind, need in (("bodies", BODY_COLUMNS[:5]), ("members", MEMBER_COLUMNS), ("contacts", CONTACT_COLUMNS)):
+        if set(need) <= set(names) and (kind != "members" or "mass" not in names):
+            return kind
+    return None
+
+
+def is_clump_tables(paths: list[Path]) -> bool:
+    """A body table and a member table among the paths (a clump table set)."""
+    kinds = {_kind(p) for p in paths}
+    return {"bodies", "members"} <= kinds
+
+
+def _table(path: Path, need) -> tuple[dict, callable]:
+    names, delimiter, line = header(path)
+    missing = [n for n in need if n not in names]
+    if missing:
+        raise SceneError(f"{path}: line {line}: {missing[0]}: missing column")
+    data = read_table(path, names, delimiter=delimiter, skiprows=line)
+    first = line
+
+    def line_of(row):
+        return f"{path}: line {first + 1 + int(row)}"     # the exporter writes no comment lines between rows
+    return {n: data[:, k] for k, n in enumerate(names)}, line_of
+
+
+def _gravity(path: Path):
+    """The `# gravity: gx gy gz` comment above a body table's header, or None."""
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for number, text in enumerate(fh, 1):
+            text = text.strip()
+            if not text.startswith("#"):
+                return None
+            if text[1:].strip().startswith("gravity:"):
+                words = text.split(":", 1)[1].split()
+                try:
+                    g = np.array([float(w) for w in words])
+                except ValueError:
+                    raise SceneError(f"{path}: line {number}: gravity: not a number ({text[:60]!r})") from None
+                if g.shape != (3,) or not np.all(np.isfinite(g)):
+                    raise SceneError(f"{path}: line {number}: gravity: expected 3 finite numbers, got {len(words)}")
+                return g
+    return None
+
+
+def read_clump_tables(paths: list[Path]) -> Snapshot:
+    """The snapshot of a clump table set (module docstring)."""
+    kinds = {}
+    for p in paths:
+        kind = _kind(p)
+        if kind is None:
+            raise SceneError(f"{p}: header: not a clump table (bodies: {','.join(BODY_COLUMNS)}; members: "
+                             f"{','.join(MEMBER_COLUMNS)}; contacts: {','.join(CONTACT_COLUMNS)})")
+        if kind in kinds:
+            raise SceneError(f"{p}: header: a second {kind} table (the first: {kinds[kind]})")
+        kinds[kind] = p
+    if "contacts" not in kinds:
+        raise SceneError(f"{paths[0]}: contacts: no contact table ({','.join(CONTACT_COLUMNS)})")
+    B, bline = _table(kinds["bodies"], BODY_COLUMNS)
+    M, mline = _table(kinds["members"], MEMBER_COLUMNS)
+    C, cline = _table(kinds["contacts"], CONTACT_COLUMNS)
+    for table, key, line in ((B, "body", bline), (M, "id", mline), (C, "id1", cline), (C, "id2", cline),
+                             (M, "body", mline)):
+        bad = np.flatnonzero(table[key] != np.round(table[key]))
+        if bad.size:
+            raise SceneError(f"{line(bad[0])}: {key}: not an integer ({table[key][bad[0]]})")
+    unique_ids(B["body"], bline, "in the body table")
+    unique_ids(M["id"], mline, "in the member table")
+    quat = np.stack([B[k] for k in ("quatw", "quati", "quatj", "quatk")], 1)
+    norm = np.linalg.norm(quat, axis=1)
+    bad = np.flatnonzero(np.abs(norm - 1) > 1e-6)
+    if bad.size:
+        raise SceneError(f"{bline(bad[0])}: quatw: not a unit quaternion (|q| = {norm[bad[0]]:.6g})")
+    principal = np.stack([B[f"inertia{k}"] for k in (1, 2, 3)], 1)
+    bad = np.flatnonzero(~np.all(principal > 0, axis=1))
+    if bad.size:
+        raise SceneError(f"{bline(bad[0])}: inertia1: principal moments must be > 0")
+    bodies = {"id": B["body"].astype(np.int64), "x": np.stack([B[a] for a in "xyz"], 1), "mass": B["mass"],
+              "quat": quat / norm[:, None], "inertia": inertia_tensor(principal, rotation(quat))}
+    members = {"id": M["id"].astype(np.int64), "body": M["body"], "x": np.stack([M[a] for a in "xyz"], 1),
+               "radius": M["radius"]}
+    contacts = {"id1": C["id1"], "id2": C["id2"], "force": np.stack([C[f"f{a}"] for a in "xyz"], 1),
+                "point": np.stack([C[f"c{a}"] for a in "xyz"], 1)}
+    law = {key: (C[col], f"{kinds['contacts'].name} column {col}") for key, col in
+           (("k", "kn"), ("mu", "mu")) if col in C}
+    if "kn" in C and "kt" in C:
+        law["alpha"] = (C["kt"] / C["kn"], f"{kinds['contacts'].name} columns kt / kn")
+    source = " + ".join(str(kinds[k]) for k in ("bodies", "members", "contacts"))
+    return clump_snapshot(source, "clumps", bodies, members, contacts, _gravity(kinds["bodies"]), law,
+                          {"body": bline, "member": mline, "contact": cline}, {})
+
+
+register(Format("clumps", sniff=is_clump_tables, read=lambda paths, request, progress: read_clump_tables(paths)))
