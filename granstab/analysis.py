@@ -23,8 +23,9 @@ from .mechanics.stiffness import ContactBlocks, contact_blocks, curvature_warnin
 from .mechanics.verdicts import Attribution, ModeWork, Verdict, family_entry, finalize, mark_partial, summarize
 from .model.scene import Scene, SceneError
 from .solve.methods import METHODS, Timer, choose_method
+from .solve.plan import Plan, plan
 
-__all__ = ["Analysis", "METHODS", "analyze", "attribute", "build_problem"]
+__all__ = ["Analysis", "METHODS", "Plan", "analyze", "attribute", "build_problem", "plan"]
 
 KEEP = ("auto", "all", "verdict")
 KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would grow with 2^Ms (3.4 kB a branch)
@@ -33,8 +34,9 @@ KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would 
 @dataclass(eq=False)
 class Analysis:
     """Result of `analyze`: branches, verdict (a `Verdict`; `summary` is its dict), errors (relative,
-    dimensionless), timings (s), in the primary metric `metric` (metric.py); `cost`: the method, the metrics, and
-    how many branches each path solved over all of them ("low_rank", "full", "sparse")."""
+    dimensionless), timings (s), in the primary metric `metric` (metric.py); `cost`: the plan it followed
+    (solve/plan.py: method, path, metrics, what it left out, `estimated_s`) and how many branches each path solved
+    over all of them ("paths": "low_rank", "full", "sparse")."""
 
     scene: Scene
     problem: Problem
@@ -208,7 +210,10 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     _check_options(metric, keep, method, rotation_length)
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
-    backend = choose_method(scene, method, k, device, lowrank, uniqueness)
+    planned = plan(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
+                   sample_branches=sample_branches, method=method, k=k, device=device, lowrank=lowrank,
+                   uniqueness=uniqueness, attribution=attribution)
+    backend = choose_method(scene, planned.method, k, device, planned.lowrank, uniqueness)
     timer = Timer()
     with timer("total"):
         state = backend.prepare(scene, timer)
@@ -257,8 +262,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                         "over all branches (keep='all' keeps every one)")
     result = Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
                       timings=timer.times, warnings=warnings, backend=backend.name,
-                      cost={"method": backend.name, "metrics": len(metrics), "branches_per_metric": len(masks),
-                            "paths": paths})
+                      cost={**planned.to_dict(), "branches_per_metric": len(masks), "paths": paths})
     return _attributed(result, rim, attribution and backend.name == "dense", max_sliding=max_sliding,
                        sample_branches=sample_branches, seed=seed)
 

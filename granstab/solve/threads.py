@@ -12,7 +12,9 @@ scipy. A limit is an upper bound for the blocks nested in it (in the same thread
 call keeps it on one thread even where the call's own `sized(n)` would take every core (before, the explorer's
 one-thread limit was lifted inside every dense analysis of more than SMALL dofs, and on a busy 2-core machine the
 two-thread pool waiting for a core made a 0.3 s analysis 18× slower, where a fair share predicts 3×).
-`cap_process(n)` bounds every block of the process (a server of many small sessions: app/server.py).
+`cap_process(n)` bounds every block of the process (a server of many small sessions: app/server.py). Above SMALL the
+threads are the FREE cores (`free_cores`: the cores less the other runnable processes, read from /proc/loadavg when
+the block starts), so that a busy machine gets one thread, not two that wait for each other (issue 38: 26× slower).
 
 The rule for results: the thread count may change round-off, never what is reported. Above SMALL dofs the full
 path keeps every core (the speed of 900 × 900 branches), and every discrete output is taken from quantities whose
@@ -54,9 +56,40 @@ def bound() -> int | None:
     return min(limits) if limits else None
 
 
+def runnable() -> float:
+    """Processes running or waiting for a core now, other than this one: the larger of the instantaneous count of
+    /proc/loadavg (field 4, "running/total", this process included) and the 1-minute load average less this process
+    (os.getloadavg: where /proc is absent). A process that has just started shows in the first, a steady one in
+    both."""
+    try:
+        with open("/proc/loadavg", encoding="ascii") as f:
+            now = float(f.read().split()[3].split("/")[0]) - 1
+    except (OSError, IndexError, ValueError):  # pragma: no cover - not Linux
+        now = 0.0
+    try:
+        average = os.getloadavg()[0] - 1
+    except OSError:  # pragma: no cover - no load average
+        average = 0.0
+    return max(now, average, 0.0)
+
+
+def free_cores() -> int:
+    """Cores this process may use without waiting for one: its cores less the other runnable processes (rounded
+    down to a whole process), at least 1. Two BLAS threads on a 2-core machine beside two busy processes spin,
+    waiting for each other at every call: a 1.0 s analysis took 26 s there (issue 38), against 2-3 s on one."""
+    return max(1, cores() - int(runnable() + 0.5))
+
+
+def slowdown() -> float:
+    """How much longer CPU-bound work takes now than on free cores: the runnable processes, this one included, over
+    the cores (at least 1): beside two busy processes on 2 cores, 1.5."""
+    return max(1.0, (runnable() + 1) / cores())
+
+
 def for_size(n: int) -> int:
-    """BLAS threads for dense work on n×n matrices: 1 up to SMALL, every core above (at most `bound()`)."""
-    threads = 1 if n <= SMALL else cores()
+    """BLAS threads for dense work on n×n matrices: 1 up to SMALL, every free core above (free_cores: a thread that
+    must wait for a core costs more than it gives), at most `bound()`."""
+    threads = 1 if n <= SMALL else free_cores()
     cap = bound()
     return threads if cap is None else min(threads, cap)
 
