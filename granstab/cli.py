@@ -264,7 +264,7 @@ def cmd_moduli(args) -> int:
     with strict_numerics(source_of(args.scene)), Heartbeat(f"moduli {source_of(args.scene)}",
                                                            enabled=not sys.stderr.isatty()) as beat:
         beat.stage("reading")
-        loaded = load(args.scene)
+        loaded = load_with_import_options(args.scene, args)
         scene = loaded.scene
         result = moduli(scene, strain=parse_strain(args.strain, scene.dim), max_sliding=args.max_sliding,
                         progress=beat)
@@ -825,6 +825,7 @@ def build_parser() -> Parser:
                         "with it and their tangent moduli")
     p.add_argument("--max-sliding", type=count(0), default=12,
                    help="enumerate the 2^Ms branches up to this many potentially sliding contacts (beyond: a sample)")
+    import_arguments(p)
     p.set_defaults(run=cmd_moduli)
     p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
     p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])
