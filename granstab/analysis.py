@@ -163,6 +163,15 @@ def _check_options(metric: str, keep: str, method: str, rotation_length: float |
         raise ValueError("rotation_length: the inertia metric has no rotation length")
 
 
+def _renamed(rotation_length, rotation_length_):
+    """rotation_length, or the old name's value (deprecated for one release, with a DeprecationWarning)."""
+    if rotation_length_ is None:
+        return rotation_length
+    _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
+                   stacklevel=3)
+    return rotation_length if rotation_length is not None else rotation_length_
+
+
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
@@ -203,10 +212,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         (n, k) scaled, ``accuracy`` (k,), ``codes`` (k,); n free dofs, k = n when dense); ``summary``: the verdict
         (eq:stab, eq:neutral, eq:instab); ``errors``; ``timings`` (s); ``motion(v)`` (n_dof,); ``to_dict()``.
     """
-    if rotation_length_ is not None:
-        _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
-                       stacklevel=2)
-        rotation_length = rotation_length if rotation_length is not None else rotation_length_
+    rotation_length = _renamed(rotation_length, rotation_length_)
     _check_options(metric, keep, method, rotation_length)
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0

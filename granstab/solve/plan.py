@@ -35,6 +35,9 @@ ROBUST_EIGH = 8.0        # the robustness proof: eigh-sized solves a branch (the
                          # packing 0.94 s for 2 branches, 1.2 eigh's worth; the unstable annulus frame 0.6-1.4 s for 1
                          # branch of 429 dofs, 10-25 eigh's worth: the intervals cannot be known before the run)
 ATTRIBUTION_BRANCHES = 1  # the elastic control: one branch in one metric
+OVERHEAD_S = 0.01        # a metric's work outside the kernels (blocks, projections, verdicts; measured 0.02-0.1 s in
+OVERHEAD_BRANCH_S = 5e-4  # all on the corpus's small scenes, where the kernels' estimate was 0.005-0.05 s) and a
+                          # branch's (its Branch, codes and consistency search in Python: 1,024 3D branches, 3 metrics)
 
 
 @dataclass(frozen=True)
@@ -206,6 +209,7 @@ def _estimated(p: Plan, k: int) -> Plan:
             parts["robustness"] = ROBUST_EIGH * L * eigh
         if p.attribution:
             parts["attribution"] = ATTRIBUTION_BRANCHES * (full if full else eigh * (1 + budget.SETUP_BRANCHES))
+    parts["overhead"] = metrics * (OVERHEAD_S + OVERHEAD_BRANCH_S * L)
     slow = slowdown()
     parts = {key: float(v) * slow for key, v in parts.items()}
     one *= slow
