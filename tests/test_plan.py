@@ -4,7 +4,6 @@ nothing, every run's JSON carries `cost.estimated_s` beside `timings.total`; the
 generous ratio of it on every path; BENCHMARKS.md "estimates" records the ratios) and the BLAS threads follow the
 free cores."""
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,10 +14,9 @@ from granstab.analysis import plan
 from granstab.cli import main
 from granstab.model.packings import random_packing
 from granstab.solve import budget, threads
+from granstab_bench.estimates import cases, micrometres, thinned
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from benchmarks.estimates import micrometres, thinned  # noqa: E402
 
 RATIO = 6.0     # measured/estimated within RATIO either way here (the promise, 3×, is measured in BENCHMARKS.md:
                 # a test beside other tests on a shared machine sees loads of its own)
@@ -86,18 +84,10 @@ def test_the_refusal_text_comes_from_the_plan(tmp_path, capsys):
     assert "on its 4 branch(es)" in capsys.readouterr().err   # examines 2 + 2 branches (this packing: no mode)
 
 
-def cases():
-    """(name, scene, options): a small case of every path (benchmarks/estimates.py has the issue's sizes)."""
-    return [("full path, family, µm", micrometres(granstab.load_scene(ROOT / "presets" / "annulus_frame.json")),
-             {}),
-            ("floppy: full path", thinned(150, 250, 1), {"metric": "L"}),
-            ("low-rank, 3D, 64 branches", random_packing(3, 32, n_sliding=6, seed=2), {"metric": "L"}),
-            ("sparse Ritz", random_packing(2, 600, n_sliding=5, seed=4), {"method": "sparse", "metric": "L"}),
-            ("sparse shift-invert, sampled", random_packing(2, 600, n_sliding=150, seed=3),
-             {"method": "sparse", "metric": "L", "sample_branches": 2})]
+CASES = cases(quick=True)      # a small case of every path (benchmarks/estimates.py; its full run: the issue's sizes)
 
 
-@pytest.mark.parametrize("name,scene,options", cases(), ids=[c[0] for c in cases()])
+@pytest.mark.parametrize("name,scene,options", CASES, ids=[c[0] for c in CASES])
 def test_the_estimate_holds_as_a_ratio(name, scene, options):
     """measured / estimated within RATIO either way (a ratio, never an absolute time)."""
     p = plan(scene, **options)
