@@ -20,7 +20,7 @@ probe of the dense kernels in CPU time) or from the sparse path's calibration (b
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -166,8 +166,8 @@ def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None 
 def _with_left_out(p: Plan, k: int, fam: bool) -> Plan:
     out = []
     if p.sampled:
-        out.append(f"{2 ** p.n_sliding - p.n_branches} of 2^{p.n_sliding} branches (a sample: a proof only of "
-                   "instability)")
+        skipped = f"{2 ** p.n_sliding - p.n_branches}" if p.n_sliding <= 40 else f"all but {p.n_branches}"
+        out.append(f"{skipped} of the 2^{p.n_sliding} branches (a sample: a proof only of instability)")
     if p.path == "sparse":
         out += [f"eigenpairs above the lowest {k} of each branch", "ℍ^i spectra and Type-2 (uniqueness)"]
         if fam:
@@ -179,12 +179,7 @@ def _with_left_out(p: Plan, k: int, fam: bool) -> Plan:
         out.append("ℍ^i (uniqueness eigenvalues, Type-2)")
     if fam and p.sampled and p.method == "dense":
         out.append("the robustness proof over every rotation length (sampled branches)")
-    return _replace(p, left_out=tuple(out))
-
-
-def _replace(p: Plan, **changes) -> Plan:
-    from dataclasses import replace
-    return replace(p, **changes)
+    return replace(p, left_out=tuple(out))
 
 
 def _estimated(p: Plan, k: int) -> Plan:
@@ -197,7 +192,8 @@ def _estimated(p: Plan, k: int) -> Plan:
         parts["branches"] = budget.sparse_estimate(n, L, metrics, p.n_sliding, k)
         one = parts["branches"] / metrics
     else:
-        full = budget.branch_seconds(n, min(budget.MEASURE_STACK, L)) if not p.lowrank or p.floppy else 0.0
+        full = (budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=not p.uniqueness)   # no ℍ^i: eigh
+                if not p.lowrank or p.floppy else 0.0)
         if p.lowrank and not p.floppy:
             per = budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=True)
             parts["branches"] = metrics * per * (L / workers + budget.SETUP_BRANCHES)
@@ -213,5 +209,5 @@ def _estimated(p: Plan, k: int) -> Plan:
     slow = slowdown()
     parts = {key: float(v) * slow for key, v in parts.items()}
     one *= slow
-    return _replace(p, estimated_s=sum(parts.values()), parts=parts, workers=workers,
+    return replace(p, estimated_s=sum(parts.values()), parts=parts, workers=workers,
                     one_metric_s=float(one + parts.get("attribution", 0.0)))
