@@ -89,6 +89,7 @@ def cases(quick: bool = False) -> list:
 
 
 MEASURE_MAX = 150.0    # a case estimated longer is refused up front by the CLI; it is measured up to this
+BUSY_MAX = 30.0        # beside busy processes: the cases measured at rest in at most this (the rest take minutes)
 
 
 def measure(scene, options: dict) -> dict:
@@ -165,7 +166,8 @@ def run(quick: bool = False, loaded: bool = False) -> dict:
     results = {"rest": {}, "busy": {}}
     for name, scene, options in cases(quick):
         results["rest"][name] = measure(scene, options)
-        if not quick or loaded:
+        short = (results["rest"][name]["measured_s"] or MEASURE_MAX) <= BUSY_MAX
+        if (not quick or loaded) and short:
             end = busy()
             try:
                 results["busy"][name] = measure(scene, options)
@@ -196,7 +198,8 @@ def markdown(results: dict) -> str:
              "tests/test_plan.py checks smaller cases as a ratio.", "", "At rest (whatever else ran on the "
              "machine: the load is in the header):", "", table(head, [_row(n, g) for n, g in results["rest"].items()])]
     if results.get("busy"):
-        lines += ["", "Beside two busy processes (the estimate follows the load: threads.slowdown, free cores):", "",
+        lines += ["", "Beside two busy processes, the cases that took at most 30 s at rest (the estimate follows the "
+                  "load: threads.slowdown, the free cores):", "",
                   table(head, [_row(n, g) for n, g in results["busy"].items()])]
     ld = results["load"]
     lines += ["", f"Busy machines: {ld['case']}, median of runs at rest {ld['rest_s']:.3g} s, beside two busy "

@@ -190,7 +190,7 @@ def _estimated(p: Plan, k: int) -> Plan:
     parts = {}
     if p.path == "sparse":
         parts["branches"] = budget.sparse_estimate(n, L, metrics, p.n_sliding, k)
-        one = parts["branches"] / metrics
+        one = budget.sparse_estimate(n, L, 1, p.n_sliding, k)
     else:
         full = (budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=not p.uniqueness)   # no ℍ^i: eigh
                 if not p.lowrank or p.floppy else 0.0)
