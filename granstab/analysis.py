@@ -32,8 +32,9 @@ from .mechanics.verdicts import (
 )
 from .model.scene import Scene, SceneError
 from .solve.methods import METHODS, Timer, choose_method
+from .solve.plan import Plan, plan
 
-__all__ = ["Analysis", "METHODS", "analyze", "attribute", "build_problem"]
+__all__ = ["Analysis", "METHODS", "Plan", "analyze", "attribute", "build_problem", "plan"]
 
 KEEP = ("auto", "all", "verdict")
 KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would grow with 2^Ms (3.4 kB a branch)
@@ -42,8 +43,9 @@ KEEP_ALL = 4096     # keep="auto": every branch up to 2^12; above, memory would 
 @dataclass(eq=False)
 class Analysis:
     """Result of `analyze`: branches, verdict (a `Verdict`; `summary` is its dict), errors (relative,
-    dimensionless), timings (s), in the primary metric `metric` (metric.py); `cost`: the method, the metrics, and
-    how many branches each path solved over all of them ("low_rank", "full", "sparse")."""
+    dimensionless), timings (s), in the primary metric `metric` (metric.py); `cost`: the plan it followed
+    (solve/plan.py: method, path, metrics, what it left out, `estimated_s`) and how many branches each path solved
+    over all of them ("paths": "low_rank", "full", "sparse")."""
 
     scene: Scene
     problem: Problem
@@ -169,6 +171,15 @@ def _check_options(metric: str, keep: str, method: str, rotation_length: float |
         raise ValueError("rotation_length: the inertia metric has no rotation length")
 
 
+def _renamed(rotation_length, rotation_length_):
+    """rotation_length, or the old name's value (deprecated for one release, with a DeprecationWarning)."""
+    if rotation_length_ is None:
+        return rotation_length
+    _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
+                   stacklevel=3)
+    return rotation_length if rotation_length is not None else rotation_length_
+
+
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
@@ -209,14 +220,14 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         (n, k) scaled, ``accuracy`` (k,), ``codes`` (k,); n free dofs, k = n when dense); ``summary``: the verdict
         (eq:stab, eq:neutral, eq:instab); ``errors``; ``timings`` (s); ``motion(v)`` (n_dof,); ``to_dict()``.
     """
-    if rotation_length_ is not None:
-        _warnings.warn("analyze(rotation_length_=...) is deprecated: use rotation_length=", DeprecationWarning,
-                       stacklevel=2)
-        rotation_length = rotation_length if rotation_length is not None else rotation_length_
+    rotation_length = _renamed(rotation_length, rotation_length_)
     _check_options(metric, keep, method, rotation_length)
     metrics = family(scene, rotation_length) if metric == "family" else [resolve(scene, metric, rotation_length)]
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
-    backend = choose_method(scene, method, k, device, lowrank, uniqueness)
+    planned = plan(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
+                   sample_branches=sample_branches, method=method, k=k, device=device, lowrank=lowrank,
+                   uniqueness=uniqueness, attribution=attribution)
+    backend = choose_method(scene, planned.method, k, device, planned.lowrank, uniqueness)
     timer = Timer()
     with timer("total"):
         state = backend.prepare(scene, timer)
@@ -265,8 +276,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
                         "over all branches (keep='all' keeps every one)")
     result = Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
                       timings=timer.times, warnings=warnings, backend=backend.name,
-                      cost={"method": backend.name, "metrics": len(metrics), "branches_per_metric": len(masks),
-                            "paths": paths})
+                      cost={**planned.to_dict(), "branches_per_metric": len(masks), "paths": paths})
     return _attributed(result, rim, attribution and backend.name == "dense", max_sliding=max_sliding,
                        sample_branches=sample_branches, seed=seed)
 

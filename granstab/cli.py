@@ -25,15 +25,8 @@ from .model.errors import Interrupted, MissingExtra, require
 from .model.scene import SceneError
 from .moduli import moduli
 from .scan.clusters import DEFAULT_BOUNDARY
-from .solve.budget import (
-    DENSE_ADVICE,
-    SPARSE_ADVICE,
-    OverBudget,
-    deadline,
-    estimate,
-    refuse_over,
-    sparse_estimate,
-)
+from .solve.budget import DENSE_ADVICE, SPARSE_ADVICE, OverBudget, deadline
+from .solve.plan import plan
 
 
 class InputError(Exception):
@@ -194,6 +187,8 @@ def cmd_analyze(args) -> int:
     bars = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
     advice = [DENSE_ADVICE]
+    options = {key: getattr(args, key) for key in ("metric", "rotation_length", "max_sliding", "sample_branches",
+                                                    "method", "k", "device")}
     # the heartbeat outside the deadline: an alarm inside Heartbeat's own enter or exit would leave its thread running
     with Heartbeat(f"analyze {source_of(args.scene)}", enabled=not bars) as beat, \
             deadline(args.timeout, source_of(args.scene), advice):
@@ -201,15 +196,19 @@ def cmd_analyze(args) -> int:
         with strict_numerics(source_of(args.scene)):
             loaded = load_with_import_options(args.scene, args)
             scene = loaded.scene
-            dense, beat.estimate = refuse_unfinishable(
-                scene, args, args.timeout and args.timeout - (time.perf_counter() - start))
-            if not dense:
-                advice[0] = SPARSE_ADVICE
-            beat.stage("assembly")
             try:
-                result = analyze(scene, metric=args.metric, rotation_length=args.rotation_length,
-                                 max_sliding=args.max_sliding, sample_branches=args.sample_branches,
-                                 method=args.method, k=args.k, progress=bars or beat, device=args.device)
+                planned = plan(scene, **options)
+                if args.plan:                                   # the plan and its estimate; nothing run
+                    text = json.dumps({"source": scene.source, "cost": planned.to_dict(), "import": loaded.report},
+                                      allow_nan=False) if args.json else "\n".join(planned.lines())
+                    print(text)
+                    return 0
+                refuse_unfinishable(planned, args.timeout and args.timeout - (time.perf_counter() - start))
+                beat.estimate = planned.estimated_s
+                if planned.method == "sparse":
+                    advice[0] = SPARSE_ADVICE
+                beat.stage("assembly")
+                result = analyze(scene, **options, progress=bars or beat)
             except DeviceError as exc:
                 raise InputError(f"--device: {exc}") from None
             beat.stage("writing the result")
@@ -278,7 +277,7 @@ def cmd_moduli(args) -> int:
     with strict_numerics(source_of(args.scene)), Heartbeat(f"moduli {source_of(args.scene)}",
                                                            enabled=not sys.stderr.isatty()) as beat:
         beat.stage("reading")
-        loaded = load(args.scene)
+        loaded = load_with_import_options(args.scene, args)
         scene = loaded.scene
         result = moduli(scene, strain=parse_strain(args.strain, scene.dim), max_sliding=args.max_sliding,
                         progress=beat)
@@ -290,38 +289,11 @@ def cmd_moduli(args) -> int:
     return 0
 
 
-def refuse_unfinishable(scene, args, seconds_left: float | None) -> tuple[bool, float | None]:
-    """Refuse (one line, before any work) more sliding contacts than --max-sliding, and branch enumerations whose
-    estimated cost (dense path: measured here; sparse path: budget.sparse_estimate), over every metric asked for,
-    exceeds the time left of --timeout (without --timeout: budget.ASK_SECONDS); each message says what to do.
-    Returns whether the dense path will run and its estimate."""
-    from .mechanics.metric import family
-    from .solve.lowrank import use_lowrank
-    from .solve.sparse import DENSE_MAX_DOF
-    from .solve.threads import cores
-    n_sliding = int(np.sum(scene.at_yield()))
-    sampled = n_sliding > args.max_sliding
-    if sampled and args.sample_branches is None:
-        raise OverBudget(f"{scene.source}: {n_sliding} potentially sliding contacts give 2^{n_sliding} branches, "
-                         f"more than --max-sliding {args.max_sliding} allows: examine a sample (--sample-branches N), "
-                         "raise --max-sliding (with --timeout to bound the time), set state = \"elastic\" for "
-                         "contacts known to stick, or scan local clusters (granstab scan)")
-    dense = args.method == "dense" or (args.method == "auto" and scene.n_dof <= DENSE_MAX_DOF)
-    if args.device != "cpu":
-        return dense, None
-    n = scene.n_dof if scene.free_dofs is None else len(scene.free_dofs)
-    n_branches = args.sample_branches + 2 if sampled else 2 ** n_sliding
-    n_metrics = len(family(scene, args.rotation_length)) if args.metric == "family" else 1
-    if dense:
-        lowrank = use_lowrank(n_branches, n)
-        seconds = estimate(n, n_branches, n_metrics, lowrank=lowrank, workers=cores())
-        path, other = ("low-rank" if lowrank else "full"), "--method sparse with a small --k, "
-    else:
-        seconds, path, other = sparse_estimate(n, n_branches, n_metrics), "sparse", ""
-    one = f"--metric L alone (about {seconds / n_metrics:.3g} s), " if n_metrics > 1 else ""
-    refuse_over(scene.source, seconds, seconds_left,
-                f"{n_branches} branches × {n_metrics} metric(s) of {n} dofs ({path} path)", one + other)
-    return dense, seconds
+def refuse_unfinishable(planned, seconds_left: float | None) -> None:
+    """Refuse (one line, before any work) what the plan (solve/plan.py) cannot start — more sliding contacts than
+    --max-sliding without a sample — or whose estimate, over every metric asked for, exceeds the time left of
+    --timeout (without --timeout: budget.ASK_SECONDS); each message says what to do."""
+    planned.refuse(seconds_left)
 
 
 def cmd_rigidity(args) -> int:
@@ -475,7 +447,8 @@ def cmd_scan(args) -> int:
         summary = scan(loaded.scene, args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
-                       device=args.device, attribution=not args.no_attribution)
+                       device=args.device, attribution=not args.no_attribution, inputs=args.input,
+                       overwrite=args.overwrite)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     warned = write_import_warnings(args.out, loaded.report, [(loaded.report.get("frame"), loaded.warnings)])
@@ -528,6 +501,12 @@ def source_of(paths: list) -> str:
     return " + ".join(map(str, paths))
 
 
+def overwrite_argument(p) -> None:
+    p.add_argument("--overwrite", action="store_true",
+                   help="start afresh in an --out that holds a run (by default it resumes, refusing changed inputs "
+                        "or options)")
+
+
 def boundary_argument(p, default: str) -> None:
     p.add_argument("--boundary", default=default, metavar="loads|fixed|embedded[:R]",
                    help="loads: the cut contacts' forces act as dead loads (the isolated cluster, Sec. 5); fixed: the "
@@ -548,6 +527,7 @@ def add_scan(sub) -> None:
     p = sub.add_parser("scan", help="local stability scan: every cluster of a packing, as a map")
     input_argument(p, "input")
     p.add_argument("--out", required=True, help="output directory (an interrupted scan there resumes)")
+    overwrite_argument(p)
     p.add_argument("--rings", type=int, default=1, help="contact hops from each centre (default 1)")
     boundary_argument(p, DEFAULT_BOUNDARY)
     p.add_argument("--centers", default="all", help="all | every:K | NAME,NAME,...")
@@ -597,6 +577,7 @@ def cmd_export(args) -> int:
     """A packing (or a sequence of its frames) → .vtp, extended XYZ or a dump pair for ParaView and OVITO (issue 29)."""
     from .export import frame_of as export_frame
     from .export import write
+    from .export.modes import modes_options
     from .export.track import track_fields, track_frames
     start, source = time.perf_counter(), source_of(args.input)
     if args.track and args.frames:
@@ -623,14 +604,14 @@ def cmd_export(args) -> int:
             beat.stage(f"frame {f}" if f is not None else "reading")
             loaded = source.read(f)
             if args.modes:                       # the whole-packing analysis: refused before it starts if too long
-                modes_analysis = argparse.Namespace(max_sliding=16, sample_branches=None, method="auto", device="cpu",
-                                                    metric="L", rotation_length=None)
-                _, beat.estimate = refuse_unfinishable(loaded.scene, modes_analysis,
-                                                       args.timeout and args.timeout - (time.perf_counter() - start))
+                planned = plan(loaded.scene, **modes_options(args.modes, args.sample_branches, args.max_sliding))
+                refuse_unfinishable(planned, args.timeout and args.timeout - (time.perf_counter() - start))
+                beat.estimate = planned.estimated_s
             extra = track_fields(args.track, position, loaded.scene.names) if args.track else None
             beat.stage(f"frame {f}: fields and modes" if f is not None else "fields and modes")
             frames.append(export_frame(loaded.scene, scan=args.scan, modes=args.modes, time=f or 0, extra=extra,
-                                       orientation=loaded.orientation))
+                                       orientation=loaded.orientation,
+                                       analysis=modes_options(args.modes, args.sample_branches, args.max_sliding)))
             notes.append((f, loaded.warnings))
     paths = write(frames, args.out, args.format, Path(args.input[0]).stem or "packing")
     names = [p.name for p in paths] if len(paths) <= 6 else [paths[0].name, "…", paths[-1].name]
@@ -650,6 +631,10 @@ def add_export(sub) -> None:
     p.add_argument("--scan", default=None, help="a granstab scan folder of this packing: its verdict fields")
     p.add_argument("--modes", type=count(0), default=0,
                    help="the K lowest consistent modes of the whole packing as vector fields (default 0)")
+    p.add_argument("--max-sliding", type=count(0), default=16,
+                   help="with --modes: enumerate the 2^Ms branches up to this many potentially sliding contacts")
+    p.add_argument("--sample-branches", type=count(1), default=None,
+                   help="with --modes, beyond --max-sliding: the all-loading, all-unloading and N random branches")
     p.add_argument("--frames", default=None, help="a sequence: A,B,C or A:B[:STEP] of the input's frames")
     p.add_argument("--track", default=None, help="a granstab track folder: its frames, with its particle fields")
     p.add_argument("--timeout", type=positive_number, default=None,
@@ -741,7 +726,7 @@ def cmd_track(args) -> int:
                     window=args.window, d2min_radius=args.d2min_radius, event_quantity=args.event_quantity,
                     event_threshold=args.event_threshold, soft_modes=args.soft_modes, rings=args.rings,
                     boundary=args.boundary, workers=args.workers, progress=args.progress, seed=args.seed,
-                    **options)
+                    overwrite=args.overwrite, **options)
     resumed = summary["cost"]["resumed"]
     lines = [f"{summary['frames']} frames ({resumed} already in the folder) in {summary['cost']['seconds']:.1f} s; "
              f"{summary['events']} events ({summary['thresholds']['event_quantity']} drops over "
@@ -758,6 +743,7 @@ def add_track(sub) -> None:
                                      "events (docs/track.md)")
     p.add_argument("inputs", nargs="+", help="a snapshot with frames: its folder or its files")
     p.add_argument("--out", required=True, help="output directory (an interrupted track there resumes)")
+    overwrite_argument(p)
     p.add_argument("--frames", default=None, metavar="A:B:STEP",
                    help="positions in the input's frame list, 0-based, B excluded (default: all)")
     p.add_argument("--whole", action="store_true",
@@ -844,6 +830,8 @@ def build_parser() -> Parser:
                         "auto: the GPU when CuPy sees one")
     p.add_argument("--all", action="store_true", help="list every eigenvalue in the table (default: the lowest "
                    f"{TABLE_LOWEST} per branch and the counts)")
+    p.add_argument("--plan", action="store_true", help="print the plan (method, path, branches per metric, what is "
+                   "left out) and its estimate; run nothing (--json: its `cost`)")
     import_arguments(p, rename={"k": "--contact-k", "progress": None})
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("moduli", help="elastic moduli, stress and stability at fixed stress of a periodic packing")
@@ -854,6 +842,7 @@ def build_parser() -> Parser:
                         "with it and their tangent moduli")
     p.add_argument("--max-sliding", type=count(0), default=12,
                    help="enumerate the 2^Ms branches up to this many potentially sliding contacts (beyond: a sample)")
+    import_arguments(p)
     p.set_defaults(run=cmd_moduli)
     p = sub.add_parser("reproduce", help="regenerate the paper's examples (Sec. 4)")
     p.add_argument("name", choices=["two-particle", "gear", "four-disk", "sliding-contact", "all"])

@@ -286,7 +286,7 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     zero = {**_zero_modes(scene, untouched), "mechanisms": solver.mechanisms}
     _stage(progress, "fixed-cell check")
     return Moduli(dim=scene.dim, volume=volume, stress=sigma, branches=branches, zero_modes=zero,
-                  verdicts=_verdicts(every, sliding, s_tol, partial, _asymmetry(solver, parts), _held(solver)),
+                  verdicts=_verdicts(every, sliding, s_tol, partial, _asymmetry(solver, parts), _held(scene, solver)),
                   errors=_errors(scene, sigma, every),
                   seconds=time.perf_counter() - start, direction=direction, notes=_notes(scene, Ms, zero))
 
@@ -364,12 +364,13 @@ SYMMETRIC_RTOL = 1e-12   # an extended matrix this close to symmetric is a conse
 #                          is the minimum of the second-order work over the particles' motions)
 
 
-def _held(solver) -> dict:
+def _held(scene: Scene, solver) -> dict:
     """The particles at fixed cell, elastic branch, conservative view: the eigenvalues of sym(H) on the kept dofs
-    (the translations grounded: positive there iff positive off the translations); dense, up to DENSE_MAX dofs. `granstab
-    analyze` gives the full answer (every branch, consistency, error bounds)."""
+    (the translations grounded: positive there iff positive off the translations); dense up to DENSE_MAX dofs,
+    beyond by its inertia (`_held_sparse`). `granstab analyze` gives the full answer (every branch, consistency,
+    error bounds)."""
     if len(solver.keep) > DENSE_MAX:
-        return {"verdict": "not computed", "note": f"more than {DENSE_MAX} dofs: run granstab analyze"}
+        return _held_sparse(scene, solver)
     H = solver.H.toarray()
     rest = np.linalg.eigvalsh(0.5 * (H + H.T))                        # translations grounded (`_grounded`)
     tol = 1e3 * EPS * max(float(np.abs(rest).max(initial=0.0)), 1e-300) * max(len(rest), 1)
@@ -380,6 +381,31 @@ def _held(solver) -> dict:
     return {"verdict": "stable" if low > tol else "unstable" if low < -tol else "neutral", "min_eigenvalue": low,
             "tolerance": tol, "note": "sym(H) of the elastic branch without the translations (granstab analyze: "
                                       "every branch, consistency and error bounds)"}
+
+
+def _held_sparse(scene: Scene, solver) -> dict:
+    """`_held` above DENSE_MAX dofs: the number of negative eigenvalues of sym(H) on the kept dofs by sparse block
+    elimination in a nested-dissection order (solve/multifrontal.py: a congruence, Sylvester's law of inertia;
+    it refuses to count where an eigenvalue lies within SINGULAR_RTOL·‖H‖ of zero: then neutral or not resolved)."""
+    from .solve.multifrontal import SINGULAR_RTOL, Multifrontal
+    from .solve.sparse import dissection_order
+    per = scene.dof_per_particle
+    order, sizes = dissection_order(scene.x, scene.p, scene.q, nodes=True)
+    position = np.full(scene.n_dof, -1)
+    position[solver.keep] = np.arange(len(solver.keep))
+    dofs = position[(order[:, None] * per + np.arange(per)).reshape(-1)]
+    node = np.repeat(np.arange(len(sizes)), sizes * per)[dofs >= 0]   # the node of each kept dof, in that order
+    perm = dofs[dofs >= 0]
+    Hs = (0.5 * (solver.H + solver.H.T)).tocsr()[perm][:, perm]
+    mf = Multifrontal(Hs, np.r_[0, np.cumsum(np.bincount(node, minlength=len(sizes)))])
+    how = ("inertia of sym(H) of the elastic branch without the translations, by sparse block elimination "
+           "(solve/multifrontal.py; granstab analyze: every branch, consistency and error bounds)")
+    if not mf.ok:
+        return {"verdict": "not determined", "min_eigenvalue": None, "negative_count": None,
+                "tolerance": SINGULAR_RTOL, "note": f"an eigenvalue within {SINGULAR_RTOL:g}·‖H‖ of zero: neutral "
+                                                    f"or unresolved; {how}"}
+    return {"verdict": "unstable" if mf.negative else "stable", "min_eigenvalue": None,
+            "negative_count": int(mf.negative), "tolerance": SINGULAR_RTOL, "note": how}
 
 
 def _verdicts(every, sliding, s_tol: float, partial: bool, asymmetry: float, held: dict) -> dict:

@@ -110,3 +110,13 @@ name = "b"
 x = [1.99, 0.0]
 shape = { kind = "ellipse", a = 1.0, b = 1.4142135623730951 }
 """
+
+
+def result_part(d: dict) -> dict:
+    """An `analyze --json` object without what depends on the machine and its load (timings, the estimate in
+    `cost`: solve/plan.py MEASURED) or on the input's reading (`import`): two runs of one scene give the same."""
+    from granstab.solve.plan import MEASURED
+    out = {k: v for k, v in d.items() if k not in ("import", "timings")}
+    if "cost" in out:
+        out["cost"] = {k: v for k, v in out["cost"].items() if k not in MEASURED}
+    return out

@@ -77,6 +77,29 @@ def test_corpus(name):
         assert word in err, (word, err)
 
 
+@pytest.mark.parametrize("name", sorted(EXPECTED), ids=sorted(EXPECTED))
+def test_corpus_plan(name):
+    """`--plan` on every corpus file (issue 38): the same one line where the file is refused, else the plan and its
+    estimate, and where the run takes over 2 s its measured time within 3× of that estimate (either way)."""
+    path = CORPUS / name
+    expect = EXPECTED[name]
+    rc, out, err, caught = run(path, "--plan")
+    assert not caught
+    if rc == 2:
+        assert out == "" and err.count("\n") == 1 and err.startswith(f"{path}: ")
+        return
+    cost = json.loads(out)["cost"]
+    if cost["refusal"] or cost["estimated_s"] > 10:          # refused up front by the run (slow_*)
+        rc, out, err, _ = run(path, *expect.get("args", ["--timeout", TIMEOUT]))
+        assert rc == 2 and ("refused" in err or "stopped after" in err)
+        return
+    rc, out, err, _ = run(path, *expect.get("args", ["--timeout", TIMEOUT]))
+    if rc == 0:
+        measured = json.loads(out)["timings"]["total"]
+        if measured > 2.0:
+            assert 1 / 3 <= measured / cost["estimated_s"] <= 3, (measured, cost["estimated_s"])
+
+
 def _seed_dicts() -> list:
     seeds = [json.loads(p.read_text(encoding="utf-8")) for p in sorted(CORPUS.glob("ok_*.json"))]
     seeds += [tomllib.loads(p.read_text()) for p in sorted((ROOT / "presets").glob("*.toml"))]

@@ -24,16 +24,17 @@ __all__ = ["FORMATS", "STATE_CODES", "VERDICT_CODES", "Frame", "export", "frame_
 
 
 def frame_of(scene: Scene, *, scan=None, modes: int = 0, time: float = 0.0, extra: dict | None = None,
-             orientation=None) -> Frame:
+             orientation=None, analysis: dict | None = None) -> Frame:
     """One frame's fields: the scene's own, the scan folder's verdicts (`scan`: a granstab scan output of this
     packing), the `modes` lowest consistent modes of the whole packing, `extra` per-particle arrays (N,) and the
-    particles' `orientation` where the input gives it ((N, 4) unit quaternions w, x, y, z: `io.Loaded.orientation`)."""
+    particles' `orientation` where the input gives it ((N, 4) unit quaternions w, x, y, z: `io.Loaded.orientation`);
+    `analysis`: the options of the modes' analysis (export.modes.modes_options)."""
     frame = scene_frame(scene, time)
     if orientation is not None:
         frame.particles["orientation"] = quaternion_xyzw(orientation, scene)
     if scan is not None:
         add_scan(frame, scene, scan)
-    add_modes(frame, scene, modes)
+    add_modes(frame, scene, modes, analysis=analysis)
     for name, values in (extra or {}).items():
         if len(values) != scene.n_particles:
             raise SceneError(f"{scene.source}: {name}: {len(values)} values for {scene.n_particles} particles")

@@ -54,16 +54,24 @@ def contact_slip(scene: Scene, U: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.divide(S, kalpha, out=np.zeros(scene.n_contacts), where=slides)
 
 
-def add_modes(frame: Frame, scene: Scene, count: int, result=None) -> None:
+def modes_options(count: int, sample_branches: int | None = None, max_sliding: int = 16) -> dict:
+    """The options of the whole-packing analysis behind --modes (its plan, solve/plan.py, and its run): modes only,
+    in the L metric, the lowest max(6, count) on the sparse path; beyond max_sliding a sample of the branches."""
+    return {"metric": "L", "method": "auto", "k": max(6, count), "attribution": False,
+            "sample_branches": sample_branches, "max_sliding": max_sliding}
+
+
+def add_modes(frame: Frame, scene: Scene, count: int, result=None, analysis: dict | None = None) -> None:
     """mode{j}_displacement, mode{j}_rotation (per particle, unit motion U = D Ũ, `Analysis.motion`), mode{j}_branch
     and mode{j}_slip (per contact), mode{j}_eigenvalue and its error bound mode{j}_accuracy (info), j = 1 … count,
-    lowest first, in the L metric; modes_seconds: what the whole-packing analysis cost."""
+    lowest first, in the L metric; modes_seconds: what the whole-packing analysis cost. `analysis`: its options
+    (default modes_options(count))."""
     if count < 1:
         return
     if count > scene.n_dof:
         raise SceneError(f"{scene.source}: --modes {count}: more than the packing's {scene.n_dof} dofs")
     start = time.perf_counter()
-    result = result or analyze(scene, metric="L", method="auto", k=max(6, count), attribution=False)   # modes only
+    result = result or analyze(scene, **(analysis or modes_options(count)))
     d = scene.dim
     frame.info["modes_metric"] = f"{result.metric.name} (eigenvalues in {result.metric.units})"
     frame.info["modes_seconds"] = time.perf_counter() - start

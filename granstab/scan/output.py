@@ -16,6 +16,7 @@ import numpy as np
 from ..io import load_scene
 from ..io.scenes import save_scene
 from ..model.scene import Scene, SceneError
+from . import resume
 from .clusters import particle_shares
 from .rows import ParticleRow, Row, concat_rows, schema
 
@@ -27,7 +28,7 @@ class ScanOutput:
     """The scan directory: packing.npz, options.json (checked on resume), parts/ (streamed rows), the final tables.
     The parts are kept in memory too (`tables`), so that `finish` does not read them back."""
 
-    def __init__(self, out_dir, fmt: str, options: dict, scene: Scene):
+    def __init__(self, out_dir, fmt: str, options: dict, scene: Scene, inputs=None, overwrite: bool = False):
         if fmt not in FORMATS:
             raise SceneError(f"--format: one of {', '.join(FORMATS)}, got {fmt!r}")
         self.path, self.fmt = Path(out_dir), fmt
@@ -35,7 +36,8 @@ class ScanOutput:
         self.parts.mkdir(parents=True, exist_ok=True)
         stated = {**options, "source": scene.source, "packing": PACKING, "format": fmt}
         # the packing before options.json: a scan folder has its packing
-        hold_options(self.path, stated, "scan", first=lambda: _save_packing(scene, self.path / PACKING))
+        hold_options(self.path, stated, "scan", first=lambda: _save_packing(scene, self.path / PACKING),
+                     inputs=inputs, overwrite=overwrite)
         self.options = stated
         self.tables = [_feather().read_table(f) for f in sorted(self.parts.glob("*.arrow"))]   # an interrupted scan's
 
@@ -77,19 +79,17 @@ class ScanOutput:
         return summary
 
 
-def hold_options(folder: Path, stated: dict, what: str, first=None) -> None:
-    """A resumable folder's options.json (scan, track): written when new (after `first()`, what must precede it);
-    a folder holding a `what` with other options is a one-line error, so that a resume never mixes two runs."""
-    saved = folder / "options.json"
-    if saved.exists():
-        before = json.loads(saved.read_text(encoding="utf-8"))
-        if before != stated:
-            raise SceneError(f"{folder}: holds a {what} with other options ({before}); resume with the same options "
-                             "or choose another --out")
+def hold_options(folder: Path, stated: dict, what: str, first=None, inputs=None, overwrite: bool = False) -> None:
+    """A resumable folder's options.json and inputs.json (scan, track; resume.py): written when new (after
+    `first()`, what must precede it); a folder holding a `what` with other options or other `inputs` (paths) is a
+    one-line error naming what changed, so that a resume never mixes two runs; `overwrite` starts afresh."""
+    if overwrite:
+        resume.start_afresh(folder)
+    if resume.check(folder, stated, inputs, what):
         return
     if first is not None:
         first()
-    saved.write_text(json.dumps(stated), encoding="utf-8")
+    resume.record(folder, stated, inputs)
 
 
 def mechanism_counts(clusters) -> dict:

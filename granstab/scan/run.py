@@ -272,7 +272,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          boundary: str = DEFAULT_BOUNDARY,
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
-         device: str = "cpu", attribution: bool = True) -> dict:
+         device: str = "cpu", attribution: bool = True, inputs=None, overwrite: bool = False) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -302,6 +302,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     attribution : bool
         Every unstable cluster's attribution (mechanism, work_parts, rim_share and the two controls, batched:
         mechanics/attribution.py); False leaves those columns empty (the overhead: BENCHMARKS.md).
+    inputs, overwrite : paths or None, bool
+        The files the scene was read from: their sizes, times and content hashes are recorded (inputs.json), and a
+        resume with changed ones is refused (scan/resume.py); overwrite: start afresh in a folder that holds a scan.
 
     Returns
     -------
@@ -317,7 +320,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
                "boundary": boundary, "attribution": bool(attribution)}
     device = backend(device).name                                   # a missing GPU fails here, in one line
-    out = ScanOutput(out_dir, fmt, options, scene)
+    out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
     chosen = select_centers(scene, centers)
     todo = chosen[~np.isin(chosen, out.done_centers())]

@@ -28,6 +28,7 @@ import math
 import signal
 import time
 from contextlib import contextmanager
+from functools import cache
 
 import numpy as np
 
@@ -38,6 +39,8 @@ MEASURE_STACK = 4      # matrices timed at once (a few tenths of a second in all
 ASK_SECONDS = 10.0     # without --timeout, the CLI refuses work estimated longer than this (one line, what to do)
 SETUP_BRANCHES = 2.0   # the low-rank path's work once a metric (the reduction, ℍ^i floors, an unstable result's
                        # attribution and its control analysis), in branches' worth: 0.5 s of 0.72 at 879 dofs
+REFERENCE_PROBE = 0.0056  # CPU seconds per matrix of the low-rank probe at MEASURE_DIM on the calibration machine
+                          # (2026-11-29, AMD EPYC, one thread; 0.0053-0.0060 in three runs)
 TRIVIAL_WORK = 2e7     # metrics · branches · n³ below this is certainly under a second: nothing is measured
 
 
@@ -50,10 +53,17 @@ def branch_seconds(n: int, stack: int = MEASURE_STACK, lowrank: bool = False) ->
     branch paths run one thread a core), in CPU time: the time on this machine's cores when they are free, so that
     what is refused does not depend on the load of the moment (a loaded machine takes longer; the heartbeat says
     so, and --timeout's deadline stops it). Full path (dense.py): eigh + eig + SVD and four products of a stack of
-    random n×n matrices; low-rank path (lowrank.py): eigh, the Gram matrix's eigvalsh and three products."""
+    random n×n matrices; low-rank path (lowrank.py): eigh, the Gram matrix's eigvalsh and three products. Measured
+    once a process for each size (`_probe`), scaled beyond MEASURE_DIM."""
+    m = max(1, min(n, MEASURE_DIM))
+    return _probe(m, stack, lowrank) * scaled(n, m)
+
+
+@cache
+def _probe(m: int, stack: int, lowrank: bool) -> float:
+    """`branch_seconds` of m×m matrices, timed (CPU seconds per matrix)."""
     from .threads import blas_threads
 
-    m = max(1, min(n, MEASURE_DIM))
     rng = np.random.default_rng(0)
     A = rng.standard_normal((stack, m, m))
     S = A + np.swapaxes(A, 1, 2)
@@ -68,8 +78,13 @@ def branch_seconds(n: int, stack: int = MEASURE_STACK, lowrank: bool = False) ->
             np.linalg.svd(A, compute_uv=False)
         for _ in range(3 if lowrank else 4):                # projections, residuals, Gram matrix, signs
             A @ S
-        per = (time.thread_time() - start) / stack
-    return per * scaled(n, m)
+        return (time.thread_time() - start) / stack
+
+
+def speed() -> float:
+    """This machine's time for the probe's low-rank kernels at MEASURE_DIM over the calibration machine's
+    (REFERENCE_PROBE): the factor by which costs calibrated there (the sparse path's) are scaled here."""
+    return _probe(MEASURE_DIM, MEASURE_STACK, True) / REFERENCE_PROBE
 
 
 def scaled(n: int, m: int) -> float:
@@ -93,21 +108,44 @@ def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = Fa
 
 #: the sparse path (sparse.py, ritz.py: one factorisation and block shift-invert of the elastic matrix per metric,
 #: then every branch as a Ritz update with its own checks), wall seconds on 2 free cores of the calibration machine
-#: (2026-11-26, AMD EPYC; the sparse path's kernels are not timed here, unlike the dense ones): a metric's set-up
-#: ∝ n (periodic packings of 3·10⁴ and 3·10⁵ dofs, 4 branches, since the solver's speed-up of issue 24: 2.0 s and
-#: 17.4-18.8 s measured at a load of 1-1.3, 2.3 s and 19.2 s estimated; before it, 2.6 s and 23 s) and
-#: a branch's update a fixed cost plus ∝ n (a 3,072-dof random packing, 10 sliding contacts, 1,024 branches: metric L
-#: 51 s, its family of 3 metrics 386 s measured; 115 and 344 s estimated)
+#: (2026-11-26, AMD EPYC), scaled to this machine by `speed()`: a metric's set-up ∝ n (periodic packings of 3·10⁴
+#: and 3·10⁵ dofs, 4 branches, since the solver's speed-up of issue 24: 2.0 s and 17.4-18.8 s measured at a load
+#: of 1-1.3, 2.3 s and 19.2 s estimated) and a branch's update a fixed cost plus ∝ n (a 3,072-dof random packing,
+#: 10 sliding contacts, 1,024 branches: metric L 51 s, its family of 3 metrics 386 s measured; 115 and 344 s
+#: estimated). Many sliding contacts Ms (issue 38: a 1,400-disk frame, 10 sampled branches, 1.37 s estimated,
+#: 47 s measured) cost more, measured 2026-11-29 on 4,107 dofs: the Ritz basis of w = k + 9 + 4 Ms columns
+#: (ritz.py; Ms = 20, 50, 100: 0.45, 1.1, 9.4 s) takes RITZ_INIT per Ms·w² once (its stacked updates) and, a
+#: branch, RITZ_BRANCH per w³ (eigh of the basis) and RITZ_PER_DOF_WIDTH per n·w (a 1,800-dof packing, 5 sliding,
+#: 32 branches: 0.85 s, 0.025 s a branch, where the fixed cost of shift-invert was counted: 3.9 s); beyond methods.RITZ_BYTES each branch is a
+#: shift-invert with a rank-2Ms Woodbury update (Ms = 200, 500: 2.7, 9.1 s), SHIFT_PER_DOF_SLIDING per n·Ms and
+#: SHIFT_CUBE per Ms³ a branch.
 SPARSE_SETUP_PER_DOF = 6e-5
 SPARSE_BRANCH_FIXED = 0.11
 SPARSE_BRANCH_PER_DOF = 6e-7
+RITZ_INIT = 1.6e-7
+RITZ_BRANCH = 5e-9
+RITZ_PER_DOF_WIDTH = 3e-7
+SHIFT_PER_DOF_SLIDING = 1.3e-7
+SHIFT_CUBE = 4.1e-9
+OTHER_METRIC = 3.5     # a metric of the family other than L costs this many L's (L/10 and 10L scale the rotations
+                       # 100× apart: the shifted solves converge more slowly; measured: 3,072 dofs, 1,024 branches,
+                       # family 386 s against 51 s for L, 3.3×; 4,107 dofs, 6 sliding, family 152 s, about 3.7×)
 
 
-def sparse_estimate(n_dof: int, n_branches: int, n_metrics: int = 1) -> float:
-    """Estimated wall seconds of the sparse path: per metric, the elastic solve's set-up and every branch's Ritz
-    update (calibration above: on the safe side for one metric, within 0.5-3× of the measured)."""
-    per_branch = SPARSE_BRANCH_FIXED + SPARSE_BRANCH_PER_DOF * n_dof
-    return n_metrics * (SPARSE_SETUP_PER_DOF * n_dof + n_branches * per_branch)
+def sparse_estimate(n_dof: int, n_branches: int, n_metrics: int = 1, n_sliding: int = 0, k: int = 6) -> float:
+    """Estimated wall seconds of the sparse path: per metric, the elastic solve's set-up and every branch's update,
+    Ritz (one basis for all branches) or shift-invert by methods.ritz_fits (calibration above, scaled by `speed`);
+    the first metric is L, each other one OTHER_METRIC L's."""
+    from .methods import ritz_fits
+    Ms, kk = n_sliding, k + 1
+    per_metric = SPARSE_SETUP_PER_DOF * n_dof
+    if n_branches > 1 and ritz_fits(Ms, kk):
+        w = kk + 8 + 4 * Ms
+        per_metric += RITZ_INIT * Ms * w * w + n_branches * (RITZ_BRANCH * float(w) ** 3 + RITZ_PER_DOF_WIDTH * n_dof * w)
+    else:
+        per_metric += n_branches * (SPARSE_BRANCH_FIXED + SPARSE_BRANCH_PER_DOF * n_dof
+                                    + SHIFT_PER_DOF_SLIDING * n_dof * Ms + SHIFT_CUBE * float(Ms) ** 3)
+    return (1 + OTHER_METRIC * (n_metrics - 1)) * per_metric * speed()
 
 
 def refuse_over(source: str, seconds: float, timeout: float | None, work: str, alternatives: str = "") -> None:

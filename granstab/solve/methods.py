@@ -167,6 +167,12 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
 RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
 
 
+def ritz_fits(n_sliding: int, kk: int) -> bool:
+    """Whether the branches of Ms = n_sliding contacts are Ritz updates of one elastic solve (SparseMethod._modes;
+    the basis grows by 4 columns and the updates by one width² matrix a contact) within RITZ_BYTES."""
+    return 8 * n_sliding * (kk + 8 + 4 * n_sliding) ** 2 <= RITZ_BYTES
+
+
 class DenseMethod:
     """Every eigenpair of every branch (dense.solve_branches); leaves nothing out. Where lowrank.use_lowrank says
     so (many branches, or large ones), or when `device` resolves to a GPU (device.py), the branches are solved as
@@ -332,7 +338,7 @@ class SparseMethod:
         width² matrix a contact), by shift-invert directly, one after the other."""
         from .sparse import lowest_modes
         Ms = spb.A.shape[1]
-        if len(masks) > 1 and 8 * Ms * (kk + 8 + 4 * Ms) ** 2 <= RITZ_BYTES:
+        if len(masks) > 1 and ritz_fits(Ms, kk):
             from .ritz import SparseRitz
             yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)
             return

@@ -12,7 +12,9 @@ scipy. A limit is an upper bound for the blocks nested in it (in the same thread
 call keeps it on one thread even where the call's own `sized(n)` would take every core (before, the explorer's
 one-thread limit was lifted inside every dense analysis of more than SMALL dofs, and on a busy 2-core machine the
 two-thread pool waiting for a core made a 0.3 s analysis 18× slower, where a fair share predicts 3×).
-`cap_process(n)` bounds every block of the process (a server of many small sessions: app/server.py).
+`cap_process(n)` bounds every block of the process (a server of many small sessions: app/server.py). Above SMALL the
+threads are the FREE cores (`free_cores`: the cores less the other runnable threads at this process's priority,
+read from /proc when the block starts), so that a busy machine gets one thread, not two that wait for each other (issue 38: 26× slower).
 
 The rule for results: the thread count may change round-off, never what is reported. Above SMALL dofs the full
 path keeps every core (the speed of 900 × 900 branches), and every discrete output is taken from quantities whose
@@ -24,9 +26,11 @@ tests/test_reproduce.py the paper's tables with 1 and 2 threads, two OpenBLAS ke
 from __future__ import annotations
 
 import os
+import time
 from contextlib import contextmanager, nullcontext
 from contextvars import ContextVar
 from functools import cache
+from pathlib import Path
 
 try:
     from threadpoolctl import ThreadpoolController
@@ -54,9 +58,65 @@ def bound() -> int | None:
     return min(limits) if limits else None
 
 
+RUNNABLE_SECONDS = 2.0   # `runnable` is read at most this often (a scan of /proc: ~15 ms for 600 threads)
+_runnable_cache = [-1.0, 0.0]
+
+
+def runnable() -> float:
+    """Threads of other processes running or waiting for a core now at this process's priority or above (nice <= its
+    own, from /proc/*/task/*/stat; re-read every RUNNABLE_SECONDS): what takes a core from this one. Niced
+    background work is left out, since it yields (the 1-minute load average counts it: a shared machine at load
+    10 of niced work ran an analysis at full speed, and an estimate scaled by that load was 5× too high). Without
+    /proc: the 1-minute load average less this process."""
+    now = time.monotonic()
+    if now - _runnable_cache[0] < RUNNABLE_SECONDS:
+        return _runnable_cache[1]
+    try:
+        count = len(runnable_threads())
+    except OSError:  # pragma: no cover - not Linux
+        try:
+            count = os.getloadavg()[0] - 1
+        except OSError:
+            count = 0.0
+    _runnable_cache[:] = [now, max(float(count), 0.0)]
+    return _runnable_cache[1]
+
+
+def runnable_threads() -> list[int]:
+    """The process ids of the threads in state R with nice <= this process's, outside this process, one entry a
+    thread (/proc; OSError where it is absent)."""
+    if not Path("/proc/self/stat").exists():
+        raise OSError("no /proc")
+    me, mine, out = os.getpid(), os.getpriority(os.PRIO_PROCESS, 0), []
+    for stat in Path("/proc").glob("[0-9]*/task/*/stat"):
+        try:
+            text = stat.read_bytes()
+        except OSError:                              # a thread that ended while the folder was read
+            continue
+        fields = text[text.rfind(b")") + 2:].split()
+        pid = int(stat.parts[2])
+        if fields[0] == b"R" and int(fields[16]) <= mine and pid != me:
+            out.append(pid)
+    return out
+
+
+def free_cores() -> int:
+    """Cores this process may use without waiting for one: its cores less the other runnable processes (rounded
+    down to a whole process), at least 1. Two BLAS threads on a 2-core machine beside two busy processes spin,
+    waiting for each other at every call: a 1.0 s analysis took 26 s there (issue 38), against 2-3 s on one."""
+    return max(1, cores() - int(runnable() + 0.5))
+
+
+def slowdown() -> float:
+    """How much longer CPU-bound work takes now than on free cores: the runnable processes, this one included, over
+    the cores (at least 1): beside two busy processes on 2 cores, 1.5."""
+    return max(1.0, (runnable() + 1) / cores())
+
+
 def for_size(n: int) -> int:
-    """BLAS threads for dense work on n×n matrices: 1 up to SMALL, every core above (at most `bound()`)."""
-    threads = 1 if n <= SMALL else cores()
+    """BLAS threads for dense work on n×n matrices: 1 up to SMALL, every free core above (free_cores: a thread that
+    must wait for a core costs more than it gives), at most `bound()`."""
+    threads = 1 if n <= SMALL else free_cores()
     cap = bound()
     return threads if cap is None else min(threads, cap)
 

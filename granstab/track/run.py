@@ -67,7 +67,8 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
           scan: bool = False, rigidity: bool = False, predict: bool = False, figures: bool = True,
           window: int = 1, d2min_radius: float | None = None, event_quantity: str = "shear_stress",
           event_threshold: float = 0.05, soft_modes: int = 5, rings: int = 1, boundary: str = DEFAULT_BOUNDARY,
-          workers: int | None = None, progress: bool = False, seed: int = 0, **import_options) -> dict:
+          workers: int | None = None, progress: bool = False, seed: int = 0, overwrite: bool = False,
+          **import_options) -> dict:
     """Track a sequence of frames (docs/track.md).
 
     Parameters
@@ -77,7 +78,8 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
         generic tables with a `frame` column, MercuryDPM output.
     out_dir : path
         The folder (granstab/track/__init__.py: CONTRACT); one holding an interrupted run with the same options
-        resumes.
+        and inputs (their sizes and content hashes, scan/resume.py) resumes; other ones are refused in one line
+        unless `overwrite` (start afresh).
     frames : "A:B:STEP", optional
         Positions in the input's frame list (0-based, B excluded); default all.
     whole, scan, rigidity : bool
@@ -121,7 +123,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
             "scan_options": {"rings": rings, "boundary": boundary}}
     stated = {**{k: v for k, v in spec.items() if k != "out"}, "frames": frames, "window": window,
               "d2min_radius": d2min_radius, "event_quantity": event_quantity, "event_threshold": event_threshold}
-    _open(out, stated)
+    _open(out, stated, paths, overwrite)
     spec["source"] = source
     todo = [k for k in positions if not (out / "parts" / f"frame-{k:06d}.json").exists()]
     with Heartbeat(f"track {out_dir}", enabled=not progress) as beat:      # a line a minute without a bar
@@ -144,10 +146,11 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     return _after(out, summary, predict, figures)
 
 
-def _open(out: Path, stated: dict) -> None:
-    """The folder and options.json (a folder with other options: a one-line error, as the scan's)."""
+def _open(out: Path, stated: dict, inputs: list, overwrite: bool) -> None:
+    """The folder, options.json and inputs.json (a folder with other options or inputs: a one-line error, as the
+    scan's; overwrite: start afresh)."""
     (out / "parts").mkdir(parents=True, exist_ok=True)
-    hold_options(out, json.loads(json.dumps(stated, default=str)), "track")
+    hold_options(out, json.loads(json.dumps(stated, default=str)), "track", inputs=inputs, overwrite=overwrite)
 
 
 def run_frames(spec: dict, todo: list, keys: list, workers: int | None, bar) -> dict:

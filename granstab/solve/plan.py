@@ -1,0 +1,213 @@
+"""`plan(scene, **options) -> Plan`: what an analysis will do, decided once (issue 40), and what it will cost
+(issue 38): the method (dense or sparse), the branch path (full, low-rank, sparse), the branches per metric and the
+metrics, what the run leaves out, and the estimated seconds on this machine's free cores.
+
+`analysis.analyze` follows the plan (its method and path come from here, nothing re-derives them); the CLI's
+refusal before work (`Plan.refuse`), `granstab analyze --plan`, `export --modes` and `track --whole` read it.
+
+The estimate is the sum of its parts (`Plan.parts`), each from a cost measured on this machine (budget.py: a timed
+probe of the dense kernels in CPU time) or from the sparse path's calibration (budget.sparse_estimate):
+
+* branches: every branch in every metric on its path; a low-rank branch that cannot be resolved there (a non-rigid
+  zero or repeated eigenvalue: a floppy particle, `floppy`) goes to the full path, and is counted there;
+* robustness: the family's proof over every rotation length (dense, every branch: an eigh a branch and a few
+  at each crossing, ROBUST_EIGH);
+* attribution: an unstable dense result's elastic control (one more branch, one metric), counted whatever the
+  verdict (the verdict is not known before the run: on the safe side);
+* the parts shared by cores: the low-rank branches run on every FREE core (threads.free_cores), and every part
+  takes longer by threads.slowdown() where more processes want a core than there are: a busy machine's estimate
+  follows its load, as the measured time does.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..mechanics.metric import family
+from ..mechanics.robustness import MAX_WORK as ROBUST_MAX_WORK
+from ..model.scene import Scene
+from . import budget
+
+MEASURED = ("estimated_s", "estimate_parts", "workers")   # keys of `cost` that depend on the machine and its load
+ROBUST_EIGH = 8.0        # the robustness proof: eigh-sized solves a branch (the branch's S, the crossings' bordered
+                         # matrices, a complete QR and two products at each interval; measured: a stable 1,200-dof
+                         # packing 0.94 s for 2 branches, 1.2 eigh's worth; the unstable annulus frame 0.6-1.4 s for 1
+                         # branch of 429 dofs, 10-25 eigh's worth: the intervals cannot be known before the run)
+ATTRIBUTION_BRANCHES = 1  # the elastic control: one branch in one metric
+OVERHEAD_S = 0.01        # a metric's work outside the kernels (blocks, projections, verdicts; measured 0.02-0.1 s in
+OVERHEAD_BRANCH_S = 5e-4  # all on the corpus's small scenes, where the kernels' estimate was 0.005-0.05 s) and a
+                          # branch's (its Branch, codes and consistency search in Python: 1,024 3D branches, 3 metrics)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What `analyze` will do with a scene, and its estimated cost (module docstring)."""
+
+    source: str
+    method: str                    # "dense" | "sparse"
+    path: str                      # "full" | "low_rank" | "sparse"
+    n_dof: int                     # the dofs solved (free ones where particles are held)
+    n_sliding: int
+    n_branches: int                # per metric
+    metrics: tuple                 # names, the primary first
+    sampled: bool                  # more sliding contacts than max_sliding: a sample of the branches
+    refusal: str | None            # why the run cannot start (too many branches, none sampled)
+    lowrank: bool
+    uniqueness: bool
+    attribution: bool
+    robustness: bool
+    floppy: bool                   # a particle or the packing with fewer constraints than dofs (full-path branches)
+    left_out: tuple
+    estimated_s: float | None      # None: not estimated (a GPU device)
+    parts: dict = field(default_factory=dict)
+    workers: int = 1
+    one_metric_s: float | None = None   # the primary metric alone (the refusal's alternative to the family)
+
+    def to_dict(self) -> dict:
+        """The `cost` object of `granstab analyze --json --plan` (and the planned part of every run's `cost`)."""
+        return {"method": self.method, "path": self.path, "n_dof": self.n_dof, "n_sliding": self.n_sliding,
+                "branches_per_metric": self.n_branches, "metrics": len(self.metrics),
+                "metric_names": list(self.metrics), "sampled": self.sampled,
+                "uniqueness": self.uniqueness, "robustness": self.robustness, "attribution": self.attribution,
+                "floppy": self.floppy, "left_out": list(self.left_out), "workers": self.workers,
+                "estimated_s": self.estimated_s, "estimate_parts": dict(self.parts), "refusal": self.refusal}
+
+    def lines(self) -> list[str]:
+        """`granstab analyze --plan`: the plan in a few lines, then the estimate."""
+        out = [f"{self.source}: plan, nothing run",
+               f"method {self.method}, {self.path.replace('_', '-')} path, {self.n_dof} dofs, {self.n_sliding} "
+               f"potentially sliding contact(s)",
+               f"branches: {self.n_branches} per metric ({'a sample' if self.sampled else 'all'}) × "
+               f"{len(self.metrics)} metric(s): {', '.join(self.metrics)}"]
+        out += [f"left out: {what}" for what in self.left_out] or ["left out: nothing"]
+        if self.refusal:
+            out.append(f"refused: {self.refusal}")
+        if self.estimated_s is None:
+            out.append("estimate: none on a GPU device (the probe times this machine's CPU)")
+        else:
+            shown = ", ".join(f"{k} {v:.3g} s" for k, v in self.parts.items() if v > 0)
+            out.append(f"estimate: {self.estimated_s:.3g} s on {self.workers} free core(s)"
+                       + (f" ({shown})" if shown else ""))
+        return out
+
+    def refuse(self, seconds_left: float | None) -> None:
+        """Raise budget.OverBudget (one line, what to do) when the run cannot start or its estimate exceeds the
+        time left (None: budget.ASK_SECONDS, which --timeout lifts)."""
+        if self.refusal:
+            raise budget.OverBudget(self.refusal)
+        if self.estimated_s is None:
+            return
+        one = (f"--metric L alone (about {self.one_metric_s:.3g} s), " if len(self.metrics) > 1
+               else "")
+        other = "--method sparse with a small --k, " if self.method == "dense" else ""
+        path = self.path.replace("_", "-")
+        budget.refuse_over(self.source, self.estimated_s, seconds_left,
+                           f"{self.n_branches} branches × {len(self.metrics)} metric(s) of {self.n_dof} dofs "
+                           f"({path} path)", one + other)
+
+
+def floppy(scene: Scene) -> bool:
+    """Whether some branch surely has a non-rigid zero eigenvalue, so that the low-rank path hands it to the full
+    one (lowrank._special): a particle with fewer contact constraints (d a frictional contact, the sliding ones
+    counted as 1) than its dofs, or a packing with fewer in all than its non-rigid dofs (Maxwell's count)."""
+    d, per = scene.dim, scene.dof_per_particle
+    weight = np.where(scene.at_yield(), 1, d)
+    constraints = np.bincount(np.concatenate([scene.p, scene.q]), np.concatenate([weight, weight]),
+                              minlength=scene.n_particles)
+    held = np.zeros(scene.n_particles, bool) if scene.fixed is None else scene.fixed
+    rigid = 0 if held.any() else d + (1 if d == 2 else 3)
+    if np.any((constraints < per) & ~held):
+        return True
+    return int(weight.sum()) < per * int(np.sum(~held)) - rigid
+
+
+def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
+         sample_branches: int | None = None, method: str = "auto", k: int = 6, device: str = "cpu",
+         lowrank: bool | None = None, uniqueness: bool = True, attribution: bool = True,
+         estimate: bool = True) -> Plan:
+    """The plan of `analyze(scene, **options)` (same options; module docstring); estimate=False skips the estimate
+    (and its probe)."""
+    from .lowrank import use_lowrank
+    from .sparse import DENSE_MAX_DOF
+    n_sliding = int(np.sum(scene.at_yield()))
+    sampled = n_sliding > max_sliding
+    refusal = None
+    if sampled and sample_branches is None:
+        refusal = (f"{scene.source}: {n_sliding} potentially sliding contacts give 2^{n_sliding} branches, more than "
+                   f"--max-sliding {max_sliding} allows: examine a sample (--sample-branches N), raise "
+                   "--max-sliding (with --timeout to bound the time), set state = \"elastic\" for contacts known "
+                   "to stick, or scan local clusters (granstab scan)")
+    n_branches = min(sample_branches + 2, 2 ** n_sliding) if sampled and sample_branches is not None \
+        else 2 ** min(n_sliding, 62)
+    sparse = method == "sparse" or (method == "auto" and scene.n_dof > DENSE_MAX_DOF)
+    n = scene.n_dof if scene.free_dofs is None else len(scene.free_dofs)
+    names = tuple(m.name for m in family(scene, rotation_length)) if metric == "family" else (metric,)
+    names = tuple(sorted(names, key=lambda x: x != "L"))
+    gpu = device != "cpu"
+    if not sparse and lowrank is None:
+        from .device import backend
+        lowrank = use_lowrank(n_branches, n, uniqueness) or backend(device).name == "gpu"
+    lowrank = bool(lowrank) and not sparse
+    path = "sparse" if sparse else "low_rank" if lowrank else "full"
+    fam = metric == "family"
+    p = Plan(source=scene.source, method="sparse" if sparse else "dense", path=path, n_dof=n, n_sliding=n_sliding,
+             n_branches=n_branches, metrics=names, sampled=sampled, refusal=refusal, lowrank=lowrank,
+             uniqueness=uniqueness and not sparse, attribution=attribution and not sparse,
+             robustness=fam and not sparse and not sampled and scene.fixed is None
+             and n_branches * float(n) ** 3 <= ROBUST_MAX_WORK, floppy=lowrank and floppy(scene),
+             left_out=(), estimated_s=None)
+    p = _with_left_out(p, k, fam)
+    if not estimate or gpu or refusal:
+        return p
+    return _estimated(p, k)
+
+
+def _with_left_out(p: Plan, k: int, fam: bool) -> Plan:
+    out = []
+    if p.sampled:
+        skipped = f"{2 ** p.n_sliding - p.n_branches}" if p.n_sliding <= 40 else f"all but {p.n_branches}"
+        out.append(f"{skipped} of the 2^{p.n_sliding} branches (a sample: a proof only of instability)")
+    if p.path == "sparse":
+        out += [f"eigenpairs above the lowest {k} of each branch", "ℍ^i spectra and Type-2 (uniqueness)"]
+        if fam:
+            out.append("the robustness proof over every rotation length (dense path only)")
+        out.append("the attribution of an unstable result (dense path only)")
+    elif p.path == "low_rank":
+        out.append("ℍ^i spectra of the low-rank branches (their nullity is proven)")
+    if p.method == "dense" and not p.uniqueness:
+        out.append("ℍ^i (uniqueness eigenvalues, Type-2)")
+    if fam and p.sampled and p.method == "dense":
+        out.append("the robustness proof over every rotation length (sampled branches)")
+    return replace(p, left_out=tuple(out))
+
+
+def _estimated(p: Plan, k: int) -> Plan:
+    """The plan with its estimate (seconds per part; module docstring)."""
+    from .threads import free_cores, slowdown
+    n, L, metrics = p.n_dof, p.n_branches, len(p.metrics)
+    workers = free_cores()
+    parts = {}
+    if p.path == "sparse":
+        parts["branches"] = budget.sparse_estimate(n, L, metrics, p.n_sliding, k)
+        one = budget.sparse_estimate(n, L, 1, p.n_sliding, k)
+    else:
+        full = (budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=not p.uniqueness)   # no ℍ^i: eigh
+                if not p.lowrank or p.floppy else 0.0)
+        if p.lowrank and not p.floppy:
+            per = budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=True)
+            parts["branches"] = metrics * per * (L / workers + budget.SETUP_BRANCHES)
+        else:                       # every branch on the full path (a floppy packing: the low-rank path hands it on)
+            parts["branches"] = metrics * L * full / (workers if p.lowrank else 1)
+        one = parts["branches"] / metrics
+        eigh = budget.branch_seconds(n, 1, lowrank=True) if p.robustness or p.attribution else 0.0
+        if p.robustness:
+            parts["robustness"] = ROBUST_EIGH * L * eigh
+        if p.attribution:
+            parts["attribution"] = ATTRIBUTION_BRANCHES * (full if full else eigh * (1 + budget.SETUP_BRANCHES))
+    parts["overhead"] = metrics * (OVERHEAD_S + OVERHEAD_BRANCH_S * L)
+    slow = slowdown()
+    parts = {key: float(v) * slow for key, v in parts.items()}
+    one *= slow
+    return replace(p, estimated_s=sum(parts.values()), parts=parts, workers=workers,
+                    one_metric_s=float(one + parts.get("attribution", 0.0)))

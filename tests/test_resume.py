@@ -1,0 +1,95 @@
+"""A resume knows its inputs (issue 38): `track` and `scan` into a folder that holds a run record each input's size,
+modification time and content hash with the options; a changed input or option is a one-line refusal naming the
+file (or the option, with both values, only what differs) and saying how to start afresh (--overwrite)."""
+import json
+import os
+
+import numpy as np
+from test_track import write_sequence
+
+import granstab
+from granstab.cli import main
+from granstab.model.packings import lattice
+from granstab.scan.resume import changed_options, fingerprint
+
+
+def double_forces(path):
+    """contacts.csv with every force doubled (same columns, other bytes)."""
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    rows[:, 3:] *= 2
+    np.savetxt(path, rows, delimiter=",", header="frame,id1,id2,fx,fy", comments="")
+
+
+def test_track_refuses_a_resume_on_a_changed_input_and_overwrite_starts_afresh(tmp_path, capsys):
+    """The issue's case: every force doubled, the same track command into the same folder printed "3 frames (3
+    already in the folder)" and kept the old pressures; now one line naming the file and --overwrite."""
+    paths = write_sequence(tmp_path)
+    out = tmp_path / "out"
+    args = ["track", *map(str, paths), "--out", str(out), "--mu", "0.5", "--workers", "1", "--no-figures", "--json"]
+    assert main(args) == 0
+    first = json.loads(capsys.readouterr().out)
+    before = pressures(out)
+    assert main(args) == 0                                   # unchanged: a resume that runs nothing
+    assert json.loads(capsys.readouterr().out)["cost"]["resumed"] == 3
+    double_forces(paths[1])
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert captured.out == "" and "\n" not in err
+    assert str(paths[1].resolve()) in err and "changed" in err and "--overwrite" in err
+    assert main([*args, "--overwrite"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["cost"]["resumed"] == 0 and again["cost"]["frames_this_run"] == 3
+    # the pressures follow the doubled forces: twice the first run's (σ is linear in f; round-off of the sums)
+    assert first["frames"] == again["frames"] == 3
+    np.testing.assert_allclose(pressures(out), 2 * before, rtol=1e-12)
+
+
+def pressures(out):
+    import pyarrow.parquet as pq
+    return np.asarray(pq.read_table(out / "frames.parquet").column("pressure"))
+
+
+def test_a_changed_option_names_only_what_differs_with_both_values(tmp_path, capsys):
+    paths = write_sequence(tmp_path)
+    out = tmp_path / "out"
+    base = ["track", *map(str, paths), "--out", str(out), "--workers", "1", "--no-figures"]
+    assert main([*base, "--mu", "0.5"]) == 0
+    capsys.readouterr()
+    assert main([*base, "--mu", "0.3"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "import.mu: 0.5 → 0.3" in err and "--overwrite" in err
+    assert "window" not in err and "event_threshold" not in err          # only what differs, not the whole dict
+    assert changed_options({"a": 1, "b": {"c": 2}}, {"a": 1, "b": {"c": 3}}) == ["b.c: 2 → 3"]
+
+
+def test_the_same_bytes_with_a_new_modification_time_still_resume(tmp_path):
+    """Only the contents decide: touching a file (a copy, a checkout) is not a change."""
+    path = tmp_path / "a.txt"
+    path.write_text("forces")
+    before = fingerprint([path])
+    os.utime(path, (1, 1))
+    after = fingerprint([path])
+    key = str(path.resolve())
+    assert before[key]["mtime"] != after[key]["mtime"] and before[key]["blake2b"] == after[key]["blake2b"]
+    from granstab.scan.resume import changed_input
+    assert changed_input(before, after) is None
+    path.write_text("forcez")                                          # same size, other bytes
+    assert "same size, other contents" in changed_input(before, fingerprint([path]))
+
+
+def test_scan_refuses_a_resume_on_a_changed_input(tmp_path, capsys):
+    scene = lattice(2, size=4, kind="square", n_sliding=2, mu=0.5)
+    path = granstab.save_scene(scene, tmp_path / "packing.json")
+    out = tmp_path / "scan"
+    args = ["scan", str(path), "--out", str(out), "--workers", "1", "--format", "csv", "--centers", "every:4"]
+    assert main(args) == 0
+    capsys.readouterr()
+    data = json.loads(path.read_text())
+    data["title"] = "another packing"                          # any other bytes: the folder cannot tell what matters
+    path.write_text(json.dumps(data))
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and str(path.resolve()) in err and "--overwrite" in err
+    assert main([*args, "--overwrite"]) == 0
+    assert json.loads((out / "summary.json").read_text())["resumed"] == 0
