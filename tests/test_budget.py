@@ -12,7 +12,7 @@ from granstab.io import progress
 from granstab.mechanics.branches import branch_matrices
 from granstab.mechanics.metric import family
 from granstab.model.packings import random_packing
-from granstab.solve import budget, lowrank
+from granstab.solve import budget, lowrank, threads
 
 
 @pytest.fixture(scope="module")
@@ -128,6 +128,7 @@ def test_timeout_stops_the_threaded_low_rank_branches(disks300, monkeypatch):
 
 def test_tiny_timeout_is_one_line_and_a_nonzero_exit(disks300_file, monkeypatch, capsys):
     monkeypatch.setattr(budget, "branch_seconds", lambda n, stack=4, lowrank=False: 0.0)   # not refused up front
+    monkeypatch.setattr(threads, "slowdown", lambda: 1.0)   # nor by the plan's overhead scaled by this machine's load
     assert main(["analyze", str(disks300_file), "--metric", "L", "--json", "--timeout", "0.05"]) == 2
     out, err = capsys.readouterr()
     assert out == "" and len(err.strip().splitlines()) == 1 and "stopped after --timeout 0.05 s" in err
