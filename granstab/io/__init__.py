@@ -17,7 +17,7 @@ from pathlib import Path
 from ..model.errors import SceneError
 from ..model.scene import Scene
 from ..model.tolerances import DEFAULT, Tolerances
-from . import generic, lammps, mercury, rigidlibrary, scenes  # noqa: F401  (each registers its formats)
+from . import generic, lammps, liggghts_superquadric, mercury, rigidlibrary, scenes  # noqa: F401  (each registers its formats)
 from .build import GEOMETRY, OUTSIDE_CONE, Options, build
 from .progress import ReadProgress
 from .registry import Format, Loaded, Request, detect, formats, get, reads_folder, register

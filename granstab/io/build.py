@@ -73,6 +73,8 @@ class Snapshot:
     mass: np.ndarray | None = None       # (N,) per-particle masses the file gives (e.g. LAMMPS `mass`)
     orientation: np.ndarray | None = None  # (N, 4) unit quaternions (w, x, y, z) the file gives (columns.ORIENTATION_NAMES)
     law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
+    shaped: dict | None = None     # shaped grains (not spheres): arm_p, arm_q (M, d) from each centre to the contact
+                                   # point, curvature_p/q (M, d, d), report; optional inertia (N, d, d)
     length_unit: str = "file units"
     frame: object = None
     frames: list | None = None
@@ -131,13 +133,21 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
     e = branch / d[:, None]
     normal = e if snap.normal is None else _unit_normals(snap, pair)
-    geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
+    if snap.shaped is None:
+        geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
+        arm_p, arm_q = geom["rho_p"][:, None] * e, geom["rho_p"][:, None] * e - branch
+        kp, kq = -1.0 / geom["rho_p"], -1.0 / geom["rho_q"]
+        curvature = {"curvature_p": _curvature(kp, normal), "curvature_q": _curvature(kq, normal),
+                     "curvature_sum": _curvature(kp + kq, normal)}          # summed first
+    else:   # the reader's contact points and curvatures (e.g. superquadrics from model/surface.py)
+        arm_p, arm_q = snap.shaped["arm_p"] * scale, snap.shaped["arm_q"] * scale
+        curvature = {key: snap.shaped[key] / scale for key in ("curvature_p", "curvature_q")}
+        geometry_report = snap.shaped["report"]
     law, law_report = _law(snap, opts, len(d))
     force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
     report = {"source": snap.source, "format": snap.format, "read_as": "snapshot", "frame": snap.frame,
               "frames_available": None if snap.frames is None else len(snap.frames)}
-    arm_p = geom["rho_p"][:, None] * e
-    imbalance = _imbalance(snap, arm_p, arm_p - branch)
+    imbalance = _imbalance(snap, arm_p, arm_q)
 
     keep_c, keep_p, selection = _select(snap, x, opts, names)
     cell, why_cut = _cell(snap, opts, scale)
@@ -163,15 +173,13 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     point = unwrapped[snap.p[c]] + arm_p[c]
     arrays = {
         "p": p, "q": q, "point": point, "normal": normal[c],
-        "curvature_p": _curvature(-1.0 / geom["rho_p"][c], normal[c]),
-        "curvature_q": _curvature(-1.0 / geom["rho_q"][c], normal[c]),
-        "curvature_sum": _curvature(-1.0 / geom["rho_p"][c] - 1.0 / geom["rho_q"][c], normal[c]),   # summed first
+        **{key: value[c] for key, value in curvature.items()},
         "force": force[c], "moment": np.zeros((len(c), r)) if snap.moment is None else snap.moment[c],
         "k": law["k"][c], "alpha": law["alpha"][c], "mu": law["mu"][c],
         "rolling": np.zeros((len(c), r, r)), "state": tuple(state[c]),
     }
     title = f"{snap.format} {snap.source}" + ("" if snap.frame is None else f" frame {snap.frame}")
-    mass, inertia, report["masses"] = _masses(snap, opts.density, radius)
+    mass, inertia, report["masses"] = _masses(snap, opts.density, radius, scale)
     if progress is not None:
         progress.stage("checks")
     periodic = {} if cell is None else {"cell": cell, "image": -shifts[c]}
@@ -200,7 +208,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
 
 # ------------------------------------------------------------------------------------------------ checks
 
-def _masses(snap: Snapshot, density: float | None, radius: np.ndarray):
+def _masses(snap: Snapshot, density: float | None, radius: np.ndarray, scale: float = 1.0):
     """(mass (N,), inertia (N, r, r), report line) of solid disks (2D) or spheres (3D); (None, None, None) when
     neither the file's masses nor a density are given. `radius` in scene units."""
     if density is not None and not (np.isfinite(density) and density > 0):
@@ -213,9 +221,14 @@ def _masses(snap: Snapshot, density: float | None, radius: np.ndarray):
         mass, how = np.asarray(snap.mass, float), "the file's masses"
     elif density is not None:
         volume = np.pi * radius**2 if snap.dim == 2 else 4.0 / 3.0 * np.pi * radius**3
-        mass, how = density * volume, f"density {density:g} x {'disk area' if snap.dim == 2 else 'sphere volume'}"
+        shape = "disk area" if snap.dim == 2 else "sphere volume"
+        if snap.shaped is not None and "volume" in snap.shaped:
+            volume, shape = snap.shaped["volume"] * scale**snap.dim, "grain volume"
+        mass, how = density * volume, f"density {density:g} x {shape}"
     else:
         return None, None, None
+    if snap.shaped is not None and "inertia" in snap.shaped:
+        return mass, snap.shaped["inertia"] * mass[:, None, None] * scale**2, how + "; " + snap.shaped["inertia_note"]
     if snap.dim == 2:
         return mass, (0.5 * mass * radius**2).reshape(-1, 1, 1), how + "; solid disks"
     return mass, 0.4 * (mass * radius**2)[:, None, None] * np.eye(3), how + "; solid spheres"

@@ -67,6 +67,18 @@ def is_dump(path: Path) -> bool:
         return False
 
 
+def has_shape_columns(path: Path) -> bool:
+    """A dump whose first ITEM: ATOMS line names shapex and blockiness1: LIGGGHTS superquadrics (their own reader,
+    liggghts_superquadric.py)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            head = [line for _, line in zip(range(12), fh)]
+    except OSError:
+        return False
+    atoms = next((line.split() for line in head if line.startswith("ITEM: ATOMS")), [])
+    return bool(head) and head[0].startswith("ITEM: TIMESTEP") and "shapex" in atoms and "blockiness1" in atoms
+
+
 @dataclass
 class Block:
     """One timestep of a dump: header values and where its rows are (bytes [start, end), from file line
@@ -478,5 +490,6 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
     return names
 
 
-register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths), columns=True,
+register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths) and not any(map(has_shape_columns, paths)),
+                columns=True,
                 read=lambda paths, request, progress: read_lammps(paths, request.frame, request.columns, progress)))
