@@ -51,7 +51,7 @@ def pressed(name, level):
     cl = _cluster(axes, nu, x, R, pairs, n0)
     for _ in range(60):
         n, delta, c = contact_state_converged(cl)
-        for k, (p, q) in enumerate(pairs):       # a chain: moving q along n fixes pair k, then the next
+        for k, (_, q) in enumerate(pairs):       # a chain: moving q along n fixes pair k, then the next
             x[q:] += (delta[k] - level) * n[k]
         cl.n0 = n
         if np.abs(delta - level).max() <= 1e-15:

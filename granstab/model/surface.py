@@ -263,13 +263,13 @@ def contact_curvature(points, centres, rotations, axes, blockiness, normal):
 def _mesh(a, b, c, n1, n2, resolution):
     eta = np.linspace(-np.pi / 2, np.pi / 2, resolution + 1)
     omega = np.linspace(-np.pi, np.pi, 2 * resolution, endpoint=False)
-    E, O = np.meshgrid(eta, omega, indexing="ij")
+    E, Om = np.meshgrid(eta, omega, indexing="ij")
 
     def spow(v, e):
         return np.sign(v) * np.abs(v) ** e
 
     ce = spow(np.cos(E), 2.0 / n1)
-    verts = np.stack([a * ce * spow(np.cos(O), 2.0 / n2), b * ce * spow(np.sin(O), 2.0 / n2),
+    verts = np.stack([a * ce * spow(np.cos(Om), 2.0 / n2), b * ce * spow(np.sin(Om), 2.0 / n2),
                       c * spow(np.sin(E), 2.0 / n1)], axis=-1).reshape(-1, 3)
     m = 2 * resolution
     i, j = np.meshgrid(np.arange(resolution), np.arange(m), indexing="ij")
