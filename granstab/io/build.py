@@ -203,7 +203,8 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     report["warnings"] = import_warnings(report)
     return Loaded(scene=scene, report=report, frames=snap.frames,
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[keep_p],
-                  orientation=None if snap.orientation is None else snap.orientation[keep_p])
+                  orientation=None if snap.orientation is None else snap.orientation[keep_p],
+                  shape=snap.shaped["shape"][keep_p] if snap.shaped and "shape" in snap.shaped else None)
 
 
 # ------------------------------------------------------------------------------------------------ checks

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..model import surface
 from ..model.errors import SceneError
+from ..model.vec import quaternion_matrix
 from .build import Snapshot
 from .columns import particle_orientation, to_indices, unique_ids
 from .lammps import (
@@ -90,8 +91,10 @@ def read_superquadric(paths: list[Path], timestep=None, progress=None) -> Snapsh
         progress.stage("curvature")
     geometry = contact_geometry(point, x, rot, axes, blockiness, p, q, line)
     law, notes = contact_law(script, radius[p], radius[q], np.zeros(len(p)))
-    gravity, wall_flags, wall_note = _external(script, x, rot, axes, blockiness, radius, mass)
-    geometry.update(_inertia(rot, axes, blockiness))
+    shape = np.concatenate([axes, blockiness], axis=1)
+    groups = shape_groups(shape)
+    gravity, wall_flags, wall_note = _external(script, x, rot, groups, radius, mass)
+    geometry.update(_inertia(rot, groups), shape=shape)
     return Snapshot(
         source=f"{apath} + {cpath}", format="liggghts-superquadric", dim=3, ids=ids, x=x, radius=radius, mass=mass,
         orientation=quat, p=p, q=q, force=force, normal=geometry.pop("normal"), law=law, frame=int(step),
@@ -108,21 +111,18 @@ def contact_geometry(point, x, rot, axes, blockiness, p, q, line) -> dict:
     both = np.concatenate([p, q])
     pts = np.concatenate([point, point])
     try:
-        s, nu_b, dist = surface.foot_points(np.einsum("mji,mj->mi", rot[both], pts - x[both]), axes[both],
-                                            blockiness[both])
+        V, nu, depth = surface.parallel_curvature(pts, x[both], rot[both], axes[both], blockiness[both])
     except RuntimeError as exc:
         raise SceneError(f"{line(0)}: contactPoint: {exc}") from None
     M = len(p)
-    nu = np.einsum("mij,mj->mi", rot[both], nu_b)
     normal = nu[:M] - nu[M:]
     normal /= np.linalg.norm(normal, axis=1)[:, None]
-    outside = np.flatnonzero(dist > 0)
+    outside = np.flatnonzero(depth < 0)
     if outside.size:
         c = outside[0] % M
         raise SceneError(f"{line(c)}: contactPoint: outside grain {'id1' if outside[0] < M else 'id2'} by "
-                         f"{dist[outside[0]]:.6g} (LIGGGHTS's contact point lies inside both grains)")
-    K, _, depth = surface.contact_curvature(pts, x[both], rot[both], axes[both], blockiness[both],
-                                            np.concatenate([normal, normal]))
+                         f"{-depth[outside[0]]:.6g} (LIGGGHTS's contact point lies inside both grains)")
+    K = surface.tangent_curvature(V, np.concatenate([normal, normal]))
     angle = np.degrees(np.arccos(np.clip(-np.sum(nu[:M] * nu[M:], axis=1), -1.0, 1.0)))
     size = axes[both].max(axis=1)
     report = {"rule": "contactPoint as dumped; normal (ν_p − ν_q)/|ν_p − ν_q| at the foot points; curvature of "
@@ -168,16 +168,7 @@ def _atoms(path: Path, block: Block, progress=None):
                              f"{' '.join(f'{v:g}' for v in values[r])}")
     quat = particle_orientation({QUAT[k]: col[k] for k in QUAT}, 3, row, f"{path}: timestep {block.timestep}")
     x = np.stack([col["x"], col["y"], col["z"]], axis=1)
-    return ids, x, rotations(quat), axes, blockiness, col["radius"], col.get("mass"), quat
-
-
-def rotations(quat: np.ndarray) -> np.ndarray:
-    """Body → world rotation matrices (N, 3, 3) of unit quaternions (w, x, y, z) (LAMMPS's quat_to_mat)."""
-    w, x, y, z = quat.T
-    return np.stack([
-        np.stack([w*w + x*x - y*y - z*z, 2*(x*y - w*z), 2*(x*z + w*y)], -1),
-        np.stack([2*(x*y + w*z), w*w - x*x + y*y - z*z, 2*(y*z - w*x)], -1),
-        np.stack([2*(x*z - w*y), 2*(y*z + w*x), w*w - x*x - y*y + z*z], -1)], -2)
+    return ids, x, quaternion_matrix(quat), axes, blockiness, col["radius"], col.get("mass"), quat
 
 
 def _contact_names(path: Path, block: Block, script) -> list:
@@ -198,7 +189,7 @@ def _contact_names(path: Path, block: Block, script) -> list:
     return names
 
 
-def _external(script, x, rot, axes, blockiness, radius, mass):
+def _external(script, x, rot, groups, radius, mass):
     """Gravity loads m g (N, 3) from the script's fix gravity (None without), and wall flags from its primitive
     wall/gran planes (the reach of each grain from its shared mesh, within WALL_GAP·radius)."""
     text = Path(script["source"]).read_text(encoding="utf-8", errors="replace") if script else ""
@@ -213,8 +204,8 @@ def _external(script, x, rot, axes, blockiness, radius, mass):
     for axis_name, offset in planes:
         axis = "xyz".index(axis_name)
         reach = np.empty(len(x))
-        for key in np.unique(np.concatenate([axes, blockiness], axis=1), axis=0):
-            same = np.all(np.concatenate([axes, blockiness], axis=1) == key, axis=1)
+        for k, key in enumerate(groups[0]):
+            same = groups[1] == k
             verts, _ = surface.mesh(surface.Superquadric(*key), resolution=24)
             along = np.einsum("nj,vj->nv", rot[same][:, axis, :], verts)      # world coordinate `axis` of each vertex
             reach_lo, reach_hi = along.min(axis=1), along.max(axis=1)
@@ -226,13 +217,24 @@ def _external(script, x, rot, axes, blockiness, radius, mass):
     return gravity, (flags if planes else None), note
 
 
-def _inertia(rot, axes, blockiness) -> dict:
+def shape_groups(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of `keys` (N, k) and each row's index among them: a packing has few distinct shapes, so
+    rows are told apart by one random projection (a fast 1D unique) and checked equal (np.unique's row mode,
+    several times slower, where two shapes would share a projection)."""
+    weights = np.random.default_rng(0).uniform(1.0, 2.0, keys.shape[1])
+    _, first, inverse = np.unique(keys @ weights, return_index=True, return_inverse=True)
+    unique = keys[first]
+    if not np.array_equal(unique[inverse], keys):
+        unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+    return unique, inverse.ravel()
+
+
+def _inertia(rot, groups) -> dict:
     """Volumes (N,) and inertia tensors per unit mass (N, 3, 3), world axes, of uniform solid superquadrics."""
-    keys = np.concatenate([axes, blockiness], axis=1)
-    unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+    unique, inverse = groups
     props = [surface.mass_properties(surface.Superquadric(*key)) for key in unique]
-    volume = np.array([v for v, _ in props])[inverse.ravel()]
-    body = np.array([J for _, J in props])[inverse.ravel()]
+    volume = np.array([v for v, _ in props])[inverse]
+    body = np.array([J for _, J in props])[inverse]
     return {"volume": volume, "inertia": rot @ body @ np.swapaxes(rot, 1, 2),
             "inertia_note": "solid superquadrics (closed form, model/surface.py mass_properties)"}
 
