@@ -7,8 +7,9 @@
 # for USE_SUPERQUADRICS = "ON". We build the serial target (MPI stubs, no VTK); the beta function comes from
 # boost (libboost-dev) as upstream does when the C++ library lacks std::beta.
 #
-# Time: about 40 minutes of CPU on one core of the build machine (make -j2 under nice on a shared 2-core
-# machine took ~25 min wall). Nothing here runs in CI: the dumps it makes are committed under tests/data/.
+# Time: about 25 minutes wall with make -j2 under nice on a shared 2-core machine (measured 2026-11-29; the
+# template-heavy pair_gran_proxy.cpp alone takes several minutes and ~0.7 GB). Nothing here runs in CI: the dumps
+# that run.sh makes are committed under tests/data/liggghts_superquadric/.
 #
 # Usage: sh build.sh [WORKDIR]   -> WORKDIR/liggghts-sq (default WORKDIR=/tmp/liggghts-sq-build)
 # Needs: apt (network to deb.debian.org), g++, make, libboost-dev, xz-utils.

@@ -3,7 +3,7 @@
     dump atoms all custom N atoms.dump id type x y z quat1 quat2 quat3 quat4 shapex shapey shapez \
          blockiness1 blockiness2 radius mass
     compute pg all pair/gran/local id force force_normal force_tangential contactPoint
-    dump contacts all local N contacts.dump c_pg[*]
+    dump contacts all local N contacts.dump c_pg[1] c_pg[2] ... c_pg[15]      (LIGGGHTS 3.8 refuses c_pg[*])
 
 Conventions (docs/formats.md, each checked on examples/liggghts_superquadric's packing, tests/test_superquadric.py):
 - quat1..quat4 are (w, x, y, z): LAMMPS's quat_to_mat, body → world (a grain turned 90° about z by
@@ -49,6 +49,8 @@ from .registry import Format, register
 SHAPE_COLUMNS = ("shapex", "shapey", "shapez", "blockiness1", "blockiness2")
 QUAT = {"quat1": "quatw", "quat2": "quati", "quat3": "quatj", "quat4": "quatk"}
 NORMAL_AGREE_DEG = 1.0   # ν_p and −ν_q further apart than this (degrees) are counted in the report
+OUTSIDE_TOL = 1e-4       # contact points outside a grain by less than this fraction of its size are rounding (a
+                         # default dump prints 6 digits); further out is an error
 WALL_GAP = 0.02          # a grain whose mesh reaches within WALL_GAP·(bounding radius) of a wall plane touches it
                          # (the mesh's chord error at resolution 24 is below 1e-2 of the radius)
 
@@ -117,21 +119,23 @@ def contact_geometry(point, x, rot, axes, blockiness, p, q, line) -> dict:
     M = len(p)
     normal = nu[:M] - nu[M:]
     normal /= np.linalg.norm(normal, axis=1)[:, None]
-    outside = np.flatnonzero(depth < 0)
+    size = axes[both].max(axis=1)
+    outside = np.flatnonzero(depth < -OUTSIDE_TOL * size)
     if outside.size:
         c = outside[0] % M
         raise SceneError(f"{line(c)}: contactPoint: outside grain {'id1' if outside[0] < M else 'id2'} by "
-                         f"{-depth[outside[0]]:.6g} (LIGGGHTS's contact point lies inside both grains)")
+                         f"{-depth[outside[0]]:.6g} (LIGGGHTS's contact point lies inside both grains: wrong "
+                         "quaternion order, shape or frame?)")
     K = surface.tangent_curvature(V, np.concatenate([normal, normal]))
     angle = np.degrees(np.arccos(np.clip(-np.sum(nu[:M] * nu[M:], axis=1), -1.0, 1.0)))
-    size = axes[both].max(axis=1)
     report = {"rule": "contactPoint as dumped; normal (ν_p − ν_q)/|ν_p − ν_q| at the foot points; curvature of "
                       "each grain's parallel surface through the point (model/surface.py)",
               "normals_disagree_deg": {"max": float(angle.max(initial=0.0)), "median": float(np.median(angle))
                                        if M else 0.0, "threshold": NORMAL_AGREE_DEG,
                                        "count": int(np.sum(angle > NORMAL_AGREE_DEG))},
               "depth_over_size": {"max": float((depth / size).max(initial=0.0)),
-                                  "median": float(np.median(depth / size)) if M else 0.0}}
+                                  "median": float(np.median(depth / size)) if M else 0.0,
+                                  "outside_within_rounding": int(np.sum(depth < 0)), "tolerance": OUTSIDE_TOL}}
     return {"normal": normal, "arm_p": point - x[p], "arm_q": point - x[q], "curvature_p": K[:M],
             "curvature_q": K[M:], "report": report}
 
@@ -208,9 +212,8 @@ def _external(script, x, rot, groups, radius, mass):
             same = groups[1] == k
             verts, _ = surface.mesh(surface.Superquadric(*key), resolution=24)
             along = np.einsum("nj,vj->nv", rot[same][:, axis, :], verts)      # world coordinate `axis` of each vertex
-            reach_lo, reach_hi = along.min(axis=1), along.max(axis=1)
-            wall = float(offset)
-            reach[same] = np.minimum(x[same, axis] + reach_lo - wall, wall - x[same, axis] - reach_hi)
+            wall, centre = float(offset), x[same, axis]
+            reach[same] = np.where(centre > wall, centre + along.min(axis=1) - wall, wall - centre - along.max(axis=1))
         flags[reach <= WALL_GAP * radius] = 1
     note = (f"{len(planes)} primitive wall plane(s) in the script: {int(flags.sum())} grains flagged at a wall "
             "(their wall force is not dumped)" if planes else "none in the script")
