@@ -244,3 +244,21 @@ def test_bad_input_is_one_line(tmp_path):
 def test_report_is_json(loaded):
     report = json.loads(json.dumps(loaded.report, default=float))
     assert report["geometry"]["normals_disagree_deg"]["max"] >= 0
+
+
+def test_hertz_law_from_the_overlaps(loaded):
+    """`model hertz tangential history`: k = 1.5 F_n/δ with δ the contact point's depths in both grains; α = 2(1 −
+    ν)/(2 − ν) = 0.8235 for ν = 0.3; μ = coefficientFriction = 0.5. The overlap is LIGGGHTS's own: F_n against
+    Hertz's (4/3) E* √R* δ^(3/2) (E* = Y/(2(1 − ν²)), R from each grain's mean curvature) has a median within 20 %
+    of 1 (LIGGGHTS's effective radius of a superquadric contact is its own; its tangential history adds scatter)."""
+    scene = loaded.scene
+    law = loaded.report["law"]
+    assert law["alpha"]["value"] == pytest.approx(2 * 0.7 / 1.7, rel=1e-15)
+    assert law["mu"]["value"] == 0.5
+    fn = -np.sum(scene.force * scene.normal, axis=1)
+    delta = 1.5 * fn / scene.k
+    radius = [2.0 / -np.trace(K, axis1=1, axis2=2) for K in (scene.curvature_p, scene.curvature_q)]
+    r_eff = radius[0] * radius[1] / (radius[0] + radius[1])
+    e_star = 1e7 / (2 * (1 - 0.3**2))
+    ratio = fn / (4 / 3 * e_star * np.sqrt(r_eff) * delta**1.5)
+    assert 0.8 <= np.median(ratio) <= 1.2

@@ -40,6 +40,7 @@ from .lammps import (
     contact_law,
     has_shape_columns,
     is_dump,
+    liggghts_property,
     read_script,
     scan_dump,
 )
@@ -92,7 +93,8 @@ def read_superquadric(paths: list[Path], timestep=None, progress=None) -> Snapsh
     if progress is not None:
         progress.stage("curvature")
     geometry = contact_geometry(point, x, rot, axes, blockiness, p, q, line)
-    law, notes = contact_law(script, radius[p], radius[q], np.zeros(len(p)))
+    law, notes = hertz_law(script, force, geometry) if _model(script) == "hertz" else \
+        contact_law(script, radius[p], radius[q], np.zeros(len(p)))
     shape = np.concatenate([axes, blockiness], axis=1)
     groups = shape_groups(shape)
     gravity, wall_flags, wall_note = _external(script, x, rot, groups, radius, mass)
@@ -137,7 +139,37 @@ def contact_geometry(point, x, rot, axes, blockiness, p, q, line) -> dict:
                                   "median": float(np.median(depth / size)) if M else 0.0,
                                   "outside_within_rounding": int(np.sum(depth < 0)), "tolerance": OUTSIDE_TOL}}
     return {"normal": normal, "arm_p": point - x[p], "arm_q": point - x[q], "curvature_p": K[:M],
-            "curvature_q": K[M:], "report": report}
+            "curvature_q": K[M:], "depth_p": depth[:M], "depth_q": depth[M:], "report": report}
+
+
+def _model(script) -> str | None:
+    words = (script or {}).get("pair") or []
+    return words[words.index("model") + 1] if "model" in words[:-1] else None
+
+
+def hertz_law(script: dict, force, geometry) -> tuple[dict, list]:
+    """LIGGGHTS `pair_style gran model hertz tangential history`: F_n = (4/3) E* √R* δ^(3/2), so the tangent
+    stiffness k = dF_n/dδ = 1.5 F_n/δ per contact, δ the overlap (the contact point's depths in both grains; no
+    effective radius needed); k_t/k = 8G*/(2E*) = 2(1 − ν)/(2 − ν) (one material); μ = coefficientFriction."""
+    words = script["pair"]
+    name = Path(script["source"]).name
+    line = f"{name} line {script['pair_line']} (gran model hertz)"
+    if words[words.index("tangential") + 1:words.index("tangential") + 2] != ["history"] if "tangential" in words \
+            else True:
+        return {}, [f"{line}: only tangential history is converted: give --k --alpha --mu"]
+    nu, mu = liggghts_property(script, "poissonsRatio"), liggghts_property(script, "coefficientFriction")
+    for value in (nu, mu):
+        if isinstance(value, str):
+            return {}, [f"{line}: {value}: give --k --alpha --mu"]
+    fn = -np.sum(force * geometry["normal"], axis=1)
+    delta = geometry["depth_p"] + geometry["depth_q"]
+    k = np.where((fn > 0) & (delta > 0), 1.5 * fn / np.where(delta > 0, delta, 1.0), np.nan)
+    unloaded = ~np.isfinite(k)
+    k[unloaded] = np.nanmedian(k) if np.any(~unloaded) else 1.0
+    notes = [f"{int(unloaded.sum())} contact(s) without compression or overlap: k = the median of the others"] \
+        if unloaded.any() else []
+    return {"k": (k, f"{line}: Hertz tangent stiffness 1.5 F_n/δ, δ = the contact point's depths in both grains"),
+            "alpha": (2 * (1 - nu[0]) / (2 - nu[0]), f"{nu[1]}: 2(1 − ν)/(2 − ν)"), "mu": mu}, notes
 
 
 def _block(path: Path, blocks: list[Block], step) -> Block:
