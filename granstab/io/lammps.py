@@ -382,13 +382,13 @@ def _is_number(text: str) -> bool:
 
 # ------------------------------------------------------------------------------------------------ reading
 
-def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, progress=None) -> Snapshot:
-    """The snapshot of one timestep; `progress`: a progress.ReadProgress (bytes scanned, then the rows parsed)."""
-    update = None if progress is None else progress.update
+def dump_pair(paths: list[Path], update, engine: str):
+    """The input script (read, or None) and the (path, timestep blocks) of the one per-atom dump and the one local
+    dump among `paths`; one-line errors otherwise."""
     dumps = [p for p in paths if is_dump(p)]
     scripts = [p for p in paths if p not in dumps]
     if len(scripts) > 1:
-        raise SceneError(f"{scripts[1]}: not a LAMMPS dump, and {scripts[0].name} is already the input script")
+        raise SceneError(f"{scripts[1]}: not a {engine} dump, and {scripts[0].name} is already the input script")
     script = read_script(scripts[0]) if scripts else None
     indexed = [(p, scan_dump(p, update)) for p in dumps]
     atoms = [(p, b) for p, b in indexed if b[0].kind == "ATOMS"]
@@ -396,7 +396,13 @@ def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, pr
     if len(atoms) != 1 or len(local) != 1:
         raise SceneError(f"{paths[0]}: need one per-atom dump (ITEM: ATOMS) and one local dump (ITEM: ENTRIES), "
                          f"got {len(atoms)} and {len(local)}")
-    (apath, ablocks), (cpath, cblocks) = atoms[0], local[0]
+    return script, atoms[0], local[0]
+
+
+def read_lammps(paths: list[Path], timestep=None, columns: str | None = None, progress=None) -> Snapshot:
+    """The snapshot of one timestep; `progress`: a progress.ReadProgress (bytes scanned, then the rows parsed)."""
+    update = None if progress is None else progress.update
+    script, (apath, ablocks), (cpath, cblocks) = dump_pair(paths, update, "LAMMPS")
     a_steps = [b.timestep for b in ablocks]
     c_steps = [b.timestep for b in cblocks]
     step = a_steps[-1] if timestep is None else timestep

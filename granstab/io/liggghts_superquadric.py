@@ -38,11 +38,9 @@ from .lammps import (
     Block,
     compute_columns,
     contact_law,
+    dump_pair,
     has_shape_columns,
-    is_dump,
     liggghts_property,
-    read_script,
-    scan_dump,
 )
 from .lines import read_window
 from .registry import Format, register
@@ -59,18 +57,7 @@ WALL_GAP = 0.02          # a grain whose mesh reaches within WALL_GAP·(bounding
 def read_superquadric(paths: list[Path], timestep=None, progress=None) -> Snapshot:
     """The snapshot of one timestep, with each contact's arm, normal and curvatures from the shape kernel."""
     update = None if progress is None else progress.update
-    dumps = [p for p in paths if is_dump(p)]
-    scripts = [p for p in paths if p not in dumps]
-    if len(scripts) > 1:
-        raise SceneError(f"{scripts[1]}: not a LIGGGHTS dump, and {scripts[0].name} is already the input script")
-    script = read_script(scripts[0]) if scripts else None
-    indexed = [(p, scan_dump(p, update)) for p in dumps]
-    atoms = [(p, b) for p, b in indexed if b[0].kind == "ATOMS"]
-    local = [(p, b) for p, b in indexed if b[0].kind == "ENTRIES"]
-    if len(atoms) != 1 or len(local) != 1:
-        raise SceneError(f"{paths[0]}: need one per-atom dump (ITEM: ATOMS) and one pair/gran/local dump "
-                         f"(ITEM: ENTRIES), got {len(atoms)} and {len(local)}")
-    (apath, ablocks), (cpath, cblocks) = atoms[0], local[0]
+    script, (apath, ablocks), (cpath, cblocks) = dump_pair(paths, update, "LIGGGHTS")
     steps = sorted(set(b.timestep for b in ablocks) & set(b.timestep for b in cblocks))
     step = (steps[-1] if steps else ablocks[-1].timestep) if timestep is None else timestep
     ablock = _block(apath, ablocks, step)
