@@ -81,7 +81,7 @@ def _pow(t, n):
 
 
 def implicit(y, axes, blockiness, order: int = 2):
-    """φ = F^(1/n1) at body points y (M, d), with ∇φ (M, d) and, for order 2, ∇∇φ (M, d, d).
+    """φ = F^(1/n1) at body points y (M, d) (order 0: alone), with ∇φ (M, d) (order 1) and ∇∇φ (M, d, d) (order 2).
 
     axes (M, d), blockiness (M, 2) (broadcast). φ is 1-homogeneous: computed at y/s (s = max |y_i|/a_i, so every
     power is ≤ 1), then ∇φ(y) = ∇φ(y/s) and ∇∇φ(y) = ∇∇φ(y/s)/s. Points at the centre (y = 0) give NaN."""
@@ -101,6 +101,8 @@ def implicit(y, axes, blockiness, order: int = 2):
     u_safe = np.where(u > 0, u, 1.0)
     A = _pow(u, k) + (_pow(t[:, 2], n1) if d == 3 else 0.0)
     phi = _pow(A, 1.0 / n1)
+    if order == 0:
+        return s * phi
     # ∂A/∂y_i (times a_i s, sign restored below), in t
     gA = np.empty((M, d))
     uk1 = np.where(u > 0, _pow(u_safe, k - 1.0), 0.0)
@@ -131,8 +133,10 @@ def shape_operator(grad, hess):
     """W = P ∇∇φ P / |∇φ| (M, d, d) and the outward unit normal ν (M, d): positive on convex surfaces."""
     g = np.linalg.norm(grad, axis=1)
     nu = grad / g[:, None]
-    P = np.eye(grad.shape[1]) - nu[:, :, None] * nu[:, None, :]
-    W = P @ hess @ P / g[:, None, None]
+    Hn = np.einsum("mij,mj->mi", hess, nu)                       # P H P = H − ν(Hν)ᵀ − (Hν)νᵀ + (νᵀHν) ν⊗ν
+    nHn = np.sum(Hn * nu, axis=1)
+    W = (hess - nu[:, :, None] * Hn[:, None, :] - Hn[:, :, None] * nu[:, None, :]
+         + nHn[:, None, None] * nu[:, :, None] * nu[:, None, :]) / g[:, None, None]
     return 0.5 * (W + np.swapaxes(W, 1, 2)), nu
 
 
@@ -152,7 +156,16 @@ def foot_points(y, axes, blockiness):
     nb = np.broadcast_to(np.asarray(blockiness, float), (M, 2))
     L = axes.max(axis=1)
     yn, an = y / L[:, None], axes / L[:, None]          # unit body size: the iteration is scale-free
-    phi, _ = implicit(yn, an, nb, order=1)
+    s = _foot(yn, an, nb)
+    _, g = implicit(s, an, nb, order=1)
+    nu = g / np.linalg.norm(g, axis=1)[:, None]
+    return s * L[:, None], nu, np.sum((yn - s) * nu, axis=1) * L
+
+
+def _foot(yn, an, nb):
+    """`foot_points`' nearest surface points (M, d) in units of the body size (module docstring)."""
+    d = yn.shape[1]
+    phi = implicit(yn, an, nb, order=0)
     s = _descend(yn, yn / phi[:, None], an, nb)
     deep = np.flatnonzero((phi < 1) & (np.linalg.norm(s - yn, axis=1) > DEEP * an.min(axis=1)))
     if deep.size:
@@ -161,14 +174,12 @@ def foot_points(y, axes, blockiness):
             for side in (-1.0, 1.0):
                 start = yn[deep].copy()
                 start[:, axis] = side * an[deep, axis]
-                trial = _descend(yn[deep], start / implicit(start, an[deep], nb[deep], order=1)[0][:, None],
+                trial = _descend(yn[deep], start / implicit(start, an[deep], nb[deep], order=0)[:, None],
                                  an[deep], nb[deep])
                 dist = np.linalg.norm(trial - yn[deep], axis=1)
                 better = dist < best
                 s[deep[better]], best[better] = trial[better], dist[better]
-    _, g = implicit(s, an, nb, order=1)
-    nu = g / np.linalg.norm(g, axis=1)[:, None]
-    return s * L[:, None], nu, np.sum((yn - s) * nu, axis=1) * L
+    return s
 
 
 def _descend(y, s, axes, nb):
@@ -195,7 +206,7 @@ def _descend(y, s, axes, nb):
         t = np.ones(len(active))
         for _ in range(50):
             trial = sa + np.einsum("mki,mi->mk", T, t[:, None] * step)
-            trial /= implicit(trial, aa, na, order=1)[0][:, None]
+            trial /= implicit(trial, aa, na, order=0)[:, None]
             worse = np.sum((trial - ya) ** 2, axis=1) > D0 + floor
             if not worse.any():
                 break
@@ -239,13 +250,21 @@ def parallel_operator(W, nu, depth):
     on the tangent plane: the parallel surface is degenerate)."""
     M, d = nu.shape
     T = _tangent_basis(nu)
-    Bt = np.eye(d - 1) - depth[:, None, None] * (np.swapaxes(T, 1, 2) @ W @ T)
-    bad = np.flatnonzero(~(_lowest_eigenvalue(0.5 * (Bt + np.swapaxes(Bt, 1, 2))) > 0))
-    B = np.eye(d) - depth[:, None, None] * W + nu[:, :, None] * nu[:, None, :]   # ν⊗ν keeps the normal direction
+    Tt = np.swapaxes(T, 1, 2)
+    Wt = Tt @ W @ T
+    Bt = np.eye(d - 1) - depth[:, None, None] * Wt
+    Bt = 0.5 * (Bt + np.swapaxes(Bt, 1, 2))
+    bad = np.flatnonzero(~(_lowest_eigenvalue(Bt) > 0))
     if bad.size:
         raise ValueError(f"contact {bad[0]}: the depth {depth[bad[0]]:.6g} reaches a radius of curvature "
                          "(the parallel surface is degenerate)")
-    V = W @ np.linalg.inv(B)
+    if d == 3:                                                   # the 2×2 inverse in closed form
+        det = Bt[:, 0, 0] * Bt[:, 1, 1] - Bt[:, 0, 1] * Bt[:, 1, 0]
+        inv = np.stack([np.stack([Bt[:, 1, 1], -Bt[:, 0, 1]], -1), np.stack([-Bt[:, 1, 0], Bt[:, 0, 0]], -1)], -2)
+        inv /= det[:, None, None]
+    else:
+        inv = 1.0 / Bt
+    V = T @ (Wt @ inv) @ Tt
     return 0.5 * (V + np.swapaxes(V, 1, 2))
 
 
@@ -255,12 +274,14 @@ def parallel_curvature(points, centres, rotations, axes, blockiness):
     point is inside the grain). points, centres (M, d); rotations (M, d, d) body → world; axes (M, d); blockiness
     (M, 2)."""
     y = np.einsum("mji,mj->mi", rotations, points - centres)          # Rᵀ (x − c)
-    s, nu_b, dist = foot_points(y, axes, blockiness)
     L = np.max(axes, axis=1)
-    _, g, h = implicit(s / L[:, None], axes / L[:, None], blockiness)
-    W_b, nu_b = shape_operator(g, h / L[:, None, None])
-    V = rotations @ parallel_operator(W_b, nu_b, -dist) @ np.swapaxes(rotations, 1, 2)
-    return V, np.einsum("mij,mj->mi", rotations, nu_b), -dist
+    yn, an = y / L[:, None], axes / L[:, None]
+    s = _foot(yn, an, np.broadcast_to(np.asarray(blockiness, float), (len(y), 2)))
+    _, g, h = implicit(s, an, blockiness)
+    W_b, nu_b = shape_operator(g, h)
+    depth = np.sum((s - yn) * nu_b, axis=1) * L
+    V = rotations @ (parallel_operator(W_b, nu_b, depth / L) / L[:, None, None]) @ np.swapaxes(rotations, 1, 2)
+    return V, np.einsum("mij,mj->mi", rotations, nu_b), depth
 
 
 def tangent_curvature(V, normal):
