@@ -610,7 +610,7 @@ def cmd_export(args) -> int:
             extra = track_fields(args.track, position, loaded.scene.names) if args.track else None
             beat.stage(f"frame {f}: fields and modes" if f is not None else "fields and modes")
             frames.append(export_frame(loaded.scene, scan=args.scan, modes=args.modes, time=f or 0, extra=extra,
-                                       orientation=loaded.orientation,
+                                       orientation=loaded.orientation, shape=loaded.shape,
                                        analysis=modes_options(args.modes, args.sample_branches, args.max_sliding)))
             notes.append((f, loaded.warnings))
     paths = write(frames, args.out, args.format, Path(args.input[0]).stem or "packing")

@@ -100,6 +100,7 @@ class Cluster:
     a_p0: np.ndarray
     a_q0: np.ndarray
     n0: np.ndarray
+    blockiness: np.ndarray | None = None   # (N,) superquadrics with n1 = n2 = ν (3D); None: ellipses/ellipsoids
 
     @property
     def dim(self) -> int:
@@ -110,16 +111,48 @@ class Cluster:
         return 1 if self.dim == 2 else 3
 
 
-def common_normal(d, Sp, Sq, n, pick):
-    """Newton on the sphere for ∇g ∥ n, i.e. Tᵀ(d - S_p n/h_p - S_q n/h_q) = 0, with the exact Riemannian
-    Hessian Tᵀ(∇²g)T - g I at each iterate (re-centred tangent chart), in complex arithmetic."""
-    for _ in range(NEWTON_ITERS):
-        hp, hq = np.sqrt(dot(n, mv(Sp, n))), np.sqrt(dot(n, mv(Sq, n)))
-        Spn, Sqn = mv(Sp, n), mv(Sq, n)
+def ellipsoid_support(S):
+    """n ↦ (h, ∇h, ∇²h) of the support function h(n) = sqrt(nᵀSn)."""
+    def support(n):
+        Sn = mv(S, n)
+        h = np.sqrt(dot(n, Sn))
+        return h, Sn / h[..., None], S / h[..., None, None] - Sn[..., :, None] * Sn[..., None, :] / h[..., None, None] ** 3
+    return support
+
+
+def superquadric_support(R, axes, nu):
+    """n ↦ (h, ∇h, ∇²h) of a superquadric with n1 = n2 = ν, rotation R (body → world): with m = Rᵀn, w_i = (a_i m_i)²
+    and q = ν/(ν − 1), h = (Σ w_i^(q/2))^(1/q) (the dual norm; complex-analytic for m_i ≠ 0)."""
+    q = (nu / (nu - 1.0))[..., None]
+    a2 = axes**2
+
+    def support(n):
+        m = mv(np.swapaxes(R, -1, -2), n)
+        w = a2 * m * m
+        H = np.sum(w ** (q / 2), axis=-1)
+        e = 1.0 / q[..., 0]
+        g = w ** (q / 2 - 1) * a2 * m
+        grad_b = (H ** (e - 1))[..., None] * g
+        hess_b = ((H ** (e - 1))[..., None, None] * (q[..., None] - 1) * _diag(a2 * w ** (q / 2 - 1))
+                  + ((1 - q[..., 0]) * H ** (e - 2))[..., None, None] * g[..., :, None] * g[..., None, :])
+        return H ** e, mv(R, grad_b), R @ hess_b @ np.swapaxes(R, -1, -2)
+    return support
+
+
+def _diag(v):
+    return v[..., :, None] * np.eye(v.shape[-1])
+
+
+def common_normal(d, sup_p, sup_q, n, pick, iters=NEWTON_ITERS):
+    """Newton on the sphere for ∇g ∥ n, g(n) = d·n − h_p(n) − h_q(n) (centrally symmetric bodies, so h_q(−n) = h_q(n)),
+    i.e. Tᵀ(d − ∇h_p − ∇h_q) = 0, with the exact Riemannian Hessian Tᵀ(∇²g)T − g I at each iterate (re-centred
+    tangent chart), in complex arithmetic. sup_p, sup_q: n ↦ (h, ∇h, ∇²h)."""
+    for _ in range(iters):
+        hp, Gp, Hp = sup_p(n)
+        hq, Gq, Hq = sup_q(n)
         g = dot(d, n) - hp - hq
-        grad = d - Spn / hp[..., None] - Sqn / hq[..., None]
-        hess = -(Sp / hp[..., None, None] - Spn[..., :, None] * Spn[..., None, :] / hp[..., None, None] ** 3
-                 + Sq / hq[..., None, None] - Sqn[..., :, None] * Sqn[..., None, :] / hq[..., None, None] ** 3)
+        grad = d - Gp - Gq
+        hess = -(Hp + Hq)
         T = tangent_frame(n, pick)
         Tt = np.swapaxes(T, -1, -2)
         J = Tt @ hess @ T - g[..., None, None] * np.eye(T.shape[-1])
@@ -131,14 +164,17 @@ def common_normal(d, Sp, Sq, n, pick):
 def contact_state(cl: Cluster, x, R):
     """Exact contact geometry for body positions x (…, N, d) and rotations R (…, N, d, d):
     normal n, overlap δ, contact point c (…, M, …)."""
-    A2 = cl.axes**2
-    S = (R * A2[..., None, :]) @ np.swapaxes(R, -1, -2)
-    Sp, Sq = S[..., cl.p, :, :], S[..., cl.q, :, :]
+    if cl.blockiness is None:
+        A2 = cl.axes**2
+        S = (R * A2[..., None, :]) @ np.swapaxes(R, -1, -2)
+        sup_p, sup_q = ellipsoid_support(S[..., cl.p, :, :]), ellipsoid_support(S[..., cl.q, :, :])
+    else:
+        sup_p, sup_q = (superquadric_support(R[..., i, :, :], cl.axes[i], cl.blockiness[i]) for i in (cl.p, cl.q))
     xp, xq = x[..., cl.p, :], x[..., cl.q, :]
     pick = np.broadcast_to(np.argmin(np.abs(cl.n0), axis=-1), xp.shape[:-1])
-    n = common_normal(xq - xp, Sp, Sq, np.broadcast_to(cl.n0, xp.shape).astype(x.dtype), pick)
-    P = xp + mv(Sp, n) / np.sqrt(dot(n, mv(Sp, n)))[..., None]
-    Q = xq - mv(Sq, n) / np.sqrt(dot(n, mv(Sq, n)))[..., None]
+    n = common_normal(xq - xp, sup_p, sup_q, np.broadcast_to(cl.n0, xp.shape).astype(x.dtype), pick)
+    P = xp + sup_p(n)[1]
+    Q = xq - sup_q(n)[1]
     return n, dot(P - Q, n), 0.5 * (P + Q)
 
 

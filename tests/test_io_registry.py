@@ -21,7 +21,7 @@ ARRAYS = ("x", "point", "normal", "curvature_p", "curvature_q", "force", "moment
 
 def test_every_reader_registers_its_formats():
     assert set(formats()) == {"scene-toml", "scene-json", "scene-npz", "rigidlibrary-annulus",
-                              "rigidlibrary-datasim", "lammps", "mercurydpm", "table", "clumps", "liggghts_multisphere", "lammps_polygons"}
+                              "rigidlibrary-datasim", "lammps", "liggghts-superquadric", "mercurydpm", "table", "clumps", "liggghts_multisphere", "lammps_polygons"}
 
 
 @pytest.mark.parametrize("syntax", ["toml", "json", "npz"])

@@ -15,7 +15,7 @@ from pathlib import Path
 from ..model.errors import SceneError
 from ..model.scene import Scene
 from . import dump, xyz
-from .fields import STATE_CODES, VERDICT_CODES, Frame, add_scan, quaternion_xyzw, scene_frame
+from .fields import STATE_CODES, VERDICT_CODES, Frame, add_scan, quaternion_xyzw, scene_frame, shape_fields
 from .modes import add_modes
 
 FORMATS = ("vtp", "xyz", "dump")
@@ -24,14 +24,17 @@ __all__ = ["FORMATS", "STATE_CODES", "VERDICT_CODES", "Frame", "export", "frame_
 
 
 def frame_of(scene: Scene, *, scan=None, modes: int = 0, time: float = 0.0, extra: dict | None = None,
-             orientation=None, analysis: dict | None = None) -> Frame:
+             orientation=None, analysis: dict | None = None, shape=None) -> Frame:
     """One frame's fields: the scene's own, the scan folder's verdicts (`scan`: a granstab scan output of this
     packing), the `modes` lowest consistent modes of the whole packing, `extra` per-particle arrays (N,) and the
-    particles' `orientation` where the input gives it ((N, 4) unit quaternions w, x, y, z: `io.Loaded.orientation`);
+    particles' `orientation` where the input gives it ((N, 4) unit quaternions w, x, y, z: `io.Loaded.orientation`),
+    their superquadric `shape` ((N, 5) a, b, c, n1, n2: `io.Loaded.shape`; fields.shape_fields);
     `analysis`: the options of the modes' analysis (export.modes.modes_options)."""
     frame = scene_frame(scene, time)
     if orientation is not None:
         frame.particles["orientation"] = quaternion_xyzw(orientation, scene)
+    if shape is not None:
+        frame.particles.update(shape_fields(shape, orientation, scene))
     if scan is not None:
         add_scan(frame, scene, scan)
     add_modes(frame, scene, modes, analysis=analysis)

@@ -43,8 +43,10 @@ def box(frame: Frame, where: str) -> str:
     return "ITEM: BOX BOUNDS xy xz yz pp pp pp\n" + "\n".join(rows) + "\n"
 
 
-#: vector fields whose components LAMMPS names itself (OVITO maps these to its Orientation property)
-COMPONENT_NAMES = {"orientation": ["quati", "quatj", "quatk", "quatw"]}
+#: vector fields whose components LAMMPS names itself (OVITO maps these to its Orientation and Aspherical Shape)
+COMPONENT_NAMES = {"orientation": ["quati", "quatj", "quatk", "quatw"], "aspherical_shape": ["shapex", "shapey", "shapez"]}
+#: ... and writes in other units: LAMMPS (since 2020) dumps an ellipsoid's shapex..z as diameters, and OVITO halves them
+COMPONENT_SCALE = {"aspherical_shape": 2.0}
 
 
 def numeric_columns(fields: dict) -> tuple[list[str], np.ndarray]:
@@ -55,7 +57,7 @@ def numeric_columns(fields: dict) -> tuple[list[str], np.ndarray]:
         values = np.asarray(values)
         if values.dtype.kind not in "fiu":
             continue
-        flat = values.reshape(len(values), -1)
+        flat = values.reshape(len(values), -1) * COMPONENT_SCALE.get(name, 1)
         names += ([name] if values.ndim == 1 else
                   COMPONENT_NAMES.get(name, [f"{name}[{i + 1}]" for i in range(flat.shape[1])]))
         fmt = "{:.17g}" if values.dtype.kind == "f" else "{:d}"

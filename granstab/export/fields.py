@@ -13,6 +13,7 @@ import numpy as np
 
 from ..model.errors import SceneError
 from ..model.scene import Scene
+from ..model.vec import quaternion_matrix
 
 #: the contact state codes: below the yield surface (or declared elastic), at yield (the branch decides whether it
 #: slides: Appendix D's ±1), declared sliding
@@ -67,6 +68,21 @@ def quaternion_xyzw(orientation, scene: Scene) -> np.ndarray:
     if q.shape != (scene.n_particles, 4):
         raise SceneError(f"{scene.source}: orientation: shape {q.shape}, expected ({scene.n_particles}, 4)")
     return q[:, [1, 2, 3, 0]]
+
+
+def shape_fields(shape, orientation, scene: Scene) -> dict:
+    """OVITO's and ParaView's shape fields of superquadrics ((N, 5) a, b, c, n1, n2): `aspherical_shape` (N, 3) the
+    semi-axes (OVITO's Aspherical Shape), `superquadric_roundness` (N, 2) = (2/n1, 2/n2) (OVITO's Superquadric
+    Roundness Phi, Theta: 1 round, → 0 blocky) and, with an orientation, `shape_tensor` (N, 9) = R diag(a, b, c) Rᵀ
+    (a symmetric tensor whose eigenvectors are the body axes and eigenvalues the semi-axes: ParaView's Tensor Glyph)."""
+    shape = np.asarray(shape, dtype=float)
+    if shape.shape != (scene.n_particles, 5):
+        raise SceneError(f"{scene.source}: shape: shape {shape.shape}, expected ({scene.n_particles}, 5)")
+    out = {"aspherical_shape": shape[:, :3].copy(), "superquadric_roundness": 2.0 / shape[:, 3:]}
+    if orientation is not None:
+        R = quaternion_matrix(orientation)
+        out["shape_tensor"] = ((R * shape[:, None, :3]) @ np.swapaxes(R, 1, 2)).reshape(-1, 9)
+    return out
 
 
 def contact_state(scene: Scene) -> np.ndarray:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..model.scene import Scene
 from ..model.tolerances import DEFAULT, Tolerances
-from . import clumps, generic, lammps, mercury, multisphere, polygons, rigidlibrary, scenes  # noqa: F401  (each registers its formats)
+from . import clumps, generic, lammps, liggghts_superquadric, mercury, multisphere, polygons, rigidlibrary, scenes  # noqa: F401  (each registers its formats)
 from .build import GEOMETRY, OUTSIDE_CONE
 from .progress import ReadProgress
 from .registry import Format, Loaded, Request, detect, formats, get, register

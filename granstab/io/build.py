@@ -78,6 +78,8 @@ class Snapshot:
     bodies: dict | None = None  # rigid bodies (x: centres of mass, radius: bounding radii): contact points, ρ of
                                 # both sides, inertia, wall moments and the geometry entry (io/bodies.py says which)
     law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
+    shaped: dict | None = None     # shaped grains (not spheres): arm_p, arm_q (M, d) from each centre to the contact
+                                   # point, curvature_p/q (M, d, d), report; optional inertia (N, d, d)
     length_unit: str = "file units"
     frame: object = None
     frames: list | None = None
@@ -139,17 +141,26 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
     e = branch / d[:, None]
     normal = e if snap.normal is None else _unit_normals(snap, pair)
-    if snap.bodies is None:
-        geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
-        arm_p = geom["rho_p"][:, None] * e
-    else:                       # rigid bodies: the reader's contact points and parallel-surface radii
-        geom = {"rho_p": snap.bodies["rho"][:, 0] * scale, "rho_q": snap.bodies["rho"][:, 1] * scale}
-        geometry_report, arm_p = snap.bodies["geometry"], snap.bodies["point"] * scale - x[snap.p]
+    if snap.shaped is not None:   # the reader's contact points and curvatures (e.g. superquadrics: model/surface.py)
+        arm_p, arm_q = snap.shaped["arm_p"] * scale, snap.shaped["arm_q"] * scale
+        curvature = {key: snap.shaped[key] / scale for key in ("curvature_p", "curvature_q")}
+        geometry_report = snap.shaped["report"]
+    else:
+        if snap.bodies is None:
+            geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
+            arm_p = geom["rho_p"][:, None] * e
+        else:                       # rigid bodies: the reader's contact points and parallel-surface radii
+            geom = {"rho_p": snap.bodies["rho"][:, 0] * scale, "rho_q": snap.bodies["rho"][:, 1] * scale}
+            geometry_report, arm_p = snap.bodies["geometry"], snap.bodies["point"] * scale - x[snap.p]
+        arm_q = arm_p - branch
+        kp, kq = -1.0 / geom["rho_p"], -1.0 / geom["rho_q"]
+        curvature = {"curvature_p": _curvature(kp, normal), "curvature_q": _curvature(kq, normal),
+                     "curvature_sum": _curvature(kp + kq, normal)}          # summed first
     law, law_report = _law(snap, opts, len(d))
     force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
     report = {"source": snap.source, "format": snap.format, "read_as": "snapshot", "frame": snap.frame,
               "frames_available": None if snap.frames is None else len(snap.frames)}
-    imbalance = _imbalance(snap, arm_p, arm_p - branch)
+    imbalance = _imbalance(snap, arm_p, arm_q)
 
     keep_c, keep_p, selection = _select(snap, x, opts, names)
     cell, why_cut = _cell(snap, opts, scale)
@@ -168,9 +179,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     point = unwrapped[snap.p[c]] + arm_p[c]
     arrays = {
         "p": p, "q": q, "point": point, "normal": normal[c],
-        "curvature_p": _curvature(-1.0 / geom["rho_p"][c], normal[c]),
-        "curvature_q": _curvature(-1.0 / geom["rho_q"][c], normal[c]),
-        "curvature_sum": _curvature(-1.0 / geom["rho_p"][c] - 1.0 / geom["rho_q"][c], normal[c]),   # summed first
+        **{key: value[c] for key, value in curvature.items()},
         "force": force[c], "moment": np.zeros((len(c), r)) if snap.moment is None else snap.moment[c],
         "k": law["k"][c], "alpha": law["alpha"][c], "mu": law["mu"][c],
         "rolling": np.zeros((len(c), r, r)), "state": tuple(state[c]),
@@ -206,7 +215,8 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     report["warnings"] = import_warnings(report)
     return Loaded(scene=scene, report=report, frames=snap.frames,
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
-                  orientation=None if snap.orientation is None else snap.orientation[inside])
+                  orientation=None if snap.orientation is None else snap.orientation[inside],
+                  shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None)
 
 
 # ------------------------------------------------------------------------------------------------ checks
@@ -228,9 +238,14 @@ def _masses(snap: Snapshot, density: float | None, radius: np.ndarray, scale: fl
             return mass, snap.bodies["inertia"] * scale**2, how + " and inertia tensors (rigid bodies)"
     elif density is not None:
         volume = np.pi * radius**2 if snap.dim == 2 else 4.0 / 3.0 * np.pi * radius**3
-        mass, how = density * volume, f"density {density:g} x {'disk area' if snap.dim == 2 else 'sphere volume'}"
+        shape = "disk area" if snap.dim == 2 else "sphere volume"
+        if snap.shaped is not None and "volume" in snap.shaped:
+            volume, shape = snap.shaped["volume"] * scale**snap.dim, "grain volume"
+        mass, how = density * volume, f"density {density:g} x {shape}"
     else:
         return None, None, None
+    if snap.shaped is not None and "inertia" in snap.shaped:
+        return mass, snap.shaped["inertia"] * mass[:, None, None] * scale**2, how + "; " + snap.shaped["inertia_note"]
     if snap.dim == 2:
         return mass, (0.5 * mass * radius**2).reshape(-1, 1, 1), how + "; solid disks"
     return mass, 0.4 * (mass * radius**2)[:, None, None] * np.eye(3), how + "; solid spheres"

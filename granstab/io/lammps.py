@@ -67,6 +67,18 @@ def is_dump(path: Path) -> bool:
         return False
 
 
+def has_shape_columns(path: Path) -> bool:
+    """A dump whose first ITEM: ATOMS line names shapex and blockiness1: LIGGGHTS superquadrics (their own reader,
+    liggghts_superquadric.py)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            head = [line for _, line in zip(range(12), fh)]
+    except OSError:
+        return False
+    atoms = next((line.split() for line in head if line.startswith("ITEM: ATOMS")), [])
+    return bool(head) and head[0].startswith("ITEM: TIMESTEP") and "shapex" in atoms and "blockiness1" in atoms
+
+
 @dataclass
 class Block:
     """One timestep of a dump: header values and where its rows are (bytes [start, end), from file line
@@ -359,23 +371,33 @@ def _liggghts_law(script: dict) -> tuple[dict, list]:
         return {}, [f"{line}: not converted (only hooke/stiffness with tangential history): give --k --alpha --mu"] + notes
     value = {}
     for key in ("kn", "kt", "coefficientFriction"):
-        if key not in script["properties"]:
-            return {}, [f"{line}: no fix property/global {key}: give --k --alpha --mu"] + notes
-        words, number = script["properties"][key]
-        n = int(words[1]) ** 2 if words[0] == "peratomtypepair" and words[1:2] and words[1].isdigit() else None
-        cells = words[2:2 + n] if n else words[1:]
-        try:
-            numbers = np.array([float(c) for c in cells])
-        except ValueError:
-            bad = next(c for c in cells if not is_number(c))
-            raise SceneError(f"{script['source']}: line {number}: {key}: not a number ({bad!r})") from None
-        if numbers.size == 0 or (n and numbers.size != n):
-            raise SceneError(f"{script['source']}: line {number}: {key}: expected {n or 'a'} value(s), got {numbers.size}")
-        if np.ptp(numbers) != 0:
-            return {}, [f"{name} line {number}: {key} differs between atom types: give --k --alpha --mu"] + notes
-        value[key] = (float(numbers[0]), f"{name} line {number} (fix property/global {key})")
+        value[key] = liggghts_property(script, key)
+        if isinstance(value[key], str):
+            where = value[key] if value[key].startswith(name) else f"{line}: {value[key]}"
+            return {}, [f"{where}: give --k --alpha --mu"] + notes
     (kn, kn_at), (kt, kt_at), (mu, mu_at) = value["kn"], value["kt"], value["coefficientFriction"]
     return {"k": (kn, kn_at), "alpha": (kt / kn, f"{kt_at} / kn"), "mu": (mu, mu_at)}, notes
+
+
+def liggghts_property(script: dict, key: str):
+    """(value, where) of a LIGGGHTS `fix property/global KEY` with one value (or equal values for every atom type
+    or type pair); else a string saying why not (absent, or differing between types). Malformed: one-line error."""
+    name = Path(script["source"]).name
+    if key not in script["properties"]:
+        return f"no fix property/global {key}"
+    words, number = script["properties"][key]
+    n = int(words[1]) ** 2 if words[0] == "peratomtypepair" and words[1:2] and words[1].isdigit() else None
+    cells = words[2:2 + n] if n else words[1:]
+    try:
+        numbers = np.array([float(c) for c in cells])
+    except ValueError:
+        bad = next(c for c in cells if not is_number(c))
+        raise SceneError(f"{script['source']}: line {number}: {key}: not a number ({bad!r})") from None
+    if numbers.size == 0 or (n and numbers.size != n):
+        raise SceneError(f"{script['source']}: line {number}: {key}: expected {n or 'a'} value(s), got {numbers.size}")
+    if np.ptp(numbers) != 0:
+        return f"{name} line {number}: {key} differs between atom types"
+    return float(numbers[0]), f"{name} line {number} (fix property/global {key})"
 
 
 # ------------------------------------------------------------------------------------------------ reading
@@ -601,8 +623,8 @@ def _refuse_uncurved(script: dict) -> None:
                          "clumps, body rounded/polygon)")
 
 
-register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths) and not multisphere_script(paths)
-                and not body_script(paths),
+register(Format("lammps", sniff=lambda paths: any(is_dump(p) for p in paths) and not any(map(has_shape_columns, paths))
+                and not multisphere_script(paths) and not body_script(paths),
                 columns=True,
                 read=lambda paths, request, progress: read_lammps(paths, request.frame, request.columns, progress),
                 index=lambda paths, request, progress: index_lammps(paths, progress)))

@@ -67,6 +67,11 @@ def import_warnings(report: dict) -> list[str]:
                    f"{geo['distance_over_sum_of_radii']['min']:.3g}): a DEM keeps overlaps at a few per cent of a "
                    "radius; check the radii (diameters?), the units and the frame, since the contact points and "
                    f"curvatures follow from them{_names(extreme['names'])}")
+    agree = r["geometry"].get("normals_disagree_deg")
+    if agree and agree["count"]:
+        out.append(f"{agree['count']} contact(s) where the two grains' surface normals at the contact point's foot "
+                   f"points disagree by more than {agree['threshold']:g}° (up to {agree['max']:.3g}°): the normal "
+                   "is their bisector")
     if r["geometry"]["rule"] == "centres" and r["geometry"]["gaps"]:
         out.append(f"{r['geometry']['gaps']} contact(s) with a gap (centre distance > R_p + R_q): the centres rule "
                    "puts their contact point in the gap (data whose radii do not match: --geometry touching)")
@@ -177,9 +182,7 @@ def format_report(report: dict) -> str:
         f"the periodic cell {co['cut_around_periodic_cell']}); {_states(co)}",
         *_columns(r),
         f"units: length {r['units']['length']}, force {r['units']['force']}",
-        f"geometry: {geo['rule']}; d/(R_p+R_q) {geo['distance_over_sum_of_radii']['min']:.4g} … "
-        f"{geo['distance_over_sum_of_radii']['max']:.4g}; gaps {geo['gaps']}; "
-        f"normal vs centre line up to {geo['normal_to_centre_line_deg_max']:.3g}°",
+        _geometry_line(geo),
         "law: " + "; ".join(f"{k} = {v['value'] if isinstance(v['value'], str) else format(v['value'], '.6g')} "
                             f"({v['source']})" for k, v in law.items()),
         f"cone (all {co['in_file']} contacts of the frame): {cone['at_yield']} at yield ({_yield_rule(cone)}); "
@@ -202,3 +205,15 @@ def format_report(report: dict) -> str:
             lines.append(f"left out: {r[key]}")
     lines += [f"warning: {w}" for w in r["warnings"]]
     return "\n".join(lines)
+
+
+def _geometry_line(geo: dict) -> str:
+    """The report's geometry line: spheres (the centres/touching rules) or shaped grains (a reader's contact points
+    and foot-point normals, e.g. superquadrics)."""
+    if "normals_disagree_deg" in geo:
+        agree, depth = geo["normals_disagree_deg"], geo["depth_over_size"]
+        return (f"geometry: {geo['rule']}; foot-point normals disagree up to {agree['max']:.3g}° (median "
+                f"{agree['median']:.3g}°); contact point depth / grain size up to {depth['max']:.3g}")
+    return (f"geometry: {geo['rule']}; d/(R_p+R_q) {geo['distance_over_sum_of_radii']['min']:.4g} … "
+            f"{geo['distance_over_sum_of_radii']['max']:.4g}; gaps {geo['gaps']}; "
+            f"normal vs centre line up to {geo['normal_to_centre_line_deg_max']:.3g}°")

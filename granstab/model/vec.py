@@ -73,3 +73,13 @@ def sum_at(index: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
     for k in range(values.shape[1]):
         out[:, k] = np.bincount(index, weights=values[:, k], minlength=n)
     return out
+
+
+def quaternion_matrix(quat: np.ndarray) -> np.ndarray:
+    """Body → world rotation matrices (N, 3, 3) of unit quaternions (N, 4) in the order (w, x, y, z) (LAMMPS's and
+    LIGGGHTS's quat_to_mat)."""
+    w, x, y, z = np.asarray(quat, dtype=float).T
+    return np.stack([
+        np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1)], -2)
