@@ -187,7 +187,8 @@ def cmd_analyze(args) -> int:
         beat.stage("reading")
         with strict_numerics(source_of(args.scene)):
             loaded = load_with_import_options(args.scene, args)
-            scene = loaded.scene
+            band = band_of(args)
+            scene, balance = balanced(loaded, band, args.balance)
             dense, beat.estimate = refuse_unfinishable(
                 scene, args, args.timeout and args.timeout - (time.perf_counter() - start))
             if not dense:
@@ -199,11 +200,13 @@ def cmd_analyze(args) -> int:
                                  method=args.method, k=args.k, progress=bars or beat, device=args.device)
             except DeviceError as exc:
                 raise InputError(f"--device: {exc}") from None
+            robust = robustness(scene, result, band, args)
             beat.stage("writing the result")
-            data = {**result.to_dict(), "import": loaded.report}
+            data = {**result.to_dict(), "import": loaded.report, "balance": balance,
+                    "data_uncertainty": None if robust is None else robust.to_dict()}
             require_finite(data, scene.source)
             text = json.dumps(data, allow_nan=False) if args.json else "\n".join(
-                [format_table(result, show_all=args.all), *import_lines(loaded)])
+                [format_table(result, show_all=args.all), *uncertainty_lines(robust, balance), *import_lines(loaded)])
     print(text)
     return 0
 
@@ -258,6 +261,65 @@ def parse_strain(text: str | None, dim: int):
     if len(values) != dim * dim:
         raise InputError(f"--strain: {dim * dim} numbers expected (a {dim}x{dim} tensor row by row), got {len(values)}")
     return np.array(values).reshape(dim, dim)
+
+
+def uncertainty_arguments(p) -> None:
+    """--force-uncertainty, --position-uncertainty, --balance (issue 42, docs/uncertainty.md)."""
+    p.add_argument("--force-uncertainty", default=None, metavar="REL[,ABS]",
+                   help="each contact force within REL·|f| + ABS of its value: the verdict holds / depends on the "
+                        "data / undecided (docs/uncertainty.md)")
+    p.add_argument("--position-uncertainty", type=positive_number, default=None, metavar="LEN",
+                   help="contact points and centres within LEN (first order only)")
+    p.add_argument("--balance", choices=["loads", "least-squares"], default="loads",
+                   help="loads (default): the loads absorb the measured imbalance; least-squares: forces moved to the "
+                        "nearest balanced set, weighted by the force uncertainty")
+
+
+def band_of(args):
+    """The Band of --force-uncertainty / --position-uncertainty, or None."""
+    from .mechanics.uncertainty import Band, parse_force_uncertainty
+    if args.force_uncertainty is None and args.position_uncertainty is None:
+        return None
+    try:
+        rel, abs_ = parse_force_uncertainty(args.force_uncertainty or "0")
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    return Band(rel=rel, abs=abs_, position=args.position_uncertainty or 0.0)
+
+
+def balanced(loaded, band, how: str):
+    """The scene to analyse and the balance report (--balance; the default keeps the loads that absorb the
+    imbalance)."""
+    if how != "least-squares":
+        return loaded.scene, {"method": "loads absorb the imbalance"}
+    from .mechanics.uncertainty import Band
+    from .uncertainty import balance_least_squares
+    walls = None if loaded.wall_flags is None else np.asarray(loaded.wall_flags) != 0
+    return balance_least_squares(loaded.scene, band or Band(), exempt=walls)
+
+
+def robustness(scene, result, band, args):
+    """data_robustness of the analysis's primary metric under `band` (None without one)."""
+    if band is None:
+        return None
+    from .uncertainty import data_robustness
+    single = args.metric != "family"
+    try:
+        return data_robustness(scene, band, metric=result.metric.name if single else "L",
+                               rotation_length=result.length, max_sliding=args.max_sliding,
+                               analysis=result if single and result.backend == "dense" else None)
+    except ValueError as exc:
+        raise InputError(f"--force-uncertainty: {exc}") from None
+
+
+def uncertainty_lines(robust, balance: dict) -> list[str]:
+    out = [f"balance: {balance['method']}" + ("" if balance.get("inside_band") is None else
+           f"; corrections {'inside' if balance['inside_band'] else 'OUTSIDE'} the band (largest "
+           f"{balance['largest_correction_over_band']:.3g}× a contact's band)")]
+    if robust is not None:
+        out.append(f"data uncertainty ({robust.band}): the verdict {robust.verdict} {robust.robust.upper()} — "
+                   f"{robust.reason}" + ("; first order in positions" if robust.first_order else ""))
+    return out
 
 
 def cmd_moduli(args) -> int:
@@ -827,6 +889,7 @@ def build_parser() -> Parser:
                         "auto: the GPU when CuPy sees one")
     p.add_argument("--all", action="store_true", help="list every eigenvalue in the table (default: the lowest "
                    f"{TABLE_LOWEST} per branch and the counts)")
+    uncertainty_arguments(p)
     import_arguments(p, rename={"k": "--contact-k", "progress": None})
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("moduli", help="elastic moduli, stress and stability at fixed stress of a periodic packing")
