@@ -164,19 +164,24 @@ def _stable_margin(ext, G, e: float, scene, band) -> float:
             continue
         F, K = _first_order(ext, G, scene, band, b.stability_vectors[:, j])
         tilt = 2 * np.sqrt(2) * min(1.0, a1 / gap)
-
-        def low(t):
-            a, c = l1 - a1 - t * (F + tilt * e), l2 - t * e
-            return 0.5 * ((a + c) - np.sqrt((a - c) ** 2 + 4 * (t * min(K + tilt * e, e)) ** 2))
-        hi = 1.0
-        while low(hi) > 0 and hi < 1e12:
-            hi *= 2
-        lo_t = 0.0
-        for _ in range(60):
-            mid = 0.5 * (lo_t + hi)
-            lo_t, hi = (mid, hi) if low(mid) > 0 else (lo_t, mid)
+        lo_t = _largest_factor(l1 - a1, l2, F + tilt * e, min(K + tilt * e, e), e)
         best = min(best, max(lo_t, weyl))
     return float(best)
+
+
+def _largest_factor(low1: float, low2: float, F: float, K: float, e: float) -> float:
+    """The largest t (bisection, to 2⁻⁶⁰ relative) with the lower eigenvalue of [[low1 − tF, tK], [tK, low2 − te]]
+    positive (it decreases with t)."""
+    def low(t):
+        a, c = low1 - t * F, low2 - t * e
+        return 0.5 * ((a + c) - np.sqrt((a - c) ** 2 + 4 * (t * K) ** 2))
+    lo, hi = 0.0, 1.0
+    while low(hi) > 0 and hi < 1e12:
+        hi *= 2
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if low(mid) > 0 else (lo, mid)
+    return lo
 
 
 def _unstable_margin(res, G, e: float, scene, band, mob) -> float:
