@@ -263,13 +263,15 @@ def parse_strain(text: str | None, dim: int):
     return np.array(values).reshape(dim, dim)
 
 
-def uncertainty_arguments(p) -> None:
+def uncertainty_arguments(p, balance: bool = True) -> None:
     """--force-uncertainty, --position-uncertainty, --balance (issue 42, docs/uncertainty.md)."""
     p.add_argument("--force-uncertainty", default=None, metavar="REL[,ABS]",
                    help="each contact force within REL·|f| + ABS of its value: the verdict holds / depends on the "
                         "data / undecided (docs/uncertainty.md)")
     p.add_argument("--position-uncertainty", type=positive_number, default=None, metavar="LEN",
                    help="contact points and centres within LEN (first order only)")
+    if not balance:
+        return
     p.add_argument("--balance", choices=["loads", "least-squares"], default="loads",
                    help="loads (default): the loads absorb the measured imbalance; least-squares: forces moved to the "
                         "nearest balanced set, weighted by the force uncertainty")
@@ -285,6 +287,12 @@ def band_of(args):
     except ValueError as exc:
         raise InputError(str(exc)) from None
     return Band(rel=rel, abs=abs_, position=args.position_uncertainty or 0.0)
+
+
+def band_options(args) -> dict | None:
+    """The scan's `uncertainty` option (Band fields) of --force-uncertainty / --position-uncertainty."""
+    band = band_of(args)
+    return None if band is None else {"rel": band.rel, "abs": band.abs, "position": band.position}
 
 
 def balanced(loaded, band, how: str):
@@ -524,7 +532,7 @@ def cmd_scan(args) -> int:
         summary = scan(loaded.scene, args.out, rings=args.rings, centers=args.centers, metric=args.metric,
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
-                       device=args.device, attribution=not args.no_attribution)
+                       device=args.device, attribution=not args.no_attribution, uncertainty=band_options(args))
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     print(json.dumps({**summary, "import": loaded.report}, allow_nan=False) if args.json else "\n".join(
@@ -615,6 +623,7 @@ def add_scan(sub) -> None:
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
     p.add_argument("--json", action="store_true", help="print summary.json")
+    uncertainty_arguments(p, balance=False)
     import_arguments(p, rename={"format": "--input-format", "progress": None})
     p.set_defaults(run=cmd_scan)
 

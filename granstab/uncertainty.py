@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from .analysis import analyze
+from .analysis import analyze, focus
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.uncertainty import (
     SAFETY,
@@ -68,19 +68,22 @@ def _finite(x: float):
 
 
 def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_length: float | None = None,
-                    max_sliding: int = 16, analysis=None, search: bool = True) -> DataRobustness:
+                    max_sliding: int = 16, analysis=None, search: bool = True, inside=None) -> DataRobustness:
     """Whether the verdict of `scene` (in `metric`, one of L, L/10, 10L, inertia with diagonal blocks) holds for
-    every force within `band` (module docstring). `analysis`: the scene's `analyze` in that metric, if at hand."""
+    every force within `band` (module docstring). `analysis`: the scene's `analyze` in that metric, if at hand.
+    `inside` = (particle indices, share) (the scan's --boundary embedded): the verdict on those particles' modes
+    (analysis.focus); stability is then still proven over every mode, instability by a fixed vector mostly inside."""
     start = time.perf_counter()
-    res = analysis or analyze(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
-                              attribution=False, keep="all")
+    whole = analysis or analyze(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
+                                attribution=False, keep="all")
+    res = whole if inside is None else focus(whole, *inside)
     m = res.metric
     if m.diagonal is None:
         raise ValueError("data uncertainty: the metric must be diagonal (L metrics, or inertia with scalar inertia)")
     mob = mobilisation(scene, band)
     G = unit_blocks(scene)
     e = _bound(scene, band, G, m, res)
-    ext = res
+    ext = whole
     if mob["uncertain"].any():        # contacts that may reach the cone: their sliding branches count too
         state = np.where(mob["uncertain"], "sliding", np.asarray(scene.state))
         ext = analyze(replace(scene, state=tuple(state)), metric=m.name if m.rotation_length is None else "L",
@@ -93,7 +96,7 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
     if margin > 1 and res.verdict.sufficient and verdict in ("stable", "unstable"):
         return DataRobustness(robust="holds", reason=f"proven by the bound up to {margin:.3g}× the band",
                               seconds=time.perf_counter() - start, **common)
-    found = _search(scene, band, G, res, max_sliding) if search else None
+    found = _search(scene, band, G, res, max_sliding, inside) if search else None
     if found is not None:
         return DataRobustness(robust="depends", counterexample=found, seconds=time.perf_counter() - start,
                               reason=f"forces within the band give {found['verdict']}", **common)
@@ -261,7 +264,7 @@ def _step(scene, band, G, res, lower: bool):
     return f + (-1 if lower else 1) * delta * direction
 
 
-def _search(scene, band, G, res, max_sliding):
+def _search(scene, band, G, res, max_sliding, inside=None):
     """A force set within the band whose `analyze` proves another verdict than the data's (SEARCH_STEPS steps from
     each side the verdict can move to), or None."""
     verdict = res.verdict.verdict
@@ -277,6 +280,7 @@ def _search(scene, band, G, res, max_sliding):
             try:
                 current = analyze(perturbed(scene, force), metric=name, rotation_length=length,
                                   max_sliding=max_sliding, attribution=False, keep="all")
+                current = current if inside is None else focus(current, *inside)
             except Exception:          # noqa: BLE001 — a perturbed set the analysis refuses is no counter-example
                 break
             if current.verdict.verdict != verdict and current.verdict.sufficient:

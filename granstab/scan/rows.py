@@ -43,6 +43,8 @@ class Row:
     rim_share: float | None = None
     elastic_control: str = ""
     fixed_control: str = ""
+    data_robust: str = ""                   # issue 42 (scan/uncertain.py): holds / depends / undecided, "" without
+    robust_margin: float = np.nan           # a band; the factor of the band the bound proves (> 1: holds)
 
     @classmethod
     def analyzed(cls, center, members, verdict, *, n_contacts: int, n_sliding: int, lambda_min: float,

@@ -189,7 +189,8 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
             "seconds": np.full(n, (time.perf_counter() - start) / n),
             "work_parts": got.get("work_parts", np.full((n, 5), np.nan)), "rim_share": got.get("rim_share", np.full(n, np.nan)),
             "mechanism": np.full(n, "", object),
-            "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object)}
+            "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object),
+            "data_robust": np.full(n, "", object), "robust_margin": np.full(n, np.nan)}
 
 
 @dataclass(frozen=True)
@@ -246,7 +247,14 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
         if options.get("attribution", True):
             batched, rows = _with_mechanisms(scene, centers, member_lists, options, batched, done, rows, rest)
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
-    return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
+    table = concat_rows(tables).take(np.argsort(np.r_[done, rest]))
+    if options.get("uncertainty"):                                   # issue 42: scan/uncertain.py
+        from .uncertain import robust_columns
+        got = robust_columns(scene, centers, member_lists, table.column("verdict").to_pylist(), options, graph,
+                             _sub_index)
+        for name, values in got.items():
+            table = table.set_column(table.schema.get_field_index(name), name, [values.tolist()])
+    return table
 
 
 def chunk_table(chunk: Chunk, options: dict):
@@ -272,7 +280,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          boundary: str = DEFAULT_BOUNDARY,
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
-         device: str = "cpu", attribution: bool = True) -> dict:
+         device: str = "cpu", attribution: bool = True, uncertainty: dict | None = None) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -302,6 +310,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     attribution : bool
         Every unstable cluster's attribution (mechanism, work_parts, rim_share and the two controls, batched:
         mechanics/attribution.py); False leaves those columns empty (the overhead: BENCHMARKS.md).
+    uncertainty : dict, optional
+        The data's uncertainty (mechanics.uncertainty.Band fields: rel, abs, position): the columns data_robust
+        and robust_margin (scan/uncertain.py, docs/uncertainty.md).
 
     Returns
     -------
@@ -316,6 +327,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
                "boundary": boundary, "attribution": bool(attribution)}
+    if uncertainty:
+        options["uncertainty"] = dict(uncertainty)
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, scene)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
