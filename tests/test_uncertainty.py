@@ -11,8 +11,8 @@ import pytest
 
 import granstab
 from granstab.cli import main
-from granstab.mechanics.uncertainty import Band, unit_blocks
 from granstab.mechanics.stiffness import contact_blocks, geometric
+from granstab.mechanics.uncertainty import Band, unit_blocks
 from granstab.paper.two_particle import lambda5
 from granstab.uncertainty import balance_least_squares, data_robustness, perturbed
 
@@ -103,6 +103,7 @@ def test_balance_least_squares():
     assert report["inside_band"] is False
     assert np.all(np.isclose(np.linalg.norm(out.force - scene.force, axis=1), report["correction_norm"]))
     from scipy.linalg import null_space
+
     from granstab.uncertainty import _equilibrium_matrix
     B = _equilibrium_matrix(scene).toarray()
     w = np.repeat(band.force_radius(scene.force), 2)
