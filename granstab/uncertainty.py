@@ -18,6 +18,7 @@ import numpy as np
 
 from .analysis import analyze, focus
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
+from .mechanics.stiffness import contact_blocks, geometric
 from .mechanics.uncertainty import (
     SAFETY,
     Band,
@@ -27,7 +28,7 @@ from .mechanics.uncertainty import (
     unit_blocks,
     work_gradient,
 )
-from .model.scene import Scene, equilibrium_loads
+from .model.scene import Scene, SceneError, equilibrium_loads
 
 __all__ = ["Band", "DataRobustness", "data_robustness", "perturbed"]
 
@@ -67,6 +68,26 @@ def _finite(x: float):
     return x if np.isfinite(x) else ("inf" if x > 0 else "-inf")
 
 
+@dataclass(frozen=True, eq=False)
+class _Data:
+    """What every step reads once: the scene, its band, the unit geometric blocks G (M, J, n, n), the contacts' dof
+    index (M, n), the sliding factors a, s (M, n) and the radii δ (M,)."""
+
+    scene: Scene
+    band: Band
+    G: np.ndarray
+    index: np.ndarray
+    slide_left: np.ndarray
+    slide_right: np.ndarray
+    delta: np.ndarray
+
+    @classmethod
+    def of(cls, scene: Scene, band: Band) -> _Data:
+        blocks = contact_blocks(scene)
+        return cls(scene, band, unit_blocks(scene), blocks.index, blocks.slide_left, blocks.slide_right,
+                   radius(scene, band))
+
+
 def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_length: float | None = None,
                     max_sliding: int = 16, analysis=None, search: bool = True, inside=None) -> DataRobustness:
     """Whether the verdict of `scene` (in `metric`, one of L, L/10, 10L, inertia with diagonal blocks) holds for
@@ -81,22 +102,22 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
     if m.diagonal is None:
         raise ValueError("data uncertainty: the metric must be diagonal (L metrics, or inertia with scalar inertia)")
     mob = mobilisation(scene, band)
-    G = unit_blocks(scene)
-    e = _bound(scene, band, G, m, res)
+    data = _Data.of(scene, band)
+    e = _bound(data, m)
     ext = whole
     if mob["uncertain"].any():        # contacts that may reach the cone: their sliding branches count too
         state = np.where(mob["uncertain"], "sliding", np.asarray(scene.state))
         ext = analyze(replace(scene, state=tuple(state)), metric=m.name if m.rotation_length is None else "L",
                       rotation_length=m.rotation_length, max_sliding=max_sliding, attribution=False, keep="all")
     verdict = res.verdict.verdict
-    margin = _margin(verdict, res, ext, G, e, scene, band, mob)
+    margin = _margin(verdict, res, ext, data, e, mob)
     common = dict(verdict=verdict, margin=margin, bound=e, band=band.describe(),
                   uncertain=tuple(int(i) for i in np.flatnonzero(mob["uncertain"])),
                   unbounded=tuple(int(i) for i in np.flatnonzero(mob["unbounded"])), first_order=band.position > 0)
     if margin > 1 and res.verdict.sufficient and verdict in ("stable", "unstable"):
         return DataRobustness(robust="holds", reason=f"proven by the bound up to {margin:.3g}× the band",
                               seconds=time.perf_counter() - start, **common)
-    found = _search(scene, band, G, res, max_sliding, inside) if search else None
+    found = _search(data, res, max_sliding, inside) if search else None
     if found is not None:
         return DataRobustness(robust="depends", counterexample=found, seconds=time.perf_counter() - start,
                               reason=f"forces within the band give {found['verdict']}", **common)
@@ -105,18 +126,16 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
                           seconds=time.perf_counter() - start, **common)
 
 
-def _bound(scene, band: Band, G, metric, res) -> float:
+def _bound(data: _Data, metric) -> float:
     """e: Σ_c δ_c β_c in the metric's dofs (mechanics/uncertainty.py), plus the first-order position term."""
-    from .mechanics.stiffness import contact_blocks
-    index = contact_blocks(scene).index
-    Dp = metric.diagonal[index]
-    e = float(np.sum(radius(scene, band) * contact_norms(G, Dp)))
-    if band.position > 0:
-        e += float(np.sum(position_norms(scene, band.position, Dp)))
+    Dp = metric.diagonal[data.index]
+    e = float(np.sum(data.delta * contact_norms(data.G, Dp)))
+    if data.band.position > 0:
+        e += float(np.sum(position_norms(data.scene, data.band.position, Dp)))
     return e
 
 
-def _margin(verdict: str, res, ext, G, e: float, scene, band, mob) -> float:
+def _margin(verdict: str, res, ext, data: _Data, e: float, mob) -> float:
     """The factor of the band the bound proves: stability over every branch of `ext` (the uncertain contacts sliding
     too, `_stable_margin`); instability from the data's consistent negative eigenvectors (`_unstable_margin`)."""
     if mob["unbounded"].any() or verdict not in ("stable", "unstable"):
@@ -124,27 +143,24 @@ def _margin(verdict: str, res, ext, G, e: float, scene, band, mob) -> float:
     if verdict == "stable":
         if len(ext.branches) < ext.verdict.n_branches:
             return -np.inf
-        return _stable_margin(ext, G, e, scene, band)
-    return _unstable_margin(res, G, e, scene, band, mob)
+        return _stable_margin(ext, data, e)
+    return _unstable_margin(res, data, e, mob)
 
 
-def _first_order(res, G, scene, band, v) -> tuple[float, float]:
+def _first_order(res, data: _Data, v) -> tuple[float, float]:
     """F(v) = Σ_c δ_c ‖w_c(v)‖, the largest change of the work of the fixed unit vector v over the band (exact: H is
     affine in the forces), and K(v) = Σ_c δ_c (Σ_j ‖sym(D G_cj D) ṽ_c‖²)^½ >= ‖E v‖ (ṽ = P v, scaled dofs)."""
-    from .mechanics.stiffness import contact_blocks
-    index = contact_blocks(scene).index
     scaled = _scaled(res, v)
-    U = res.metric.physical(scaled)[index]
-    delta = radius(scene, band)
-    Dp = res.metric.diagonal[index]
-    X = G * Dp[:, None, :, None] * Dp[:, None, None, :]
-    Xv = np.einsum("mjab,mb->mja", 0.5 * (X + np.swapaxes(X, -1, -2)), scaled[index])
-    F = float(np.sum(delta * np.linalg.norm(work_gradient(G, U), axis=1)) * SAFETY)
-    K = float(np.sum(delta * np.sqrt(np.sum(Xv ** 2, axis=(1, 2)))) * SAFETY)
+    U = res.metric.physical(scaled)[data.index]
+    Dp = res.metric.diagonal[data.index]
+    X = data.G * Dp[:, None, :, None] * Dp[:, None, None, :]
+    Xv = np.einsum("mjab,mb->mja", 0.5 * (X + np.swapaxes(X, -1, -2)), scaled[data.index])
+    F = float(np.sum(data.delta * np.linalg.norm(work_gradient(data.G, U), axis=1)) * SAFETY)
+    K = float(np.sum(data.delta * np.sqrt(np.sum(Xv ** 2, axis=(1, 2)))) * SAFETY)
     return F, K
 
 
-def _stable_margin(ext, G, e: float, scene, band) -> float:
+def _stable_margin(ext, data: _Data, e: float) -> float:
     """min over branches of the largest t for which the lowest eigenvalue of every matrix within t × the band stays
     positive: λ_min(A + E) >= the lower eigenvalue of [[λ₁ − t F(v₁) − c, t e], [t e, λ₂ − t e]] (x = c v₁ + s w, w ⟂
     v₁, ‖E‖ <= t e, |v₁ᵀEv₁| <= t F), with λ₁, λ₂ the lowest two exact eigenvalues bounded by the computed ones and
@@ -165,7 +181,7 @@ def _stable_margin(ext, G, e: float, scene, band) -> float:
         if gap <= 0 or e <= 0 or not np.isfinite(l2):
             best = min(best, weyl)
             continue
-        F, K = _first_order(ext, G, scene, band, b.stability_vectors[:, j])
+        F, K = _first_order(ext, data, b.stability_vectors[:, j])
         tilt = 2 * np.sqrt(2) * min(1.0, a1 / gap)
         lo_t = _largest_factor(l1 - a1, l2, F + tilt * e, min(K + tilt * e, e), e)
         best = min(best, max(lo_t, weyl))
@@ -187,23 +203,21 @@ def _largest_factor(low1: float, low2: float, F: float, K: float, e: float) -> f
     return lo
 
 
-def _unstable_margin(res, G, e: float, scene, band, mob) -> float:
+def _unstable_margin(res, data: _Data, e: float, mob) -> float:
     """max over consistent negative eigenpairs of (−λ − δ − changing)/F(v), F the exact first-order term of the fixed
     vector (`_first_order`) and `changing` the sliding work a ⊗ s of the contacts whose yield state the band leaves
     open and that load under the vector (at yield: may unload; uncertain: may load)."""
-    from .mechanics.stiffness import contact_blocks
-    blocks = contact_blocks(scene)
-    open_ = mob["uncertain"] | (scene.at_yield() & (band.force_radius(scene.force) > 0))
+    open_ = mob["uncertain"] | (data.scene.at_yield() & (data.delta > 0))
     best = -np.inf
     for b in res.branches:
         neg = np.isin(b.codes, CONSISTENT) & (b.stability_eigenvalues < -b.accuracy)
         for j in np.flatnonzero(neg):
-            U = _motion(res, b.stability_vectors[:, j])[blocks.index]
-            s = np.einsum("mn,mn->m", blocks.slide_right, U)
-            a = np.einsum("mn,mn->m", blocks.slide_left, U)
+            U = _motion(res, b.stability_vectors[:, j])[data.index]
+            s = np.einsum("mn,mn->m", data.slide_right, U)
+            a = np.einsum("mn,mn->m", data.slide_left, U)
             sign = 1 if b.codes[j] in (PLUS, BOTH) else -1
             changing = float(np.sum(np.abs(a * s)[open_ & (sign * s > 0)]))
-            F = _first_order(res, G, scene, band, b.stability_vectors[:, j])[0] + (e if band.position > 0 else 0.0)
+            F = _first_order(res, data, b.stability_vectors[:, j])[0] + (e if data.band.position > 0 else 0.0)
             slack = -b.stability_eigenvalues[j] - b.accuracy[j] - changing
             best = max(best, slack / F if F > 0 else (np.inf if slack > 0 else -np.inf))
     return best
@@ -230,7 +244,7 @@ def perturbed(scene: Scene, force: np.ndarray) -> Scene:
 
 def _target(res, lower: bool):
     """The eigenpair a counter-example pushes: lower: the lowest non-rigid (consistent first); else the lowest
-    consistent negative one. None where there is none."""
+    consistent negative one. (eigenvalue, vector), or None where there is none."""
     best = None
     for b in res.branches:
         ok = np.isin(b.codes, CONSISTENT) if not lower else b.codes != RIGID
@@ -240,52 +254,71 @@ def _target(res, lower: bool):
             key = (not np.isin(b.codes[j], CONSISTENT), b.stability_eigenvalues[j])
             if best is None or key < best[0]:
                 best = (key, b, j)
-    return None if best is None else best[1].stability_vectors[:, best[2]]
+    return None if best is None else (best[1].stability_eigenvalues[best[2]], best[1].stability_vectors[:, best[2]])
 
 
-def _step(scene, band, G, res, lower: bool):
+def _step(data: _Data, res, lower: bool, first: bool):
     """Forces at the band's edge along the work gradient of the target eigenpair (mechanics.uncertainty.work_gradient):
-    down (lower) or up; contacts at yield move along their own force (they stay on the cone, h unchanged)."""
-    from .mechanics.stiffness import contact_blocks
-    v = _target(res, lower)
-    if v is None:
+    down (lower) or up; contacts at yield move along their own force (they stay on the cone, h unchanged). None
+    where there is no target, or (first step) where the target's work cannot change sign at first order (exact for
+    the fixed vector: then no step is tried)."""
+    got = _target(res, lower)
+    if got is None:
         return None
-    U = _motion(res, v)[contact_blocks(scene).index]
-    d = scene.dim
-    w = work_gradient(G, U)[:, :d]
-    f = scene.force
-    sliding = scene.at_yield()
+    lam, v = got
+    U = _motion(res, v)[data.index]
+    f = data.scene.force
+    w = work_gradient(data.G, U)[:, :f.shape[1]]
     unit = np.linalg.norm(f, axis=1, keepdims=True)
     along = np.divide(f, unit, out=np.zeros_like(f), where=unit > 0)
-    w = np.where(sliding[:, None], np.sum(w * along, axis=1, keepdims=True) * along, w)
+    w = np.where(data.scene.at_yield()[:, None], np.sum(w * along, axis=1, keepdims=True) * along, w)
     norm = np.linalg.norm(w, axis=1, keepdims=True)
+    reach = float(np.sum(data.band.force_radius(f) * norm[:, 0]))
+    if first and (lam - reach > 0 if lower else lam + reach < 0):
+        return None
     direction = np.divide(w, norm, out=np.zeros_like(w), where=norm > 0)
-    delta = band.force_radius(f)[:, None] * INSIDE
-    return f + (-1 if lower else 1) * delta * direction
+    return f + (-1 if lower else 1) * data.band.force_radius(f)[:, None] * INSIDE * direction
 
 
-def _search(scene, band, G, res, max_sliding, inside=None):
-    """A force set within the band whose `analyze` proves another verdict than the data's (SEARCH_STEPS steps from
-    each side the verdict can move to), or None."""
+def _onto_cone(data: _Data):
+    """The data's forces with each contact of uncertain mobilisation that can reach the cone within its band moved
+    onto it (just over: at yield) by the shortest step, along ∇Q = h + μn (eq:yield); None where there is none."""
+    scene = data.scene
+    mob = mobilisation(scene, data.band)
+    f = scene.force
+    Q = scene.yield_function()
+    h = f - np.sum(f * scene.normal, axis=1, keepdims=True) * scene.normal
+    size = np.linalg.norm(h, axis=1, keepdims=True)
+    h = np.divide(h, size, out=np.zeros_like(h), where=size > 0)
+    grad = h + scene.mu[:, None] * scene.normal
+    step = -(Q * (1 + 1e-6) / (1 + scene.mu ** 2))[:, None] * grad
+    move = mob["uncertain"] & (size[:, 0] > 0) & (np.linalg.norm(step, axis=1) <= data.delta * INSIDE)
+    return f + np.where(move[:, None], step, 0.0) if move.any() else None
+
+
+def _search(data: _Data, res, max_sliding, inside=None):
+    """A force set within the band whose `analyze` proves another verdict than the data's (up to SEARCH_STEPS steps
+    from each side the verdict can move to), or None."""
     verdict = res.verdict.verdict
     m = res.metric
     name, length = ("inertia", None) if m.rotation_length is None else ("L", m.rotation_length)
     sides = {"stable": (True,), "unstable": (False,), "neutral": (True, False)}.get(verdict, ())
     for lower in sides:
         current = res
-        for _ in range(SEARCH_STEPS):
-            force = _step(scene, band, G, current, lower)
+        onto = _onto_cone(data) if lower else None
+        for step in range(SEARCH_STEPS):
+            force = onto if step == 0 and onto is not None else _step(data, current, lower, first=step == 0)
             if force is None:
                 break
             try:
-                current = analyze(perturbed(scene, force), metric=name, rotation_length=length,
+                current = analyze(perturbed(data.scene, force), metric=name, rotation_length=length,
                                   max_sliding=max_sliding, attribution=False, keep="all")
-                current = current if inside is None else focus(current, *inside)
-            except Exception:          # noqa: BLE001 — a perturbed set the analysis refuses is no counter-example
+            except (SceneError, ValueError):     # a perturbed set the analysis refuses is no counter-example
                 break
+            current = current if inside is None else focus(current, *inside)
             if current.verdict.verdict != verdict and current.verdict.sufficient:
-                delta = band.force_radius(scene.force)
-                used = np.linalg.norm(force - scene.force, axis=1)
+                used = np.linalg.norm(force - data.scene.force, axis=1)
+                delta = data.band.force_radius(data.scene.force)
                 frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0)))
                 return {"verdict": current.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
     return None
@@ -295,7 +328,6 @@ def position_norms(scene: Scene, length: float, Dp: np.ndarray) -> np.ndarray:
     """First order only (no remainder): per contact a bound of ‖Δ sym(D H_c D)‖₂ when the contact point and both
     reference points move by up to `length` and the normal turns by up to 2·length/|b^pq| (round particles: the
     centre line's turn), from central differences of the contact's blocks (2D)."""
-    from .mechanics.stiffness import contact_blocks, geometric
     M, d = scene.n_contacts, scene.dim
     h = 1e-6 * np.maximum(np.linalg.norm(scene.r_pq, axis=1) + np.linalg.norm(scene.r_qp, axis=1), 1e-300)
     pts = np.concatenate([scene.x[scene.p], scene.q_copy])
