@@ -37,6 +37,7 @@ from .clusters import (
 )
 from .output import ScanOutput
 from .rows import Row, columns_table, concat_rows, rows_table
+from .uncertain import robust_columns
 from .workers import (
     close_quietly,
     dask_installed,
@@ -48,6 +49,7 @@ from .workers import (
     sigint_ignored,
 )
 
+ROBUST = ("robust_stable", "robust_unstable", "robust_open")   # the batch's margins (scan/uncertain.py)
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
                       # (batch.STACK_BYTES)
 TASK_SECONDS = (0.05, 0.3)  # a Dask task's measured compute, least and most: Dask's per-task cost (~10 ms of a
@@ -190,7 +192,8 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
             "work_parts": got.get("work_parts", np.full((n, 5), np.nan)), "rim_share": got.get("rim_share", np.full(n, np.nan)),
             "mechanism": np.full(n, "", object),
             "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object),
-            "data_robust": np.full(n, "", object), "robust_margin": np.full(n, np.nan)}
+            "data_robust": np.full(n, "", object), "robust_margin": np.full(n, np.nan),
+            **{key: got[key] for key in ROBUST if key in got}}
 
 
 @dataclass(frozen=True)
@@ -242,6 +245,7 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
     with blas_threads(1):
         batched = batched_columns(scene, centers, member_lists, options, index) if batchable(options) else None
         done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
+        margins = {} if batched is None else {key: batched.pop(key) for key in ROBUST if key in batched}
         rest = np.setdiff1d(np.arange(len(centers)), done)
         rows = [cluster_row(scene, centers[i], member_lists[i], options, graph, index) for i in rest]
         if options.get("attribution", True):
@@ -249,9 +253,13 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
     table = concat_rows(tables).take(np.argsort(np.r_[done, rest]))
     if options.get("uncertainty"):                                   # issue 42: scan/uncertain.py
-        from .uncertain import robust_columns
-        got = robust_columns(scene, centers, member_lists, table.column("verdict").to_pylist(), options, graph,
-                             _sub_index)
+        rows = {"verdict": np.array(table.column("verdict").to_pylist(), dtype=object),
+                "sufficient": np.array(table.column("sufficient").to_pylist(), dtype=bool),
+                "robust_stable": np.full(len(centers), np.nan), "robust_unstable": np.full(len(centers), np.nan),
+                "robust_open": np.zeros(len(centers), dtype=bool)}
+        for key, values in margins.items():
+            rows[key][done] = values
+        got = robust_columns(scene, centers, member_lists, rows, options, graph, _sub_index, EMBEDDED_INSIDE)
         for name, values in got.items():
             table = table.set_column(table.schema.get_field_index(name), name, [values.tolist()])
     return table
