@@ -253,6 +253,7 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
     table = concat_rows(tables).take(np.argsort(np.r_[done, rest]))
     if options.get("uncertainty"):                                   # issue 42: scan/uncertain.py
+        import pyarrow as pa
         rows = {"verdict": np.array(table.column("verdict").to_pylist(), dtype=object),
                 "sufficient": np.array(table.column("sufficient").to_pylist(), dtype=bool),
                 "robust_stable": np.full(len(centers), np.nan), "robust_unstable": np.full(len(centers), np.nan),
@@ -261,7 +262,8 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
             rows[key][done] = values
         got = robust_columns(scene, centers, member_lists, rows, options, graph, _sub_index, EMBEDDED_INSIDE)
         for name, values in got.items():
-            table = table.set_column(table.schema.get_field_index(name), name, [values.tolist()])
+            column = pa.array(values.tolist(), type=table.schema.field(name).type, from_pandas=True)
+            table = table.set_column(table.schema.get_field_index(name), name, column)
     return table
 
 
