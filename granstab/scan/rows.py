@@ -45,6 +45,8 @@ class Row:
     fixed_control: str = ""
     data_robust: str = ""                   # issue 42 (scan/uncertain.py): holds / depends / undecided, "" without
     robust_margin: float | None = None      # a band; the factor of the band the bound proves (> 1: holds)
+    counterexample: list[float] | None = None   # depends: the forces (flat, d a contact) of the cluster's scene
+                                                # (clusters.cluster, its contact order) that give the other verdict
 
     @classmethod
     def analyzed(cls, center, members, verdict, *, n_contacts: int, n_sliding: int, lambda_min: float,

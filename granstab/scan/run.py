@@ -193,6 +193,7 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
             "mechanism": np.full(n, "", object),
             "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object),
             "data_robust": np.full(n, "", object), "robust_margin": np.full(n, np.nan),
+            "counterexample": np.full(n, None, object),
             **{key: got[key] for key in ROBUST if key in got}}
 
 
@@ -262,7 +263,7 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
             rows[key][done] = values
         got = robust_columns(scene, centers, member_lists, rows, options, graph, _sub_index, EMBEDDED_INSIDE)
         for name, values in got.items():
-            column = pa.array(values.tolist(), type=table.schema.field(name).type, from_pandas=True)
+            column = pa.array(list(values), type=table.schema.field(name).type, from_pandas=True)
             table = table.set_column(table.schema.get_field_index(name), name, column)
     return table
 

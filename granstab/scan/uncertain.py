@@ -51,8 +51,8 @@ def batch_margins(parts: dict, blocks, st: dict, modes: dict, lam, bounds, owner
 
 
 def robust_columns(scene, centers, member_lists, rows: dict, options: dict, graph, sub_index, share: float) -> dict:
-    """data_robust (holds / depends / undecided; "" where the row is an error) and robust_margin (the factor of the
-    band the bound proves) of each centre, in the order of `centers`. rows: the rows' "verdict", "sufficient" and
+    """data_robust (holds / depends / undecided; "" where the row is an error), robust_margin (the factor of the
+    band the bound proves) and counterexample (depends: the forces, flat) of each centre, in the order of `centers`. rows: the rows' "verdict", "sufficient" and
     the batch's margins (NaN where the cluster was not batched). The rest: data_robustness on the cluster's scene
     (a cluster whose verdict there differs from its row's is undecided); `share`: the embedded boundary's
     EMBEDDED_INSIDE."""
@@ -61,6 +61,7 @@ def robust_columns(scene, centers, member_lists, rows: dict, options: dict, grap
                       np.where(verdicts == "unstable", rows["robust_unstable"], np.nan))
     fast = rows["sufficient"] & ~rows["robust_open"] & (margin > 1)
     robust = np.where(fast, "holds", "").astype(object)
+    example = np.full(len(centers), None, dtype=object)
     band = Band(**options["uncertainty"])
     boundary = options.get("boundary", "loads")
     embedded = boundary_rings(boundary)[0] == "embedded"
@@ -75,4 +76,6 @@ def robust_columns(scene, centers, member_lists, rows: dict, options: dict, grap
             continue
         robust[i] = got.robust if got.verdict == verdicts[i] else "undecided"
         margin[i] = got.margin
-    return {"data_robust": robust, "robust_margin": margin}
+        if robust[i] == "depends":
+            example[i] = np.ravel(got.counterexample["forces"]).tolist()
+    return {"data_robust": robust, "robust_margin": margin, "counterexample": example}
