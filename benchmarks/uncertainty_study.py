@@ -96,10 +96,15 @@ def held_out(pairs: list[dict], metric: str = "L") -> dict:
             "depends_not_reproduced": failed}
 
 
-def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1) -> dict:
-    """Both solutions scanned alike (rel: the band; None: the median spread), compared and checked."""
-    a = granstab.load(str(DATA / "10"), frame=frame).scene
-    b = granstab.load(str(DATA / "6"), frame=frame).scene
+def solutions(frame: int) -> tuple:
+    """The two force solutions of one annulus frame: experiment 10's scene, experiment 6's."""
+    return tuple(granstab.load(str(DATA / e), frame=frame).scene for e in ("10", "6"))
+
+
+def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1, scenes=None) -> dict:
+    """Both solutions scanned alike (rel: the band; None: the median spread) at the same centres, compared and
+    checked. scenes: `solutions(frame)`, if at hand."""
+    a, b = scenes or solutions(frame)
     rel = median_spread(a, b) if rel is None else rel
     options = {"rings": rings, "boundary": boundary, "uncertainty": {"rel": rel, "abs": 0.0}}
     with tempfile.TemporaryDirectory() as tmp:
@@ -107,9 +112,11 @@ def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1)
         scan(a, Path(tmp) / "a", centers=centers, rings=rings, boundary=boundary, workers=1, figures=False,
              attribution=False, uncertainty=options["uncertainty"])
         seconds = time.perf_counter() - start
-        scan(b, Path(tmp) / "b", centers="all", rings=rings, boundary=boundary, workers=1, figures=False,
+        rows_a = read_map(Path(tmp) / "a")["clusters"]
+        names = [a.names[c] for c in rows_a["center"] if a.names[c] in set(b.names)]
+        scan(b, Path(tmp) / "b", centers=names, rings=rings, boundary=boundary, workers=1, figures=False,
              attribution=False)
-        rows_a, rows_b = read_map(Path(tmp) / "a")["clusters"], read_map(Path(tmp) / "b")["clusters"]
+        rows_b = read_map(Path(tmp) / "b")["clusters"]
     pairs = compare(a, b, rows_a, rows_b, options)
     same = [p for p in pairs if p["same_contacts"]]
     robust = Counter(p["robust"] for p in same)
