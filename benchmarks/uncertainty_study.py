@@ -106,7 +106,7 @@ def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1,
     checked. scenes: `solutions(frame)`, if at hand."""
     a, b = scenes or solutions(frame)
     rel = median_spread(a, b) if rel is None else rel
-    options = {"rings": rings, "boundary": boundary, "uncertainty": {"rel": rel, "abs": 0.0}}
+    options = {"rings": rings, "boundary": boundary, "uncertainty": {"rel": rel, "abs": 0.0, "search": True}}
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         scan(a, Path(tmp) / "a", centers=centers, rings=rings, boundary=boundary, workers=1, figures=False,

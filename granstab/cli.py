@@ -271,6 +271,9 @@ def uncertainty_arguments(p, balance: bool = True) -> None:
     p.add_argument("--position-uncertainty", type=positive_number, default=None, metavar="LEN",
                    help="contact points and centres within LEN (first order only)")
     if not balance:
+        p.add_argument("--search-counterexamples", action="store_true",
+                       help="clusters the batched bound does not decide: the per-cluster bound and the search for "
+                            "forces within the band that change the verdict (depends; costs more: BENCHMARKS.md)")
         return
     p.add_argument("--balance", choices=["loads", "least-squares"], default="loads",
                    help="loads (default): the loads absorb the measured imbalance; least-squares: forces moved to the "
@@ -290,9 +293,10 @@ def band_of(args):
 
 
 def band_options(args) -> dict | None:
-    """The scan's `uncertainty` option (Band fields) of --force-uncertainty / --position-uncertainty."""
+    """The scan's `uncertainty` option (Band fields, search) of --force-uncertainty / --position-uncertainty."""
     band = band_of(args)
-    return None if band is None else {"rel": band.rel, "abs": band.abs, "position": band.position}
+    return None if band is None else {"rel": band.rel, "abs": band.abs, "position": band.position,
+                                      "search": bool(getattr(args, "search_counterexamples", False))}
 
 
 def balanced(loaded, band, how: str):

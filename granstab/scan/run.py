@@ -137,7 +137,7 @@ def controls(scene: Scene, centers: np.ndarray, member_lists: list, options: dic
     out = {}
     for kind in ("elastic", "rim"):
         verdict = np.full(len(centers), "", dtype=object)
-        opts = {**options, "control": kind, "attribute": False}
+        opts = {**options, "control": kind, "attribute": False, "uncertainty": None}
         got = solve_chunk(scene, centers, member_lists, opts) if batchable(options) else None
         done = np.zeros(0, dtype=np.int64)
         if got is not None:
@@ -322,8 +322,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         Every unstable cluster's attribution (mechanism, work_parts, rim_share and the two controls, batched:
         mechanics/attribution.py); False leaves those columns empty (the overhead: BENCHMARKS.md).
     uncertainty : dict, optional
-        The data's uncertainty (mechanics.uncertainty.Band fields: rel, abs, position): the columns data_robust
-        and robust_margin (scan/uncertain.py, docs/uncertainty.md).
+        The data's uncertainty (mechanics.uncertainty.Band fields: rel, abs, position; and "search": True for the
+        per-cluster bound and counter-example search where the batched bound does not decide): the columns
+        data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
 
     Returns
     -------

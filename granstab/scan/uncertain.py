@@ -6,8 +6,9 @@ mode): stability by Weyl over every branch, min(λ − δ) / e with e = Σ_c δ_
 the cluster's metric (mechanics/uncertainty.py); instability by the fixed lowest consistent negative mode, whose
 work moves by at most F = Σ_c δ_c ‖w_c‖ (exact: H is affine in the forces) and by the sliding work of its loading
 contacts, which may unload. A cluster with a contact of uncertain mobilisation (whose sliding branches would count
-too) or whose bound does not prove its verdict goes to `granstab.uncertainty.data_robustness` on its own scene
-(tighter: first order plus a rigorous remainder; the counter-example search)."""
+too) or whose bound does not prove its verdict is undecided, or, with the search (options["uncertainty"]["search"],
+`scan --search-counterexamples`), goes to `granstab.uncertainty.data_robustness` on its own scene (tighter: first
+order plus a rigorous remainder, the uncertain contacts' branches; the counter-example search: depends)."""
 from __future__ import annotations
 
 import numpy as np
@@ -21,7 +22,7 @@ from .clusters import boundary_rings, cluster
 def band_parts(scene, band: dict) -> dict:
     """What the batch needs of the band for the chunk's scene: the unit blocks G (M, J, n, n), the radii δ (M,) and
     `open` (M,): contacts of uncertain mobilisation or turning sliding direction (mechanics.uncertainty.mobilisation)."""
-    band = Band(**band)
+    band = Band(**{k: v for k, v in band.items() if k != "search"})
     mob = mobilisation(scene, band)
     return {"G": unit_blocks(scene), "delta": radius(scene, band), "open": mob["uncertain"] | mob["unbounded"]}
 
@@ -62,15 +63,20 @@ def robust_columns(scene, centers, member_lists, rows: dict, options: dict, grap
     fast = rows["sufficient"] & ~rows["robust_open"] & (margin > 1)
     robust = np.where(fast, "holds", "").astype(object)
     example = np.full(len(centers), None, dtype=object)
-    band = Band(**options["uncertainty"])
+    band = Band(**{k: v for k, v in options["uncertainty"].items() if k != "search"})
+    search = options["uncertainty"].get("search", False)
     boundary = options.get("boundary", "loads")
     embedded = boundary_rings(boundary)[0] == "embedded"
     metric = "L" if options["metric"] == "family" else options["metric"]
-    for i in np.flatnonzero(~fast & (verdicts != "error")):
+    batched = np.isfinite(rows["robust_stable"]) | np.isfinite(rows["robust_unstable"])
+    if not search:                 # the bound's answer only: what it does not prove stays undecided
+        robust[~fast & batched & (verdicts != "error")] = "undecided"
+    for i in np.flatnonzero(~fast & (verdicts != "error") & (search | ~batched)):
         try:
             sub = cluster(scene, centers[i], options["rings"], boundary, graph=graph)
             inside = (sub_index(sub, scene, member_lists[i]), share) if embedded else None
-            got = data_robustness(sub, band, metric=metric, max_sliding=options["max_sliding"], inside=inside)
+            got = data_robustness(sub, band, metric=metric, max_sliding=options["max_sliding"], inside=inside,
+                                  search=search)
         except (SceneError, ValueError):
             robust[i] = "undecided"
             continue
