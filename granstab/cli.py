@@ -800,7 +800,7 @@ def cmd_track(args) -> int:
                     window=args.window, d2min_radius=args.d2min_radius, event_quantity=args.event_quantity,
                     event_threshold=args.event_threshold, soft_modes=args.soft_modes, rings=args.rings,
                     boundary=args.boundary, workers=args.workers, progress=args.progress, seed=args.seed,
-                    **options)
+                    uncertainty=band_options(args), **options)
     resumed = summary["cost"]["resumed"]
     lines = [f"{summary['frames']} frames ({resumed} already in the folder) in {summary['cost']['seconds']:.1f} s; "
              f"{summary['events']} events ({summary['thresholds']['event_quantity']} drops over "
@@ -837,6 +837,7 @@ def add_track(sub) -> None:
                    help="local Dask workers over frames (1: in this process; default: by the measured cost)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random predictor")
     p.add_argument("--json", action="store_true", help="print summary.json")
+    uncertainty_arguments(p, balance=False)
     import_arguments(p)
     p.set_defaults(run=cmd_track)
 
