@@ -121,7 +121,8 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     out = Path(out_dir)
     spec = {"inputs": paths, "format": format, "import": {k: v for k, v in options.items()}, "out": str(out),
             "whole": whole, "scan": scan, "rigidity": rigidity, "soft_modes": soft_modes, "seed": seed,
-            "scan_options": {"rings": rings, "boundary": boundary, **({"uncertainty": uncertainty} if uncertainty else {})}}
+            "scan_options": {"rings": rings, "boundary": boundary,
+                             **({"uncertainty": uncertainty} if uncertainty else {})}}
     stated = {**{k: v for k, v in spec.items() if k != "out"}, "frames": frames, "window": window,
               "d2min_radius": d2min_radius, "event_quantity": event_quantity, "event_threshold": event_threshold}
     _open(out, stated)
