@@ -21,9 +21,12 @@ from pathlib import Path
 import numpy as np
 
 import granstab
+from granstab.mechanics.uncertainty import Band
+from granstab.model.scene import SceneError
 from granstab.scan import read_map, scan
 from granstab.scan.clusters import adjacency, cluster
-from granstab.uncertainty import perturbed
+from granstab.scan.run import _sub_index
+from granstab.uncertainty import data_robustness, perturbed
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "rigidlibrary" / "DataAnnulus"
 
@@ -75,7 +78,8 @@ def compare(a, b, rows_a: dict, rows_b: dict, options: dict) -> list[dict]:
             np.linalg.norm(other - sub_a.force, axis=1) <= rel * np.linalg.norm(sub_a.force, axis=1) + abs_))
         out.append({"centre": name, "verdict_a": rows_a["verdict"][i], "verdict_b": verdict_b[name],
                     "robust": rows_a["data_robust"][i], "same_contacts": other is not None, "within": within,
-                    "counterexample": rows_a["counterexample"][i], "scene_a": sub_a})
+                    "counterexample": rows_a["counterexample"][i], "scene_a": sub_a, "other": other,
+                    "inside": _sub_index(sub_a, a, rows_a["members"][i])})
     return out
 
 
@@ -101,9 +105,31 @@ def solutions(frame: int) -> tuple:
     return tuple(granstab.load(str(DATA / e), frame=frame).scene for e in ("10", "6"))
 
 
-def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1, scenes=None) -> dict:
+def at_the_spread(pairs: list[dict], boundary: str) -> dict:
+    """Each cluster with the same contacts in both solutions analysed with the band that is the spread itself, contact
+    by contact (Band.per_contact = |f⁶ − f¹⁰|, a hair wider): the other solution lies in the band by construction, so
+    a "holds" must keep its verdict; the counts of holds / depends / undecided and of verdicts that change in each."""
+    embedded = boundary.startswith("embedded")
+    out = Counter()
+    for p in pairs:
+        if not p["same_contacts"]:
+            continue
+        scene = p["scene_a"]
+        band = Band(per_contact=np.linalg.norm(p["other"] - scene.force, axis=1) * (1 + 1e-9))
+        try:
+            got = data_robustness(scene, band, max_sliding=8, inside=(p["inside"], 0.5) if embedded else None)
+            robust = got.robust if got.verdict == p["verdict_a"] else "undecided"
+        except (SceneError, ValueError):
+            robust = "undecided"
+        out[robust] += 1
+        out[f"{robust}_changed"] += p["verdict_a"] != p["verdict_b"]
+    return dict(out)
+
+
+def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1, scenes=None,
+          spread: bool = False) -> dict:
     """Both solutions scanned alike (rel: the band; None: the median spread) at the same centres, compared and
-    checked. scenes: `solutions(frame)`, if at hand."""
+    checked. scenes: `solutions(frame)`, if at hand; spread: also `at_the_spread`."""
     a, b = scenes or solutions(frame)
     rel = median_spread(a, b) if rel is None else rel
     options = {"rings": rings, "boundary": boundary, "uncertainty": {"rel": rel, "abs": 0.0, "search": True}}
@@ -126,7 +152,8 @@ def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1,
             "changed": changed, "changed_fraction": changed / n, "holds": robust["holds"],
             "depends": robust["depends"], "undecided": robust["undecided"],
             "predicted_at_least": robust["depends"] / n, "predicted_at_most": 1 - robust["holds"] / n,
-            "check": held_out(pairs), "scan_seconds": seconds}
+            "check": held_out(pairs), "scan_seconds": seconds,
+            "at_the_spread": at_the_spread(pairs, boundary) if spread else None}
 
 
 def main(argv=None) -> None:
@@ -135,8 +162,9 @@ def main(argv=None) -> None:
     p.add_argument("--rel", type=float, default=None, help="the band (default: the median spread)")
     p.add_argument("--centers", default="all")
     p.add_argument("--boundary", default="embedded:1")
+    p.add_argument("--spread", action="store_true", help="also each cluster with the spread itself as its band")
     args = p.parse_args(argv)
-    print(json.dumps(study(args.frame, args.rel, args.centers, args.boundary), indent=1))
+    print(json.dumps(study(args.frame, args.rel, args.centers, args.boundary, spread=args.spread), indent=1))
 
 
 if __name__ == "__main__":
