@@ -16,13 +16,14 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from .analysis import analyze, focus
+from .analysis import analyze, focus, inside_share
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.stiffness import contact_blocks, geometric
 from .mechanics.uncertainty import (
     SAFETY,
     Band,
     contact_norms,
+    focused_factors,
     mobilisation,
     radius,
     unit_blocks,
@@ -110,7 +111,7 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
         ext = analyze(replace(scene, state=tuple(state)), metric=m.name if m.rotation_length is None else "L",
                       rotation_length=m.rotation_length, max_sliding=max_sliding, attribution=False, keep="all")
     verdict = res.verdict.verdict
-    margin = _margin(verdict, res, ext, data, e, mob)
+    margin = _margin(verdict, res, ext, data, e, mob, inside)
     common = dict(verdict=verdict, margin=margin, bound=e, band=band.describe(),
                   uncertain=tuple(int(i) for i in np.flatnonzero(mob["uncertain"])),
                   unbounded=tuple(int(i) for i in np.flatnonzero(mob["unbounded"])), first_order=band.position > 0)
@@ -135,15 +136,16 @@ def _bound(data: _Data, metric) -> float:
     return e
 
 
-def _margin(verdict: str, res, ext, data: _Data, e: float, mob) -> float:
+def _margin(verdict: str, res, ext, data: _Data, e: float, mob, inside=None) -> float:
     """The factor of the band the bound proves: stability over every branch of `ext` (the uncertain contacts sliding
-    too, `_stable_margin`); instability from the data's consistent negative eigenvectors (`_unstable_margin`)."""
+    too, `_stable_margin`; focused: `_focused_margin`); instability from the data's consistent negative
+    eigenvectors (`_unstable_margin`)."""
     if mob["unbounded"].any() or verdict not in ("stable", "unstable"):
         return -np.inf
     if verdict == "stable":
         if len(ext.branches) < ext.verdict.n_branches:
             return -np.inf
-        return _stable_margin(ext, data, e)
+        return max(_stable_margin(ext, data, e), _focused_margin(ext, e, inside) if inside is not None else -np.inf)
     return _unstable_margin(res, data, e, mob)
 
 
@@ -186,6 +188,20 @@ def _stable_margin(ext, data: _Data, e: float) -> float:
         lo_t = _largest_factor(l1 - a1, l2, F + tilt * e, min(K + tilt * e, e), e)
         best = min(best, max(lo_t, weyl))
     return float(best)
+
+
+def _focused_margin(ext, e: float, inside) -> float:
+    """A focused stable verdict (analysis.focus): every non-rigid eigenpair stays positive or outside
+    (mechanics.uncertainty.focused_factors), over every branch."""
+    best = np.inf
+    for b in ext.branches:
+        keep = b.codes != RIGID
+        order = np.argsort(b.stability_eigenvalues[keep])
+        lam, acc = b.stability_eigenvalues[keep][order], b.accuracy[keep][order]
+        share = inside_share(ext, b, inside[0])[keep][order]
+        if lam.size:
+            best = min(best, float(focused_factors(lam[None], acc[None], share[None], [e], inside[1]).min()))
+    return best
 
 
 def _largest_factor(low1: float, low2: float, F: float, K: float, e: float) -> float:

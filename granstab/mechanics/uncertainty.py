@@ -142,3 +142,25 @@ def work_gradient(G: np.ndarray, U: np.ndarray) -> np.ndarray:
     """w (M, J): the change of a fixed motion's second-order work Uᵀ H U per unit force (and moment) component,
     U (M, n) the motion over each contact's dofs (physical, U = D P v): w_cj = U_cᵀ G_cj U_c."""
     return np.einsum("mi,mjik,mk->mj", U, G, U)
+
+
+def focused_factors(lam, bounds, share, e, need: float) -> np.ndarray:
+    """Per eigenvalue (rows of one branch each, (L, n), sorted) the band factor t up to which it cannot become a
+    counted non-positive mode of a focused verdict (analysis.focus: a mode with λ <= its bound counts only with at
+    least `need` of its squared norm inside, `share`): it stays positive, (λ − δ)/e (Weyl), or it stays outside:
+    the perturbed eigenvector is within sin θ <= te/(g − te) of the computed one (Davis–Kahan, g its gap to the
+    other eigenvalues less both bounds), so its share is at most (√share + sin θ)² < need while
+    t < c g / (e (1 + c)), c = √need − √share − √2 δ/g > 0 (the last: the computed vector's angle to the exact
+    one). e (L,): the band's bound of each row."""
+    e = np.asarray(e, dtype=float)[:, None]
+    gaps = np.full(lam.shape, np.inf)
+    if lam.shape[1] > 1:
+        step = np.diff(lam, axis=1) - bounds[:, 1:] - bounds[:, :-1]
+        gaps[:, 1:] = step
+        gaps[:, :-1] = np.minimum(gaps[:, :-1], step)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        computed = np.where(gaps > 0, np.minimum(1.0, np.sqrt(2) * bounds / gaps), 1.0)   # the computed vector's own
+        c = np.sqrt(need) - np.sqrt(np.clip(share, 0.0, 1.0)) - computed                    # angle to the exact one
+        positive = np.where(e > 0, (lam - bounds) / e, np.where(lam - bounds > 0, np.inf, -np.inf))
+        outside = np.where((c > 0) & (gaps > 0), c * gaps / (e * (1 + c)), -np.inf)
+    return np.maximum(positive, outside)
