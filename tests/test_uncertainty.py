@@ -133,3 +133,32 @@ def test_held_out_two_force_solutions(annulus, rel, centers, boundary, need):
     got = study(1, rel, centers, boundary, scenes=annulus)["check"]
     assert got["holds_changed"] == [] and got["depends_not_reproduced"] == []
     assert (got["holds_within_band"] if need == "holds" else got["depends"]) >= 1
+
+
+def test_focused_factors_keep_outside_modes_outside():
+    """mechanics.uncertainty.focused_factors: for every symmetric E with ‖E‖ below the factor, the eigenpairs of
+    A + E that are not positive keep their share on the 'inside' dofs below `need` (random A with negative modes
+    mostly outside, random E of that norm; the bound is a promise)."""
+    from granstab.mechanics.uncertainty import focused_factors
+    rng = np.random.default_rng(3)
+    n, need = 8, 0.5
+    inside = np.arange(n) < 3
+    for _ in range(20):
+        Q = np.linalg.qr(rng.normal(size=(n, n)))[0]
+        Q[:, :2] = np.linalg.qr(np.vstack([0.3 * rng.normal(size=(3, 2)), rng.normal(size=(n - 3, 2))]))[0]
+        Q = np.linalg.qr(Q)[0]
+        lam0 = np.sort(np.r_[-2.0, -1.0, rng.uniform(1, 5, n - 2)])
+        A = (Q * lam0) @ Q.T
+        lam, V = np.linalg.eigh(A)
+        share = np.sum(V[inside] ** 2, axis=0)
+        bounds = np.full(n, 1e-13)
+        t = focused_factors(lam[None], bounds[None], share[None], [1.0], need).min()
+        if not t > 0:
+            continue
+        for _ in range(20):
+            E = rng.normal(size=(n, n))
+            E = E + E.T
+            E *= 0.999 * t / np.linalg.norm(E, 2)
+            mu, W = np.linalg.eigh(A + E)
+            low = mu <= 0
+            assert np.all(np.sum(W[inside][:, low] ** 2, axis=0) < need)
