@@ -316,8 +316,8 @@ def robustness(scene, result, band, args):
         return None
     from .uncertainty import data_robustness
     single = args.metric != "family"
-    try:
-        return data_robustness(scene, band, metric=result.metric.name if single else "L",
+    try:                                    # the primary metric: L at the analysis's own length, or inertia
+        return data_robustness(scene, band, metric="inertia" if result.length is None else "L",
                                rotation_length=result.length, max_sliding=args.max_sliding,
                                analysis=result if single and result.backend == "dense" else None)
     except ValueError as exc:
