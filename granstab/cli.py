@@ -202,11 +202,14 @@ def cmd_analyze(args) -> int:
                 raise InputError(f"--device: {exc}") from None
             robust = robustness(scene, result, band, args)
             beat.stage("writing the result")
-            data = {**result.to_dict(), "import": loaded.report, "balance": balance,
-                    "data_uncertainty": None if robust is None else robust.to_dict()}
+            asked = band is not None or args.balance != "loads"     # the default result stays as it was
+            data = {**result.to_dict(), "import": loaded.report,
+                    **({"balance": balance, "data_uncertainty": None if robust is None else robust.to_dict()}
+                       if asked else {})}
             require_finite(data, scene.source)
             text = json.dumps(data, allow_nan=False) if args.json else "\n".join(
-                [format_table(result, show_all=args.all), *uncertainty_lines(robust, balance), *import_lines(loaded)])
+                [format_table(result, show_all=args.all), *(uncertainty_lines(robust, balance) if asked else []),
+                 *import_lines(loaded)])
     print(text)
     return 0
 
