@@ -109,11 +109,12 @@ def _disks(ax, centres, radii, value, hatched):
     return pc
 
 
-DEPENDS_HATCH = "xxx"
+DEPENDS_HATCH = "xxxx"
 
 
 def _depends(ax, scene, clusters: dict, keep, radii) -> None:
-    """The centres of clusters whose verdict depends on the data (data_robust, issue 42) hatched DEPENDS_HATCH."""
+    """The centres of clusters whose verdict depends on the data (data_robust, issue 42): hatched DEPENDS_HATCH and
+    ringed."""
     from matplotlib.collections import EllipseCollection
     flags = np.asarray(clusters.get("data_robust", []), dtype=object) == "depends"
     if not flags.any():
@@ -124,7 +125,7 @@ def _depends(ax, scene, clusters: dict, keep, radii) -> None:
     d = 2 * radii[mark]
     ax.add_collection(EllipseCollection(d, d, np.zeros(len(d)), units="xy", offsets=scene.x[mark, :2],
                                         offset_transform=ax.transData, facecolor="none", edgecolor="k",
-                                        hatch=DEPENDS_HATCH, linewidth=0.0))
+                                        hatch=DEPENDS_HATCH, linewidth=1.0))
 
 
 def _legend(ax, summary: dict) -> None:
@@ -136,7 +137,7 @@ def _legend(ax, summary: dict) -> None:
                      label="unstable only by the cut: dead loads at the rim (boundary)"),
                Patch(facecolor=GREY, edgecolor="k", label="in no scanned cluster")]
     if summary.get("options", {}).get("uncertainty"):
-        handles.append(Patch(facecolor="none", edgecolor="k", hatch=DEPENDS_HATCH,
+        handles.append(Patch(facecolor="none", edgecolor="k", hatch=DEPENDS_HATCH, linewidth=1.0,
                              label="centre of a cluster whose verdict depends on the data (docs/uncertainty.md)"))
     handles += [Patch(facecolor="none", edgecolor="none", label=f"{m}: {counts.get(m, 0)} clusters")
                 for m in MECHANISMS]
