@@ -104,14 +104,15 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
         raise ValueError("data uncertainty: the metric must be diagonal (L metrics, or inertia with scalar inertia)")
     mob = mobilisation(scene, band)
     data = _Data.of(scene, band)
-    e = _bound(data, m)
+    e_force, e_position = _bound(data, m)
+    e = e_force + e_position
     ext = whole
     if mob["uncertain"].any():        # contacts that may reach the cone: their sliding branches count too
         state = np.where(mob["uncertain"], "sliding", np.asarray(scene.state))
         ext = analyze(replace(scene, state=tuple(state)), metric=m.name if m.rotation_length is None else "L",
                       rotation_length=m.rotation_length, max_sliding=max_sliding, attribution=False, keep="all")
     verdict = res.verdict.verdict
-    margin = _margin(verdict, res, ext, data, e, mob, inside)
+    margin = _margin(verdict, res, ext, data, (e, e_position), mob, inside)
     common = dict(verdict=verdict, margin=margin, bound=e, band=band.describe(),
                   uncertain=tuple(int(i) for i in np.flatnonzero(mob["uncertain"])),
                   unbounded=tuple(int(i) for i in np.flatnonzero(mob["unbounded"])), first_order=band.position > 0)
@@ -127,26 +128,28 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
                           seconds=time.perf_counter() - start, **common)
 
 
-def _bound(data: _Data, metric) -> float:
-    """e: Σ_c δ_c β_c in the metric's dofs (mechanics/uncertainty.py), plus the first-order position term."""
+def _bound(data: _Data, metric) -> tuple[float, float]:
+    """e = Σ_c δ_c β_c in the metric's dofs (mechanics/uncertainty.py), and the first-order position term (0 without
+    a position band)."""
     Dp = metric.diagonal[data.index]
     e = float(np.sum(data.delta * contact_norms(data.G, Dp)))
-    if data.band.position > 0:
-        e += float(np.sum(position_norms(data.scene, data.band.position, Dp)))
-    return e
+    position = float(np.sum(position_norms(data.scene, data.band.position, Dp))) if data.band.position > 0 else 0.0
+    return e, position
 
 
-def _margin(verdict: str, res, ext, data: _Data, e: float, mob, inside=None) -> float:
+def _margin(verdict: str, res, ext, data: _Data, bound: tuple, mob, inside=None) -> float:
     """The factor of the band the bound proves: stability over every branch of `ext` (the uncertain contacts sliding
     too, `_stable_margin`; focused: `_focused_margin`); instability from the data's consistent negative
-    eigenvectors (`_unstable_margin`)."""
+    eigenvectors (`_unstable_margin`). bound: (e, its position part)."""
     if mob["unbounded"].any() or verdict not in ("stable", "unstable"):
         return -np.inf
+    e, position = bound
     if verdict == "stable":
         if len(ext.branches) < ext.verdict.n_branches:
             return -np.inf
-        return max(_stable_margin(ext, data, e), _focused_margin(ext, e, inside) if inside is not None else -np.inf)
-    return _unstable_margin(res, data, e, mob)
+        return max(_stable_margin(ext, data, e, position),
+                   _focused_margin(ext, e, inside) if inside is not None else -np.inf)
+    return _unstable_margin(res, data, position, mob)
 
 
 def _first_order(res, data: _Data, v) -> tuple[float, float]:
@@ -162,7 +165,7 @@ def _first_order(res, data: _Data, v) -> tuple[float, float]:
     return F, K
 
 
-def _stable_margin(ext, data: _Data, e: float) -> float:
+def _stable_margin(ext, data: _Data, e: float, position: float = 0.0) -> float:
     """min over branches of the largest t for which the lowest eigenvalue of every matrix within t × the band stays
     positive: λ_min(A + E) >= the lower eigenvalue of [[λ₁ − t F(v₁) − c, t e], [t e, λ₂ − t e]] (x = c v₁ + s w, w ⟂
     v₁, ‖E‖ <= t e, |v₁ᵀEv₁| <= t F), with λ₁, λ₂ the lowest two exact eigenvalues bounded by the computed ones and
@@ -183,7 +186,7 @@ def _stable_margin(ext, data: _Data, e: float) -> float:
         if gap <= 0 or e <= 0 or not np.isfinite(l2):
             best = min(best, weyl)
             continue
-        F, K = _first_order(ext, data, b.stability_vectors[:, j])
+        F, K = (x + position for x in _first_order(ext, data, b.stability_vectors[:, j]))   # position: Weyl
         tilt = 2 * np.sqrt(2) * min(1.0, a1 / gap)
         lo_t = _largest_factor(l1 - a1, l2, F + tilt * e, min(K + tilt * e, e), e)
         best = min(best, max(lo_t, weyl))
@@ -219,7 +222,7 @@ def _largest_factor(low1: float, low2: float, F: float, K: float, e: float) -> f
     return lo
 
 
-def _unstable_margin(res, data: _Data, e: float, mob) -> float:
+def _unstable_margin(res, data: _Data, position: float, mob) -> float:
     """max over consistent negative eigenpairs of (−λ − δ − changing)/F(v), F the exact first-order term of the fixed
     vector (`_first_order`) and `changing` the sliding work a ⊗ s of the contacts whose yield state the band leaves
     open and that load under the vector (at yield: may unload; uncertain: may load)."""
@@ -233,7 +236,7 @@ def _unstable_margin(res, data: _Data, e: float, mob) -> float:
             a = np.einsum("mn,mn->m", data.slide_left, U)
             sign = 1 if b.codes[j] in (PLUS, BOTH) else -1
             changing = float(np.sum(np.abs(a * s)[open_ & (sign * s > 0)]))
-            F = _first_order(res, data, b.stability_vectors[:, j])[0] + (e if data.band.position > 0 else 0.0)
+            F = _first_order(res, data, b.stability_vectors[:, j])[0] + position
             slack = -b.stability_eigenvalues[j] - b.accuracy[j] - changing
             best = max(best, slack / F if F > 0 else (np.inf if slack > 0 else -np.inf))
     return best

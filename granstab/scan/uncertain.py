@@ -53,22 +53,26 @@ def batch_margins(parts: dict, blocks, st: dict, modes: dict, lam, bounds, owner
 
 def robust_columns(scene, centers, member_lists, rows: dict, options: dict, graph, sub_index, share: float) -> dict:
     """data_robust (holds / depends / undecided; "" where the row is an error), robust_margin (the factor of the
-    band the bound proves) and counterexample (depends: the forces, flat) of each centre, in the order of `centers`. rows: the rows' "verdict", "sufficient" and
-    the batch's margins (NaN where the cluster was not batched). The rest: data_robustness on the cluster's scene
-    (a cluster whose verdict there differs from its row's is undecided); `share`: the embedded boundary's
-    EMBEDDED_INSIDE."""
+    band the bound proves) and counterexample (depends: the forces, flat) of each centre, in the order of `centers`.
+    rows: the rows' "verdict", "sufficient" and the batch's margins (NaN where the cluster was not batched). The
+    rest (and all with a position band): data_robustness on the cluster's scene (a cluster whose verdict there
+    differs from its row's is undecided); `share`: the embedded boundary's EMBEDDED_INSIDE."""
     verdicts = rows["verdict"]
     margin = np.where(verdicts == "stable", rows["robust_stable"],
                       np.where(verdicts == "unstable", rows["robust_unstable"], np.nan))
     fast = rows["sufficient"] & ~rows["robust_open"] & (margin > 1)
+    band = Band(**{k: v for k, v in options["uncertainty"].items() if k != "search"})
     robust = np.where(fast, "holds", "").astype(object)
     example = np.full(len(centers), None, dtype=object)
-    band = Band(**{k: v for k, v in options["uncertainty"].items() if k != "search"})
     search = options["uncertainty"].get("search", False)
     boundary = options.get("boundary", "loads")
     embedded = boundary_rings(boundary)[0] == "embedded"
     metric = "L" if options["metric"] == "family" else options["metric"]
     batched = np.isfinite(rows["robust_stable"]) | np.isfinite(rows["robust_unstable"])
+    if band.position > 0:          # the batch bounds forces only: a position band is added cluster by cluster
+        fast[:] = False
+        robust[:] = ""
+        batched[:] = False
     if not search:                 # the bound's answer only: what it does not prove stays undecided
         robust[~fast & batched & (verdicts != "error")] = "undecided"
     for i in np.flatnonzero(~fast & (verdicts != "error") & (search | ~batched)):
