@@ -293,20 +293,25 @@ def focus(analysis: Analysis, inside, share: float) -> Analysis:
     eigenpair (λ <= its bound) with less than `share` of its squared metric norm there is not theirs and is left out
     like a rigid one; positive ones change no verdict and all count (--boundary embedded: the cluster inside its
     surroundings)."""
+    branches = []
+    for b in analysis.branches:
+        there = inside_share(analysis, b, inside)
+        low = b.stability_eigenvalues <= b.accuracy
+        branches.append(replace(b, codes=np.where((there < share) & low, RIGID, b.codes).astype(b.codes.dtype)))
+    verdict = finalize(summarize(branches), analysis.errors, int(np.sum(contact_blocks(analysis.scene).rolling_undetermined)),
+                       None)
+    return replace(analysis, branches=branches, verdict=replace(verdict, branches_kept=len(branches)))
+
+
+def inside_share(analysis: Analysis, branch, inside) -> np.ndarray:
+    """The share of each stability eigenvector's squared metric norm on the particles `inside` (indices), (k,)."""
     problem, scene = analysis.problem, analysis.scene
     mask = np.zeros(scene.n_particles, dtype=bool)
     mask[inside] = True
     dofs = np.repeat(mask, scene.dof_per_particle)
     dofs = dofs if problem.free is None else dofs[problem.free]
-    branches = []
-    for b in analysis.branches:
-        V = np.asarray(b.stability_vectors)          # the low-rank path's vectors are computed when asked (LazyVectors)
-        there = np.sum(V[dofs] ** 2, axis=0) / np.sum(V ** 2, axis=0)
-        low = b.stability_eigenvalues <= b.accuracy
-        branches.append(replace(b, codes=np.where((there < share) & low, RIGID, b.codes).astype(b.codes.dtype)))
-    verdict = finalize(summarize(branches), analysis.errors, int(np.sum(contact_blocks(scene).rolling_undetermined)),
-                       None)
-    return replace(analysis, branches=branches, verdict=replace(verdict, branches_kept=len(branches)))
+    V = np.asarray(branch.stability_vectors)          # the low-rank path's vectors are computed when asked (LazyVectors)
+    return np.sum(V[dofs] ** 2, axis=0) / np.sum(V ** 2, axis=0)
 
 
 def mode_works(analysis: Analysis, rim: np.ndarray, blocks: ContactBlocks | None = None,

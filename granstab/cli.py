@@ -195,7 +195,8 @@ def cmd_analyze(args) -> int:
         beat.stage("reading")
         with strict_numerics(source_of(args.scene)):
             loaded = load_with_import_options(args.scene, args)
-            scene = loaded.scene
+            band = band_of(args)
+            scene, balance = balanced(loaded, band, args.balance)
             try:
                 planned = plan(scene, **options)
                 if args.plan:                                   # the plan and its estimate; nothing run
@@ -211,11 +212,16 @@ def cmd_analyze(args) -> int:
                 result = analyze(scene, **options, progress=bars or beat)
             except DeviceError as exc:
                 raise InputError(f"--device: {exc}") from None
+            robust = robustness(scene, result, band, args)
             beat.stage("writing the result")
-            data = {**result.to_dict(), "import": loaded.report}
+            asked = band is not None or args.balance != "loads"     # the default result stays as it was
+            data = {**result.to_dict(), "import": loaded.report,
+                    **({"balance": balance, "data_uncertainty": None if robust is None else robust.to_dict()}
+                       if asked else {})}
             require_finite(data, scene.source)
             text = json.dumps(data, allow_nan=False) if args.json else "\n".join(
-                [format_table(result, show_all=args.all), *import_lines(loaded)])
+                [format_table(result, show_all=args.all), *(uncertainty_lines(robust, balance) if asked else []),
+                 *import_lines(loaded)])
     print(text)
     return 0
 
@@ -270,6 +276,77 @@ def parse_strain(text: str | None, dim: int):
     if len(values) != dim * dim:
         raise InputError(f"--strain: {dim * dim} numbers expected (a {dim}x{dim} tensor row by row), got {len(values)}")
     return np.array(values).reshape(dim, dim)
+
+
+def uncertainty_arguments(p, balance: bool = True) -> None:
+    """--force-uncertainty, --position-uncertainty, --balance (issue 42, docs/uncertainty.md)."""
+    p.add_argument("--force-uncertainty", default=None, metavar="REL[,ABS]",
+                   help="each contact force within REL·|f| + ABS of its value: the verdict holds / depends on the "
+                        "data / undecided (docs/uncertainty.md)")
+    p.add_argument("--position-uncertainty", type=positive_number, default=None, metavar="LEN",
+                   help="contact points and centres within LEN (first order only)")
+    if not balance:
+        p.add_argument("--search-counterexamples", action="store_true",
+                       help="clusters the batched bound does not decide: the per-cluster bound and the search for "
+                            "forces within the band that change the verdict (depends; costs more: BENCHMARKS.md)")
+        return
+    p.add_argument("--balance", choices=["loads", "least-squares"], default="loads",
+                   help="loads (default): the loads absorb the measured imbalance; least-squares: forces moved to the "
+                        "nearest balanced set, weighted by the force uncertainty")
+
+
+def band_of(args):
+    """The Band of --force-uncertainty / --position-uncertainty, or None."""
+    from .mechanics.uncertainty import Band, parse_force_uncertainty
+    if args.force_uncertainty is None and args.position_uncertainty is None:
+        return None
+    try:
+        rel, abs_ = parse_force_uncertainty(args.force_uncertainty or "0")
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    return Band(rel=rel, abs=abs_, position=args.position_uncertainty or 0.0)
+
+
+def band_options(args) -> dict | None:
+    """The scan's `uncertainty` option (Band fields, search) of --force-uncertainty / --position-uncertainty."""
+    band = band_of(args)
+    return None if band is None else {"rel": band.rel, "abs": band.abs, "position": band.position,
+                                      "search": bool(getattr(args, "search_counterexamples", False))}
+
+
+def balanced(loaded, band, how: str):
+    """The scene to analyse and the balance report (--balance; the default keeps the loads that absorb the
+    imbalance)."""
+    if how != "least-squares":
+        return loaded.scene, {"method": "loads absorb the imbalance"}
+    from .mechanics.uncertainty import Band
+    from .uncertainty import balance_least_squares
+    walls = None if loaded.wall_flags is None else np.asarray(loaded.wall_flags) != 0
+    return balance_least_squares(loaded.scene, band or Band(), exempt=walls)
+
+
+def robustness(scene, result, band, args):
+    """data_robustness of the analysis's primary metric under `band` (None without one)."""
+    if band is None:
+        return None
+    from .uncertainty import data_robustness
+    single = args.metric != "family"
+    try:                                    # the primary metric: L at the analysis's own length, or inertia
+        return data_robustness(scene, band, metric="inertia" if result.length is None else "L",
+                               rotation_length=result.length, max_sliding=args.max_sliding,
+                               analysis=result if single and result.backend == "dense" else None)
+    except ValueError as exc:
+        raise InputError(f"--force-uncertainty: {exc}") from None
+
+
+def uncertainty_lines(robust, balance: dict) -> list[str]:
+    out = [f"balance: {balance['method']}" + ("" if balance.get("inside_band") is None else
+           f"; corrections {'inside' if balance['inside_band'] else 'OUTSIDE'} the band (largest "
+           f"{balance['largest_correction_over_band']:.3g}× a contact's band)")]
+    if robust is not None:
+        out.append(f"data uncertainty ({robust.band}): the verdict {robust.verdict} {robust.robust.upper()} — "
+                   f"{robust.reason}" + ("; first order in positions" if robust.first_order else ""))
+    return out
 
 
 def cmd_moduli(args) -> int:
@@ -448,7 +525,7 @@ def cmd_scan(args) -> int:
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
                        device=args.device, attribution=not args.no_attribution, inputs=args.input,
-                       overwrite=args.overwrite)
+                       overwrite=args.overwrite, uncertainty=band_options(args))
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     warned = write_import_warnings(args.out, loaded.report, [(loaded.report.get("frame"), loaded.warnings)])
@@ -547,6 +624,7 @@ def add_scan(sub) -> None:
                    help="where the stacked cluster eigenproblems run (gpu: CuPy, the gpu extra)")
     p.add_argument("--progress", action="store_true", help="a progress bar with the time left (stderr)")
     p.add_argument("--json", action="store_true", help="print summary.json")
+    uncertainty_arguments(p, balance=False)
     import_arguments(p, rename={"format": "--input-format", "progress": None})
     p.set_defaults(run=cmd_scan)
 
@@ -726,7 +804,7 @@ def cmd_track(args) -> int:
                     window=args.window, d2min_radius=args.d2min_radius, event_quantity=args.event_quantity,
                     event_threshold=args.event_threshold, soft_modes=args.soft_modes, rings=args.rings,
                     boundary=args.boundary, workers=args.workers, progress=args.progress, seed=args.seed,
-                    overwrite=args.overwrite, **options)
+                    overwrite=args.overwrite, uncertainty=band_options(args), **options)
     resumed = summary["cost"]["resumed"]
     lines = [f"{summary['frames']} frames ({resumed} already in the folder) in {summary['cost']['seconds']:.1f} s; "
              f"{summary['events']} events ({summary['thresholds']['event_quantity']} drops over "
@@ -765,6 +843,7 @@ def add_track(sub) -> None:
                    help="local Dask workers over frames (1: in this process; default: by the measured cost)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random predictor")
     p.add_argument("--json", action="store_true", help="print summary.json")
+    uncertainty_arguments(p, balance=False)
     import_arguments(p)
     p.set_defaults(run=cmd_track)
 
@@ -832,6 +911,7 @@ def build_parser() -> Parser:
                    f"{TABLE_LOWEST} per branch and the counts)")
     p.add_argument("--plan", action="store_true", help="print the plan (method, path, branches per metric, what is "
                    "left out) and its estimate; run nothing (--json: its `cost`)")
+    uncertainty_arguments(p)
     import_arguments(p, rename={"k": "--contact-k", "progress": None})
     p.set_defaults(run=cmd_analyze)
     p = sub.add_parser("moduli", help="elastic moduli, stress and stability at fixed stress of a periodic packing")

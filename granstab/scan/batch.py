@@ -60,6 +60,7 @@ from ..model.tolerances import EPS
 from ..model.vec import rot_dim
 from ..solve.device import backend, eigh_stack, residual_norms
 from .clusters import adjacency, boundary_rings, lattice_offset, loaded, members, unwrap
+from .uncertain import band_parts, batch_margins
 
 LENGTH_FACTORS = {"L": 1.0, "L/10": 0.1, "10L": 10.0}
 STACK_BYTES = {"cpu": 32 * 2 ** 20,   # the branch matrices of one stacked solve (and their copies) on the host: small
@@ -93,6 +94,8 @@ def solve_chunk(scene, centers: np.ndarray, member_lists: list, options: dict) -
     parts = {"elastic": blocks.blocks["Hm"] + hg,                        # H_el per contact, and the row sums of |Hm|,
              "rows_m": np.abs(blocks.blocks["Hm"]).sum(axis=2),         # |Hg| that bound ‖|Hm̃|‖∞, ‖|Hg̃|‖∞ (formation)
              "rows_g": np.abs(hg).sum(axis=2)}
+    if options.get("uncertainty"):
+        parts["uncertainty"] = band_parts(scene, options["uncertainty"])
     pairs = _cluster_contacts(scene, local, sizes, free)
     pairs["sliding"] = scene.at_yield()[pairs["contact"]]
     if lay["focus"]:               # embedded: only the cluster's own contacts slide; its surroundings' stay elastic
@@ -272,6 +275,9 @@ def _solve_group(sub, blocks, parts, pairs, part, positions, starts, n, factor, 
            "rigid_leakage": st["leakage"][keep], "n_undetermined": undetermined[keep],
            "n_contacts": np.bincount(g, minlength=G)[keep], "n_sliding": n_sliding[part][keep],
            "values_only": values_only[keep]}
+    if options.get("uncertainty"):                # issue 42: the band factors the bound proves (scan/uncertain.py)
+        got = batch_margins(parts["uncertainty"], blocks, st, _modes(st, solved), lam, bounds, owner, G)
+        out.update({key: value[keep] for key, value in got.items()})
     if options.get("attribute"):
         work, share, value = _attribution(blocks, st, solved, n)
         scaled = work * (lam_min / value)[:, None]     # |v|² = lambda_min / λ_mode: the parts sum to lambda_min
@@ -342,35 +348,46 @@ def _stack(sub, blocks, parts, pairs, part, positions, starts, n, factor, n_slid
     return out
 
 
-def _attribution(blocks, st: dict, solved: list, n: int):
-    """Work parts (G, 5), rim share (G,) and eigenvalue (G,) of each cluster's lowest consistent negative mode
-    (NaN where it has none), by attribution.contact_work on U = D P (Q y) (loads) or D y (held), y unit: the parts
-    sum to its eigenvalue."""
+def _modes(st: dict, solved: list) -> dict:
+    """Each cluster's lowest consistent negative mode gathered from the solved parts: `mode` (G,) whether it has one,
+    its scaled vector (G, nd), eigenvalue, bound and branch mask (`signs`, (G, Ms)); `U` (P', n) its physical motion
+    U = D P (Q y) (loads) or D y (held) over the local dofs of the entries `take` (P,) of clusters with a mode."""
     G = len(st["inner"])
-    work, share = np.full((G, len(PARTS)), np.nan), np.full(G, np.nan)
     mode = np.full(G, False)
-    vec, value = np.zeros((G, st["base"].shape[1])), np.full(G, np.nan)
+    vec, value, bound = np.zeros((G, st["base"].shape[1])), np.full(G, np.nan), np.full(G, np.nan)
     signs = np.zeros((G, st["PA"].shape[2]), dtype=np.int8)
     for which, got in solved:
         has = got["mode_has"]
         mode[which[has]] = True
         vec[which[has]] = got["mode_vector"][has]
         value[which[has]] = got["mode_value"][has]
+        bound[which[has]] = got["mode_bound"][has]
         signs[which[has], :got["mode_signs"].shape[1]] = got["mode_signs"][has]
-    if not mode.any():
-        return work, share, value
     w = vec[:, :, None] if st["Q"] is None else st["Q"] @ vec[:, :, None]          # (G, nd, 1) scaled
     u = w if st["Q"] is None else Projection.from_rotations(st["C"]).apply(w)
     u = np.concatenate([u[:, :, 0], np.zeros((G, 1))], axis=1)                     # the held dof nd: zero
+    take = mode[st["g"]]
+    U = st["Dp"][take] * u[st["g"][take][:, None], st["idx"][take]]
+    return {"mode": mode, "w": w, "value": value, "bound": bound, "signs": signs, "take": take, "U": U}
+
+
+def _attribution(blocks, st: dict, solved: list, n: int):
+    """Work parts (G, 5), rim share (G,) and eigenvalue (G,) of each cluster's lowest consistent negative mode
+    (NaN where it has none), by attribution.contact_work on U = D P (Q y) (loads) or D y (held), y unit: the parts
+    sum to its eigenvalue."""
+    G = len(st["inner"])
+    work, share = np.full((G, len(PARTS)), np.nan), np.full(G, np.nan)
+    got = _modes(st, solved)
+    mode, take, value = got["mode"], got["take"], got["value"]
+    if not mode.any():
+        return work, share, value
     g, m = st["g"], st["m"]
-    take = mode[g]
     sliding = np.zeros(len(g), dtype=bool)
-    sliding[np.flatnonzero(st["slide"])] = signs[g[st["slide"]], st["col"]] == 1
-    U = st["Dp"][take] * u[g[take][:, None], st["idx"][take]]
-    per_entry = contact_work(blocks, m[take], U, sliding[take])
+    sliding[np.flatnonzero(st["slide"])] = got["signs"][g[st["slide"]], st["col"]] == 1
+    per_entry = contact_work(blocks, m[take], got["U"], sliding[take])
     for j in range(len(PARTS)):
         work[:, j] = np.where(mode, np.bincount(g[take], weights=per_entry[:, j], minlength=G), np.nan)
-    weights = (w[:, :, 0] ** 2).reshape(G, n, -1).sum(axis=2)
+    weights = (got["w"][:, :, 0] ** 2).reshape(G, n, -1).sum(axis=2)
     share = np.where(mode, rim_share(weights, st["rim"], st["inner"]), np.nan)
     return work, share, value
 
@@ -414,7 +431,8 @@ def _values(Hsym, formation, nd: int) -> dict:
     return {"owner": np.arange(len(Hsym)), "lam": lam, "bounds": bounds, "codes": np.full(lam.shape, BOTH, np.int8),
             "hinges": np.zeros(lam.shape, dtype=bool), "special": needs_search(lam, bounds),
             "error": values_backward_error(scale[:, 0], nd), "mode_has": has, "mode_vector": vector,
-            "mode_signs": np.zeros((len(Hsym), 0), dtype=np.int8), "mode_value": lam[:, 0]}
+            "mode_signs": np.zeros((len(Hsym), 0), dtype=np.int8), "mode_value": lam[:, 0],
+            "mode_bound": bounds[:, 0]}
 
 
 def _vectors(base, PA, PS, update, n_sliding, formation, s_tol, s_floor, nd: int, device: str,
@@ -460,9 +478,11 @@ def _lowest(lam, bounds, codes, V, owner, masks, G: int) -> dict:
     has[owner[first]] = np.isfinite(value[first])
     vector[owner[first]] = V[first, :, j[first]]
     signs[owner[first]] = masks[first]
-    mode_value = np.full(G, np.nan)
+    mode_value, mode_bound = np.full(G, np.nan), np.full(G, np.nan)
     mode_value[owner[first]] = value[first]
-    return {"mode_has": has, "mode_vector": vector, "mode_signs": signs, "mode_value": mode_value}
+    mode_bound[owner[first]] = bounds[first, j[first]]
+    return {"mode_has": has, "mode_vector": vector, "mode_signs": signs, "mode_value": mode_value,
+            "mode_bound": mode_bound}
 
 
 def backend_eigh(Hsym: np.ndarray, S: np.ndarray, device: str, inside: np.ndarray | None = None) -> dict:

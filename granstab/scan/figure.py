@@ -68,6 +68,7 @@ def write_figures(scene: Scene, out_dir) -> list[Path]:
         pc = _disks(ax, scene.x[keep, :2], r[keep], packing[keep], by_cut[keep] > 0)
         ax.set_title(title if scene.dim == 3 else "local stability map")
         fig.colorbar(pc, ax=ax, shrink=0.7, label="share of its clusters unstable by the packing")
+        _depends(ax, scene, data["clusters"], keep, r)
     _legend(axes[0][-1], data["summary"])
     s = data["summary"]
     fig.suptitle(f"{s['clusters']} clusters, rings = {s['options']['rings']}, boundary "
@@ -102,6 +103,25 @@ def _disks(ax, centres, radii, value, hatched):
     return pc
 
 
+DEPENDS_HATCH = "xxxx"
+
+
+def _depends(ax, scene, clusters: dict, keep, radii) -> None:
+    """The centres of clusters whose verdict depends on the data (data_robust, issue 42): hatched DEPENDS_HATCH and
+    ringed."""
+    from matplotlib.collections import EllipseCollection
+    flags = np.asarray(clusters.get("data_robust", []), dtype=object) == "depends"
+    if not flags.any():
+        return
+    mark = np.zeros(scene.n_particles, dtype=bool)
+    mark[np.asarray(clusters["center"])[flags]] = True
+    mark &= keep
+    d = 2 * radii[mark]
+    ax.add_collection(EllipseCollection(d, d, np.zeros(len(d)), units="xy", offsets=scene.x[mark, :2],
+                                        offset_transform=ax.transData, facecolor="none", edgecolor="k",
+                                        hatch=DEPENDS_HATCH, linewidth=1.0))
+
+
 def _legend(ax, summary: dict) -> None:
     """What the colours and the hatching mean, and the mechanism histogram of the unstable clusters."""
     from matplotlib.patches import Patch
@@ -110,6 +130,9 @@ def _legend(ax, summary: dict) -> None:
                Patch(facecolor=WHITE, edgecolor=GREY, hatch=HATCH,
                      label="unstable only by the cut: dead loads at the rim (boundary)"),
                Patch(facecolor=GREY, edgecolor="k", label="in no scanned cluster")]
+    if summary.get("options", {}).get("uncertainty"):
+        handles.append(Patch(facecolor="none", edgecolor="k", hatch=DEPENDS_HATCH, linewidth=1.0,
+                             label="centre of a cluster whose verdict depends on the data (docs/uncertainty.md)"))
     handles += [Patch(facecolor="none", edgecolor="none", label=f"{m}: {counts.get(m, 0)} clusters")
                 for m in MECHANISMS]
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.04), ncol=2, fontsize=7, frameon=False,

@@ -43,6 +43,10 @@ class Row:
     rim_share: float | None = None
     elastic_control: str = ""
     fixed_control: str = ""
+    data_robust: str = ""                   # issue 42 (scan/uncertain.py): holds / depends / undecided, "" without
+    robust_margin: float | None = None      # a band; the factor of the band the bound proves (> 1: holds)
+    counterexample: list[float] | None = None   # depends: the forces (flat, d a contact) of the cluster's scene
+                                                # (clusters.cluster, its contact order) that give the other verdict
 
     @classmethod
     def analyzed(cls, center, members, verdict, *, n_contacts: int, n_sliding: int, lambda_min: float,
@@ -81,7 +85,7 @@ class ParticleRow:
 
 
 ROW_COLUMNS = tuple(f.name for f in fields(Row))
-NAN_IS_NULL = ("rim_share",)     # columns whose NaN in a batch's numpy columns means "none" (null)
+NAN_IS_NULL = ("rim_share", "robust_margin")     # columns whose NaN in a batch's numpy columns means "none" (null)
 
 
 def schema(record):

@@ -37,6 +37,7 @@ from .clusters import (
 )
 from .output import ScanOutput
 from .rows import Row, columns_table, concat_rows, rows_table
+from .uncertain import robust_columns
 from .workers import (
     close_quietly,
     dask_installed,
@@ -48,6 +49,7 @@ from .workers import (
     sigint_ignored,
 )
 
+ROBUST = ("robust_stable", "robust_unstable", "robust_open")   # the batch's margins (scan/uncertain.py)
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
                       # (batch.STACK_BYTES)
 TASK_SECONDS = (0.05, 0.3)  # a Dask task's measured compute, least and most: Dask's per-task cost (~10 ms of a
@@ -135,7 +137,7 @@ def controls(scene: Scene, centers: np.ndarray, member_lists: list, options: dic
     out = {}
     for kind in ("elastic", "rim"):
         verdict = np.full(len(centers), "", dtype=object)
-        opts = {**options, "control": kind, "attribute": False}
+        opts = {**options, "control": kind, "attribute": False, "uncertainty": None}
         got = solve_chunk(scene, centers, member_lists, opts) if batchable(options) else None
         done = np.zeros(0, dtype=np.int64)
         if got is not None:
@@ -189,7 +191,10 @@ def batched_columns(scene: Scene, centers: np.ndarray, member_lists: list, optio
             "seconds": np.full(n, (time.perf_counter() - start) / n),
             "work_parts": got.get("work_parts", np.full((n, 5), np.nan)), "rim_share": got.get("rim_share", np.full(n, np.nan)),
             "mechanism": np.full(n, "", object),
-            "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object)}
+            "elastic_control": np.full(n, "", object), "fixed_control": np.full(n, "", object),
+            "data_robust": np.full(n, "", object), "robust_margin": np.full(n, np.nan),
+            "counterexample": np.full(n, None, object),
+            **{key: got[key] for key in ROBUST if key in got}}
 
 
 @dataclass(frozen=True)
@@ -241,12 +246,26 @@ def scan_chunk(scene: Scene, centers: np.ndarray, options: dict, particles: np.n
     with blas_threads(1):
         batched = batched_columns(scene, centers, member_lists, options, index) if batchable(options) else None
         done = np.zeros(0, dtype=np.int64) if batched is None else batched.pop("position")
+        margins = {} if batched is None else {key: batched.pop(key) for key in ROBUST if key in batched}
         rest = np.setdiff1d(np.arange(len(centers)), done)
         rows = [cluster_row(scene, centers[i], member_lists[i], options, graph, index) for i in rest]
         if options.get("attribution", True):
             batched, rows = _with_mechanisms(scene, centers, member_lists, options, batched, done, rows, rest)
     tables = ([] if batched is None else [columns_table(batched)]) + ([rows_table(rows)] if rows else [])
-    return concat_rows(tables).take(np.argsort(np.r_[done, rest]))
+    table = concat_rows(tables).take(np.argsort(np.r_[done, rest]))
+    if options.get("uncertainty"):                                   # issue 42: scan/uncertain.py
+        import pyarrow as pa
+        rows = {"verdict": np.array(table.column("verdict").to_pylist(), dtype=object),
+                "sufficient": np.array(table.column("sufficient").to_pylist(), dtype=bool),
+                "robust_stable": np.full(len(centers), np.nan), "robust_unstable": np.full(len(centers), np.nan),
+                "robust_open": np.zeros(len(centers), dtype=bool)}
+        for key, values in margins.items():
+            rows[key][done] = values
+        got = robust_columns(scene, centers, member_lists, rows, options, graph, _sub_index, EMBEDDED_INSIDE)
+        for name, values in got.items():
+            column = pa.array(list(values), type=table.schema.field(name).type, from_pandas=True)
+            table = table.set_column(table.schema.get_field_index(name), name, column)
+    return table
 
 
 def chunk_table(chunk: Chunk, options: dict):
@@ -272,7 +291,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          boundary: str = DEFAULT_BOUNDARY,
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
-         device: str = "cpu", attribution: bool = True, inputs=None, overwrite: bool = False) -> dict:
+         device: str = "cpu", attribution: bool = True, inputs=None, overwrite: bool = False,
+         uncertainty: dict | None = None) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -305,6 +325,10 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     inputs, overwrite : paths or None, bool
         The files the scene was read from: their sizes, times and content hashes are recorded (inputs.json), and a
         resume with changed ones is refused (scan/resume.py); overwrite: start afresh in a folder that holds a scan.
+    uncertainty : dict, optional
+        The data's uncertainty (mechanics.uncertainty.Band fields: rel, abs, position; and "search": True for the
+        per-cluster bound and counter-example search where the batched bound does not decide): the columns
+        data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
 
     Returns
     -------
@@ -319,6 +343,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
                "boundary": boundary, "attribution": bool(attribution)}
+    if uncertainty:
+        options["uncertainty"] = dict(uncertainty)
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)

@@ -1,0 +1,441 @@
+"""Verdicts that survive the measurement's own uncertainty (issue 42): `data_robustness(scene, band)`.
+
+A verdict (eq:stab, eq:instab) of measured data becomes one of
+  holds      proven the same for every force within the band: by the bound of mechanics/uncertainty.py (Weyl for
+             stability over every branch, contacts of uncertain mobilisation in both states; the fixed consistent
+             eigenvector's work for instability), added to the floating-point bounds of accuracy.py;
+  depends    a force set within the band whose `analyze` proves the other verdict, exhibited (its forces returned);
+  undecided  neither, with the margin (the factor of the band that the bound proves).
+The metric is the analysis's primary one (L by default). Position uncertainty adds a first-order term only
+(`position_norms`): a verdict it enters says so (`first_order`).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from .analysis import analyze, focus, inside_share
+from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
+from .mechanics.stiffness import contact_blocks, geometric
+from .mechanics.uncertainty import (
+    SAFETY,
+    Band,
+    contact_norms,
+    focused_factors,
+    mobilisation,
+    radius,
+    unit_blocks,
+    work_gradient,
+)
+from .model.scene import Scene, SceneError, equilibrium_loads
+
+__all__ = ["Band", "DataRobustness", "data_robustness", "perturbed"]
+
+CONSISTENT = (PLUS, MINUS, BOTH)
+SEARCH_STEPS = 3          # counter-example steps: each goes to the band's edge along the current work gradient
+INSIDE = 1.0 - 1e-9       # a counter-example's corrections stay this fraction inside the band
+
+
+@dataclass(frozen=True)
+class DataRobustness:
+    """`robust` (holds / depends / undecided) of the data's `verdict` under `band`; `margin`: the factor of the band
+    up to which the bound proves the verdict (> 1: holds); `bound`: ‖Δ sym(𝓗)‖₂ at the band (eigenvalue units);
+    `uncertain`, `unbounded`: contacts whose mobilisation the band leaves open (counted in both states) or whose
+    sliding direction can turn (no bound); `counterexample`: the forces (M, d) and its proven verdict, with the
+    largest correction as a fraction of each contact's band; `first_order`: a position band entered the bound."""
+
+    robust: str
+    verdict: str
+    margin: float
+    bound: float
+    band: str
+    reason: str
+    uncertain: tuple = ()
+    unbounded: tuple = ()
+    counterexample: dict | None = None
+    first_order: bool = False
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict:
+        out = asdict(self)
+        out["uncertain"], out["unbounded"] = list(self.uncertain), list(self.unbounded)
+        out["margin"] = _finite(self.margin)
+        return out
+
+
+def _finite(x: float):
+    return x if np.isfinite(x) else ("inf" if x > 0 else "-inf")
+
+
+@dataclass(frozen=True, eq=False)
+class _Data:
+    """What every step reads once: the scene, its band, the unit geometric blocks G (M, J, n, n), the contacts' dof
+    index (M, n), the sliding factors a, s (M, n) and the radii δ (M,)."""
+
+    scene: Scene
+    band: Band
+    G: np.ndarray
+    index: np.ndarray
+    slide_left: np.ndarray
+    slide_right: np.ndarray
+    delta: np.ndarray
+
+    @classmethod
+    def of(cls, scene: Scene, band: Band) -> _Data:
+        blocks = contact_blocks(scene)
+        return cls(scene, band, unit_blocks(scene), blocks.index, blocks.slide_left, blocks.slide_right,
+                   radius(scene, band))
+
+
+def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_length: float | None = None,
+                    max_sliding: int = 16, analysis=None, search: bool = True, inside=None) -> DataRobustness:
+    """Whether the verdict of `scene` (in `metric`, one of L, L/10, 10L, inertia with diagonal blocks) holds for
+    every force within `band` (module docstring). `analysis`: the scene's `analyze` in that metric, if at hand.
+    `inside` = (particle indices, share) (the scan's --boundary embedded): the verdict on those particles' modes
+    (analysis.focus); stability is then still proven over every mode, instability by a fixed vector mostly inside."""
+    start = time.perf_counter()
+    whole = analysis or analyze(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
+                                attribution=False, keep="all")
+    res = whole if inside is None else focus(whole, *inside)
+    m = res.metric
+    if m.diagonal is None:
+        raise ValueError("data uncertainty: the metric must be diagonal (L metrics, or inertia with scalar inertia)")
+    mob = mobilisation(scene, band)
+    data = _Data.of(scene, band)
+    e_force, e_position = _bound(data, m)
+    e = e_force + e_position
+    ext = whole
+    if mob["uncertain"].any():        # contacts that may reach the cone: their sliding branches count too
+        state = np.where(mob["uncertain"], "sliding", np.asarray(scene.state))
+        ext = analyze(replace(scene, state=tuple(state)), metric=m.name if m.rotation_length is None else "L",
+                      rotation_length=m.rotation_length, max_sliding=max_sliding, attribution=False, keep="all")
+    verdict = res.verdict.verdict
+    margin = _margin(verdict, res, ext, data, (e, e_position), mob, inside)
+    common = dict(verdict=verdict, margin=margin, bound=e, band=band.describe(),
+                  uncertain=tuple(int(i) for i in np.flatnonzero(mob["uncertain"])),
+                  unbounded=tuple(int(i) for i in np.flatnonzero(mob["unbounded"])), first_order=band.position > 0)
+    if margin > 1 and res.verdict.sufficient and verdict in ("stable", "unstable"):
+        return DataRobustness(robust="holds", reason=f"proven by the bound up to {margin:.3g}× the band",
+                              seconds=time.perf_counter() - start, **common)
+    found = _search(data, res, max_sliding, inside) if search else None
+    if found is not None:
+        return DataRobustness(robust="depends", counterexample=found, seconds=time.perf_counter() - start,
+                              reason=f"forces within the band give {found['verdict']}", **common)
+    why = (f"the bound proves {margin:.3g}× the band" if np.isfinite(margin) else "no bound")
+    return DataRobustness(robust="undecided", reason=f"{why}; no counter-example found",
+                          seconds=time.perf_counter() - start, **common)
+
+
+def _bound(data: _Data, metric) -> tuple[float, float]:
+    """e = Σ_c δ_c β_c in the metric's dofs (mechanics/uncertainty.py), and the first-order position term (0 without
+    a position band)."""
+    Dp = metric.diagonal[data.index]
+    e = float(np.sum(data.delta * contact_norms(data.G, Dp)))
+    position = float(np.sum(position_norms(data.scene, data.band.position, Dp))) if data.band.position > 0 else 0.0
+    return e, position
+
+
+def _margin(verdict: str, res, ext, data: _Data, bound: tuple, mob, inside=None) -> float:
+    """The factor of the band the bound proves: stability over every branch of `ext` (the uncertain contacts sliding
+    too, `_stable_margin`; focused: `_focused_margin`); instability from the data's consistent negative
+    eigenvectors (`_unstable_margin`). bound: (e, its position part)."""
+    if mob["unbounded"].any() or verdict not in ("stable", "unstable"):
+        return -np.inf
+    e, position = bound
+    if verdict == "stable":
+        if len(ext.branches) < ext.verdict.n_branches:
+            return -np.inf
+        return max(_stable_margin(ext, data, e, position),
+                   _focused_margin(ext, e, inside) if inside is not None else -np.inf)
+    return _unstable_margin(res, data, position, mob)
+
+
+def _first_order(res, data: _Data, v) -> tuple[float, float]:
+    """F(v) = Σ_c δ_c ‖w_c(v)‖, the largest change of the work of the fixed unit vector v over the band (exact: H is
+    affine in the forces), and K(v) = Σ_c δ_c (Σ_j ‖sym(D G_cj D) ṽ_c‖²)^½ >= ‖E v‖ (ṽ = P v, scaled dofs)."""
+    scaled = _scaled(res, v)
+    U = res.metric.physical(scaled)[data.index]
+    Dp = res.metric.diagonal[data.index]
+    X = data.G * Dp[:, None, :, None] * Dp[:, None, None, :]
+    Xv = np.einsum("mjab,mb->mja", 0.5 * (X + np.swapaxes(X, -1, -2)), scaled[data.index])
+    F = float(np.sum(data.delta * np.linalg.norm(work_gradient(data.G, U), axis=1)) * SAFETY)
+    K = float(np.sum(data.delta * np.sqrt(np.sum(Xv ** 2, axis=(1, 2)))) * SAFETY)
+    return F, K
+
+
+def _stable_margin(ext, data: _Data, e: float, position: float = 0.0) -> float:
+    """min over branches of the largest t for which the lowest eigenvalue of every matrix within t × the band stays
+    positive: λ_min(A + E) >= the lower eigenvalue of [[λ₁ − t F(v₁) − c, t e], [t e, λ₂ − t e]] (x = c v₁ + s w, w ⟂
+    v₁, ‖E‖ <= t e, |v₁ᵀEv₁| <= t F), with λ₁, λ₂ the lowest two exact eigenvalues bounded by the computed ones and
+    their accuracy, and c = 2 t e ‖v̂₁ − v₁‖ for the computed vector (Davis–Kahan: ‖v̂₁ − v₁‖ <= √2 δ₁/gap). Never
+    less than Weyl's (λ₁ − δ₁)/e."""
+    best = np.inf
+    for b in ext.branches:
+        keep = b.codes != RIGID
+        lam, acc = b.stability_eigenvalues[keep], b.accuracy[keep]
+        if lam.size == 0:
+            continue
+        lo = np.sort(lam - acc)
+        weyl = lo[0] / e if e > 0 else (np.inf if lo[0] > 0 else -np.inf)
+        j = int(np.flatnonzero(keep)[np.argmin(lam)])
+        l1, a1 = b.stability_eigenvalues[j], b.accuracy[j]
+        l2 = lo[1] if lam.size > 1 else np.inf
+        gap = l2 - (l1 + a1)
+        if gap <= 0 or e <= 0 or not np.isfinite(l2):
+            best = min(best, weyl)
+            continue
+        F, K = (x + position for x in _first_order(ext, data, b.stability_vectors[:, j]))   # position: Weyl
+        tilt = 2 * np.sqrt(2) * min(1.0, a1 / gap)
+        lo_t = _largest_factor(l1 - a1, l2, F + tilt * e, min(K + tilt * e, e), e)
+        best = min(best, max(lo_t, weyl))
+    return float(best)
+
+
+def _focused_margin(ext, e: float, inside) -> float:
+    """A focused stable verdict (analysis.focus): every non-rigid eigenpair stays positive or outside
+    (mechanics.uncertainty.focused_factors), over every branch."""
+    best = np.inf
+    for b in ext.branches:
+        keep = b.codes != RIGID
+        order = np.argsort(b.stability_eigenvalues[keep])
+        lam, acc = b.stability_eigenvalues[keep][order], b.accuracy[keep][order]
+        share = inside_share(ext, b, inside[0])[keep][order]
+        if lam.size:
+            best = min(best, float(focused_factors(lam[None], acc[None], share[None], [e], inside[1]).min()))
+    return best
+
+
+def _largest_factor(low1: float, low2: float, F: float, K: float, e: float) -> float:
+    """The largest t (bisection, to 2⁻⁶⁰ relative) with the lower eigenvalue of [[low1 − tF, tK], [tK, low2 − te]]
+    positive (it decreases with t)."""
+    def low(t):
+        a, c = low1 - t * F, low2 - t * e
+        return 0.5 * ((a + c) - np.sqrt((a - c) ** 2 + 4 * (t * K) ** 2))
+    lo, hi = 0.0, 1.0
+    while low(hi) > 0 and hi < 1e12:
+        hi *= 2
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if low(mid) > 0 else (lo, mid)
+    return lo
+
+
+def _unstable_margin(res, data: _Data, position: float, mob) -> float:
+    """max over consistent negative eigenpairs of (−λ − δ − changing)/F(v), F the exact first-order term of the fixed
+    vector (`_first_order`) and `changing` the sliding work a ⊗ s of the contacts whose yield state the band leaves
+    open and that load under the vector (at yield: may unload; uncertain: may load)."""
+    open_ = mob["uncertain"] | (data.scene.at_yield() & (data.delta > 0))
+    best = -np.inf
+    for b in res.branches:
+        neg = np.isin(b.codes, CONSISTENT) & (b.stability_eigenvalues < -b.accuracy)
+        for j in np.flatnonzero(neg):
+            U = _motion(res, b.stability_vectors[:, j])[data.index]
+            s = np.einsum("mn,mn->m", data.slide_right, U)
+            a = np.einsum("mn,mn->m", data.slide_left, U)
+            sign = 1 if b.codes[j] in (PLUS, BOTH) else -1
+            changing = float(np.sum(np.abs(a * s)[open_ & (sign * s > 0)]))
+            F = _first_order(res, data, b.stability_vectors[:, j])[0] + position
+            slack = -b.stability_eigenvalues[j] - b.accuracy[j] - changing
+            best = max(best, slack / F if F > 0 else (np.inf if slack > 0 else -np.inf))
+    return best
+
+
+def _scaled(res, v: np.ndarray) -> np.ndarray:
+    """P v over every dof of the scene (fixed particles: zero), in the metric's scaled dofs."""
+    u = np.zeros(res.scene.n_dof)
+    u[res.problem.free if res.problem.free is not None else slice(None)] = res.problem.projection.apply(v)
+    return u
+
+
+def _motion(res, v: np.ndarray) -> np.ndarray:
+    """U = D P v: the physical motion of a scaled eigenvector over every dof of the scene."""
+    return res.metric.physical(_scaled(res, v))
+
+
+def perturbed(scene: Scene, force: np.ndarray) -> Scene:
+    """The scene with other contact forces and the loads that follow from them (the scene format's rule)."""
+    out = replace(scene, force=np.asarray(force, dtype=float))
+    b, w = equilibrium_loads(out)
+    return replace(out, load=b, load_moment=w)
+
+
+def _target(res, lower: bool):
+    """The eigenpair a counter-example pushes: lower: the lowest non-rigid (consistent first); else the lowest
+    consistent negative one. (eigenvalue, vector), or None where there is none."""
+    best = None
+    for b in res.branches:
+        ok = np.isin(b.codes, CONSISTENT) if not lower else b.codes != RIGID
+        if not lower:
+            ok &= b.stability_eigenvalues <= b.accuracy
+        for j in np.flatnonzero(ok):
+            key = (not np.isin(b.codes[j], CONSISTENT), b.stability_eigenvalues[j])
+            if best is None or key < best[0]:
+                best = (key, b, j)
+    return None if best is None else (best[1].stability_eigenvalues[best[2]], best[1].stability_vectors[:, best[2]])
+
+
+def _step(data: _Data, res, lower: bool, first: bool):
+    """Forces at the band's edge along the work gradient of the target eigenpair (mechanics.uncertainty.work_gradient):
+    down (lower) or up; contacts at yield move along their own force (they stay on the cone, h unchanged). None
+    where there is no target, or (first step) where the target's work cannot change sign at first order (exact for
+    the fixed vector: then no step is tried)."""
+    got = _target(res, lower)
+    if got is None:
+        return None
+    lam, v = got
+    U = _motion(res, v)[data.index]
+    f = data.scene.force
+    w = work_gradient(data.G, U)[:, :f.shape[1]]
+    unit = np.linalg.norm(f, axis=1, keepdims=True)
+    along = np.divide(f, unit, out=np.zeros_like(f), where=unit > 0)
+    w = np.where(data.scene.at_yield()[:, None], np.sum(w * along, axis=1, keepdims=True) * along, w)
+    norm = np.linalg.norm(w, axis=1, keepdims=True)
+    reach = float(np.sum(data.band.force_radius(f) * norm[:, 0]))
+    if first and (lam - reach > 0 if lower else lam + reach < 0):
+        return None
+    direction = np.divide(w, norm, out=np.zeros_like(w), where=norm > 0)
+    return f + (-1 if lower else 1) * data.band.force_radius(f)[:, None] * INSIDE * direction
+
+
+def _onto_cone(data: _Data):
+    """The data's forces with each contact of uncertain mobilisation that can reach the cone within its band moved
+    onto it (just over: at yield) by the shortest step, along ∇Q = h + μn (eq:yield); None where there is none."""
+    scene = data.scene
+    mob = mobilisation(scene, data.band)
+    f = scene.force
+    Q = scene.yield_function()
+    h = f - np.sum(f * scene.normal, axis=1, keepdims=True) * scene.normal
+    size = np.linalg.norm(h, axis=1, keepdims=True)
+    h = np.divide(h, size, out=np.zeros_like(h), where=size > 0)
+    grad = h + scene.mu[:, None] * scene.normal
+    step = -(Q * (1 + 1e-6) / (1 + scene.mu ** 2))[:, None] * grad
+    move = mob["uncertain"] & (size[:, 0] > 0) & (np.linalg.norm(step, axis=1) <= data.delta * INSIDE)
+    return f + np.where(move[:, None], step, 0.0) if move.any() else None
+
+
+def _search(data: _Data, res, max_sliding, inside=None):
+    """A force set within the band whose `analyze` proves another verdict than the data's (up to SEARCH_STEPS steps
+    from each side the verdict can move to), or None."""
+    verdict = res.verdict.verdict
+    m = res.metric
+    name, length = ("inertia", None) if m.rotation_length is None else ("L", m.rotation_length)
+    sides = {"stable": (True,), "unstable": (False,), "neutral": (True, False)}.get(verdict, ())
+    for lower in sides:
+        current = res
+        onto = _onto_cone(data) if lower else None
+        for step in range(SEARCH_STEPS):
+            force = onto if step == 0 and onto is not None else _step(data, current, lower, first=step == 0)
+            if force is None:
+                break
+            try:
+                current = analyze(perturbed(data.scene, force), metric=name, rotation_length=length,
+                                  max_sliding=max_sliding, attribution=False, keep="all")
+            except (SceneError, ValueError):     # a perturbed set the analysis refuses is no counter-example
+                break
+            current = current if inside is None else focus(current, *inside)
+            if current.verdict.verdict != verdict and current.verdict.sufficient:
+                used = np.linalg.norm(force - data.scene.force, axis=1)
+                delta = data.band.force_radius(data.scene.force)
+                frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0)))
+                return {"verdict": current.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
+    return None
+
+
+def position_norms(scene: Scene, length: float, Dp: np.ndarray) -> np.ndarray:
+    """First order only (no remainder): per contact a bound of ‖Δ sym(D H_c D)‖₂ when the contact point and both
+    reference points move by up to `length` and the normal turns by up to 2·length/|b^pq| (round particles: the
+    centre line's turn), from central differences of the contact's blocks (2D)."""
+    M, d = scene.n_contacts, scene.dim
+    h = 1e-6 * np.maximum(np.linalg.norm(scene.r_pq, axis=1) + np.linalg.norm(scene.r_qp, axis=1), 1e-300)
+    pts = np.concatenate([scene.x[scene.p], scene.q_copy])
+    base = replace(scene, names=tuple(f"c{i}" for i in range(2 * M)), x=pts, p=np.arange(M), q=M + np.arange(M),
+                   image=np.zeros((M, d), dtype=np.int64), cell=None, load=np.zeros((2 * M, d)),
+                   load_moment=np.zeros((2 * M, scene.load_moment.shape[1])), mass=None, inertia=None, fixed=None)
+
+    def block(s):
+        b = contact_blocks(s).blocks
+        X = (geometric(b) + b["Hm"]) * Dp[:, :, None] * Dp[:, None, :]
+        return 0.5 * (X + np.swapaxes(X, 1, 2))
+
+    def shifted(what, j, sign):
+        step = np.zeros((M, d))
+        step[:, j] = sign * h
+        if what == "point":
+            return replace(base, point=scene.point + step)
+        x = base.x.copy()
+        x[(slice(0, M) if what == "p" else slice(M, 2 * M))] += step
+        return replace(base, x=x)
+
+    total = np.zeros(M)
+    for what in ("point", "p", "q"):
+        sq = sum(_norm2((block(shifted(what, j, 1)) - block(shifted(what, j, -1))) / (2 * h[:, None, None])) ** 2
+                 for j in range(d))
+        total += length * np.sqrt(sq)
+    if d == 2:
+        turn = 2 * length / np.linalg.norm(scene.branch, axis=1)
+        rot = [np.stack([np.cos(t) * scene.normal[:, 0] - np.sin(t) * scene.normal[:, 1],
+                         np.sin(t) * scene.normal[:, 0] + np.cos(t) * scene.normal[:, 1]], axis=1) for t in (h, -h)]
+        dn = (block(replace(base, normal=rot[0])) - block(replace(base, normal=rot[1]))) / (2 * h[:, None, None])
+        total += turn * _norm2(dn)
+    return total
+
+
+def _norm2(X: np.ndarray) -> np.ndarray:
+    return np.abs(np.linalg.eigvalsh(X)).max(axis=-1)
+
+
+def balance_least_squares(scene: Scene, band: Band, exempt=None) -> tuple[Scene, dict]:
+    """The forces moved to the nearest set (weighted by the band: min Σ_c ‖δf_c‖²/δ_c², or by |f_c| without one)
+    under which every particle balances, force and moment (eq:equil1 with zero loads), except the `exempt` ones
+    (N,) bool (walls, supports: their loads stay free) and fixed ones; the scene with those forces (loads from the
+    forces) and a report: the correction per contact over its band (`correction_over_band`, inside when every one
+    is <= 1: a test of the data), the imbalance before and after. Moments are not corrected."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import lsqr
+
+    from .model.vec import rot_dim
+    N, M, d, r = scene.n_particles, scene.n_contacts, scene.dim, rot_dim(scene.dim)
+    delta = band.force_radius(scene.force)
+    weight = np.where(delta > 0, delta, 0.0) if np.any(delta > 0) else np.linalg.norm(scene.force, axis=1)
+    held = np.zeros(N, dtype=bool) if exempt is None else np.asarray(exempt, dtype=bool).copy()
+    if scene.fixed is not None:
+        held |= scene.fixed
+    B = _equilibrium_matrix(scene)                                       # (N (d + r), M d): loads of the forces
+    rows = np.flatnonzero(~np.repeat(held, d + r))
+    W = sp.diags(np.repeat(weight, d))
+    b_now, w_now = equilibrium_loads(scene)
+    target = -np.concatenate([b_now, w_now], axis=1).reshape(-1)[rows]   # the loads the correction must cancel
+    A = (B[rows] @ W).tocsr()
+    y = lsqr(A, target, atol=1e-15, btol=1e-15, iter_lim=20 * (M * d + 10))[0]
+    correction = (W @ y).reshape(M, d)
+    balanced = perturbed(scene, scene.force + correction)
+    ratio = np.divide(np.linalg.norm(correction, axis=1), delta, out=np.full(M, np.inf), where=delta > 0)
+    after = np.concatenate(equilibrium_loads(balanced), axis=1).reshape(-1)[rows]
+    scale = float(np.max(np.linalg.norm(scene.force, axis=1), initial=0.0))
+    report = {"method": "least-squares", "exempt_particles": int(held.sum()),
+              "correction_norm": np.linalg.norm(correction, axis=1).tolist(),
+              "correction_over_band": [float(v) if np.isfinite(v) else None for v in ratio] if np.any(delta > 0)
+              else None, "inside_band": bool(np.all(ratio <= 1)) if np.any(delta > 0) else None,
+              "largest_correction_over_band": float(ratio.max(initial=0.0)) if np.any(delta > 0) else None,
+              "imbalance_before": float(np.abs(target).max(initial=0.0)) / max(scale, 1e-300),
+              "imbalance_after": float(np.abs(after).max(initial=0.0)) / max(scale, 1e-300),
+              "imbalance_scale": "largest |load| of a balanced particle over the largest |f|"}
+    return balanced, report
+
+
+def _equilibrium_matrix(scene: Scene):
+    """B (N(d + r), M d): the loads b^p = −Σ f, w^p = −Σ r × f (eq:equil1) as a linear map of the contact forces."""
+    import scipy.sparse as sp
+
+    from .model.vec import cross_matrix, rot_dim
+    N, M, d, r = scene.n_particles, scene.n_contacts, scene.dim, rot_dim(scene.dim)
+    per = d + r
+    blocks_p = -np.concatenate([np.broadcast_to(np.eye(d), (M, d, d)), cross_matrix(scene.r_pq)], axis=1)
+    blocks_q = np.concatenate([np.broadcast_to(np.eye(d), (M, d, d)), cross_matrix(scene.r_qp)], axis=1)
+    rows = np.concatenate([(scene.p[:, None] * per + np.arange(per))[:, :, None].repeat(d, 2),
+                           (scene.q[:, None] * per + np.arange(per))[:, :, None].repeat(d, 2)])
+    cols = np.concatenate([(np.arange(M)[:, None] * d + np.arange(d))[:, None, :].repeat(per, 1)] * 2)
+    vals = np.concatenate([blocks_p, blocks_q])
+    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(N * per, M * d))
