@@ -2,7 +2,7 @@
 
 viser 1.1 records what a server sends (`ViserServer.get_scene_serializer()` → `StateSerializer`, `insert_sleep(dt)`
 between frames, `as_html()`: its single-file client with the recording embedded). The page is drawn by the explorer's
-own SceneView (app/views.py) from a Session (app/state.py), with the explorer's camera (panels.camera_pose):
+own SceneView (app/views.py) from a Session (app/state.py), with the explorer's camera (camera.camera_pose):
   - the pair preset (two_particle): a sweep of ρ/r across 1 (SWEEP), each step held, then its rolling mode played;
     the particles, contact, force arrows, osculating circles and the λ⁽⁶⁾ surface with its current-state marker;
   - any other scene: its lowest consistent modes (MODES at most, each motion once), each played in turn.
@@ -23,8 +23,9 @@ import viser
 
 import granstab
 
-from .panels import camera_pose, fit_distance
-from .state import SAME_MODE, Session
+from .camera import camera_pose, fit_distance
+from .readings import SAME_MODE
+from .state import Session
 from .views import SceneView
 
 SWEEP = np.round(np.linspace(0.5, 1.5, 11), 2)     # ρ/r of the pair's steps: sharp, round (1: neutral), flat
@@ -51,7 +52,7 @@ def publish(preset: str, out: Path | str) -> dict:
     session = Session(preset)
     if session.error:
         raise granstab.SceneError(f"granstab publish: {session.error}")
-    if session.kind == "scan_map":
+    if session.on_map:
         raise granstab.SceneError(f"granstab publish: {preset}: a scan folder; publish one scene file of it")
     if session.deferred:
         session.analyse()

@@ -21,6 +21,7 @@ from granstab.model.scene import build_scene
 
 from .models import Body
 from .params import defaults
+from .protocols import MapModel
 from .scanmap import is_scan_dir, load_scan_map, map_colours, pick_particle
 
 CONTRACT = "granstab track"
@@ -57,7 +58,7 @@ def d2min_colours(d2: np.ndarray, floor: float) -> np.ndarray:
 
 
 @dataclass
-class TrackModel:
+class TrackModel(MapModel):
     """A tracked folder at frame `frame` (a `frame` value of its tables); `overlay`: the D²min of the window that
     starts there is shown. `table`: frames.parquet's columns; `particles`: frame, name, x, y[, z], d2min, rattler."""
 
