@@ -15,10 +15,11 @@ GHOST = (200, 215, 235)                 # periodic images of the particles near 
 
 class OverlayView:
     def draw_cell(self, session) -> None:
-        """The outline of a periodic scene's cell (models.cell_edges) and the periodic images of the particles within
-        one mean diameter of a face (models.periodic_images), re-sent only when they change."""
+        """The outline of a periodic scene's cell (models.cell_edges; a periodic track's frame too) and, off a map, the
+        periodic images of the particles within one mean diameter of a face (models.periodic_images), re-sent only
+        when they change."""
         scene = session.scene
-        edges = None if scene is None or session.on_map else cell_edges(scene)
+        edges = None if scene is None else cell_edges(scene)
         key = None if edges is None else digest((session.size,), edges, scene.x)
         if key == self._cell_key:
             return
@@ -29,7 +30,7 @@ class OverlayView:
             return
         self.api.add_line_segments("/cell", to3(edges, 0.0), CELL, thickness=2.0, thickness_units="screen")
         images = periodic_images(scene, 2.0 * session.size)
-        if len(images[0]):
+        if len(images[0]) and not session.on_map:
             z = -0.1 * session.size                          # under the particles they copy
             cloud = self.api.add_point_cloud("/cell/images", points=to3(ghost_positions(scene.x, images), z),
                                              colors=GHOST, point_size=1.8 * session.size, point_shape="circle")

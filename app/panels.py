@@ -40,8 +40,10 @@ PAGE_FIXES = ('<img alt="" src="data:," style="display:none" onerror="'
               "pick()}}"
               '">')
 DRAG_INTERVAL = 0.15      # s between analyses while a particle is being dragged (release always analyses)
-NARROW = 600              # px: a canvas narrower than this folds the left column into a drawer (its rail)
+NARROW = 480              # px: a canvas narrower than this folds the left column into a drawer (its rail): a
+                          # 1024 px page (canvas 194 px beside both columns, 620 folded); 1400 px keeps both (570)
 MAIN_WIDTH, MAIN_NARROW = 400, 360    # px of the right column, wide and narrow
+SIDE_WIDTH = 430          # px of the left column
 
 
 class ClientUI(Dispatch):
@@ -91,8 +93,10 @@ class ClientUI(Dispatch):
         gui.main_panel.dock_right()
         gui.main_panel.set_width(MAIN_WIDTH)
         self._canvas: tuple | None = None         # the canvas size the camera was last fitted to (_resized)
-        self._folded = False                      # the left column is a drawer (a narrow page)
-        self.client.camera.on_update(lambda _: self.run(self._resized))
+        self.folded = False                      # the left column is a drawer (a narrow page)
+        if 0 < self.client.camera.image_width < SIDE_WIDTH + MAIN_WIDTH + NARROW:     # the page before its panels:
+            self._fold()                          # folded before the spectrum plot mounts (unmounting it with a
+        self.client.camera.on_update(lambda _: self.run(self._resized))       # redraw pending is a page error)
 
     def _build_side(self) -> None:
         """The left column: the λ⁽⁶⁾ field panel (shown for the pair only) above the Eigenmodes panel, built once and
@@ -103,7 +107,7 @@ class ClientUI(Dispatch):
         gui = self.client.gui
         self.side = gui.add_panel()
         self.side.dock_left()
-        self.side.set_width(430)
+        self.side.set_width(SIDE_WIDTH)
         with self.side.add_tab("Eigenmodes"):               # the mode controls first: the plot is tall
             self.modes.build(gui)
             self.scene.track.add_plot(gui)                  # a track's λ_min(t)/stress(t): no modes on its map
@@ -118,12 +122,15 @@ class ClientUI(Dispatch):
         if size == self._canvas or size[0] <= 0:
             return
         self._canvas = size
-        if size[0] < NARROW and not self._folded:
-            self._folded = True
-            self.side.minimize()
-            self.client.gui.main_panel.set_width(MAIN_NARROW)
+        if size[0] < NARROW and not self.folded:
+            self._fold()
             return                                  # the canvas widens: fitted at the next size
         self.display.set_camera()
+
+    def _fold(self) -> None:
+        self.folded = True
+        self.side.minimize()
+        self.client.gui.main_panel.set_width(MAIN_NARROW)
 
     # --------------------------------------------------------------------------------------- refresh
     def refresh(self, camera: bool = False, particles: bool = True, skip: str | None = None) -> None:

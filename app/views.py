@@ -16,7 +16,7 @@ import numpy as np
 
 from .cellview import OverlayView
 from .fieldview import FieldView
-from .meshes import body_mesh, circle_data, digest, osculating_arcs, quat_matrix, rot3, to3, wxyz
+from .meshes import body_mesh, circle_data, digest, osculating_arcs, outline, quat_matrix, rot3, to3, wxyz
 from .models import ghost_positions
 from .modes import rotation_matrix
 
@@ -26,6 +26,7 @@ COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0
           "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
 Z_UP = np.array([0.0, 0.0, 1.0])
 SHARE_RED = np.array([150, 0, 20])      # the colour of a particle carrying the whole of an unstable mode
+REST, MOTION = (120, 120, 120), (20, 120, 60)    # the rest position's ghost outline, the mode's motion arrows
 SHARE_BLUE = np.array([20, 70, 150])    # … of a mode that is not unstable (red is read as danger)
 MESH_MAX = 400        # particles drawn as meshes; a larger packing is one point cloud (and no osculating arcs)
 MAX_ARROWS = 24       # contacts drawn with force arrows (3D meshes); more contacts: force lines (no heads)
@@ -201,7 +202,26 @@ class SceneView(FieldView, OverlayView):
             at = {b.name: b.x for b in bodies}
             cloud.points = to3(ghost_positions(np.array([at[n] for n in names]), images), z)
 
+    def show_rest(self, rest, peak, size: float) -> None:
+        """While a mode plays: a ghost of the rest position (each 2D particle's outline, grey) and an arrow from each
+        particle's body-axis tip at rest to where the mode's largest displacement takes it (`peak`: the bodies there),
+        so that what moves, and which way, reads on a still picture too (the pair's rolling turns in place)."""
+        self.api.remove_by_name("/rest")
+        rings = [(b.x + outline(b, size, 64) @ np.asarray(b.R).T) for b in rest if len(b.axes) == 2]
+        if rings and len(rings) <= MESH_MAX:
+            segs = np.concatenate([np.stack([to3(r, 0.1 * size), to3(np.roll(r, -1, axis=0), 0.1 * size)], axis=1)
+                                   for r in rings])
+            self.api.add_line_segments("/rest/outline", segs, REST, thickness=2.0, thickness_units="screen")
+        start = np.array([to3(tip(b), 0.12 * size) for b in rest])      # a rotation in place moves the tip too
+        end = np.array([to3(tip(b), 0.12 * size) for b in peak])
+        moving = np.linalg.norm(end - start, axis=1) > 0.02 * size
+        if moving.any() and moving.sum() <= MAX_ARROWS:
+            shaft = 0.03 * size
+            self.api.add_arrows("/rest/motion", points=np.stack([start[moving], end[moving]], axis=1),
+                                colors=MOTION, shaft_radius=shaft, head_radius=2.5 * shaft, head_length=0.15 * size)
+
     def stop_animation(self) -> None:
+        self.api.remove_by_name("/rest")
         self._animate_points(self.base.values())
         for frame in self.inner.values():
             frame.position = (0.0, 0.0, 0.0)
@@ -306,3 +326,8 @@ class SceneView(FieldView, OverlayView):
         shaft = 0.035 * size
         self._put("/contacts/forces", "arrows", np.stack([starts, ends], axis=1), colors,
                   shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
+
+
+def tip(body) -> np.ndarray:
+    """The end of a body's first axis (where its drawn stripe ends): moves with its translation and its rotation."""
+    return np.asarray(body.x, float) + np.asarray(body.R, float)[:, 0] * body.axes[0]

@@ -646,3 +646,25 @@ def test_too_many_sliding_contacts_are_sampled_and_said(monkeypatch):
     assert "2^4 cases" in s.caveat and "sampled" in s.caveat and s.caveat.count("\n") == 0
     monkeypatch.setattr(pools, "MAX_SLIDING", 16)
     assert s.set_params(alpha=0.9) and s.caveat is None and s.analysis.summary["branches"] != "partial"
+
+
+def test_a_played_mode_shows_its_rest_ghost_and_motion_arrows(pair):
+    """Issue 36: while the pair's rolling mode plays, the rest position stays drawn (both outlines, grey) and an arrow
+    goes from each particle's axis tip at rest to the tip at the mode's largest displacement: the pair turns in
+    place, so arrows of the centres would be empty. At the default amplitude 0.35 the tips move 0.35 r (θ = 0.35)."""
+    from types import SimpleNamespace
+
+    from granstab_app.text import lowest_mode
+    from granstab_app.views import SceneView
+    calls = {}
+    api = SimpleNamespace(remove_by_name=lambda name: calls.pop(name, None),
+                          add_line_segments=lambda name, points, *a, **k: calls.setdefault(name, points),
+                          add_arrows=lambda name, points, **k: calls.setdefault(name, points))
+    m = lowest_mode(pair.modes())
+    assert m.label == "rolling"
+    SceneView(api).show_rest(pair.bodies(), pair.mode_bodies(m, 0.35, 0.5 * np.pi), pair.size)
+    assert calls["/rest/outline"].shape == (2 * 64, 2, 3)
+    arrows = calls["/rest/motion"]
+    assert arrows.shape == (2, 2, 3)
+    length = np.linalg.norm(arrows[:, 1] - arrows[:, 0], axis=1)
+    assert np.allclose(length, 2 * np.sin(0.35 / 2) * pair.bodies()[0].axes[0], rtol=1e-9)   # a chord of angle 0.35

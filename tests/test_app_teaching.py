@@ -43,7 +43,7 @@ def browser(tmp_path_factory):
 
 def opened(ctx, app, errors, preset: str | None = None):
     page = ctx.new_page()
-    page.on("pageerror", lambda exc: errors.append(f"pageerror: {exc}"))
+    page.on("pageerror", lambda exc: errors.append(f"pageerror at {page.viewport_size}: {exc}"))
     page.goto(app.url + (f"/?preset={preset}" if preset else ""))
     page.wait_for_selector(".granstab-verdict", timeout=90_000)
     return page, ui_of(app, page)

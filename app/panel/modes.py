@@ -39,7 +39,7 @@ class ModesPanel:
         self.mode_pick.on_update(lambda _: ui.run(self._pick_mode))
         self.play = gui.add_checkbox("Play", initial_value=False)
         self.play.on_update(lambda _: ui.run(self._toggle_play))
-        self.amplitude = gui.add_slider("Amplitude (particle sizes)", min=0.0, max=0.6, step=0.01, initial_value=0.2)
+        self.amplitude = gui.add_slider("Amplitude (particle sizes)", min=0.0, max=0.6, step=0.01, initial_value=0.35)
         self.speed = gui.add_slider("Speed (cycles/s)", min=0.1, max=2.0, step=0.1, initial_value=0.5)
         self.mode_info = gui.add_markdown("")
         self.show_spectrum = gui.add_checkbox("Spectrum plot", initial_value=True)
@@ -61,7 +61,8 @@ class ModesPanel:
             self._spectrum_default = large
             with ui.quiet():
                 self.show_spectrum.value = not large
-        plot = bool(modes) and self.show_spectrum.value
+        plot = bool(modes) and self.show_spectrum.value and not ui.folded   # a narrow page's drawer: no plotly
+        # plot in it (one mounted there and unmounted with a redraw pending was the _redrawFromAutoMarginCount error)
         for h in (self.show_spectrum, self.mode_pick, self.play, self.amplitude, self.speed):
             h.visible = bool(modes)             # no analysis (a large packing, the scan map): nothing to pick or play
         if not modes:
@@ -140,10 +141,16 @@ class ModesPanel:
     def _play_loop(self) -> None:
         """Animate the selected mode while Play is on (no work at all when paused)."""
         ui, start = self.ui, time.monotonic()
+        shown = None                                  # the mode and amplitude whose rest ghost and arrows are drawn
         while not ui.closed and self.play.value:
             with ui.lock:
                 try:
                     mode = self._current_mode()
+                    if mode is not None and shown != (mode, self.amplitude.value, ui.session.revision):
+                        shown = (mode, self.amplitude.value, ui.session.revision)
+                        with ui.client.atomic():
+                            ui.view.show_rest(ui.session.bodies(), ui.session.mode_bodies(
+                                mode, self.amplitude.value, 0.5 * np.pi), ui.session.size)
                     if mode is not None:
                         phase = 2 * np.pi * self.speed.value * (time.monotonic() - start)
                         bodies = ui.session.mode_bodies(mode, self.amplitude.value, phase)

@@ -8,6 +8,15 @@ from ..text import info_markdown
 from ..trackview import TrackPanel
 
 
+def frame_axis(frames: list) -> tuple:
+    """(min, max, step) of the Frame slider: the frames' own numbers where they are integers evenly spaced (a
+    track's 0 … 30: its slider ran 1 … 31 over them), else their positions 1 … N."""
+    steps = {b - a for a, b in zip(frames, frames[1:])}
+    if all(isinstance(f, int) for f in frames) and len(steps) == 1 and min(steps) > 0:
+        return frames[0], frames[-1], steps.pop()
+    return 1, len(frames), 1
+
+
 class ScenePanel:
     """Preset menu, upload, typed path, frame slider, track panel, *Analyse*, cluster box, sliders, *Reset*."""
 
@@ -70,8 +79,11 @@ class ScenePanel:
         frames = s.model.frames
         self.frame.visible = bool(frames) and len(frames) > 1
         if self.frame.visible:
-            self.frame.max = len(frames)
-            ui.show_value("frame", self.frame, frames.index(s.model.frame) + 1 if s.model.frame in frames else 1)
+            lo, hi, step = frame_axis(frames)
+            if (self.frame.min, self.frame.max, self.frame.step) != (lo, hi, step):
+                self.frame.min, self.frame.max, self.frame.step = lo, hi, step
+            at = s.model.frame if s.model.frame in frames else frames[0]
+            ui.show_value("frame", self.frame, at if lo == frames[0] else frames.index(at) + 1)
         self.analyse.visible = s.deferred
         self.cluster_name.visible, self.back.visible = s.on_map, s.map is not None
         if s.on_map != self._listening:             # scene clicks are only listened to on a map
@@ -145,8 +157,11 @@ class ScenePanel:
     def _pick_frame(self) -> None:
         ui = self.ui
         frames = ui.session.model.frames
-        ui.shown["frame"] = int(self.frame.value)
-        if frames and ui.session.set_frame(frames[int(self.frame.value) - 1]):
+        ui.shown["frame"] = value = int(round(self.frame.value))
+        numbered = frame_axis(frames)[0] == frames[0]
+        if not numbered and not 1 <= value <= len(frames) or numbered and value not in frames:
+            return                                   # a number still being typed (Frame 1… of 0…30: "1" of "12")
+        if ui.session.set_frame(value if numbered else frames[value - 1]):
             ui.refresh()
 
     def _open_cluster(self, name: str) -> None:
