@@ -179,3 +179,13 @@ def test_sessions_share_an_offloaded_analysis(monkeypatch):
     finally:
         pools.close_pool()
     assert not pools._SHARED
+
+
+def test_the_pair_page_is_a_hand_out(pair_page):
+    """Issue 36: the published pair carries what to watch (2-3 sentences), the λ⁽⁶⁾ contour, a lamp in the verdict's
+    colour in every step (red, amber, green: one per step, in the recording), the plain sentence on the badge and the
+    rest position's ghost while a mode plays; the note moves to the bottom on a phone."""
+    out, _ = pair_page
+    text = out.read_text(encoding="utf-8")
+    assert "What to watch." in text and 'class="granstab-contour"' in text and "@media (max-width:600px)" in text
+    assert text.count("sharper than a circle") >= 1 and "eq:" not in text.split("granstab-note", 1)[1][:4000]

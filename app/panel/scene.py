@@ -128,31 +128,31 @@ class ScenePanel:
         if name not in ui.session.presets():          # the menu's options only (a forged value is no path)
             ui.show_message(f"{name}: not a preset of this server")
             return
-        ui.loading(name)
-        ok = ui.session.load_preset(name)
-        ui.view.key = None
-        ui.refresh(camera=ok)
+        self._open(name, lambda: ui.session.load_preset(name))
 
     def _upload(self) -> None:
         """Open the file sent from the page; one that cannot be opened (over MAX_UPLOAD: refused unread) gets a red
         notice with the reason beside viser's own notice of the transfer (docs/viser-gaps.md: uploads)."""
         ui, up = self.ui, self.upload.value
-        ui.loading(Path(up.name).name)
-        ok = ui.session.load_upload(up.name, up.content)
-        if not ok:
+        if not self._open(Path(up.name).name, lambda: ui.session.load_upload(up.name, up.content)):
             ui.client.add_notification(f"Not opened: {Path(up.name).name}", ui.session.error, color="red",
                                        with_close_button=True, auto_close_seconds=None)
-        ui.view.key = None
-        ui.refresh(camera=ok)
 
     def _open_path(self) -> None:
         ui, path = self.ui, self.path.value.strip()
         if not path or path == ui.session.preset:
             return
-        ui.loading(path)
-        ok = ui.session.open_typed(path)
+        self._open(path, lambda: ui.session.open_typed(path))
+
+    def _open(self, name: str, opener) -> bool:
+        """Open a scene (`opener()`: whether it opened), saying so meanwhile; the page drawn anew, the camera
+        fitted to it."""
+        ui = self.ui
+        ui.loading(name)
+        ok = opener()
         ui.view.key = None
         ui.refresh(camera=ok)
+        return ok
 
     def _pick_frame(self) -> None:
         ui = self.ui
