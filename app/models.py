@@ -24,6 +24,7 @@ import numpy as np
 import granstab
 from granstab.io import shapefile
 from granstab.model import shapes
+from granstab.model.outline import tip_ellipse
 
 from .params import defaults
 from .protocols import SceneModel
@@ -88,7 +89,7 @@ class TwoParticleModel(SceneModel):
 
     def bodies(self, P: dict) -> list[Body]:
         r = self.r
-        axes = (r, float(np.sqrt(P["rho_r"]) * r))
+        axes = tip_ellipse(r, P["rho_r"] * r)           # the tip's radius of curvature is ρ: the curvature drawn
         return [Body("p", "ellipse", axes, np.array([0.0, 0.0]), np.eye(2)),
                 Body("q", "ellipse", axes, np.array([2 * r, 0.0]), np.eye(2))]
 

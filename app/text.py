@@ -12,6 +12,21 @@ VERDICT_COLOR = {"stable": "#1e8449", "neutral": "#b7950b", "unstable": "#c0392b
 TWO_LINES = "line-height:1.3em;height:2.6em;overflow:hidden;display:-webkit-box;-webkit-line-clamp:2;" \
             "-webkit-box-orient:vertical"                   # a headline line's box: two lines, whatever its text
 NO_REASON = (None, "no contact", "not analysed", "scan map", "rigidity map", "track")   # badges without a reason line
+PRESETS = {      # each preset's title and what it shows, in one line (the Scene tab, under the menu)
+    "two_particle": ("Two grains, one contact", "Sharp tips roll apart, flat sides rock back: move ρ/r across 1."),
+    "two_particle_flat": ("Two grains with flat sides", "The same pair at ρ/r = 2: stable while pressed together."),
+    "two_disks": ("Two equal disks", "Exactly round (ρ = r): they roll freely — neutral."),
+    "ellipses_sharp": ("Two ellipses, tip to tip", "Drag them: the contact follows the shapes (sharp: unstable)."),
+    "ellipses_flat": ("Two ellipses, side to side", "The same ellipses turned by 90°: flat sides, stable."),
+    "ellipsoid_trio": ("Three ellipsoids (3D)", "Shapes in 3D, half the friction mobilised."),
+    "four_disk": ("Four disks (the paper's Sec. 4.2)", "All four contacts sliding: 16 cases, unstable — try μ."),
+    "gear_packing": ("Gears: a square packing", "Disks that turn like gears cost no energy: neutral."),
+    "gear_packing_rolling": ("Gears with rolling resistance", "Rolling stiffness stops the gears."),
+    "hand_in_glove": ("Hand in glove", "A convex grain in a concave socket: nearly the same curvature."),
+    "spheres_tetrahedron": ("Four spheres (3D)", "A tetrahedron with sliding apex contacts and contact moments."),
+    "annulus_frame": ("A real packing: 143 photoelastic disks", "Measured forces from an experiment: where does "
+                      "it give way?"),
+}
 MAP_DETAILS = ("**Scan map.** {report}.\n\nColour: the fraction of the clusters containing a particle that are "
                "unstable (white 0 → dark red 1; grey: in no scanned cluster). Click a particle, or type its name "
                "under *Scene*, to open its cluster here; *Back to the map* returns.")
@@ -118,7 +133,8 @@ def info_markdown(s, verdict: str | None) -> str:
             "geometry." if s.draggable else " Its contacts are given in the file (points, normals, curvatures, "
             "forces), not shapes: the particles cannot be dragged.")
     kind = verdict if s.on_map else s.kind.replace("_", " ")      # a map says which map
-    return (f"{note}\n\n" if note else "") + (f"{kind} scene" + (f" · {params}." if params else ".")) + drag + (
+    title, line = PRESETS.get(str(s.preset), (None, None))
+    return (f"**{title}** — {line}\n\n" if title else "") + (f"{note}\n\n" if note else "") + (f"{kind} scene" + (f" · {params}." if params else ".")) + drag + (
         f"\n\n**Import report**\n\n{wrapped(report)}" if report else "")
 
 

@@ -85,3 +85,14 @@ def test_modes_are_named_by_what_they_do():
     assert len(set(keys)) == len(keys) and not any("#" in k for k in keys)
     assert any(k.startswith("sliding at contact") for k in keys) and any(k.startswith("gear") for k in keys)
     assert lowest_mode(s.modes()).eigenvalue < 0 and lowest_mode(s.modes()).consistent
+
+
+def test_every_preset_has_a_title_and_one_line():
+    from pathlib import Path
+
+    from granstab_app.state import Session
+    from granstab_app.text import PRESETS, info_markdown
+    stems = {p.stem for p in (Path(__file__).resolve().parents[1] / "presets").iterdir()}
+    assert stems == set(PRESETS) and all(title and line.count(".") <= 2 for title, line in PRESETS.values())
+    s = Session("four_disk")
+    assert info_markdown(s, s.verdict).startswith("**Four disks (the paper's Sec. 4.2)** — All four contacts sliding")
