@@ -158,6 +158,9 @@ class ClientUI(Dispatch):
             self.field.write(s)
             self.modes.write(s)
         self.scene.track.refresh(s)
+        if s.attribute():                          # why it is unstable: after the verdict went out (half its time)
+            with self.client.atomic():
+                self.write_verdict()
         if camera:
             self.display.camera(s)
 

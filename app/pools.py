@@ -23,13 +23,28 @@ _SHARED: OrderedDict = OrderedDict()     # (scene, metric) digest → Analysis, 
 _SHARED_LOCK = threading.Lock()
 
 
-def analysed(scene, metric: str):
+def analysed(scene, metric: str, attribution: bool = True):
     """The analysis on one BLAS thread (small problems: thread start-up costs more than it saves). More than
     MAX_SLIDING contacts at the friction limit (2^Ms branches: 2^85 on RigidLibrary's 1,617-disk annulus) are
     analysed on the sampled path (`sampled`), which proves instability only; the page says so."""
     with blas_threads(1):
-        return analyze(scene, metric=metric, max_sliding=MAX_SLIDING,
+        return analyze(scene, metric=metric, max_sliding=MAX_SLIDING, attribution=attribution,
                        sample_branches=SAMPLED if sampled(scene) else None)
+
+
+def attributed(analysis) -> bool:
+    """Give an unstable `analysis` made without it its attribution (granstab.analysis.attribute: why it is unstable;
+    half of a pair's analysis time, so the explorer sends the verdict first). Whether it changed."""
+    from granstab.analysis import attribute
+    if analysis.verdict.verdict != "unstable" or analysis.attribution is not None or analysis.backend != "dense":
+        return False
+    with blas_threads(1):
+        try:
+            analysis.attribution = attribute(analysis, max_sliding=MAX_SLIDING,
+                                             sample_branches=SAMPLED if sampled(analysis.scene) else None)
+        except ValueError:                  # no consistent negative eigenpair among the kept branches
+            return False
+    return True
 
 
 def sampled(scene) -> bool:

@@ -16,7 +16,7 @@ from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .field import Field, field_png, lambda6_field
 from .models import Body, ShapeModel
 from .modes import label_modes, mode_offsets, rotation_matrix
-from .pools import metric_family
+from .pools import attributed, metric_family
 
 CONSISTENT = (PLUS, MINUS, BOTH)
 SAME_MODE = 0.999          # |cos| of two unit motions above which they are one mode (distinct_modes)
@@ -124,7 +124,8 @@ class Readings:
     def report(self) -> dict:
         """What the verdict panel shows: verdict, reason, flags, counts, the largest error estimate, times.
         Computed once per revision (its Type-1 check solves the load response): a refresh reads it several times."""
-        key = (self.revision, id(self.analysis), self.error, self.notice, self.metric, self.elapsed)
+        key = (self.revision, id(self.analysis), self.error, self.notice, self.metric, self.elapsed,
+               self.analysis is not None and self.analysis.attribution is not None)
         if self._report[0] != key:
             self._report = (key, self._compute_report())
         return self._report[1]
@@ -136,7 +137,7 @@ class Readings:
         worst = max(a.errors.items(), key=lambda kv: kv[1]) if a.errors else ("", 0.0)
         return {
             "verdict": s.verdict, "reason": s.reason, "sufficient": s.sufficient,
-            "type2": s.type2_nonuniqueness, "type1": self.type1(),
+            "type2": s.type2_nonuniqueness, "type1": self._type1(),
             "hinges": s.hinges_on_tolerance, "n_branches": s.n_branches,
             "counts": (s.consistent_positive, s.consistent_zero, s.consistent_negative),
             "n_particles": self.scene.n_particles, "n_contacts": self.scene.n_contacts,
@@ -145,6 +146,16 @@ class Readings:
             "error": self.error, "notice": self.notice, "metric": self.metric, "dynamics": self.dynamics(),
             "attribution": None if a.attribution is None else a.attribution.line(),
         }
+
+    def _type1(self) -> str:
+        """type1, once per analysis (a report made again when the attribution arrives does not solve it again)."""
+        if self._type1_of[0] is not self.analysis:
+            self._type1_of = (self.analysis, self.type1())
+        return self._type1_of[1]
+
+    def attribute(self) -> bool:
+        """Why the verdict is unstable (pools.attributed), for an analysis made without it; whether it changed."""
+        return self.analysis is not None and attributed(self.analysis)
 
     def type1(self) -> str:
         """Type-1 non-uniqueness (Sec. 3.1) under a proportional load increment d𝕓 = current load.

@@ -64,6 +64,7 @@ class Session(Readings):
         self._modes: tuple[int, list] = (-1, [])
         self._motions: tuple[int, dict] = (-1, {})      # per branch, for this revision (motions)
         self._report: tuple = (None, {})                # report(), for what it was computed from (once per revision)
+        self._type1_of: tuple = (None, "")              # (analysis, its Type-1 line): solved once per analysis
         self._pair: TwoParticleModel | None = None   # the slider-driven pair a drag turned into shapes
         self.map = None                              # the scan map a cluster was opened from (back_to_map)
         if not self.load_preset(preset or DEFAULT_PRESET) and self.model is None and preset not in (None, DEFAULT_PRESET):
@@ -296,7 +297,7 @@ class Session(Readings):
             if self.offload and self.scene.n_particles >= OFFLOAD:
                 self.analysis = shared(self.scene, self.metric)
             else:
-                self.analysis = analysed(self.scene, self.metric)
+                self.analysis = analysed(self.scene, self.metric, attribution=False)   # attribute(): after the verdict
             self.error = None
             if sampled(self.scene):
                 n = int(self.scene.at_yield().sum())

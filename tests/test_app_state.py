@@ -668,3 +668,14 @@ def test_a_played_mode_shows_its_rest_ghost_and_motion_arrows(pair):
     assert arrows.shape == (2, 2, 3)
     length = np.linalg.norm(arrows[:, 1] - arrows[:, 0], axis=1)
     assert np.allclose(length, 2 * np.sin(0.35 / 2) * pair.bodies()[0].axes[0], rtol=1e-9)   # a chord of angle 0.35
+
+
+def test_the_attribution_comes_after_the_verdict(pair):
+    """Issue 36's latency: the pair's analysis is made without its attribution (half its time), the page sends the
+    verdict, then Session.attribute adds why it is unstable; the report (cached per revision) follows. A stable
+    scene has none to add."""
+    assert pair.verdict == "unstable" and pair.report()["attribution"] is None
+    assert pair.attribute() and pair.report()["attribution"].startswith("mechanism: geometric")
+    assert not pair.attribute()
+    pair.set_params(rho_r=1.5)
+    assert pair.verdict == "stable" and not pair.attribute() and pair.report()["attribution"] is None
