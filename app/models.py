@@ -16,7 +16,7 @@ import itertools
 import json
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -164,7 +164,8 @@ class ShapeModel(SceneModel):
 
     def build(self, P: dict) -> granstab.Scene:
         try:
-            return shapes.scene_from_shapes(self.dim, self.particles, source="shapes", **self._law(P))
+            scene = shapes.scene_from_shapes(self.dim, self.particles, source="shapes", **self._law(P))
+            return replace(scene, title=shape_title(scene.title, scene))
         except granstab.SceneError:
             raise
         except (ValueError, RuntimeError) as exc:
@@ -299,6 +300,23 @@ class ContactModel(SceneModel):
         sockets = contact_sockets(s) if s.dim == 2 else {}
         return [Body(name, kind, (float(radius[i]),) * s.dim, s.x[i].copy(), np.eye(s.dim), sockets.get(i, ()))
                 for i, name in enumerate(s.names)]
+
+
+def shape_title(title: str, scene: granstab.Scene) -> str:
+    """A 2D shape scene's title with its contact words from the geometry now ("sharp tips" where every contact's ρ,
+    the radius of curvature of p there, is below r, its distance to p's centre; "flat sides" above; "ρ/r = …" of a
+    single contact): an ellipse turned to its flat side no longer says "sharp tips touching"."""
+    if scene.dim != 2 or scene.n_contacts == 0:
+        return title
+    t = np.stack([-scene.normal[:, 1], scene.normal[:, 0]], axis=1)
+    kappa = np.einsum("mi,mij,mj->m", t, scene.curvature_p, t)
+    if np.any(kappa >= 0):                                     # a flat or concave side: no word to say
+        return title
+    rho_r = -1.0 / kappa / np.linalg.norm(scene.r_pq, axis=1)
+    words = "sharp tips" if np.all(rho_r < 1) else "flat sides" if np.all(rho_r > 1) else None
+    if words:
+        title = re.sub(r"sharp tips|flat flanks|flat sides", words, title)
+    return re.sub(r"ρ/r = [0-9.]+", f"ρ/r = {rho_r[0]:.2g}", title) if scene.n_contacts == 1 else title
 
 
 def onto_cone(scene: granstab.Scene, mu: float) -> tuple[np.ndarray, tuple, np.ndarray]:

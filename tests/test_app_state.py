@@ -679,3 +679,15 @@ def test_the_attribution_comes_after_the_verdict(pair):
     assert not pair.attribute()
     pair.set_params(rho_r=1.5)
     assert pair.verdict == "stable" and not pair.attribute() and pair.report()["attribution"] is None
+
+
+def test_a_turned_ellipse_renames_its_contact():
+    """Issue 36: the headline follows the geometry — ellipses_sharp (tips: ρ/r = 0.25) turned by 90° onto its flat
+    sides says "flat sides touching (ρ/r = 4)" (ρ = a²/b = 2, r = b = 0.5), not "sharp tips"; and is stable."""
+    s = Session("ellipses_sharp")
+    assert "sharp tips" in s.scene.title and "ρ/r = 0.25" in s.scene.title and s.verdict == "unstable"
+    s.move("left", [0.0, 0.0], np.pi / 2)
+    s.move("right", [0.99, 0.0], np.pi / 2)
+    assert s.error is None and s.scene.n_contacts == 1
+    assert "flat sides touching (ρ/r = 4)" in s.scene.title and "sharp" not in s.scene.title
+    assert s.verdict == "stable"
