@@ -15,8 +15,9 @@ from __future__ import annotations
 import functools
 import itertools
 import json
+import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -24,14 +25,16 @@ import numpy as np
 import granstab
 from granstab.io import shapefile
 from granstab.model import shapes
+from granstab.model.outline import tip_ellipse
 
 from .params import defaults
+from .protocols import SceneModel
 
 
 @dataclass(frozen=True)
 class Body:
     """A particle to draw: kind "ellipse"|"disk" (2D) or "ellipsoid"|"sphere" (3D), semi-axes, pose x (d,), R (d, d);
-    2D `sockets`: its concave contact sides (contact_sockets), cut into the drawn outline (app.views.outline)."""
+    2D `sockets`: its concave contact sides (contact_sockets), cut into the drawn outline (app.meshes.outline)."""
 
     name: str
     kind: str
@@ -50,7 +53,7 @@ def contact_shape(rho_r: float) -> str:
 
 
 @dataclass
-class TwoParticleModel:
+class TwoParticleModel(SceneModel):
     """The symmetric two-particle example (Sec. 4.1, Appendix C), driven by ρ/r and f/(kr)."""
 
     r: float = 1.0
@@ -60,6 +63,9 @@ class TwoParticleModel:
     kind = "two_particle"
     params_used = ("rho_r", "f_kr", "mu", "mobilised", "alpha", "k", "rolling")
     draggable = True   # a drag turns the pair into a ShapeModel of the same ellipses (see Session.move)
+
+    def field_scale(self) -> float:
+        return self.r
 
     def initial_params(self) -> dict:
         return {**defaults(), **self.start}
@@ -84,7 +90,7 @@ class TwoParticleModel:
 
     def bodies(self, P: dict) -> list[Body]:
         r = self.r
-        axes = (r, float(np.sqrt(P["rho_r"]) * r))
+        axes = tip_ellipse(r, P["rho_r"] * r)           # the tip's radius of curvature is ρ: the curvature drawn
         return [Body("p", "ellipse", axes, np.array([0.0, 0.0]), np.eye(2)),
                 Body("q", "ellipse", axes, np.array([2 * r, 0.0]), np.eye(2))]
 
@@ -128,7 +134,7 @@ class TwoParticleModel:
 # ------------------------------------------------------------------------------------------------ shapes
 
 @dataclass
-class ShapeModel:
+class ShapeModel(SceneModel):
     """Particles with shapes at poses; every contact quantity is derived from the geometry (granstab.model.shapes)."""
 
     dim: int
@@ -143,6 +149,9 @@ class ShapeModel:
     params_used = ("mu", "mobilised", "alpha", "k", "rolling")
     draggable = True
 
+    def dimension(self) -> int:
+        return self.dim
+
     def __post_init__(self):
         self.poses0 = self.poses0 or [pose for _, _, pose in self.particles]
         self.length = self.length or float(np.mean([shapes.bounding_radius(s) for _, s, _ in self.particles]))
@@ -156,7 +165,8 @@ class ShapeModel:
 
     def build(self, P: dict) -> granstab.Scene:
         try:
-            return shapes.scene_from_shapes(self.dim, self.particles, source="shapes", **self._law(P))
+            scene = shapes.scene_from_shapes(self.dim, self.particles, source="shapes", **self._law(P))
+            return replace(scene, title=shape_title(scene.title, scene))
         except granstab.SceneError:
             raise
         except (ValueError, RuntimeError) as exc:
@@ -207,7 +217,7 @@ LAW_PARAMS = {"mu": "mu", "alpha": "alpha", "k": "k", "rolling": "rolling_stiffn
 
 
 @dataclass
-class ContactModel:
+class ContactModel(SceneModel):
     """A contact-level scene (file); uniform law parameters may be overridden, the geometry is fixed."""
 
     scene: granstab.Scene
@@ -246,6 +256,9 @@ class ContactModel:
         return P
 
     def build(self, P: dict) -> granstab.Scene:
+        """The file's scene with the sliders' law parameters. A new μ keeps the contacts at the friction limit there
+        (onto_cone: sliding ones, and those the smaller cone would leave outside), their loads following from the
+        forces; the title's "μ = …" follows the slider."""
         start = self.initial_params()
         changed = [key for key in self.params_used if P[key] != start[key]]
         if not changed:
@@ -254,7 +267,26 @@ class ContactModel:
         for c in data["contacts"]:
             for key in changed:
                 c[LAW_PARAMS[key]] = P[key] if key != "rolling" else P[key] * P["k"] * self.length ** 2
+        if "mu" in changed:
+            force, state, moved = onto_cone(self.scene, P["mu"])
+            if moved.any():
+                for c, f, st in zip(data["contacts"], force.tolist(), state):
+                    c["force"], c["state"] = f, st
+                for particle in data["particles"]:           # equilibrium loads of the new forces
+                    particle.pop("load", None)
+                    particle.pop("moment", None)
+            data["title"] = re.sub(r"μ = [0-9.]+", f"μ = {P['mu']:g}", data.get("title", ""))
         return granstab.scene_from_dict(data, source=self.scene.source)
+
+    def adjustments(self, P: dict) -> str:
+        if self.scene.n_contacts == 0 or "mu" not in self.params_used or P["mu"] == self.initial_params()["mu"]:
+            return ""
+        _, _, moved = onto_cone(self.scene, P["mu"])
+        if not moved.any():
+            return ""
+        return (f"μ = {P['mu']:g}: {int(moved.sum())} contact(s) at the friction limit keep sliding: their tangential "
+                f"force is scaled onto the new cone (|f_t| = μ f_n{', none at μ = 0' if P['mu'] == 0 else ''}), "
+                "and the loads follow from the forces.")
 
     def bodies(self, P: dict) -> list[Body]:
         """Disks (spheres) of radius the smallest distance from the centre to one of the particle's contact points."""
@@ -271,11 +303,45 @@ class ContactModel:
                 for i, name in enumerate(s.names)]
 
 
+def shape_title(title: str, scene: granstab.Scene) -> str:
+    """A 2D shape scene's title with its contact words from the geometry now ("sharp tips" where every contact's ρ,
+    the radius of curvature of p there, is below r, its distance to p's centre; "flat sides" above; "ρ/r = …" of a
+    single contact): an ellipse turned to its flat side no longer says "sharp tips touching"."""
+    if scene.dim != 2 or scene.n_contacts == 0:
+        return title
+    t = np.stack([-scene.normal[:, 1], scene.normal[:, 0]], axis=1)
+    kappa = np.einsum("mi,mij,mj->m", t, scene.curvature_p, t)
+    if np.any(kappa >= 0):                                     # a flat or concave side: no word to say
+        return title
+    rho_r = -1.0 / kappa / np.linalg.norm(scene.r_pq, axis=1)
+    words = "sharp tips" if np.all(rho_r < 1) else "flat sides" if np.all(rho_r > 1) else None
+    if words:
+        title = re.sub(r"sharp tips|flat flanks|flat sides", words, title)
+    return re.sub(r"ρ/r = [0-9.]+", f"ρ/r = {rho_r[0]:.2g}", title) if scene.n_contacts == 1 else title
+
+
+def onto_cone(scene: granstab.Scene, mu: float) -> tuple[np.ndarray, tuple, np.ndarray]:
+    """Contact forces (M, d) and states for friction coefficient `mu`: every compressive contact at the friction limit
+    now (Scene.at_yield) or outside the new cone (|f_t| > μ f_n, not "elastic") gets |f_t| = μ f_n along its own
+    tangential direction and the state "sliding" (eq:yield: Q = 0); at μ = 0 no tangential force and the state
+    "auto" (a frictionless contact has no sliding direction, eq:Hdirection). Returns (force, state, moved (M,))."""
+    fdotn = np.sum(scene.force * scene.normal, axis=1)            # < 0: compressive
+    ft = scene.tangential_force()
+    size = np.linalg.norm(ft, axis=1)
+    state = np.asarray(scene.state, dtype=object)
+    outside = (state == "auto") & (size > mu * -fdotn * (1 + scene.tol.yield_rtol))
+    moved = (fdotn < 0) & (size > 0) & (scene.at_yield() | outside)
+    scale = np.where(moved, mu * -fdotn / np.where(size > 0, size, 1.0), 1.0)
+    force = fdotn[:, None] * scene.normal + scale[:, None] * ft
+    state = np.where(moved, "sliding" if mu > 0 else "auto", state)
+    return force, tuple(state), moved
+
+
 def contact_sockets(scene: granstab.Scene) -> dict[int, tuple]:
     """The concave sides of a 2D scene's contacts, by particle index: for each, (cx, cy, ρ, angle) — the circle of
     curvature of its surface at the contact, radius ρ = 1/κ about a centre outside the particle (relative to the
     particle's centre), and the direction (angle) from that centre to the contact point. κ = t·K·t along the contact
-    tangent t: < 0 convex, > 0 concave (as in app.views.circle_data); sides flatter than ρ = 10⁶ × the contact's
+    tangent t: < 0 convex, > 0 concave (as in app.meshes.circle_data); sides flatter than ρ = 10⁶ × the contact's
     distance from the particle's centre are drawn flat. Vectorised over contacts: a packing has thousands."""
     t = np.stack([-scene.normal[:, 1], scene.normal[:, 0]], axis=1)
     out: dict[int, list] = {}

@@ -2,7 +2,7 @@
 
 viser 1.1 records what a server sends (`ViserServer.get_scene_serializer()` → `StateSerializer`, `insert_sleep(dt)`
 between frames, `as_html()`: its single-file client with the recording embedded). The page is drawn by the explorer's
-own SceneView (app/views.py) from a Session (app/state.py), with the explorer's camera (panels.camera_pose):
+own SceneView (app/views.py) from a Session (app/state.py), with the explorer's camera (camera.camera_pose):
   - the pair preset (two_particle): a sweep of ρ/r across 1 (SWEEP), each step held, then its rolling mode played;
     the particles, contact, force arrows, osculating circles and the λ⁽⁶⁾ surface with its current-state marker;
   - any other scene: its lowest consistent modes (MODES at most, each motion once), each played in turn.
@@ -23,8 +23,12 @@ import viser
 
 import granstab
 
-from .panels import camera_pose, fit_distance
-from .state import SAME_MODE, Session
+from .camera import camera_pose, fit_distance
+from .figures import contour_html
+from .panel.modes import unstable
+from .readings import SAME_MODE
+from .state import Session
+from .text import VERDICT_COLOR, plain_sentence
 from .views import SceneView
 
 SWEEP = np.round(np.linspace(0.5, 1.5, 11), 2)     # ρ/r of the pair's steps: sharp, round (1: neutral), flat
@@ -32,7 +36,9 @@ FPS = 20                                           # frames per second of a play
 CYCLE = 1.6                                        # s: one period of a played mode
 HOLD = 0.8                                         # s: a step shown at rest (contact drawings on) before its mode plays
 MODES = 3                                          # the other scenes: their lowest consistent modes played, at most
-AMPLITUDE = 0.25                                   # the explorer's default mode amplitude (× particle size)
+AMPLITUDE = 0.35                                   # the explorer's default mode amplitude (× particle size)
+PHONE = ("@media (max-width:600px){#granstab-note{left:8px;right:8px;top:auto;bottom:60px;max-width:none;"
+         "max-height:30vh}}")                       # a phone: the note at the bottom, the scene above it
 MAX_BYTES = 5_000_000                              # the largest page written
 VIEWPORT = SimpleNamespace(fov=75.0 * np.pi / 180.0, image_width=1600, image_height=1000)   # viser's default fov
 NOTE = ("<b>A recording</b> of the granstab explorer ({title}). It plays {what}. The playback bar at the bottom "
@@ -51,7 +57,7 @@ def publish(preset: str, out: Path | str) -> dict:
     session = Session(preset)
     if session.error:
         raise granstab.SceneError(f"granstab publish: {session.error}")
-    if session.kind == "scan_map":
+    if session.on_map:
         raise granstab.SceneError(f"granstab publish: {preset}: a scan folder; publish one scene file of it")
     if session.deferred:
         session.analyse()
@@ -97,8 +103,9 @@ class Recording:
         self.recorder.insert_sleep(seconds)
         self.seconds += seconds
 
-    def draw(self, badge: str, detail: str) -> None:
-        """The scene at rest as the explorer draws it, the camera, and the badge (two scene labels over it)."""
+    def draw(self, badge: str, detail: str, verdict: str | None = None) -> None:
+        """The scene at rest as the explorer draws it, the camera, and the badge (two scene labels over it, beside a
+        lamp in the verdict's colour: the page's badge colour in every frame)."""
         s, view = self.session, self.view
         with self.server.atomic():
             view.stop_animation()
@@ -121,6 +128,10 @@ class Recording:
             self.server.scene.add_label("/badge", badge, position=at, font_screen_scale=1.6, anchor="bottom-center")
             self.server.scene.add_label("/badge/detail", detail, position=(0.0, 0.0, 0.0), font_screen_scale=0.9,
                                         anchor="top-center")
+            rgb = tuple(int(VERDICT_COLOR.get(verdict, "#555555")[i:i + 2], 16) for i in (1, 3, 5))
+            self.server.scene.add_icosphere("/badge/lamp", radius=0.3 * s.size, color=rgb,
+                                            position=(0.0, 0.7 * s.size, 0.0) if s.scene_dim == 2
+                                            else (0.0, 0.0, 0.7 * s.size))
 
     def colour(self, mode) -> None:
         """Particles coloured by their share of `mode` where the explorer does so (more than two particles)."""
@@ -128,11 +139,14 @@ class Recording:
         names = [b.name for b in s.bodies()]
         index = {n: i for i, n in enumerate(s.scene.names)}
         on = mode is not None and s.scene.n_particles > 2
-        self.view.colour_particles(names, s.particle_shares(mode)[[index[n] for n in names]] if on else None)
+        self.view.colour_particles(names, s.particle_shares(mode)[[index[n] for n in names]] if on else None,
+                                   unstable=mode is not None and unstable(mode, s.analysis))
 
     def play(self, mode) -> None:
         """One period of `mode` at FPS frames per second (the explorer's animation: SceneView.animate)."""
         s = self.session
+        with self.server.atomic():                       # the rest position's ghost and the motion's arrows
+            self.view.show_rest(s.bodies(), s.mode_bodies(mode, AMPLITUDE, 0.5 * np.pi), s.size)
         for k in range(int(round(CYCLE * FPS))):
             with self.server.atomic():
                 self.view.animate(s.mode_bodies(mode, AMPLITUDE, 2 * np.pi * k / (CYCLE * FPS)))
@@ -143,11 +157,10 @@ class Recording:
         s = self.session
         for rho_r in SWEEP:
             s.set_params(rho_r=float(rho_r))
-            word, reason = s.headline()
-            lam = s.rolling_eigenvalue()
+            word, lam = s.verdict, s.rolling_eigenvalue()
             self.badges.append((float(rho_r), word, lam))
             self.draw(f"ρ/r = {rho_r:.2f}: {(word or 'no verdict').upper()}",
-                      f"rolling eigenvalue λ⁽⁶⁾/k = {0 if lam is None else lam:.3g} · {reason}")
+                      f"rolling eigenvalue λ⁽⁶⁾/k = {0 if lam is None else lam:.3g} · {plain_sentence(s, word)}", word)
             self.sleep(HOLD)
             rolling = next((m for m in s.modes() if m.branch == 0 and m.label == "rolling"), None)
             if rolling is not None:
@@ -157,17 +170,18 @@ class Recording:
     def modes(self) -> int:
         """Any other scene: its lowest consistent modes (each motion once), each held, then played."""
         s = self.session
-        word, reason = s.headline()
+        word = s.verdict
+        reason = plain_sentence(s, word)
         chosen = lowest_modes(s, MODES)
         for i, m in enumerate(chosen, 1):
             self.badges.append((m.eigenvalue, word, None))
             self.draw(f"{(word or 'no verdict').upper()} · mode {i} of {len(chosen)}: {m.label}, λ = {m.eigenvalue:.3g}",
-                      reason)
+                      reason, word)
             self.colour(m)
             self.sleep(HOLD)
             self.play(m)
         if not chosen:
-            self.draw(f"{(word or 'no verdict').upper()} · no consistent mode to play", reason)
+            self.draw(f"{(word or 'no verdict').upper()} · no consistent mode to play", reason, word)
             self.sleep(HOLD)
         return len(chosen)
 
@@ -179,13 +193,27 @@ class Recording:
                 f"the {steps} lowest consistent mode(s) of the scene, animated, the verdict on the badge")
         title = self.title
         title = title if len(str(title)) <= 90 else f"{str(title)[:89]}…"
-        note = NOTE.format(title=html.escape(str(title)), what=what)
+        note = NOTE.format(title=html.escape(str(title)), what=what) + watch_html(s)
         text = self.recorder.as_html()
-        box = (f'<div id="granstab-note" style="position:fixed;top:8px;right:8px;max-width:340px;z-index:1000;'
+        box = (f'<style>{PHONE}</style><div id="granstab-note" style="position:fixed;top:8px;right:8px;'
+               'max-width:340px;max-height:calc(100vh - 90px);overflow:auto;z-index:1000;'
                f'background:rgba(255,255,255,0.92);border:1px solid #bbb;border-radius:6px;padding:8px 10px;'
                f'font:13px/1.35 sans-serif;color:#222">{note}</div>')
         text = re.sub(r"<title>.*?</title>", f"<title>granstab: {html.escape(str(title))}</title>", text, count=1)
         return text.replace("</body>", box + "</body>", 1)
+
+
+def watch_html(s: Session) -> str:
+    """What to look for, in 2-3 sentences (and the pair's λ⁽⁶⁾ contour): the page's hand-out text."""
+    if s.kind == "two_particle":
+        return ("<p><b>What to watch.</b> The two grains are drawn with the tip curvature of the contact: an ellipse "
+                "of radius r along the line of centres whose tip has radius of curvature ρ. Below ρ/r = 1 the tips "
+                "are sharper than a circle and the pair rolls apart (red lamp, UNSTABLE); at 1 it rolls freely "
+                "(NEUTRAL); above, the flat sides rock back (green, STABLE). The grey outline is the rest position, "
+                "the green arrows the motion.</p>" + contour_html(s.field()))
+    return ("<p><b>What to watch.</b> The lamp beside the badge has the verdict's colour (red unstable, amber "
+            "neutral, green stable). Each mode is played from its rest position (grey outline) along the green "
+            "arrows; darker particles carry more of its motion (red where the mode is unstable, blue otherwise).</p>")
 
 
 def lowest_modes(session: Session, most: int) -> list:

@@ -16,6 +16,7 @@ import granstab
 
 from .models import Body, ContactModel
 from .params import defaults
+from .protocols import MapModel
 
 WHITE, RED, GREY = np.array([250, 250, 250]), np.array([176, 20, 20]), (150, 150, 150)
 CUT_GREY = (205, 205, 205)   # unstable only by the cut (mechanism boundary): lighter than GREY (in no cluster)
@@ -46,7 +47,7 @@ def map_colours(packing: np.ndarray, by_cut: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class ScanMapModel:
+class ScanMapModel(MapModel):
     """The scanned packing and its map: `fraction` (per particle, the share of its clusters unstable by the
     packing, mechanism not boundary; NaN: in no cluster), `by_cut` (the share unstable by the cut alone), `own`
     (the verdict of each particle's own cluster, '' if it was no centre), `members` (centre → member particles,

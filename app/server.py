@@ -25,7 +25,8 @@ from granstab.solve.threads import cap_process
 
 from .panels import ClientUI
 from .paths import is_loopback
-from .state import DEFAULT_PRESET, Session, close_pool
+from .pools import close_pool
+from .state import DEFAULT_PRESET, Session
 
 
 class App:

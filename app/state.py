@@ -7,70 +7,31 @@ except programming errors (an unknown parameter name). Not thread-safe: the GUI 
 """
 from __future__ import annotations
 
-import hashlib
-import json
-import os
-import pickle
 import tempfile
-import threading
 import time
-from collections import OrderedDict
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 import granstab
-from granstab.analysis import analyze
-from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
-from granstab.mechanics.verdicts import frequencies_and_growth
 from granstab.model import errors
 from granstab.rigidity.output import is_rigidity_dir
-from granstab.solve.threads import blas_threads
 
-from .field import Field, field_png, lambda6_field
 from .models import Body, ShapeModel, TwoParticleModel, load_model
-from .modes import label_modes, mode_offsets, rotation_matrix
+from .modes import rotation_matrix
 from .params import PARAMS
 from .paths import PathRefused, folder_choice, typed_path
+from .pools import MAX_SLIDING, OFFLOAD, SAMPLED, analysed, sampled, shared
+from .protocols import MapModel
+from .readings import Readings
 from .rigiditymap import load_rigidity_map
 from .scanmap import is_scan_dir, load_scan_map
 from .trackmap import is_track_dir, load_track
 
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"
 DEFAULT_PRESET = "two_particle"
-CONSISTENT = (PLUS, MINUS, BOTH)
 LARGE = 500               # particles: above this the whole packing is analysed only on request (`analyse`)
 MAX_UPLOAD = 5_000_000     # bytes: a scene file larger than this is refused before it is parsed
-SAME_MODE = 0.999          # |cos| of two unit motions above which they are one mode (distinct_modes)
-OFFLOAD = 50               # particles: from here a server's session analyses in a worker process (analysis_pool)
-_POOL: list = []           # the worker processes, made when first needed (analysis_pool)
-WORKER_NICE = 10           # the workers' priority below the server's (os.nice steps: 10 of 19)
-SHARED = 16                # offloaded analyses kept for every session (shared): ~3 MB each at annulus_frame's 143 disks
-_SHARED: OrderedDict = OrderedDict()     # (scene, metric) digest → Analysis, the most recently used last
-_SHARED_LOCK = threading.Lock()
-
-
-@dataclass(frozen=True)
-class Mode:
-    """One eigenpair of sym(𝓗^i) of branch `branch`: what the spectrum panel lists and the animation plays."""
-
-    branch: int
-    index: int
-    eigenvalue: float
-    code: int                  # granstab.mechanics.branches: PLUS, MINUS, BOTH (consistent), INCONSISTENT, RIGID
-    label: str
-    shares: dict
-    hinges: bool
-
-    @property
-    def consistent(self) -> bool:
-        return self.code in CONSISTENT
-
-    @property
-    def key(self) -> str:
-        mark = "" if self.code == RIGID else " ✓" if self.consistent else " ✗"
-        return f"b{self.branch} #{self.index}: λ = {self.eigenvalue:.4g} {self.label}{mark}"
 
 
 def one_line(exc: BaseException) -> str:
@@ -78,7 +39,7 @@ def one_line(exc: BaseException) -> str:
     return text if isinstance(exc, (granstab.SceneError, ValueError)) else f"{type(exc).__name__}: {text}"
 
 
-class Session:
+class Session(Readings):
     """State of one browser tab. `error` is None or the one-line message of the last failure."""
 
     def __init__(self, preset: str | None = None, presets_dir=None, data_root=None, typed_paths: bool = True,
@@ -96,10 +57,14 @@ class Session:
         self.metric = "L"                    # the projection metric of the verdict: "L" or "inertia" (with masses)
         self.error: str | None = None
         self.notice: str | None = None
+        self.caveat: str | None = None       # what the analysis leaves out (recompute)
+        self.adjusted = ""                   # what building the scene changed beyond the sliders (recompute)
         self.elapsed = 0.0
         self.revision = 0
         self._modes: tuple[int, list] = (-1, [])
         self._motions: tuple[int, dict] = (-1, {})      # per branch, for this revision (motions)
+        self._report: tuple = (None, {})                # report(), for what it was computed from (once per revision)
+        self._type1_of: tuple = (None, "")              # (analysis, its Type-1 line): solved once per analysis
         self._pair: TwoParticleModel | None = None   # the slider-driven pair a drag turned into shapes
         self.map = None                              # the scan map a cluster was opened from (back_to_map)
         if not self.load_preset(preset or DEFAULT_PRESET) and self.model is None and preset not in (None, DEFAULT_PRESET):
@@ -188,6 +153,11 @@ class Session:
         return self.model.kind
 
     @property
+    def on_map(self) -> bool:
+        """A packing shown as a map (a scan, a track's frame, a rigidity folder): no verdict of its own."""
+        return isinstance(self.model, MapModel)
+
+    @property
     def used_params(self) -> tuple:
         """The parameters the current scene uses (the only sliders shown)."""
         return tuple(self.model.params_used)
@@ -211,52 +181,6 @@ class Session:
         if self.kind != "two_particle":
             return False
         return self.set_params(rho_r=PARAMS["rho_r"].snap(rho_r), f_kr=PARAMS["f_kr"].snap(f_kr))
-
-    def headline(self) -> tuple[str | None, str]:
-        """The verdict word and the reason under it, in one voice: the core's reason may call a neutral verdict whose
-        zero is resolved only within its accuracy "NOT DETERMINED"; the page says the verdict once and that it is not
-        proven (the table below says why)."""
-        r = self.report()
-        if r["verdict"] is None:
-            return None, ""
-        reason = r["reason"].replace("NOT DETERMINED:", "not proven:")
-        if not r["sufficient"] and "not proven" not in reason:
-            reason += " — not proven"
-        return r["verdict"], reason
-
-    def distinct_modes(self) -> dict:
-        """Consistent modes by sign, each counted once: the same motion in several branches (a rolling mode that no
-        sliding contact takes part in) is one mode. Two unit motions are the same where |cos| ≥ SAME_MODE.
-        Returns {"negative": n, "zero": n, "positive": n}; the core's counts (report()["counts"]) are per branch."""
-        names = ("negative", "zero", "positive")
-        if self.analysis is None:
-            return dict.fromkeys(names, 0)
-        groups = {name: [] for name in names}          # consistent unit motions by sign, in (branch, index) order
-        for i, b in enumerate(self.analysis.branches):
-            lam, U = b.stability_eigenvalues, self.motions(i)
-            sign = np.where(lam < -b.zero_tol, 0, np.where(lam > b.zero_tol, 2, 1))
-            for s, name in enumerate(names):
-                groups[name].append(U[:, np.isin(b.codes, CONSISTENT) & (sign == s)])
-        out = {}
-        for name, parts in groups.items():
-            W = np.concatenate(parts, axis=1) if parts else np.zeros((0, 0))     # (no branch: nothing counted)
-            same = np.abs(W.T @ W) >= SAME_MODE
-            kept: list[int] = []
-            for j in range(W.shape[1]):                # a motion counts unless an earlier counted one is the same
-                if not same[j, kept].any():
-                    kept.append(j)
-            out[name] = len(kept)
-        return out
-
-    def motions(self, branch: int) -> np.ndarray:
-        """The unit physical motions (n_dof, K) of every eigenvector of a branch (Analysis.motion, all at once;
-        cached per analysis)."""
-        if self._motions[0] != self.revision:
-            self._motions = (self.revision, {})
-        cache = self._motions[1]
-        if branch not in cache:
-            cache[branch] = self.analysis.motion(self.analysis.branches[branch].stability_vectors)
-        return cache[branch]
 
     @property
     def draggable(self) -> bool:
@@ -300,16 +224,15 @@ class Session:
     @property
     def deferred(self) -> bool:
         """A large packing: drawn at once, analysed only when asked (`analyse`)."""
-        return (self.kind != "scan_map" and self.scene is not None and self.scene.n_particles > LARGE
+        return (not self.on_map and self.scene is not None and self.scene.n_particles > LARGE
                 and self.analysis is None)
 
     def set_frame(self, frame) -> bool:
         """Show another frame of an imported snapshot (its validation report follows) or of a track (at_frame)."""
-        if getattr(self.model, "frames", None) is None or frame == self.model.frame:
+        if self.model.frames is None or frame == self.model.frame:
             return False
         try:
-            at = getattr(self.model, "at_frame", None)
-            self.model = at(frame) if at is not None else load_model(self.model.path, frame=frame)
+            self.model = self.model.at_frame(frame) or load_model(self.model.path, frame=frame)
         except Exception as exc:  # noqa: BLE001
             self.error = one_line(exc)
             return False
@@ -320,11 +243,11 @@ class Session:
     def map_colours(self) -> np.ndarray | None:
         """(N, 3) colours of the scan map (share of unstable clusters per particle by the packing; grey: by the cut
         alone), or None off the map."""
-        return self.model.colours if self.kind == "scan_map" else None
+        return self.model.colours if self.on_map else None
 
     def open_cluster(self, name: str) -> bool:
         """From the scan map: the cluster of particle `name` becomes the scene (back_to_map returns)."""
-        scan_map = self.model if self.kind == "scan_map" else None
+        scan_map = self.model if self.on_map else None
         if scan_map is None:
             self.error = "open a scan folder first: clusters are opened from its map"
             return False
@@ -347,7 +270,7 @@ class Session:
 
     def pick(self, origin, direction) -> str | None:
         """The particle of the scan map under a click ray (None off the map or between particles)."""
-        return self.model.pick(origin, direction) if self.kind == "scan_map" else None
+        return self.model.pick(origin, direction) if self.on_map else None
 
     def analyse(self) -> None:
         """Analyse a large packing now (recompute skips it above LARGE particles)."""
@@ -359,10 +282,12 @@ class Session:
         start = time.perf_counter()
         self.revision += 1
         self.analysis = None
+        self.caveat = None                  # what the analysis leaves out, in one line (the sampled path)
         self.metrics = None
         try:
             self.scene = self.model.build(self.params)
-            if self.kind == "scan_map" or (self.scene.n_particles > LARGE and not force):
+            self.adjusted = self.model.adjustments(self.params)     # what the build changed beyond the sliders
+            if self.on_map or (self.scene.n_particles > LARGE and not force):
                 self.error = None
                 self.elapsed = time.perf_counter() - start
                 return
@@ -372,8 +297,14 @@ class Session:
             if self.offload and self.scene.n_particles >= OFFLOAD:
                 self.analysis = shared(self.scene, self.metric)
             else:
-                self.analysis = analysed(self.scene, self.metric)
+                self.analysis = analysed(self.scene, self.metric, attribution=False)   # attribute(): after the verdict
             self.error = None
+            if sampled(self.scene):
+                n = int(self.scene.at_yield().sum())
+                self.caveat = (f"{n} contacts at the friction limit: their 2^{n} cases are too many to try all; the "
+                               f"all-sliding, all-sticking and {SAMPLED} random cases were analysed (sampled: an "
+                               f"unstable verdict holds, a stable one is not proven; at most {MAX_SLIDING} such "
+                               "contacts are tried in full, e.g. with a larger μ).")
         except Exception as exc:  # noqa: BLE001 — shown in the page, never raised into the server
             self.error = one_line(exc)
         self.elapsed = time.perf_counter() - start
@@ -394,95 +325,9 @@ class Session:
         self.recompute()
         return True
 
-    def dynamics(self) -> dict | None:
-        """Inertia metric only (λ = ω², eq:Hm's 𝓗 in the kinetic-energy metric): the lowest frequencies ω = √λ and the
-        largest growth rates √(−λ) of the branch with the lowest eigenvalue, eigenvalues resolved by their accuracy."""
-        if self.analysis is None or self.metric != "inertia":
-            return None
-        b = min(self.analysis.branches, key=lambda b: b.stability_eigenvalues.min())
-        frequencies, growth = frequencies_and_growth(b.stability_eigenvalues, b.accuracy)
-        return {"frequencies": np.sort(frequencies)[:4], "growth_rates": -np.sort(-growth)[:3], "branch": b.mask}
-
-    def check_metrics(self) -> dict | None:
-        """The verdict in every metric of the family (L/10, L, 10L, inertia where masses are known), on request:
-        the page shows the single-metric verdict first and runs this only when asked (it costs ~3× the analysis).
-        Returns {"robust": bool, "metrics": [per-metric verdict and counts], "time": s} (None without a scene)."""
-        if self.scene is None or self.analysis is None:
-            return None
-        return self.keep_metrics(metric_family(self.scene), self.revision)
-
-    def keep_metrics(self, metrics: dict, revision: int) -> dict | None:
-        """Keep a family check computed (metric_family, off the lock) for `revision`; one for an older scene or older
-        parameters is dropped (None): the next move superseded it."""
-        if revision != self.revision:
-            return None
-        self.metrics = {**metrics, "revision": revision}
-        return self.metrics
-
-    def family_estimate(self) -> float:
-        """Seconds the family check should take here: three analyses in L's time (four with masses)."""
-        return (4 if self.scene is not None and self.scene.mass is not None else 3) * self.elapsed
-
     @property
     def scene_dim(self) -> int:
-        return self.scene.dim if self.scene is not None else getattr(self.model, "dim", 2)
-
-    @property
-    def verdict(self) -> str | None:
-        return None if self.analysis is None else self.analysis.verdict.verdict
-
-    def report(self) -> dict:
-        """What the verdict panel shows: verdict, reason, flags, counts, the largest error estimate, times."""
-        if self.analysis is None:
-            return {"verdict": None, "error": self.error, "elapsed": self.elapsed}
-        a, s = self.analysis, self.analysis.verdict
-        worst = max(a.errors.items(), key=lambda kv: kv[1]) if a.errors else ("", 0.0)
-        return {
-            "verdict": s.verdict, "reason": s.reason, "sufficient": s.sufficient,
-            "type2": s.type2_nonuniqueness, "type1": self.type1(),
-            "hinges": s.hinges_on_tolerance, "n_branches": s.n_branches,
-            "counts": (s.consistent_positive, s.consistent_zero, s.consistent_negative),
-            "n_particles": self.scene.n_particles, "n_contacts": self.scene.n_contacts,
-            "n_sliding": int(np.sum(self.scene.at_yield())), "worst_error": worst, "errors": a.errors,
-            "analysis_time": a.timings.get("total", 0.0), "elapsed": self.elapsed, "warnings": a.warnings,
-            "error": self.error, "notice": self.notice, "metric": self.metric, "dynamics": self.dynamics(),
-            "attribution": None if a.attribution is None else a.attribution.line(),
-        }
-
-    def type1(self) -> str:
-        """Type-1 non-uniqueness (Sec. 3.1) under a proportional load increment d𝕓 = current load.
-
-        It needs two branches, i.e. a potentially sliding contact; the core's `verdicts.load_response` decides."""
-        if self.analysis is None or len(self.analysis.branches) < 2:
-            return "no (a single branch: no contact at yield)"
-        if not hasattr(self.analysis, "problem"):
-            return "not evaluated (the core's Analysis does not expose its problem)"
-        from granstab.mechanics.verdicts import load_response
-        s = self.scene
-        if s.fixed is not None:
-            return "not evaluated (a scene held by fixed particles)"
-        db = np.concatenate([s.load, s.load_moment], axis=1).reshape(-1)
-        if not np.any(db):
-            return "not evaluated (no load to increment)"
-        res = load_response(self.analysis, db)
-        return "yes (proportional loading)" if res["type1_nonuniqueness"] else "no (proportional loading)"
-
-    def modes(self) -> list[Mode]:
-        """Every eigenpair of every branch, labelled by what its motion does (cached per analysis)."""
-        if self._modes[0] == self.revision:
-            return self._modes[1]
-        out = []
-        if self.analysis is not None:
-            a = self.analysis
-            for i, b in enumerate(a.branches):
-                labels = label_modes(self.scene, self.motions(i), b.mask, a.length, b.codes == RIGID)
-                out += [Mode(i, j, float(lam), int(code), lab.label, lab.shares, bool(b.hinges[j]))
-                        for j, (lam, code, lab) in enumerate(zip(b.stability_eigenvalues, b.codes, labels))]
-        self._modes = (self.revision, out)
-        return out
-
-    def mode(self, key: str) -> Mode | None:
-        return next((m for m in self.modes() if m.key == key), None)
+        return self.scene.dim if self.scene is not None else self.model.dimension()
 
     def bodies(self) -> list[Body]:
         return self.model.bodies(self.params)
@@ -492,163 +337,7 @@ class Session:
         """A particle length scale (mean largest semi-axis): sets arrows, markers and the animation amplitude."""
         return float(np.mean([max(b.axes) for b in self.bodies()]))
 
-    def particle_shares(self, mode: Mode) -> np.ndarray:
-        """Where the mode lives: each particle's |motion| √(|du|² + (size·|dθ|)²) over the largest one (N,), in [0, 1]."""
-        b = self.analysis.branches[mode.branch]
-        du, dth = mode_offsets(self.scene, self.analysis.motion(b.stability_vectors[:, mode.index]), self.size)
-        share = np.sqrt(np.sum(du ** 2, axis=1) + self.size ** 2 * np.sum(dth ** 2, axis=1))
-        return share / max(float(share.max()), 1e-300)
-
-    def mode_bodies(self, mode: Mode, amplitude: float, phase: float) -> list[Body]:
-        """Bodies displaced along `mode` at `phase` (radians): x + A s du, R(A s dθ) R with s the phase factor.
-
-        A consistent-one-way mode (PLUS/MINUS) only moves in its consistent direction (s = ±|sin|)."""
-        b = self.analysis.branches[mode.branch]
-        U = self.analysis.motion(b.stability_vectors[:, mode.index])
-        du, dth = mode_offsets(self.scene, U, self.size)
-        s = np.sin(phase)
-        s = abs(s) if mode.code == PLUS else -abs(s) if mode.code == MINUS else s
-        index = {name: i for i, name in enumerate(self.scene.names)}
-        out = []
-        for body in self.bodies():
-            i = index[body.name]
-            dR = rotation_matrix(self.scene.dim, amplitude * s * dth[i])
-            out.append(Body(body.name, body.kind, body.axes, body.x + amplitude * s * du[i], dR @ body.R))
-        return out
-
-    def field(self) -> Field | None:
-        """The λ⁽⁶⁾ field for the pair (None for other scenes: no work for a panel that is not shown)."""
-        if self.kind != "two_particle":
-            return None
-        return lambda6_field(self.params["alpha"], self.params["rolling"])
-
-    @property
-    def field_scale(self) -> float:
-        """The length the λ⁽⁶⁾ surface is laid out in: the pair's r (fixed, unlike the particle size, which grows
-        with ρ/r — the surface is cached, so the current-state marker must be placed on the same scale)."""
-        return float(getattr(self.model, "r", 1.0))
-
-    def rolling_eigenvalue(self) -> float | None:
-        """λ⁽⁶⁾ of the current analysis in units of k: the rolling-labelled eigenvalue of the first branch,
-        0 exactly when |λ⁽⁶⁾| is within the branch's zero tolerance (`zero_tolerance()`)."""
-        rolling = [m for m in self.modes() if m.branch == 0 and m.label == "rolling"]
-        if not rolling:
-            return None
-        lam = rolling[0].eigenvalue
-        return 0.0 if abs(lam) <= self.analysis.branches[0].zero_tol else lam / self.params["k"]
-
-    def zero_tolerance(self) -> float | None:
-        """The eigenvalue zero tolerance of the first branch in units of k (what "λ = 0" means here)."""
-        if self.analysis is None or not self.analysis.branches:
-            return None
-        return self.analysis.branches[0].zero_tol / self.params["k"]
-
-    # ------------------------------------------------------------------------------------------ exports
-
-    def export_scene(self) -> tuple[str, bytes]:
-        """The current scene as a scene file that reloads to the same analysis (shape or contact format, JSON)."""
-        if isinstance(self.model, ShapeModel):
-            data = self.model.to_dict(self.params)
-        elif self.scene is not None:
-            data = granstab.scene_to_dict(self.scene)
-        else:
-            raise ValueError("no scene to export")
-        return f"{Path(str(self.preset)).stem}-scene.json", json.dumps(data, indent=1, default=_json).encode()
-
-    def export_analysis(self) -> tuple[str, bytes]:
-        """The analysis as JSON (`granstab analyze --json` object) with the app's parameters and mode labels."""
-        if self.analysis is None:
-            raise ValueError(f"no analysis to export: {self.error}")
-        data = self.analysis.to_dict()
-        data["app"] = {"preset": self.preset, "kind": self.kind,
-                       "params": {k: self.params[k] for k in self.used_params},
-                       "modes": [{"branch": m.branch, "index": m.index, "eigenvalue": m.eigenvalue,
-                                  "consistent": m.consistent, "label": m.label} for m in self.modes()]}
-        return f"{Path(str(self.preset)).stem}-analysis.json", json.dumps(data, indent=1, default=_json).encode()
-
-    def export_contour(self) -> tuple[str, bytes]:
-        field = self.field()
-        if field is None:
-            raise ValueError("the λ⁽⁶⁾ contour exists for the two-particle pair only")
-        return "lambda6-contour.png", field_png(field, (self.params["rho_r"], self.params["f_kr"]))
-
-
-def analysed(scene, metric: str):
-    """The analysis on one BLAS thread (small problems: thread start-up costs more than it saves)."""
-    with blas_threads(1):
-        return analyze(scene, metric=metric)
-
-
-def offloaded(scene, metric: str):
-    """`analysed` in a worker process of analysis_pool: a server's large analyses (annulus_frame: ~1 s of mostly
-    Python) then hold another process's GIL, not the one the server's other tabs answer from (benchmarks/classroom.py:
-    a pair's slider move waited seconds behind them). A worker that died is replaced at the next call."""
-    from concurrent.futures.process import BrokenProcessPool
-    try:
-        return analysis_pool().submit(analysed, scene, metric).result()
-    except BrokenProcessPool:
-        close_pool()
-        raise
-
-
-def shared(scene, metric: str):
-    """`offloaded`, once for every session of the server: an analysis is kept (the SHARED most recently used) by a
-    digest of its scene and metric, so that a class moving annulus_frame's μ through the same slider steps has each
-    step analysed once. Analyses are read-only once made (a Session's own caches, motions and modes, are its own);
-    two sessions asking at once for the same new scene both analyse it."""
-    key = hashlib.sha256(pickle.dumps((scene, metric), protocol=pickle.HIGHEST_PROTOCOL)).digest()
-    with _SHARED_LOCK:
-        if key in _SHARED:
-            _SHARED.move_to_end(key)
-            return _SHARED[key]
-    analysis = offloaded(scene, metric)
-    with _SHARED_LOCK:
-        _SHARED[key] = analysis
-        while len(_SHARED) > SHARED:
-            _SHARED.popitem(last=False)
-    return analysis
-
-
-def analysis_pool():
-    """Worker processes for offloaded analyses, one per core (spawned: the server runs threads, which fork would copy
-    half-way), at a lower priority (WORKER_NICE) than the server: on a busy machine a core goes first to the server's
-    process, which answers every page (its event loop, the small scenes' analyses), then to the large analyses
-    (benchmarks/classroom.py: 5 annulus_frame pages kept both cores busy and a pair's move waited behind them)."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    from granstab.solve.threads import cores
-    if not _POOL:
-        _POOL.append(ProcessPoolExecutor(max_workers=cores(), mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_lower_priority))
-    return _POOL[0]
-
-
-def _lower_priority() -> None:
-    """A worker's start: WORKER_NICE steps below the server (where the system lets a process lower itself)."""
-    if hasattr(os, "nice"):
-        os.nice(WORKER_NICE)
-
-
-def close_pool() -> None:
-    """Stop the worker processes and drop the shared analyses (the server's stop; a later offloaded analysis starts
-    new ones)."""
-    while _POOL:
-        _POOL.pop().shutdown(wait=False, cancel_futures=True)
-    with _SHARED_LOCK:
-        _SHARED.clear()
-
-
-def metric_family(scene) -> dict:
-    """The verdict of `scene` in every metric of the family (granstab.analyze, metric="family"), on one BLAS thread:
-    {"robust", "metrics", "time"}. Pure: it may run off the session's lock while the page moves on."""
-    start = time.perf_counter()
-    with blas_threads(1):
-        family = analyze(scene, metric="family", attribution=False).verdict
-    return {"robust": family.metric_robust is True, "metrics": [e.to_dict() for e in family.metrics],
-            "time": time.perf_counter() - start}
-
-
+    
 def opens_as_folder(folder: Path, most: int = 64) -> bool:
     """Whether a folder opens whole: a scan, a folder a format reads itself (RigidLibrary), or a snapshot whose files
     (at most `most`, those granstab.io.load would take) one format reads together (a LAMMPS run's dumps)."""
@@ -665,10 +354,3 @@ def opens_as_folder(folder: Path, most: int = 64) -> bool:
         return False
     return True
 
-
-def _json(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return value.item()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

@@ -21,6 +21,7 @@ from granstab.model.scene import build_scene
 
 from .models import Body
 from .params import defaults
+from .protocols import MapModel
 from .scanmap import is_scan_dir, load_scan_map, map_colours, pick_particle
 
 CONTRACT = "granstab track"
@@ -57,7 +58,7 @@ def d2min_colours(d2: np.ndarray, floor: float) -> np.ndarray:
 
 
 @dataclass
-class TrackModel:
+class TrackModel(MapModel):
     """A tracked folder at frame `frame` (a `frame` value of its tables); `overlay`: the D²min of the window that
     starts there is shown. `table`: frames.parquet's columns; `particles`: frame, name, x, y[, z], d2min, rattler."""
 
@@ -167,7 +168,15 @@ class TrackModel:
                  **{k: np.zeros((0, d)) for k in ("point", "normal", "force")},
                  **{k: np.zeros((0, d, d)) for k in ("curvature_p", "curvature_q")},
                  **{k: np.zeros(0) for k in ("k", "alpha", "mu")}}
-        return build_scene(d, self.names, self.x, empty, title=self.headline[0], source=self.path)
+        return build_scene(d, self.names, self.x, empty, title=self.headline[0], source=self.path, cell=self.cell)
+
+    @property
+    def cell(self) -> np.ndarray | None:
+        """The frame's periodic cell (d, d lattice rows; frames.parquet's `cell`), or None: not periodic."""
+        rows = self.table.get("cell")
+        cell = [] if rows is None else list(rows[self.row])
+        d = self.x.shape[1]
+        return np.asarray(cell, float).reshape(d, d) if len(cell) == d * d else None
 
     def bodies(self, P: dict) -> list[Body]:
         d = self.x.shape[1]
@@ -241,7 +250,8 @@ def load_track(path) -> TrackModel:
     path = Path(path)
     try:
         summary = json.loads((path / "summary.json").read_text(encoding="utf-8"))
-        table = pq.read_table(path / "frames.parquet", columns=list(FRAME_COLUMNS)).to_pydict()
+        has = set(pq.read_schema(path / "frames.parquet").names)
+        table = pq.read_table(path / "frames.parquet", columns=[*FRAME_COLUMNS, *({"cell"} & has)]).to_pydict()
         schema = pq.read_schema(path / "particles.parquet").names
         cols = ["frame", "name", "d2min", "rattler", *[a for a in "xyz" if a in schema]]
         raw = pq.read_table(path / "particles.parquet", columns=cols).to_pydict()
@@ -254,5 +264,5 @@ def load_track(path) -> TrackModel:
     particles = {"frame": np.asarray(raw["frame"], np.int64), "name": np.asarray(raw["name"], dtype=object),
                  "d2min": np.asarray(raw["d2min"], float), "rattler": np.asarray(raw["rattler"], bool),
                  "x": np.stack([np.asarray(raw[a], float) for a in dims], axis=1)}
-    table = {k: np.asarray(v) for k, v in table.items()}
+    table = {k: np.asarray(v, dtype=object if k == "cell" else None) for k, v in table.items()}
     return TrackModel(str(path), summary, table, particles, events, frame=int(table["frame"][0]))

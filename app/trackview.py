@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .meshes import digest, to3
 from .trackmap import TrackModel
-from .views import digest, to3
 
 PLOT_ASPECT, BLANK_ASPECT = 1.0, 0.1
 EVENT, NOW = "rgba(192, 57, 43, 0.18)", "#2c3e50"

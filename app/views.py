@@ -14,199 +14,27 @@ from __future__ import annotations
 
 import numpy as np
 
-from .models import cell_edges, ghost_positions, periodic_images
+from .cellview import OverlayView
+from .fieldview import FieldView
+from .meshes import body_mesh, circle_data, digest, osculating_arcs, outline, quat_matrix, rot3, to3, wxyz
+from .models import ghost_positions
 from .modes import rotation_matrix
 
 PALETTE = [(120, 170, 230), (240, 170, 110), (150, 205, 140), (215, 150, 205), (230, 215, 120), (140, 210, 210)]
 MARKER = (40, 40, 60)
-CELL = (90, 90, 90)                     # a periodic scene's cell outline
-GHOST = (200, 215, 235)                 # periodic images of the particles near the cell's faces (lighter)
 COLORS = {"point": (20, 20, 20), "normal": (60, 60, 200), "compressive": (170, 0, 0), "tensile": (30, 110, 220),
           "sliding": (215, 95, 0), "osculating": (110, 40, 160)}
 Z_UP = np.array([0.0, 0.0, 1.0])
-SHARE_RED = np.array([150, 0, 20])      # the colour of a particle carrying the whole of the selected mode
+SHARE_RED = np.array([150, 0, 20])      # the colour of a particle carrying the whole of an unstable mode
+REST, MOTION = (120, 120, 120), (20, 120, 60)    # the rest position's ghost outline, the mode's motion arrows
+SHARE_BLUE = np.array([20, 70, 150])    # … of a mode that is not unstable (red is read as danger)
 MESH_MAX = 400        # particles drawn as meshes; a larger packing is one point cloud (and no osculating arcs)
 MAX_ARROWS = 24       # contacts drawn with force arrows (3D meshes); more contacts: force lines (no heads)
 
 
-# ------------------------------------------------------------------------------------------ geometry
-
-def to3(v: np.ndarray, z: float = 0.0) -> np.ndarray:
-    """(…, 2) → (…, 3) with the given z; 3D input is returned as is."""
-    v = np.asarray(v, float)
-    if v.shape[-1] == 3:
-        return v
-    return np.concatenate([v, np.full(v.shape[:-1] + (1,), z)], axis=-1)
-
-
-def rot3(R: np.ndarray) -> np.ndarray:
-    R = np.asarray(R, float)
-    if R.shape == (3, 3):
-        return R
-    out = np.eye(3)
-    out[:2, :2] = R
-    return out
-
-
-def wxyz(R: np.ndarray) -> np.ndarray:
-    """Quaternion (w, x, y, z) of a rotation matrix (2D: about e3)."""
-    R = rot3(R)
-    w = np.sqrt(max(0.0, 1.0 + np.trace(R))) / 2
-    if w > 1e-6:
-        return np.array([w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)])
-    i = int(np.argmax(np.diag(R)))
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = np.sqrt(max(0.0, 1.0 + R[i, i] - R[j, j] - R[k, k])) * 2
-    q = np.zeros(4)
-    q[0] = (R[k, j] - R[j, k]) / s
-    q[1 + i] = s / 4
-    q[1 + j] = (R[j, i] + R[i, j]) / s
-    q[1 + k] = (R[k, i] + R[i, k]) / s
-    return q
-
-
-def quat_matrix(q) -> np.ndarray:
-    w, x, y, z = np.asarray(q, float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def extruded_outline(ring: np.ndarray, thickness: float):
-    """Vertices (4n+2, 3) and faces of a closed outline (n, 2), counter-clockwise and star-shaped about the origin,
-    extruded along z by `thickness` (centred). The sides have vertices of their own: shared with the faces, their
-    smoothed normals shade a face's long thin triangles (a socket's rim) in stripes."""
-    n = len(ring)
-    h = thickness / 2
-    V = np.concatenate([to3(ring, h), to3(ring, -h), [[0, 0, h], [0, 0, -h]], to3(ring, h), to3(ring, -h)])
-    i = np.arange(n)
-    j = (i + 1) % n
-    top = np.stack([np.full(n, 2 * n), i, j], axis=1)
-    bottom = np.stack([np.full(n, 2 * n + 1), n + j, n + i], axis=1)
-    i, j = i + 2 * n + 2, j + 2 * n + 2
-    side = np.concatenate([np.stack([i, n + i, n + j], axis=1), np.stack([i, n + j, j], axis=1)])
-    return V, np.concatenate([top, bottom, side]).astype(np.uint32)
-
-
-def ellipsoid(axes, n_lat: int = 24, n_lon: int = 48):
-    """Vertices and faces of an ellipsoid with semi-axes `axes` (UV sphere scaled)."""
-    th = np.linspace(0, np.pi, n_lat + 1)
-    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    V = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1).reshape(-1, 3) * np.asarray(axes)
-    faces = []
-    for i in range(n_lat):
-        for j in range(n_lon):
-            a, b = i * n_lon + j, i * n_lon + (j + 1) % n_lon
-            c, d = a + n_lon, b + n_lon
-            faces += [[a, c, b], [b, c, d]]
-    return V, np.array(faces, dtype=np.uint32)
-
-
-def body_mesh(body, thickness: float, size: float):
-    if len(body.axes) == 2:
-        return extruded_outline(outline(body, size), thickness)
-    return ellipsoid(body.axes)
-
-
-def outline(body, size: float, n: int = 96) -> np.ndarray:
-    """A 2D particle's outline in body axes (counter-clockwise, star-shaped about its centre): its ellipse, with the
-    socket of each concave contact side (Body.sockets) cut in. Near such a contact the outline follows the socket's
-    circle over about ±1.2 size of arc (at most ±60°, and only where seen from the centre), the particle reaching
-    around its partner like a glove; elsewhere the ellipse, less what lies inside a socket circle."""
-    a, b = body.axes[0], body.axes[1]
-    arcs = [arc for arc in (socket_arc(*socket, size) for socket in body.sockets) if arc is not None]
-
-    def base(angle):                                 # the ellipse along each direction, cut back by the sockets
-        u = np.stack([np.cos(angle), np.sin(angle)], axis=1)
-        r = a * b / np.hypot(b * u[:, 0], a * u[:, 1])
-        for _, c, rho in arcs:                       # the ray t·u meets |y - c| = ρ at t = u·c ∓ √((u·c)² - c² + ρ²)
-            half = u @ c
-            disc = half ** 2 - (c @ c - rho ** 2)
-            t = half - np.sqrt(np.maximum(disc, 0.0))
-            r = np.where((disc >= 0) & (t > 0), np.minimum(r, t), r)
-        return r[:, None] * u
-
-    t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
-    theta = np.arctan2(b * np.sin(t), a * np.cos(t))     # evenly in the ellipse's parameter: its tips well drawn
-    keep = np.ones(n, bool)
-    points, angles, ranks = [], [], []
-    for arc, _, _ in arcs:
-        ang = np.arctan2(arc[:, 1], arc[:, 0])       # monotonic along the seen part of a circle
-        if np.angle(np.exp(1j * (ang[-1] - ang[0]))) < 0:
-            arc, ang = arc[::-1], ang[::-1]          # counter-clockwise
-        span = np.mod(ang[-1] - ang[0], 2 * np.pi)
-        keep &= np.mod(theta - ang[0], 2 * np.pi) > span     # the socket replaces the ellipse over its directions
-        ends = ang[[0, -1]]                          # radial sides: the ellipse, then the socket, then the ellipse
-        points += [base(ends[:1]), arc, base(ends[1:])]
-        angles += [ends[:1], ang, ends[1:]]
-        ranks += [[0], np.ones(len(ang)), [2]]
-    points.append(base(theta[keep]))
-    angles.append(theta[keep])
-    ranks.append(np.ones(keep.sum()))
-    order = np.lexsort((np.concatenate(ranks), np.mod(np.concatenate(angles), 2 * np.pi)))
-    return np.concatenate(points)[order]
-
-
-def socket_arc(cx: float, cy: float, rho: float, angle: float, size: float, m: int = 48):
-    """The drawn part of a socket (Body.sockets: its circle's centre c relative to the particle's centre, radius ρ,
-    direction from c to the contact): (points (m, 2) on the circle, c, ρ), or None where the particle's centre is
-    inside the circle or does not see the contact point. The arc spans ±1.2 size (at most ±60°) about the contact,
-    within 0.9 of the half-angle seen from the centre (the outline stays star-shaped about it)."""
-    c = np.array([cx, cy])
-    d = float(np.hypot(cx, cy))
-    if d <= rho:
-        return None
-    towards = np.arctan2(-cy, -cx)                   # from c to the particle's centre
-    seen = 0.9 * np.arccos(rho / d)
-    at = np.angle(np.exp(1j * (angle - towards)))    # the contact, relative to `towards`
-    half = min(np.pi / 3, 1.2 * size / rho)
-    if abs(at) >= seen:
-        return None
-    alpha = towards + np.linspace(max(at - half, -seen), min(at + half, seen), m)
-    return c + rho * np.stack([np.cos(alpha), np.sin(alpha)], axis=1), c, rho
-
-
-def osculating_arcs(points, centres, radii, normals_out, planes, size: float, n: int = 40) -> np.ndarray:
-    """Line segments (K·n, 2, 3) of osculating arcs: circle of radius ρ about `centres` through `points`, in the
-    plane spanned by the outward normal and `planes` (unit tangents), over an arc length of about ±1.2 size."""
-    segs = []
-    for _p, c, rho, nout, t in zip(points, centres, radii, normals_out, planes):
-        half = min(0.8 * np.pi, 1.2 * size / rho)
-        ang = np.linspace(-half, half, n)
-        arc = c + rho * (np.cos(ang)[:, None] * nout + np.sin(ang)[:, None] * t)
-        segs.append(np.stack([arc[:-1], arc[1:]], axis=1))
-    return np.concatenate(segs) if segs else np.zeros((0, 2, 3))
-
-
-def circle_data(scene, size: float):
-    """Centres, radii, outward normals and tangents of the osculating circles of both sides of every contact
-    (convex directions only: principal radii ρ = -1/κ > 0; flat or concave directions are skipped)."""
-    from granstab.model.vec import tangent_basis
-    pts, cen, rad, nout, tan = [], [], [], [], []
-    T = tangent_basis(scene.normal)                                   # (M, d, d-1)
-    for _side, K, sign in (("p", scene.curvature_p, -1.0), ("q", scene.curvature_q, 1.0)):
-        Kt = np.swapaxes(T, 1, 2) @ K @ T
-        lam, V = np.linalg.eigh(0.5 * (Kt + np.swapaxes(Kt, 1, 2)))
-        for c in range(scene.n_contacts):
-            for i in range(lam.shape[1]):
-                if lam[c, i] >= -1e-12:
-                    continue
-                rho = -1.0 / lam[c, i]
-                n_out = -sign * scene.normal[c]      # unit vector from the centre of curvature to the point
-                pts.append(scene.point[c])
-                cen.append(scene.point[c] + sign * rho * scene.normal[c])
-                rad.append(rho)
-                nout.append(n_out)
-                tan.append(T[c] @ V[c, :, i])
-    if not pts:
-        return None
-    return tuple(to3(np.array(a)) for a in (pts, cen)) + (np.array(rad),) + tuple(to3(np.array(a)) for a in (nout, tan))
-
-
 # ------------------------------------------------------------------------------------------ the view
 
-class SceneView:
+class SceneView(FieldView, OverlayView):
     """Holds one client's scene handles; every method only writes handles from session data."""
 
     def __init__(self, scene_api):
@@ -316,11 +144,13 @@ class SceneView:
                                  point_shape="circle")
         self.base = {b.name: b for b in bodies}
 
-    def colour_particles(self, names, shares=None, colours=None) -> None:
-        """Colour each particle by its share of a mode (white 0 → dark red 1), by given (N, 3) `colours` (the scan
+    def colour_particles(self, names, shares=None, colours=None, unstable: bool = True) -> None:
+        """Colour each particle by its share of a mode (white 0 → dark red 1 where the mode is `unstable`, else
+        white → dark blue), by given (N, 3) `colours` (the scan
         map), or by the palette; only the colours that change are sent (a point cloud: its colour array)."""
         if colours is None and shares is not None:
-            colours = np.round(np.array([250, 250, 250]) + np.asarray(shares)[:, None] * (SHARE_RED - 250))
+            top = SHARE_RED if unstable else SHARE_BLUE
+            colours = np.round(np.array([250, 250, 250]) + np.asarray(shares)[:, None] * (top - 250))
         if self.cloud is not None:
             rgb = np.asarray(np.tile(PALETTE[0], (len(names), 1)) if colours is None else colours, np.uint8)
             if digest((), rgb) != self._cloud_colours:
@@ -372,7 +202,26 @@ class SceneView:
             at = {b.name: b.x for b in bodies}
             cloud.points = to3(ghost_positions(np.array([at[n] for n in names]), images), z)
 
+    def show_rest(self, rest, peak, size: float) -> None:
+        """While a mode plays: a ghost of the rest position (each 2D particle's outline, grey) and an arrow from each
+        particle's body-axis tip at rest to where the mode's largest displacement takes it (`peak`: the bodies there),
+        so that what moves, and which way, reads on a still picture too (the pair's rolling turns in place)."""
+        self.api.remove_by_name("/rest")
+        rings = [(b.x + outline(b, size, 64) @ np.asarray(b.R).T) for b in rest if len(b.axes) == 2]
+        if rings and len(rings) <= MESH_MAX:
+            segs = np.concatenate([np.stack([to3(r, 0.1 * size), to3(np.roll(r, -1, axis=0), 0.1 * size)], axis=1)
+                                   for r in rings])
+            self.api.add_line_segments("/rest/outline", segs, REST, thickness=2.0, thickness_units="screen")
+        start = np.array([to3(tip(b), 0.12 * size) for b in rest])      # a rotation in place moves the tip too
+        end = np.array([to3(tip(b), 0.12 * size) for b in peak])
+        moving = np.linalg.norm(end - start, axis=1) > 0.02 * size
+        if moving.any() and moving.sum() <= MAX_ARROWS:
+            shaft = 0.03 * size
+            self.api.add_arrows("/rest/motion", points=np.stack([start[moving], end[moving]], axis=1),
+                                colors=MOTION, shaft_radius=shaft, head_radius=2.5 * shaft, head_length=0.15 * size)
+
     def stop_animation(self) -> None:
+        self.api.remove_by_name("/rest")
         self._animate_points(self.base.values())
         for frame in self.inner.values():
             frame.position = (0.0, 0.0, 0.0)
@@ -389,27 +238,6 @@ class SceneView:
         if self.contacts_frame is None:
             self.contacts_frame = self.api.add_frame("/contacts", show_axes=False)
 
-    def draw_cell(self, session) -> None:
-        """The outline of a periodic scene's cell (models.cell_edges) and the periodic images of the particles within
-        one mean diameter of a face (models.periodic_images), re-sent only when they change."""
-        scene = session.scene
-        edges = None if scene is None or session.kind == "scan_map" else cell_edges(scene)
-        key = None if edges is None else digest((session.size,), edges, scene.x)
-        if key == self._cell_key:
-            return
-        self._cell_key = key
-        self.api.remove_by_name("/cell")
-        self.ghosts = None
-        if edges is None:
-            return
-        self.api.add_line_segments("/cell", to3(edges, 0.0), CELL, thickness=2.0, thickness_units="screen")
-        images = periodic_images(scene, 2.0 * session.size)
-        if len(images[0]):
-            z = -0.1 * session.size                          # under the particles they copy
-            cloud = self.api.add_point_cloud("/cell/images", points=to3(ghost_positions(scene.x, images), z),
-                                             colors=GHOST, point_size=1.8 * session.size, point_shape="circle")
-            self.ghosts = (cloud, scene.names, images, z)
-
     # contacts ----------------------------------------------------------------------------------
     def draw_contacts(self, session) -> dict:
         """Points, normals, osculating arcs (the geometry) and force arrows; returns the legend numbers.
@@ -417,7 +245,7 @@ class SceneView:
         Each of the two groups is re-sent only when what it shows changed (`digest` of its data and options): a μ
         slider move on a 143-disk frame used to re-send 1.5 MB of drawings and cost the browser ≈ 8 s."""
         scene, size, o = session.scene, session.size, self.options
-        if scene is None or scene.n_contacts == 0 or session.kind == "scan_map":     # a map: particles, and a
+        if scene is None or scene.n_contacts == 0 or session.on_map:     # a map: particles, and a
             self._draw_map_contacts(session)                                         # rigidity map's contacts
             return {"max_force": 0.0, "arrow": 0.0}
         if "map" in self._contact_keys:                  # back from a rigidity map: its contacts go
@@ -443,26 +271,6 @@ class SceneView:
             else:
                 self._drop("/contacts/forces")
         return {"max_force": fmax, "arrow": arrow / size, "lines": scene.n_contacts > MAX_ARROWS}
-
-    def _draw_map_contacts(self, session) -> None:
-        """On a map, the contacts the model colours (a rigidity map: centre to centre, by cluster, floppy grey;
-        `contact_colours`), above the particles; none on a scan map, nor off the map."""
-        scene = session.scene
-        colours = getattr(session.model, "contact_colours", None) if scene is not None else None
-        key = None if colours is None else digest((session.size,), scene.x, scene.branch, colours)
-        if self._contact_keys.get("map") == key and (key is not None or not self._contact_keys):
-            return
-        self.api.remove_by_name("/contacts")
-        self.contacts_frame, self._contact_keys, self._contact_nodes = None, {}, {}
-        if key is None:
-            return
-        self._contacts_parent()
-        self._contact_keys["map"] = key
-        z = 0.15 * session.size if scene.dim == 2 else 0.0
-        start = scene.x[scene.p]
-        segments = np.stack([to3(start, z), to3(start + scene.branch, z)], axis=1)
-        self.api.add_line_segments("/contacts/clusters", segments, np.repeat(colours[:, None], 2, axis=1),
-                                   thickness=3.0, thickness_units="screen")
 
     def _draw_geometry(self, scene, size, P, z) -> None:
         self._put("/contacts/points", "points", P, COLORS["point"], point_size=0.08 * size, point_shape="circle")
@@ -519,111 +327,7 @@ class SceneView:
         self._put("/contacts/forces", "arrows", np.stack([starts, ends], axis=1), colors,
                   shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
 
-    # the λ⁽⁶⁾ surface --------------------------------------------------------------------------
-    def field_frame(self, field, size: float):
-        """Where the surface sits: below the pair, x over ρ/r in [-1, 3]·r, y over f/(kr) in [-4.6, -2]·r."""
-        x0, x1, y0, y1 = -1.0 * size, 3.0 * size, -4.6 * size, -2.0 * size
 
-        def place(rho_r, f_kr):
-            X = x0 + (np.asarray(rho_r) - field.rho_r[0]) / (field.rho_r[-1] - field.rho_r[0]) * (x1 - x0)
-            Y = y0 + (np.asarray(f_kr) - field.f_kr[0]) / (field.f_kr[-1] - field.f_kr[0]) * (y1 - y0)
-            return X, Y
-        return place, (x0, x1, y0, y1)
-
-    def draw_field(self, session, field, current) -> None:
-        """The λ⁽⁶⁾/k field as a coloured height surface (red < 0, blue > 0) with the current state marked: the surface
-        is sent once per field, then only the marker moves (its position: one small message per slider move)."""
-        if field is None or not self.options["surface"]:
-            self.clear_field()
-            return
-        size = session.field_scale      # fixed per pair: the cached surface and the marker share it
-        key = (id(field), size)
-        if self._field_key != key:
-            self._field_key = key
-            self._draw_surface(field, size)
-        place, _ = self.field_frame(field, size)
-        rho_r, f_kr, lam = current
-        cx, cy = place(rho_r, f_kr)
-        cz = (0.0 if lam is None else float(np.clip(lam / self._field_lim, -1.5, 1.5))) * 0.8 * size
-        self._marker.position = (float(cx), float(cy), cz + 0.05 * size)
-
-    def _draw_surface(self, field, size: float) -> None:
-        """The surface, its frame, axis labels and the current-state marker (placed by draw_field)."""
-        import trimesh
-        place, (x0, x1, y0, y1) = self.field_frame(field, size)
-        lim = self._field_lim = float(np.abs(field.lam).max()) or 1.0       # the height scale (1: a zero field)
-        R, F = np.meshgrid(field.rho_r, field.f_kr)
-        X, Y = place(R, F)
-        Z = field.lam / lim * 0.8 * size
-        V = np.stack([X, Y, Z], axis=-1).reshape(-1, 3)
-        nr, nf = len(field.rho_r), len(field.f_kr)
-        idx = np.arange(nr * nf).reshape(nf, nr)
-        a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
-        faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
-        v = field.lam.reshape(-1) / lim
-        colors = diverging(np.sign(v) * np.sqrt(np.abs(v)))     # √ stretch: the small values near 0 show too
-        mesh = trimesh.Trimesh(V, faces, vertex_colors=colors, process=False)
-        surface = self.api.add_mesh_trimesh("/field/surface", mesh)
-        surface.on_click(lambda event: self._picked(event, field, place, Z))
-        self.api.add_line_segments("/field/frame", np.array([
-            [[x0, y0, 0], [x1, y0, 0]], [[x1, y0, 0], [x1, y1, 0]], [[x1, y1, 0], [x0, y1, 0]],
-            [[x0, y1, 0], [x0, y0, 0]]]), (90, 90, 90), thickness=1.5, thickness_units="screen")
-        self.api.add_label("/field/xlabel", "ρ/r →", position=(0.5 * (x0 + x1), y0 - 0.25 * size, 0))
-        self.api.add_label("/field/ylabel", "f/(kr) ↑", position=(x0 - 0.55 * size, 0.5 * (y0 + y1), 0))
-        self.api.add_label("/field/title", "λ⁽⁶⁾/k: red < 0 < blue", position=(0.5 * (x0 + x1), y1 + 0.25 * size, 0))
-        self._marker = self.api.add_icosphere("/field/current", radius=0.09 * size, color=(255, 200, 0))
-
-    def _picked(self, event, field, place, Z) -> None:
-        """A click on the surface: march along the ray to where it meets the height field, report (ρ/r, f/(kr))."""
-        if self.on_pick is None:
-            return
-        hit = ray_heightfield(np.asarray(event.ray_origin), np.asarray(event.ray_direction), field, place, Z)
-        if hit is not None:
-            self.on_pick(*hit)
-
-    def clear_field(self) -> None:
-        """No surface (another scene, or switched off): removed once, nothing sent while there is none."""
-        if self._field_key is not None:
-            self._field_key = self._marker = None
-            self.api.remove_by_name("/field")
-
-
-
-def digest(small, *arrays) -> bytes:
-    """A short digest of a small tuple and some arrays: what a drawing shows, to skip re-sending it unchanged."""
-    import hashlib
-    h = hashlib.blake2b(repr(small).encode(), digest_size=16)
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        h.update(repr(a.shape).encode())
-        h.update(a.tobytes())
-    return h.digest()
-
-
-def ray_heightfield(origin, direction, field, place, Z, n: int = 2000):
-    """First crossing of the ray with the surface z = Z(ρ/r, f/(kr)) placed by `place`, as (ρ/r, f/(kr)) or None."""
-    from scipy.interpolate import RegularGridInterpolator
-    xs, _ = place(field.rho_r, field.f_kr[0])
-    _, ys = place(field.rho_r[0], field.f_kr)
-    height = RegularGridInterpolator((ys, xs), Z, bounds_error=False, fill_value=np.nan)
-    span = 4.0 * max(xs[-1] - xs[0], ys[-1] - ys[0]) + np.linalg.norm(origin)
-    t = np.linspace(0.0, span, n)
-    pts = origin + t[:, None] * direction / np.linalg.norm(direction)
-    gap = pts[:, 2] - height(pts[:, [1, 0]])
-    inside = np.flatnonzero(np.isfinite(gap[:-1]) & np.isfinite(gap[1:]) & (np.sign(gap[:-1]) != np.sign(gap[1:])))
-    if inside.size == 0:
-        return None
-    k = inside[0]
-    w = gap[k] / (gap[k] - gap[k + 1])
-    x, y = (pts[k] + w * (pts[k + 1] - pts[k]))[:2]
-    rho = field.rho_r[0] + (x - xs[0]) / (xs[-1] - xs[0]) * (field.rho_r[-1] - field.rho_r[0])
-    f = field.f_kr[0] + (y - ys[0]) / (ys[-1] - ys[0]) * (field.f_kr[-1] - field.f_kr[0])
-    return float(rho), float(f)
-
-
-def diverging(v: np.ndarray) -> np.ndarray:
-    """RGBA uint8 of values in [-1, 1]: red (negative) – white (0) – blue (positive), like the contour plot."""
-    v = np.clip(np.asarray(v, float), -1, 1)[:, None]
-    red, white, blue = np.array([178, 24, 43]), np.array([247, 247, 247]), np.array([33, 102, 172])
-    rgb = np.where(v < 0, white + (-v) * (red - white), white + v * (blue - white))
-    return np.concatenate([rgb, np.full((len(rgb), 1), 255)], axis=1).astype(np.uint8)
+def tip(body) -> np.ndarray:
+    """The end of a body's first axis (where its drawn stripe ends): moves with its translation and its rotation."""
+    return np.asarray(body.x, float) + np.asarray(body.R, float)[:, 0] * body.axes[0]

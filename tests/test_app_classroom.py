@@ -103,7 +103,7 @@ def test_a_mode_in_several_branches_is_counted_once():
 
 
 def test_the_spectrum_legend_has_the_colour_of_its_points():
-    from granstab_app.panels import NEGATIVE, OTHER, spectrum_figure
+    from granstab_app.figures import NEGATIVE, OTHER, spectrum_figure
     s = Session()
     s.set_params(mobilised=1.0)
     fig = spectrum_figure(s.modes())
@@ -122,7 +122,7 @@ def test_preset_titles_write_greek_letters():
 
 
 def test_the_import_report_wraps():
-    from granstab_app.panels import wrapped
+    from granstab_app.text import wrapped
     text = "x" * 300 + "\n<b>"
     out = wrapped(text)
     assert "pre-wrap" in out and "```" not in out and "&lt;b&gt;" in out

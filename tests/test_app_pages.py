@@ -336,7 +336,7 @@ def test_a_large_packing_stays_responsive(app, browser, tmp_path):
 
     import granstab
     from granstab.model import packings
-    from granstab_app.panels import LINES_MAX
+    from granstab_app.panel.display import LINES_MAX
     scene = packings.lattice(2, 100)
     assert scene.n_contacts > LINES_MAX
     path = tmp_path / "lattice-1e4.json"
@@ -559,7 +559,7 @@ def test_display_controls_per_scene(app, browser):
 def test_pair_opens_oblique_and_a_picked_view_stays(app, browser):
     """The pair opens in the oblique view (its λ⁽⁶⁾ height surface is flat seen from above: it opened top-down), the
     other 2D presets top-down; a view picked in the View menu is kept when the preset changes."""
-    from granstab_app.panels import OBLIQUE, TOP
+    from granstab_app.camera import OBLIQUE, TOP
     errors: list[str] = []
     page = open_page(browser, app, errors)
     verdict_on_page(page, "unstable", timeout=60_000)

@@ -149,7 +149,8 @@ def test_an_offloaded_analysis_is_the_same_analysis():
     """A server's large scene is analysed in a worker process (app/state.py offloaded): the same verdict and
     spectrum as in the server's own process. Same code, one BLAS thread each: only the summation order of a library
     could differ, so 1e-12 of the largest |λ|."""
-    from granstab_app.state import OFFLOAD, Session, close_pool
+    from granstab_app.pools import OFFLOAD, close_pool
+    from granstab_app.state import Session
     here, there = Session("annulus_frame"), Session("annulus_frame", offload=True)
     try:
         assert there.scene.n_particles >= OFFLOAD and there.error is None and here.verdict == there.verdict
@@ -165,16 +166,26 @@ def test_an_offloaded_analysis_is_the_same_analysis():
 def test_sessions_share_an_offloaded_analysis(monkeypatch):
     """A class on annulus_frame (issue 29): a scene two sessions reach (the preset opened, the same μ typed) is
     analysed once and shared; another μ is analysed anew; at most SHARED analyses are kept, the oldest dropped."""
-    from granstab_app import state
-    monkeypatch.setattr(state, "SHARED", 2)
+    from granstab_app import pools, state
+    monkeypatch.setattr(pools, "SHARED", 2)
     a, b = state.Session("annulus_frame", offload=True), state.Session("annulus_frame", offload=True)
     try:
         assert a.error is None and a.analysis is b.analysis                      # the preset's scene: analysed once
         assert a.set_params(mu=0.45) and a.analysis is not b.analysis
         assert b.set_params(mu=0.45) and b.analysis is a.analysis and b.revision == 2   # b's own revision, a's analysis
         first = a.analysis
-        assert a.set_params(mu=0.46) and b.set_params(mu=0.47) and len(state._SHARED) == 2
+        assert a.set_params(mu=0.46) and b.set_params(mu=0.47) and len(pools._SHARED) == 2
         assert b.set_params(mu=0.45) and b.analysis is not first and b.verdict == first.verdict.verdict   # dropped
     finally:
-        state.close_pool()
-    assert not state._SHARED
+        pools.close_pool()
+    assert not pools._SHARED
+
+
+def test_the_pair_page_is_a_hand_out(pair_page):
+    """Issue 36: the published pair carries what to watch (2-3 sentences), the λ⁽⁶⁾ contour, a lamp in the verdict's
+    colour in every step (red, amber, green: one per step, in the recording), the plain sentence on the badge and the
+    rest position's ghost while a mode plays; the note moves to the bottom on a phone."""
+    out, _ = pair_page
+    text = out.read_text(encoding="utf-8")
+    assert "What to watch." in text and 'class="granstab-contour"' in text and "@media (max-width:600px)" in text
+    assert text.count("sharper than a circle") >= 1 and "eq:" not in text.split("granstab-note", 1)[1][:4000]

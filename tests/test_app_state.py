@@ -289,7 +289,8 @@ def test_current_state_matches_the_field(pair):
 
 
 def test_a_click_on_the_surface_finds_its_grid_point(pair):
-    from granstab_app.views import SceneView, ray_heightfield
+    from granstab_app.fieldview import ray_heightfield
+    from granstab_app.views import SceneView
     field = pair.field()
     place, _ = SceneView(None).field_frame(field, pair.size)
     Z = field.lam / np.abs(field.lam).max() * 0.8 * pair.size
@@ -336,11 +337,11 @@ def test_export_analysis_and_contour(pair):
 
 
 def test_failed_analysis_is_kept_as_a_message(pair, monkeypatch):
-    from granstab_app import state
+    from granstab_app import pools
 
     def boom(scene, **options):
         raise RuntimeError("eigensolver exploded")
-    monkeypatch.setattr(state, "analyze", boom)
+    monkeypatch.setattr(pools, "analyze", boom)
     pair.set_params(rho_r=0.7)
     assert pair.analysis is None and pair.verdict is None and "eigensolver exploded" in pair.error
     assert pair.report()["verdict"] is None and pair.modes() == []
@@ -553,13 +554,13 @@ def test_a_periodic_packing_is_drawn_with_its_cell_outline(tmp_path):
                           add_line_segments=lambda name, points, *a, **k: calls.append(("add", name, points.shape)))
     api.add_point_cloud = lambda name, points, **k: calls.append(("add", name, points.shape)) or SimpleNamespace()
     view = SceneView(api)
-    session = SimpleNamespace(scene=scene, kind="contacts", size=1.0)
+    session = SimpleNamespace(scene=scene, on_map=False, size=1.0)
     view.draw_cell(session)
     view.draw_cell(session)                                  # unchanged: not re-sent
     ghosts = len(periodic_images(scene, 2.0)[0])
     assert ghosts > 0
     assert calls == [("remove", "/cell"), ("add", "/cell", (4, 2, 3)), ("add", "/cell/images", (ghosts, 3))]
-    view.draw_cell(SimpleNamespace(scene=granstab_scene_without_cell(), kind="contacts", size=1.0))
+    view.draw_cell(SimpleNamespace(scene=granstab_scene_without_cell(), on_map=False, size=1.0))
     assert calls[-1] == ("remove", "/cell")
 
 
@@ -625,9 +626,68 @@ def test_periodic_images_sit_across_the_faces_and_move_with_their_particles(tmp_
     api = SimpleNamespace(remove_by_name=lambda name: None, add_line_segments=lambda *a, **k: None,
                           add_point_cloud=lambda name, points, **k: clouds.setdefault(name, SimpleNamespace(points=points)))
     view = SceneView(api)
-    view.draw_cell(SimpleNamespace(scene=session.scene, kind="contacts", size=reach / 2))
+    view.draw_cell(SimpleNamespace(scene=session.scene, on_map=False, size=reach / 2))
     view.base = {b.name: b for b in session.bodies()}
     view.animate(moved)
     assert np.allclose(clouds["/cell/images"].points[:, :2], ghost_positions(x1, images), rtol=0, atol=1e-12)
     view.stop_animation()
     assert np.allclose(clouds["/cell/images"].points[:, :2], ghost_positions(session.scene.x, images), atol=1e-12)
+
+
+def test_too_many_sliding_contacts_are_sampled_and_said(monkeypatch):
+    """Issue 36: a whole packing with more contacts at the friction limit than can be enumerated (the 1,617-disk
+    annulus: 2^85 cases) is analysed on the sampled path and the page says so, in one line with what to change.
+    Here four_disk's 4 sliding contacts against a limit of 2: the all-loading, all-unloading and sampled branches."""
+    from granstab_app import pools
+    from granstab_app.state import Session
+    monkeypatch.setattr(pools, "MAX_SLIDING", 2)
+    s = Session("four_disk")
+    assert s.error is None and s.verdict == "unstable" and s.analysis.summary["branches"] == "partial"
+    assert "2^4 cases" in s.caveat and "sampled" in s.caveat and s.caveat.count("\n") == 0
+    monkeypatch.setattr(pools, "MAX_SLIDING", 16)
+    assert s.set_params(alpha=0.9) and s.caveat is None and s.analysis.summary["branches"] != "partial"
+
+
+def test_a_played_mode_shows_its_rest_ghost_and_motion_arrows(pair):
+    """Issue 36: while the pair's rolling mode plays, the rest position stays drawn (both outlines, grey) and an arrow
+    goes from each particle's axis tip at rest to the tip at the mode's largest displacement: the pair turns in
+    place, so arrows of the centres would be empty. At the default amplitude 0.35 the tips move 0.35 r (θ = 0.35)."""
+    from types import SimpleNamespace
+
+    from granstab_app.text import lowest_mode
+    from granstab_app.views import SceneView
+    calls = {}
+    api = SimpleNamespace(remove_by_name=lambda name: calls.pop(name, None),
+                          add_line_segments=lambda name, points, *a, **k: calls.setdefault(name, points),
+                          add_arrows=lambda name, points, **k: calls.setdefault(name, points))
+    m = lowest_mode(pair.modes())
+    assert m.label == "rolling"
+    SceneView(api).show_rest(pair.bodies(), pair.mode_bodies(m, 0.35, 0.5 * np.pi), pair.size)
+    assert calls["/rest/outline"].shape == (2 * 64, 2, 3)
+    arrows = calls["/rest/motion"]
+    assert arrows.shape == (2, 2, 3)
+    length = np.linalg.norm(arrows[:, 1] - arrows[:, 0], axis=1)
+    assert np.allclose(length, 2 * np.sin(0.35 / 2) * pair.bodies()[0].axes[0], rtol=1e-9)   # a chord of angle 0.35
+
+
+def test_the_attribution_comes_after_the_verdict(pair):
+    """Issue 36's latency: the pair's analysis is made without its attribution (half its time), the page sends the
+    verdict, then Session.attribute adds why it is unstable; the report (cached per revision) follows. A stable
+    scene has none to add."""
+    assert pair.verdict == "unstable" and pair.report()["attribution"] is None
+    assert pair.attribute() and pair.report()["attribution"].startswith("mechanism: geometric")
+    assert not pair.attribute()
+    pair.set_params(rho_r=1.5)
+    assert pair.verdict == "stable" and not pair.attribute() and pair.report()["attribution"] is None
+
+
+def test_a_turned_ellipse_renames_its_contact():
+    """Issue 36: the headline follows the geometry — ellipses_sharp (tips: ρ/r = 0.25) turned by 90° onto its flat
+    sides says "flat sides touching (ρ/r = 4)" (ρ = a²/b = 2, r = b = 0.5), not "sharp tips"; and is stable."""
+    s = Session("ellipses_sharp")
+    assert "sharp tips" in s.scene.title and "ρ/r = 0.25" in s.scene.title and s.verdict == "unstable"
+    s.move("left", [0.0, 0.0], np.pi / 2)
+    s.move("right", [0.99, 0.0], np.pi / 2)
+    assert s.error is None and s.scene.n_contacts == 1
+    assert "flat sides touching (ρ/r = 4)" in s.scene.title and "sharp" not in s.scene.title
+    assert s.verdict == "stable"

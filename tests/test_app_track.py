@@ -157,8 +157,9 @@ def test_a_track_in_the_page(track_dir, tmp_path):
             for close in page.locator("button.mantine-Notification-closeButton").all():    # viser's notices
                 close.click()
             picture(page, "app-track-d2min.png")
+            assert (ui.frame.min, ui.frame.max, ui.frame.value) == (0, 2, 0)      # the frames' own numbers (was 1…3)
             box = number_box(page, ui.frame)
-            box.fill("2")
+            box.fill("1")
             box.press("Enter")
             wait_for(lambda: s.model.frame == 1, what="frame 1 on the server")
             with ui.lock:                                   # its refresh has run: the plot marks frame 1
@@ -191,3 +192,25 @@ def picture(page, name: str) -> None:
     if shots:
         page.wait_for_timeout(1500)                  # the drawing has arrived
         page.screenshot(path=str(Path(shots) / name))
+
+
+def test_a_periodic_track_shows_its_cell_and_its_frame_numbers(track_dir):
+    """Issue 36: a periodic track's frame is drawn with its cell outline (the map had none) and no periodic images
+    (the map colours particles only); the Frame slider runs over the frames' own numbers (0 … 2, it ran 1 … 3)."""
+    from types import SimpleNamespace
+
+    from granstab_app.panel.scene import frame_axis
+    from granstab_app.views import SceneView
+    s = Session()
+    assert s.open_typed(str(track_dir)) and s.model.cell is None and s.scene.cell is None
+    assert frame_axis(s.model.frames) == (0, 2, 1) and frame_axis([3, 5, 9]) == (1, 3, 1)
+    cell = np.array([[12.0, 0.0], [0.0, 12.0]])
+    s.model.table["cell"] = np.array([cell.ravel().tolist()] * len(s.model.frames), dtype=object)
+    scene = s.model.build({})
+    assert np.array_equal(scene.cell, cell)
+    calls = []
+    api = SimpleNamespace(remove_by_name=lambda name: calls.append(("remove", name)),
+                          add_line_segments=lambda name, points, *a, **k: calls.append(("add", name, points.shape)),
+                          add_point_cloud=lambda name, points, **k: calls.append(("add", name, points.shape)))
+    SceneView(api).draw_cell(SimpleNamespace(scene=scene, on_map=True, size=0.5))
+    assert calls == [("remove", "/cell"), ("add", "/cell", (4, 2, 3))]

@@ -15,7 +15,7 @@ from granstab_app.server import App
 QUIET = 0.5                    # s without a message after the move's callback has finished: the move's messages are in
 # Updates of a node already in the page; any other message naming a scene node ("/…") adds one anew or removes it.
 UPDATES = {"SceneNodeUpdateMessage", "SetPositionMessage", "SetOrientationMessage"}
-# The pair's ρ/r changes the two outlines: their vertices, (4·96 + 2) × 3 float32 = 4.6 kB each (views.extruded_outline),
+# The pair's ρ/r changes the two outlines: their vertices, (4·96 + 2) × 3 float32 = 4.6 kB each (meshes.extruded_outline),
 # are the largest part of a move; with the body markers, the verdict's texts and the spectrum's 1.8 kB of JSON a move
 # sent 14 kB here. The bound leaves 10 kB above that; the explorer before this bound sent 62 kB per move (the λ⁽⁶⁾
 # contour's 49 kB picture, re-sent to move its ★, and a spectrum plot carrying plotly's 7 kB template).

@@ -51,7 +51,7 @@ def test_a_failed_path_is_cleared_while_the_next_one_opens(app, tmp_path, monkey
 def test_check_other_metrics_shows_it_runs_and_a_move_supersedes_it(app, monkeypatch):
     import threading
 
-    import granstab_app.state as state
+    import granstab_app.pools as state
     with HeadlessPage(app) as page:
         ui, s = page.ui, page.ui.session
         ui.run(ui._check_metrics)
@@ -90,14 +90,14 @@ def test_an_opened_scene_fits_the_free_canvas(app, tmp_path):
     the side panels leave free (they cover COVERED_PX of its width), for the page's field of view and size."""
     import numpy as np
 
-    from granstab_app.panels import COVERED_PX, TOP
+    from granstab_app.camera import COVERED_PX, TOP
     (tmp_path / "chain.toml").write_text(CHAIN)
     with HeadlessPage(app) as page:
         ui = page.ui
         ui.path.value = str(tmp_path / "chain.toml")
         settle(ui, lambda: ui.session.scene.n_particles == 12)
         ui.camera_view.value = TOP
-        ui.run(ui._set_camera)
+        ui.run(ui.set_camera)
         cam = ui.client.camera
         x = np.array([b.x for b in ui.session.bodies()])
         r = np.array([max(b.axes) for b in ui.session.bodies()])
@@ -107,3 +107,22 @@ def test_an_opened_scene_fits_the_free_canvas(app, tmp_path):
         half_w = height * t * (cam.image_width - COVERED_PX) / cam.image_height     # free half-width at z = 0
         assert np.all(np.abs(x[:, 0] - at[0]) + r <= half_w)
         assert np.all(np.abs(x[:, 1] - at[1]) + r <= height * t)
+
+
+def test_one_slider_move_reports_once(app, monkeypatch):
+    """Issue 40: a refresh reads the report three times (headline, reason, mode counts); it is computed once per
+    revision, so one slider move on four_disk solves the Type-1 load response once (it ran three times)."""
+    from granstab.mechanics import verdicts
+    calls = []
+    solve = verdicts.load_response
+    monkeypatch.setattr(verdicts, "load_response", lambda *a, **k: calls.append(1) or solve(*a, **k))
+    with HeadlessPage(app) as page:
+        ui = page.ui
+        ui.preset.value = "four_disk"
+        settle(ui, lambda: ui.session.preset == "four_disk" and ui.session.analysis is not None)
+        calls.clear()
+        revision = ui.session.revision
+        ui.sliders["alpha"].value = 0.9
+        settle(ui, lambda: ui.session.revision == revision + 1 and "granstab-verdict" in ui.headline.content)
+        with ui.lock:
+            assert len(ui.session.analysis.branches) >= 2 and len(calls) == 1

@@ -38,7 +38,7 @@ def violations(source: str) -> list[str]:
     return found
 
 
-@pytest.mark.parametrize("path", sorted(APP.glob("*.py")), ids=lambda p: p.name)
+@pytest.mark.parametrize("path", sorted(APP.rglob("*.py")), ids=lambda p: p.name)
 def test_app_uses_viser_public_api_only(path):
     assert violations(path.read_text(encoding="utf-8")) == []
 
