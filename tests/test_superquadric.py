@@ -262,3 +262,35 @@ def test_hertz_law_from_the_overlaps(loaded):
     e_star = 1e7 / (2 * (1 - 0.3**2))
     ratio = fn / (4 / 3 * e_star * np.sqrt(r_eff) * delta**1.5)
     assert 0.8 <= np.median(ratio) <= 1.2
+
+
+def test_periodic_box_takes_the_minimum_image(tmp_path):
+    """A periodic box (pp pp pp): the pairs moved onto the y boundary and the grains beyond it wrapped to the other
+    side keep their contacts; the arms are the minimum images from the centres to the contact points, so the
+    normals and curvatures are those of the unwrapped pairs and the points the same modulo the box (to the printed
+    precision, %.12g of the box size)."""
+    from granstab_bench.superquadrics import write_pairs
+    atoms, local = write_pairs(tmp_path, 12)
+    plain = granstab.io.load([atoms, local])
+    lines = atoms.read_text().splitlines()
+    lines[4], lines[6] = "ITEM: BOX BOUNDS pp pp pp", "-10 10"
+    rows = [r.split() for r in lines[9:]]
+    for r in rows:
+        y = float(r[3]) + 10.0
+        r[3] = f"{y - 20.0 if y >= 10.0 else y:.12g}"
+    (tmp_path / "wrapped.dump").write_text("\n".join(lines[:9] + [" ".join(r) for r in rows]) + "\n")
+    contacts = local.read_text().splitlines()
+    rows = [r.split() for r in contacts[9:]]
+    for r in rows:
+        r[13] = f"{float(r[13]) + 10.0:.12g}"
+    (tmp_path / "contacts.dump").write_text("\n".join(contacts[:9] + [" ".join(r) for r in rows]) + "\n")
+    wrapped = granstab.io.load([tmp_path / "wrapped.dump", tmp_path / "contacts.dump"])
+    assert wrapped.scene.cell is not None and wrapped.scene.n_contacts == 12
+    assert np.any(np.abs(wrapped.scene.branch[:, 1]) < np.abs(wrapped.scene.x[wrapped.scene.q, 1]
+                                                                - wrapped.scene.x[wrapped.scene.p, 1]))  # seams
+    moved = wrapped.scene.point - plain.scene.point - [0.0, 10.0, 0.0]
+    np.testing.assert_allclose(moved[:, [0, 2]], 0.0, atol=1e-9)
+    np.testing.assert_allclose((moved[:, 1] + 10.0) % 20.0 - 10.0, 0.0, atol=1e-9)
+    np.testing.assert_allclose(wrapped.scene.normal, plain.scene.normal, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(wrapped.scene.curvature_p, plain.scene.curvature_p, rtol=0,
+                               atol=1e-8 * np.abs(plain.scene.curvature_p).max())

@@ -192,3 +192,19 @@ def test_parallel_surface_degenerate_is_refused():
 def test_superquadric_rejects_bad_parameters():
     with pytest.raises(ValueError, match="n1 must be"):
         sf.Superquadric(1.0, 1.0, 1.0, 1.5, 2.0)
+
+
+def test_ellipse_equals_support_function_curvature():
+    """2D: the kernel's superellipse with n = 2 (the app's ellipses) against shapes.py's ellipse curvature."""
+    a, b, depth = 2.0, 1.0, 0.05
+    for theta, turn in ((0.7, 0.4), (2.0, -1.2), (4.0, 3.0)):
+        R = gshapes.rotation_matrix(2, turn)
+        x = np.array([3.0, -1.0])
+        yb = np.array([a * np.cos(theta), b * np.sin(theta)])
+        nb = yb / np.array([a * a, b * b])
+        nb /= np.linalg.norm(nb)
+        K, _, d = sf.contact_curvature((x + R @ (yb - depth * nb))[None], x[None], R[None], np.array([[a, b]]),
+                                       np.array([[2.0, 2.0]]), (R @ nb)[None])
+        ref = gshapes.surface_curvature_at(gshapes.Ellipse(a, b), (x, turn), x + R @ yb, depth)
+        assert abs(d[0] - depth) <= 1e-14 * 4
+        assert np.abs(K[0] - ref).max() <= 1e-13 * np.abs(ref).max()

@@ -32,7 +32,7 @@ import numpy as np
 from ..model import surface
 from ..model.errors import SceneError
 from ..model.vec import quaternion_matrix
-from .build import Snapshot
+from .build import Snapshot, branch_vectors
 from .columns import particle_orientation, to_indices, unique_ids
 from .lammps import (
     Block,
@@ -40,6 +40,7 @@ from .lammps import (
     contact_law,
     has_shape_columns,
     index_lammps,
+    lattice_of,
     liggghts_property,
 )
 from .lines import read_window
@@ -79,7 +80,8 @@ def read_superquadric(paths: list[Path], timestep=None, progress=None) -> Snapsh
     point = np.stack([col["cx"], col["cy"], col["cz"]], axis=1)
     if progress is not None:
         progress.stage("curvature")
-    geometry = contact_geometry(point, x, rot, axes, blockiness, p, q, line)
+    lattice = lattice_of(ablock, 3)
+    geometry = contact_geometry(point, x, rot, axes, blockiness, p, q, line, lattice)
     law, notes = hertz_law(script, force, geometry) if _model(script) == "hertz" else \
         contact_law(script, radius[p], radius[q], np.zeros(len(p)))
     shape = np.concatenate([axes, blockiness], axis=1)
@@ -89,6 +91,7 @@ def read_superquadric(paths: list[Path], timestep=None, progress=None) -> Snapsh
     return Snapshot(
         source=f"{apath} + {cpath}", format="liggghts-superquadric", dim=3, ids=ids, x=x, radius=radius, mass=mass,
         orientation=quat, p=p, q=q, force=force, normal=geometry.pop("normal"), law=law, frame=int(step),
+        lattice=lattice,
         frames=index.frames, wall_flags=wall_flags, wall_load=gravity, shaped=geometry,
         notes={"law_notes": notes, "dimension": 3, "forces_from": "force (f on id1 by id2)",
                "walls": wall_note, "shapes": _shape_note(axes, blockiness)},
@@ -96,16 +99,19 @@ def read_superquadric(paths: list[Path], timestep=None, progress=None) -> Snapsh
         contact_line=line)
 
 
-def contact_geometry(point, x, rot, axes, blockiness, p, q, line) -> dict:
+def contact_geometry(point, x, rot, axes, blockiness, p, q, line, lattice=None) -> dict:
     """Arms, normals and curvatures of the contacts (M,) at `point` from the grains' shapes (surface.py), with
-    the report's entry: the depths of the point in each grain and the angle between ν_p and −ν_q."""
+    the report's entry: the depths of the point in each grain and the angle between ν_p and −ν_q. In a periodic
+    box (`lattice` rows) each arm is the minimum image from the grain's centre to the point."""
     both = np.concatenate([p, q])
-    pts = np.concatenate([point, point])
+    M = len(p)
+    ends = np.concatenate([x, point])
+    arms = branch_vectors(ends, both, len(x) + np.concatenate([np.arange(M), np.arange(M)]), lattice)[0]
+    pts = x[both] + arms
     try:
         V, nu, depth = surface.parallel_curvature(pts, x[both], rot[both], axes[both], blockiness[both])
     except RuntimeError as exc:
         raise SceneError(f"{line(0)}: contactPoint: {exc}") from None
-    M = len(p)
     normal = nu[:M] - nu[M:]
     normal /= np.linalg.norm(normal, axis=1)[:, None]
     size = axes[both].max(axis=1)
@@ -125,7 +131,7 @@ def contact_geometry(point, x, rot, axes, blockiness, p, q, line) -> dict:
               "depth_over_size": {"max": float((depth / size).max(initial=0.0)),
                                   "median": float(np.median(depth / size)) if M else 0.0,
                                   "outside_within_rounding": int(np.sum(depth < 0)), "tolerance": OUTSIDE_TOL}}
-    return {"normal": normal, "arm_p": point - x[p], "arm_q": point - x[q], "curvature_p": K[:M],
+    return {"normal": normal, "arm_p": arms[:M], "arm_q": arms[M:], "curvature_p": K[:M],
             "curvature_q": K[M:], "depth_p": depth[:M], "depth_q": depth[M:], "report": report}
 
 
