@@ -87,6 +87,9 @@ def runnable_threads() -> list[int]:
     thread (/proc; OSError where it is absent)."""
     if not Path("/proc/self/stat").exists():
         raise OSError("no /proc")
+    with open("/proc/loadavg", encoding="ascii") as f:          # running or ready, every priority, this included
+        if int(f.read().split()[3].split("/")[0]) <= 1:
+            return []                                           # nobody else: no scan
     me, mine, out = os.getpid(), os.getpriority(os.PRIO_PROCESS, 0), []
     for stat in Path("/proc").glob("[0-9]*/task/*/stat"):
         try:
