@@ -119,7 +119,7 @@ def busy(n: int = 2):
     procs = [multiprocessing.Process(target=_spin, args=(stop,), daemon=True) for _ in range(n)]
     for p in procs:
         p.start()
-    time.sleep(1.0)
+    time.sleep(2.5)                                   # started and running (longer than threads.RUNNABLE_SECONDS)
 
     def end():
         stop.set()

@@ -114,7 +114,7 @@ def test_blas_threads_follow_the_free_cores(monkeypatch):
     monkeypatch.undo()
     assert 1 <= threads.free_cores() <= threads.cores()
     spinners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
-    niced = subprocess.Popen([sys.executable, "-c", "import os; os.nice(10)\nwhile True: pass"])
+    niced = subprocess.Popen([sys.executable, "-c", "while True: pass"], preexec_fn=lambda: os.nice(10))
     try:
         time.sleep(0.5)                              # started: each is running or ready to run (state R) from now on
         found = threads.runnable_threads()

@@ -84,7 +84,7 @@ def _probe(m: int, stack: int, lowrank: bool) -> float:
 def speed() -> float:
     """This machine's time for the probe's low-rank kernels at MEASURE_DIM over the calibration machine's
     (REFERENCE_PROBE): the factor by which costs calibrated there (the sparse path's) are scaled here."""
-    return _probe(MEASURE_DIM, MEASURE_STACK, True) / REFERENCE_PROBE
+    return _probe(MEASURE_DIM, 2, True) / REFERENCE_PROBE      # two matrices: a few ms on a free core
 
 
 def scaled(n: int, m: int) -> float:

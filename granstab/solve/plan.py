@@ -184,8 +184,9 @@ def _with_left_out(p: Plan, k: int, fam: bool) -> Plan:
 
 def _estimated(p: Plan, k: int) -> Plan:
     """The plan with its estimate (seconds per part; module docstring)."""
-    from .threads import free_cores, slowdown
+    from .threads import free_cores, runnable, slowdown
     n, L, metrics = p.n_dof, p.n_branches, len(p.metrics)
+    runnable(fresh=True)                       # the load now, not the BLAS policy's last read (up to 2 s old)
     workers = free_cores()
     parts = {}
     if p.path == "sparse":

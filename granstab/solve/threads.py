@@ -62,14 +62,15 @@ RUNNABLE_SECONDS = 2.0   # `runnable` is read at most this often (a scan of /pro
 _runnable_cache = [-1.0, 0.0]
 
 
-def runnable() -> float:
+def runnable(fresh: bool = False) -> float:
     """Threads of other processes running or waiting for a core now at this process's priority or above (nice <= its
     own, from /proc/*/task/*/stat; re-read every RUNNABLE_SECONDS): what takes a core from this one. Niced
     background work is left out, since it yields (the 1-minute load average counts it: a shared machine at load
     10 of niced work ran an analysis at full speed, and an estimate scaled by that load was 5× too high). Without
-    /proc: the 1-minute load average less this process."""
+    /proc: the 1-minute load average less this process. fresh: read now (a plan: once a run), not within
+    RUNNABLE_SECONDS of the last read (the BLAS policy, at every dense call)."""
     now = time.monotonic()
-    if now - _runnable_cache[0] < RUNNABLE_SECONDS:
+    if not fresh and now - _runnable_cache[0] < RUNNABLE_SECONDS:
         return _runnable_cache[1]
     try:
         count = len(runnable_threads())
@@ -87,6 +88,9 @@ def runnable_threads() -> list[int]:
     thread (/proc; OSError where it is absent)."""
     if not Path("/proc/self/stat").exists():
         raise OSError("no /proc")
+    with open("/proc/loadavg", encoding="ascii") as f:          # running or ready, every priority, this included
+        if int(f.read().split()[3].split("/")[0]) <= 1:
+            return []                                           # nobody else: no scan
     me, mine, out = os.getpid(), os.getpriority(os.PRIO_PROCESS, 0), []
     for stat in Path("/proc").glob("[0-9]*/task/*/stat"):
         try:
