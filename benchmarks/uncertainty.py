@@ -22,13 +22,12 @@ FULL = {"random": 2000, "repeat": 3, "centers": "all"}
 
 
 def scenes(cfg: dict) -> list:
-    """(name, scene) of the packings measured."""
-    out = [(f"random 2D, {cfg['random']:,} particles",
-            packings.random_packing(2, cfg["random"], n_sliding=cfg["random"] // 10, mobilised=0.5, seed=2))]
-    if ANNULUS.is_dir():
-        from granstab.io import load
-        out.insert(0, ("RigidLibrary annulus 10, frame 1", load([ANNULUS]).scene))
-    return out
+    """(name, scene) of the packings measured: the annulus frame where it is at hand, then a random packing."""
+    from granstab.io import load
+    real = [("RigidLibrary annulus 10, frame 1", load([ANNULUS]).scene)] if ANNULUS.is_dir() else []
+    size = cfg["random"]
+    return real + [(f"random 2D, {size:,} particles",
+                    packings.random_packing(2, size, n_sliding=size // 10, mobilised=0.5, seed=2))]
 
 
 def _scan(scene, **options):

@@ -563,6 +563,8 @@ def scan_lines(summary: dict, out) -> list[str]:
             + ", ".join(f"{v} {c}" for v, c in summary["verdicts"].items())
             + ("; unstable by mechanism: " + ", ".join(f"{m} {c}" for m, c in mechanisms.items() if c)
                if any(mechanisms.values()) else "") + f"; wrote {out}",
+            *(["verdicts under the data's uncertainty (docs/uncertainty.md): "
+               + ", ".join(f"{v} {c}" for v, c in summary["data_robust"].items())] if "data_robust" in summary else []),
             f"ran {summary['workers']['where']} ({summary['workers']['why']})"]
 
 

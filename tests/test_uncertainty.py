@@ -210,3 +210,25 @@ def test_scan_columns_and_map(tmp_path):
     path.write_text(json.dumps(granstab.scene_to_dict(two(16.0))))
     assert main(common + ["--out", str(tmp_path / "b"), "--force-uncertainty", "0.05"]) == 0
     assert list(read_map(tmp_path / "b")["clusters"]["data_robust"]) == ["holds", "holds"]
+
+
+def test_batched_holds_are_holds_of_the_cluster(annulus, tmp_path):
+    """The scan's batched bound (scan/uncertain.py) is never bolder than data_robustness on the cluster's own scene:
+    every row it proves holds (without the search) holds there too, with a margin at least as large (its bound is
+    Weyl's, the cluster's adds the first-order terms); embedded boundary, annulus frame 1, a subset."""
+    from granstab.scan import read_map, scan
+    from granstab.scan.clusters import cluster
+    from granstab.scan.run import _sub_index
+    scene = annulus[0]
+    scan(scene, tmp_path / "s", centers="every:70", workers=1, figures=False, attribution=False,
+         uncertainty={"rel": 0.1, "abs": 0.0})
+    rows = read_map(tmp_path / "s")["clusters"]
+    held = [i for i, r in enumerate(rows["data_robust"]) if r == "holds"]
+    assert len(held) >= 5
+    for i in held:
+        c = rows["center"][i]
+        sub = cluster(scene, c, 1, "embedded:1")
+        got = data_robustness(sub, Band(rel=0.1), max_sliding=8, search=False,
+                              inside=(_sub_index(sub, scene, rows["members"][i]), 0.5))
+        assert got.robust == "holds" and got.verdict == rows["verdict"][i]
+        assert got.margin >= rows["robust_margin"][i] * (1 - 1e-9)

@@ -75,6 +75,9 @@ class ScanOutput:
                    "seconds": seconds, "clusters_per_second": n_new / seconds if seconds > 0 and n_new else None,
                    "cluster_seconds_median": float(np.median(column(clusters, "seconds"))) if n else None,
                    "options": self.options, **(extra or {})}
+        if self.options.get("uncertainty"):            # issue 42: the clusters per data_robust word
+            robust = clusters.column("data_robust").value_counts().to_pylist()
+            summary["data_robust"] = {c["values"]: c["counts"] for c in sorted(robust, key=lambda c: c["values"])}
         (self.path / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False), encoding="utf-8")
         return summary
 
