@@ -104,10 +104,13 @@ def plain_sentence(s, verdict: str | None) -> str:
 
 def notation_html(markdown: str) -> str:
     """The "?" beside the verdict: the notation (docs/equations.md#notation) folded until asked for."""
-    return ('<details class="granstab-notation" style="margin:0 2px 4px 2px;font-size:0.85em">'
+    # the text waits in an attribute until the fold opens: folded, none of its words is on the page
+    return ('<details class="granstab-notation" style="margin:0 2px 4px 2px;font-size:0.85em" '
+            f'data-notation="{html.escape(markdown, quote=True)}" ontoggle="if(this.open){{'
+            "this.querySelector('div').textContent=this.dataset.notation}\">"
             '<summary style="cursor:pointer;color:#1c5d99" title="the symbols, in words">? What the words and '
             'symbols mean (docs/equations.md#notation)</summary>'
-            f'<div style="white-space:pre-wrap;max-height:40vh;overflow:auto">{html.escape(markdown)}</div></details>')
+            '<div style="white-space:pre-wrap;max-height:40vh;overflow:auto"></div></details>')
 
 
 def headline_html(verdict: str | None, title: str, reason: str, revision: int) -> str:
