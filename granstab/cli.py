@@ -26,7 +26,7 @@ from .model.scene import SceneError
 from .moduli import moduli
 from .scan.clusters import DEFAULT_BOUNDARY
 from .solve.budget import DENSE_ADVICE, SPARSE_ADVICE, OverBudget, deadline
-from .solve.plan import plan
+from .solve.plan import fit, fit_lines, plan
 
 
 class InputError(Exception):
@@ -187,6 +187,7 @@ def cmd_analyze(args) -> int:
     bars = args.progress or sys.stderr.isatty()
     start = time.perf_counter()
     advice = [DENSE_ADVICE]
+    given = work_given(args)
     options = {key: getattr(args, key) for key in ("metric", "rotation_length", "max_sliding", "sample_branches",
                                                     "method", "k", "device")}
     # the heartbeat outside the deadline: an alarm inside Heartbeat's own enter or exit would leave its thread running
@@ -199,6 +200,9 @@ def cmd_analyze(args) -> int:
             scene, balance = balanced(loaded, band, args.balance)
             try:
                 planned = plan(scene, **options)
+                if not given and band is None:              # the default plan: fitted to the time a run takes
+                    planned = fit(scene, planned, options)
+                    options = {**options, **(planned.fitted or {}).get("options", {})}
                 if args.plan:                                   # the plan and its estimate; nothing run
                     text = json.dumps({"source": scene.source, "cost": planned.to_dict(), "import": loaded.report},
                                       allow_nan=False) if args.json else "\n".join(planned.lines())
@@ -218,10 +222,12 @@ def cmd_analyze(args) -> int:
             data = {**result.to_dict(), "import": loaded.report,
                     **({"balance": balance, "data_uncertainty": None if robust is None else robust.to_dict()}
                        if asked else {})}
+            if planned.fitted:                                  # what the fit left out, in the result's cost
+                data["cost"].update(left_out=list(planned.left_out), fitted=planned.fitted)
             require_finite(data, scene.source)
             text = json.dumps(data, allow_nan=False) if args.json else "\n".join(
-                [format_table(result, show_all=args.all), *(uncertainty_lines(robust, balance) if asked else []),
-                 *import_lines(loaded)])
+                [format_table(result, show_all=args.all), *fit_lines(planned, listed=True),
+                 *(uncertainty_lines(robust, balance) if asked else []), *import_lines(loaded)])
     print(text)
     return 0
 
@@ -364,6 +370,20 @@ def cmd_moduli(args) -> int:
     print(json.dumps(data, allow_nan=False) if args.json else "\n".join([format_moduli(result, scene),
                                                                           *import_lines(loaded)]))
     return 0
+
+
+FIT_DEFAULTS = {"metric": "family", "max_sliding": 16, "method": "auto", "k": 6}   # analyze's, where not given
+
+
+def work_given(args) -> bool:
+    """Whether `granstab analyze` was given an option that fixes its work (--metric, --max-sliding,
+    --sample-branches, --method, --k, --timeout): then its plan is run or refused as asked, else fitted to the time a
+    run takes (solve/plan.fit). Fills FIT_DEFAULTS for those not given."""
+    given = args.sample_branches is not None or args.timeout is not None
+    for key, value in FIT_DEFAULTS.items():
+        given |= getattr(args, key) is not None
+        setattr(args, key, value if getattr(args, key) is None else getattr(args, key))
+    return given
 
 
 def refuse_unfinishable(planned, seconds_left: float | None) -> None:
@@ -889,17 +909,19 @@ def build_parser() -> Parser:
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--rotation-length", type=positive_number, default=None,
                    help="L in the scaled dofs [du, L dθ] (default: mean contact radius; 1 = the paper's metric)")
-    p.add_argument("--metric", choices=list(METRIC_CHOICES), default="family",
+    p.add_argument("--metric", choices=list(METRIC_CHOICES), default=None,
                    help="projection metric: family (default: the verdict in L/10, L, 10L and inertia where masses are "
                         "known, spectra in L, metric robustness reported), or only one of L, L/10, 10L, inertia")
-    p.add_argument("--max-sliding", type=count(0), default=16, help="refuse more potentially sliding contacts")
+    p.add_argument("--max-sliding", type=count(0), default=None,
+                   help="refuse more potentially sliding contacts (default 16)")
     p.add_argument("--sample-branches", type=count(1), default=None,
                    help="beyond --max-sliding: examine the all-loading, all-unloading and N random branches "
                         "(branches: partial; a verdict only where they suffice) instead of refusing")
-    p.add_argument("--method", choices=["auto", "dense", "sparse"], default="auto",
+    p.add_argument("--method", choices=["auto", "dense", "sparse"], default=None,
                    help="dense: every eigenpair and the uniqueness analysis; sparse: the lowest --k eigenpairs per "
-                        "branch without n_dof x n_dof matrices; auto: sparse above granstab.solve.sparse.DENSE_MAX_DOF dofs")
-    p.add_argument("--k", type=count(1), default=6, help="eigenpairs per branch on the sparse path")
+                        "branch without n_dof x n_dof matrices; auto (default): sparse above "
+                        "granstab.solve.sparse.DENSE_MAX_DOF dofs")
+    p.add_argument("--k", type=count(1), default=None, help="eigenpairs per branch on the sparse path (default 6)")
     p.add_argument("--progress", action="store_true",
                    help="progress bars with the time left on stderr (reading, branches; default when stderr is a "
                         "terminal)")

@@ -179,7 +179,8 @@ def test_a_thousand_disks_on_the_sparse_path_are_refused_before_work(tmp_path, c
     --timeout, before any work. The measured times are the calibration machine's: the estimate is compared
     without this machine's speed factor (budget.speed), within the promise of 3× either way."""
     path = granstab.save_scene(random_packing(2, 1000, n_sliding=10, seed=1), tmp_path / "disks.json")
-    for extra, metrics in (([], 3), (["--metric", "L"], 1)):       # refused by refuse_unfinishable: before work
+    for extra, metrics in ((["--metric", "family"], 3), (["--metric", "L"], 1)):   # refused before work (the
+        # default plan, no option given, is fitted to the budget instead: test_fit.py)
         assert main(["analyze", str(path), *extra]) == 2
         err = capsys.readouterr().err.strip()
         assert "\n" not in err and f"refused: 1024 branches × {metrics} metric(s) of 3072 dofs (sparse path)" in err

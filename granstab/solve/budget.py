@@ -127,15 +127,24 @@ RITZ_BRANCH = 5e-9
 RITZ_PER_DOF_WIDTH = 3e-7
 SHIFT_PER_DOF_SLIDING = 1.3e-7
 SHIFT_CUBE = 4.1e-9
+FLOPPY_PAIR_DOF = 3e-6  # a branch whose modes at or below zero (`plan.deficit`: a floppy 3D packing's rattling
+                         # and rolling modes, ν of them negative under its prestress) outnumber k: Ritz cannot certify
+                         # it, ARPACK solves k + ν pairs, per n·(k + deficit) (measured 2026-11-29 on a LIGGGHTS
+                         # superquadric packing, 1,500 dofs, deficit 28, ν 15-18: 0.15 s a branch on a free core; a
+                         # 690-dof cluster of it, deficit 15: 0.045 s; the calibration above had left it out: 8× low)
+FLOPPY_CROWD = 4        # … counted up to this many k's: a larger crowd below the shift is bisected and only the
+                        # eigenvalues below it are solved (sparse.py; an assumption, not measured beyond deficit 28)
 OTHER_METRIC = 3.5     # a metric of the family other than L costs this many L's (L/10 and 10L scale the rotations
                        # 100× apart: the shifted solves converge more slowly; measured: 3,072 dofs, 1,024 branches,
                        # family 386 s against 51 s for L, 3.3×; 4,107 dofs, 6 sliding, family 152 s, about 3.7×)
 
 
-def sparse_estimate(n_dof: int, n_branches: int, n_metrics: int = 1, n_sliding: int = 0, k: int = 6) -> float:
+def sparse_estimate(n_dof: int, n_branches: int, n_metrics: int = 1, n_sliding: int = 0, k: int = 6,
+                    deficit: int = 0) -> float:
     """Estimated wall seconds of the sparse path: per metric, the elastic solve's set-up and every branch's update,
-    Ritz (one basis for all branches) or shift-invert by methods.ritz_fits (calibration above, scaled by `speed`);
-    the first metric is L, each other one OTHER_METRIC L's."""
+    Ritz (one basis for all branches) or shift-invert by methods.ritz_fits, and where `deficit` (plan.deficit) is k + 1
+    or more, every branch's ARPACK solve of k + ν pairs (calibration above, scaled by `speed`); the first metric is
+    L, each other one OTHER_METRIC L's."""
     from .methods import ritz_fits
     Ms, kk = n_sliding, k + 1
     per_metric = SPARSE_SETUP_PER_DOF * n_dof
@@ -145,6 +154,8 @@ def sparse_estimate(n_dof: int, n_branches: int, n_metrics: int = 1, n_sliding: 
     else:
         per_metric += n_branches * (SPARSE_BRANCH_FIXED + SPARSE_BRANCH_PER_DOF * n_dof
                                     + SHIFT_PER_DOF_SLIDING * n_dof * Ms + SHIFT_CUBE * float(Ms) ** 3)
+    if deficit >= kk:
+        per_metric += n_branches * FLOPPY_PAIR_DOF * n_dof * (kk + min(deficit, FLOPPY_CROWD * kk))
     return (1 + OTHER_METRIC * (n_metrics - 1)) * per_metric * speed()
 
 

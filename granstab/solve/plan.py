@@ -63,6 +63,8 @@ class Plan:
     parts: dict = field(default_factory=dict)
     workers: int = 1
     one_metric_s: float | None = None   # the primary metric alone (the refusal's alternative to the family)
+    deficit: int = 0               # non-rigid modes surely at zero (`deficit`): the sparse path's ARPACK pairs
+    fitted: dict | None = None     # the default plan fitted to budget.ASK_SECONDS (`fit`): what that left out
 
     def to_dict(self) -> dict:
         """The `cost` object of `granstab analyze --json --plan` (and the planned part of every run's `cost`)."""
@@ -71,7 +73,8 @@ class Plan:
                 "metric_names": list(self.metrics), "sampled": self.sampled,
                 "uniqueness": self.uniqueness, "robustness": self.robustness, "attribution": self.attribution,
                 "floppy": self.floppy, "left_out": list(self.left_out), "workers": self.workers,
-                "estimated_s": self.estimated_s, "estimate_parts": dict(self.parts), "refusal": self.refusal}
+                "estimated_s": self.estimated_s, "estimate_parts": dict(self.parts), "refusal": self.refusal,
+                "fitted": self.fitted}
 
     def lines(self) -> list[str]:
         """`granstab analyze --plan`: the plan in a few lines, then the estimate."""
@@ -83,6 +86,7 @@ class Plan:
         out += [f"left out: {what}" for what in self.left_out] or ["left out: nothing"]
         if self.refusal:
             out.append(f"refused: {self.refusal}")
+        out += fit_lines(self)
         if self.estimated_s is None:
             out.append("estimate: none on a GPU device (the probe times this machine's CPU)")
         else:
@@ -109,17 +113,22 @@ class Plan:
 
 def floppy(scene: Scene) -> bool:
     """Whether some branch surely has a non-rigid zero eigenvalue, so that the low-rank path hands it to the full
-    one (lowrank._special): a particle with fewer contact constraints (d a frictional contact, the sliding ones
-    counted as 1) than its dofs, or a packing with fewer in all than its non-rigid dofs (Maxwell's count)."""
+    one (lowrank._special): `deficit` > 0."""
+    return deficit(scene) > 0
+
+
+def deficit(scene: Scene) -> int:
+    """Non-rigid modes of the elastic branch surely at zero before the prestress moves them: the dofs of each particle
+    beyond its contact constraints (d a frictional contact, the sliding ones counted as 1), summed, or the packing's
+    dofs beyond its constraints in all (Maxwell's count, rigid modes off) where that is more."""
     d, per = scene.dim, scene.dof_per_particle
     weight = np.where(scene.at_yield(), 1, d)
     constraints = np.bincount(np.concatenate([scene.p, scene.q]), np.concatenate([weight, weight]),
                               minlength=scene.n_particles)
     held = np.zeros(scene.n_particles, bool) if scene.fixed is None else scene.fixed
     rigid = 0 if held.any() else d + (1 if d == 2 else 3)
-    if np.any((constraints < per) & ~held):
-        return True
-    return int(weight.sum()) < per * int(np.sum(~held)) - rigid
+    particles = int(np.maximum(per - constraints, 0)[~held].sum())
+    return max(particles, per * int(np.sum(~held)) - rigid - int(weight.sum()))
 
 
 def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
@@ -156,7 +165,7 @@ def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None 
              uniqueness=uniqueness and not sparse, attribution=attribution and not sparse,
              robustness=fam and not sparse and not sampled and scene.fixed is None
              and n_branches * float(n) ** 3 <= ROBUST_MAX_WORK, floppy=lowrank and floppy(scene),
-             left_out=(), estimated_s=None)
+             left_out=(), estimated_s=None, deficit=deficit(scene) if sparse else 0)
     p = _with_left_out(p, k, fam)
     if not estimate or gpu or refusal:
         return p
@@ -190,8 +199,8 @@ def _estimated(p: Plan, k: int) -> Plan:
     workers = free_cores()
     parts = {}
     if p.path == "sparse":
-        parts["branches"] = budget.sparse_estimate(n, L, metrics, p.n_sliding, k)
-        one = budget.sparse_estimate(n, L, 1, p.n_sliding, k)
+        parts["branches"] = budget.sparse_estimate(n, L, metrics, p.n_sliding, k, p.deficit)
+        one = budget.sparse_estimate(n, L, 1, p.n_sliding, k, p.deficit)
     else:
         full = (budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=not p.uniqueness)   # no ℍ^i: eigh
                 if not p.lowrank or p.floppy else 0.0)
@@ -212,3 +221,65 @@ def _estimated(p: Plan, k: int) -> Plan:
     one *= slow
     return replace(p, estimated_s=sum(parts.values()), parts=parts, workers=workers,
                     one_metric_s=float(one + parts.get("attribution", 0.0)))
+
+
+FIT_SAMPLES = (62, 14, 4)  # random branches tried by `fit` (with the all-loading and all-unloading ones: 64, 16, 6)
+FIT_SHARE = 0.5            # `fit` takes a plan estimated within this share of budget.ASK_SECONDS: the run stays
+                           # within it where it takes up to twice its estimate
+
+
+def fit(scene: Scene, full: Plan, options: dict) -> Plan:
+    """The default plan fitted to budget.ASK_SECONDS (issues 36-38): where `full` (the plan of `options`, none of
+    them given by the user) is refused or estimated longer, the first of `_reductions` whose estimate fits, with
+    what it leaves out first in `left_out` and `fitted` saying how to run the full analysis (--timeout with its
+    estimate); `full` where it fits or nothing does (then refused as before). A reduced plan must fit FIT_SHARE of
+    the budget. A reduced verdict claims no more than it proves: sampled
+    branches prove only instability (verdicts.mark_partial), one metric is not the family's robustness."""
+    if full.estimated_s is None or (not full.refusal and full.estimated_s <= budget.ASK_SECONDS):
+        return full
+    for reduced in _reductions(full, options):
+        p = plan(scene, **reduced)
+        if not p.refusal and p.estimated_s is not None and p.estimated_s <= FIT_SHARE * budget.ASK_SECONDS:
+            dropped = tuple(f"the metric(s) {', '.join(full.metrics[1:])} of the family (the verdict in L alone: its "
+                            "metric-robustness not evaluated)" for _ in [0] if len(p.metrics) < len(full.metrics))
+            return replace(p, left_out=dropped + p.left_out, fitted=_full_run(scene, full, options, reduced))
+    return full
+
+
+def _reductions(full: Plan, options: dict):
+    """Cheaper options, in order: the primary metric L alone, then a sample of the branches (a proof only of
+    instability), then the sparse method (the lowest k eigenpairs a branch), each keeping the ones before."""
+    one = {**options, "metric": "L"}
+    Ms = full.n_sliding
+    samples = [None] + [n for n in FIT_SAMPLES if Ms > 0 and n + 2 < 2 ** min(Ms, 62)]
+    for method in ((options["method"],) if full.method == "sparse" else (options["method"], "sparse")):
+        for n in samples:
+            if n is None and full.refusal:
+                continue                                    # every branch is what was refused
+            sample = {} if n is None else {"max_sliding": min(options["max_sliding"], Ms - 1), "sample_branches": n}
+            reduced = {**one, "method": method, **sample}
+            if reduced != options:
+                yield reduced
+
+
+def _full_run(scene: Scene, full: Plan, options: dict, reduced: dict) -> dict:
+    """`Plan.fitted`: the budget fitted to, the options run, and the full analysis's estimate and options."""
+    whole = full if not full.refusal or full.n_sliding > 30 else plan(scene, **{**options,
+                                                                                "max_sliding": full.n_sliding})
+    seconds = None if whole.refusal else whole.estimated_s
+    flags = ([] if whole is full else [f"--max-sliding {full.n_sliding}"]) + \
+        ([f"--timeout {int(np.ceil(1.2 * seconds))}"] if seconds else [])
+    return {"budget_s": budget.ASK_SECONDS, "options": reduced, "full_estimated_s": seconds,
+            "full_options": " ".join(flags) if seconds else None}
+
+
+def fit_lines(p: Plan, listed: bool = False) -> list[str]:
+    """A fitted plan in words: what it left out to fit the budget (listed: here, else on the plan's own lines), and
+    the command of the full analysis."""
+    if not p.fitted:
+        return []
+    f = p.fitted
+    what = "; ".join(p.left_out) if listed else "what it leaves out is listed above"
+    full = (f"the full analysis needs about {f['full_estimated_s']:.3g} s: run it with {f['full_options']}"
+            if f["full_options"] else "the full analysis cannot be estimated (too many branches to enumerate)")
+    return [f"plan fitted to the {f['budget_s']:.3g} s a run takes without --timeout, leaving out: {what}; {full}"]
