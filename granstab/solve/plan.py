@@ -97,10 +97,10 @@ class Plan:
 
     def refuse(self, seconds_left: float | None) -> None:
         """Raise budget.OverBudget (one line, what to do) when the run cannot start or its estimate exceeds the
-        time left (None: budget.ASK_SECONDS, which --timeout lifts)."""
+        time left (None: budget.ASK_SECONDS, which --timeout lifts); a fitted plan fits it at rest (`fit`)."""
         if self.refusal:
             raise budget.OverBudget(self.refusal)
-        if self.estimated_s is None:
+        if self.estimated_s is None or self.fitted:
             return
         one = (f"--metric L alone (about {self.one_metric_s:.3g} s), " if len(self.metrics) > 1
                else "")
@@ -134,9 +134,10 @@ def deficit(scene: Scene) -> int:
 def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
          sample_branches: int | None = None, method: str = "auto", k: int = 6, device: str = "cpu",
          lowrank: bool | None = None, uniqueness: bool = True, attribution: bool = True,
-         estimate: bool = True) -> Plan:
+         estimate: bool = True, rest: bool = False) -> Plan:
     """The plan of `analyze(scene, **options)` (same options; module docstring); estimate=False skips the estimate
-    (and its probe)."""
+    (and its probe); rest=True estimates for this machine at rest (every core free: `fit`'s choice, which must not
+    depend on the load of the moment)."""
     from .lowrank import use_lowrank
     from .sparse import DENSE_MAX_DOF
     n_sliding = int(np.sum(scene.at_yield()))
@@ -169,7 +170,7 @@ def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None 
     p = _with_left_out(p, k, fam)
     if not estimate or gpu or refusal:
         return p
-    return _estimated(p, k)
+    return _estimated(p, k, rest)
 
 
 def _with_left_out(p: Plan, k: int, fam: bool) -> Plan:
@@ -191,12 +192,12 @@ def _with_left_out(p: Plan, k: int, fam: bool) -> Plan:
     return replace(p, left_out=tuple(out))
 
 
-def _estimated(p: Plan, k: int) -> Plan:
-    """The plan with its estimate (seconds per part; module docstring)."""
-    from .threads import free_cores, runnable, slowdown
+def _estimated(p: Plan, k: int, rest: bool = False) -> Plan:
+    """The plan with its estimate (seconds per part; module docstring); rest: on every core, none busy."""
+    from .threads import cores, free_cores, runnable, slowdown
     n, L, metrics = p.n_dof, p.n_branches, len(p.metrics)
     runnable(fresh=True)                       # the load now, not the BLAS policy's last read (up to 2 s old)
-    workers = free_cores()
+    workers = cores() if rest else free_cores()
     parts = {}
     if p.path == "sparse":
         parts["branches"] = budget.sparse_estimate(n, L, metrics, p.n_sliding, k, p.deficit)
@@ -216,7 +217,7 @@ def _estimated(p: Plan, k: int) -> Plan:
         if p.attribution:
             parts["attribution"] = ATTRIBUTION_BRANCHES * (full if full else eigh * (1 + budget.SETUP_BRANCHES))
     parts["overhead"] = metrics * (OVERHEAD_S + OVERHEAD_BRANCH_S * L)
-    slow = slowdown()
+    slow = 1.0 if rest else slowdown()
     parts = {key: float(v) * slow for key, v in parts.items()}
     one *= slow
     return replace(p, estimated_s=sum(parts.values()), parts=parts, workers=workers,
@@ -233,13 +234,17 @@ def fit(scene: Scene, full: Plan, options: dict) -> Plan:
     them given by the user) is refused or estimated longer, the first of `_reductions` whose estimate fits, with
     what it leaves out first in `left_out` and `fitted` saying how to run the full analysis (--timeout with its
     estimate); `full` where it fits or nothing does (then refused as before). A reduced plan must fit FIT_SHARE of
-    the budget. A reduced verdict claims no more than it proves: sampled
-    branches prove only instability (verdicts.mark_partial), one metric is not the family's robustness."""
-    if full.estimated_s is None or (not full.refusal and full.estimated_s <= budget.ASK_SECONDS):
+    the budget on this machine at rest (plan(rest=True)): the plan, and so the verdict, do not depend on the load of
+    the moment (a loaded machine takes longer, and says so); the plan returned carries the estimate at the load
+    now. A reduced verdict claims no more than it proves: sampled branches prove only instability
+    (verdicts.mark_partial), one metric is not the family's robustness."""
+    if full.estimated_s is None or (not full.refusal and plan(scene, **options, rest=True).estimated_s
+                                    <= budget.ASK_SECONDS):
         return full
     for reduced in _reductions(full, options):
-        p = plan(scene, **reduced)
-        if not p.refusal and p.estimated_s is not None and p.estimated_s <= FIT_SHARE * budget.ASK_SECONDS:
+        at_rest = plan(scene, **reduced, rest=True)
+        if not at_rest.refusal and at_rest.estimated_s <= FIT_SHARE * budget.ASK_SECONDS:
+            p = plan(scene, **reduced)
             dropped = tuple(f"the metric(s) {', '.join(full.metrics[1:])} of the family (the verdict in L alone: its "
                             "metric-robustness not evaluated)" for _ in [0] if len(p.metrics) < len(full.metrics))
             return replace(p, left_out=dropped + p.left_out, fitted=_full_run(scene, full, options, reduced))
