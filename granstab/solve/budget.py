@@ -127,11 +127,12 @@ RITZ_BRANCH = 5e-9
 RITZ_PER_DOF_WIDTH = 3e-7
 SHIFT_PER_DOF_SLIDING = 1.3e-7
 SHIFT_CUBE = 4.1e-9
-FLOPPY_PAIR_DOF = 3e-6  # a branch whose modes at or below zero (`plan.deficit`: a floppy 3D packing's rattling
+FLOPPY_PAIR_DOF = 6e-6  # a branch whose modes at or below zero (`plan.deficit`: a floppy 3D packing's rattling
                          # and rolling modes, ν of them negative under its prestress) outnumber k: Ritz cannot certify
                          # it, ARPACK solves k + ν pairs, per n·(k + deficit) (measured 2026-11-29 on a LIGGGHTS
-                         # superquadric packing, 1,500 dofs, deficit 28, ν 15-18: 0.15 s a branch on a free core; a
-                         # 690-dof cluster of it, deficit 15: 0.045 s; the calibration above had left it out: 8× low)
+                         # superquadric packing, 1,500 dofs, deficit 28, ν 15-18: 0.15-0.3 s a branch on a free core,
+                         # 6-60 sampled branches; a 690-dof cluster of it, deficit 15: 0.045 s; the calibration above
+                         # had left it out: 7-9× low; with 3e-6, 2.2-2.8× low on 16 and 64 branches at load 5-9)
 FLOPPY_CROWD = 4        # … counted up to this many k's: a larger crowd below the shift is bisected and only the
                         # eigenvalues below it are solved (sparse.py; an assumption, not measured beyond deficit 28)
 OTHER_METRIC = 3.5     # a metric of the family other than L costs this many L's (L/10 and 10L scale the rotations
