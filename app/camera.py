@@ -7,6 +7,8 @@ import numpy as np
 
 COVERED_PX = 0            # px of the canvas under a panel: none (viser 1.1 docks panels beside the canvas, which
                           # is the free part; 430 + 400 here kept a 1024 px page's pair at 56 px of its 186)
+PHONE_PX, PHONE_BAND = 600, 0.38      # a portrait canvas narrower than PHONE_PX px: viser's panel covers all but its
+                          # top ~40 % (390×844: from y = 337 px), so the scene is fitted into the top PHONE_BAND
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
 
 
@@ -49,4 +51,24 @@ def fit_distance(half_w: float, half_h: float, camera, covered: float = COVERED_
     t = np.tan(0.5 * float(camera.fov))
     width, height = float(camera.image_width), float(camera.image_height)
     free = max(width - covered, 0.3 * width)
-    return max(half_h / (fill * t), half_w / (fill * t * free / height))
+    band = PHONE_BAND if phone(camera) else 1.0
+    return max(half_h / (fill * t * band), half_w / (fill * t * free / height))
+
+
+def phone(camera) -> bool:
+    """A portrait canvas narrower than PHONE_PX: the control panel covers its lower part."""
+    return float(camera.image_width) < PHONE_PX and float(camera.image_height) > 1.2 * float(camera.image_width)
+
+
+def above_sheet(pose: dict, camera) -> dict:
+    """On a `phone` canvas, `pose` moved along the screen's up direction so that the scene's centre sits in the middle
+    of the top PHONE_BAND of the canvas (above the panel that covers the rest; fit_distance fits it there)."""
+    if not phone(camera):
+        return pose
+    position, target = np.array(pose["position"], float), np.array(pose["look_at"], float)
+    view = (target - position) / np.linalg.norm(target - position)
+    up = np.array(pose["up_direction"], float)
+    up = up - (up @ view) * view
+    up /= np.linalg.norm(up)
+    shift = (1.0 - PHONE_BAND) * np.linalg.norm(target - position) * np.tan(0.5 * float(camera.fov))
+    return {**pose, "position": tuple((position - shift * up).tolist()), "look_at": tuple((target - shift * up).tolist())}

@@ -6,6 +6,8 @@ app/views.py's. A panel's handles are reached as the tab's own (`ui.preset`, `ui
 """
 from __future__ import annotations
 
+import html
+import json
 import time
 
 from .dispatch import Dispatch
@@ -15,6 +17,7 @@ from .panel.field import FieldPanel
 from .panel.modes import ModesPanel
 from .panel.scene import ScenePanel
 from .panel.verdict import VerdictPanel
+from .text import PRESETS
 from .views import SceneView
 
 TITLE = "granstab explorer"
@@ -32,7 +35,10 @@ PAGE_FIXES = ('<img alt="" src="data:," style="display:none" onerror="'
               "x.setAttribute('aria-label',x.getAttribute('role')==='slider'?text+' slider':text)});break}}})};"
               "name();new MutationObserver(name).observe(document.body,{childList:true,subtree:true});"
               # ?preset=NAME: the Preset menu opened and NAME picked, as a user would (the server checks the name)
-              "const want=new URLSearchParams(location.search).get('preset');if(want){let tries=0;"
+              # (the menu shows titles: T maps a stem to its entry)
+              "const T=" + html.escape(json.dumps({k: v[0] for k, v in PRESETS.items()}), quote=True) + ";"
+              "const stem=new URLSearchParams(location.search).get('preset');const want=T[stem]||stem;"
+              "if(stem){let tries=0;"
               "const pick=()=>{const box=document.querySelector('input[aria-label=Preset]');"
               "if(!box||box.value===want){if(!box&amp;&amp;tries++<200)setTimeout(pick,100);return}"
               "box.click();setTimeout(()=>{const o=[...document.querySelectorAll('[role=option]')]"

@@ -15,6 +15,8 @@ from granstab.solve.threads import blas_threads
 
 MAX_SLIDING = 16           # contacts at yield enumerated (2^16 branches); more: SAMPLED random branches
 SAMPLED = 32
+SAMPLED_LARGE = 2          # random branches on the sparse path (over DENSE_MAX_DOF dofs): each costs a shift-invert
+                           # eigensolve (~10 s at the annulus's 4,851 dofs), 32 of them minutes: the page waited on
 OFFLOAD = 50               # particles: from here a server's session analyses in a worker process (analysis_pool)
 _POOL: list = []           # the worker processes, made when first needed (analysis_pool)
 WORKER_NICE = 10           # the workers' priority below the server's (os.nice steps: 10 of 19)
@@ -29,7 +31,7 @@ def analysed(scene, metric: str, attribution: bool = True):
     analysed on the sampled path (`sampled`), which proves instability only; the page says so."""
     with blas_threads(1):
         return analyze(scene, metric=metric, max_sliding=MAX_SLIDING, attribution=attribution,
-                       sample_branches=SAMPLED if sampled(scene) else None)
+                       sample_branches=samples(scene))
 
 
 def attributed(analysis) -> bool:
@@ -41,7 +43,7 @@ def attributed(analysis) -> bool:
     with blas_threads(1):
         try:
             analysis.attribution = attribute(analysis, max_sliding=MAX_SLIDING,
-                                             sample_branches=SAMPLED if sampled(analysis.scene) else None)
+                                             sample_branches=samples(analysis.scene))
         except ValueError:                  # no consistent negative eigenpair among the kept branches
             return False
     return True
@@ -50,6 +52,15 @@ def attributed(analysis) -> bool:
 def sampled(scene) -> bool:
     """Whether `scene` has too many contacts at the friction limit to enumerate its branches."""
     return scene.n_contacts > 0 and int(scene.at_yield().sum()) > MAX_SLIDING
+
+
+def samples(scene) -> int | None:
+    """How many random branches the sampled path tries on `scene` (None: its branches are enumerated): SAMPLED,
+    SAMPLED_LARGE above DENSE_MAX_DOF dofs (the sparse path, where each branch is an eigensolve of its own)."""
+    from granstab.solve.sparse import DENSE_MAX_DOF
+    if not sampled(scene):
+        return None
+    return SAMPLED if scene.n_dof <= DENSE_MAX_DOF else SAMPLED_LARGE
 
 
 def offloaded(scene, metric: str):

@@ -21,7 +21,7 @@ from .models import Body, ShapeModel, TwoParticleModel, load_model
 from .modes import rotation_matrix
 from .params import PARAMS
 from .paths import PathRefused, folder_choice, typed_path
-from .pools import MAX_SLIDING, OFFLOAD, SAMPLED, analysed, sampled, shared
+from .pools import MAX_SLIDING, OFFLOAD, analysed, samples, shared
 from .protocols import MapModel
 from .readings import Readings
 from .rigiditymap import load_rigidity_map
@@ -299,10 +299,10 @@ class Session(Readings):
             else:
                 self.analysis = analysed(self.scene, self.metric, attribution=False)   # attribute(): after the verdict
             self.error = None
-            if sampled(self.scene):
+            if samples(self.scene):
                 n = int(self.scene.at_yield().sum())
                 self.caveat = (f"{n} contacts at the friction limit: their 2^{n} cases are too many to try all; the "
-                               f"all-sliding, all-sticking and {SAMPLED} random cases were analysed (sampled: an "
+                               f"all-sliding, all-sticking and {samples(self.scene)} random cases were analysed (sampled: an "
                                f"unstable verdict holds, a stable one is not proven; at most {MAX_SLIDING} such "
                                "contacts are tried in full, e.g. with a larger μ).")
         except Exception as exc:  # noqa: BLE001 — shown in the page, never raised into the server

@@ -27,6 +27,14 @@ PRESETS = {      # each preset's title and what it shows, in one line (the Scene
     "annulus_frame": ("A real packing: 143 photoelastic disks", "Measured forces from an experiment: where does "
                       "it give way?"),
 }
+
+
+def preset_label(name: str) -> str:
+    """The Preset menu's entry for a preset: its title (PRESETS), else its file stem. The session keeps the stem
+    (`?preset=NAME` links name the stem)."""
+    return PRESETS.get(name, (name,))[0]
+
+
 MAP_DETAILS = ("**Scan map.** {report}.\n\nColour: the fraction of the clusters containing a particle that are "
                "unstable (white 0 → dark red 1; grey: in no scanned cluster). Click a particle, or type its name "
                "under *Scene*, to open its cluster here; *Back to the map* returns.")

@@ -19,6 +19,7 @@ import pytest
 from helpers import FLAT_PAIR
 
 from granstab_app.browser import CHROMIUM, FLAGS, number_box
+from granstab_app.text import preset_label
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -109,7 +110,7 @@ def test_explorer_end_to_end(app, tmp_path):
 
             # switch preset from the page: the shape-based flat pair is stable
             page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-            page.get_by_role("option", name="flat_pair").click()
+            page.get_by_role("option", name=preset_label("flat_pair")).click()
             verdict_on_page(page, "stable")
             wait_for(lambda: s.preset == "flat_pair", what="the preset switch on the server")
             assert s.kind == "shapes" and s.verdict == "stable" and s.scene.n_contacts == 1
@@ -118,7 +119,7 @@ def test_explorer_end_to_end(app, tmp_path):
 
             # back to the pair for the picture
             page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-            page.get_by_role("option", name="two_particle").click()
+            page.get_by_role("option", name=preset_label("two_particle")).click()
             verdict_on_page(page, "unstable")
             close = page.locator("button.mantine-Notification-closeButton")
             if close.count():

@@ -20,6 +20,8 @@ import numpy as np
 import pytest
 from test_app_browser import CHROMIUM, FLAGS, REPO, verdict_on_page, wait_for
 
+from granstab_app.text import preset_label
+
 pytestmark = pytest.mark.browser
 LOADS = 5
 SWITCHES = 6
@@ -156,7 +158,7 @@ def test_panels_labels_and_reset(app, browser):
 
     # a non-pair preset: no λ⁽⁶⁾ tab, no contour export, no λ⁽⁶⁾ surface checkbox
     page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-    page.get_by_role("option", name="four_disk").click()
+    page.get_by_role("option", name=preset_label("four_disk")).click()
     wait_for(lambda: s.preset == "four_disk", what="four_disk on the server")
     page.get_by_role("tab", name="Eigenmodes").wait_for(timeout=20_000)
     wait_for(lambda: page.get_by_role("tab", name="λ⁽⁶⁾ field").count() == 0, what="the λ⁽⁶⁾ tab to go")
@@ -170,7 +172,7 @@ def test_panels_labels_and_reset(app, browser):
 
     # pull the sharp ellipses apart: "no contact", not NEUTRAL and not "tips touching"
     page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-    page.get_by_role("option", name="ellipses_sharp").click()
+    page.get_by_role("option", name=preset_label("ellipses_sharp")).click()
     wait_for(lambda: s.preset == "ellipses_sharp" and s.analysis is not None, what="ellipses_sharp")
     with ui.lock:                   # the page's refresh for the new preset has finished (it holds the lock)
         name = s.scene.names[1]
@@ -182,7 +184,7 @@ def test_panels_labels_and_reset(app, browser):
 
     # back to the pair, drag it, Reset: the ρ/r, f/(kr) sliders and the verdict return
     page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-    page.get_by_role("option", name="two_particle").click()
+    page.get_by_role("option", name=preset_label("two_particle")).click()
     verdict_on_page(page, "unstable")
     wait_for(lambda: s.kind == "two_particle", what="the pair")
     with ui.lock:
@@ -251,7 +253,7 @@ def test_unstable_frame_shows_where_the_mode_lives(app, browser):
     verdict_on_page(page, "unstable", timeout=60_000)
     ui = ui_of(app, page)
     page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-    page.get_by_role("option", name="annulus_frame").click()
+    page.get_by_role("option", name=preset_label("annulus_frame")).click()
     wait_for(lambda: ui.session.preset == "annulus_frame", timeout=60, what="annulus_frame")
     verdict_on_page(page, "unstable", timeout=120_000)
     page.get_by_text("Particle colour: its share").wait_for(timeout=120_000)
@@ -411,7 +413,7 @@ def test_quick_switches_in_and_out_of_the_pair(app, browser, scan_dir):
 
     def pick(name):
         page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-        page.get_by_role("option", name=name, exact=True).click()
+        page.get_by_role("option", name=preset_label(name), exact=True).click()
 
     def rho(*values):
         box = number_box(page, ui.sliders["rho_r"])
@@ -435,12 +437,12 @@ def test_quick_switches_in_and_out_of_the_pair(app, browser, scan_dir):
         page.wait_for_timeout(pause)
     for i in range(SWITCHES):        # as fast as events can come: one after the other on the server, no gap at all
         ui.sliders["rho_r"].value = 0.6 + 0.01 * i      # (a handle set from Python runs its callback at once)
-        ui.preset.value = ("four_disk", "ellipses_sharp")[i % 2]
-        ui.preset.value = "two_particle"
+        ui.preset.value = preset_label(("four_disk", "ellipses_sharp")[i % 2])
+        ui.preset.value = preset_label("two_particle")
         ui.sliders["rho_r"].value = 1.6 + 0.01 * i
         ui.path._impl.value = str(scan_dir)              # a typed path, opened as its resting timer opens it
         ui.run(ui._open_path)
-        ui.preset.value = "two_particle"
+        ui.preset.value = preset_label("two_particle")
     wait_for(lambda: ui.session.preset == "two_particle", timeout=60, what="the pair at the end")
     shows_last_sent(page, ui)      # events the page queued may still run: wait on what the server sent last
     page.wait_for_timeout(1000)    # a pending redraw would fire by now
@@ -462,14 +464,14 @@ def test_a_pick_made_while_another_loads_is_kept(app, browser, monkeypatch):
     def load_and_pick_again(name):
         ok = load(name)
         if name == "four_disk":
-            ui.preset._impl.value = "two_particle"          # the next pick arrives while this one loads
+            ui.preset._impl.value = preset_label("two_particle")          # the next pick arrives while this one loads
         return ok
 
     monkeypatch.setattr(ui.session, "load_preset", load_and_pick_again)
-    ui.preset._impl.value = "four_disk"                       # the first pick, as viser records it
+    ui.preset._impl.value = preset_label("four_disk")                       # the first pick, as viser records it
     ui.run(ui._load_preset)                                   # its callback
     ui.run(ui._load_preset)                                   # the second pick's callback, queued behind it
-    assert ui.session.preset == "two_particle" and ui.preset.value == "two_particle"
+    assert ui.session.preset == "two_particle" and ui.preset.value == preset_label("two_particle")
     verdict_on_page(page, "unstable")
     page.close()
     assert errors == []
@@ -484,7 +486,7 @@ def test_a_pick_after_typing_a_path_wins(app, browser, scan_dir):
     ui = ui_of(app, page)
     page.locator("input.mantine-TextInput-input:visible").first.fill(str(scan_dir))    # Path on server
     page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-    page.get_by_role("option", name="four_disk").click()
+    page.get_by_role("option", name=preset_label("four_disk")).click()
     wait_for(lambda: ui.session.preset == "four_disk", timeout=60, what="four_disk")
     page.wait_for_timeout(1500)                                 # well past the typing pause
     assert ui.session.preset == "four_disk"
@@ -515,7 +517,7 @@ def test_controls_stay_put(app, browser):
     ui._on_drag("q", SimpleNamespace(phase="end"))
     where["dragged pair"] = settled()
     preset.click()
-    page.get_by_role("option", name="four_disk").click()
+    page.get_by_role("option", name=preset_label("four_disk")).click()
     wait_for(lambda: ui.session.preset == "four_disk", timeout=60, what="four_disk")
     where["four_disk"] = settled()
     assert len(set(where.values())) == 1, where
@@ -537,7 +539,7 @@ def test_display_controls_per_scene(app, browser):
         if ui.session.preset != name:
             page.get_by_role("tab", name="Scene").click()
             page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-            page.get_by_role("option", name=name, exact=True).click()
+            page.get_by_role("option", name=preset_label(name), exact=True).click()
             wait_for(lambda name=name: ui.session.preset == name, timeout=60, what=name)
         with ui.lock:
             revision = ui.session.revision
@@ -569,7 +571,7 @@ def test_pair_opens_oblique_and_a_picked_view_stays(app, browser):
     def pick(name):
         page.get_by_role("tab", name="Scene").click()
         page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-        page.get_by_role("option", name=name, exact=True).click()
+        page.get_by_role("option", name=preset_label(name), exact=True).click()
         wait_for(lambda: ui.session.preset == name, timeout=60, what=name)
         with ui.lock:                          # its refresh, camera included, has run
             revision = ui.session.revision
@@ -588,7 +590,7 @@ def test_pair_opens_oblique_and_a_picked_view_stays(app, browser):
                     "two_particle": OBLIQUE}, seen
     assert np.allclose(up, (0, 0, 1))                           # the oblique camera: z up, seen from the front
     menu.click()
-    page.get_by_role("option", name=TOP, exact=True).click()     # the user's own choice
+    page.get_by_role("option", name=preset_label(TOP), exact=True).click()     # the user's own choice
     wait_for(lambda: ui._view_picked and ui.camera_view.value == TOP, what="the picked view")
     assert (pick("four_disk"), pick("two_particle")) == (TOP, TOP)
     page.close()
@@ -604,7 +606,7 @@ def test_the_camera_frames_every_body_by_its_own_size(app, browser):
     ui = ui_of(app, page)
     page.get_by_role("tab", name="Scene").click()
     page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-    page.get_by_role("option", name="hand_in_glove", exact=True).click()
+    page.get_by_role("option", name=preset_label("hand_in_glove"), exact=True).click()
     wait_for(lambda: ui.session.preset == "hand_in_glove", timeout=60, what="hand_in_glove")
     with ui.lock:                                    # its refresh, camera included, has run
         bodies = ui.session.bodies()
@@ -627,7 +629,7 @@ def test_two_tabs_are_independent(app, browser):
     ui1, ui2 = ui_of(app, first), ui_of(app, second)
     assert ui1 is not ui2 and ui1.session is not ui2.session
     first.locator(f'[id="{ui1.preset._impl.uuid}"]').click()
-    first.get_by_role("option", name="four_disk").click()
+    first.get_by_role("option", name=preset_label("four_disk")).click()
     wait_for(lambda: ui1.session.preset == "four_disk", timeout=60, what="four_disk in the first tab")
     verdict_on_page(first, "unstable", timeout=120_000)
     second.wait_for_timeout(1000)
@@ -745,7 +747,7 @@ def test_no_tooltip_covers_an_input(playwright, tmp_path):
         for name in names[1:]:
             page.get_by_role("tab", name="Scene").click()
             page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-            page.get_by_role("option", name=name, exact=True).click()
+            page.get_by_role("option", name=preset_label(name), exact=True).click()
             wait_for(lambda name=name: ui.session.preset == name, timeout=60, what=name)
             page.wait_for_selector(f'.granstab-verdict[data-revision="{ui.session.revision}"]',
                                    timeout=120_000)

@@ -691,3 +691,43 @@ def test_a_turned_ellipse_renames_its_contact():
     assert s.error is None and s.scene.n_contacts == 1
     assert "flat sides touching (ρ/r = 4)" in s.scene.title and "sharp" not in s.scene.title
     assert s.verdict == "stable"
+
+
+def test_the_whole_annulus_is_analysed_on_a_few_sampled_branches():
+    """Issue 36: *Analyse the whole packing* on RigidLibrary's 1,617-disk annulus (85 contacts at the friction limit:
+    2^85 cases; 4,851 dofs, the sparse path) answers: the all-sliding, all-sticking and pools.SAMPLED_LARGE = 2
+    random branches, each one eigensolve (34 of them took minutes, and the page never answered), with the caveat in
+    one line saying what to change."""
+    from granstab_app import pools
+    root = Path(__file__).resolve().parents[2] / "shared" / "data" / "rigidlibrary" / "DataAnnulus" / "10"
+    folder = root if root.is_dir() else Path("/work/shared/data/rigidlibrary/DataAnnulus/10")
+    assert folder.is_dir(), f"the photoelastic annulus data are needed: {folder}"
+    s = Session()
+    assert s.open_typed(str(folder)) and s.error is None and s.deferred and s.scene.n_particles == 1617
+    s.analyse()
+    assert s.error is None and s.analysis is not None and not s.deferred
+    assert s.analysis.summary["branches"] == "partial" and len(s.analysis.branches) == 2 + pools.SAMPLED_LARGE
+    assert "2^85 cases" in s.caveat and f"{pools.SAMPLED_LARGE} random cases" in s.caveat
+    assert "larger μ" in s.caveat and s.caveat.count("\n") == 0
+
+
+def test_on_a_phone_the_pair_is_fitted_above_the_panel(pair):
+    """Issue 36: on a 390×844 canvas viser's panel covers all below y ≈ 337 px (40 %), and the pair, fitted to the
+    whole canvas and centred, lay under it. Top-down, each body's drawn reach (1.2 × its size, camera_pose) now
+    projects (pinhole, the camera's vertical field of view) inside the canvas's top PHONE_BAND; a 1400×900 canvas
+    keeps the centred pose."""
+    from granstab_app.camera import PHONE_BAND, above_sheet, camera_pose, fit_distance
+    camera = SimpleNamespace(fov=np.radians(75.0), image_width=390, image_height=844)
+    pose = above_sheet(camera_pose(pair, False, False, lambda w, h: fit_distance(w, h, camera)), camera)
+    position, target = np.array(pose["position"]), np.array(pose["look_at"])
+    assert np.allclose(position[:2], target[:2]) and pose["up_direction"] == (0.0, 1.0, 0.0)
+    px = camera.image_height / (2 * position[2] * np.tan(0.5 * camera.fov))      # px per unit on the plane z = 0
+    for b in pair.bodies():
+        reach = 1.2 * max(b.axes)
+        top = 0.5 * camera.image_height - (b.x[1] + reach - position[1]) * px
+        bottom = 0.5 * camera.image_height - (b.x[1] - reach - position[1]) * px
+        side = 0.5 * camera.image_width + (np.array([-reach, reach]) + b.x[0] - position[0]) * px
+        assert 0 <= top and bottom <= PHONE_BAND * camera.image_height and 0 <= side[0] and side[1] <= 390
+    wide = SimpleNamespace(fov=np.radians(75.0), image_width=1400, image_height=900)
+    centred = camera_pose(pair, False, False, lambda w, h: fit_distance(w, h, wide))
+    assert above_sheet(centred, wide) == centred

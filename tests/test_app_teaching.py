@@ -15,6 +15,7 @@ from test_app_browser import CHROMIUM, FLAGS, REPO, wait_for
 from test_app_pages import shows_last_sent, ui_of
 
 from granstab_app.browser import number_box
+from granstab_app.text import preset_label
 
 pytestmark = pytest.mark.browser
 VERDICTS = ("stable", "neutral", "unstable")
@@ -115,7 +116,7 @@ def test_friction_always_gives_a_verdict(app, browser):
         for preset, values in (("four_disk", ("0", "0.3", "0.7", "1.5")), ("spheres_tetrahedron", ("0.4", "0.6"))):
             if ui.session.preset != preset:
                 page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-                page.get_by_role("option", name=preset).click()
+                page.get_by_role("option", name=preset_label(preset)).click()
                 wait_for(lambda p=preset: ui.session.preset == p, timeout=60, what=preset)
             for text in values:
                 typed(page, ui, "mu", text)
@@ -169,7 +170,7 @@ def test_modes_follow_the_verdict(app, browser):
         with ui.lock:
             assert ui._current_mode().eigenvalue == first and first < 0
         page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
-        page.get_by_role("option", name="two_particle").click()
+        page.get_by_role("option", name=preset_label("two_particle")).click()
         wait_for(lambda: ui.session.preset == "two_particle", timeout=60, what="the pair")
         typed(page, ui, "rho_r", "1.5")
         typed(page, ui, "mobilised", "1")

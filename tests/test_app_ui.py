@@ -8,6 +8,7 @@ import pytest
 
 from granstab_app.headless import HeadlessPage
 from granstab_app.server import App
+from granstab_app.text import preset_label
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +119,7 @@ def test_one_slider_move_reports_once(app, monkeypatch):
     monkeypatch.setattr(verdicts, "load_response", lambda *a, **k: calls.append(1) or solve(*a, **k))
     with HeadlessPage(app) as page:
         ui = page.ui
-        ui.preset.value = "four_disk"
+        ui.preset.value = preset_label("four_disk")
         settle(ui, lambda: ui.session.preset == "four_disk" and ui.session.analysis is not None)
         calls.clear()
         revision = ui.session.revision
@@ -126,3 +127,19 @@ def test_one_slider_move_reports_once(app, monkeypatch):
         settle(ui, lambda: ui.session.revision == revision + 1 and "granstab-verdict" in ui.headline.content)
         with ui.lock:
             assert len(ui.session.analysis.branches) >= 2 and len(calls) == 1
+
+
+def test_the_preset_menu_shows_titles_and_keeps_the_stems(app):
+    """Issue 36: the Preset menu lists titles ("Four disks (the paper's Sec. 4.2)"), not file stems; picking a
+    title opens the preset under its stem (the name `?preset=NAME` links and the session use)."""
+    with HeadlessPage(app) as page:
+        ui = page.ui
+        with ui.lock:
+            options = tuple(ui.preset.options)
+            assert ui.preset.value == "Two grains, one contact" and ui.session.preset == "two_particle"
+        assert "Four disks (the paper's Sec. 4.2)" in options and "four_disk" not in options
+        assert "two_particle" not in options and len(set(options)) == len(options)
+        ui.preset.value = "Four disks (the paper's Sec. 4.2)"
+        settle(ui, lambda: ui.session.preset == "four_disk" and ui.session.analysis is not None)
+        with ui.lock:
+            assert ui.preset.value == "Four disks (the paper's Sec. 4.2)"

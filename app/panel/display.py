@@ -1,7 +1,7 @@
 """The *Display* tab (what is drawn, arrow length, the 2D view) and the legend under the tabs."""
 from __future__ import annotations
 
-from ..camera import OBLIQUE, TOP, camera_pose, fit_distance
+from ..camera import OBLIQUE, TOP, above_sheet, camera_pose, fit_distance
 from ..text import MAP_LEGEND, legend_markdown
 from ..views import MESH_MAX
 
@@ -71,7 +71,8 @@ class DisplayPanel:
 
     def set_camera(self) -> None:
         ui, s = self.ui, self.ui.session
-        pose = camera_pose(s, self.camera_view.value == OBLIQUE and s.scene_dim == 2, ui.view.options["surface"],
-                           lambda w, h: fit_distance(w, h, ui.client.camera))
+        pose = above_sheet(camera_pose(s, self.camera_view.value == OBLIQUE and s.scene_dim == 2,
+                                       ui.view.options["surface"], lambda w, h: fit_distance(w, h, ui.client.camera)),
+                           ui.client.camera)
         for key, value in pose.items():
             setattr(ui.client.camera, key, value)

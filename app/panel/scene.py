@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..params import PARAMS
-from ..text import info_markdown
+from ..text import info_markdown, preset_label
 from ..trackview import TrackPanel
 
 
@@ -26,7 +26,8 @@ class ScenePanel:
 
     def build(self, gui) -> None:
         ui, s = self.ui, self.ui.session
-        self.preset = gui.add_dropdown("Preset", options=s.presets() or ["(none)"], initial_value=self._option())
+        self.preset = gui.add_dropdown("Preset", options=self._options(s) or ["(none)"],
+                                       initial_value=preset_label(self._option()))
         self.preset.on_update(ui.picking(self._load_preset))
         self.upload = gui.add_upload_button("Open scene file", mime_type="*/*")
         self.upload.on_upload(ui.picking(self._upload))
@@ -57,16 +58,23 @@ class ScenePanel:
         options = s.presets()
         return s.preset if s.preset in options else (options[0] if options else "(none)")
 
+    def _options(self, s) -> list[str]:
+        """The menu's entries: each preset by its title (text.PRESETS), the open scene's own name last if it is no
+        preset; `self.stems` maps an entry back to the name the session knows."""
+        names = s.presets()
+        if s.preset is not None and s.preset not in names:
+            names = [*names, s.preset]
+        self.stems = {preset_label(n): n for n in names}
+        return list(self.stems)
+
     def write(self, s) -> None:
         """Slider visibility/values, the preset list, the frame and the map's controls follow the session, without
         firing callbacks (called in ui.quiet)."""
         ui = self.ui
-        options = s.presets()
-        if s.preset not in options:
-            options = [*options, s.preset]
+        options = self._options(s)
         if tuple(self.preset.options) != tuple(options):
             self.preset.options = options
-        ui.show_value("preset", self.preset, s.preset)
+        ui.show_value("preset", self.preset, preset_label(s.preset))
         used = set(s.used_params)
         for key, h in self.sliders.items():
             h.visible = key in used
@@ -122,7 +130,8 @@ class ScenePanel:
 
     def _load_preset(self) -> None:
         ui = self.ui
-        name = ui.shown["preset"] = self.preset.value
+        ui.shown["preset"] = self.preset.value
+        name = self.stems.get(self.preset.value, self.preset.value)
         if name == ui.session.preset:
             return
         if name not in ui.session.presets():          # the menu's options only (a forged value is no path)
