@@ -590,7 +590,7 @@ def test_pair_opens_oblique_and_a_picked_view_stays(app, browser):
                     "two_particle": OBLIQUE}, seen
     assert np.allclose(up, (0, 0, 1))                           # the oblique camera: z up, seen from the front
     menu.click()
-    page.get_by_role("option", name=preset_label(TOP), exact=True).click()     # the user's own choice
+    page.get_by_role("option", name=TOP, exact=True).click()     # the user's own choice
     wait_for(lambda: ui._view_picked and ui.camera_view.value == TOP, what="the picked view")
     assert (pick("four_disk"), pick("two_particle")) == (TOP, TOP)
     page.close()
