@@ -17,7 +17,7 @@ from .panel.field import FieldPanel
 from .panel.modes import ModesPanel
 from .panel.scene import ScenePanel
 from .panel.verdict import VerdictPanel
-from .text import PRESETS
+from .text import PRESETS, preset_label
 from .views import SceneView
 
 TITLE = "granstab explorer"
@@ -36,7 +36,7 @@ PAGE_FIXES = ('<img alt="" src="data:," style="display:none" onerror="'
               "name();new MutationObserver(name).observe(document.body,{childList:true,subtree:true});"
               # ?preset=NAME: the Preset menu opened and NAME picked, as a user would (the server checks the name)
               # (the menu shows titles: T maps a stem to its entry)
-              "const T=" + html.escape(json.dumps({k: v[0] for k, v in PRESETS.items()}), quote=True) + ";"
+              "const T=" + html.escape(json.dumps({k: preset_label(k) for k in PRESETS}), quote=True) + ";"
               "const stem=new URLSearchParams(location.search).get('preset');const want=T[stem]||stem;"
               "if(stem){let tries=0;"
               "const pick=()=>{const box=document.querySelector('input[aria-label=Preset]');"

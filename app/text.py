@@ -30,9 +30,9 @@ PRESETS = {      # each preset's title and what it shows, in one line (the Scene
 
 
 def preset_label(name: str) -> str:
-    """The Preset menu's entry for a preset: its title (PRESETS), else its file stem. The session keeps the stem
-    (`?preset=NAME` links name the stem)."""
-    return PRESETS.get(name, (name,))[0]
+    """The Preset menu's entry for a preset: its title (PRESETS) with its file stem, the name docs, links
+    (`?preset=NAME`) and `granstab-app --preset NAME` use; else the stem. The session keeps the stem."""
+    return f"{PRESETS[name][0]} ({name})" if name in PRESETS else name
 
 
 MAP_DETAILS = ("**Scan map.** {report}.\n\nColour: the fraction of the clusters containing a particle that are "

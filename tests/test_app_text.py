@@ -96,3 +96,12 @@ def test_every_preset_has_a_title_and_one_line():
     assert stems == set(PRESETS) and all(title and line.count(".") <= 2 for title, line in PRESETS.values())
     s = Session("four_disk")
     assert info_markdown(s, s.verdict).startswith("**Four disks (the paper's Sec. 4.2)** — All four contacts sliding")
+
+
+def test_a_preset_menu_entry_names_its_title_and_its_stem():
+    """The menu shows the title a student reads and the stem the docs, links and --preset use."""
+    from granstab_app.text import PRESETS, preset_label
+    assert preset_label("four_disk") == f"{PRESETS['four_disk'][0]} (four_disk)"
+    assert preset_label("my_scene") == "my_scene"                      # not a preset: its own name
+    labels = [preset_label(k) for k in PRESETS]
+    assert len(set(labels)) == len(labels)
