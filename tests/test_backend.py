@@ -75,7 +75,7 @@ def test_cli_device_gpu_without_cupy_is_one_line_exit_2():
 
 
 def test_thread_policy_by_size(monkeypatch):
-    monkeypatch.setattr(threads, "runnable", lambda: 0.0)               # at rest (busy: tests/test_plan.py)
+    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)               # at rest (busy: tests/test_plan.py)
     assert threads.for_size(48) == 1
     assert threads.for_size(threads.SMALL + 1) == threads.cores() >= 1
     pytest.importorskip("threadpoolctl", reason="threadpoolctl (test extra) applies the policy")
@@ -88,7 +88,7 @@ def test_thread_policy_by_size(monkeypatch):
 def test_an_outer_limit_bounds_the_inner_policy(monkeypatch):
     """`with blas_threads(1)` around an analysis keeps its dense solves on one thread (issue 26: the explorer's limit
     was lifted by the core's own `sized(n)` above SMALL dofs, and a busy machine made it 18× slower)."""
-    monkeypatch.setattr(threads, "runnable", lambda: 0.0)               # at rest
+    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)               # at rest
     pytest.importorskip("threadpoolctl", reason="threadpoolctl (test extra) applies the policy")
     from threadpoolctl import threadpool_info
     np.linalg.eigh(np.eye(3))
@@ -122,7 +122,7 @@ def test_results_do_not_depend_on_blas_threads_above_small(monkeypatch):
     with threads.blas_threads(1):
         one = granstab.analyze(scene, metric="L", method="dense", attribution=False)
     monkeypatch.setattr(threads, "cores", lambda: 2)
-    monkeypatch.setattr(threads, "runnable", lambda: 0.0)               # two free cores, whatever the load
+    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)               # two free cores, whatever the load
     assert threads.for_size(scene.n_dof) == 2
     two = granstab.analyze(scene, metric="L", method="dense", attribution=False)
     for key in ("verdict", "sufficient", "n_branches", "consistent_negative", "consistent_positive", "consistent_zero",

@@ -107,9 +107,9 @@ def test_blas_threads_follow_the_free_cores(monkeypatch):
     26× slower, issue 38); at rest every core; small matrices one thread whatever the load. `runnable` counts the
     threads ready to run at this priority: a busy process started here shows in it, a niced one does not."""
     monkeypatch.setattr(threads, "cores", lambda: 2)
-    monkeypatch.setattr(threads, "runnable", lambda: 2.0)
+    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 2.0)
     assert threads.free_cores() == 1 and threads.for_size(500) == 1 and threads.slowdown() == 1.5
-    monkeypatch.setattr(threads, "runnable", lambda: 0.0)
+    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)
     assert threads.free_cores() == 2 and threads.for_size(500) == 2 and threads.for_size(50) == 1
     monkeypatch.undo()
     assert 1 <= threads.free_cores() <= threads.cores()
