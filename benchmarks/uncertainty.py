@@ -17,14 +17,14 @@ from .timing import timeit_pair
 
 ANNULUS = Path(__file__).resolve().parents[2] / "shared" / "data" / "rigidlibrary" / "DataAnnulus" / "10"
 BAND = {"rel": 0.1, "abs": 0.0}                   # the default: the batched bound only (no search)
-QUICK = {"random": 200, "repeat": 1, "centers": "every:20"}
-FULL = {"random": 2000, "repeat": 3, "centers": "all"}
+QUICK = {"random": 200, "repeat": 1, "centers": "every:20", "real": False}   # quick: the code path, in seconds
+FULL = {"random": 2000, "repeat": 3, "centers": "all", "real": True}
 
 
 def scenes(cfg: dict) -> list:
     """(name, scene) of the packings measured: the annulus frame where it is at hand, then a random packing."""
     from granstab.io import load
-    real = [("RigidLibrary annulus 10, frame 1", load([ANNULUS]).scene)] if ANNULUS.is_dir() else []
+    real = [("RigidLibrary annulus 10, frame 1", load([ANNULUS]).scene)] if cfg["real"] and ANNULUS.is_dir() else []
     size = cfg["random"]
     return real + [(f"random 2D, {size:,} particles",
                     packings.random_packing(2, size, n_sliding=size // 10, mobilised=0.5, seed=2))]
