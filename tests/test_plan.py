@@ -107,6 +107,7 @@ def test_blas_threads_follow_the_free_cores(monkeypatch):
     26× slower, issue 38); at rest every core; small matrices one thread whatever the load. `runnable` counts the
     threads ready to run at this priority: a busy process started here shows in it, a niced one does not."""
     monkeypatch.setattr(threads, "cores", lambda: 2)
+    monkeypatch.setattr(threads, "_process_cap", None)   # an explorer test earlier in the run may have capped the process
     monkeypatch.setattr(threads, "runnable", lambda fresh=False: 2.0)
     assert threads.free_cores() == 1 and threads.for_size(500) == 1 and threads.slowdown() == 1.5
     monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)
