@@ -130,16 +130,20 @@ def test_one_slider_move_reports_once(app, monkeypatch):
 
 
 def test_the_preset_menu_shows_titles_and_keeps_the_stems(app):
-    """Issue 36: the Preset menu lists titles ("Four disks (the paper's Sec. 4.2)"), not file stems; picking a
-    title opens the preset under its stem (the name `?preset=NAME` links and the session use)."""
+    """Issue 36: the Preset menu lists titles with their stems ("Four disks (the paper's Sec. 4.2) (four_disk)"),
+    not bare file stems; picking one opens the preset under its stem (the name `?preset=NAME` links and the
+    session use)."""
+    from granstab_app.text import PRESETS, preset_label
+    four, two = preset_label("four_disk"), preset_label("two_particle")
+    assert four.startswith(PRESETS["four_disk"][0]) and four.endswith("(four_disk)")
     with HeadlessPage(app) as page:
         ui = page.ui
         with ui.lock:
             options = tuple(ui.preset.options)
-            assert ui.preset.value == "Two grains, one contact" and ui.session.preset == "two_particle"
-        assert "Four disks (the paper's Sec. 4.2)" in options and "four_disk" not in options
+            assert ui.preset.value == two and ui.session.preset == "two_particle"
+        assert four in options and "four_disk" not in options
         assert "two_particle" not in options and len(set(options)) == len(options)
-        ui.preset.value = "Four disks (the paper's Sec. 4.2)"
+        ui.preset.value = four
         settle(ui, lambda: ui.session.preset == "four_disk" and ui.session.analysis is not None)
         with ui.lock:
-            assert ui.preset.value == "Four disks (the paper's Sec. 4.2)"
+            assert ui.preset.value == four
