@@ -195,7 +195,9 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     inside = np.flatnonzero(keep_p)                        # the file's index of each scene particle
     if not opts.keep_rattlers:
         scene, kept = scene.without_rattlers()
-        dropped, inside = np.setdiff1d(inside, inside[kept]), inside[kept]
+        gone = np.ones(len(inside), bool)
+        gone[kept] = False                                 # kept: indices into inside (sorted)
+        dropped, inside = inside[gone], inside[kept]
     else:
         dropped = np.zeros(0, np.int64)
     report.update({
