@@ -129,7 +129,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     if not opts.length_scale > 0:
         raise SceneError(f"--length-scale: must be > 0, got {opts.length_scale}")
     _check_particles(snap)
-    names = np.array([str(i) for i in snap.ids], dtype=object)
+    names = np.asarray(snap.ids).astype(str).astype(object)     # C-speed (a list of str() costs 0.3 s per 10⁵)
     pair = Pairs(names, snap.p, snap.q)
     scale = opts.length_scale
     x = snap.x * scale
@@ -195,7 +195,9 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     inside = np.flatnonzero(keep_p)                        # the file's index of each scene particle
     if not opts.keep_rattlers:
         scene, kept = scene.without_rattlers()
-        dropped, inside = np.setdiff1d(inside, inside[kept]), inside[kept]
+        gone = np.ones(len(inside), bool)
+        gone[kept] = False                                 # kept: indices into inside (sorted)
+        dropped, inside = inside[gone], inside[kept]
     else:
         dropped = np.zeros(0, np.int64)
     report.update({

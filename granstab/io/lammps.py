@@ -433,9 +433,7 @@ def index_lammps(paths: list[Path], progress=None) -> DumpIndex:
     if script is not None:
         _refuse_uncurved(script)
     indexed = [(p, *index_dump(p, update)) for p in dumps]
-    for path, blocks, cut in indexed:
-        if not blocks:
-            raise SceneError(cut or f"{path}: no timestep")
+    frames, warnings = account(sorted(indexed, key=lambda e: bool(e[1]) and e[1][0].kind != "ATOMS"))
     atoms = [(p, b) for p, b, _ in indexed if b[0].kind == "ATOMS"]
     local = [(p, b) for p, b, _ in indexed if b[0].kind == "ENTRIES"]
     if len(atoms) != 1 or len(local) != 1:
@@ -443,21 +441,36 @@ def index_lammps(paths: list[Path], progress=None) -> DumpIndex:
                          f"got {len(atoms)} and {len(local)}")
     (apath, ablocks), (cpath, cblocks) = atoms[0], local[0]
     by_a, by_c = {b.timestep: b for b in ablocks}, {b.timestep: b for b in cblocks}
-    frames = sorted(set(by_a) & set(by_c))
-    if not frames:
-        raise SceneError(f"{cpath}: timestep: none in common with {apath.name} ({_steps(sorted(by_c))} against "
-                         f"{_steps(sorted(by_a))}): dumps of two different runs?")
-    _same_box(apath, cpath, by_a, by_c, frames)
+    return DumpIndex(apath, cpath, script, by_a, by_c, frames, warnings)
+
+
+def account(indexed: list) -> tuple[list, list]:
+    """The timesteps that every dump of `indexed` [(path, blocks, cut line or None)] has, and the warning lines:
+    a truncated last timestep (`index_dump`'s cut line), the timesteps in some dumps only, named in one line. Dumps
+    of different runs (no timestep in common, or a box differing from the first dump's at the same timestep) are
+    refused (issue 38: every reader of several dumps accounts for its frames so)."""
+    for path, blocks, cut in indexed:
+        if not blocks:
+            raise SceneError(cut or f"{path}: no timestep")
+    by = [{b.timestep: b for b in blocks} for _, blocks, _ in indexed]
+    common = set(by[0]) if by else set()
+    for k, ((path, _, _), mine) in enumerate(zip(indexed, by)):
+        if not common & set(mine):
+            raise SceneError(f"{path}: timestep: none in common with {', '.join(p.name for p, _, _ in indexed[:k])} "
+                             f"({_steps(sorted(mine))} against {_steps(sorted(common))}): dumps of two different runs?")
+        common &= set(mine)
+    frames = sorted(common)
+    for (path, _, _), mine in zip(indexed[1:], by[1:]):
+        _same_box(indexed[0][0], path, by[0], mine, frames)
     warnings = [cut for _, _, cut in indexed if cut]
     # past a dump's cut, the other's timesteps are said by the cut's line
     known = min([b[-1].timestep for _, b, cut in indexed if cut], default=np.inf)
-    alone = [(path.name, sorted(t for t in set(mine) - set(frames) if t <= known))
-             for path, mine in ((apath, by_a), (cpath, by_c))]
+    alone = [(path.name, sorted(t for t in set(mine) - common if t <= known)) for (path, _, _), mine in zip(indexed, by)]
     if any(steps for _, steps in alone):
-        warnings.append("timesteps in one dump only, left out: " + "; ".join(
-            f"{len(steps)} in {name} only ({_steps(steps)})" for name, steps in alone if steps)
-            + f"; {len(frames)} timesteps in both")
-    return DumpIndex(apath, cpath, script, by_a, by_c, frames, warnings)
+        warnings.append(f"timesteps in {'one dump' if len(indexed) == 2 else 'some dumps'} only, left out: "
+                        + "; ".join(f"{len(steps)} in {name} only ({_steps(steps)})" for name, steps in alone if steps)
+                        + f"; {len(frames)} timesteps in {'both' if len(indexed) == 2 else 'all'}")
+    return frames, warnings
 
 
 def _steps(steps: list) -> str:

@@ -34,6 +34,7 @@ from ..model.errors import SceneError
 from ..model.vec import quaternion_matrix
 from .build import Snapshot, branch_vectors
 from .columns import particle_orientation, to_indices, unique_ids
+from .dumpset import Indexed
 from .lammps import (
     Block,
     compute_columns,
@@ -57,8 +58,12 @@ WALL_GAP = 0.02          # a grain whose mesh reaches within WALL_GAP·(bounding
 
 def read_superquadric(paths: list[Path], timestep=None, progress=None) -> Snapshot:
     """The snapshot of one timestep, with each contact's arm, normal and curvatures from the shape kernel."""
+    return read_step(index_lammps(paths, progress), timestep, progress)
+
+
+def read_step(index, timestep=None, progress=None) -> Snapshot:
+    """One timestep of the dumps indexed once (lammps.index_lammps: the timesteps both have; default the last)."""
     update = None if progress is None else progress.update
-    index = index_lammps(paths, progress)       # the timesteps both dumps have, indexed once (lammps.py)
     script, apath, cpath = index.script, index.atoms, index.local
     step = index.frames[-1] if timestep is None else timestep
     ablock = _block(apath, index.atom_blocks, step)
@@ -275,4 +280,5 @@ def _shape_note(axes, blockiness) -> dict:
 
 
 register(Format("liggghts-superquadric", sniff=lambda paths: any(has_shape_columns(p) for p in paths),
-                read=lambda paths, request, progress: read_superquadric(paths, request.frame, progress)))
+                read=lambda paths, request, progress: read_superquadric(paths, request.frame, progress),
+                index=lambda paths, request, progress: Indexed(index_lammps(paths, progress), read_step)))

@@ -23,11 +23,11 @@ from ..model.errors import SceneError
 from .bodies import inertia_tensor, rotation
 from .clumps import clump_snapshot
 from .columns import to_indices, unique_ids
+from .dumpset import DumpSet, Indexed, index_dumps
 from .lammps import (
     _script_says,
     compute_columns,
     contact_law,
-    index_dump,
     is_dump,
     lattice_of,
     multisphere_script,
@@ -76,26 +76,29 @@ def _vec(col: dict, prefix: str, axes=("x", "y", "z")) -> np.ndarray:
     return np.stack([col[prefix + a] for a in axes], 1)
 
 
-def read_multisphere(paths: list[Path], timestep=None, progress=None):
-    """The clump snapshot of one timestep (module docstring)."""
-    update = None if progress is None else progress.update
+def index_multisphere(paths: list[Path], progress=None) -> Indexed:
+    """The dumps indexed once (dumpset.py: the timesteps all four have) and the script read."""
     dumps = [p for p in paths if is_dump(p)]
     scripts = [p for p in paths if p not in dumps]
     if len(scripts) != 1:
         raise SceneError(f"{paths[0]}: need the input script (with fix multisphere) once, got {len(scripts)} "
                          "non-dump files")
-    script = read_script(scripts[0])
+    return Indexed(index_dumps(dumps, progress, read_script(scripts[0])), read_step)
+
+
+def read_multisphere(paths: list[Path], timestep=None, progress=None):
+    """The clump snapshot of one timestep (module docstring; default the last one all dumps have)."""
+    return index_multisphere(paths, progress).read(timestep, None, progress)
+
+
+def read_step(index: DumpSet, timestep=None, progress=None):
+    """The clump snapshot of one indexed timestep."""
+    update = None if progress is None else progress.update
+    script, source = index.script, Path(index.script["source"])
     names = _names(script)
-    indexed = [(p, index_dump(p, update)[0]) for p in dumps]
-    steps = sorted(set.intersection(*[{b.timestep for b in blocks} for _, blocks in indexed]))
-    if not steps:
-        raise SceneError(f"{dumps[0]}: timestep: the dumps share no timestep")
-    step = steps[-1] if timestep is None else timestep
-    if step not in steps:
-        raise SceneError(f"{dumps[0]}: timestep {step}: timestep: not in every dump (shared: {steps[:5]})")
+    step = index.frames[-1] if timestep is None else timestep
     tables, atoms = {}, None
-    for path, blocks in indexed:
-        block = next(b for b in blocks if b.timestep == step)
+    for path, block in index.at(step):
         if block.kind == "ATOMS":
             if atoms is not None:
                 raise SceneError(f"{path}: ITEM: ATOMS: a second per-atom dump ({atoms[0].name} is the first)")
@@ -109,17 +112,19 @@ def read_multisphere(paths: list[Path], timestep=None, progress=None):
         if kind in tables:
             raise SceneError(f"{path}: ENTRIES: a second {kind} dump ({tables[kind][2](0).split(':')[0]} is the first)")
         tables[kind] = (path, col, line)
-    if "walls" not in tables and not _script_says([scripts[0]], r"^\s*fix\s+\S+\s+\S+\s+wall/gran"):
+    if "walls" not in tables and not _script_says([source], r"^\s*fix\s+\S+\s+\S+\s+wall/gran"):
         empty = {n: np.zeros(0) for n in NEEDED["walls"] + ["fny", "fnz", "fy", "fz"]}
-        tables["walls"] = (scripts[0], empty, lambda row: f"{scripts[0]}: (no walls)")   # a box without walls
+        tables["walls"] = (source, empty, lambda row: f"{source}: (no walls)")   # a box without walls
     for kind in ("bodies", "contacts", "walls"):
         if kind not in tables or atoms is None:
-            raise SceneError(f"{paths[0]}: need the dumps of atoms (with mol), contacts, walls (wall/gran/local, "
+            raise SceneError(f"{index.paths[0]}: need the dumps of atoms (with mol), contacts, walls (wall/gran/local, "
                              f"when the script has walls) and bodies: no {'atoms' if atoms is None else kind} dump")
     apath, ablock = atoms
     if lattice_of(ablock, 3) is not None:
         raise SceneError(f"{apath}: BOX BOUNDS: periodic: clumps are read in boxes with walls only")
-    return _snapshot(script, apath, ablock, tables, step, update)
+    snap = _snapshot(script, apath, ablock, tables, step, update)
+    snap.frames = index.frames
+    return snap
 
 
 def _snapshot(script, apath, ablock, tables, step, update):
@@ -186,4 +191,5 @@ def _gravity(script: dict):
 
 
 register(Format("liggghts_multisphere", sniff=lambda paths: any(is_dump(p) for p in paths) and multisphere_script(paths),
-                read=lambda paths, request, progress: read_multisphere(paths, request.frame, progress)))
+                read=lambda paths, request, progress: read_multisphere(paths, request.frame, progress),
+                index=lambda paths, request, progress: index_multisphere(paths, progress)))

@@ -32,7 +32,8 @@ from ..model.errors import SceneError
 from .bodies import body_snapshot
 from .build import Snapshot
 from .columns import to_indices, unique_ids
-from .lammps import body_script, index_dump, is_dump, lattice_of, read_script
+from .dumpset import Indexed, index_dumps
+from .lammps import body_script, is_dump, lattice_of, read_script
 from .lines import read_window
 from .registry import Format, register
 
@@ -214,9 +215,8 @@ def _rows(p, q, c1, c2, magnitude, flat2, vertex, other, keep):
             "flat2": flat2[keep], "vertex": vertex[keep], "other": other[keep]}
 
 
-def read_polygons(paths: list[Path], timestep=None, progress=None) -> Snapshot:
-    """The rounded-polygon snapshot of one timestep (module docstring)."""
-    update = None if progress is None else progress.update
+def index_polygons(paths: list[Path], progress=None) -> Indexed:
+    """The two dumps indexed once (dumpset.py: the timesteps both have), the data file and the script named."""
     dumps = [p for p in paths if is_dump(p)]
     others = [p for p in paths if p not in dumps]
     scripts = [p for p in others if body_script([p])]
@@ -225,16 +225,24 @@ def read_polygons(paths: list[Path], timestep=None, progress=None) -> Snapshot:
         raise SceneError(f"{paths[0]}: need two dumps (atoms, vertices), the data file and the input script, got "
                          f"{len(dumps)} dump(s), {len(datas)} data file(s), {len(scripts)} script(s)")
     script = read_script(scripts[0])
-    shapes = read_data_bodies(datas[0])
-    law, notes = pair_law(script)
-    indexed = [(p, index_dump(p, update)[0]) for p in dumps]
-    steps = sorted(set.intersection(*[{b.timestep for b in blocks} for _, blocks in indexed]))
-    step = (steps[-1] if steps else None) if timestep is None else timestep
-    if step not in steps:
-        raise SceneError(f"{dumps[0]}: timestep {step}: timestep: not in both dumps (shared: {steps[:5]})")
-    blocks = {b.kind: (p, b) for p, bl in indexed for b in bl if b.timestep == step}
+    pair_law(script)                    # refused (cohesion, other style) before any dump is read
+    return Indexed(index_dumps(dumps, progress, script, datas[0]), read_step)
+
+
+def read_polygons(paths: list[Path], timestep=None, progress=None) -> Snapshot:
+    """The rounded-polygon snapshot of one timestep (module docstring; default the last one both dumps have)."""
+    return index_polygons(paths, progress).read(timestep, None, progress)
+
+
+def read_step(index, timestep=None, progress=None) -> Snapshot:
+    """The rounded-polygon snapshot of one indexed timestep."""
+    update = None if progress is None else progress.update
+    shapes = read_data_bodies(index.data)
+    law, notes = pair_law(index.script)
+    step = index.frames[-1] if timestep is None else timestep
+    blocks = {b.kind: (p, b) for p, b in index.at(step)}
     if set(blocks) != {"ATOMS", "ENTRIES"}:
-        raise SceneError(f"{dumps[0]}: need one per-atom dump and one local dump (compute body/local)")
+        raise SceneError(f"{index.paths[0]}: need one per-atom dump and one local dump (compute body/local)")
     (apath, ablock), (vpath, vblock) = blocks["ATOMS"], blocks["ENTRIES"]
     missing = [c for c in ATOM_COLUMNS if c not in ablock.columns]
     if missing:
@@ -249,7 +257,7 @@ def read_polygons(paths: list[Path], timestep=None, progress=None) -> Snapshot:
     x = np.stack([A["x"], A["y"]], 1)
     owner = to_indices(ids, W[:, 0], "id", lambda r: f"{vpath}: line {vblock.first_line + int(r)}",
                        "not in the atom dump")
-    verts, count, rounding, izz = _vertices(ids, owner, W[:, 1:3], shapes, datas[0], aline)
+    verts, count, rounding, izz = _vertices(ids, owner, W[:, 1:3], shapes, index.data, aline)
     lattice = lattice_of(ablock, 2)
     if lattice is not None and (np.isnan(lattice).any() or np.any(ablock.tilt)):
         raise SceneError(f"{apath}: BOX BOUNDS: rounded polygons are read in orthogonal boxes periodic along both "
@@ -261,7 +269,7 @@ def read_polygons(paths: list[Path], timestep=None, progress=None) -> Snapshot:
     force = -(found["magnitude"] / d)[:, None] * (c2 - c1)                # on the vertex's body, along −n
     snap = Snapshot(source=f"{apath} + {vpath}", format="lammps_polygons", dim=2, ids=ids, x=x,
                     radius=_bound(x, verts, count, rounding), p=p, q=q, force=force, mass=A.get("mass"),
-                    lattice=lattice, frame=int(step), notes={"law_notes": notes}, particle_line=aline,
+                    lattice=lattice, frame=int(step), frames=index.frames, notes={"law_notes": notes}, particle_line=aline,
                     law={"k": (found["magnitude"] / delta, law["where"] + " (applied force / overlap)")},
                     orientation=np.stack([A[k] for k in ("c_q[1]", "c_q[2]", "c_q[3]", "c_q[4]")], 1)
                     if "c_q[4]" in A else None)
@@ -312,4 +320,5 @@ def _bound(x, verts, count, rounding):
 
 
 register(Format("lammps_polygons", sniff=lambda paths: any(is_dump(p) for p in paths) and body_script(paths),
-                read=lambda paths, request, progress: read_polygons(paths, request.frame, progress)))
+                read=lambda paths, request, progress: read_polygons(paths, request.frame, progress),
+                index=lambda paths, request, progress: index_polygons(paths, progress)))

@@ -98,7 +98,7 @@ def run_warnings(frames: list[tuple[object, list[str]]]) -> list[str]:
     kinds: dict[str, list] = {}
     for frame, lines in frames:
         for line in lines:
-            kinds.setdefault(re.sub(r"\(.*\)|[-+]?\d[\d.e+-]*", "#", line), []).append((frame, line))
+            kinds.setdefault(re.sub(r"\([^()]*\)|[-+]?\d[\d.e+-]*", "#", line), []).append((frame, line))
     out = []
     for seen in kinds.values():
         (first, line), texts = seen[0], {text for _, text in seen}

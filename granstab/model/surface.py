@@ -80,6 +80,12 @@ def _pow(t, n):
     return np.power(t, n)
 
 
+def _below(t, tn1, n):
+    """t^(n−2) from t^(n−1) (t ≥ 0): their quotient, and 0^(n−2) (1 for n = 2, 0 above, inf below) at t = 0."""
+    zero = np.where(n > 2, 0.0, np.where(n == 2, 1.0, np.inf))
+    return np.where(t > 0, tn1 / np.where(t > 0, t, 1.0), zero)
+
+
 def implicit(y, axes, blockiness, order: int = 2):
     """φ = F^(1/n1) at body points y (M, d) (order 0: alone), with ∇φ (M, d) (order 1) and ∇∇φ (M, d, d) (order 2).
 
@@ -96,34 +102,37 @@ def implicit(y, axes, blockiness, order: int = 2):
     s = t.max(axis=1)
     t = t / s[:, None]
     k = n1 / n2
-    pw = [_pow(t[:, i], n2) for i in range(2)]
-    u = pw[0] + pw[1]                                   # ≥ 1 unless the largest ratio is along y3
+    # five powers in all (the rest by products: t^n = t^(n−1)·t, u^(k−1) = u^k/u, A^(1/n1−1) = φ/A, ...)
+    tq = [_pow(t[:, i], n2 - 1.0) for i in range(d)] if d == 2 else \
+        [_pow(t[:, 0], n2 - 1.0), _pow(t[:, 1], n2 - 1.0), _pow(t[:, 2], n1 - 1.0)]
+    u = tq[0] * t[:, 0] + tq[1] * t[:, 1]               # ≥ 1 unless the largest ratio is along y3
     u_safe = np.where(u > 0, u, 1.0)
-    A = _pow(u, k) + (_pow(t[:, 2], n1) if d == 3 else 0.0)
+    uk = _pow(u, k)
+    A = uk + (tq[2] * t[:, 2] if d == 3 else 0.0)       # ≥ 1: the largest ratio t_i is 1
     phi = _pow(A, 1.0 / n1)
     if order == 0:
         return s * phi
     # ∂A/∂y_i (times a_i s, sign restored below), in t
     gA = np.empty((M, d))
-    uk1 = np.where(u > 0, _pow(u_safe, k - 1.0), 0.0)
+    uk1 = np.where(u > 0, uk / u_safe, 0.0)
     for i in range(2):
-        gA[:, i] = k * uk1 * n2 * _pow(t[:, i], n2 - 1.0)
+        gA[:, i] = k * uk1 * n2 * tq[i]
     if d == 3:
-        gA[:, 2] = n1 * _pow(t[:, 2], n1 - 1.0)
-    c1 = _pow(A, 1.0 / n1 - 1.0) / n1
+        gA[:, 2] = n1 * tq[2]
+    c1 = phi / A / n1
     grad = c1[:, None] * gA * sign / axes
     if order < 2:
         return s * phi, grad
     hA = np.zeros((M, d, d))
-    uk2 = np.where(u > 0, _pow(u_safe, k - 2.0), 0.0)
-    du = [n2 * _pow(t[:, i], n2 - 1.0) for i in range(2)]
+    uk2 = uk1 / u_safe
+    du = [n2 * tq[i] for i in range(2)]
     for i in range(2):
         for j in range(2):
             hA[:, i, j] = k * (k - 1.0) * uk2 * du[i] * du[j]
-        hA[:, i, i] += k * uk1 * n2 * (n2 - 1.0) * _pow(t[:, i], n2 - 2.0)
+        hA[:, i, i] += k * uk1 * n2 * (n2 - 1.0) * _below(t[:, i], tq[i], n2)
     if d == 3:
-        hA[:, 2, 2] = n1 * (n1 - 1.0) * _pow(t[:, 2], n1 - 2.0)
-    c2 = (1.0 / n1) * (1.0 / n1 - 1.0) * _pow(A, 1.0 / n1 - 2.0)
+        hA[:, 2, 2] = n1 * (n1 - 1.0) * _below(t[:, 2], tq[2], n1)
+    c2 = (1.0 / n1) * (1.0 / n1 - 1.0) * phi / (A * A)
     sa = sign / axes
     hess = (c1[:, None, None] * hA + c2[:, None, None] * gA[:, :, None] * gA[:, None, :]) * sa[:, :, None] * sa[:, None, :]
     return s * phi, grad, hess / s[:, None, None]
@@ -192,13 +201,15 @@ def _descend(y, s, axes, nb):
             return s
         ya, sa, aa, na = y[active], s[active], axes[active], nb[active]
         _, g, h = implicit(sa, aa, na)
-        W, nu = shape_operator(g, h)
+        gnorm = np.linalg.norm(g, axis=1)
+        nu = g / gnorm[:, None]
         T = _tangent_basis(nu)
         diff = sa - ya
         gt = np.einsum("mki,mk->mi", T, diff)
-        Ht = np.eye(d - 1) - np.sum(diff * nu, axis=1)[:, None, None] * (np.swapaxes(T, 1, 2) @ W @ T)
+        Wt = np.swapaxes(T, 1, 2) @ h @ T / gnorm[:, None, None]          # Tᵀ W T = Tᵀ ∇∇φ T / |∇φ| (P T = T)
+        Ht = np.eye(d - 1) - np.sum(diff * nu, axis=1)[:, None, None] * Wt
         shift = np.maximum(0.1 - _lowest_eigenvalue(Ht), 0.0)          # keeps the step a descent direction
-        step = -np.linalg.solve(Ht + shift[:, None, None] * np.eye(d - 1), gt[..., None])[..., 0]
+        step = -_solve_small(Ht + shift[:, None, None] * np.eye(d - 1), gt)
         length = np.linalg.norm(step, axis=1)
         step *= np.minimum(1.0, MAX_STEP / np.maximum(length, 1e-300))[:, None]
         D0 = np.sum(diff * diff, axis=1)
@@ -228,6 +239,17 @@ def _lowest_eigenvalue(A):
         mean = 0.5 * (A[:, 0, 0] + A[:, 1, 1])
         return mean - np.hypot(0.5 * (A[:, 0, 0] - A[:, 1, 1]), 0.5 * (A[:, 0, 1] + A[:, 1, 0]))
     return np.linalg.eigvalsh(A)[:, 0]
+
+
+def _solve_small(A, b):
+    """x (M, k) with A x = b for A (M, k, k): closed forms for k = 1, 2 (batched linalg.solve costs ~10× more)."""
+    if A.shape[1] == 1:
+        return b / A[:, 0]
+    if A.shape[1] == 2:
+        det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+        return np.stack([A[:, 1, 1] * b[:, 0] - A[:, 0, 1] * b[:, 1],
+                         A[:, 0, 0] * b[:, 1] - A[:, 1, 0] * b[:, 0]], axis=1) / det[:, None]
+    return np.linalg.solve(A, b[..., None])[..., 0]
 
 
 def _tangent_basis(nu):
