@@ -130,5 +130,6 @@ def test_the_probe_is_measured_once_and_scales_the_sparse_calibration():
     first = budget.speed()
     assert budget.speed() == first and 0.05 < first < 20        # cached; a machine within 20× of the calibration
     assert budget.sparse_estimate(4107, 10, 1, n_sliding=300) > 5 * budget.sparse_estimate(4107, 10, 1, n_sliding=0)
+    parts = [sum(budget.sparse_parts(4107, 10, m, 5).values()) for m in ("L", "L/10", "10L")]
     assert np.isclose(budget.sparse_estimate(4107, 10, 3, 5) / budget.sparse_estimate(4107, 10, 1, 5),
-                      1 + 2 * budget.OTHER_METRIC)          # L, then two metrics that cost OTHER_METRIC L's each
+                      sum(parts) / parts[0])               # the family: its metrics one by one, L first
