@@ -66,3 +66,16 @@ def test_the_estimate_follows_the_load_and_the_free_cores(monkeypatch, disks1400
     busy = plan(disks1400, metric="L")
     assert rest.workers == 2 and busy.workers == 1
     assert busy.estimated_s == pytest.approx(1.5 * rest.estimated_s, rel=1e-12)
+
+
+def test_a_fresh_load_read_is_the_mean_of_several_scans(monkeypatch):
+    """One scan of /proc sees the threads ready at that instant; a plan's fresh read averages FRESH_SAMPLES scans
+    (here 1, 3, 0, 2, 4 ready threads: 2.0), the BLAS policy's cached read takes one."""
+    seen = iter([[1], [1, 2, 3], [], [1, 2], [1, 2, 3, 4], list(range(7))])
+    monkeypatch.setattr(threads, "runnable_threads", lambda: next(seen))
+    monkeypatch.setattr(threads, "SAMPLE_GAP", 0.0)
+    monkeypatch.setattr(threads, "_runnable_cache", [-1.0, 0.0])
+    assert threads.FRESH_SAMPLES == 5 and threads.runnable(fresh=True) == 2.0
+    assert threads.runnable() == 2.0                          # within RUNNABLE_SECONDS: the cached read
+    monkeypatch.setattr(threads, "_runnable_cache", [-1.0, 0.0])
+    assert threads.runnable() == 7.0                          # a stale cache: one scan

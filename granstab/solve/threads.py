@@ -59,6 +59,10 @@ def bound() -> int | None:
 
 
 RUNNABLE_SECONDS = 2.0   # `runnable` is read at most this often (a scan of /proc: ~15 ms for 600 threads)
+FRESH_SAMPLES = 5        # a fresh read (a plan's, once a run) averages this many scans, SAMPLE_GAP s apart: one scan
+SAMPLE_GAP = 0.02        # sees the threads that happen to be ready at that instant (measured on this shared machine:
+                         # 6 and 9 in two scans a second apart with two busy processes started between; the plan
+                         # estimated 1.1× more for a run that took 6.6× longer, 3.4× its estimate)
 _runnable_cache = [-1.0, 0.0]
 
 
@@ -67,19 +71,25 @@ def runnable(fresh: bool = False) -> float:
     own, from /proc/*/task/*/stat; re-read every RUNNABLE_SECONDS): what takes a core from this one. Niced
     background work is left out, since it yields (the 1-minute load average counts it: a shared machine at load
     10 of niced work ran an analysis at full speed, and an estimate scaled by that load was 5× too high). Without
-    /proc: the 1-minute load average less this process. fresh: read now (a plan: once a run), not within
-    RUNNABLE_SECONDS of the last read (the BLAS policy, at every dense call)."""
+    /proc: the 1-minute load average less this process. fresh: read now (a plan: once a run), the mean of
+    FRESH_SAMPLES scans, not within RUNNABLE_SECONDS of the last read (the BLAS policy, at every dense call: one
+    scan)."""
     now = time.monotonic()
     if not fresh and now - _runnable_cache[0] < RUNNABLE_SECONDS:
         return _runnable_cache[1]
     try:
-        count = len(runnable_threads())
+        counts = []
+        for i in range(FRESH_SAMPLES if fresh else 1):
+            if i:
+                time.sleep(SAMPLE_GAP)
+            counts.append(len(runnable_threads()))
+        count = sum(counts) / len(counts)
     except OSError:  # pragma: no cover - not Linux
         try:
             count = os.getloadavg()[0] - 1
         except OSError:
             count = 0.0
-    _runnable_cache[:] = [now, max(float(count), 0.0)]
+    _runnable_cache[:] = [time.monotonic(), max(float(count), 0.0)]
     return _runnable_cache[1]
 
 
