@@ -15,6 +15,7 @@ def at_rest(monkeypatch):
     """The calibration machine, every core free: the estimate is the model alone."""
     monkeypatch.setattr(budget, "speed", lambda: 1.0)
     monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)
+    monkeypatch.setattr(threads, "slowdown", lambda: 1.0)
 
 
 @pytest.fixture(scope="module")
@@ -60,9 +61,10 @@ def test_the_estimate_follows_the_load_and_the_free_cores(monkeypatch, disks1400
     the estimate follows the load as the measured time does."""
     monkeypatch.setattr(budget, "speed", lambda: 1.0)
     monkeypatch.setattr(threads, "cores", lambda: 2)
-    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)
+    monkeypatch.setattr(threads, "SAMPLE_GAP", 0.0)
+    monkeypatch.setattr(threads, "ready", lambda: [])
     rest = plan(disks1400, metric="L")
-    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 2.0)
+    monkeypatch.setattr(threads, "ready", lambda: [(1, "session a"), (2, "session b")])
     busy = plan(disks1400, metric="L")
     assert rest.workers == 2 and busy.workers == 1
     assert busy.estimated_s == pytest.approx(1.5 * rest.estimated_s, rel=1e-12)
@@ -71,11 +73,27 @@ def test_the_estimate_follows_the_load_and_the_free_cores(monkeypatch, disks1400
 def test_a_fresh_load_read_is_the_mean_of_several_scans(monkeypatch):
     """One scan of /proc sees the threads ready at that instant; a plan's fresh read averages FRESH_SAMPLES scans
     (here 1, 3, 0, 2, 4 ready threads: 2.0), the BLAS policy's cached read takes one."""
-    seen = iter([[1], [1, 2, 3], [], [1, 2], [1, 2, 3, 4], list(range(7))])
-    monkeypatch.setattr(threads, "runnable_threads", lambda: next(seen))
+    seen = iter([[(i, f"s{i}") for i in range(n)] for n in (1, 3, 0, 2, 4, 7)])
+    monkeypatch.setattr(threads, "ready", lambda: next(seen))
     monkeypatch.setattr(threads, "SAMPLE_GAP", 0.0)
     monkeypatch.setattr(threads, "_runnable_cache", [-1.0, 0.0])
     assert threads.FRESH_SAMPLES == 5 and threads.runnable(fresh=True) == 2.0
     assert threads.runnable() == 2.0                          # within RUNNABLE_SECONDS: the cached read
     monkeypatch.setattr(threads, "_runnable_cache", [-1.0, 0.0])
     assert threads.runnable() == 7.0                          # a stale cache: one scan
+
+
+def test_the_slowdown_follows_the_scheduling_groups():
+    """CFS shares the cores between groups (sessions: autogroups) first. Alone: 1. Threads each in a group of their
+    own: (ready + 1) / cores, as before. Two busy processes in this session beside five other busy sessions on 2
+    cores: the session's third of a core split three ways, 9, three times the 3 at rest (measured: 3.4× the time at
+    rest; the count of ready threads said (10 + 1) / (7 + 1) = 1.4×). A group that cannot use its share leaves the
+    rest to the others (filled from the smallest)."""
+    me = "me"
+    assert threads.group_slowdown([], me, 2) == 1.0
+    assert threads.group_slowdown(["a", "b", "c"], me, 2) == 2.0
+    others = ["a", "b", "c", "d", "e"]
+    rest = threads.group_slowdown(others, me, 2)
+    assert rest == pytest.approx(3.0) and threads.group_slowdown(others + [me, me], me, 2) == pytest.approx(9.0)
+    assert threads.group_slowdown([me, me], me, 2) == pytest.approx(1.5)
+    assert threads.group_slowdown(["a", "a", "a", "a"], me, 2) == 1.0       # one other session: a core each

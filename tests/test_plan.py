@@ -108,8 +108,11 @@ def test_blas_threads_follow_the_free_cores(monkeypatch):
     threads ready to run at this priority: a busy process started here shows in it, a niced one does not."""
     monkeypatch.setattr(threads, "cores", lambda: 2)
     monkeypatch.setattr(threads, "_process_cap", None)   # an explorer test earlier in the run may have capped the process
-    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 2.0)
-    assert threads.free_cores() == 1 and threads.for_size(500) == 1 and threads.slowdown() == 1.5
+    monkeypatch.setattr(threads, "ready", lambda: [(1, "session a"), (2, "session b")])   # two others, ready
+    monkeypatch.setattr(threads, "SAMPLE_GAP", 0.0)
+    monkeypatch.setattr(threads, "_runnable_cache", [-1.0, 0.0, 1.0])
+    assert threads.runnable(fresh=True) == 2.0
+    assert threads.free_cores() == 1 and threads.for_size(500) == 1 and abs(threads.slowdown() - 1.5) < 1e-12
     monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)
     assert threads.free_cores() == 2 and threads.for_size(500) == 2 and threads.for_size(50) == 1
     monkeypatch.undo()
