@@ -158,7 +158,9 @@ def check(path: Path, args: list, max_s: float | None = None, floor_s: float = 0
     before = load()
     rc, out, err = cli(["analyze", str(path), "--json", "--plan", *args])
     if rc != 0:
-        return {"outcome": f"error: {err.strip()}", "load": before}
+        stopped = rc == 2 and "stopped after --timeout" in err
+        return {"outcome": "stopped by --timeout while planning (exit 2)" if stopped else f"error: {err.strip()}",
+                "load": before}
     cost = json.loads(out)["cost"]
     got = {"estimated_s": cost["estimated_s"], "path": cost["path"], "workers": cost["workers"],
            "fitted": bool(cost.get("fitted")), "load": before, "parts": cost["estimate_parts"]}

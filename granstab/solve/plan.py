@@ -197,7 +197,8 @@ def _estimated(p: Plan, k: int, rest: bool = False) -> Plan:
     """The plan with its estimate (seconds per part; module docstring); rest: on every core, none busy."""
     from .threads import cores, free_cores, runnable, slowdown
     n, L, metrics = p.n_dof, p.n_branches, len(p.metrics)
-    runnable(fresh=True)                       # the load now, not the BLAS policy's last read (up to 2 s old)
+    if not rest:
+        runnable(fresh=True)                   # the load now, not the BLAS policy's last read (up to 2 s old)
     workers = cores() if rest else free_cores()
     parts = {}
     if p.path == "sparse":                     # by step, summed over the metrics (budget.sparse_parts)

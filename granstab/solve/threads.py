@@ -86,6 +86,8 @@ def runnable(fresh: bool = False) -> float:
             others = ready()
             counts.append(len(others))
             slow.append(group_slowdown([g for _, g in others], _group(os.getpid()), cores()))
+            if not others and i == 0:
+                break                                   # nobody else ready: no more scans (an idle machine)
         count, factor = sum(counts) / len(counts), sum(slow) / len(slow)
     except OSError:  # pragma: no cover - not Linux
         try:
