@@ -6,7 +6,9 @@ convert read frames before it: `io.frames()` loaded the default frame in full to
 The dumps: the track benchmark's random 2D packing written F times as a LAMMPS per-atom dump (id type x y z radius)
 and a local dump (id1 id2 fx fy fz), one timestep a frame, read with --columns-free canonical names and k, α, μ
 given. Counted (not timed) beside the times: passes over a dump (`lammps._marks`) and row blocks parsed
-(`lines.read_window`), so that the table says what the time is made of.
+(`lines.read_window`), so that the table says what the time is made of. `hashing`: what a resumable track folder
+adds (issue 38, scan/resume.py): every frame of both dumps hashed (BLAKE2b) for inputs.json, against the whole
+files hashed and against reading every frame.
 """
 from __future__ import annotations
 
@@ -97,7 +99,33 @@ def run(quick: bool = False) -> dict:
         start = time.perf_counter()
         source.read(source.frames[len(source.frames) // 2])
         out["one_read_seconds"] = time.perf_counter() - start
+        out["hashing"] = hashing(paths, source, out["after"]["seconds"])
     return out
+
+
+def hashing(paths, source, read_seconds: float, repeats: int = 3) -> dict:
+    """Medians of `repeats`: the dumps hashed frame by frame (inputs.json of a track: resume.fingerprint with the
+    source's spans) and whole (the way before), and their share of reading every frame (`read_seconds`)."""
+    from granstab.scan.resume import fingerprint
+
+    def median(fn):
+        times = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            fn()
+            times.append(time.perf_counter() - start)
+        return float(np.median(times))
+    framed = median(lambda: fingerprint(paths, source.spans()))
+    return {"frames": len(source.frames), "megabytes": sum(p.stat().st_size for p in paths) / 1e6,
+            "per_frame_s": framed, "whole_s": median(lambda: fingerprint(paths)), "read_s": read_seconds,
+            "share": framed / read_seconds}
+
+
+def hashing_lines(h: dict) -> list:
+    return [f"Resumable folders (issue 38): hashing both dumps frame by frame for a track's inputs.json "
+            f"({h['frames']} frames, {h['megabytes']:.0f} MB) takes {h['per_frame_s']:.3f} s (median of 3; the "
+            f"whole files hashed: {h['whole_s']:.3f} s), {100 * h['share']:.1f} % of reading every frame "
+            f"({h['read_s']:.1f} s).", ""]
 
 
 def markdown(results: dict) -> str:
@@ -117,4 +145,5 @@ def markdown(results: dict) -> str:
         f"{b['seconds']:.1f} s | {b['passes']} | {b['reads']} |",
         f"| | | **io.open** | **{a['seconds']:.1f} s** | {a['passes']} | {a['reads']} |", "",
         f"io.open's index alone: {r['index_seconds']:.2f} s; one frame's read (rows, build, checks): "
-        f"{r['one_read_seconds']:.3f} s. Speed-up {b['seconds'] / a['seconds']:.1f}×.", ""])
+        f"{r['one_read_seconds']:.3f} s. Speed-up {b['seconds'] / a['seconds']:.1f}×.", "",
+        *hashing_lines(r["hashing"])])

@@ -175,7 +175,7 @@ def test_a_thousand_disks_on_the_sparse_path_are_refused_before_work(tmp_path, c
     """Issue 26's goal: an analyze of ≤ 10³ particles finishes in ≤ 10 s or refuses in one line before work starts.
     1,024 disks with 10 contacts at yield (3,072 dofs: the sparse path, 1,024 branches) took 386 s with the default
     family and never refused, since only the dense path was estimated; budget.sparse_estimate now says about 420 s
-    (3 metrics: L/10 and 10L cost budget.OTHER_METRIC L's each) and 53 s (--metric L alone: Ritz updates, issue 38's model), and the CLI refuses both without
+    (3 metrics: 10L's Ritz updates redone by ARPACK, budget.RITZ_FALLBACK) and 53 s (--metric L alone: Ritz updates, issue 38's model), and the CLI refuses both without
     --timeout, before any work. The measured times are the calibration machine's: the estimate is compared
     without this machine's speed factor (budget.speed), within the promise of 3× either way."""
     path = granstab.save_scene(random_packing(2, 1000, n_sliding=10, seed=1), tmp_path / "disks.json")

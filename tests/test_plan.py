@@ -108,8 +108,11 @@ def test_blas_threads_follow_the_free_cores(monkeypatch):
     threads ready to run at this priority: a busy process started here shows in it, a niced one does not."""
     monkeypatch.setattr(threads, "cores", lambda: 2)
     monkeypatch.setattr(threads, "_process_cap", None)   # an explorer test earlier in the run may have capped the process
-    monkeypatch.setattr(threads, "runnable", lambda fresh=False: 2.0)
-    assert threads.free_cores() == 1 and threads.for_size(500) == 1 and threads.slowdown() == 1.5
+    monkeypatch.setattr(threads, "ready", lambda: [(1, "session a"), (2, "session b")])   # two others, ready
+    monkeypatch.setattr(threads, "SAMPLE_GAP", 0.0)
+    monkeypatch.setattr(threads, "_runnable_cache", [-1.0, 0.0, 1.0])
+    assert threads.runnable(fresh=True) == 2.0
+    assert threads.free_cores() == 1 and threads.for_size(500) == 1 and abs(threads.slowdown() - 1.5) < 1e-12
     monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)
     assert threads.free_cores() == 2 and threads.for_size(500) == 2 and threads.for_size(50) == 1
     monkeypatch.undo()
@@ -130,5 +133,6 @@ def test_the_probe_is_measured_once_and_scales_the_sparse_calibration():
     first = budget.speed()
     assert budget.speed() == first and 0.05 < first < 20        # cached; a machine within 20× of the calibration
     assert budget.sparse_estimate(4107, 10, 1, n_sliding=300) > 5 * budget.sparse_estimate(4107, 10, 1, n_sliding=0)
+    parts = [sum(budget.sparse_parts(4107, 10, m, 5).values()) for m in ("L", "L/10", "10L")]
     assert np.isclose(budget.sparse_estimate(4107, 10, 3, 5) / budget.sparse_estimate(4107, 10, 1, 5),
-                      1 + 2 * budget.OTHER_METRIC)          # L, then two metrics that cost OTHER_METRIC L's each
+                      sum(parts) / parts[0])               # the family: its metrics one by one, L first

@@ -93,3 +93,67 @@ def test_scan_refuses_a_resume_on_a_changed_input(tmp_path, capsys):
     assert "\n" not in err and str(path.resolve()) in err and "--overwrite" in err
     assert main([*args, "--overwrite"]) == 0
     assert json.loads((out / "summary.json").read_text())["resumed"] == 0
+
+
+def change_one_force(path, step: int, digit: str = "7") -> int:
+    """contacts.dump with the first digit of one force (c_pair[1] of the first row) of timestep `step` replaced by
+    `digit` (same size), its modification time kept: only the bytes differ. Returns the byte offset changed."""
+    raw = bytearray(path.read_bytes())
+    st = path.stat()
+    block = raw.index(f"ITEM: TIMESTEP\n{step}\n".encode())
+    row = raw.index(b"ITEM: ENTRIES", block)
+    row = raw.index(b"\n", row) + 1
+    at = row + raw[row:].index(b" ") + 1                       # past id1
+    at = at + raw[at:].index(b" ") + 1                         # past id2: the first force component
+    at += raw[at] == ord("-")
+    assert raw[at:at + 1].isdigit() and raw[at:at + 1] != digit.encode()
+    raw[at] = ord(digit)
+    path.write_bytes(bytes(raw))
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+    return at
+
+
+def test_track_resume_names_the_frame_whose_contents_changed(tmp_path, capsys):
+    """A 3-frame dump pair (timesteps 0, 100, 200): unchanged, the same track resumes; one force of frame 2
+    (timestep 200) changed, same size and modification time, is refused in one line naming contacts.dump and
+    timestep 200 (and no other frame); inputs.json holds one hash a frame of each dump, the script hashed whole."""
+    from test_io_source import run_of
+    paths = run_of(tmp_path / "run", 3)
+    out = tmp_path / "out"
+    args = ["track", *map(str, paths), "--out", str(out), "--workers", "1", "--no-figures", "--json"]
+    assert main(args) == 0
+    capsys.readouterr()
+    recorded = json.loads((out / "inputs.json").read_text())
+    for dump in paths[:2]:
+        assert list(recorded[str(dump.resolve())]["frames"]) == ["0", "100", "200"]
+    assert "blake2b" in recorded[str(paths[2].resolve())]
+    assert main(args) == 0
+    assert json.loads(capsys.readouterr().out)["cost"]["resumed"] == 3
+    size = paths[1].stat().st_size
+    change_one_force(paths[1], 200)
+    assert paths[1].stat().st_size == size
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert captured.out == "" and "\n" not in err
+    assert str(paths[1].resolve()) in err and "timestep 200 changed" in err and "--overwrite" in err
+    assert "timestep 100" not in err and "timestep 0 " not in err
+
+
+def test_frame_hashes_follow_only_the_frame_changed(tmp_path):
+    """fingerprint with the dump's spans: a byte changed in the frame at timestep 100 changes that frame's hash
+    alone; the spans tile the file (each frame from the end of the one before it, header included)."""
+    from test_io_source import run_of
+    paths = run_of(tmp_path, 3)
+    source = granstab.io.open(paths)
+    spans = source.spans()
+    for path, parts in spans.items():
+        assert [t for t, _, _ in parts] == [0, 100, 200]
+        assert [lo for _, lo, _ in parts] == [0] + [hi for _, _, hi in parts[:-1]]
+        assert parts[-1][2] == path.stat().st_size
+    key = str(paths[1].resolve())
+    before = fingerprint(paths, spans)[key]["frames"]
+    change_one_force(paths[1], 100)
+    after = fingerprint(paths, spans)[key]["frames"]
+    assert [t for t in before if before[t] != after[t]] == ["100"]
+    assert source.spans([200])[paths[1]] == [spans[paths[1]][2]]

@@ -419,6 +419,17 @@ class DumpIndex:
         """One timestep (default the last both dumps have): its rows only (registry.Format.index)."""
         return read_step(self, frame, request.columns, progress)
 
+    def spans(self, frames=None) -> dict:
+        """{path: [(timestep, first byte, end)]} of `frames` (default all) in each dump: a frame's bytes from the end
+        of the frame before it (its header included) to its own end (what a resume hashes: scan/resume.py)."""
+        wanted = set(self.frames if frames is None else frames)
+        out = {}
+        for path, blocks in ((self.atoms, self.atom_blocks), (self.local, self.local_blocks)):
+            ordered = sorted(blocks.values(), key=lambda b: b.end)
+            out[path] = [(b.timestep, lo, b.end) for lo, b in zip([0] + [b.end for b in ordered], ordered)
+                         if b.timestep in wanted]
+        return out
+
 
 def index_lammps(paths: list[Path], progress=None) -> DumpIndex:
     """One pass over each dump (`index_dump`) and the script: the timesteps both dumps have. Timesteps that one

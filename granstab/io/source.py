@@ -75,6 +75,12 @@ class Source:
     def warnings(self) -> list[str]:
         return list(self.index.warnings)
 
+    def spans(self, frames=None) -> dict:
+        """{path: [(frame, first byte, end)]} of the frames whose bytes the index knows (lammps.DumpIndex.spans;
+        {} for a format read whole): what a resumable folder hashes frame by frame (scan/resume.py)."""
+        spans = getattr(self.index, "spans", None)
+        return {} if spans is None else spans(frames)
+
     def read(self, frame=None, bar=None) -> Loaded:
         """Frame `frame` (default the input's own default) as a scene and its validation report."""
         fmt = get(self.format)

@@ -82,17 +82,19 @@ class ScanOutput:
         return summary
 
 
-def hold_options(folder: Path, stated: dict, what: str, first=None, inputs=None, overwrite: bool = False) -> None:
+def hold_options(folder: Path, stated: dict, what: str, first=None, inputs=None, overwrite: bool = False,
+                 spans: dict | None = None) -> None:
     """A resumable folder's options.json and inputs.json (scan, track; resume.py): written when new (after
-    `first()`, what must precede it); a folder holding a `what` with other options or other `inputs` (paths) is a
-    one-line error naming what changed, so that a resume never mixes two runs; `overwrite` starts afresh."""
+    `first()`, what must precede it); a folder holding a `what` with other options or other `inputs` (paths; the
+    frames read, `spans`, hashed one by one) is a one-line error naming what changed, so that a resume never mixes
+    two runs; `overwrite` starts afresh."""
     if overwrite:
         resume.start_afresh(folder)
-    if resume.check(folder, stated, inputs, what):
+    if resume.check(folder, stated, inputs, what, spans):
         return
     if first is not None:
         first()
-    resume.record(folder, stated, inputs)
+    resume.record(folder, stated, inputs, spans)
 
 
 def mechanism_counts(clusters) -> dict:

@@ -1,8 +1,10 @@
 """A resumable folder (scan, track) knows what it was made from (issue 38): options.json holds the options, and
-inputs.json each input file's size, modification time and content hash (BLAKE2b of every byte: the files are read
-whole once at the start, whatever the reader later reads lazily), so that a resume never mixes two inputs or two
-sets of options. A changed file or option is a one-line refusal naming it (an option with both values, only what
-differs) and saying how to start afresh (--overwrite: the folder's parts and records are removed first).
+inputs.json each input file's size, modification time and content hash, so that a resume never mixes two inputs or
+two sets of options. The hash is of what the run reads (BLAKE2b): where the frames are read lazily from known byte
+offsets (a LAMMPS dump's timesteps: io.source.Source.spans) one hash a frame read, so that a refusal names the
+frame whose contents changed; any other file is hashed whole. A changed file, frame or option is a one-line refusal
+naming it (an option with both values, only what differs) and saying how to start afresh (--overwrite: the
+folder's parts and records are removed first).
 """
 from __future__ import annotations
 
@@ -26,35 +28,57 @@ def files_of(paths) -> list[Path]:
     return out
 
 
-def content_hash(path: Path) -> str:
-    """BLAKE2b (hex) of the file's bytes."""
+def content_hash(path: Path, lo: int = 0, hi: int | None = None) -> str:
+    """BLAKE2b (hex) of the file's bytes [lo, hi) (default all)."""
     h = hashlib.blake2b(digest_size=20)
     with open(path, "rb") as f:
-        while block := f.read(CHUNK):
+        f.seek(lo)
+        left = float("inf") if hi is None else hi - lo
+        while left > 0 and (block := f.read(int(min(CHUNK, left)))):
             h.update(block)
+            left -= len(block)
     return h.hexdigest()
 
 
-def fingerprint(paths) -> dict:
-    """{file: {"size", "mtime", "blake2b"}} of every file of `paths` (files_of)."""
+def fingerprint(paths, spans: dict | None = None) -> dict:
+    """{file: {"size", "mtime", and "blake2b" or "frames" {frame: blake2b}}} of every file of `paths` (files_of);
+    a file in `spans` ({path: [(frame, first byte, end)]}: the frames read) is hashed frame by frame."""
+    framed = {str(Path(f).resolve()): parts for f, parts in (spans or {}).items()}
     out = {}
     for f in files_of(paths):
-        st = f.stat()
-        out[str(f.resolve())] = {"size": st.st_size, "mtime": st.st_mtime, "blake2b": content_hash(f)}
+        st, key = f.stat(), str(f.resolve())
+        got = ({"frames": {str(t): content_hash(f, lo, hi) for t, lo, hi in framed[key]}} if key in framed
+               else {"blake2b": content_hash(f)})
+        out[key] = {"size": st.st_size, "mtime": st.st_mtime, **got}
     return out
 
 
 def changed_input(before: dict, now: dict) -> str | None:
-    """What differs between two fingerprints, in words (None: the same contents; a new modification time alone
-    with the same bytes is the same input)."""
+    """What differs between two fingerprints, in words: the file, and the first frame whose contents changed where
+    frames are hashed (None: the same contents; a new modification time alone with the same bytes is the same
+    input)."""
     for name in sorted(set(before) | set(now)):
         old, new = before.get(name), now.get(name)
         if old is None or new is None:
             return f"{name} {'is new' if old is None else 'is gone'} since"
+        frame = _changed_frame(old.get("frames"), new.get("frames"))
+        if frame:
+            return f"{name}: {frame} since"
         if old["size"] != new["size"]:
             return f"{name} changed (size {old['size']} → {new['size']} bytes) since"
-        if old["blake2b"] != new["blake2b"]:
+        if old.get("blake2b") != new.get("blake2b"):
             return f"{name} changed (same size, other contents; modified {_when(new['mtime'])}) since"
+    return None
+
+
+def _changed_frame(old: dict | None, new: dict | None) -> str | None:
+    """The first frame (timestep) whose hash differs, is gone or is new, in words."""
+    if old is None or new is None:
+        return None
+    for frame in sorted(set(old) | set(new), key=lambda t: (len(t), t)):
+        if old.get(frame) != new.get(frame):
+            what = "is gone" if frame not in new else "is new" if frame not in old else "changed (other contents)"
+            return f"the frame at timestep {frame} {what}"
     return None
 
 
@@ -84,9 +108,9 @@ def start_afresh(folder: Path) -> None:
     (folder / "parts").mkdir(parents=True, exist_ok=True)
 
 
-def check(folder: Path, stated: dict, inputs, what: str) -> bool:
+def check(folder: Path, stated: dict, inputs, what: str, spans: dict | None = None) -> bool:
     """Whether `folder` holds a `what` (False: a new folder); a one-line SceneError when its options or inputs
-    differ from these."""
+    (their frames `spans`: `fingerprint`) differ from these."""
     saved = folder / OPTIONS
     if not saved.exists():
         return False
@@ -97,14 +121,14 @@ def check(folder: Path, stated: dict, inputs, what: str) -> bool:
                          f"same options, or {afresh}")
     recorded = folder / INPUTS
     if inputs is not None and recorded.exists():
-        why = changed_input(json.loads(recorded.read_text(encoding="utf-8")), fingerprint(inputs))
+        why = changed_input(json.loads(recorded.read_text(encoding="utf-8")), fingerprint(inputs, spans))
         if why:
             raise SceneError(f"{folder}: {why} this {what} began: a resume would mix two inputs; {afresh}")
     return True
 
 
-def record(folder: Path, stated: dict, inputs) -> None:
-    """Write options.json and (inputs given) inputs.json."""
+def record(folder: Path, stated: dict, inputs, spans: dict | None = None) -> None:
+    """Write options.json and (inputs given) inputs.json (`fingerprint`)."""
     if inputs is not None:
-        (folder / INPUTS).write_text(json.dumps(fingerprint(inputs), indent=1), encoding="utf-8")
+        (folder / INPUTS).write_text(json.dumps(fingerprint(inputs, spans), indent=1), encoding="utf-8")
     (folder / OPTIONS).write_text(json.dumps(stated), encoding="utf-8")

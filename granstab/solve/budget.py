@@ -112,7 +112,7 @@ def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = Fa
 #: and 3·10⁵ dofs, 4 branches, since the solver's speed-up of issue 24: 2.0 s and 17.4-18.8 s measured at a load
 #: of 1-1.3, 2.3 s and 19.2 s estimated) and a branch's update a fixed cost plus ∝ n (a 3,072-dof random packing,
 #: 10 sliding contacts, 1,024 branches: metric L 51 s, its family of 3 metrics 386 s measured; 115 and 344 s
-#: estimated). Many sliding contacts Ms (issue 38: a 1,400-disk frame, 10 sampled branches, 1.37 s estimated,
+#: estimated; the family's metrics since counted one by one, RITZ_FALLBACK). Many sliding contacts Ms (issue 38: a 1,400-disk frame, 10 sampled branches, 1.37 s estimated,
 #: 47 s measured) cost more, measured 2026-11-29 on 4,107 dofs: the Ritz basis of w = k + 9 + 4 Ms columns
 #: (ritz.py; Ms = 20, 50, 100: 0.45, 1.1, 9.4 s) takes RITZ_INIT per Ms·w² once (its stacked updates) and, a
 #: branch, RITZ_BRANCH per w³ (eigh of the basis) and RITZ_PER_DOF_WIDTH per n·w (a 1,800-dof packing, 5 sliding,
@@ -135,29 +135,47 @@ FLOPPY_PAIR_DOF = 6e-6  # a branch whose modes at or below zero (`plan.deficit`:
                          # had left it out: 7-9× low; with 3e-6, 2.2-2.8× low on 16 and 64 branches at load 5-9)
 FLOPPY_CROWD = 4        # … counted up to this many k's: a larger crowd below the shift is bisected and only the
                         # eigenvalues below it are solved (sparse.py; an assumption, not measured beyond deficit 28)
-OTHER_METRIC = 3.5     # a metric of the family other than L costs this many L's (L/10 and 10L scale the rotations
-                       # 100× apart: the shifted solves converge more slowly; measured: 3,072 dofs, 1,024 branches,
-                       # family 386 s against 51 s for L, 3.3×; 4,107 dofs, 6 sliding, family 152 s, about 3.7×)
+ARPACK_BRANCH_PER_DOF = 1.1e-4   # a branch solved again by shift-invert ARPACK with the shared LU (ritz.SparseRitz's
+                                 # fall-back, sparse.lowest_modes with the branch's Woodbury operator), per dof:
+                                 # measured 2026-11-29 (CPU time, this machine, speed() 1.07) 0.22 s a branch at 1,728
+                                 # dofs and 0.50-0.51 s at 4,107 (two packings), 0.033 s at 867
+RITZ_FALLBACK = {"10L": 1.0}     # the share of a metric's branches (the elastic one aside) whose Ritz update does not
+                                 # converge and is redone by ARPACK (ritz.SparseRitz.stats): measured 2026-11-29 on
+                                 # random 2D packings of 867, 1,728 and 4,107 (two) dofs, 8 branches: 10L 7 of 8 in
+                                 # every one (its Ritz basis 43 columns, against 72-83 for L and L/10), L and L/10
+                                 # none; 64 branches of 4,107 dofs: 10L 63 (issue 38's sparse family, 3.3× over its
+                                 # estimate, where each metric after L counted a fixed 3.5 L's: 10L took 8.8 L's of
+                                 # CPU time, L/10 0.6-1.1). Inertia: not measured, counted as L.
 
 
-def sparse_estimate(n_dof: int, n_branches: int, n_metrics: int = 1, n_sliding: int = 0, k: int = 6,
+def sparse_estimate(n_dof: int, n_branches: int, n_metrics=1, n_sliding: int = 0, k: int = 6,
                     deficit: int = 0) -> float:
-    """Estimated wall seconds of the sparse path: per metric, the elastic solve's set-up and every branch's update,
-    Ritz (one basis for all branches) or shift-invert by methods.ritz_fits, and where `deficit` (plan.deficit) is k + 1
-    or more, every branch's ARPACK solve of k + ν pairs (calibration above, scaled by `speed`); the first metric is
-    L, each other one OTHER_METRIC L's."""
+    """Estimated wall seconds of the sparse path (calibration above, scaled by `speed`): per metric, the elastic
+    solve's set-up and every branch's update, Ritz (one basis for all branches) or, by methods.ritz_fits,
+    shift-invert ARPACK; where Ritz is used, the branches of a metric whose Ritz updates fall back to ARPACK
+    (RITZ_FALLBACK); where `deficit` (plan.deficit) is k + 1 or more, every branch's ARPACK solve of k + ν pairs.
+    `n_metrics`: the metrics' names (a tuple), or their number (the family's first ones: L, L/10, 10L)."""
+    names = n_metrics if isinstance(n_metrics, tuple) else ("L", "L/10", "10L")[:n_metrics]
+    return sum(sum(sparse_parts(n_dof, n_branches, name, n_sliding, k, deficit).values()) for name in names) * speed()
+
+
+def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int = 0, k: int = 6,
+                 deficit: int = 0) -> dict:
+    """One metric's part of `sparse_estimate` on the calibration machine, by step: "setup", "ritz" or
+    "shift_invert", "fallback" (RITZ_FALLBACK's ARPACK solves), "floppy"."""
     from .methods import ritz_fits
-    Ms, kk = n_sliding, k + 1
-    per_metric = SPARSE_SETUP_PER_DOF * n_dof
+    Ms, kk, n = n_sliding, k + 1, n_dof
+    out = {"setup": SPARSE_SETUP_PER_DOF * n}
     if n_branches > 1 and ritz_fits(Ms, kk):
         w = kk + 8 + 4 * Ms
-        per_metric += RITZ_INIT * Ms * w * w + n_branches * (RITZ_BRANCH * float(w) ** 3 + RITZ_PER_DOF_WIDTH * n_dof * w)
+        out["ritz"] = RITZ_INIT * Ms * w * w + n_branches * (RITZ_BRANCH * float(w) ** 3 + RITZ_PER_DOF_WIDTH * n * w)
+        out["fallback"] = RITZ_FALLBACK.get(metric, 0.0) * (n_branches - 1) * ARPACK_BRANCH_PER_DOF * n
     else:
-        per_metric += n_branches * (SPARSE_BRANCH_FIXED + SPARSE_BRANCH_PER_DOF * n_dof
-                                    + SHIFT_PER_DOF_SLIDING * n_dof * Ms + SHIFT_CUBE * float(Ms) ** 3)
+        out["shift_invert"] = n_branches * (SPARSE_BRANCH_FIXED + SPARSE_BRANCH_PER_DOF * n
+                                            + SHIFT_PER_DOF_SLIDING * n * Ms + SHIFT_CUBE * float(Ms) ** 3)
     if deficit >= kk:
-        per_metric += n_branches * FLOPPY_PAIR_DOF * n_dof * (kk + min(deficit, FLOPPY_CROWD * kk))
-    return (1 + OTHER_METRIC * (n_metrics - 1)) * per_metric * speed()
+        out["floppy"] = n_branches * FLOPPY_PAIR_DOF * n * (kk + min(deficit, FLOPPY_CROWD * kk))
+    return out
 
 
 def refuse_over(source: str, seconds: float, timeout: float | None, work: str, alternatives: str = "") -> None:

@@ -6,7 +6,8 @@ metrics, what the run leaves out, and the estimated seconds on this machine's fr
 refusal before work (`Plan.refuse`), `granstab analyze --plan`, `export --modes` and `track --whole` read it.
 
 The estimate is the sum of its parts (`Plan.parts`), each from a cost measured on this machine (budget.py: a timed
-probe of the dense kernels in CPU time) or from the sparse path's calibration (budget.sparse_estimate):
+probe of the dense kernels in CPU time) or from the sparse path's calibration (budget.sparse_parts: by step and
+metric, the Ritz updates of a metric that fall back to ARPACK counted as such):
 
 * branches: every branch in every metric on its path; a low-rank branch that cannot be resolved there (a non-rigid
   zero or repeated eigenvalue: a floppy particle, `floppy`) goes to the full path, and is counted there;
@@ -196,12 +197,15 @@ def _estimated(p: Plan, k: int, rest: bool = False) -> Plan:
     """The plan with its estimate (seconds per part; module docstring); rest: on every core, none busy."""
     from .threads import cores, free_cores, runnable, slowdown
     n, L, metrics = p.n_dof, p.n_branches, len(p.metrics)
-    runnable(fresh=True)                       # the load now, not the BLAS policy's last read (up to 2 s old)
+    if not rest:
+        runnable(fresh=True)                   # the load now, not the BLAS policy's last read (up to 2 s old)
     workers = cores() if rest else free_cores()
     parts = {}
-    if p.path == "sparse":
-        parts["branches"] = budget.sparse_estimate(n, L, metrics, p.n_sliding, k, p.deficit)
-        one = budget.sparse_estimate(n, L, 1, p.n_sliding, k, p.deficit)
+    if p.path == "sparse":                     # by step, summed over the metrics (budget.sparse_parts)
+        for name in p.metrics:
+            for step, seconds in budget.sparse_parts(n, L, name, p.n_sliding, k, p.deficit).items():
+                parts[step] = parts.get(step, 0.0) + seconds * budget.speed()
+        one = budget.sparse_estimate(n, L, p.metrics[:1], p.n_sliding, k, p.deficit)
     else:
         full = (budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=not p.uniqueness)   # no ℍ^i: eigh
                 if not p.lowrank or p.floppy else 0.0)

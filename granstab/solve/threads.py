@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections import Counter
 from contextlib import contextmanager, nullcontext
 from contextvars import ContextVar
 from functools import cache
@@ -59,7 +60,11 @@ def bound() -> int | None:
 
 
 RUNNABLE_SECONDS = 2.0   # `runnable` is read at most this often (a scan of /proc: ~15 ms for 600 threads)
-_runnable_cache = [-1.0, 0.0]
+FRESH_SAMPLES = 5        # a fresh read (a plan's, once a run) averages this many scans, SAMPLE_GAP s apart: one scan
+SAMPLE_GAP = 0.02        # sees the threads that happen to be ready at that instant (measured on this shared machine:
+                         # 6 and 9 in two scans a second apart with two busy processes started between; the plan
+                         # estimated 1.1× more for a run that took 6.6× longer, 3.4× its estimate)
+_runnable_cache = [-1.0, 0.0, 1.0]   # when read, ready threads of others, slowdown (`slowdown`)
 
 
 def runnable(fresh: bool = False) -> float:
@@ -67,25 +72,36 @@ def runnable(fresh: bool = False) -> float:
     own, from /proc/*/task/*/stat; re-read every RUNNABLE_SECONDS): what takes a core from this one. Niced
     background work is left out, since it yields (the 1-minute load average counts it: a shared machine at load
     10 of niced work ran an analysis at full speed, and an estimate scaled by that load was 5× too high). Without
-    /proc: the 1-minute load average less this process. fresh: read now (a plan: once a run), not within
-    RUNNABLE_SECONDS of the last read (the BLAS policy, at every dense call)."""
+    /proc: the 1-minute load average less this process. fresh: read now (a plan: once a run), the mean of
+    FRESH_SAMPLES scans, not within RUNNABLE_SECONDS of the last read (the BLAS policy, at every dense call: one
+    scan). The same scans give `slowdown`."""
     now = time.monotonic()
     if not fresh and now - _runnable_cache[0] < RUNNABLE_SECONDS:
         return _runnable_cache[1]
     try:
-        count = len(runnable_threads())
+        counts, slow = [], []
+        for i in range(FRESH_SAMPLES if fresh else 1):
+            if i:
+                time.sleep(SAMPLE_GAP)
+            others = ready()
+            counts.append(len(others))
+            slow.append(group_slowdown([g for _, g in others], _group(os.getpid()), cores()))
+            if not others and i == 0:
+                break                                   # nobody else ready: no more scans (an idle machine)
+        count, factor = sum(counts) / len(counts), sum(slow) / len(slow)
     except OSError:  # pragma: no cover - not Linux
         try:
-            count = os.getloadavg()[0] - 1
+            count = max(os.getloadavg()[0] - 1, 0.0)
         except OSError:
             count = 0.0
-    _runnable_cache[:] = [now, max(float(count), 0.0)]
+        factor = max(1.0, (count + 1) / cores())
+    _runnable_cache[:] = [time.monotonic(), max(float(count), 0.0), factor]
     return _runnable_cache[1]
 
 
-def runnable_threads() -> list[int]:
-    """The process ids of the threads in state R with nice <= this process's, outside this process, one entry a
-    thread (/proc; OSError where it is absent)."""
+def ready() -> list[tuple[int, str]]:
+    """(process id, scheduling group) of each thread in state R with nice <= this process's, outside this process
+    (/proc; OSError where it is absent). The group is the process's autogroup (`_group`)."""
     if not Path("/proc/self/stat").exists():
         raise OSError("no /proc")
     with open("/proc/loadavg", encoding="ascii") as f:          # running or ready, every priority, this included
@@ -100,8 +116,38 @@ def runnable_threads() -> list[int]:
         fields = text[text.rfind(b")") + 2:].split()
         pid = int(stat.parts[2])
         if fields[0] == b"R" and int(fields[16]) <= mine and pid != me:
-            out.append(pid)
+            out.append((pid, _group(pid, stat.parts[4])))
     return out
+
+
+def runnable_threads() -> list[int]:
+    """The process ids of `ready`'s threads, one entry a thread."""
+    return [pid for pid, _ in ready()]
+
+
+def _group(pid: int, tid: str = "") -> str:
+    """The CFS group that shares the cores with the others: the process's autogroup (/proc/PID/autogroup, one a
+    session where the kernel groups them: sched_autogroup_enabled), else the thread itself."""
+    try:
+        with open(f"/proc/{pid}/autogroup", encoding="ascii") as f:
+            return f.read().split()[0]
+    except (OSError, IndexError):
+        return f"thread {pid}/{tid}"
+
+
+def group_slowdown(others: list, mine: str, n_cores: int) -> float:
+    """How much longer this thread's work takes than on a free core, from the groups of the other ready threads:
+    CFS shares the cores between the groups with ready threads equally (none more than its threads can use: filled
+    from the smallest), and a group's share between its threads. Busy processes in this session (one autogroup)
+    take from this thread's share alone: two of them beside it made a run 3.4× slower where the count of ready
+    threads said 1.4× (measured, issue 38); threads each in a group of their own: (ready + 1) / cores."""
+    demand = Counter(others)
+    demand[mine] += 1
+    left, share = float(n_cores), {}
+    for i, (group, d) in enumerate(sorted(demand.items(), key=lambda kv: kv[1])):
+        share[group] = min(d, left / (len(demand) - i))
+        left -= share[group]
+    return max(1.0, demand[mine] / share[mine])
 
 
 def free_cores() -> int:
@@ -112,9 +158,11 @@ def free_cores() -> int:
 
 
 def slowdown() -> float:
-    """How much longer CPU-bound work takes now than on free cores: the runnable processes, this one included, over
-    the cores (at least 1): beside two busy processes on 2 cores, 1.5."""
-    return max(1.0, (runnable() + 1) / cores())
+    """How much longer CPU-bound work takes now than on free cores (at least 1), from the groups of the ready threads
+    (`group_slowdown`, read with `runnable`): beside two busy processes in other sessions on 2 cores, 1.5; beside
+    two in this session, 1.5 alone and 3× the time at rest where other sessions also want the cores."""
+    runnable()
+    return _runnable_cache[2]
 
 
 def for_size(n: int) -> int:

@@ -79,7 +79,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
         generic tables with a `frame` column, MercuryDPM output.
     out_dir : path
         The folder (granstab/track/__init__.py: CONTRACT); one holding an interrupted run with the same options
-        and inputs (their sizes and content hashes, scan/resume.py) resumes; other ones are refused in one line
+        and inputs (their sizes and content hashes, a dump's frame by frame: scan/resume.py) resumes; other ones are refused in one line
         unless `overwrite` (start afresh).
     frames : "A:B:STEP", optional
         Positions in the input's frame list (0-based, B excluded); default all.
@@ -128,7 +128,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
                              **({"uncertainty": uncertainty} if uncertainty else {})}}
     stated = {**{k: v for k, v in spec.items() if k != "out"}, "frames": frames, "window": window,
               "d2min_radius": d2min_radius, "event_quantity": event_quantity, "event_threshold": event_threshold}
-    _open(out, stated, paths, overwrite)
+    _open(out, stated, paths, overwrite, source.spans([keys[k] for k in positions]))
     spec["source"] = source
     todo = [k for k in positions if not (out / "parts" / f"frame-{k:06d}.json").exists()]
     with Heartbeat(f"track {out_dir}", enabled=not progress) as beat:      # a line a minute without a bar
@@ -151,11 +151,12 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     return _after(out, summary, predict, figures)
 
 
-def _open(out: Path, stated: dict, inputs: list, overwrite: bool) -> None:
-    """The folder, options.json and inputs.json (a folder with other options or inputs: a one-line error, as the
-    scan's; overwrite: start afresh)."""
+def _open(out: Path, stated: dict, inputs: list, overwrite: bool, spans: dict) -> None:
+    """The folder, options.json and inputs.json (a folder with other options or inputs, or other bytes in a frame
+    it reads, `spans`: a one-line error, as the scan's; overwrite: start afresh)."""
     (out / "parts").mkdir(parents=True, exist_ok=True)
-    hold_options(out, json.loads(json.dumps(stated, default=str)), "track", inputs=inputs, overwrite=overwrite)
+    hold_options(out, json.loads(json.dumps(stated, default=str)), "track", inputs=inputs, overwrite=overwrite,
+                 spans=spans)
 
 
 def run_frames(spec: dict, todo: list, keys: list, workers: int | None, bar) -> dict:
