@@ -125,3 +125,22 @@ def test_roc_curve_area_is_the_auc():
     assert fpr[0] == tpr[0] == 0 and fpr[-1] == tpr[-1] == 1 and len(fpr) == len(np.unique(score)) + 1
     assert np.all(np.diff(fpr) >= 0) and np.all(np.diff(tpr) >= 0)
     assert np.sum(np.diff(fpr) * (tpr[1:] + tpr[:-1]) / 2) == pytest.approx(brute_auc(score, label), abs=1e-12)
+
+
+def test_the_whole_row_says_why_a_verdict_is_not_determined_and_whether_it_hinges():
+    """A verdict that is not a proof reads `not determined because <gaps>: <reason>`, with whole_proven 0 and the
+    hinges_on_tolerance flag carried; a proof keeps its reason and whole_proven 1."""
+    from types import SimpleNamespace
+
+    from helpers import random_cluster, scene
+
+    import granstab
+    from granstab.track.frame import WHOLE, whole_row
+    res = granstab.analyze(scene(random_cluster(2, 4, seed=1)), k=6, **WHOLE)
+    assert whole_row(res)["whole_reason"] == (res.verdict.reason if res.verdict.sufficient else
+                                              "not determined because " + ", ".join(res.verdict.insufficient_because)
+                                              + ": " + res.verdict.reason)
+    weak = res.verdict.weaker(("unresolved_sign",), "; S within tolerance", hinges_on_tolerance=True)
+    row = whole_row(SimpleNamespace(verdict=weak, backend="dense"))
+    assert row["whole_reason"].startswith("not determined because ") and "unresolved_sign" in row["whole_reason"]
+    assert row["whole_proven"] == 0 and row["whole_hinges_on_tolerance"] == 1 and row["whole_method"] == "dense"
