@@ -114,7 +114,22 @@ def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
     lead = result["lead"]["loading"]
     assert [e["lead_frames_negative"] for e in lead["events"]] == [1, 1, 1]       # λ < 0 exactly at each event
     assert [e["lead_frames_proven"] for e in lead["events"]] == [1, 1, 1]         # n_negative_loading = (λ < 0)
-    assert truth["movers"].mean() > predict.TOP_FRACTION and "event (6 of 22 positive)" in (tmp_path / "prediction.txt").read_text()
+    text = (tmp_path / "prediction.txt").read_text()
+    assert truth["movers"].mean() > predict.TOP_FRACTION and "event (6 of 22 positive)" in text
+    assert f"proven at 3 of {N_FRAMES} frames (frames {', '.join(map(str, EVENTS))})" in text
+    assert f"hinging on an S within the tolerance at frames {EVENTS[1]}" in text
+    for name in ("soft_spots_frictionless", "soft_spots_branch", "d2min_previous", "softness"):
+        assert f"  {name}: " in text                                                # the definitions
+    # every row: the three metrics; 6 events < MIN_EVENTS: the event rows' intervals are null with the note
+    for r in rows.values():
+        assert {"auc", "ap", "precision_top5", "n", "n_positive", "n_events"} <= r.keys() and r["n_events"] == 6
+        for m in ("auc", "ap", "precision_top5"):
+            assert (r[f"{m}_ci_low"] is None) == (r[f"{m}_ci_high"] is None)
+            if r[f"{m}_ci_low"] is not None:
+                assert r[f"{m}_ci_low"] <= r[m] <= r[f"{m}_ci_high"]
+    assert ev["auc_ci_low"] is None and ev["note"].startswith("too few events")
+    prev = rows[("d2min_top10", "d2min_previous")]
+    assert prev["n"] == 64 * (N_FRAMES - 2 * WINDOW)                                 # the first W frames have none
 
 
 def test_roc_curve_area_is_the_auc():
