@@ -10,8 +10,11 @@ from one sort of the scores: tied scores form one run (one threshold), so
 - precision_top5 = the positives' share of the top 5 % of the weight, a run cut at the 5 % mark counting pro rata
   (the expected precision under a random order of the tied rows).
 
-The interval is the 2.5 and 97.5 percentiles of `N_BOOT` resamples (seed `SEED`), widened to hold the estimate
-where it falls outside (then `widened` says so). Too few blocks with a positive (`MIN_EVENTS`, from the calibration
+A resample's cumulative weights are m @ (per-block cumulative counts), one matrix product over the runs; beyond
+`BINS` runs the scores are put in `BINS` quantile bins (ties kept together) for the resamples only, and each
+resample's deviation from the binned estimate is added to the exact one (a shift below 1/BINS of the ranks). The
+interval is the 2.5 and 97.5 percentiles of `N_BOOT` resamples (seed `SEED`), widened to hold the estimate where
+it falls outside (the `note` says so). Too few blocks with a positive (`MIN_EVENTS`, from the calibration
 of tests/test_track_scores.py: the random score's interval covers 0.5 in 93–97 % of seeds from there on) and the
 interval is not printed (null, with a `note`).
 """
@@ -23,9 +26,9 @@ METRICS = ("auc", "ap", "precision_top5")
 TOP = 0.05
 N_BOOT = 2000
 SEED = 0
-CHUNK_ROWS = 4_000_000          # resamples × rows per pass (memory: a few arrays of that many float64)
+BINS = 4096                     # the resamples' score resolution (runs of ties; quantile bins beyond, see below)
 #: the fewest positive blocks (events, for the event target; frames holding a positive, per particle) for an interval
-MIN_EVENTS = 10
+MIN_EVENTS = 20
 TOO_FEW = "too few events for a calibrated interval (fewer than {k} blocks with a positive)"
 
 
@@ -36,11 +39,10 @@ def sorted_runs(score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return order, np.r_[np.flatnonzero(s[1:] != s[:-1]), len(s) - 1]
 
 
-def weighted_metrics(label: np.ndarray, last: np.ndarray, w: np.ndarray) -> dict:
-    """AUC, AP, precision_top5 of rows in score order (`label`, runs ending at `last`) with weights w (B, n) of B
-    resamples at once → {metric: (B,)}; NaN where a resample has no positive or no negative."""
-    wp = np.cumsum(w * label, axis=1)[:, last]
-    wn = np.cumsum(w * ~label, axis=1)[:, last]
+def from_cumulative(wp: np.ndarray, wn: np.ndarray) -> dict:
+    """AUC, AP, precision_top5 from the cumulative positive and negative weights at the end of each run of ties in
+    decreasing score order, wp, wn (B, R) for B weightings at once → {metric: (B,)}; NaN where a weighting has no
+    positive or no negative (the module docstring's formulas, written once)."""
     P, N = wp[:, -1:], wn[:, -1:]
     dp = np.diff(wp, axis=1, prepend=0.0)
     dn = np.diff(wn, axis=1, prepend=0.0)
@@ -49,14 +51,38 @@ def weighted_metrics(label: np.ndarray, last: np.ndarray, w: np.ndarray) -> dict
         ap = np.sum(dp * wp / (wp + wn), axis=1) / P[:, 0]
         total = wp + wn
         cut = TOP * total[:, -1:]
-        k = np.argmax(total >= cut, axis=1)                       # the run holding the 5 % mark
+        k = np.argmax(total >= cut, axis=1)[:, None]             # the run holding the 5 % mark
         take = np.take_along_axis
-        before_t = take(total - dp - dn, k[:, None], 1)[:, 0]
-        before_p = take(wp - dp, k[:, None], 1)[:, 0]
-        run_t, run_p = take(dp + dn, k[:, None], 1)[:, 0], take(dp, k[:, None], 1)[:, 0]
+        before_t, before_p = take(total - dp - dn, k, 1)[:, 0], take(wp - dp, k, 1)[:, 0]
+        run_t, run_p = take(dp + dn, k, 1)[:, 0], take(dp, k, 1)[:, 0]
         top = (before_p + (cut[:, 0] - before_t) * run_p / run_t) / cut[:, 0]
     bad = (P[:, 0] <= 0) | (N[:, 0] <= 0)
     return {name: np.where(bad, np.nan, v) for name, v in (("auc", auc), ("ap", ap), ("precision_top5", top))}
+
+
+def weighted_metrics(label: np.ndarray, last: np.ndarray, w: np.ndarray) -> dict:
+    """The metrics of rows in score order (`label`, runs ending at `last`) with row weights w (B, n)."""
+    return from_cumulative(np.cumsum(w * label, axis=1)[:, last], np.cumsum(w * ~label, axis=1)[:, last])
+
+
+def binned_runs(last: np.ndarray, n: int, bins: int) -> np.ndarray:
+    """Each row's bin (rows in score order): its run where there are at most `bins` runs, else the quantile bin
+    (of `bins`) of the run's first row, so that tied rows share a bin."""
+    run = np.repeat(np.arange(len(last)), np.diff(np.r_[-1, last]))
+    if len(last) <= bins:
+        return run
+    first = np.r_[0, last[:-1] + 1]
+    return (first * bins // n)[run]
+
+
+def block_metrics(label: np.ndarray, block: np.ndarray, binned: np.ndarray, m: np.ndarray) -> dict:
+    """The metrics of B resamples of whole blocks (multiplicities m (B, F)) from the (block × bin) counts of
+    positives and negatives: cumulative weights m @ cumsum(counts), one matrix product each."""
+    F, R = m.shape[1], int(binned.max()) + 1
+    flat = block * R + binned
+    cp = np.bincount(flat[label], minlength=F * R).reshape(F, R).cumsum(axis=1)
+    cn = np.bincount(flat[~label], minlength=F * R).reshape(F, R).cumsum(axis=1)
+    return from_cumulative(m @ cp, m @ cn)
 
 
 def metrics(score, label) -> dict:
@@ -95,10 +121,11 @@ def with_intervals(score, label, block, n_boot: int = N_BOOT, seed: int = SEED,
         return out
     F = int(block.max()) + 1
     m = np.random.default_rng(seed).multinomial(F, np.full(F, 1.0 / F), size=n_boot).astype(float)
-    step = max(1, CHUNK_ROWS // n)
-    boot = {k: np.concatenate(parts) for k, parts in zip(METRICS, zip(*(
-        [weighted_metrics(label, last, m[i:i + step][:, block])[k] for k in METRICS]
-        for i in range(0, n_boot, step))))}
+    binned = binned_runs(last, n, BINS)
+    boot = block_metrics(label, block, binned, m)
+    if len(last) > BINS:                              # binned: each resample's deviation from the binned estimate
+        centre = block_metrics(label, block, binned, np.ones((1, F)))
+        boot = {k: v - centre[k][0] + out[k] for k, v in boot.items()}
     widened = []
     for k in METRICS:
         b = boot[k][np.isfinite(boot[k])]
