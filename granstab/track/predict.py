@@ -38,7 +38,8 @@ PARTICLE = {"unstable_fraction": 1, "unstable_fraction_nonboundary": 1, "cluster
 FRAME = {"lambda_min_unloading": -1, "lambda_min_loading": -1, "n_negative_unloading": 1, "n_negative_loading": 1,
          "mean_unstable_fraction": 1, "mobilised_fraction": 1, "stress_ratio": 1, "z": -1,
          "rigid_largest_fraction": -1, "random": 1}
-BASELINES = ("coordination", "mobilised_fraction", "force_magnitude", "sliding_distance", "stress_ratio", "z")
+BASELINES = ("coordination", "mobilised_fraction", "force_magnitude", "sliding_distance", "stress_ratio", "z",
+             "soft_spots_frictionless", "d2min_previous", "softness")
 DEFINITIONS = {
     "soft_spots_frictionless": "participation (mean share of the mode's squared translation) in the lowest 1 % of "
                                "the modes of the whole packing's frictionless dynamical matrix: the normal stiffness "
