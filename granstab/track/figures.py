@@ -62,7 +62,7 @@ def timeline(plt, ctx: dict, events: list[dict], stem: Path) -> list[Path]:
         both = np.abs(np.concatenate(drawn))
         both = both[np.isfinite(both) & (both > 0)]
         top.set_yscale("symlog", linthresh=float(np.min(both)) if both.size else 1.0)
-        top.legend(fontsize=8, title="λ_min of the whole packing (signed log scale)", title_fontsize=8)
+        top.legend(fontsize=8, title="λ_min of the whole packing (signed log scale)", title_fontsize=8, loc="best")
     else:
         top.text(0.5, 0.5, "λ_min not computed (track without --whole)", ha="center", va="center",
                  transform=top.transAxes, color="0.4")
