@@ -15,7 +15,7 @@ DIR/frames.parquet — one row a selected frame, in order:
     (list<float64>, d×d lattice rows; empty: no cell), mean_contact_distance, z (2M / particles with a contact),
     mobilised_fraction (contacts at yield / contacts), import_warnings (list<string>), import_report (JSON text),
     lambda_min_unloading, lambda_min_loading (float64, NaN), n_negative_unloading, n_negative_loading (int64,
-    −1; sparse path: among the max(6, soft_modes) lowest eigenpairs computed), whole_verdict, whole_method,
+    −1; sparse path: among the max(6, soft_modes, 1 % of the dofs) lowest eigenpairs computed), whole_verdict, whole_method,
     whole_reason ("not determined because …" where not a proof), whole_proven, whole_hinges_on_tolerance (int64
     1/0, −1), soft_modes (how many), soft_modes_from, soft_spots_count, soft_spots_frictionless_lambda_max,
     soft_spots_branch_count                                                         [--whole; else the fill]
