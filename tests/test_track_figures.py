@@ -26,6 +26,7 @@ def test_figures_of_a_contract_folder(tmp_path):
     assert figures.chosen_frames(ctx, particles, events) == list(EVENTS)     # all three events, all with a window
     svg = (tmp_path / "timeline.svg").read_text()
     assert "3 events (drops of shear_stress)" in svg and "all-loading" in svg
+    assert "signed log scale" in svg and "verdict proven" in svg           # issue 39: both branches readable
     roc = (tmp_path / "roc.svg").read_text()
     # contacts_changed has no positives in this folder: no panel; the others carry prediction.json's AUCs
     assert "contacts_changed" not in roc and "d2min_top10" in roc and "event" in roc

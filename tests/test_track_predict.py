@@ -9,7 +9,7 @@ import pytest
 from scipy.stats import norm
 from track_folder import EVENTS, N_FRAMES, WINDOW, write
 
-from granstab.track import predict
+from granstab.track import predict, scores
 
 
 def brute_auc(score, label) -> float:
@@ -27,31 +27,6 @@ def test_auc_hand_computed_cases():
     assert np.isnan(predict.auc([1, 2], [1, 1]))                     # one class empty
 
 
-def test_pair_counts_and_auc_equal_a_brute_force_count():
-    rng = np.random.default_rng(3)
-    score = rng.integers(0, 6, 300).astype(float)                   # many ties
-    label = rng.random(300) < 0.3
-    block = rng.integers(0, 7, 300)
-    U = predict.pair_counts(score, label, block, 7)
-    for f, g in ((0, 0), (2, 5), (6, 1)):
-        pos, neg = score[label & (block == f)], score[~label & (block == g)]
-        want = sum(1.0 if p > q else 0.5 if p == q else 0.0 for p in pos for q in neg)
-        assert U[f, g] == want                                       # exact: sums of halves
-    assert predict.auc_with_interval(score, label, block)["auc"] == pytest.approx(brute_auc(score, label), abs=1e-15)
-
-
-def test_bootstrap_is_the_auc_of_the_resampled_rows():
-    """One resample's AUC from mᵀUm equals the AUC of the rows of the drawn frames, concatenated."""
-    rng = np.random.default_rng(4)
-    score, label, block = rng.random(200), rng.random(200) < 0.4, rng.integers(0, 5, 200)
-    U = predict.pair_counts(score, label, block, 5)
-    m = np.array([2, 0, 1, 0, 2])
-    rows = np.concatenate([np.flatnonzero(block == f) for f in range(5) for _ in range(m[f])])
-    P = np.bincount(block, weights=label, minlength=5)
-    N = np.bincount(block, weights=~label, minlength=5)
-    assert m @ U @ m / ((m @ P) * (m @ N)) == pytest.approx(brute_auc(score[rows], label[rows]), abs=1e-12)
-
-
 def test_block_interval_covers_the_true_auc():
     """Binormal scores (positives N(δ, 1), negatives N(0, 1): AUC = Φ(δ/√2)) with a shared random shift per frame
     and a per-frame share of positives, so that a frame's rows are correlated. Over 40 independent runs the 95 %
@@ -65,20 +40,21 @@ def test_block_interval_covers_the_true_auc():
         block = np.repeat(np.arange(frames), 150)
         label = rng.random(len(block)) < share[block]
         score = delta * label + rng.standard_normal(len(block)) + 0.3 * rng.standard_normal(frames)[block]
-        r = predict.auc_with_interval(score, label, block, n_boot=500, seed=rep)
-        held += r["ci_low"] <= truth <= r["ci_high"]
-        assert r["ci_high"] - r["ci_low"] < 0.25
+        r = scores.with_intervals(score, label, block, n_boot=500, seed=rep)
+        held += r["auc_ci_low"] <= truth <= r["auc_ci_high"]
+        assert r["auc_ci_high"] - r["auc_ci_low"] < 0.25
     assert held >= 34, held
 
 
 def test_nan_scores_are_left_out_and_counted():
     score = np.array([np.nan, 0.2, 0.9, np.nan, 0.1, 0.7])
     label = np.array([1, 0, 1, 0, 0, 1], bool)
-    r = predict.auc_with_interval(score, label, np.arange(6))
+    r = scores.with_intervals(score, label, np.arange(6))
     assert r["n"] == 4 and r["n_positive"] == 2
     assert r["auc"] == brute_auc(score[[1, 2, 4, 5]], label[[1, 2, 4, 5]]) == 1.0
-    empty = predict.auc_with_interval(np.full(3, np.nan), np.array([1, 0, 1], bool), np.arange(3))
-    assert empty["n"] == 0 and np.isnan(empty["auc"])
+    assert r["auc_ci_low"] is None and "too few events" in r["note"]            # 2 positive blocks < MIN_EVENTS
+    empty = scores.with_intervals(np.full(3, np.nan), np.array([1, 0, 1], bool), np.arange(3))
+    assert empty["n"] == 0 and empty["auc"] is None
 
 
 def test_targets_top_tenth_per_frame_and_events_in_the_window():
@@ -102,8 +78,11 @@ def test_lead_times_count_the_unstable_run_before_each_event():
     steps = 100 * np.arange(7)
     lt = predict.lead_times(lam, n_negative, steps, np.array([2, 5]))
     assert [e["lead_frames_negative"] for e in lt["events"]] == [2, 1]
-    assert [e["lead_steps_negative"] for e in lt["events"]] == [100, 0]
+    # steps from the first unstable frame to the frame the event ends at: frames × steps per frame (issue 39:
+    # lead_frames_proven 1 had lead_steps_proven 0)
+    assert [e["lead_steps_negative"] for e in lt["events"]] == [200, 100]
     assert [e["lead_frames_proven"] for e in lt["events"]] == [1, 0]
+    assert [e["lead_steps_proven"] for e in lt["events"]] == [100, 0]
     assert lt["unstable_frame_rate"] == {"negative": pytest.approx(3 / 7), "proven": pytest.approx(1 / 7)}
     assert lt["frames_to_next_event"] == [2, 1, 0, 2, 1, 0, -1]
     # Spearman's ρ of λ_min against the frames to the next event, over frames 0..5 (frame 6 has none)
@@ -118,9 +97,9 @@ def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
     rows = {(r["target"], r["predictor"]): r for r in json.loads((tmp_path / "prediction.json").read_text())}
     planted = rows[("d2min_top10", "unstable_fraction")]
     # 64 particles x (24 − W) frames with a window; the planted movers (15 %) fill the top 10 % of D²min
-    assert planted["n"] == 64 * (N_FRAMES - WINDOW) and planted["auc"] > 0.9 and planted["ci_low"] > 0.85
+    assert planted["n"] == 64 * (N_FRAMES - WINDOW) and planted["auc"] > 0.9 and planted["auc_ci_low"] > 0.85
     assert rows[("d2min_top10", "cluster_lambda_min")]["auc"] == planted["auc"]    # −λ = unstable: negated
-    assert rows[("d2min_top10", "random")]["ci_low"] < 0.5 < rows[("d2min_top10", "random")]["ci_high"]
+    assert rows[("d2min_top10", "random")]["auc_ci_low"] < 0.5 < rows[("d2min_top10", "random")]["auc_ci_high"]
     assert ("d2min_top10", "soft_participation") not in rows                      # all NaN: not computed
     assert ("event", "n_negative_unloading") not in rows                          # the fill −1: not computed
     assert "soft_participation" in result["verdict"]
@@ -135,7 +114,22 @@ def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
     lead = result["lead"]["loading"]
     assert [e["lead_frames_negative"] for e in lead["events"]] == [1, 1, 1]       # λ < 0 exactly at each event
     assert [e["lead_frames_proven"] for e in lead["events"]] == [1, 1, 1]         # n_negative_loading = (λ < 0)
-    assert truth["movers"].mean() > predict.TOP_FRACTION and "event (6 of 22 positive)" in (tmp_path / "prediction.txt").read_text()
+    text = (tmp_path / "prediction.txt").read_text()
+    assert truth["movers"].mean() > predict.TOP_FRACTION and "event (6 of 22 positive)" in text
+    assert f"proven at 3 of {N_FRAMES} frames (frames {', '.join(map(str, EVENTS))})" in text
+    assert f"hinging on an S within the tolerance at frames {EVENTS[1]}" in text
+    for name in ("soft_spots_frictionless", "soft_spots_branch", "d2min_previous", "softness"):
+        assert f"  {name}: " in text                                                # the definitions
+    # every row: the three metrics; 6 events < MIN_EVENTS: the event rows' intervals are null with the note
+    for r in rows.values():
+        assert {"auc", "ap", "precision_top5", "n", "n_positive", "n_events"} <= r.keys() and r["n_events"] == 6
+        for m in ("auc", "ap", "precision_top5"):
+            assert (r[f"{m}_ci_low"] is None) == (r[f"{m}_ci_high"] is None)
+            if r[f"{m}_ci_low"] is not None:
+                assert r[f"{m}_ci_low"] <= r[m] <= r[f"{m}_ci_high"]
+    assert ev["auc_ci_low"] is None and ev["note"].startswith("too few events")
+    prev = rows[("d2min_top10", "d2min_previous")]
+    assert prev["n"] == 64 * (N_FRAMES - 2 * WINDOW)                                 # the first W frames have none
 
 
 def test_roc_curve_area_is_the_auc():
@@ -146,3 +140,22 @@ def test_roc_curve_area_is_the_auc():
     assert fpr[0] == tpr[0] == 0 and fpr[-1] == tpr[-1] == 1 and len(fpr) == len(np.unique(score)) + 1
     assert np.all(np.diff(fpr) >= 0) and np.all(np.diff(tpr) >= 0)
     assert np.sum(np.diff(fpr) * (tpr[1:] + tpr[:-1]) / 2) == pytest.approx(brute_auc(score, label), abs=1e-12)
+
+
+def test_the_whole_row_says_why_a_verdict_is_not_determined_and_whether_it_hinges():
+    """A verdict that is not a proof reads `not determined because <gaps>: <reason>`, with whole_proven 0 and the
+    hinges_on_tolerance flag carried; a proof keeps its reason and whole_proven 1."""
+    from types import SimpleNamespace
+
+    from helpers import random_cluster, scene
+
+    import granstab
+    from granstab.track.frame import WHOLE, whole_row
+    res = granstab.analyze(scene(random_cluster(2, 4, seed=1)), k=6, **WHOLE)
+    assert whole_row(res)["whole_reason"] == (res.verdict.reason if res.verdict.sufficient else
+                                              "not determined because " + ", ".join(res.verdict.insufficient_because)
+                                              + ": " + res.verdict.reason)
+    weak = res.verdict.weaker(("unresolved_sign",), "; S within tolerance", hinges_on_tolerance=True)
+    row = whole_row(SimpleNamespace(verdict=weak, backend="dense"))
+    assert row["whole_reason"].startswith("not determined because ") and "unresolved_sign" in row["whole_reason"]
+    assert row["whole_proven"] == 0 and row["whole_hinges_on_tolerance"] == 1 and row["whole_method"] == "dense"

@@ -29,7 +29,10 @@ def write(out: Path, seed: int = 0) -> dict:
               "stress_ratio": shear / 2.0, "z": 4 + 0.1 * rng.random(N_FRAMES),
               "mobilised_fraction": rng.random(N_FRAMES), "lambda_min_unloading": lam + 0.1,
               "lambda_min_loading": lam, "n_negative_unloading": np.full(N_FRAMES, -1),
-              "n_negative_loading": (lam < 0).astype(int)}
+              "n_negative_loading": (lam < 0).astype(int), "dim": np.full(N_FRAMES, 2),
+              "cell": [[] for _ in range(N_FRAMES)], "mean_contact_distance": np.ones(N_FRAMES),
+              "whole_proven": np.isin(np.arange(N_FRAMES), EVENTS).astype(int),
+              "whole_hinges_on_tolerance": (np.arange(N_FRAMES) == EVENTS[1]).astype(int)}
     pq.write_table(pa.table(frames), out / "frames.parquet")
     movers = rng.random((N_FRAMES, n)) < 0.15
     d2 = np.where(movers, 1.0 + rng.random((N_FRAMES, n)), 0.01 * rng.random((N_FRAMES, n)))

@@ -15,8 +15,10 @@ DIR/frames.parquet — one row a selected frame, in order:
     (list<float64>, d×d lattice rows; empty: no cell), mean_contact_distance, z (2M / particles with a contact),
     mobilised_fraction (contacts at yield / contacts), import_warnings (list<string>), import_report (JSON text),
     lambda_min_unloading, lambda_min_loading (float64, NaN), n_negative_unloading, n_negative_loading (int64,
-    −1; sparse path: among the max(6, soft_modes) lowest eigenpairs computed), whole_verdict, whole_method,
-    soft_modes (how many), soft_modes_from                                          [--whole; else the fill]
+    −1; sparse path: among the max(6, soft_modes, 1 % of the dofs) lowest eigenpairs computed), whole_verdict, whole_method,
+    whole_reason ("not determined because …" where not a proof), whole_proven, whole_hinges_on_tolerance (int64
+    1/0, −1), soft_modes (how many), soft_modes_from, soft_spots_count, soft_spots_frictionless_lambda_max,
+    soft_spots_branch_count                                                         [--whole; else the fill]
     scan_clusters, scan_unstable, scan_unstable_nonboundary (int64, −1), scan_verdicts (JSON text)   [--scan]
     rigid_largest_particles (int64, −1), rigid_largest_fraction (float64, NaN)                   [--rigidity]
     n_made, n_broken, n_slid (float64: contacts from this frame to frame + W; NaN for the last W frames),
@@ -26,7 +28,8 @@ DIR/particles.parquet — one row a frame × particle (rattlers kept), frames in
     rattler (bool), coordination (int64), mobilised_fraction, force_magnitude (mean |f| of its contacts),
     sliding_distance (to the nearest contact point at yield; NaN: none in the frame), random (seeded uniform),
     unstable_fraction, unstable_fraction_nonboundary, cluster_lambda_min         [--scan; NaN otherwise]
-    soft_participation (mean share of the lowest consistent modes' squared translation) [--whole; else NaN]
+    soft_participation (mean share of the lowest consistent modes' squared translation), soft_spots_frictionless,
+    soft_spots_branch (the same in the lowest 1 % of modes, softspots.py)           [--whole; else NaN]
     in_largest_rigid_cluster (1.0 / 0.0)                                     [--rigidity; NaN otherwise]
     d2min (Falk & Langer over the window that starts at this frame, length², not normalised),
     contacts_made, contacts_broken, contacts_changed (= made + broken), contacts_slid (float64 counts; all NaN

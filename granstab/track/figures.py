@@ -1,13 +1,15 @@
 """The figures of a track folder (issue 27; matplotlib, the `scan` extra), each as PNG and SVG:
 
-- `timeline`: λ_min(t) of the all-unloading and all-loading branches (eq:instab: below zero a consistent negative
-  mode) above the shear stress and the pressure, the events of events.json shaded on both;
+- `timeline`: λ_min(t) of the all-unloading and all-loading branches on a signed log scale (symlog, linear within
+  the smallest |λ_min|; eq:instab: below zero a consistent negative mode), the frames whose whole-packing verdict
+  is proven starred, above the shear stress and the pressure, the events of events.json shaded on both;
 - `maps`: for chosen frames (the frame each of the largest events starts from, else evenly spaced ones), the
   instability map (the share of a particle's clusters that are unstable, the scan's colours; the soft-mode
   participation where no scan was run), its clusters' lowest λ_min where the scan gave it, and the D²min of the
   window that starts there (logarithmic);
 - `roc`: the ROC curves of the prediction test, one panel a target, the same scores and labels as prediction.json
-  (`predict.cases`).
+  (`predict.cases`), softness left out (its classifier is the prediction test's; refitting it for a figure took as
+  long as the test itself on 2,000 disks × 200 frames).
 
 3D packings are drawn as their projection on x-y. Particles are drawn with the dump's radius where the folder has a
 `radius` column, else with half the distance to their nearest neighbour (in 3D, in space).
@@ -31,7 +33,7 @@ def write(out_dir, frames: list[int] | None = None) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     out_dir = Path(out_dir)
-    found, ctx = predict.cases(out_dir)
+    found, ctx = predict.cases(out_dir, structure_wanted=False)
     events = json.loads((out_dir / "events.json").read_text())
     particles = predict.read_columns(out_dir / "particles.parquet")
     paths = timeline(plt, ctx, events, out_dir / "timeline")
@@ -45,15 +47,23 @@ def timeline(plt, ctx: dict, events: list[dict], stem: Path) -> list[Path]:
     f = ctx["frames"]
     x = f["step"] if "step" in f and np.isfinite(f["step"]).all() else ctx["order"].astype(float)
     fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7.5, 5.5), height_ratios=(1, 1.3))
-    drawn = False
+    drawn = []
     for branch, colour in (("unloading", "tab:blue"), ("loading", "tab:red")):
         lam = f.get(f"lambda_min_{branch}")
         if lam is not None and np.isfinite(lam).any():
             top.plot(x, lam, "o-", ms=3, color=colour, label=f"all-{branch}")
-            drawn = True
+            drawn.append(lam)
+    proven = f.get("whole_proven")
+    if drawn and proven is not None and np.any(proven == 1):
+        low = np.nanmin(np.concatenate(drawn))
+        top.plot(x[proven == 1], np.full(int(np.sum(proven == 1)), low), "k*", ms=7,
+                 label="verdict proven (eq:stab / eq:instab)")
     top.axhline(0, color="k", lw=0.6)
     if drawn:
-        top.legend(fontsize=8, title="λ_min of the whole packing", title_fontsize=8)
+        both = np.abs(np.concatenate(drawn))
+        both = both[np.isfinite(both) & (both > 0)]
+        top.set_yscale("symlog", linthresh=float(np.min(both)) if both.size else 1.0)
+        top.legend(fontsize=8, title="λ_min of the whole packing (signed log scale)", title_fontsize=8, loc="best")
     else:
         top.text(0.5, 0.5, "λ_min not computed (track without --whole)", ha="center", va="center",
                  transform=top.transAxes, color="0.4")

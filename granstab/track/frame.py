@@ -20,11 +20,12 @@ from ..mechanics.branches import RIGID
 from ..model.scene import Scene, SceneError
 from ..scan.clusters import particle_shares
 from ..solve.threads import blas_threads
+from . import softspots
 from .motion import contact_keys
 from .quantities import macroscopic, per_particle
 
 PREDICTORS = ("unstable_fraction", "unstable_fraction_nonboundary", "cluster_lambda_min", "soft_participation",
-              "in_largest_rigid_cluster")          # NaN where the stage that computes them was not asked for
+              "in_largest_rigid_cluster", "soft_spots_branch", "soft_spots_frictionless")          # NaN where the stage that computes them was not asked for
 WHOLE = {"metric": "L", "max_sliding": 0, "sample_branches": 0, "keep": "all", "attribution": False,
          "uniqueness": False}
 # the whole packing: its all-loading and all-unloading branches only (sample_masks), in the scan's metric L, their
@@ -39,12 +40,15 @@ def core_scene(scene: Scene, wall_flags):
     return core, None if wall_flags is None or core is scene else np.asarray(wall_flags)[keep], keep
 
 
-def whole(core: Scene, soft_modes: int) -> tuple[dict, np.ndarray]:
+def whole(core: Scene, soft_modes: int) -> tuple[dict, dict]:
     """The whole-packing analysis (WHOLE): λ_min (non-rigid) and the consistent negative count of the all-unloading
-    and all-loading branches, and each particle's soft-spot participation: the mean over the `soft_modes` lowest
-    consistent modes (both branches pooled; where none is consistent, the lowest non-rigid modes of the
-    all-unloading branch, said in `soft_modes_from`) of its share of the mode's squared translation."""
-    res = analyze(core, k=max(6, soft_modes), **WHOLE)
+    and all-loading branches, and per particle the soft-spot participations (softspots.participation):
+    `soft_participation` in the `soft_modes` lowest consistent modes (both branches pooled; where none is
+    consistent, the lowest non-rigid modes of the all-unloading branch, said in `soft_modes_from`),
+    `soft_spots_branch` in the lowest 1 % of the all-unloading branch's non-rigid modes, `soft_spots_frictionless`
+    in the lowest 1 % of the frictionless dynamical matrix's (softspots.frictionless)."""
+    n_branch = softspots.lowest_count(core.n_dof)
+    res = analyze(core, k=max(6, soft_modes, n_branch), **WHOLE)
     sliding = np.flatnonzero(core.at_yield()) if core.n_contacts else np.zeros(0, int)
     row, modes, elastic = {}, [], []
     for name, sign in (("unloading", -1), ("loading", 1)):
@@ -59,19 +63,37 @@ def whole(core: Scene, soft_modes: int) -> tuple[dict, np.ndarray]:
         row[f"n_negative_{name}"] = int(sum(c["eigenvalue"] < -branch.accuracy[c["index"]] for c in consistent))
         modes += [(c["eigenvalue"], V[:, c["index"]]) for c in consistent]
         if sign == -1:
-            elastic = [(lam[j], V[:, j]) for j in nonrigid]
-    row["whole_verdict"] = res.verdict.verdict
-    row["whole_method"] = res.backend
+            elastic = sorted(((lam[j], V[:, j]) for j in nonrigid), key=lambda m: m[0])
+    row.update(whole_row(res))
     row["soft_modes_from"] = "consistent modes, both branches" if modes else \
         "no consistent mode: the lowest non-rigid modes of the all-unloading branch"
-    share = np.zeros(core.n_particles)
     lowest = sorted(modes or elastic, key=lambda m: m[0])[:soft_modes]
-    for _, v in lowest:
-        u = res.motion(v).reshape(core.n_particles, core.dof_per_particle)[:, :core.dim]
-        t = np.sum(u * u, axis=1)
-        share += t / t.sum() if t.sum() > 0 else 0.0
     row["soft_modes"] = len(lowest)
-    return row, share / len(lowest) if lowest else np.full(core.n_particles, np.nan)
+    row["soft_spots_branch_count"] = min(n_branch, len(elastic))
+    frictionless_row, frictionless_share = softspots.frictionless(core)
+    row.update(frictionless_row)
+    return row, {"soft_participation": translation_shares(res, core, lowest),
+                 "soft_spots_branch": translation_shares(res, core, elastic[:n_branch]),
+                 "soft_spots_frictionless": frictionless_share}
+
+
+def translation_shares(res, core: Scene, modes: list) -> np.ndarray:
+    """softspots.participation of the (eigenvalue, vector) `modes` of an analysis (NaN without modes)."""
+    if not modes:
+        return np.full(core.n_particles, np.nan)
+    motions = np.stack([res.motion(v).reshape(core.n_particles, core.dof_per_particle)[:, :core.dim]
+                        for _, v in modes])
+    return softspots.participation(motions)
+
+
+def whole_row(res) -> dict:
+    """The whole packing's verdict as a frame row: the word, its reason (`not determined because …` where it is not
+    a proof, with the named gaps), whether it is proven, whether it hinges on an S within the tolerance."""
+    v = res.verdict
+    reason = v.reason if v.sufficient else \
+        f"not determined because {', '.join(v.insufficient_because)}: {v.reason}"
+    return {"whole_verdict": v.verdict, "whole_method": res.backend, "whole_reason": reason,
+            "whole_proven": int(v.sufficient), "whole_hinges_on_tolerance": int(v.hinges_on_tolerance)}
 
 
 def scan_map(core: Scene, folder: Path, scan_options: dict) -> tuple[dict, dict]:
