@@ -67,7 +67,8 @@ def body_snapshot(snap: Snapshot, parts: dict, walls: dict | None, gravity, what
     contact points (checked, reported). walls: "body" (W,), "force" (W, d) on the body, "point" (W, d), or None.
     gravity: (d,) or None (with masses: m g on each body). `what`: "clump"/"polygon", for messages. Sets
     snap.bodies (build.py reads it): "point" (M, d), "rho" (M, 2) (∞: flat), "inertia" (N, r, r) or None,
-    "wall_moment" (N, r) and "wall_moment_scale" (N,) (Σ r × f and Σ|r||f| of the walls about x), "geometry"."""
+    "wall_moment" (N, r) and "wall_moment_scale" (N,) (Σ r × f and Σ|r||f| of the walls about x),
+    "wall_force_scale" (N,) (Σ|f| of the walls plus |m g|: the loads' own size, not that of their sum), "geometry"."""
     pair = Pairs(np.array([str(i) for i in snap.ids], dtype=object), snap.p, snap.q)
     same = np.flatnonzero(snap.p == snap.q)
     if same.size:
@@ -88,16 +89,21 @@ def body_snapshot(snap: Snapshot, parts: dict, walls: dict | None, gravity, what
         geometry["engine_point_offset_over_radius"] = _stats(off)
     N, dim = snap.x.shape
     load, moment, scale = np.zeros((N, dim)), np.zeros((N, 1 if dim == 2 else 3)), np.zeros(N)
+    force_scale = np.zeros(N)
     if walls is not None and len(walls["body"]):
         arm = walls["point"] - snap.x[walls["body"]]
         load = sum_at(walls["body"], walls["force"], N)
         moment = sum_at(walls["body"], _cross(arm, walls["force"]), N)
-        scale = sum_at(walls["body"], np.linalg.norm(arm, axis=1) * np.linalg.norm(walls["force"], axis=1), N)
+        size = np.linalg.norm(walls["force"], axis=1)
+        scale = sum_at(walls["body"], np.linalg.norm(arm, axis=1) * size, N)
+        force_scale = sum_at(walls["body"], size, N)
     if gravity is not None and snap.mass is not None:
         load = load + snap.mass[:, None] * np.asarray(gravity, float)[None, :]
+        force_scale = force_scale + snap.mass * np.linalg.norm(gravity)
     snap.normal, snap.wall_load = e, load
     snap.bodies = {"point": point, "rho": rho, "inertia": snap.bodies and snap.bodies.get("inertia"),
-                   "wall_moment": moment, "wall_moment_scale": scale, "geometry": geometry}
+                   "wall_moment": moment, "wall_moment_scale": scale, "wall_force_scale": force_scale,
+                   "geometry": geometry}
     snap.notes["walls"] = {"wall_contacts": 0 if walls is None else int(len(walls["body"])),
                            "gravity": None if gravity is None else [float(g) for g in gravity],
                            "treatment": "wall forces and gravity (m g at the centre of mass) are loads on the "

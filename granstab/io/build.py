@@ -474,12 +474,13 @@ def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
     fscale = sum_at(side, np.concatenate([fmag, fmag]), N)
     mscale = sum_at(side, np.concatenate([np.linalg.norm(arm_p, axis=1) * fmag + mmag,
                                            np.linalg.norm(arm_q, axis=1) * fmag + mmag]), N)
-    if snap.wall_load is not None:
+    bodies = snap.bodies or {}
+    if snap.wall_load is not None:        # a body resting on a wall alone: its scale is Σ|f|, not |Σ f| ≈ 0
         net += snap.wall_load
-        fscale += np.linalg.norm(snap.wall_load, axis=1)
-    if snap.bodies is not None and snap.bodies.get("wall_moment") is not None:
-        torque += snap.bodies["wall_moment"]
-        mscale += snap.bodies["wall_moment_scale"]
+        fscale += bodies.get("wall_force_scale", np.linalg.norm(snap.wall_load, axis=1))
+    if bodies.get("wall_moment") is not None:
+        torque += bodies["wall_moment"]
+        mscale += bodies["wall_moment_scale"]
     counted = fscale > 0
     excluded = "particles without contacts"
     if snap.wall_flags is not None:
