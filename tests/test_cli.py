@@ -78,7 +78,7 @@ def test_sparse_method_agrees_with_dense_on_real_data(capsys):
 def test_readable_table_lists_the_lowest_eigenvalues_and_counts(capsys):
     """The 143-disk frame (429 eigenvalues): the table shows the lowest TABLE_LOWEST with the counts; --all every
     one. The counts must match the analysis' (4 consistent negative, 3 rigid zeros)."""
-    from granstab.cli import TABLE_LOWEST
+    from granstab.cli_text import TABLE_LOWEST
     path = str(PRESETS / "annulus_frame.json")
     assert main(["analyze", path, "--metric", "L"]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if "sym(𝓗) eigenvalues" in x)
@@ -171,8 +171,97 @@ def test_analyze_and_scan_take_converts_import_options(tmp_path, capsys):
     expected = granstab.analyze(loaded.scene, metric="L").to_dict()
     assert result_part(d) == result_part(json.loads(json.dumps(expected)))
     assert main(["scan", str(ANNULUS), "--out", str(tmp_path / "s"), "--workers", "1", "--frame", "2", "--mu", "0.05",
-                 "--input-format", "auto", "--json"]) == 0
+                 "--format", "auto", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["import"]["frame"] == 2 and summary["import"]["contacts"]["sliding"] == 3
     assert main(["analyze", str(ANNULUS), "--contact-k", "-1"]) == 2
     assert "k" in capsys.readouterr().err
+
+
+def parser_flags() -> dict[str, set[str]]:
+    """Every long flag of the `granstab` parser → the commands that take it."""
+    import argparse
+
+    from granstab.cli import RUNS
+    from granstab.cli_options import build_parser
+    sub = next(a for a in build_parser(RUNS)._actions if isinstance(a, argparse._SubParsersAction))
+    flags: dict[str, set[str]] = {}
+    for name, parser in sub.choices.items():
+        for action in parser._actions:
+            for flag in action.option_strings:
+                if flag.startswith("--") and flag != "--help":
+                    flags.setdefault(flag, set()).add(name)
+    return flags
+
+
+def test_the_table_of_flags_in_docs_is_the_parsers():
+    """docs/cli.md's table (flag, meaning, commands) lists every flag with exactly the commands that take it
+    ("readers": every command that reads a file; "a / b" rows: flags of two commands each)."""
+    import re
+    text = (Path(__file__).parents[1] / "docs" / "cli.md").read_text(encoding="utf-8")
+    readers = {"stiffness", "analyze", "moduli", "convert", "extract", "scan", "rigidity", "track", "export"}
+    table: dict[str, set[str]] = {}
+    for flags, commands in re.findall(r"^\| (`--.*?) \| .*? \| ([a-z, /]+) \|$", text, flags=re.M):
+        names = re.findall(r"`(--[a-z0-9-]+)`", flags)
+        groups = [g.strip() for g in commands.split("/")] if "/" in commands else [commands] * len(names)
+        for name, group in zip(names, groups):
+            table[name] = readers if group == "readers" else {c.strip() for c in group.split(",")}
+    flags = parser_flags()
+    assert len(flags) > 50
+    assert table == flags, sorted(set(table.items()) ^ set(flags.items()))
+
+
+def test_a_command_that_reads_a_file_takes_every_import_option(tmp_path, capsys):
+    """stiffness, extract, moduli and export (before: no --mu, --frame, ...) read with convert's options: the annulus
+    frame 2 at μ = 0.05 puts 3 contacts at yield, as `load` reads it."""
+    loaded = granstab.load(ANNULUS, frame=2, mu=0.05)
+    options = ["--frame", "2", "--mu", "0.05", "--contact-k", "3"]
+    assert main(["stiffness", str(ANNULUS), "--out", str(tmp_path / "k.npz"), *options]) == 0
+    K = granstab.stiffness(granstab.load(ANNULUS, frame=2, mu=0.05, k=3.0).scene)
+    assert np.array_equal(np.load(tmp_path / "k.npz")["H"], K.H) and loaded.report["contacts"]["sliding"] == 3
+    name = str(loaded.scene.names[0])
+    assert main(["extract", str(ANNULUS), "--center", name, "--out", str(tmp_path / "c.json"), *options]) == 0
+    sub = granstab.load_scene(tmp_path / "c.json")
+    assert np.allclose(sub.k, 3.0) and np.allclose(sub.mu, 0.05)
+    capsys.readouterr()
+    assert main(["export", str(ANNULUS), "--out", str(tmp_path / "x"), "--out-format", "xyz", *options]) == 0
+    assert "frame(s) as xyz" in capsys.readouterr().out
+    assert set(parser_flags()["--mu"]) == {"stiffness", "analyze", "moduli", "convert", "extract", "scan", "rigidity",
+                                           "track", "export"}
+
+
+def test_old_spellings_are_accepted_with_a_one_line_note(tmp_path, capsys):
+    """For one release: convert's --k is --contact-k, scan's --input-format is --format and its --format csv is
+    --out-format, export's --format xyz is --out-format and --scan DIR is --scan-dir; each says so in one line on
+    stderr and gives the new spelling's result."""
+    scene = str(PRESETS / "four_disk.toml")
+    assert main(["convert", str(ANNULUS), "--out", str(tmp_path / "old.json"), "--k", "7"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["granstab convert: --k is now --contact-k (the old spelling is accepted until the next release; "
+                   "docs/cli.md)"]
+    assert main(["convert", str(ANNULUS), "--out", str(tmp_path / "new.json"), "--contact-k=7"]) == 0
+    assert capsys.readouterr().err == ""
+    assert (tmp_path / "old.json").read_text() == (tmp_path / "new.json").read_text()
+    assert main(["scan", scene, "--out", str(tmp_path / "s"), "--workers", "1", "--input-format", "auto",
+                 "--format=csv"]) == 0
+    err = capsys.readouterr().err
+    assert "scan: --input-format is now --format" in err and "scan: --format csv is now --out-format" in err
+    assert (tmp_path / "s" / "clusters.csv").exists() and not (tmp_path / "s" / "clusters.parquet").exists()
+    assert main(["export", scene, "--out", str(tmp_path / "e"), "--format", "xyz", "--scan", str(tmp_path / "s")]) == 0
+    err = capsys.readouterr().err
+    assert "export: --format xyz is now --out-format" in err and "export: --scan is now --scan-dir" in err
+    assert list((tmp_path / "e").glob("*.xyz"))
+    assert main(["analyze", scene, "--k", "3", "--method", "sparse", "--json"]) == 0   # analyze's --k: eigenpairs
+    assert capsys.readouterr().err == ""
+
+
+def test_track_and_export_frames_name_the_same_frames(tmp_path, capsys):
+    """--frames has one meaning: the input's frames as --frame names them (the annulus: 1 and 2), A:B inclusive."""
+    assert main(["track", str(ANNULUS), "--out", str(tmp_path / "t"), "--frames", "2:2", "--workers", "1",
+                 "--no-figures", "--json"]) == 0
+    out = capsys.readouterr()
+    assert json.loads(out.out)["frames"] == 1 and "no longer 0-based positions" in out.err
+    import pyarrow.parquet as pq
+    assert pq.read_table(tmp_path / "t" / "frames.parquet").column("step").to_pylist() == [2.0]
+    assert main(["export", str(ANNULUS), "--out", str(tmp_path / "e"), "--out-format", "xyz", "--frames", "2:2"]) == 0
+    assert "wrote 1 frame(s)" in capsys.readouterr().out

@@ -164,7 +164,7 @@ def test_vtp_reads_back_identical_in_vtk(packing, tmp_path):
 
 def test_periodic_cell_is_an_outline_and_seam_contacts_stay_short(periodic, tmp_path):
     scene, root = periodic
-    assert main(["export", str(root / "jammed.npz"), "--out", str(tmp_path), "--format", "vtp"]) == 0
+    assert main(["export", str(root / "jammed.npz"), "--out", str(tmp_path), "--out-format", "vtp"]) == 0
     cell = read_vtp(tmp_path / "jammed.cell.vtp")
     corners = vtk_to_numpy(cell.GetPoints().GetData())[:, :2]
     a1, a2 = scene.cell
@@ -288,7 +288,7 @@ def test_lammps_read_dump_takes_the_periodic_box_and_positions(periodic, tmp_pat
 def test_a_sequence_is_a_pvd_collection_and_one_trajectory_file(tmp_path):
     annulus = "tests/data/io/annulus"
     for fmt in ("vtp", "xyz", "dump"):
-        assert main(["export", annulus, "--out", str(tmp_path / fmt), "--format", fmt, "--frames", "1:2"]) == 0
+        assert main(["export", annulus, "--out", str(tmp_path / fmt), "--out-format", fmt, "--frames", "1:2"]) == 0
     frames = [granstab.load(annulus, frame=f).scene for f in (1, 2)]
     sets = ElementTree.parse(tmp_path / "vtp" / "annulus.pvd").getroot().find("Collection")
     entries = [(float(e.get("timestep")), e.get("part"), e.get("file")) for e in sets]
@@ -314,7 +314,7 @@ def test_a_track_folder_gives_the_frames_and_its_particle_fields(tmp_path):
     rows = {"frame": [1] * len(names), "name": names, "x": np.zeros(len(names)), "d2min": d2min,
             "rattler": [False] * len(names)}
     pq.write_table(pa.table(rows), track / "particles.parquet")
-    assert main(["export", annulus, "--out", str(tmp_path / "out"), "--format", "xyz", "--track", str(track)]) == 0
+    assert main(["export", annulus, "--out", str(tmp_path / "out"), "--out-format", "xyz", "--track", str(track)]) == 0
     [atoms] = ase_io.read(tmp_path / "out" / "annulus.xyz", index=":", format="extxyz")
     expect = dict(zip(names, d2min))
     assert atoms.info["Time"] == 2 and same(atoms.arrays["d2min"], [expect[n] for n in frames[2].names])
@@ -351,7 +351,7 @@ def test_orientation_from_the_dump_in_every_format(tmp_path):
     assert same(loaded.orientation, quats[ids])            # the file's numbers, in the scene's order, not renormalised
     out = tmp_path / "out"
     for fmt in ("xyz", "dump", "vtp"):
-        assert main(["export", str(dumped), str(contacts), str(script), "--out", str(out), "--format", fmt]) == 0
+        assert main(["export", str(dumped), str(contacts), str(script), "--out", str(out), "--out-format", fmt]) == 0
     xyzw, positions = quats[ids][:, [1, 2, 3, 0]], loaded.scene.x
     for path in (out / "atoms.xyz", out / "atoms.atoms.dump"):       # OVITO keeps Orientation as float32
         ovito_matches(ovito_io.import_file(str(path)).compute(0), {"orientation": xyzw}, positions, typed=False)
@@ -368,7 +368,7 @@ def test_a_2d_angle_is_a_turn_about_e3(tmp_path):
     (tmp_path / "particles.csv").write_text("\n".join(rows) + "\n")
     shutil.copy(src / "contacts.csv", tmp_path / "contacts.csv")
     tables = [str(tmp_path / "particles.csv"), str(tmp_path / "contacts.csv")]
-    assert main(["export", *tables, "--out", str(tmp_path / "out"), "--format", "xyz"]) == 0
+    assert main(["export", *tables, "--out", str(tmp_path / "out"), "--out-format", "xyz"]) == 0
     xyzw = np.asarray(ovito_io.import_file(str(tmp_path / "out" / "particles.xyz")).compute(0).particles["Orientation"])
     turned = rotate(xyzw[:, [3, 0, 1, 2]].astype(float), np.array([1.0, 0.0, 0.0]))
     # OVITO's float32 quaternion: each component within 6e-8, the turned vector within a few of those
@@ -392,13 +392,13 @@ def test_bad_orientation_is_one_line(tmp_path, capsys, columns, values, says):
 
 
 @pytest.mark.parametrize("what, argv, says", [
-    ("lattice", ["--format", "stl"], "argument --format: invalid choice: 'stl'"),
+    ("lattice", ["--out-format", "stl"], "argument --out-format: invalid choice: 'stl'"),
     ("lattice", ["--modes", "500"], "--modes 500: more than the packing's 75 dofs"),
     # 48 dofs less 2 translations and 16 free spins (frictionless disks): at most 30 modes on its one branch
     ("jammed", ["--modes", "40"], "--modes 40: the packing has 30 distinct consistent non-rigid mode(s)"),
     ("lattice", ["--frames", "1:2"], "--frames: "),                         # a scene file holds one frame
     ("lattice", ["--modes", "1", "--timeout", "1e-6"], "stopped after --timeout 1e-06 s, unfinished; export without"),
-    ("lattice", ["--scan", "OTHER"], "--scan: the scan's packing (16 particles"),
+    ("lattice", ["--scan-dir", "OTHER"], "--scan-dir: the scan's packing (16 particles"),
 ])
 def test_bad_input_is_one_line(packing, periodic, tmp_path, capsys, what, argv, says):
     _, root, _ = packing

@@ -130,8 +130,8 @@ def check_commands(scene_path, tmp_path, capsys):
     for argv in (["analyze", str(scene_path), "--method", "sparse", "--k", "3"],
                  ["scan", str(scene_path), "--out", str(tmp_path / "scan")],
                  ["rigidity", str(scene_path), "--out", str(tmp_path / "rigid")],
-                 ["export", str(scene_path), "--scan", str(tmp_path / "scan"), "--out", str(tmp_path / "vtp")],
-                 ["export", str(scene_path), "--format", "xyz", "--out", str(tmp_path / "xyz")]):
+                 ["export", str(scene_path), "--scan-dir", str(tmp_path / "scan"), "--out", str(tmp_path / "vtp")],
+                 ["export", str(scene_path), "--out-format", "xyz", "--out", str(tmp_path / "xyz")]):
         rc = main(argv)
         out = capsys.readouterr()
         assert rc == 0, (argv, out.err[-2000:])

@@ -232,7 +232,7 @@ def test_rolling_resistance_becomes_contact_moments():
 
 def test_rolling_columns_need_every_component(tmp_path, capsys):
     rc = main(["convert", str(ROLLING[0]), str(ROLLING[1]), "--columns", COLUMNS + ",frx,fry,-",
-               "--k", "1", "--out", str(tmp_path / "x.json")])
+               "--contact-k", "1", "--out", str(tmp_path / "x.json")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err == (f"{ROLLING[1]}: timestep 14000: frz: no column (3D rolling resistance needs frx, "
                                "fry, frz)"), err

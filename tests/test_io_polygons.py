@@ -146,7 +146,7 @@ def check_polygons(folder, tmp_path, capsys):
     assert report["bodies"]["conforming_contacts"] == 0 and report["bodies"]["flat_sides_in_contact"] > 100
     for argv in (["analyze", str(out), "--method", "sparse", "--k", "3"], ["scan", str(out), "--out", str(tmp_path / "scan")],
                  ["rigidity", str(out), "--out", str(tmp_path / "rigid")],
-                 ["export", str(out), "--scan", str(tmp_path / "scan"), "--out", str(tmp_path / "vtp")]):
+                 ["export", str(out), "--scan-dir", str(tmp_path / "scan"), "--out", str(tmp_path / "vtp")]):
         assert main(argv) == 0, argv
         capsys.readouterr()
     assert json.loads((tmp_path / "scan" / "summary.json").read_text())["clusters"] == 64

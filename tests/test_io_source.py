@@ -78,7 +78,7 @@ def test_track_and_export_index_once(tmp_path, monkeypatch, capsys):
     assert main(["track", *map(str, paths), "--out", str(tmp_path / "t"), "--workers", "1", "--no-figures"]) == 0
     assert counts == {"passes": 2, "reads": 2 * 4}
     counts.update(passes=0, reads=0)
-    assert main(["export", *map(str, paths), "--out", str(tmp_path / "e"), "--format", "xyz",
+    assert main(["export", *map(str, paths), "--out", str(tmp_path / "e"), "--out-format", "xyz",
                  "--frames", "0:300"]) == 0
     assert counts == {"passes": 2, "reads": 2 * 4}
     capsys.readouterr()
@@ -104,7 +104,7 @@ def test_timesteps_in_one_dump_only_are_named_in_one_line(tmp_path, capsys):
     assert out.startswith("4 frames") and out.count("3 in atoms.dump only (400, 500, 600)") == 1
     summary = json.loads((tmp_path / "t" / "summary.json").read_text())
     assert any("atoms.dump only" in w for w in summary["import_warnings"])
-    assert main(["export", *map(str, paths), "--out", str(tmp_path / "e"), "--format", "xyz",
+    assert main(["export", *map(str, paths), "--out", str(tmp_path / "e"), "--out-format", "xyz",
                  "--frames", "0:300"]) == 0
     assert capsys.readouterr().out.count("3 in atoms.dump only") == 1
 

@@ -216,7 +216,7 @@ def test_ctrl_c_in_a_scan_says_what_was_kept_and_the_rerun_resumes_to_the_uninte
     and its tables equal those of a scan never interrupted (every column but the time taken)."""
     from granstab.scan import read_map, scan
     scene_file, out = packing_file(tmp_path, 200, 20), tmp_path / "scan"      # ~1.5 s of work at rest
-    proc = started("scan", scene_file, "--out", out, "--metric", "family", "--format", "csv")
+    proc = started("scan", scene_file, "--out", out, "--metric", "family", "--out-format", "csv")
     _, err = interrupt_when(proc, lambda: any((out / "parts").glob("*.arrow")) if (out / "parts").is_dir() else False)
     line = one_interrupt_line(err, "scan")
     assert proc.returncode == 130
@@ -224,7 +224,7 @@ def test_ctrl_c_in_a_scan_says_what_was_kept_and_the_rerun_resumes_to_the_uninte
     total = granstab.load_scene(scene_file).n_particles
     assert 0 < kept < total and f"of {total} clusters kept in {out}" in line and "resumes" in line
     assert kept == len(np.unique(np.concatenate([_centers(f) for f in (out / "parts").glob("*.arrow")])))
-    again = granstab_cli("scan", scene_file, "--out", out, "--metric", "family", "--format", "csv")
+    again = granstab_cli("scan", scene_file, "--out", out, "--metric", "family", "--out-format", "csv")
     assert again.returncode == 0 and again.stderr == ""
     assert f"(resumed: {kept} already in the folder, {total - kept} analysed now)" in again.stdout.splitlines()[0]
     scan(granstab.load_scene(scene_file), tmp_path / "whole", metric="family", fmt="csv", workers=1, figures=False)

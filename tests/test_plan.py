@@ -83,7 +83,7 @@ def test_the_refusal_text_comes_from_the_plan(tmp_path, capsys):
     assert main(["export", str(path), "--out", str(tmp_path / "x"), "--modes", "2"]) == 2
     err = capsys.readouterr().err
     assert "--sample-branches" in err
-    main(["export", str(path), "--out", str(tmp_path / "x"), "--modes", "2", "--sample-branches", "2", "--format",
+    main(["export", str(path), "--out", str(tmp_path / "x"), "--modes", "2", "--sample-branches", "2", "--out-format",
           "xyz"])                                           # the advice followed: export has the flag now, and
     assert "on its 4 branch(es)" in capsys.readouterr().err   # examines 2 + 2 branches (this packing: no mode)
 

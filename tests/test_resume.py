@@ -82,7 +82,7 @@ def test_scan_refuses_a_resume_on_a_changed_input(tmp_path, capsys):
     scene = lattice(2, size=4, kind="square", n_sliding=2, mu=0.5)
     path = granstab.save_scene(scene, tmp_path / "packing.json")
     out = tmp_path / "scan"
-    args = ["scan", str(path), "--out", str(out), "--workers", "1", "--format", "csv", "--centers", "every:4"]
+    args = ["scan", str(path), "--out", str(out), "--workers", "1", "--out-format", "csv", "--centers", "every:4"]
     assert main(args) == 0
     capsys.readouterr()
     data = json.loads(path.read_text())

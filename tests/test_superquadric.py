@@ -195,7 +195,7 @@ def test_convert_extract_analyze_scan_export(tmp_path):
     assert main(["scan", str(scene_path), "--out", str(tmp_path / "scan"), "--centers", "every:25"]) == 0
     out = tmp_path / "out"
     for fmt in ("xyz", "dump", "vtp"):
-        assert main(["export", *map(str, FILES), "--out", str(out), "--format", fmt]) == 0
+        assert main(["export", *map(str, FILES), "--out", str(out), "--out-format", fmt]) == 0
     check_export(out, loaded)
 
 

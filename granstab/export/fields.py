@@ -118,13 +118,13 @@ def matching_packing(scene: Scene, packing: Scene, folder) -> None:
     if packing.names != scene.names:
         n, m = packing.n_particles, scene.n_particles
         where = next((i for i, (a, b) in enumerate(zip(packing.names, scene.names)) if a != b), min(n, m))
-        raise SceneError(f"{folder}: --scan: the scan's packing ({n} particles, from {packing.source}) is not "
+        raise SceneError(f"{folder}: --scan-dir: the scan's packing ({n} particles, from {packing.source}) is not "
                          f"{scene.source} ({m} particles): the names differ at particle #{where}")
     extent = float(np.ptp(scene.x, axis=0).max()) if scene.n_particles > 1 else 1.0
     moved = np.linalg.norm(packing.x - scene.x, axis=1)
     if np.any(moved > 1e-9 * max(extent, 1e-300)):
         i = int(np.argmax(moved))
-        raise SceneError(f"{folder}: --scan: particle {scene.names[i]}: x: the scan's packing has it "
+        raise SceneError(f"{folder}: --scan-dir: particle {scene.names[i]}: x: the scan's packing has it "
                          f"{moved[i]:.3g} away from {scene.source}'s position (another frame?)")
 
 
