@@ -13,7 +13,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 MAX_TOP_MODULES = 10        # modules directly in granstab/: the facade, the CLI, the pipeline; the rest lives in rooms
-MAX_FUNCTION_LINES = 100    # a function longer than this does more than one thing
+MAX_FUNCTION_LINES = 100    # a function longer than this does more than one thing (benchmarks, tests)
+#: the core and the explorer (granstab/, app/): a function, a class and a module longer than this do more than one job
+CORE_LIMITS = {"function": 80, "class": 300, "module": 600}
 MAX_TRACKED_BYTES = 2**20   # a larger tracked file is data or a build artefact (figures and test data stay below)
 MAX_PAGE_BYTES = 5 * 2**20  # a published teaching page (examples/pages/*.html: viser's client + a recording), issue 29
 PAGES = Path("examples") / "pages"
@@ -49,6 +51,40 @@ def test_the_length_check_sees_a_long_function(tmp_path):
         body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES - 2 + extra))
         path.write_text(f"def f():\n    \"\"\"Doc.\"\"\"\n{body}\n", encoding="utf-8")
         assert len(long_functions([path])) == found
+
+
+def oversized(paths, limits=CORE_LIMITS) -> list[str]:
+    """`file:line kind name (n lines)` for every module, class, function or method longer than its limit."""
+    out = []
+    for path in paths:
+        text = path.read_text(encoding="utf-8")
+        if len(text.splitlines()) > limits["module"]:
+            out.append(f"{path} module ({len(text.splitlines())} lines)")
+        for node in ast.walk(ast.parse(text)):
+            kind = ("function" if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) else
+                    "class" if isinstance(node, ast.ClassDef) else None)
+            n = kind and node.end_lineno - node.lineno + 1
+            if kind and n > limits[kind]:
+                out.append(f"{path}:{node.lineno} {kind} {node.name} ({n} lines)")
+    return out
+
+
+def test_no_module_function_or_class_over_the_limits_in_the_core_and_the_explorer():
+    sources = [p for d in ("granstab", "app") for p in sorted((ROOT / d).rglob("*.py"))]
+    assert len(sources) > 100
+    assert not oversized(sources)
+
+
+def test_the_size_check_sees_a_long_module_class_and_function(tmp_path):
+    path = tmp_path / "big.py"
+    limits = {"function": 4, "class": 6, "module": 9}
+    path.write_text("class A:\n    def f(self):\n        a = 1\n        b = 2\n        return a + b\n", encoding="utf-8")
+    assert oversized([path], limits) == []                               # 5 lines: every limit kept
+    path.write_text("class A:\n    def f(self):\n        a = 1\n        b = 2\n        c = 3\n        return a\n"
+                    "\n    x = 1\n", encoding="utf-8")
+    assert [line.split(" ", 1)[1] for line in oversized([path], limits)] == ["class A (8 lines)", "function f (5 lines)"]
+    path.write_text("x = 1\n" * 10, encoding="utf-8")
+    assert oversized([path], limits) == [f"{path} module (10 lines)"]
 
 
 def tracked_files() -> list[str]:

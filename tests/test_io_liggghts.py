@@ -93,7 +93,7 @@ def test_liggghts_fixture_converts_with_sliding_contacts(tmp_path, capsys):
     ("id force history delta contactPoint", "id1 id2 - fx fy fz - - - - - - -"),  # after history: ignored
 ])
 def test_pair_gran_local_columns_follow_liggghts_order(compute, columns):
-    from granstab.io.lammps import compute_columns
+    from granstab.io.lammps_script import compute_columns
     width = len(columns.split())
     names = compute_columns({"cpg": ("pair/gran/local", compute.split())}, "gran")
     got = [names.get(f"c_cpg[{k}]", names.get("c_cpg[*]")) for k in range(1, width + 1)]

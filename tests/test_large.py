@@ -14,7 +14,7 @@ from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from granstab.mechanics.stiffness import contact_blocks
 from granstab.model import packings
 from granstab.model.tolerances import DEFAULT
-from granstab.solve import sparse
+from granstab.solve import krylov, sparse
 
 
 def bound(spb) -> float:
@@ -319,7 +319,7 @@ def test_extend_orthonormal_in_one_pass_or_two():
     outside = rng.standard_normal((n, 6))
     for B in (outside, X @ rng.standard_normal((m, 6)) + 1e-6 * outside,
               np.concatenate([outside, outside[:, :1] + X[:, :1]], axis=1)):
-        Q = sparse.extend(X, B)
+        Q = krylov.extend(X, B)
         tol = 15 * np.sqrt(m + Q.shape[1]) * np.finfo(float).eps
         assert Q.shape[1] == 6
         assert np.abs(X.T @ Q).max() <= tol

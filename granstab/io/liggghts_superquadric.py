@@ -34,15 +34,8 @@ from ..model.errors import SceneError
 from ..model.vec import quaternion_matrix
 from .build import Snapshot, branch_vectors
 from .columns import particle_orientation, to_indices, unique_ids
-from .lammps import (
-    Block,
-    compute_columns,
-    contact_law,
-    has_shape_columns,
-    index_lammps,
-    lattice_of,
-    liggghts_property,
-)
+from .lammps import Block, has_shape_columns, index_lammps, lattice_of
+from .lammps_script import compute_columns, contact_law, liggghts_property
 from .lines import read_window
 from .registry import Format, register
 

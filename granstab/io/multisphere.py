@@ -23,16 +23,8 @@ from ..model.errors import SceneError
 from .bodies import inertia_tensor, rotation
 from .clumps import clump_snapshot
 from .columns import to_indices, unique_ids
-from .lammps import (
-    _script_says,
-    compute_columns,
-    contact_law,
-    index_dump,
-    is_dump,
-    lattice_of,
-    multisphere_script,
-    read_script,
-)
+from .lammps import _script_says, index_dump, is_dump, lattice_of, multisphere_script
+from .lammps_script import compute_columns, contact_law, read_script
 from .lines import read_window
 from .registry import Format, register
 

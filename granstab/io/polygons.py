@@ -32,7 +32,8 @@ from ..model.errors import SceneError
 from .bodies import body_snapshot
 from .build import Snapshot
 from .columns import to_indices, unique_ids
-from .lammps import body_script, index_dump, is_dump, lattice_of, read_script
+from .lammps import body_script, index_dump, is_dump, lattice_of
+from .lammps_script import read_script
 from .lines import read_window
 from .registry import Format, register
 

@@ -36,32 +36,13 @@ def run(out: Path, tick, say) -> dict:
     samples = two_particle.sample_table()
     tick()
     general = two_particle.general_case_check()
-    presets = {name: two_particle.core_modes(1.0, rho, 0.01) for name, rho in
-               (("two_particle.toml", 0.5), ("two_particle_flat.toml", 2.0), ("two_disks.toml", 1.0))}
-    glove = _hand_in_glove()
+    presets, glove = _presets(), _hand_in_glove()
     say(f"two-particle: λ6 field {grid['lam6'].size} points, |granstab - closed| / ‖𝓗‖ ≤ "
         f"{max(grid['error_lam5'], grid['error_lam6']):.1e} (paper matrices "
         f"{max(field['error_lam5'], field['error_lam6']):.1e}); analyze on {core['lam6'].size} points ≤ "
         f"{max(core['error_lam5'], core['error_lam6']):.1e}")
 
-    # data
-    files = []
-    for name in ("lam6", "lam5"):
-        rows = [[f] + list(grid[name][i]) for i, f in enumerate(grid["f_over_kr"])]
-        files.append(write_csv(out / f"two_particle_{name}_grid.csv",
-                                ["f_over_kr \\ rho_over_r"] + [f"{r:.6g}" for r in grid["rho_over_r"]], rows))
-    rows = []
-    for s in samples:
-        rows.append([s["rho_over_r"], s["f_over_kr"], *s["core_sorted"], *s["core_modes"], s["closed"][4],
-                     s["closed"][5], s["n_zero"], s["verdict"]])
-    files.append(write_csv(out / "two_particle_samples.csv",
-                            ["rho_over_r", "f_over_kr", "eig1", "eig2", "eig3", "eig4", "eig5", "eig6", "lambda4",
-                             "lambda5", "lambda6", "lambda5_closed", "lambda6_closed", "n_zero", "verdict"], rows))
-    np.savez(out / "two_particle.npz", **{k: v for k, v in grid.items() if isinstance(v, np.ndarray)},
-             paper_lam4=field["lam4_stacked"], paper_lam5=field["lam5_stacked"], paper_lam6=field["lam6_stacked"],
-             closed_lam5=field["lam5"], closed_lam6=field["lam6"],
-             analyze_lam6=core["lam6"], analyze_lam5=core["lam5"], analyze_rho=core["rho_over_r"],
-             analyze_f=core["f_over_kr"])
+    files = _write_data(out, grid, samples, field, core)   # data
     files += figure_lambda6(grid, out)
 
     # claims
@@ -125,6 +106,34 @@ def run(out: Path, tick, say) -> dict:
     ]
     return {"field": field, "grid": grid, "core": core, "samples": samples, "presets": presets, "glove": glove,
             "claims": claims, "files": files}
+
+
+def _write_data(out: Path, grid: dict, samples: list, field: dict, core: dict) -> list:
+    """The λ⁽⁵⁾, λ⁽⁶⁾ grids and the sample table as CSV, every field in one NPZ; the files written."""
+    files = []
+    for name in ("lam6", "lam5"):
+        rows = [[f] + list(grid[name][i]) for i, f in enumerate(grid["f_over_kr"])]
+        files.append(write_csv(out / f"two_particle_{name}_grid.csv",
+                                ["f_over_kr \\ rho_over_r"] + [f"{r:.6g}" for r in grid["rho_over_r"]], rows))
+    rows = []
+    for s in samples:
+        rows.append([s["rho_over_r"], s["f_over_kr"], *s["core_sorted"], *s["core_modes"], s["closed"][4],
+                     s["closed"][5], s["n_zero"], s["verdict"]])
+    files.append(write_csv(out / "two_particle_samples.csv",
+                            ["rho_over_r", "f_over_kr", "eig1", "eig2", "eig3", "eig4", "eig5", "eig6", "lambda4",
+                             "lambda5", "lambda6", "lambda5_closed", "lambda6_closed", "n_zero", "verdict"], rows))
+    np.savez(out / "two_particle.npz", **{k: v for k, v in grid.items() if isinstance(v, np.ndarray)},
+             paper_lam4=field["lam4_stacked"], paper_lam5=field["lam5_stacked"], paper_lam6=field["lam6_stacked"],
+             closed_lam5=field["lam5"], closed_lam6=field["lam6"],
+             analyze_lam6=core["lam6"], analyze_lam5=core["lam5"], analyze_rho=core["rho_over_r"],
+             analyze_f=core["f_over_kr"])
+    return files
+
+
+def _presets() -> dict:
+    """The core's modes of the three two-particle presets."""
+    return {name: two_particle.core_modes(1.0, rho, 0.01) for name, rho in
+            (("two_particle.toml", 0.5), ("two_particle_flat.toml", 2.0), ("two_disks.toml", 1.0))}
 
 
 def _hand_in_glove() -> dict:

@@ -124,21 +124,27 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     with Heartbeat(f"track {out_dir}", enabled=not progress) as beat:      # a line a minute without a bar
         beat.stage("frames", total=len(todo))
         bar = (_progress(len(todo), "frame") if progress else None) or beat
-        try:
-            try:
-                ran = run_frames(spec, todo, keys, workers, bar)
-            finally:
-                bar.close()
-        except KeyboardInterrupt:
-            kept = sum((out / "parts" / f"frame-{k:06d}.json").exists() for k in positions)
-            raise Interrupted(f"granstab track: interrupted (Ctrl-C): {kept} of {len(positions)} frames kept in "
-                              f"{out_dir}; the same command (the same --out and options) resumes from "
-                              "there") from None
+        ran = _frames_kept(spec, todo, positions, keys, workers, bar, out_dir)
         beat.stage("between frames: D²min, contacts, events")
         summary = finish(out, positions, keys, stated, {"resumed": len(positions) - len(todo),
                                                         "frames_this_run": len(todo), "workers": ran,
                                                         "started": begun})
     return _after(out, summary, predict, figures)
+
+
+def _frames_kept(spec: dict, todo: list, positions: list, keys: list, workers, bar, out_dir) -> dict:
+    """run_frames; Ctrl-C: one line saying how many frames the folder keeps and how to go on."""
+    out = Path(out_dir)
+    try:
+        try:
+            return run_frames(spec, todo, keys, workers, bar)
+        finally:
+            bar.close()
+    except KeyboardInterrupt:
+        kept = sum((out / "parts" / f"frame-{k:06d}.json").exists() for k in positions)
+        raise Interrupted(f"granstab track: interrupted (Ctrl-C): {kept} of {len(positions)} frames kept in "
+                          f"{out_dir}; the same command (the same --out and options) resumes from "
+                          "there") from None
 
 
 def _open(out: Path, stated: dict, inputs: list, overwrite: bool) -> None:
