@@ -1,7 +1,7 @@
 """`granstab reproduce`: regenerate REPRODUCTION.md, the data and the figures, and compare with the committed ones.
 
-The committed outputs live in docs/reproduction/ (figures, CSV data, REPRODUCTION.md) and REPRODUCTION.md at the
-repository root (links into docs/reproduction/). Numbers are compared with tolerances relative to each column's
+The committed outputs live in docs/reproduction/ (figures, CSV data) and REPRODUCTION.md at the repository root
+(links into docs/reproduction/), the one copy. Numbers are compared with tolerances relative to each column's
 scale (rtol 1e-9, atol 1e-12 of the column's largest magnitude): round-off can differ between BLAS builds, the
 physics cannot. In REPRODUCTION.md the round-off bounds ("< 1e-15") are masked before the texts are compared.
 """
@@ -76,9 +76,13 @@ def _masked(text: str) -> str:
 
 
 def test_committed_report_is_what_the_code_writes(regenerated):
-    for committed, fresh in ((COMMITTED / "REPRODUCTION.md", regenerated["out"] / "REPRODUCTION.md"),
-                             (ROOT / "REPRODUCTION.md", regenerated["root"] / "REPRODUCTION.md")):
-        assert _masked(committed.read_text(encoding="utf-8")) == _masked(fresh.read_text(encoding="utf-8"))
+    """One REPRODUCTION.md, at the root (issue 40: no second copy in docs/reproduction/, in the repository or
+    written by `reproduce all --root`)."""
+    committed, fresh = ROOT / "REPRODUCTION.md", regenerated["root"] / "REPRODUCTION.md"
+    assert _masked(committed.read_text(encoding="utf-8")) == _masked(fresh.read_text(encoding="utf-8"))
+    assert not (COMMITTED / "REPRODUCTION.md").exists() and not (regenerated["out"] / "REPRODUCTION.md").exists()
+    assert sorted(p.relative_to(ROOT).as_posix() for p in ROOT.rglob("REPRODUCTION.md")
+                  if not {".venv", "node_modules", ".git"} & set(p.parts)) == ["REPRODUCTION.md"]
 
 
 def test_report_links_and_figures_exist(regenerated):
