@@ -241,7 +241,7 @@ def cmd_rigidity(args) -> int:
     from .rigidity import rigidity
     with strict_numerics(str(args.input[0])):
         loaded = load_with_import_options(args.input, args)
-        result = rigidity(loaded.scene, model=args.model, walls=args.walls, wall_flags=loaded.wall_flags)
+        result = rigidity(loaded.scene, model=args.kind, walls=args.walls, wall_flags=loaded.wall_flags)
         result["import"] = loaded.report
         require_finite({k: v for k, v in result.items() if k != "import"}, loaded.scene.source)
     if args.figure:

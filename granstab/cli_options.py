@@ -334,8 +334,8 @@ def add_rigidity(sub) -> None:
     from .rigidity import MODELS, WALL_OPTIONS
     p = sub.add_parser("rigidity", help="rigid clusters, floppy modes, self-stresses and Maxwell counts")
     p.add_argument("input", nargs="+", help="any scene or snapshot that analyze reads (a folder or files)")
-    p.add_argument("--model", choices=list(MODELS), default="physical",
-                   help="physical: rank and null space of the compatibility matrix (default); generic: the pebble "
+    p.add_argument("--kind", choices=list(MODELS), default="physical",
+                   help="which rigidity: physical: rank and null space of the compatibility matrix (default); generic: the pebble "
                         "game; both: side by side with the contacts where they differ")
     p.add_argument("--walls", choices=list(WALL_OPTIONS), default="free",
                    help="free: wall forces are loads (default); bodies: each annulus wall one body (RigidLibrary)")
@@ -424,6 +424,7 @@ DEPRECATED = {   # the old spellings, accepted until the next release: (commands
     "scan_format": (("scan",), "--format", ("parquet", "csv"), "--out-format"),
     "export_format": (("export",), "--format", ("vtp", "xyz", "dump"), "--out-format"),
     "export_scan": (("export",), "--scan", None, "--scan-dir"),
+    "rigidity_model": (("rigidity",), "--model", None, "--kind"),
 }
 
 

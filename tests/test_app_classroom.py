@@ -115,7 +115,7 @@ def test_the_spectrum_legend_has_the_colour_of_its_points():
 
 
 def test_preset_titles_write_greek_letters():
-    from granstab_app.models import load_model
+    from granstab_app.scenes import load_model
     for path in sorted((REPO / "presets").glob("*.toml")):
         title = load_model(path).build(load_model(path).initial_params()).title
         assert not any(word in title for word in ("rho", "alpha", "beta", "mu =", "^2")), (path.name, title)

@@ -17,8 +17,8 @@ import pytest
 from helpers import FLAT_PAIR
 
 from granstab_app.field import lambda6_field
-from granstab_app.models import ContactModel, ShapeModel, TwoParticleModel, load_model
 from granstab_app.modes import label_mode
+from granstab_app.scenes import ContactModel, ShapeModel, TwoParticleModel, load_model
 from granstab_app.state import Session
 
 REPO = Path(__file__).resolve().parent.parent
@@ -538,7 +538,7 @@ def test_a_periodic_packing_is_drawn_with_its_cell_outline(tmp_path):
     from test_io_periodic import lattice_dumps
 
     from granstab.io import load
-    from granstab_app.models import cell_edges, periodic_images
+    from granstab_app.scenes import cell_edges, periodic_images
     from granstab_app.views import SceneView
     paths, _, cell = lattice_dumps(tmp_path, gamma=0.1)
     scene = load(paths, columns="id1,id2,fx,fy,fz").scene
@@ -578,7 +578,7 @@ def test_periodic_images_sit_across_the_faces_and_move_with_their_particles(tmp_
     mode, every ghost moves by its particle's displacement (a periodic mode moves every copy alike)."""
     import granstab
     from granstab.model import packings
-    from granstab_app.models import cell_edges, ghost_positions, periodic_images
+    from granstab_app.scenes import cell_edges, ghost_positions, periodic_images
     scene = packings.jammed(2, 64, shear=0.5, seed=3)
     reach = 1.0                                                  # the small disks' diameter
     index, shift = periodic_images(scene, reach)

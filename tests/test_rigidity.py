@@ -15,7 +15,7 @@ from granstab.model import packings
 from granstab.model.packings import random_packing
 from granstab.model.scene import build_scene
 from granstab.rigidity import largest_cluster, largest_rigid_cluster, partition, rigidity
-from granstab.rigidity.frame import Frame, from_scene
+from granstab.rigidity.bodybar import BodyBar, from_scene
 from granstab.rigidity.pebble import pebble_game
 from granstab.rigidity.physical import physical
 
@@ -43,7 +43,7 @@ def disks(x, pairs, sliding=(), radius=1.0, mu=0.5):
     return build_scene(2, [str(i) for i in range(len(x))], x, arrays)
 
 
-def null_space(frame: Frame, length: float = 1.0) -> np.ndarray:
+def null_space(frame: BodyBar, length: float = 1.0) -> np.ndarray:
     """All null vectors of the physical model as one (n, f) matrix."""
     ph = physical(frame, length)
     N = np.zeros((frame.n_bodies * frame.per, ph.nullity))
@@ -91,14 +91,14 @@ def test_square_of_four_sliding_disks_has_its_shear_mode_and_free_spins():
     assert in_span(N, stretch.ravel()) > 0.1
 
 
-def chain_with_wall() -> Frame:
+def chain_with_wall() -> BodyBar:
     """Two unit disks A (x = -1) and B (x = +1) between the two faces of one wall body W (reference point 0):
     contacts W-A at x = -2, A-B at 0, B-W at +2, all sticking and all on the x axis."""
     x = np.array([[0.0, 0.0], [-1.0, 0.0], [1.0, 0.0]])          # W, A, B
     p, q = np.array([0, 1, 2]), np.array([1, 2, 0])
     point = np.array([[-2.0, 0.0], [0.0, 0.0], [2.0, 0.0]])
     normal = np.tile([1.0, 0.0], (3, 1))
-    return Frame(dim=2, names=("W", "A", "B"), x=x, p=p, q=q, r_pq=point - x[p], r_qp=point - x[q],
+    return BodyBar(dim=2, names=("W", "A", "B"), x=x, p=p, q=q, r_pq=point - x[p], r_qp=point - x[q],
                  branch=x[q] - x[p], normal=normal, sliding=np.zeros(3, bool), rolling=np.zeros(3, bool),
                  periodic=False, n_particles=3, n_contacts=3)
 
@@ -220,7 +220,7 @@ def test_cli_json_contract_and_walls_error(tmp_path, capsys):
     from granstab.io.scenes import save_scene
     path = tmp_path / "tri.npz"
     save_scene(s, path)
-    assert main(["rigidity", str(path), "--json", "--model", "both", "--figure", str(tmp_path / "f.png")]) == 0
+    assert main(["rigidity", str(path), "--json", "--kind", "both", "--figure", str(tmp_path / "f.png")]) == 0
     out = json.loads(capsys.readouterr().out)
     for model in ("physical", "generic"):
         assert {"contacts", "clusters", "floppy_modes", "trivial_modes", "rattlers", "self_stresses",
@@ -232,7 +232,7 @@ def test_cli_json_contract_and_walls_error(tmp_path, capsys):
     assert "--walls bodies" in err and len(err.strip().splitlines()) == 1
 
 
-def spin_residual(frame: Frame, body: int, length: float) -> float:
+def spin_residual(frame: BodyBar, body: int, length: float) -> float:
     """|C e| / σ̄ for e the unit spin (L dθ) of one body: how much its contacts resist it turning in place."""
     from granstab.mechanics.compatibility import compatibility_matrix
     from granstab.rigidity.physical import norm_bound

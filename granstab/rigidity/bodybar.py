@@ -23,7 +23,7 @@ WALL_OPTIONS = ("free", "bodies")
 
 
 @dataclass(frozen=True, eq=False)
-class Frame:
+class BodyBar:
     """Bodies (N_b, the scene's N first) and contacts (M_b, the scene's M first) of a rigidity analysis.
 
     r_pq, r_qp: contact point minus each body's reference point (q's periodic copy for r_qp); branch: q's copy
@@ -62,7 +62,7 @@ class Frame:
         return np.where(self.sliding, 1, self.dim) + np.where(self.rolling, r, 0)
 
 
-def from_scene(scene: Scene, walls: str = "free", wall_flags=None) -> Frame:
+def from_scene(scene: Scene, walls: str = "free", wall_flags=None) -> BodyBar:
     """The frame of a scene; walls "bodies" needs `wall_flags` (N,), nonzero for particles at a wall."""
     if walls not in WALL_OPTIONS:
         raise SceneError(f"--walls: must be one of {', '.join(WALL_OPTIONS)}, got {walls!r}")
@@ -71,7 +71,7 @@ def from_scene(scene: Scene, walls: str = "free", wall_flags=None) -> Frame:
                 r_qp=scene.r_qp, branch=scene.branch, normal=scene.normal, sliding=scene.at_yield() | (scene.mu == 0), rolling=rolling,
                 periodic=scene.periodic, n_particles=scene.n_particles, n_contacts=scene.n_contacts)
     if walls == "free":
-        return Frame(**base)
+        return BodyBar(**base)
     if scene.dim != 2 or scene.periodic or wall_flags is None or not np.any(wall_flags):
         raise SceneError(f"{scene.source}: --walls bodies: needs a 2D annulus frame whose particles are flagged at "
                          "its walls (RigidLibrary's particle_positions.txt edge column); this input has none")
@@ -85,7 +85,7 @@ def circle_fit(points: np.ndarray) -> np.ndarray:
     return sol[:2]
 
 
-def _with_walls(scene: Scene, base: dict, flags: np.ndarray) -> Frame:
+def _with_walls(scene: Scene, base: dict, flags: np.ndarray) -> BodyBar:
     N = scene.n_particles
     flagged = np.flatnonzero(flags != 0)
     centre = circle_fit(scene.x[flagged])
@@ -107,7 +107,7 @@ def _with_walls(scene: Scene, base: dict, flags: np.ndarray) -> Frame:
              "outer_radius": float(np.mean(dist[flags[flagged] > 0])) if np.any(flags > 0) else None,
              "contacts": k + 1, "convention": "RigidLibrary AddBoundaryContacts: flagged particles stick to their "
                                               "wall, the walls share one sliding contact"}
-    return Frame(dim=2, names=tuple(scene.names) + WALL_NAMES, x=x, p=p, q=q, r_pq=r_pq, r_qp=r_qp,
+    return BodyBar(dim=2, names=tuple(scene.names) + WALL_NAMES, x=x, p=p, q=q, r_pq=r_pq, r_qp=r_qp,
                  branch=x[q] - x[p], normal=normal, sliding=np.r_[base["sliding"], np.zeros(k, bool), True],
                  rolling=np.r_[base["rolling"], np.zeros(k + 1, bool)], periodic=False, n_particles=N,
                  n_contacts=scene.n_contacts, walls=walls)
