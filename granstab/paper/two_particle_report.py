@@ -67,12 +67,10 @@ def run(out: Path, tick, say) -> dict:
               f"max |H - Hᵀ|/‖𝓗‖ over the grid {bound(grid['asymmetry'])} (granstab), "
               f"{bound(field['max_asymmetry'])} (eq:exampleH2)", "reproduced"),
         claim("4.1-c", "Sec. 4.1, obs. 1", "three zero eigenvalues (two translations, one rotation)", "3",
-              f"3 off the lines ρ = r and f = 0 (sample table); rigid leakage of 𝓗 {bound(field['max_rigid_leakage'])}",
-              "reproduced"),
+              f"3 off the lines ρ = r and f = 0 (sample table); rigid leakage of 𝓗 {bound(field['max_rigid_leakage'])}"),
         claim("4.1-d", "Sec. 4.1, obs. 2", "λ⁽⁴⁾ = 2k, ν⁽⁴⁾ = [1, 0, 0, -1, 0, 0]/√2", "2k",
               f"2k on the whole grid: error {bound(grid['error_lam4'])} ‖𝓗‖ (granstab's H), "
-              f"{bound(field['error_lam4'])} (paper's matrix), {bound(core['error_lam4'])} (analyze, coarse grid)",
-              "reproduced"),
+              f"{bound(field['error_lam4'])} (paper's matrix), {bound(core['error_lam4'])} (analyze, coarse grid)"),
         claim("4.1-e", "Sec. 4.1, obs. 3", "a positive shearing eigenvalue λ⁽⁵⁾", "positive (no formula)",
               "λ⁽⁵⁾ = 2αk(1+r²) - f[(1+r²)² - rρ(2+r²)]/(ρ(1+r²)); min over the grid "
               f"{g(lam5_min, 4)} k > 0; closed form = granstab within {bound(grid['error_lam5'])} ‖𝓗‖ "
@@ -97,12 +95,10 @@ def run(out: Path, tick, say) -> dict:
               "reproduced" if neutral_on_lines else "DIFFERS"),
         claim("4.1-i", "Sec. 4.1", "two circular disks pressed together: neutral equilibrium and stability",
               "λ⁽⁶⁾ = 0", f"two_disks.toml: |λ⁽⁶⁾| {bound(abs(presets['two_disks.toml']['lam6']))} k, "
-              f"{presets['two_disks.toml']['n_zero']} zeros, verdict {presets['two_disks.toml']['verdict']}",
-              "reproduced"),
+              f"{presets['two_disks.toml']['n_zero']} zeros, verdict {presets['two_disks.toml']['verdict']}"),
         claim("4.1-j", "Sec. 4.1", "hand in glove (ρ^p ≈ -ρ^q): the geometric stiffness dominates",
               "f/(ρ^p+ρ^q) large", f"hand_in_glove.toml (ρ^p = 1, ρ^q = -1.002, f/(kr) = 0.01): ‖Hg‖₂/‖Hm‖₂ = "
-              f"{g(glove['ratio'], 3)}; eigenvalues {', '.join(g(v, 4) for v in glove['eig'])}; {glove['verdict']}",
-              "reproduced"),
+              f"{g(glove['ratio'], 3)}; eigenvalues {', '.join(g(v, 4) for v in glove['eig'])}; {glove['verdict']}"),
     ]
     return {"field": field, "grid": grid, "core": core, "samples": samples, "presets": presets, "glove": glove,
             "claims": claims, "files": files}
