@@ -132,3 +132,5 @@ def test_the_wheel_claims_no_generic_top_level_names(tmp_path):
     assert tops == {"granstab", "granstab_app", "granstab_bench"}, tops
     assert "granstab-app = granstab_app.server:main" in entry_points
     assert "granstab = granstab.cli:main" in entry_points
+    assert "[granstab.commands]" in entry_points                 # publish and bench: the core imports neither
+    assert "bench = granstab_bench.command:add" in entry_points and "publish = granstab_app.command:add" in entry_points
