@@ -63,7 +63,7 @@ def micrometres(scene, factor: float = 1e4):
 
 def cases(quick: bool = False) -> list:
     """(name, scene, analyze options) of every path (module docstring); quick: small ones, a few seconds in all
-    (tests/test_plan.py checks them as a ratio)."""
+    (tests/solve/test_plan.py checks them as a ratio)."""
     annulus = ("annulus frame in µm, family (full path)",
                micrometres(granstab.load_scene(ROOT / "presets" / "annulus_frame.json")), {})
     if quick:
@@ -195,7 +195,7 @@ def markdown(results: dict) -> str:
              "is refused without --timeout). The cases rebuild the issue's: its measured/estimated were 23 (3D "
              "cluster, 8,192 branches, killed), 8.3 (400 disks, 672 contacts, floppy), 34 (1,400 disks, 8 sampled "
              "branches) and 2.4 at rest, 62 at load 4 (the annulus frame in µm). benchmarks/estimates.py; "
-             "tests/test_plan.py checks smaller cases as a ratio.", "", "At rest (whatever else ran on the "
+             "tests/solve/test_plan.py checks smaller cases as a ratio.", "", "At rest (whatever else ran on the "
              "machine: the load is in the header):", "", table(head, [_row(n, g) for n, g in results["rest"].items()])]
     if results.get("busy"):
         lines += ["", "Beside two busy processes, the cases that took at most 30 s at rest (the estimate follows the "
