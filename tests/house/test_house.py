@@ -87,6 +87,16 @@ def test_the_size_check_sees_a_long_module_class_and_function(tmp_path):
     assert oversized([path], limits) == [f"{path} module (10 lines)"]
 
 
+def test_tests_live_in_folders_per_room():
+    """tests/<room>/test_*.py, a folder a room of docs/design.md (and the explorer, the benchmarks, the house);
+    tests/ itself holds only the shared helpers, conftest.py and the data."""
+    tests = ROOT / "tests"
+    assert not sorted(p.name for p in tests.glob("test_*.py"))
+    rooms = {p.parent.name for p in tests.glob("*/test_*.py")}
+    assert rooms == {"model", "io", "mechanics", "solve", "analysis", "scan", "rigidity", "track", "export", "paper",
+                     "cli", "app", "bench", "house"}, rooms
+
+
 def tracked_files() -> list[str]:
     proc = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=False)
     if proc.returncode:
