@@ -3,7 +3,7 @@ the λ⁽⁶⁾ field and the eigenmodes change live.
 
 Modules, one job each:
   params.py   the sliders' quantities (ranges, steps, labels) — plain data
-  models.py   scene models: the slider-driven two-particle pair, shape-based clusters, fixed contact-level scenes
+  scenes.py   scene models: the slider-driven two-particle pair, shape-based clusters, fixed contact-level scenes
   modes.py    labels (rigid, rolling, gear, shearing, sliding, indentation) and animation poses of eigenmodes
   field.py    the λ⁽⁶⁾ field of the symmetric pair over (ρ/r, f/(kr)), and its PNG
   scanmap.py  a scan folder: the packing coloured by its map, the cluster of a clicked particle

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from .meshes import digest, to3
-from .models import cell_edges, ghost_positions, periodic_images
+from .scenes import cell_edges, ghost_positions, periodic_images
 
 CELL = (90, 90, 90)                     # a periodic scene's cell outline
 GHOST = (200, 215, 235)                 # periodic images of the particles near the cell's faces (lighter)
@@ -15,8 +15,8 @@ GHOST = (200, 215, 235)                 # periodic images of the particles near 
 
 class OverlayView:
     def draw_cell(self, session) -> None:
-        """The outline of a periodic scene's cell (models.cell_edges; a periodic track's frame too) and, off a map, the
-        periodic images of the particles within one mean diameter of a face (models.periodic_images), re-sent only
+        """The outline of a periodic scene's cell (scenes.cell_edges; a periodic track's frame too) and, off a map, the
+        periodic images of the particles within one mean diameter of a face (scenes.periodic_images), re-sent only
         when they change."""
         scene = session.scene
         edges = None if scene is None else cell_edges(scene)

@@ -6,7 +6,7 @@ orthogonal to the rigid modes, so λ⁽⁶⁾ = νᵀ sym(𝓗) ν = νᵀ H ν 
 The field is computed for a normal contact force (no mobilised friction, as in the paper's figure) at the
 current α and rolling stiffness, in units of k. Without rolling stiffness the field is the batched one of
 granstab.paper.two_particle (the paper's own 6×6 matrices); with it, the core's per-contact blocks
-(granstab.mechanics.stiffness.contact_blocks) give every grid point at once. tests/test_app_state.py checks that the two
+(granstab.mechanics.stiffness.contact_blocks) give every grid point at once. tests/app/test_app_state.py checks that the two
 agree where both apply.
 """
 from __future__ import annotations

@@ -5,7 +5,7 @@
 frames it holds (None: one) and its import report. `MapModel`: a packing shown as a map (a scan, a track's frame,
 a rigidity folder): not analysed as a whole; particles coloured by `colours`, opened by `cluster(name)`, picked by
 `pick(origin, direction)`; its own `headline`, `details`, `legend` and `contact_colours` where it has them (None:
-the explorer's default text). Every model in app/models.py, app/scanmap.py, app/trackmap.py and
+the explorer's default text). Every model in app/scenes.py, app/scanmap.py, app/trackmap.py and
 app/rigiditymap.py derives from one of them.
 """
 from __future__ import annotations

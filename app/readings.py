@@ -15,9 +15,9 @@ from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from granstab.mechanics.verdicts import frequencies_and_growth
 
 from .field import Field, field_png, lambda6_field
-from .models import Body, ShapeModel
 from .modes import label_modes, mode_offsets, rotation_matrix
 from .pools import attributed, metric_family
+from .scenes import Body, ShapeModel
 
 CONSISTENT = (PLUS, MINUS, BOTH)
 SAME_MODE = 0.999          # |cos| of two unit motions above which they are one mode (distinct_modes)

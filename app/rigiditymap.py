@@ -12,8 +12,8 @@ import numpy as np
 
 import granstab
 
-from .models import ContactModel
 from .scanmap import CUT_GREY, ScanMapModel
+from .scenes import ContactModel
 
 TAB10 = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189], [140, 86, 75],
                   [227, 119, 194], [127, 127, 127], [188, 189, 34], [23, 190, 207]], np.uint8)   # matplotlib's tab10

@@ -14,9 +14,9 @@ import numpy as np
 
 import granstab
 
-from .models import Body, ContactModel
 from .params import defaults
 from .protocols import MapModel
+from .scenes import Body, ContactModel
 
 WHITE, RED, GREY = np.array([250, 250, 250]), np.array([176, 20, 20]), (150, 150, 150)
 CUT_GREY = (205, 205, 205)   # unstable only by the cut (mechanism boundary): lighter than GREY (in no cluster)

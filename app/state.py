@@ -17,7 +17,6 @@ import granstab
 from granstab.model import errors
 from granstab.rigidity.output import is_rigidity_dir
 
-from .models import Body, ShapeModel, TwoParticleModel, load_model
 from .modes import rotation_matrix
 from .params import PARAMS
 from .paths import PathRefused, folder_choice, typed_path
@@ -26,6 +25,7 @@ from .protocols import MapModel
 from .readings import Readings
 from .rigiditymap import load_rigidity_map
 from .scanmap import is_scan_dir, load_scan_map
+from .scenes import Body, ShapeModel, TwoParticleModel, load_model
 from .trackmap import is_track_dir, load_track
 
 PRESETS_DIR = Path(__file__).resolve().parent.parent / "presets"

@@ -1,6 +1,6 @@
 """The explorer's page text: HTML and Markdown strings as pure functions of what they show (no viser).
 
-app/panel/*.py write them into their handles; tests/test_app_text.py reads them without a browser or a server.
+app/panel/*.py write them into their handles; tests/app/test_app_text.py reads them without a browser or a server.
 """
 from __future__ import annotations
 

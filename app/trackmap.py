@@ -19,10 +19,10 @@ import numpy as np
 import granstab
 from granstab.model.scene import build_scene
 
-from .models import Body
 from .params import defaults
 from .protocols import MapModel
 from .scanmap import is_scan_dir, load_scan_map, map_colours, pick_particle
+from .scenes import Body
 
 CONTRACT = "granstab track"
 TOP = 0.9                  # D²min colour scale: dark at the window's 90th percentile (the prediction test's top 10 %)

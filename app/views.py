@@ -17,8 +17,8 @@ import numpy as np
 from .cellview import OverlayView
 from .fieldview import FieldView
 from .meshes import body_mesh, circle_data, digest, osculating_arcs, outline, quat_matrix, rot3, to3, wxyz
-from .models import ghost_positions
 from .modes import rotation_matrix
+from .scenes import ghost_positions
 
 PALETTE = [(120, 170, 230), (240, 170, 110), (150, 205, 140), (215, 150, 205), (230, 215, 120), (140, 210, 210)]
 MARKER = (40, 40, 60)
@@ -194,7 +194,7 @@ class SceneView(FieldView, OverlayView):
 
     def _animate_points(self, bodies) -> None:
         """The point clouds along the mode: a large packing's centres, and the periodic images, each at its
-        particle's displaced position plus its lattice shift (models.ghost_positions)."""
+        particle's displaced position plus its lattice shift (scenes.ghost_positions)."""
         if self.cloud is not None:
             self.cloud.points = np.array([to3(b.x) for b in bodies])
         if self.ghosts is not None:

@@ -6,7 +6,7 @@ import numpy as np
 
 from granstab.analysis import analyze
 from granstab.model import shapes
-from granstab_app.models import ShapeModel, TwoParticleModel
+from granstab_app.scenes import ShapeModel, TwoParticleModel
 
 from .formatting import fmt_t, table
 from .timing import timeit

@@ -36,7 +36,7 @@ def _measure(n: int, quick: bool) -> dict:
     """Moves and the metric family with the explorer's BLAS limit (cap_process(1), as app/server.py sets), then with
     none (the library's default threads: what the explorer ran before; not in a quick run, where it takes minutes
     beside busy processes)."""
-    from granstab_app.models import load_model
+    from granstab_app.scenes import load_model
     model = load_model(PRESET)
     out = {}
     ways = (("explorer now (1 BLAS thread)", 1), ("before (library default threads)", None))

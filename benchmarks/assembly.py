@@ -13,7 +13,7 @@ from granstab.mechanics.assembly import assemble
 from granstab.mechanics.stiffness import contact_blocks, stiffness
 from granstab.model.packings import random_packing
 from granstab.model.scene import CONTACT_FIELDS
-from granstab.solve.sparse import CHUNK, contact_chunks
+from granstab.solve.assembled import CHUNK, contact_chunks
 
 from .figures import save
 from .formatting import fmt_e, fmt_t, progress, table
@@ -48,7 +48,7 @@ def assemble_per_contact_loop(scene):
 
 
 def assemble_vectorised(scene, chunk=None):
-    """contact_blocks over all contacts (in chunks of sparse.CHUNK) + one block-level scatter to CSR
+    """contact_blocks over all contacts (in chunks of assembled.CHUNK) + one block-level scatter to CSR
     (granstab.mechanics.assembly.assemble)."""
     M, n = scene.n_contacts, 2 * scene.dof_per_particle
     total = np.empty((M, n, n))

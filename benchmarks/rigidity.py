@@ -14,7 +14,7 @@ from granstab.mechanics.compatibility import compatibility_matrix
 from granstab.model import packings
 from granstab.model.scene import mean_contact_radius
 from granstab.rigidity import partition, rigidity
-from granstab.rigidity.frame import from_scene
+from granstab.rigidity.bodybar import from_scene
 
 QUICK = {"sizes": (1000,), "dense_max": 1000, "annulus": False}
 FULL = {"sizes": (1000, 3000, 10_000), "dense_max": 1000, "annulus": True}

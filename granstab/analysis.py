@@ -180,6 +180,40 @@ def _renamed(rotation_length, rotation_length_):
     return rotation_length if rotation_length is not None else rotation_length_
 
 
+def _solve_metrics(backend, state, metrics, primary, masks, timer, on_branch, progress, keep_all):
+    """Each metric's branches, the primary metric first: its (metric, problem, branches, verdict, notes), every
+    metric's family entry, and the branches solved per path over all metrics."""
+    order = [primary] + [i for i in range(len(metrics)) if i != primary]
+    entries = [None] * len(metrics)
+    paths = {}                                                       # branches solved per path, all metrics
+    for i in order:
+        m = metrics[i]
+        main = i == primary
+        with timer("assembly" if main else f"metric {m.name}"):
+            problem = backend.problem(state, m)
+        with timer("branches" if main else f"metric {m.name}"):
+            branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
+                                            progress=progress, label=f"branches, metric {m.name}",
+                                            keep_all=keep_all)
+        for path, count in notes["paths"].items():
+            paths[path] = paths.get(path, 0) + count
+        verdict = summarize(branches, notes)
+        entries[i] = family_entry(m, verdict)
+        if main:
+            result = (m, problem, branches, verdict, notes)
+    return result, entries, paths
+
+
+def _result_warnings(scene, state, notes, problem, branches, verdict, keep) -> list[str]:
+    """The result's warnings: curvature, the method's, free spins, and the branches left out by `keep`."""
+    warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", []) + _spin_warning(problem)
+    if len(branches) < verdict.n_branches:
+        warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
+                        "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
+                        "over all branches (keep='all' keeps every one)")
+    return warnings
+
+
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
@@ -239,25 +273,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         masks = (sample_masks(state.sliding, scene.n_contacts, sample_branches, seed) if partial
                  else enumerate_masks(state.sliding, scene.n_contacts))
         keep_all = keep == "all" or (keep == "auto" and len(masks) <= KEEP_ALL)
-        order = [primary] + [i for i in range(len(metrics)) if i != primary]
-        entries = [None] * len(metrics)
-        paths = {}                                                       # branches solved per path, all metrics
-        for i in order:
-            m = metrics[i]
-            main = i == primary
-            with timer("assembly" if main else f"metric {m.name}"):
-                problem = backend.problem(state, m)
-            with timer("branches" if main else f"metric {m.name}"):
-                branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
-                                                progress=progress, label=f"branches, metric {m.name}",
-                                                keep_all=keep_all)
-            for path, count in notes["paths"].items():
-                paths[path] = paths.get(path, 0) + count
-            verdict = summarize(branches, notes)
-            entries[i] = family_entry(m, verdict)
-            if main:
-                result = (m, problem, branches, verdict, notes)
-        m, problem, branches, verdict, notes = result
+        (m, problem, branches, verdict, notes), entries, paths = _solve_metrics(
+            backend, state, metrics, primary, masks, timer, on_branch, progress, keep_all)
         with timer("errors"):
             errors = backend.errors(state, problem, branches)
         if "residual_stability" in notes:                                # over every branch, kept or not
@@ -269,11 +286,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         if partial:
             verdict = mark_partial(verdict, len(masks), Ms)
         verdict = replace(verdict, branches_kept=len(branches), free_spins=getattr(problem, "free_spins", 0))
-    warnings = curvature_warnings(scene, state.blocks) + notes.get("warnings", []) + _spin_warning(problem)
-    if len(branches) < verdict.n_branches:
-        warnings.append(f"{len(branches)} of {verdict.n_branches} branches kept (keep='{keep}'): those with a "
-                        "consistent eigenpair of sign <= 0 and the one with the lowest eigenvalue; the counts are "
-                        "over all branches (keep='all' keeps every one)")
+    warnings = _result_warnings(scene, state, notes, problem, branches, verdict, keep)
     result = Analysis(scene=scene, problem=problem, metric=m, branches=branches, verdict=verdict, errors=errors,
                       timings=timer.times, warnings=warnings, backend=backend.name,
                       cost={**planned.to_dict(), "branches_per_metric": len(masks), "paths": paths})

@@ -1,10 +1,16 @@
 """Test support: generic random clusters in the contact-level format, and rigid transformations of scenes."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 import granstab
 from granstab.model.vec import tangent_basis
+
+TESTS = Path(__file__).resolve().parent     # tests/: the rooms' folders (tests/<room>/, docs/design.md), helpers
+ROOT = TESTS.parent                         # the repository
+DATA = TESTS / "data"                       # the tests' data, shared by the rooms
 
 
 def random_cluster(dim: int, n_particles: int = 5, seed: int = 0, moments: bool = True, rolling: float = 0.0,

@@ -1,7 +1,7 @@
 """Test support: the stiffness H and the spectrum of sym(𝓗) evaluated in high precision (mpmath) from a scene's own
 float data, written independently of granstab's arrays (per contact, the paper's equations, no numpy arithmetic).
 
-Used as the truth for the accuracy bounds (tests/test_bounds_truth.py): every input number is taken exactly as
+Used as the truth for the accuracy bounds (tests/mechanics/test_bounds_truth.py): every input number is taken exactly as
 stored (mpf of a float is exact) and every operation after it is done with mp.dps digits, so the only difference
 between granstab's answer and this one is granstab's rounding. Only what the harness needs is written: elastic
 contacts, no contact moments (3D), no rolling stiffness, the L metric (D = diag(1, 1/L), L the mean contact radius),

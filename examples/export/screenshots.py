@@ -231,7 +231,7 @@ def main() -> int:
         for fmt, read, what in (("vtp", from_vtp, "read by vtk's XML reader, mode 1 as arrows"),
                                 ("xyz", from_xyz, "read by ASE"), ("dump", from_dump, "plain parse of the pair")):
             export(scene, tmp / fmt, fmt=fmt, scan=tmp / "scan", modes=1 if fmt == "vtp" else 0)
-            render(read(tmp / fmt), f"granstab export --format {fmt} ({what})", OUT / f"{fmt}.png")
+            render(read(tmp / fmt), f"granstab export --out-format {fmt} ({what})", OUT / f"{fmt}.png")
             print(f"wrote {OUT / f'{fmt}.png'}")
     return 0
 

@@ -1,6 +1,6 @@
 """Export a YADE simulation of clumps as granstab's clump tables (bodies.csv, members.csv, contacts.csv).
 
-Run by examples/yade/make_clumps.py (tests/test_io_clumps.py, Debian's yade 2023.02a). After the step you want:
+Run by examples/yade/make_clumps.py (tests/io/test_io_clumps.py, Debian's yade 2023.02a). After the step you want:
 
     exec(open("export_clumps.py").read())
     export_clumps("bodies.csv", "members.csv", "contacts.csv", gravity=newton.gravity)

@@ -1,6 +1,6 @@
 """Export a YADE simulation's current state as granstab's generic tables (particles.csv, contacts.csv).
 
-Run by examples/yade/make_packing.py (tests/test_io_yade.py, Debian's yade 2023.02a). In a YADE script or shell,
+Run by examples/yade/make_packing.py (tests/io/test_io_yade.py, Debian's yade 2023.02a). In a YADE script or shell,
 after the simulation step you want:
 
     exec(open("export_granstab.py").read())

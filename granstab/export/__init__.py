@@ -1,7 +1,7 @@
 """Files that open in OVITO and ParaView: a packing's particles, contacts and cell with the scan's verdicts and the
 whole packing's consistent modes, as VTK PolyData, extended XYZ or a LAMMPS-style dump pair (docs/export.md).
 
-    frame = granstab.export.frame_of(scene, scan="scan/", modes=2)    # the arrays, by name (fields.Frame)
+    frame = granstab.export.frame_of(scene, scan="scan/", modes=2)    # the arrays, by name (fields.FrameFields)
     granstab.export.write([frame], "out/", fmt="vtp")                  # out/packing.particles.vtp, ... → paths
     granstab.export.export(scene, "out/", fmt="xyz", scan="scan/")     # both at once
 
@@ -15,16 +15,16 @@ from pathlib import Path
 from ..model.errors import SceneError
 from ..model.scene import Scene
 from . import dump, xyz
-from .fields import STATE_CODES, VERDICT_CODES, Frame, add_scan, quaternion_xyzw, scene_frame, shape_fields
+from .fields import STATE_CODES, VERDICT_CODES, FrameFields, add_scan, quaternion_xyzw, scene_frame, shape_fields
 from .modes import add_modes
 
 FORMATS = ("vtp", "xyz", "dump")
 
-__all__ = ["FORMATS", "STATE_CODES", "VERDICT_CODES", "Frame", "export", "frame_of", "write"]
+__all__ = ["FORMATS", "STATE_CODES", "VERDICT_CODES", "FrameFields", "export", "frame_of", "write"]
 
 
 def frame_of(scene: Scene, *, scan=None, modes: int = 0, time: float = 0.0, extra: dict | None = None,
-             orientation=None, analysis: dict | None = None, shape=None) -> Frame:
+             orientation=None, analysis: dict | None = None, shape=None) -> FrameFields:
     """One frame's fields: the scene's own, the scan folder's verdicts (`scan`: a granstab scan output of this
     packing), the `modes` lowest consistent modes of the whole packing, `extra` per-particle arrays (N,) and the
     particles' `orientation` where the input gives it ((N, 4) unit quaternions w, x, y, z: `io.Loaded.orientation`),
@@ -45,7 +45,7 @@ def frame_of(scene: Scene, *, scan=None, modes: int = 0, time: float = 0.0, extr
     return frame
 
 
-def write(frames: list[Frame], out, fmt: str = "vtp", stem: str = "packing") -> list[Path]:
+def write(frames: list[FrameFields], out, fmt: str = "vtp", stem: str = "packing") -> list[Path]:
     """Write `frames` (one, or a sequence) to the folder `out` (created) as `fmt`; the paths written."""
     if fmt not in FORMATS:
         raise SceneError(f"--format: one of {', '.join(FORMATS)}, got {fmt!r}")

@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from ..model.errors import SceneError
-from .fields import Frame, as3
+from .fields import FrameFields, as3
 
 
-def box(frame: Frame, where: str) -> str:
+def box(frame: FrameFields, where: str) -> str:
     """The ITEM: BOX BOUNDS block (module docstring)."""
     if frame.cell is None:
         radius = frame.particles.get("radius", np.zeros(len(frame.positions)))
@@ -69,7 +69,7 @@ def rows(table: np.ndarray) -> str:
     return "".join(" ".join(r) + "\n" for r in table)
 
 
-def atoms_block(frame: Frame, step: int, where: str) -> str:
+def atoms_block(frame: FrameFields, step: int, where: str) -> str:
     n = len(frame.positions)
     ids = np.c_[np.arange(1, n + 1), np.ones(n, dtype=np.int64)]
     fields = {"x": frame.positions[:, 0], "y": frame.positions[:, 1], "z": frame.positions[:, 2], **frame.particles}
@@ -79,7 +79,7 @@ def atoms_block(frame: Frame, step: int, where: str) -> str:
             f"ITEM: ATOMS id type {' '.join(names)}\n{rows(table)}")
 
 
-def local_block(frame: Frame, step: int, where: str) -> str:
+def local_block(frame: FrameFields, step: int, where: str) -> str:
     contacts = dict(frame.contacts)
     contacts["p"], contacts["q"] = contacts["p"] + 1, contacts["q"] + 1        # atom ids
     names, table = numeric_columns(contacts)
@@ -87,7 +87,7 @@ def local_block(frame: Frame, step: int, where: str) -> str:
             f"ITEM: ENTRIES {' '.join(names)}\n{rows(table)}")
 
 
-def write(frames: list[Frame], out: Path, stem: str) -> list[Path]:
+def write(frames: list[FrameFields], out: Path, stem: str) -> list[Path]:
     """NAME.atoms.dump and NAME.local.dump, a block a frame, TIMESTEP = the frame's number (its index where the
     frames' times are not integers)."""
     atoms, local = out / f"{stem}.atoms.dump", out / f"{stem}.local.dump"

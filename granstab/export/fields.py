@@ -23,7 +23,7 @@ VERDICT_CODES = {"": -1, "stable": 0, "neutral": 1, "unstable": 2, "not determin
 
 
 @dataclass
-class Frame:
+class FrameFields:
     """One exported frame. positions (N, 3); particles: name → (N,) or (N, 3) arrays (strings as str arrays);
     ends (M, 2, 3): each contact's line from x^p to q's copy (x^q + image @ cell, so a seam contact does not cross
     the cell); contacts: name → (M,) or (M, 3); cell (d, d) lattice rows or None; info: scalars (mode
@@ -92,7 +92,7 @@ def contact_state(scene: Scene) -> np.ndarray:
                     np.where(scene.at_yield(), STATE_CODES["at_yield"], STATE_CODES["elastic"])).astype(np.int32)
 
 
-def scene_frame(scene: Scene, time: float = 0.0) -> Frame:
+def scene_frame(scene: Scene, time: float = 0.0) -> FrameFields:
     """The scene's own fields: names, positions, contact radius, mass where known; per contact the particles, the
     contact point, the branch vector, the normal, the force on p by q, its normal part (compression positive: -f·n)
     and tangential part, the state."""
@@ -108,7 +108,7 @@ def scene_frame(scene: Scene, time: float = 0.0) -> Frame:
                 "state": contact_state(scene)}
     contacts["branch"] = as3(scene.branch)                         # x^p → q's copy: ends = x^p, x^p + branch
     ends = np.stack([as3(scene.x[scene.p]), as3(scene.q_copy)], axis=1)
-    return Frame(dim=scene.dim, positions=as3(scene.x), particles=particles, ends=ends, contacts=contacts,
+    return FrameFields(dim=scene.dim, positions=as3(scene.x), particles=particles, ends=ends, contacts=contacts,
                  cell=None if scene.cell is None else np.asarray(scene.cell, dtype=float), time=time)
 
 
@@ -118,17 +118,17 @@ def matching_packing(scene: Scene, packing: Scene, folder) -> None:
     if packing.names != scene.names:
         n, m = packing.n_particles, scene.n_particles
         where = next((i for i, (a, b) in enumerate(zip(packing.names, scene.names)) if a != b), min(n, m))
-        raise SceneError(f"{folder}: --scan: the scan's packing ({n} particles, from {packing.source}) is not "
+        raise SceneError(f"{folder}: --scan-dir: the scan's packing ({n} particles, from {packing.source}) is not "
                          f"{scene.source} ({m} particles): the names differ at particle #{where}")
     extent = float(np.ptp(scene.x, axis=0).max()) if scene.n_particles > 1 else 1.0
     moved = np.linalg.norm(packing.x - scene.x, axis=1)
     if np.any(moved > 1e-9 * max(extent, 1e-300)):
         i = int(np.argmax(moved))
-        raise SceneError(f"{folder}: --scan: particle {scene.names[i]}: x: the scan's packing has it "
+        raise SceneError(f"{folder}: --scan-dir: particle {scene.names[i]}: x: the scan's packing has it "
                          f"{moved[i]:.3g} away from {scene.source}'s position (another frame?)")
 
 
-def add_scan(frame: Frame, scene: Scene, folder) -> None:
+def add_scan(frame: FrameFields, scene: Scene, folder) -> None:
     """The scan's per-particle verdict fields (granstab.scan: particles.*, clusters.*): the unstable fraction of the
     clusters containing the particle, its own cluster's verdict (text and VERDICT_CODES), that cluster's λ_min and
     how many clusters contain the particle."""

@@ -12,7 +12,7 @@ from ..model.errors import SceneError
 from ..model.law import sliding_direction, yield_normal
 from ..model.scene import Scene
 from ..model.vec import rot_dim
-from .fields import Frame, as3, axial
+from .fields import FrameFields, as3, axial
 
 #: two consistent vectors of equal eigenvalue on two branches are one mode when |cos| exceeds this (a mode that
 #: moves no sliding contact is consistent on every branch: exported once)
@@ -61,7 +61,7 @@ def modes_options(count: int, sample_branches: int | None = None, max_sliding: i
             "sample_branches": sample_branches, "max_sliding": max_sliding}
 
 
-def add_modes(frame: Frame, scene: Scene, count: int, result=None, analysis: dict | None = None) -> None:
+def add_modes(frame: FrameFields, scene: Scene, count: int, result=None, analysis: dict | None = None) -> None:
     """mode{j}_displacement, mode{j}_rotation (per particle, unit motion U = D Ũ, `Analysis.motion`), mode{j}_branch
     and mode{j}_slip (per contact), mode{j}_eigenvalue and its error bound mode{j}_accuracy (info), j = 1 … count,
     lowest first, in the L metric; modes_seconds: what the whole-packing analysis cost. `analysis`: its options

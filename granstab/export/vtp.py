@@ -13,7 +13,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..model.errors import require
-from .fields import Frame, as3
+from .fields import FrameFields, as3
 
 PARTS = ("particles", "contacts", "cell")
 
@@ -82,7 +82,7 @@ def outline(cell: np.ndarray) -> np.ndarray:
     return np.array(corners, dtype=float)
 
 
-def write_frame(frame: Frame, out: Path, stem: str) -> list[Path]:
+def write_frame(frame: FrameFields, out: Path, stem: str) -> list[Path]:
     """The frame's .vtp files (module docstring) in `out`, named STEM.PART.vtp."""
     n, m = len(frame.positions), len(frame.ends)
     particles = polydata(frame.positions, np.arange(n)[:, None], lines=False)

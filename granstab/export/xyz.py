@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 
 from ..model.errors import SceneError
-from .fields import Frame, as3
+from .fields import FrameFields, as3
 
 TYPES = {"f": "R", "i": "I", "u": "I", "U": "S", "S": "S"}
 
 
-def lattice(frame: Frame) -> np.ndarray:
+def lattice(frame: FrameFields) -> np.ndarray:
     """The 3×3 lattice of a periodic frame (module docstring for 2D)."""
     cell = as3(frame.cell)
     if frame.dim == 2:
@@ -29,7 +29,7 @@ def lattice(frame: Frame) -> np.ndarray:
     return cell
 
 
-def header(frame: Frame, columns: dict, where: str) -> str:
+def header(frame: FrameFields, columns: dict, where: str) -> str:
     """The comment line: Lattice, Properties, pbc, the scalars of the frame and its time."""
     props = []
     for name, values in columns.items():
@@ -62,7 +62,7 @@ def text_column(values: np.ndarray, where: str, name: str) -> np.ndarray:
     return np.vectorize(fmt.format, otypes=[str])(flat) if flat.size else flat.astype(str)
 
 
-def block(frame: Frame, positions: np.ndarray, columns: dict, where: str) -> str:
+def block(frame: FrameFields, positions: np.ndarray, columns: dict, where: str) -> str:
     """One frame's block: count, header, rows (species X: OVITO and ASE need a species; these are grains)."""
     columns = {"species": np.full(len(positions), "X"), "pos": positions, **columns}
     parts = [text_column(np.asarray(v), where, k) for k, v in columns.items()]
@@ -71,7 +71,7 @@ def block(frame: Frame, positions: np.ndarray, columns: dict, where: str) -> str
     return f"{len(positions)}\n{header(frame, columns, where)}\n{body}"
 
 
-def write(frames: list[Frame], out: Path, stem: str) -> list[Path]:
+def write(frames: list[FrameFields], out: Path, stem: str) -> list[Path]:
     """NAME.xyz and NAME.contacts.xyz, every frame a block (a sequence: a trajectory in one file)."""
     particles, contacts = out / f"{stem}.xyz", out / f"{stem}.contacts.xyz"
     with particles.open("w", encoding="utf-8") as fp, contacts.open("w", encoding="utf-8") as fc:

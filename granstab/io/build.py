@@ -35,16 +35,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..model.errors import SceneError
 from ..model.periodic import minimum_image
 from ..model.scene import build_scene
 from ..model.tolerances import DEFAULT, Tolerances
 from ..model.vec import sum_at
-from .lines import is_number
 from .registry import Loaded
+from .unwrap import cell_of, periodic_report, unwrap
 from .validation import LAW_DEFAULT, import_warnings
 
 GEOMETRY = ("centres", "touching")
@@ -122,13 +120,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     progress.ReadProgress, told the stages; `tol`: the scene checks' tolerances."""
     if progress is not None:
         progress.stage("build")
-    if opts.geometry not in GEOMETRY:
-        raise SceneError(f"--geometry: must be one of {', '.join(GEOMETRY)}, got {opts.geometry!r}")
-    if opts.outside_cone not in OUTSIDE_CONE:
-        raise SceneError(f"--outside-cone: must be one of {', '.join(OUTSIDE_CONE)}, got {opts.outside_cone!r}")
-    if not opts.length_scale > 0:
-        raise SceneError(f"--length-scale: must be > 0, got {opts.length_scale}")
-    _check_particles(snap)
+    _check_options(opts, snap)
     names = np.asarray(snap.ids).astype(str).astype(object)     # C-speed (a list of str() costs 0.3 s per 10⁵)
     pair = Pairs(names, snap.p, snap.q)
     scale = opts.length_scale
@@ -141,21 +133,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
     e = branch / d[:, None]
     normal = e if snap.normal is None else _unit_normals(snap, pair)
-    if snap.shaped is not None:   # the reader's contact points and curvatures (e.g. superquadrics: model/surface.py)
-        arm_p, arm_q = snap.shaped["arm_p"] * scale, snap.shaped["arm_q"] * scale
-        curvature = {key: snap.shaped[key] / scale for key in ("curvature_p", "curvature_q")}
-        geometry_report = snap.shaped["report"]
-    else:
-        if snap.bodies is None:
-            geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
-            arm_p = geom["rho_p"][:, None] * e
-        else:                       # rigid bodies: the reader's contact points and parallel-surface radii
-            geom = {"rho_p": snap.bodies["rho"][:, 0] * scale, "rho_q": snap.bodies["rho"][:, 1] * scale}
-            geometry_report, arm_p = snap.bodies["geometry"], snap.bodies["point"] * scale - x[snap.p]
-        arm_q = arm_p - branch
-        kp, kq = -1.0 / geom["rho_p"], -1.0 / geom["rho_q"]
-        curvature = {"curvature_p": _curvature(kp, normal), "curvature_q": _curvature(kq, normal),
-                     "curvature_sum": _curvature(kp + kq, normal)}          # summed first
+    arm_p, arm_q, curvature, geometry_report = _contact_geometry(snap, opts, x, radius, branch, normal, pair)
     law, law_report = _law(snap, opts, len(d))
     force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
     report = {"source": snap.source, "format": snap.format, "read_as": "snapshot", "frame": snap.frame,
@@ -163,9 +141,9 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     imbalance = _imbalance(snap, arm_p, arm_q)
 
     keep_c, keep_p, selection = _select(snap, x, opts, names)
-    cell, why_cut = _cell(snap, opts, scale)
+    cell, why_cut = cell_of(snap, opts, scale)
     if cell is None:
-        unwrapped, cut = _unwrap(snap, x, shifts, keep_c, scale)
+        unwrapped, cut = unwrap(snap, x, shifts, keep_c, scale)
         keep_c &= ~cut
     else:
         unwrapped, cut = x, np.zeros(len(d), bool)
@@ -209,7 +187,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         "units": {"length": opts.units or (snap.length_unit if scale == 1.0 else f"{scale:g} {snap.length_unit}"),
                   "length_scale": scale, "force": "as in the file"},
         "geometry": geometry_report, "law": law_report, "forces": force_report, "cone": cone_report,
-        "imbalance": imbalance, "periodic": _periodic_report(snap, cut, pair, cell, why_cut, shifts, c),
+        "imbalance": imbalance, "periodic": periodic_report(snap, cut, pair, cell, why_cut, shifts, c),
         "walls": snap.notes.get("walls", "none in the file"),
         "duplicates": snap.notes.get("duplicates", "none (one row per contact)"),
     })
@@ -219,6 +197,41 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
                   orientation=None if snap.orientation is None else snap.orientation[inside],
                   shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None)
+
+
+def _check_options(opts: Options, snap: Snapshot) -> None:
+    """The options' values and the snapshot's particles: one line naming the first bad one."""
+    if opts.geometry not in GEOMETRY:
+        raise SceneError(f"--geometry: must be one of {', '.join(GEOMETRY)}, got {opts.geometry!r}")
+    if opts.outside_cone not in OUTSIDE_CONE:
+        raise SceneError(f"--outside-cone: must be one of {', '.join(OUTSIDE_CONE)}, got {opts.outside_cone!r}")
+    if not opts.length_scale > 0:
+        raise SceneError(f"--length-scale: must be > 0, got {opts.length_scale}")
+    _check_particles(snap)
+
+
+def _contact_geometry(snap: Snapshot, opts: Options, x, radius, branch, normal, pair):
+    """Each contact's arms from the centres to its point, the curvatures there and the geometry report: the
+    reader's (shaped grains, rigid bodies) or the geometry rule's (`centres`, `touching`)."""
+    scale = opts.length_scale
+    d = np.linalg.norm(branch, axis=1)
+    e = branch / d[:, None]
+    if snap.shaped is not None:   # the reader's contact points and curvatures (e.g. superquadrics: model/surface.py)
+        arm_p, arm_q = snap.shaped["arm_p"] * scale, snap.shaped["arm_q"] * scale
+        curvature = {key: snap.shaped[key] / scale for key in ("curvature_p", "curvature_q")}
+        geometry_report = snap.shaped["report"]
+    else:
+        if snap.bodies is None:
+            geom, geometry_report = _geometry(opts.geometry, radius[snap.p], radius[snap.q], d, e, normal, snap, pair)
+            arm_p = geom["rho_p"][:, None] * e
+        else:                       # rigid bodies: the reader's contact points and parallel-surface radii
+            geom = {"rho_p": snap.bodies["rho"][:, 0] * scale, "rho_q": snap.bodies["rho"][:, 1] * scale}
+            geometry_report, arm_p = snap.bodies["geometry"], snap.bodies["point"] * scale - x[snap.p]
+        arm_q = arm_p - branch
+        kp, kq = -1.0 / geom["rho_p"], -1.0 / geom["rho_q"]
+        curvature = {"curvature_p": _curvature(kp, normal), "curvature_q": _curvature(kq, normal),
+                     "curvature_sum": _curvature(kp + kq, normal)}          # summed first
+    return arm_p, arm_q, curvature, geometry_report
 
 
 # ------------------------------------------------------------------------------------------------ checks
@@ -525,97 +538,3 @@ def region_mask(region, x, names, source) -> np.ndarray:
     return np.isin(names, wanted)
 
 
-def _unwrap(snap: Snapshot, x, shifts, keep_c, scale):
-    """Positions unwrapped along a spanning tree of the kept contacts, and the contacts that close a loop around
-    the periodic cell (their lattice shift disagrees with the tree's)."""
-    cut = np.zeros(len(shifts), bool)
-    if snap.lattice is None or not np.any(shifts):
-        return x, cut
-    N = len(x)
-    c = np.flatnonzero(keep_c)
-    p, q = snap.p[c], snap.q[c]
-    contacts = coo_matrix((np.ones(len(c)), (p, q)), shape=(N, N))
-    _, label = connected_components(contacts, directed=False)
-    roots = np.unique(label, return_index=True)[1]
-    # a virtual root N joined to one particle of each component: one BFS gives a spanning forest
-    rows = np.concatenate([p, q, np.full(len(roots), N)])
-    cols = np.concatenate([q, p, roots])
-    data = np.concatenate([c + 1, -(c + 1), np.zeros(len(roots), np.int64)]).astype(np.int64)
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(N + 1, N + 1)).tocsr()
-    code = coo_matrix((data, (rows, cols)), shape=(N + 1, N + 1)).tocsr()
-    _, pred = breadth_first_order(graph, N, directed=True, return_predecessors=True)
-    pred = pred[:N]
-    pred = np.where(pred < 0, N, pred)
-    link = np.asarray(code[pred, np.arange(N)]).ravel()
-    step = np.zeros((N + 1, snap.dim), np.int64)
-    has = link != 0
-    step[:N][has] = np.sign(link[has])[:, None] * shifts[np.abs(link[has]) - 1]
-    # pointer jumping: the sum of steps along the path to the root in log(depth) vectorised passes
-    total, up = step.copy(), np.append(pred, N)
-    while np.any(up[:N] != N):
-        total = total + np.where((up != N)[:, None], total[up], 0)
-        up = up[up]
-    image = total[:N]
-    lattice = np.nan_to_num(snap.lattice) * scale
-    unwrapped = x - image @ lattice
-    cut[c] = np.any(image[q] - image[p] != shifts[c], axis=1)
-    return unwrapped, cut
-
-
-def _cell(snap: Snapshot, opts: Options, scale: float):
-    """(the scene's cell (d, d) in scene units, None) when the scene is periodic, else (None, why the seam
-    contacts are cut; None without a cell)."""
-    if snap.lattice is None:
-        return None, None
-    if not opts.periodic:
-        return None, "--no-periodic"
-    if np.isnan(snap.lattice).any():
-        return None, "the cell is open along an axis (a periodic scene needs a full cell)"
-    if opts.region is not None:
-        return None, "a region was selected (the scene is a cluster, not the cell)"
-    return snap.lattice * scale, None
-
-
-def parse_cell(value, dim: int, where: str) -> np.ndarray:
-    """The cell's rows a_i from d·d numbers (a_1 then a_2 …) or d (an orthogonal box), as text (commas or blanks)
-    or numbers; a one-line error naming `where` (e.g. "<file>: line 2") and the field `cell`."""
-    words = value.replace(",", " ").split() if isinstance(value, str) else list(np.ravel(value))
-    try:
-        numbers = np.array([float(w) for w in words])
-    except ValueError:
-        bad = next(w for w in words if not is_number(w))
-        raise SceneError(f"{where}: cell: not a number ({str(bad)[:40]!r})") from None
-    if numbers.size == dim:
-        numbers = np.diag(numbers).ravel()
-    if numbers.size != dim * dim:
-        raise SceneError(f"{where}: cell: expected {dim * dim} numbers (the rows a_1 … a_{dim} of the {dim}D cell) "
-                         f"or {dim} (an orthogonal box), got {numbers.size}")
-    cell = numbers.reshape(dim, dim)
-    if not np.all(np.isfinite(cell)):
-        raise SceneError(f"{where}: cell: not finite ({', '.join(f'{v:g}' for v in numbers)})")
-    det, scale = float(np.linalg.det(cell)), float(np.prod(np.linalg.norm(cell, axis=1)))
-    if not det > 1e-12 * scale:                  # as the scene's check (model/periodic.py), here with the line
-        what = " (left-handed: swap two rows)" if det < -1e-12 * scale else ""
-        raise SceneError(f"{where}: cell: the lattice vectors (rows) span no positive volume, det = {det:.6g}{what}")
-    return cell
-
-
-def _periodic_report(snap: Snapshot, cut, pair, cell, why_cut, shifts, kept):
-    """The cell and what became of the seam contacts: kept with their images (periodic) or cut (and why)."""
-    if snap.lattice is None:
-        return None
-    seam = np.zeros(len(shifts), bool)
-    seam[kept] = True
-    seam = (seam | cut) & np.any(shifts != 0, axis=1)
-    report = {"lattice": np.nan_to_num(snap.lattice, nan=0.0).tolist(), **snap.notes.get("periodic", {}),
-              "periodic": cell is not None, "cell": None if cell is None else cell.tolist(),
-              "seam_contacts": int(seam.sum()), "seam_names": _names(pair[seam]),
-              "contacts_cut": int(cut.sum()), "cut_names": _names(pair[cut])}
-    if cell is not None:
-        report["treatment"] = ("periodic scene: the cell kept, each contact with q's image (seam contacts: a nonzero "
-                               "image); --no-periodic cuts them instead")
-    else:
-        report["treatment"] = (f"not periodic ({why_cut}): minimum-image branch vectors; particles unwrapped along "
-                               "the contacts; contacts closing a loop around the cell are cut and their forces "
-                               "become loads on both particles")
-    return report

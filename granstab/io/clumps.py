@@ -22,7 +22,7 @@ from ..model.errors import SceneError
 from .bodies import body_snapshot, inertia_tensor, rotation
 from .build import Snapshot
 from .columns import to_indices, unique_ids
-from .generic import SUFFIXES, header
+from .generic import header, table_names
 from .lines import read_table
 from .registry import Format, register
 
@@ -64,11 +64,8 @@ def clump_snapshot(source: str, fmt: str, bodies: dict, members: dict, contacts:
 
 def _kind(path: Path):
     """"bodies", "members", "contacts" or None: which clump table a file's header says it is."""
-    if path.suffix.lower() not in SUFFIXES or not path.is_file():
-        return None
-    try:
-        names = header(path)[0]
-    except SceneError:
+    names = table_names(path)
+    if names is None:
         return None
     for kind, need in (("bodies", BODY_COLUMNS[:5]), ("members", MEMBER_COLUMNS), ("contacts", CONTACT_COLUMNS)):
         if set(need) <= set(names) and (kind != "members" or "mass" not in names):

@@ -20,23 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from ..model.errors import SceneError
-from .build import Snapshot, branch_vectors, parse_cell
-from .columns import (
-    CONTACT_NAMES,
-    ORIENTATION_NAMES,
-    column_note,
-    columns_option,
-    contact_forces,
-    contact_moments,
-    particle_orientation,
-    to_indices,
-    unique_ids,
-)
+from . import columns as cols
+from .build import Snapshot, branch_vectors
 from .lines import line_of, pick_frame, read_table
 from .registry import Format, register
+from .unwrap import parse_cell
 
 SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
-PARTICLE_NAMES = {"id", "x", "y", "z", "radius", "r", "diameter", "frame", *ORIENTATION_NAMES}
+PARTICLE_NAMES = {"id", "x", "y", "z", "radius", "r", "diameter", "frame", *cols.ORIENTATION_NAMES}
 
 
 def header(path: Path):
@@ -82,26 +73,36 @@ def table_cell(paths: list[Path], dim: int, given=None):
     return parse_cell(given, dim, "--cell") if given is not None else cells[0][0] if cells else None
 
 
-def is_table(path: Path) -> bool:
+def table_names(path: Path) -> list | None:
+    """The column names of a table file (one of SUFFIXES, with a header), or None: the sniffs' shared look."""
     if path.suffix.lower() not in SUFFIXES or not path.is_file():
-        return False
+        return None
     try:
-        names = header(path)[0]
+        return header(path)[0]
     except SceneError:
-        return False
-    return {"id1", "id2"} <= set(names) or {"id", "x", "y"} <= set(names)
+        return None
 
 
-def read_tables(paths: list[Path], frame=None, columns: str | None = None, progress=None, cell=None) -> Snapshot:
-    """The snapshot of one frame; `progress`: a progress.ReadProgress (bytes parsed); `cell`: --cell."""
-    update = None if progress is None else progress.update
+def is_table(path: Path) -> bool:
+    names = table_names(path)
+    return names is not None and ({"id1", "id2"} <= set(names) or {"id", "x", "y"} <= set(names))
+
+
+def _two_tables(paths: list[Path]):
+    """The particle table, the contact table and each one's header (names, delimiter, line)."""
     kinds = {p: header(p) for p in paths}
     particle_files = [p for p, h in kinds.items() if {"id", "x", "y"} <= set(h[0])]
     contact_files = [p for p in paths if p not in particle_files]
     if len(contact_files) != 1 or len(particle_files) != 1:
         raise SceneError(f"{paths[0]}: need one particle table (header id x y [z] radius) and one contact table "
                          f"(header id1 id2 ...), got {len(particle_files)} and {len(contact_files)}")
-    ppath, cpath = particle_files[0], contact_files[0]
+    return particle_files[0], contact_files[0], kinds
+
+
+def read_tables(paths: list[Path], frame=None, columns: str | None = None, progress=None, cell=None) -> Snapshot:
+    """The snapshot of one frame; `progress`: a progress.ReadProgress (bytes parsed); `cell`: --cell."""
+    update = None if progress is None else progress.update
+    ppath, cpath, kinds = _two_tables(paths)
     pnames, pdelim, pline = kinds[ppath]
     cnames, cdelim, cline = kinds[cpath]
     unknown = [c for c in pnames if c not in PARTICLE_NAMES]
@@ -109,9 +110,9 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
         raise SceneError(f"{ppath}: line {pline}: {unknown[0]}: unknown column (known: {', '.join(sorted(PARTICLE_NAMES))})")
     header_names = cnames
     if columns:
-        cnames = columns_option(columns, len(cnames), str(cpath), " ".join(cnames))
-    elif any(c not in CONTACT_NAMES for c in cnames):
-        bad = next(c for c in cnames if c not in CONTACT_NAMES)
+        cnames = cols.columns_option(columns, len(cnames), str(cpath), " ".join(cnames))
+    elif any(c not in cols.CONTACT_NAMES for c in cnames):
+        bad = next(c for c in cnames if c not in cols.CONTACT_NAMES)
         raise SceneError(f"{cpath}: line {cline}: {bad}: unknown column: name the columns with --columns")
     for need, names, path, line in (("id", pnames, ppath, pline), ("x", pnames, ppath, pline),
                                     ("y", pnames, ppath, pline), ("id1", cnames, cpath, cline),
@@ -132,15 +133,15 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     pline_of = lambda r: f"{ppath}: line {line_of(ppath, prow[r], skiprows=pline)}"  # noqa: E731
     cline_of = lambda r: f"{cpath}: line {line_of(cpath, crow[r], skiprows=cline)}"  # noqa: E731
     ids = pcol["id"]
-    unique_ids(ids, pline_of, "in one frame")
+    cols.unique_ids(ids, pline_of, "in one frame")
     dim = 3 if "z" in pcol else 2
     x = np.stack([pcol[a] for a in "xyz"[:dim]], axis=1)
     radius = pcol.get("radius", pcol.get("r", pcol.get("diameter", np.zeros(0)) / 2))
-    orientation = particle_orientation(pcol, dim, pline_of, str(ppath))
+    orientation = cols.particle_orientation(pcol, dim, pline_of, str(ppath))
     what = "not in the particle table" + ("" if which is None else f" at frame {which:g}")
     wall = ccol["id2"] < 0
-    p = to_indices(ids, ccol["id1"], "id1", cline_of, what)
-    q = np.where(wall, p, to_indices(ids, np.where(wall, ids[0], ccol["id2"]), "id2", cline_of, what))
+    p = cols.to_indices(ids, ccol["id1"], "id1", cline_of, what)
+    q = np.where(wall, p, cols.to_indices(ids, np.where(wall, ids[0], ccol["id2"]), "id2", cline_of, what))
     lattice = table_cell([ppath, cpath], dim, cell)
     branch = branch_vectors(x, p, q, lattice)[0]           # minimum image in a cell (wall rows: p = q, unused)
     normal = None
@@ -149,12 +150,12 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     elif "fn" in ccol and dim == 2:
         with np.errstate(invalid="ignore", divide="ignore"):
             normal = branch / np.linalg.norm(branch, axis=1)[:, None]
-    force, how = contact_forces(str(cpath), ccol, dim, normal)
+    force, how = cols.contact_forces(str(cpath), ccol, dim, normal)
     if normal is not None:
         with np.errstate(invalid="ignore", divide="ignore"):
             normal = normal / np.linalg.norm(normal, axis=1)[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):     # f_r columns: R_eff f_r × n (wall rows: unused)
-        moment = contact_moments(ccol, dim, branch / np.linalg.norm(branch, axis=1)[:, None],
+        moment = cols.contact_moments(ccol, dim, branch / np.linalg.norm(branch, axis=1)[:, None],
                                  radius[p] * radius[q] / (radius[p] + radius[q]))
     wall_load, walls = _walls(wall, p, force, len(ids), ccol["id2"])
     rows = np.flatnonzero(~wall)
@@ -171,7 +172,7 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
                     lattice=lattice,
                     frame=None if which is None else float(which), frames=frames,
                     notes={"duplicates": duplicates, "forces_from": how, "walls": walls,
-                           "columns": column_note(cpath, header_names, cnames, bool(columns))},
+                           "columns": cols.column_note(cpath, header_names, cnames, bool(columns))},
                     particle_line=pline_of, contact_line=lambda c: cline_of(keep[c]))
 
 

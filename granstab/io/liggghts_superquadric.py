@@ -5,7 +5,7 @@
     compute pg all pair/gran/local id force force_normal force_tangential contactPoint
     dump contacts all local N contacts.dump c_pg[1] c_pg[2] ... c_pg[15]      (LIGGGHTS 3.8 refuses c_pg[*])
 
-Conventions (docs/formats.md, each checked on examples/liggghts_superquadric's packing, tests/test_superquadric.py):
+Conventions (docs/formats.md, each checked on examples/liggghts_superquadric's packing, tests/io/test_superquadric.py):
 - quat1..quat4 are (w, x, y, z): LAMMPS's quat_to_mat, body → world (a grain turned 90° about z by
   `set ... quat 0 0 1 90` dumps quat1 = cos 45°, quat4 = sin 45°);
 - shapex..z are the semi-axes a, b, c and blockiness1, blockiness2 the n1, n2 of the surface
@@ -35,15 +35,8 @@ from ..model.vec import quaternion_matrix
 from .build import Snapshot, branch_vectors
 from .columns import particle_orientation, to_indices, unique_ids
 from .dumpset import Indexed
-from .lammps import (
-    Block,
-    compute_columns,
-    contact_law,
-    has_shape_columns,
-    index_lammps,
-    lattice_of,
-    liggghts_property,
-)
+from .lammps import Block, has_shape_columns, index_lammps, lattice_of
+from .lammps_script import compute_columns, contact_law, liggghts_property
 from .lines import read_window
 from .registry import Format, register
 

@@ -24,15 +24,8 @@ from .bodies import inertia_tensor, rotation
 from .clumps import clump_snapshot
 from .columns import to_indices, unique_ids
 from .dumpset import DumpSet, Indexed, index_dumps
-from .lammps import (
-    _script_says,
-    compute_columns,
-    contact_law,
-    is_dump,
-    lattice_of,
-    multisphere_script,
-    read_script,
-)
+from .lammps import _script_says, is_dump, lattice_of, multisphere_script
+from .lammps_script import compute_columns, contact_law, read_script
 from .lines import read_window
 from .registry import Format, register
 

@@ -33,7 +33,8 @@ from .bodies import body_snapshot
 from .build import Snapshot
 from .columns import to_indices, unique_ids
 from .dumpset import Indexed, index_dumps
-from .lammps import body_script, is_dump, lattice_of, read_script
+from .lammps import body_script, is_dump, lattice_of
+from .lammps_script import read_script
 from .lines import read_window
 from .registry import Format, register
 

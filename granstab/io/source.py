@@ -152,3 +152,32 @@ def parse_region(text: str):
         return path.read_text(encoding="utf-8").replace(",", " ").split()
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(f"{path}: cannot read file ({getattr(exc, 'strerror', None) or exc})") from None
+
+
+def frame_key(text: str):
+    """A frame as the input names it (--frame, --timestep, --frames): an integer where it is one (frame numbers,
+    steps), else a float (times); ValueError for anything else."""
+    value = float(text)
+    return int(value) if value.is_integer() else value
+
+
+def pick_frames(text: str, available: list | None, source) -> list:
+    """--frames: 'A,B,C' or 'A:B[:STEP]' (the input's frames from A to B inclusive, every STEP-th), checked against
+    the frames the input holds (export, track: one meaning)."""
+    if not available:
+        raise SceneError(f"--frames: {source} holds one frame")
+    try:
+        if ":" in text:
+            parts = [frame_key(v) for v in text.split(":")]
+            if len(parts) not in (2, 3) or (len(parts) == 3 and (parts[2] < 1 or parts[2] != int(parts[2]))):
+                raise ValueError
+            chosen = [f for f in available if parts[0] <= f <= parts[1]][::int(parts[2]) if len(parts) == 3 else 1]
+        else:
+            chosen = [frame_key(v) for v in text.split(",")]
+    except ValueError:
+        raise SceneError(f"--frames: expected A,B,C or A:B[:STEP], got {text!r}") from None
+    missing = [f for f in chosen if f not in available]
+    if missing or not chosen:
+        raise SceneError(f"--frames: {source} has no frame {missing[0] if missing else text} (its frames: "
+                         f"{', '.join(map(str, available[:8]))}{', …' if len(available) > 8 else ''})")
+    return chosen

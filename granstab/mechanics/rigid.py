@@ -120,7 +120,7 @@ def free_spins(scene, H, *factors: np.ndarray, scale: float) -> np.ndarray:
     In a periodic scene the rigid motions are the d translations, to which the spins are orthogonal, so the spins are
     exact zero modes of sym(𝓗) and setting them aside moves no other eigenvalue. In a free cluster the rigid
     rotations have spin parts and Hg3 (the loads) does not vanish on them: holding the spins too would also hold the
-    orbital rotation and move the other eigenvalues (tests/test_metric.py, the pair potential's dynamical matrix),
+    orbital rotation and move the other eigenvalues (tests/mechanics/test_metric.py, the pair potential's dynamical matrix),
     so there they stay in the spectrum as zeros. A particle without contacts is a rattler: all its dofs stay."""
     if not scene.periodic:
         return np.zeros(0, dtype=np.intp)

@@ -20,7 +20,7 @@ eigenvalues, K = -Σ (1/(ρ_i - δ/2)) t_i⊗t_i, with K·n = 0; in 2D that is �
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import ClassVar
 
 import numpy as np
@@ -44,82 +44,57 @@ def _positive(name: str, **sizes) -> None:
 
 
 @dataclass(frozen=True)
-class Disk:
-    """2D disk of radius `radius`."""
+class _Shape:
+    """What the four shapes share: their sizes (the fields, in order) checked finite and > 0, the semi-axes along
+    the body axes (a radius repeated), the dict form of the scene files."""
 
-    radius: float
-    dim: ClassVar[int] = 2
-    kind: ClassVar[str] = "disk"
+    dim: ClassVar[int]
+    kind: ClassVar[str]
 
     def __post_init__(self):
-        _positive("disk", radius=self.radius)
+        _positive(self.kind, **self._sizes())
+
+    def _sizes(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @property
     def semi_axes(self) -> tuple:
-        return (self.radius, self.radius)
+        sizes = tuple(self._sizes().values())
+        return sizes * self.dim if len(sizes) == 1 else sizes
 
     def to_dict(self) -> dict:
-        return {"kind": self.kind, "radius": float(self.radius)}
+        return {"kind": self.kind, **{key: float(value) for key, value in self._sizes().items()}}
 
 
 @dataclass(frozen=True)
-class Ellipse:
-    """2D ellipse with semi-axes a (body e1) and b (body e2)."""
+class Disk(_Shape):
+    """2D disk of radius `radius`."""
+    radius: float
+    dim, kind = 2, "disk"         # class attributes (not annotated: no fields)
 
+
+@dataclass(frozen=True)
+class Sphere(_Shape):
+    """3D sphere of radius `radius`."""
+    radius: float
+    dim, kind = 3, "sphere"
+
+
+@dataclass(frozen=True)
+class Ellipse(_Shape):
+    """2D ellipse with semi-axes a (body e1) and b (body e2)."""
     a: float
     b: float
-    dim: ClassVar[int] = 2
-    kind: ClassVar[str] = "ellipse"
-
-    def __post_init__(self):
-        _positive("ellipse", a=self.a, b=self.b)
-
-    @property
-    def semi_axes(self) -> tuple:
-        return (self.a, self.b)
-
-    def to_dict(self) -> dict:
-        return {"kind": self.kind, "a": float(self.a), "b": float(self.b)}
+    dim, kind = 2, "ellipse"
 
 
 @dataclass(frozen=True)
-class Sphere:
-    """3D sphere of radius `radius`."""
-
-    radius: float
-    dim: ClassVar[int] = 3
-    kind: ClassVar[str] = "sphere"
-
-    def __post_init__(self):
-        _positive("sphere", radius=self.radius)
-
-    @property
-    def semi_axes(self) -> tuple:
-        return (self.radius,) * 3
-
-    def to_dict(self) -> dict:
-        return {"kind": self.kind, "radius": float(self.radius)}
-
-
-@dataclass(frozen=True)
-class Ellipsoid:
+class Ellipsoid(_Shape):
     """3D ellipsoid with semi-axes a, b, c along the body axes e1, e2, e3."""
-
     a: float
     b: float
     c: float
-    dim: ClassVar[int] = 3
-    kind: ClassVar[str] = "ellipsoid"
-
-    def __post_init__(self):
-        _positive("ellipsoid", a=self.a, b=self.b, c=self.c)
-
-    @property
-    def semi_axes(self) -> tuple:
-        return (self.a, self.b, self.c)
-
-    def to_dict(self) -> dict:
-        return {"kind": self.kind, "a": float(self.a), "b": float(self.b), "c": float(self.c)}
+    dim, kind = 3, "ellipsoid"
 
 
 SHAPES = {cls.kind: cls for cls in (Disk, Ellipse, Sphere, Ellipsoid)}

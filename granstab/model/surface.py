@@ -19,7 +19,7 @@ tangent plane (normal n) with the paper's sign (eq:rolling, eq:Dnpq: convex ⇒ 
     K = −P_n W (I − depth·W)⁻¹ P_n,   P_n = I − n⊗n      (`contact_curvature`).
 
 For a sphere that is −(I − n⊗n)/(R − depth); shapes.py's ellipses and ellipsoids give the same tensor from
-their support functions (tests/test_surface.py checks the two agree). `mesh` and `outline` give one shared
+their support functions (tests/model/test_surface.py checks the two agree). `mesh` and `outline` give one shared
 triangle mesh (or polyline) per shape for drawing.
 """
 from __future__ import annotations

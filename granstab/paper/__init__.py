@@ -13,8 +13,8 @@ The studies import no matplotlib; the `*_report` modules do, and only `reproduce
 NAME is one of two-particle, gear, four-disk, sliding-contact, all. Each runs its study (which returns
 data only), writes CSV data (and an .npz with the full-precision arrays) and figures (PNG and SVG) into DIR,
 and returns a summary with the claims of Sec. 4 it checks: the paper's statement or number, ours, and a verdict.
-`all` also writes REPRODUCTION.md into DIR and, when `root` is given, a copy at that repository root whose links
-point into DIR. Each `NAME_report` module has `run`, `steps`, its figures and its REPRODUCTION.md section;
+`all` also writes REPRODUCTION.md: at `root` when it is given (a repository root; its links point into DIR), else
+into DIR; one copy either way. Each `NAME_report` module has `run`, `steps`, its figures and its REPRODUCTION.md section;
 `examples` lists them in report order, `markdown` writes the file, `figures` holds the shared formats.
 matplotlib is imported by the reports and `figures` only (object-oriented API: no pyplot, no global backend
 switch); only the CLI's reproduce command imports them.
@@ -31,7 +31,7 @@ def reproduce(name: str, out_dir: Path, progress: bool = True, root: Path | None
 
     Each summary has `claims` (id, section, claim, paper, ours, verdict, note), `files` written and `seconds`.
     progress: a tqdm bar on stderr, with one line of results per example as it finishes.
-    root: with name == "all", also write REPRODUCTION.md at this path (a directory), links pointing into out_dir.
+    root: with name == "all", write REPRODUCTION.md at this path (a directory; links into out_dir) instead of in out_dir.
     """
     from tqdm import tqdm
 
@@ -55,14 +55,11 @@ def reproduce(name: str, out_dir: Path, progress: bool = True, root: Path | None
                 bad = [c["id"] for c in results[n]["claims"] if c["verdict"].startswith("DIFFERS")]
                 bar.write(f"{n}: {len(verdicts)} claims, {len(verdicts) - len(bad)} reproduced/extended"
                           + (f", DIFFERS: {', '.join(bad)}" if bad else "") + f" ({results[n]['seconds']:.1f} s)")
-    if name == "all":
-        text = markdown(results)
-        (out / "REPRODUCTION.md").write_text(text, encoding="utf-8")
-        results["markdown"] = [out / "REPRODUCTION.md"]
-        if root is not None:
-            prefix = os.path.relpath(out.resolve(), Path(root).resolve()).replace(os.sep, "/") + "/"
-            (Path(root) / "REPRODUCTION.md").write_text(markdown(results, prefix=prefix), encoding="utf-8")
-            results["markdown"].append(Path(root) / "REPRODUCTION.md")
+    if name == "all":                   # one REPRODUCTION.md: at `root` (links into out_dir), else in out_dir
+        where = out if root is None else Path(root)
+        prefix = "" if root is None else os.path.relpath(out.resolve(), where.resolve()).replace(os.sep, "/") + "/"
+        (where / "REPRODUCTION.md").write_text(markdown(results, prefix=prefix), encoding="utf-8")
+        results["markdown"] = [where / "REPRODUCTION.md"]
     if progress:
         claims = [c for n in names for c in results[n]["claims"]]
         bad = [c["id"] for c in claims if "DIFFERS" in c["verdict"]]

@@ -63,7 +63,7 @@ def section() -> tuple[list, object]:
     return lines, lines.append
 
 
-def claim(cid, section, statement, paper, ours, verdict, note="") -> dict:
+def claim(cid, section, statement, paper, ours, verdict="reproduced", note="") -> dict:
     return {"id": cid, "section": section, "claim": statement, "paper": paper, "ours": ours, "verdict": verdict,
             "note": note}
 

@@ -162,8 +162,7 @@ def claims(data: dict) -> list[dict]:
               "compression is dβ < 0."),
         claim("4.2-i", "Sec. 4.2", "normal and tangential forces stay constant (f, μf) along that path",
               "constant", f"H·dU/dβ = d(loads)/dβ with constant f, μf: max rel. residual "
-              f"{bound(float(path['rate_residual'].max()))}; S > 0 at all contacts (all-sliding branch consistent)",
-              "reproduced"),
+              f"{bound(float(path['rate_residual'].max()))}; S > 0 at all contacts (all-sliding branch consistent)"),
         claim("4.2-j", "Sec. 4.2", "no frictionally blocked energy released: all of this softening is geometric",
               "geometric origin", f"second-order work per dβ² = -8 f R = {g(path['work_closed'])} k R²: geometric part "
               f"within {bound(wgeo)} of it (all from Hg2), mechanical part {bound(wmax)}", "reproduced"),

@@ -49,8 +49,7 @@ def run(out: Path, tick, say) -> dict:
               f"gear_packing.toml (4×4 disks, r = ρ): {g0['n_zero']} zero eigenvalues of sym(𝓗) (3 rigid + 1); "
               "the extra null vector is the checkerboard counter-rotation: 1 - |cos| "
               f"{bound(max(1 - g0['overlap'], 0))}, "
-              f"translation share {bound(max(g0['translation_share'], 1e-300))}; verdict {g0['verdict']}",
-              "reproduced"),
+              f"translation share {bound(max(g0['translation_share'], 1e-300))}; verdict {g0['verdict']}"),
         claim("4.1-l", "Sec. 4.1", "the mode is inhibited by a genuine rotational (rolling) stiffness",
               "inhibited", f"gear_packing_rolling.toml (k_r = {gear.PRESET_ROLLING:g} k R²): {g1['n_zero']} zeros; "
               f"the gear-like eigenvalue is {g(g1['gear_like_eigenvalue'], 4)} k (Rayleigh quotient "

@@ -36,32 +36,13 @@ def run(out: Path, tick, say) -> dict:
     samples = two_particle.sample_table()
     tick()
     general = two_particle.general_case_check()
-    presets = {name: two_particle.core_modes(1.0, rho, 0.01) for name, rho in
-               (("two_particle.toml", 0.5), ("two_particle_flat.toml", 2.0), ("two_disks.toml", 1.0))}
-    glove = _hand_in_glove()
+    presets, glove = _presets(), _hand_in_glove()
     say(f"two-particle: λ6 field {grid['lam6'].size} points, |granstab - closed| / ‖𝓗‖ ≤ "
         f"{max(grid['error_lam5'], grid['error_lam6']):.1e} (paper matrices "
         f"{max(field['error_lam5'], field['error_lam6']):.1e}); analyze on {core['lam6'].size} points ≤ "
         f"{max(core['error_lam5'], core['error_lam6']):.1e}")
 
-    # data
-    files = []
-    for name in ("lam6", "lam5"):
-        rows = [[f] + list(grid[name][i]) for i, f in enumerate(grid["f_over_kr"])]
-        files.append(write_csv(out / f"two_particle_{name}_grid.csv",
-                                ["f_over_kr \\ rho_over_r"] + [f"{r:.6g}" for r in grid["rho_over_r"]], rows))
-    rows = []
-    for s in samples:
-        rows.append([s["rho_over_r"], s["f_over_kr"], *s["core_sorted"], *s["core_modes"], s["closed"][4],
-                     s["closed"][5], s["n_zero"], s["verdict"]])
-    files.append(write_csv(out / "two_particle_samples.csv",
-                            ["rho_over_r", "f_over_kr", "eig1", "eig2", "eig3", "eig4", "eig5", "eig6", "lambda4",
-                             "lambda5", "lambda6", "lambda5_closed", "lambda6_closed", "n_zero", "verdict"], rows))
-    np.savez(out / "two_particle.npz", **{k: v for k, v in grid.items() if isinstance(v, np.ndarray)},
-             paper_lam4=field["lam4_stacked"], paper_lam5=field["lam5_stacked"], paper_lam6=field["lam6_stacked"],
-             closed_lam5=field["lam5"], closed_lam6=field["lam6"],
-             analyze_lam6=core["lam6"], analyze_lam5=core["lam5"], analyze_rho=core["rho_over_r"],
-             analyze_f=core["f_over_kr"])
+    files = _write_data(out, grid, samples, field, core)   # data
     files += figure_lambda6(grid, out)
 
     # claims
@@ -86,12 +67,10 @@ def run(out: Path, tick, say) -> dict:
               f"max |H - Hᵀ|/‖𝓗‖ over the grid {bound(grid['asymmetry'])} (granstab), "
               f"{bound(field['max_asymmetry'])} (eq:exampleH2)", "reproduced"),
         claim("4.1-c", "Sec. 4.1, obs. 1", "three zero eigenvalues (two translations, one rotation)", "3",
-              f"3 off the lines ρ = r and f = 0 (sample table); rigid leakage of 𝓗 {bound(field['max_rigid_leakage'])}",
-              "reproduced"),
+              f"3 off the lines ρ = r and f = 0 (sample table); rigid leakage of 𝓗 {bound(field['max_rigid_leakage'])}"),
         claim("4.1-d", "Sec. 4.1, obs. 2", "λ⁽⁴⁾ = 2k, ν⁽⁴⁾ = [1, 0, 0, -1, 0, 0]/√2", "2k",
               f"2k on the whole grid: error {bound(grid['error_lam4'])} ‖𝓗‖ (granstab's H), "
-              f"{bound(field['error_lam4'])} (paper's matrix), {bound(core['error_lam4'])} (analyze, coarse grid)",
-              "reproduced"),
+              f"{bound(field['error_lam4'])} (paper's matrix), {bound(core['error_lam4'])} (analyze, coarse grid)"),
         claim("4.1-e", "Sec. 4.1, obs. 3", "a positive shearing eigenvalue λ⁽⁵⁾", "positive (no formula)",
               "λ⁽⁵⁾ = 2αk(1+r²) - f[(1+r²)² - rρ(2+r²)]/(ρ(1+r²)); min over the grid "
               f"{g(lam5_min, 4)} k > 0; closed form = granstab within {bound(grid['error_lam5'])} ‖𝓗‖ "
@@ -116,15 +95,41 @@ def run(out: Path, tick, say) -> dict:
               "reproduced" if neutral_on_lines else "DIFFERS"),
         claim("4.1-i", "Sec. 4.1", "two circular disks pressed together: neutral equilibrium and stability",
               "λ⁽⁶⁾ = 0", f"two_disks.toml: |λ⁽⁶⁾| {bound(abs(presets['two_disks.toml']['lam6']))} k, "
-              f"{presets['two_disks.toml']['n_zero']} zeros, verdict {presets['two_disks.toml']['verdict']}",
-              "reproduced"),
+              f"{presets['two_disks.toml']['n_zero']} zeros, verdict {presets['two_disks.toml']['verdict']}"),
         claim("4.1-j", "Sec. 4.1", "hand in glove (ρ^p ≈ -ρ^q): the geometric stiffness dominates",
               "f/(ρ^p+ρ^q) large", f"hand_in_glove.toml (ρ^p = 1, ρ^q = -1.002, f/(kr) = 0.01): ‖Hg‖₂/‖Hm‖₂ = "
-              f"{g(glove['ratio'], 3)}; eigenvalues {', '.join(g(v, 4) for v in glove['eig'])}; {glove['verdict']}",
-              "reproduced"),
+              f"{g(glove['ratio'], 3)}; eigenvalues {', '.join(g(v, 4) for v in glove['eig'])}; {glove['verdict']}"),
     ]
     return {"field": field, "grid": grid, "core": core, "samples": samples, "presets": presets, "glove": glove,
             "claims": claims, "files": files}
+
+
+def _write_data(out: Path, grid: dict, samples: list, field: dict, core: dict) -> list:
+    """The λ⁽⁵⁾, λ⁽⁶⁾ grids and the sample table as CSV, every field in one NPZ; the files written."""
+    files = []
+    for name in ("lam6", "lam5"):
+        rows = [[f] + list(grid[name][i]) for i, f in enumerate(grid["f_over_kr"])]
+        files.append(write_csv(out / f"two_particle_{name}_grid.csv",
+                                ["f_over_kr \\ rho_over_r"] + [f"{r:.6g}" for r in grid["rho_over_r"]], rows))
+    rows = []
+    for s in samples:
+        rows.append([s["rho_over_r"], s["f_over_kr"], *s["core_sorted"], *s["core_modes"], s["closed"][4],
+                     s["closed"][5], s["n_zero"], s["verdict"]])
+    files.append(write_csv(out / "two_particle_samples.csv",
+                            ["rho_over_r", "f_over_kr", "eig1", "eig2", "eig3", "eig4", "eig5", "eig6", "lambda4",
+                             "lambda5", "lambda6", "lambda5_closed", "lambda6_closed", "n_zero", "verdict"], rows))
+    np.savez(out / "two_particle.npz", **{k: v for k, v in grid.items() if isinstance(v, np.ndarray)},
+             paper_lam4=field["lam4_stacked"], paper_lam5=field["lam5_stacked"], paper_lam6=field["lam6_stacked"],
+             closed_lam5=field["lam5"], closed_lam6=field["lam6"],
+             analyze_lam6=core["lam6"], analyze_lam5=core["lam5"], analyze_rho=core["rho_over_r"],
+             analyze_f=core["f_over_kr"])
+    return files
+
+
+def _presets() -> dict:
+    """The core's modes of the three two-particle presets."""
+    return {name: two_particle.core_modes(1.0, rho, 0.01) for name, rho in
+            (("two_particle.toml", 0.5), ("two_particle_flat.toml", 2.0), ("two_disks.toml", 1.0))}
 
 
 def _hand_in_glove() -> dict:

@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import connected_components
 from ..mechanics.compatibility import compatibility_matrix
 from ..model.vec import rotate_matrix
 from ..solve.threads import blas_threads
-from .frame import Frame
+from .bodybar import BodyBar
 
 DENSE_MAX = 600      # columns of a block solved by dense SVD; larger ones take the sparse path
 TOL_RULE = 10.0      # rank tolerance TOL_RULE·max(K, n)·ε·σ̄: numpy's rule with a margin for σ̄ being a bound
@@ -79,24 +79,24 @@ def norm_bound(C: sp.spmatrix) -> float:
     return float(np.sqrt(A.sum(axis=0).max() * A.sum(axis=1).max()))
 
 
-def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = None) -> Physical:
-    """Rank, null space, self-stress count and rigid clusters of a frame; `length` L of the scaled dofs;
+def physical(bodybar: BodyBar, length: float, free_per_body: np.ndarray | None = None) -> Physical:
+    """Rank, null space, self-stress count and rigid clusters of a body-bar frame; `length` L of the scaled dofs;
     `free_per_body` the pebble game's free pebbles (the sparse path's start, else Maxwell's count n - K; the free
     spins added)."""
-    C, row_contact = compatibility_matrix(frame.p, frame.q, frame.r_pq, frame.r_qp, frame.normal, frame.sliding,
-                                          frame.rolling, frame.n_bodies, length)
-    per, nb = frame.per, frame.n_bodies
-    _, body_comp = connected_components(sp.coo_matrix((np.ones(len(frame.p)), (frame.p, frame.q)), shape=(nb, nb)),
+    C, row_contact = compatibility_matrix(bodybar.p, bodybar.q, bodybar.r_pq, bodybar.r_qp, bodybar.normal, bodybar.sliding,
+                                          bodybar.rolling, bodybar.n_bodies, length)
+    per, nb = bodybar.per, bodybar.n_bodies
+    _, body_comp = connected_components(sp.coo_matrix((np.ones(len(bodybar.p)), (bodybar.p, bodybar.q)), shape=(nb, nb)),
                                         directed=False)
-    body_comp = np.where(np.bincount(frame.p, minlength=nb) + np.bincount(frame.q, minlength=nb) > 0, body_comp, -1)
+    body_comp = np.where(np.bincount(bodybar.p, minlength=nb) + np.bincount(bodybar.q, minlength=nb) > 0, body_comp, -1)
     sigma = norm_bound(C)
-    spins = free_spins(frame)
+    spins = free_spins(bodybar)
     cols_of = _groups(np.repeat(body_comp, per))
-    rows_of = _groups(body_comp[frame.p][row_contact])
-    contacts_of = _groups(body_comp[frame.p])
-    E = pair_strain_operator(frame, length)
+    rows_of = _groups(body_comp[bodybar.p][row_contact])
+    contacts_of = _groups(body_comp[bodybar.p])
+    E = pair_strain_operator(bodybar, length)
     blocks, rank, gap, tol, near = [], 0, np.inf, 0.0, 0
-    strain = np.zeros(len(frame.p))
+    strain = np.zeros(len(bodybar.p))
     paths = {"dense": 0, "sparse": 0, "free_bodies": int(np.sum(body_comp < 0))}
     if -1 in cols_of:
         blocks.append((cols_of[-1], np.eye(len(cols_of[-1]))))
@@ -114,28 +114,28 @@ def physical(frame: Frame, length: float, free_per_body: np.ndarray | None = Non
         rank, gap, tol, near = rank + r, min(gap, g), max(tol, t), near + nf
         blocks.append((cols, V))
         mine = contacts_of[c]
-        strain[mine] = contact_strain(E, mine, cols, V, per) / (1 + np.linalg.norm(frame.branch[mine], axis=1) / length)
+        strain[mine] = contact_strain(E, mine, cols, V, per) / (1 + np.linalg.norm(bodybar.branch[mine], axis=1) / length)
     rigid = strain <= RIGID_RTOL
     counted, moving = strain[rigid], strain[~rigid]
     strain_gap = {"largest_counted_rigid": float(counted.max()) if counted.size else None,
                   "smallest_counted_moving": float(moving.min()) if moving.size else None, "rtol": RIGID_RTOL}
     return Physical(rank, C.shape[1] - rank, C.shape[0] - rank, blocks, gap, tol, sigma, strain, rigid,
-                    _clusters(frame, rigid), strain_gap, paths, near)
+                    _clusters(bodybar, rigid), strain_gap, paths, near)
 
 
-def free_spins(frame: Frame, rtol: float = 1e-9) -> np.ndarray:
+def free_spins(bodybar: BodyBar, rtol: float = 1e-9) -> np.ndarray:
     """(N_b,) rotations each body can make in place (r where every contact of it slides, has no rolling
     stiffness and a normal through its reference point, |r × n| <= rtol·|r|; else 0): the sparse path adds them
     to its start, since a pebble game counts them constrained."""
     def through(r):
-        cross = np.cross(r, frame.normal) if frame.dim == 3 else r[:, 0] * frame.normal[:, 1] - r[:, 1] * frame.normal[:, 0]
+        cross = np.cross(r, bodybar.normal) if bodybar.dim == 3 else r[:, 0] * bodybar.normal[:, 1] - r[:, 1] * bodybar.normal[:, 0]
         return np.abs(cross).reshape(len(r), -1).max(axis=1) <= rtol * np.linalg.norm(r, axis=1)
 
-    free = frame.sliding & ~frame.rolling
-    blocked = np.zeros(frame.n_bodies, bool)
-    blocked[frame.p[~(free & through(frame.r_pq))]] = True
-    blocked[frame.q[~(free & through(frame.r_qp))]] = True
-    return np.where(blocked, 0, frame.per - frame.dim)
+    free = bodybar.sliding & ~bodybar.rolling
+    blocked = np.zeros(bodybar.n_bodies, bool)
+    blocked[bodybar.p[~(free & through(bodybar.r_pq))]] = True
+    blocked[bodybar.q[~(free & through(bodybar.r_qp))]] = True
+    return np.where(blocked, 0, bodybar.per - bodybar.dim)
 
 
 def _groups(labels: np.ndarray) -> dict:
@@ -199,27 +199,27 @@ def _canonical(V: np.ndarray) -> np.ndarray:
     return V * np.sign(V[idx, np.arange(V.shape[1])])
 
 
-def pair_strain_matrix(frame: Frame, length: float):
+def pair_strain_matrix(bodybar: BodyBar, length: float):
     """E (M, d + r, 2(d + r)): the rigid-pair residual [du^q - du^p - dθ^p × b, L(dθ^q - dθ^p)] in scaled dofs."""
-    d, per, M = frame.dim, frame.per, len(frame.p)
+    d, per, M = bodybar.dim, bodybar.per, len(bodybar.p)
     r = per - d
     E = np.zeros((M, per, 2 * per))
     E[:, :d, :d] = -np.eye(d)
-    E[:, :d, d:per] = -rotate_matrix(frame.branch) / length
+    E[:, :d, d:per] = -rotate_matrix(bodybar.branch) / length
     E[:, :d, per:per + d] = np.eye(d)
     E[:, d:, d:per] = -np.eye(r)
     E[:, d:, per + d:] = np.eye(r)
     return E
 
 
-def pair_strain_operator(frame: Frame, length: float) -> sp.csr_matrix:
+def pair_strain_operator(bodybar: BodyBar, length: float) -> sp.csr_matrix:
     """The E of every contact as one sparse (M·(d + r), N_b·(d + r)) matrix, contact by contact."""
-    per, M = frame.per, len(frame.p)
-    E = pair_strain_matrix(frame, length)
-    local = np.concatenate([frame.p[:, None] * per + np.arange(per), frame.q[:, None] * per + np.arange(per)], axis=1)
+    per, M = bodybar.per, len(bodybar.p)
+    E = pair_strain_matrix(bodybar, length)
+    local = np.concatenate([bodybar.p[:, None] * per + np.arange(per), bodybar.q[:, None] * per + np.arange(per)], axis=1)
     cols = np.broadcast_to(local[:, None, :], E.shape)
     rows = np.broadcast_to(np.arange(M * per).reshape(M, per, 1), E.shape)
-    return sp.csr_matrix((E.ravel(), (rows.ravel(), cols.ravel())), shape=(M * per, frame.n_bodies * per))
+    return sp.csr_matrix((E.ravel(), (rows.ravel(), cols.ravel())), shape=(M * per, bodybar.n_bodies * per))
 
 
 def contact_strain(E: sp.csr_matrix, contacts: np.ndarray, cols: np.ndarray, null: np.ndarray, per: int,
@@ -234,10 +234,10 @@ def contact_strain(E: sp.csr_matrix, contacts: np.ndarray, cols: np.ndarray, nul
     return np.sqrt(total.reshape(-1, per).sum(axis=1))
 
 
-def _clusters(frame: Frame, rigid: np.ndarray) -> np.ndarray:
+def _clusters(bodybar: BodyBar, rigid: np.ndarray) -> np.ndarray:
     """Cluster label per body: the connected components of the rigid contacts with >= 2 bodies, -1 otherwise."""
-    n = frame.n_bodies
-    graph = sp.coo_matrix((np.ones(int(rigid.sum())), (frame.p[rigid], frame.q[rigid])), shape=(n, n))
+    n = bodybar.n_bodies
+    graph = sp.coo_matrix((np.ones(int(rigid.sum())), (bodybar.p[rigid], bodybar.q[rigid])), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     size = np.bincount(label, minlength=n)
     return np.where(size[label] >= 2, label, -1)

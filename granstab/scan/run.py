@@ -337,14 +337,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         scan found done ("resumed") and where it ran ("workers": count, where, why). The folder also holds
         clusters.* (one row a cluster) and particles.* (the map: ``unstable_fraction`` per particle).
     """
-    if rings < 1:
-        raise SceneError(f"rings must be >= 1, got {rings}")
-    boundary_rings(boundary)                                        # a bad value: one line
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
-    options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
-               "boundary": boundary, "attribution": bool(attribution)}
-    if uncertainty:
-        options["uncertainty"] = dict(uncertainty)
+    options = _options(rings, metric, max_sliding, sample_branches, boundary, attribution, uncertainty)
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
@@ -368,6 +362,18 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         raise Interrupted(f"granstab scan: interrupted (Ctrl-C): {kept} of {len(chosen)} clusters kept in "
                           f"{out_dir}; the same command (the same --out and options) resumes from there") from None
     return summary
+
+
+def _options(rings, metric, max_sliding, sample_branches, boundary, attribution, uncertainty) -> dict:
+    """The scan's options as its folder records them; a bad ring count or boundary: one line."""
+    if rings < 1:
+        raise SceneError(f"rings must be >= 1, got {rings}")
+    boundary_rings(boundary)                                        # a bad value: one line
+    options = {"rings": rings, "metric": metric, "max_sliding": max_sliding, "sample_branches": sample_branches,
+               "boundary": boundary, "attribution": bool(attribution)}
+    if uncertainty:
+        options["uncertainty"] = dict(uncertainty)
+    return options
 
 
 def _run(scene, todo, chunk, options, out, bar, scheduler, workers) -> dict:

@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from .device import backend
+from .krylov import _norms, _sym, extend
 from .lowrank import stack, sym_updates
-from .sparse import Modes, Shifted, _finish, _lowrank, _norms, _sym, extend, lowest_modes, operator
+from .sparse import Modes, Shifted, _finish, _lowrank, lowest_modes, operator
 
 GUARD = 6            # extra Ritz vectors carried by the refinement (faster convergence of the kk lowest)
 TAYLOR = 6           # powers (B_0 - σ)⁻ʲ[A, S] in the basis: each a block solve of 2·d·Ms columns; 2 powers left

@@ -19,9 +19,9 @@ read from /proc when the block starts), so that a busy machine gets one thread, 
 The rule for results: the thread count may change round-off, never what is reported. Above SMALL dofs the full
 path keeps every core (the speed of 900 × 900 branches), and every discrete output is taken from quantities whose
 round-off it cannot cross: signs by the per-eigenvalue bounds (accuracy.py), eigenvector signs by one canonical rule
-with a tie margin (branches.column_signs). tests/test_backend.py analyses a 147-dof packing on 1 and 2 threads
+with a tie margin (branches.column_signs). tests/solve/test_backend.py analyses a 147-dof packing on 1 and 2 threads
 (verdict, counts, codes equal; eigenvalues within their bounds; isolated eigenvectors equal to 1e-8), and
-tests/test_reproduce.py the paper's tables with 1 and 2 threads, two OpenBLAS kernels and a busy core.
+tests/paper/test_reproduce.py the paper's tables with 1 and 2 threads, two OpenBLAS kernels and a busy core.
 """
 from __future__ import annotations
 

@@ -2,13 +2,13 @@
 sequence, computes each frame's row and its particles' predictors, and between frames the non-affine motion,
 the contact changes and the stress-drop events (docs/track.md).
 
-    granstab.track.track("DataAnnulus/10", "out/", mu=0.5, scan=True, frames="0:20:2")
+    granstab.track.track("DataAnnulus/10", "out/", mu=0.5, scan=True, frames="1:20:2")
 
 CONTRACT (what `granstab.track.predict` and `.figures` and the explorer read; "granstab track 1")
 ------------------------------------------------------------------------------------------------
 DIR/frames.parquet — one row a selected frame, in order:
-    frame (int64: 0-based position in the input's frame list; --frames selects by it), step (float64: the reader's
-    key of that frame — annulus frame number, LAMMPS/DataSim timestep, table frame, MercuryDPM time; NaN: one
+    frame (int64: 0-based position in the input's frame list), step (float64: the reader's key of that frame, by
+    which --frames selects, as export's — annulus frame number, LAMMPS/DataSim timestep, table frame, MercuryDPM time; NaN: one
     frame), n_particles (rattlers included), n_rattlers, n_contacts, n_sliding, dim, stress (list<float64>, d×d row
     by row: σ = (1/V) Σ f⊗b, tension positive), pressure (−tr σ / d), shear_stress (√(½ s:s), s = dev sym σ),
     stress_ratio (shear_stress / pressure), volume, volume_from (the cell, or the centres' convex hull), cell

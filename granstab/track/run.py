@@ -13,6 +13,7 @@ from pathlib import Path
 from ..io import is_snapshot
 from ..io import open as open_input
 from ..io.progress import Heartbeat
+from ..io.source import pick_frames
 from ..model.errors import Interrupted, require
 from ..model.scene import SceneError
 from ..scan.clusters import DEFAULT_BOUNDARY, boundary_rings
@@ -25,25 +26,13 @@ EVENT_QUANTITIES = ("shear_stress", "stress_ratio")
 POLL_SECONDS = 0.05
 
 
-def select(text: str | None, n: int) -> list[int]:
-    """--frames A:B:STEP (positions in the input's frame list, as a Python slice: B excluded; any part may be
-    left out) → the positions; a one-line error for anything else or an empty selection."""
+def select(text: str | None, keys: list, source) -> list[int]:
+    """--frames A,B,C or A:B[:STEP] (the input's frames as export's --frames names them: A to B inclusive, every
+    STEP-th) → their positions in the input's frame list; a one-line error for anything else or none selected."""
     if text is None:
-        return list(range(n))
-    parts = text.split(":")
-    try:
-        if len(parts) > 3 or not text.strip():
-            raise ValueError
-        values = [int(v) if v.strip() else None for v in parts] + [None] * (3 - len(parts))
-        if len(parts) == 1:
-            values = [values[0], values[0] + 1 if values[0] != -1 else None, None]
-        chosen = list(range(n))[slice(*values)]
-    except ValueError:
-        raise SceneError(f"--frames: expected A:B:STEP (whole numbers, positions in the input's {n} frames), "
-                         f"got {text!r}") from None
-    if not chosen:
-        raise SceneError(f"--frames {text}: selects none of the input's {n} frames (positions 0..{n - 1})")
-    return chosen
+        return list(range(len(keys)))
+    chosen = set(pick_frames(text, [k for k in keys if k is not None], source))
+    return [i for i, key in enumerate(keys) if key in chosen]
 
 
 def check_options(window: int, d2min_radius, event_quantity: str, event_threshold: float, soft_modes: int,
@@ -81,8 +70,9 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
         The folder (granstab/track/__init__.py: CONTRACT); one holding an interrupted run with the same options
         and inputs (their sizes and content hashes, a dump's frame by frame: scan/resume.py) resumes; other ones are refused in one line
         unless `overwrite` (start afresh).
-    frames : "A:B:STEP", optional
-        Positions in the input's frame list (0-based, B excluded); default all.
+    frames : "A,B,C" or "A:B[:STEP]", optional
+        The input's frames as `--frame` names one (A to B inclusive, every STEP-th; io.source.pick_frames, as
+        export's); default all. The tables' `frame` is a frame's 0-based position in the input's list.
     whole, scan, rigidity : bool
         Per frame: the whole-packing analysis (all-unloading and all-loading branches, soft-spot participation in
         the `soft_modes` lowest consistent modes), the local scan (granstab.scan, `rings`, `boundary`), the largest
@@ -120,7 +110,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     begun = time.perf_counter()
     source = open_input(paths, format=format, **options)      # the frames indexed once, each read once
     keys = source.frames
-    positions = select(frames, len(keys))
+    positions = select(frames, keys, " + ".join(paths))
     out = Path(out_dir)
     spec = {"inputs": paths, "format": format, "import": {k: v for k, v in options.items()}, "out": str(out),
             "whole": whole, "scan": scan, "rigidity": rigidity, "soft_modes": soft_modes, "seed": seed,
@@ -134,21 +124,27 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     with Heartbeat(f"track {out_dir}", enabled=not progress) as beat:      # a line a minute without a bar
         beat.stage("frames", total=len(todo))
         bar = (_progress(len(todo), "frame") if progress else None) or beat
-        try:
-            try:
-                ran = run_frames(spec, todo, keys, workers, bar)
-            finally:
-                bar.close()
-        except KeyboardInterrupt:
-            kept = sum((out / "parts" / f"frame-{k:06d}.json").exists() for k in positions)
-            raise Interrupted(f"granstab track: interrupted (Ctrl-C): {kept} of {len(positions)} frames kept in "
-                              f"{out_dir}; the same command (the same --out and options) resumes from "
-                              "there") from None
+        ran = _frames_kept(spec, todo, positions, keys, workers, bar, out_dir)
         beat.stage("between frames: D²min, contacts, events")
         summary = finish(out, positions, keys, stated, {"resumed": len(positions) - len(todo),
                                                         "frames_this_run": len(todo), "workers": ran,
                                                         "started": begun})
     return _after(out, summary, predict, figures)
+
+
+def _frames_kept(spec: dict, todo: list, positions: list, keys: list, workers, bar, out_dir) -> dict:
+    """run_frames; Ctrl-C: one line saying how many frames the folder keeps and how to go on."""
+    out = Path(out_dir)
+    try:
+        try:
+            return run_frames(spec, todo, keys, workers, bar)
+        finally:
+            bar.close()
+    except KeyboardInterrupt:
+        kept = sum((out / "parts" / f"frame-{k:06d}.json").exists() for k in positions)
+        raise Interrupted(f"granstab track: interrupted (Ctrl-C): {kept} of {len(positions)} frames kept in "
+                          f"{out_dir}; the same command (the same --out and options) resumes from "
+                          "there") from None
 
 
 def _open(out: Path, stated: dict, inputs: list, overwrite: bool, spans: dict) -> None:

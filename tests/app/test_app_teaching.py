@@ -1,0 +1,178 @@
+"""The explorer as a teaching instrument (issue 36), in headless Chromium: every control gives a verdict, typed
+numbers are taken as typed, plain words in the visible text, the 3D view usable on a projector and a phone, the
+modes shown consistent with the verdict. One server and one browser for the module; each page listens for page
+errors. GRANSTAB_APP_SHOTS=folder saves the screenshots of docs/ (docs/teaching-*.png).
+"""
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import pytest
+from test_app_browser import CHROMIUM, FLAGS, REPO, wait_for
+from test_app_pages import shows_last_sent, ui_of
+
+from granstab_app.browser import number_box
+from granstab_app.text import preset_label
+
+pytestmark = pytest.mark.browser
+VERDICTS = ("stable", "neutral", "unstable")
+
+
+@pytest.fixture(scope="module")
+def app(explorer):
+    return explorer("two_particle.toml", "four_disk.toml", "spheres_tetrahedron.toml", "annulus_frame.json")
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    from playwright.sync_api import sync_playwright
+    assert CHROMIUM.exists(), "Debian chromium is required: bash .ci/run installs it (apt-get install -y chromium)"
+    with sync_playwright() as pw:
+        yield lambda width, height: pw.chromium.launch_persistent_context(
+            str(tmp_path_factory.mktemp("profile")), executable_path=str(CHROMIUM), headless=True, args=FLAGS,
+            viewport={"width": width, "height": height})
+
+
+def opened(ctx, app, errors, preset: str | None = None):
+    page = ctx.new_page()
+    page.on("pageerror", lambda exc: errors.append(f"pageerror at {page.viewport_size}: {exc}"))
+    page.goto(app.url + (f"/?preset={preset}" if preset else ""))
+    page.wait_for_selector(".granstab-verdict", timeout=90_000)
+    return page, ui_of(app, page)
+
+
+def shot(page, name: str) -> None:
+    folder = os.environ.get("GRANSTAB_APP_SHOTS")
+    if folder:
+        for close in page.locator("button.mantine-Notification-closeButton").all():    # viser's WebGL notice
+            close.click()
+        page.wait_for_timeout(2500)
+        page.screenshot(path=str(Path(folder) / name))
+
+
+def wide_canvas(page, least: float):
+    """A predicate: the 3D canvas's box once it is at least `least` px wide (the left column folds after load)."""
+    def box():
+        b = page.locator("canvas").first.bounding_box()
+        return b if b and b["width"] >= least else None
+    return box
+
+
+def typed(page, ui, key: str, text: str) -> None:
+    """Type `text` into a slider's number box key by key, as a person does (fill() sets it at once)."""
+    box = number_box(page, ui.sliders[key])
+    box.click()
+    box.press("Control+a")
+    box.press("Backspace")
+    box.type(text, delay=150)
+    box.press("Tab")
+
+
+def test_the_pair_takes_typed_numbers_and_speaks_plainly(app, browser):
+    """ρ/r typed "0.5" is 0.5 (it was 0.52: the first "0" was clamped to 0.2 and written back while typing); the
+    visible text holds no "eq:", "sym(" or "b0 #" (the badge's reason and the mode names were research words); the
+    plain sentence under the badge follows the curvature; the drawn pair's screenshots at ρ/r = 0.5, 1, 1.5."""
+    errors: list[str] = []
+    ctx = browser(1400, 900)
+    try:
+        page, ui = opened(ctx, app, errors)
+        for text, value, verdict, words in (("1.5", 1.5, "stable", "flatter than a circle"),
+                                            ("1", 1.0, "neutral", "as curved as a circle"),
+                                            ("0.5", 0.5, "unstable", "sharper than a circle")):
+            typed(page, ui, "rho_r", text)
+            wait_for(lambda v=value: ui.session.params["rho_r"] == v, timeout=60, what=f"ρ/r = {value}")
+            shows_last_sent(page, ui)
+            assert page.locator(".granstab-verdict").get_attribute("data-verdict") == verdict
+            visible = page.evaluate("document.body.innerText")
+            assert words in visible
+            assert not any(word in visible for word in ("eq:", "sym(", "b0 #")), visible
+            shot(page, f"teaching-pair-{text}.png")
+        assert number_box(page, ui.sliders["rho_r"]).input_value() == "0.5"
+        page.locator("summary").filter(has_text="What the words and symbols mean").click()
+        assert "Branches." in page.locator(".granstab-notation").inner_text()
+    finally:
+        ctx.close()
+    assert errors == []
+
+
+def test_friction_always_gives_a_verdict(app, browser):
+    """μ typed into four_disk's box (its contacts all sliding at μ = 0.5) gives a verdict at 0, 0.3, 0.7 and 1.5,
+    spheres_tetrahedron at 0.4 and 0.6: the sliding contacts keep to the new friction cone, and the page says so;
+    no server path and no advice to edit a file; the headline follows μ. `?preset=NAME` opens a preset."""
+    errors: list[str] = []
+    ctx = browser(1400, 900)
+    try:
+        page, ui = opened(ctx, app, errors, preset="four_disk")
+        assert ui.session.preset == "four_disk"
+        for preset, values in (("four_disk", ("0", "0.3", "0.7", "1.5")), ("spheres_tetrahedron", ("0.4", "0.6"))):
+            if ui.session.preset != preset:
+                page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+                page.get_by_role("option", name=preset_label(preset)).click()
+                wait_for(lambda p=preset: ui.session.preset == p, timeout=60, what=preset)
+            for text in values:
+                typed(page, ui, "mu", text)
+                wait_for(lambda t=text: ui.session.params["mu"] == float(t), timeout=60, what=f"μ = {text}")
+                shows_last_sent(page, ui)
+                assert page.locator(".granstab-verdict").get_attribute("data-verdict") in VERDICTS
+                visible = page.evaluate("document.body.innerText")
+                assert "edit" not in visible.lower() and str(REPO) not in visible and ".toml" not in visible
+                if preset == "four_disk":
+                    assert f"μ = {float(text):g}" in visible and "scaled onto the new cone" in visible
+    finally:
+        ctx.close()
+    assert errors == []
+
+
+def test_a_projector_and_a_phone(app, browser):
+    """At 1024×768 the 3D canvas is ≥ 600 px wide (it was 186: both side columns beside it), the left column a
+    drawer; on a 390×844 phone the verdict badge and the canvas are on screen."""
+    errors: list[str] = []
+    for width, height, name in ((1024, 768, "teaching-1024x768.png"), (390, 844, "teaching-phone.png")):
+        ctx = browser(width, height)
+        try:
+            page, ui = opened(ctx, app, errors)
+            canvas = wait_for(wide_canvas(page, min(600, width)), timeout=60, what="a canvas at least 600 px wide")
+            assert canvas["width"] >= min(600, width)
+            badge = page.locator(".granstab-verdict").bounding_box()
+            assert badge and 0 <= badge["y"] and badge["y"] + badge["height"] <= height
+            assert 0 <= badge["x"] and badge["x"] + 0.5 * badge["width"] <= width
+            shot(page, name)
+        finally:
+            ctx.close()
+    assert errors == []
+
+
+def test_modes_follow_the_verdict(app, browser):
+    """After every change the lowest consistent (negative first) mode is selected: annulus_frame shows the same mode
+    after rolling stiffness 0.005 → 0 as on opening (it showed λ = −0.000173 instead of −0.001536); on the pair at
+    the friction limit the ★ is red and the field note names the mode the verdict is unstable through."""
+    errors: list[str] = []
+    ctx = browser(1400, 900)
+    try:
+        page, ui = opened(ctx, app, errors, preset="annulus_frame")
+        wait_for(lambda: ui.session.analysis is not None, timeout=120, what="annulus_frame analysed")
+        shows_last_sent(page, ui)
+        with ui.lock:
+            first = ui._current_mode().eigenvalue
+        for text in ("0.005", "0"):
+            typed(page, ui, "rolling", text)
+            wait_for(lambda t=text: ui.session.params["rolling"] == float(t), timeout=120, what=f"rolling {text}")
+            shows_last_sent(page, ui, timeout=120)
+        with ui.lock:
+            assert ui._current_mode().eigenvalue == first and first < 0
+        page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
+        page.get_by_role("option", name=preset_label("two_particle")).click()
+        wait_for(lambda: ui.session.preset == "two_particle", timeout=60, what="the pair")
+        typed(page, ui, "rho_r", "1.5")
+        typed(page, ui, "mobilised", "1")
+        wait_for(lambda: ui.session.params["mobilised"] == 1.0 and ui.session.params["rho_r"] == 1.5, timeout=60,
+                 what="the pair at the friction limit")
+        shows_last_sent(page, ui)
+        assert page.locator(".granstab-verdict").get_attribute("data-verdict") == "unstable"
+        wait_for(lambda: "color:red" in ui.star.content, timeout=30, what="a red ★")
+        assert re.search(r"unstable through another mode \(sliding", page.evaluate("document.body.innerText"))
+    finally:
+        ctx.close()
+    assert errors == []
