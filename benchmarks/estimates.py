@@ -10,7 +10,7 @@ yield) by default and forced with --timeout, and every file of the fuzz corpus (
 shared machine is never at rest, so the load (threads at this priority ready to run, and the 1-minute load
 average) is recorded beside every number; the estimate follows the machine's speed (budget.speed, a timed probe)
 and its free cores (threads.free_cores, threads.slowdown). `cases(quick=True)`: small scenes of every path, run
-through the Python API (tests/test_plan.py)."""
+through the Python API (tests/solve/test_plan.py)."""
 from __future__ import annotations
 
 import dataclasses
@@ -74,7 +74,7 @@ def micrometres(scene, factor: float = 1e4):
 
 def cases(quick: bool = False) -> list:
     """(name, scene, analyze options) of every path (module docstring); quick: small ones, a few seconds in all
-    (tests/test_plan.py checks them as a ratio)."""
+    (tests/solve/test_plan.py checks them as a ratio)."""
     annulus = ("annulus frame in µm, family (full path)",
                micrometres(granstab.load_scene(ROOT / "presets" / "annulus_frame.json")), {})
     if quick:
@@ -356,7 +356,7 @@ def markdown(results: dict) -> str:
              "disks (3.3× over before 10L's Ritz updates that fall back to ARPACK were counted: budget.RITZ_FALLBACK) "
              "and the fuzz corpus. The machine is shared: the load is beside every row (threads of other processes "
              "ready to run at this priority, which the plan reads, and the 1-minute load average on 2 CPUs). "
-             "benchmarks/estimates.py; tests/test_plan.py checks small cases as a ratio, tests/test_estimates_model.py "
+             "benchmarks/estimates.py; tests/solve/test_plan.py checks small cases as a ratio, tests/solve/test_estimates_model.py "
              "the model's pieces."]
     if "held_out" in results:
         lines += held_out_lines(results["held_out"])

@@ -14,7 +14,7 @@ Everything here is fixed before any result is seen, and stated in the output:
   5 % of scores, each with a 95 % interval from a percentile bootstrap that resamples whole blocks: frames for a
   per-particle target (a frame's particles share its stress state), runs of W frames for the event target. Rows
   whose predictor is NaN are left out (`n` says how many were used). With fewer than scores.MIN_EVENTS blocks
-  holding a positive the interval is null with a `note` (the calibration of tests/test_track_scores.py).
+  holding a positive the interval is null with a `note` (the calibration of tests/track/test_track_scores.py).
 - **Baselines of the field** (baselines.py, frame.py): soft spots of the frictionless dynamical matrix and of the
   all-unloading branch, the previous window's D²min, and a learned structural score (softness).
 """

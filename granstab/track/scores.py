@@ -15,7 +15,7 @@ A resample's cumulative weights are m @ (per-block cumulative counts), one matri
 resample's deviation from the binned estimate is added to the exact one (a shift below 1/BINS of the ranks). The
 interval is the 2.5 and 97.5 percentiles of `N_BOOT` resamples (seed `SEED`), widened to hold the estimate where
 it falls outside (the `note` says so). Too few blocks with a positive (`MIN_EVENTS`, from the calibration
-of tests/test_track_scores.py: the random score's interval covers 0.5 in 93–97 % of seeds from there on) and the
+of tests/track/test_track_scores.py: the random score's interval covers 0.5 in 93–97 % of seeds from there on) and the
 interval is not printed (null, with a `note`).
 """
 from __future__ import annotations

@@ -11,9 +11,9 @@ import pytest
 import granstab
 from granstab.cli import main
 from granstab.io.registry import get
+from helpers import DATA, ROOT  # noqa: E402
 
-DATA = Path(__file__).parent / "data"
-EXAMPLES = Path(__file__).parents[1] / "examples"
+EXAMPLES = ROOT / "examples"
 CASES = {   # format: (fixture folder, dump names, other inputs)
     "liggghts_multisphere": (DATA / "io" / "liggghts_multisphere", ("atoms", "contacts", "walls", "bodies"),
                              [EXAMPLES / "liggghts_multisphere" / "in.clumps3d"]),

@@ -12,8 +12,9 @@ import numpy as np
 import granstab
 import granstab.io
 from granstab.cli import main
+from helpers import DATA  # noqa: E402
 
-D = Path(__file__).parent / "data" / "liggghts_superquadric" / "periodic"
+D = DATA / "liggghts_superquadric" / "periodic"
 L = 0.0155                                       # the cell's side (in.periodic's fix deform)
 
 

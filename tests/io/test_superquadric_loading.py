@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 
 import granstab.io
+from helpers import DATA  # noqa: E402
 
-D = Path(__file__).parent / "data" / "liggghts_superquadric"
+D = DATA / "liggghts_superquadric"
 LAW = {"k": 677.0, "alpha": 0.8235, "mu": 0.5}
 
 
