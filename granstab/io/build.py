@@ -170,14 +170,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     scene = build_scene(snap.dim, list(names[keep_p]), unwrapped[keep_p], arrays, title=title, source=snap.source,
                         tol=tol, entries=lambda k: f"contact {pair[c[k]]}", **periodic,
                         **({} if mass is None else {"mass": mass[keep_p], "inertia": inertia[keep_p]}))
-    inside = np.flatnonzero(keep_p)                        # the file's index of each scene particle
-    if not opts.keep_rattlers:
-        scene, kept = scene.without_rattlers()
-        gone = np.ones(len(inside), bool)
-        gone[kept] = False                                 # kept: indices into inside (sorted)
-        dropped, inside = inside[gone], inside[kept]
-    else:
-        dropped = np.zeros(0, np.int64)
+    scene, inside, dropped = _rattlers(scene, np.flatnonzero(keep_p), opts.keep_rattlers)
     report.update({
         "particles": {"in_file": len(x), "in_scene": len(inside), "outside_region": selection["particles"],
                       "without_contacts_dropped": len(dropped), "dropped": _names(names[dropped])},
@@ -197,6 +190,17 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
                   orientation=None if snap.orientation is None else snap.orientation[inside],
                   shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None)
+
+
+def _rattlers(scene, inside, keep: bool):
+    """(scene, the file's index of each scene particle, of each dropped one): particles without contacts dropped
+    (Scene.without_rattlers) unless `keep`."""
+    if keep:
+        return scene, inside, np.zeros(0, np.int64)
+    scene, kept = scene.without_rattlers()
+    gone = np.ones(len(inside), bool)
+    gone[kept] = False                                     # kept: indices into inside (sorted)
+    return scene, inside[kept], inside[gone]
 
 
 def _check_options(opts: Options, snap: Snapshot) -> None:
