@@ -7,11 +7,11 @@ import re
 from pathlib import Path
 
 import pytest
+from helpers import DATA, ROOT  # noqa: E402
 
 import granstab
 from granstab.cli import main
 from granstab.io.registry import get
-from helpers import DATA, ROOT  # noqa: E402
 
 EXAMPLES = ROOT / "examples"
 CASES = {   # format: (fixture folder, dump names, other inputs)

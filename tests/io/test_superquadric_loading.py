@@ -3,12 +3,11 @@ tests/data/liggghts_superquadric/load): four frames, the settled packing then 2,
 density raised, gravity the script's). Each frame is read alone; its grains balance contacts and m g with the
 frame's own masses (a reader that kept the first frame's masses would leave the heavier frames' weight unbalanced:
 a residual of order 1), and its first frame is the one-frame packing of in.settle."""
-from pathlib import Path
 
 import numpy as np
+from helpers import DATA  # noqa: E402
 
 import granstab.io
-from helpers import DATA  # noqa: E402
 
 D = DATA / "liggghts_superquadric"
 LAW = {"k": 677.0, "alpha": 0.8235, "mu": 0.5}

@@ -5,14 +5,13 @@ until at rest (kinetic energy ~3e-12 J); its dumps are tests/data/liggghts_super
 periodic (seam contacts kept with their images), every grain balances, and `granstab moduli` gives a stress equal to
 the virial of the dumped forces and branch vectors computed here from the raw dumps (minimum images)."""
 import json
-from pathlib import Path
 
 import numpy as np
+from helpers import DATA  # noqa: E402
 
 import granstab
 import granstab.io
 from granstab.cli import main
-from helpers import DATA  # noqa: E402
 
 D = DATA / "liggghts_superquadric" / "periodic"
 L = 0.0155                                       # the cell's side (in.periodic's fix deform)
