@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from . import vertices
 from .analysis import analyze, focus, inside_share
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.stiffness import contact_blocks, geometric
@@ -44,7 +45,8 @@ class DataRobustness:
     up to which the bound proves the verdict (> 1: holds); `bound`: ‖Δ sym(𝓗)‖₂ at the band (eigenvalue units);
     `uncertain`, `unbounded`: contacts whose mobilisation the band leaves open (counted in both states) or whose
     sliding direction can turn (no bound); `counterexample`: the forces (M, d) and its proven verdict, with the
-    largest correction as a fraction of each contact's band; `first_order`: a position band entered the bound."""
+    largest correction as a fraction of each contact's band; `first_order`: a position band entered the bound;
+    `certificate`: the vertex certificate of a stable verdict where the bound does not prove it (vertices.py)."""
 
     robust: str
     verdict: str
@@ -57,6 +59,7 @@ class DataRobustness:
     counterexample: dict | None = None
     first_order: bool = False
     seconds: float = 0.0
+    certificate: dict | None = None
 
     def to_dict(self) -> dict:
         out = asdict(self)
@@ -90,11 +93,14 @@ class _Data:
 
 
 def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_length: float | None = None,
-                    max_sliding: int = 16, analysis=None, search: bool = True, inside=None) -> DataRobustness:
+                    max_sliding: int = 16, analysis=None, search: bool = True, inside=None,
+                    budget: int = vertices.BUDGET) -> DataRobustness:
     """Whether the verdict of `scene` (in `metric`, one of L, L/10, 10L, inertia with diagonal blocks) holds for
     every force within `band` (module docstring). `analysis`: the scene's `analyze` in that metric, if at hand.
     `inside` = (particle indices, share) (the scan's --boundary embedded): the verdict on those particles' modes
-    (analysis.focus); stability is then still proven over every mode, instability by a fixed vector mostly inside."""
+    (analysis.focus); stability is then still proven over every mode, instability by a fixed vector mostly inside.
+    `budget`: the analyses the vertex certificate (vertices.py) may spend where the bound does not prove a stable
+    verdict (0: none)."""
     start = time.perf_counter()
     whole = analysis or analyze(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
                                 attribution=False, keep="all")
@@ -104,8 +110,8 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
         raise ValueError("data uncertainty: the metric must be diagonal (L metrics, or inertia with scalar inertia)")
     mob = mobilisation(scene, band)
     data = _Data.of(scene, band)
-    e_force, e_position = _bound(data, m)
-    e = e_force + e_position
+    weight, e_position = _bound(data, m)
+    e = float(np.sum(weight)) + e_position
     ext = whole
     if mob["uncertain"].any():        # contacts that may reach the cone: their sliding branches count too
         state = np.where(mob["uncertain"], "sliding", np.asarray(scene.state))
@@ -119,20 +125,27 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
     if margin > 1 and res.verdict.sufficient and verdict in ("stable", "unstable"):
         return DataRobustness(robust="holds", reason=f"proven by the bound up to {margin:.3g}× the band",
                               seconds=time.perf_counter() - start, **common)
+    cert = None
+    if (budget > 0 and verdict == "stable" and res.verdict.sufficient and inside is None
+            and vertices.eligible(scene, band, mob, ext)):
+        cert = vertices.certify(ext, data.delta, weight, budget=budget)
+        if cert["proven"]:
+            return DataRobustness(robust="holds", certificate=cert, seconds=time.perf_counter() - start,
+                                  reason=f"proven at the band's vertices ({cert['analyses']} analyses)", **common)
     found = _search(data, res, max_sliding, inside) if search else None
     if found is not None:
         return DataRobustness(robust="depends", counterexample=found, seconds=time.perf_counter() - start,
-                              reason=f"forces within the band give {found['verdict']}", **common)
+                              reason=f"forces within the band give {found['verdict']}", certificate=cert, **common)
     why = (f"the bound proves {margin:.3g}× the band" if np.isfinite(margin) else "no bound")
-    return DataRobustness(robust="undecided", reason=f"{why}; no counter-example found",
+    return DataRobustness(robust="undecided", reason=f"{why}; no counter-example found", certificate=cert,
                           seconds=time.perf_counter() - start, **common)
 
 
-def _bound(data: _Data, metric) -> tuple[float, float]:
-    """e = Σ_c δ_c β_c in the metric's dofs (mechanics/uncertainty.py), and the first-order position term (0 without
-    a position band)."""
+def _bound(data: _Data, metric) -> tuple[np.ndarray, float]:
+    """δ_c β_c per contact in the metric's dofs (their sum: e, mechanics/uncertainty.py), and the first-order
+    position term (0 without a position band)."""
     Dp = metric.diagonal[data.index]
-    e = float(np.sum(data.delta * contact_norms(data.G, Dp)))
+    e = data.delta * contact_norms(data.G, Dp)
     position = float(np.sum(position_norms(data.scene, data.band.position, Dp))) if data.band.position > 0 else 0.0
     return e, position
 

@@ -11,9 +11,10 @@ import pytest
 
 import granstab
 from granstab.cli import main
+from granstab.mechanics.branches import RIGID
 from granstab.mechanics.stiffness import contact_blocks, geometric
 from granstab.mechanics.uncertainty import Band, unit_blocks
-from granstab.paper.two_particle import lambda5
+from granstab.paper.two_particle import lambda5, lambda6
 from granstab.uncertainty import balance_least_squares, data_robustness, perturbed
 
 RHO = 1.2
@@ -64,6 +65,47 @@ def test_band_clear_of_the_threshold_holds(f, rel):
     assert got.robust == "holds" and got.margin > 1
     if f > F_STAR:
         assert abs(got.margin - (f - F_STAR) / (rel * f)) <= 1e-6 * got.margin
+
+
+@pytest.mark.parametrize("f", [5.0, 20.0])
+def test_vertex_certificate_is_exact_at_the_closed_form_threshold(f):
+    """The band's radius at 0.99 and 1.01 of the distance to the nearest threshold (f = 0, where λ⁽⁶⁾ = f(ρ − r)
+    changes sign, or f* of λ⁽⁵⁾): holds (by the vertex certificate, vertices.py: the bound alone proves < 0.6× the
+    band here) and depends, with a counter-example inside the band that `analyze` proves unstable. The certificate's
+    lowest value is a lower bound of the closed-form λ_min over the band, min(λ⁽⁵⁾(f + R), λ⁽⁶⁾(f − R)), and > 0."""
+    distance = min(f, F_STAR - f)
+    below = robust(f, 0.99 * distance / f)
+    assert below.robust == "holds" and below.margin < 0.6 and below.certificate["proven"]
+    assert below.certificate["exact"] and below.certificate["analyses"] <= 64
+    R = 0.99 * distance
+    closed = min(float(lambda5(1, 1, 1, RHO, f + R)), float(lambda6(1, RHO, f - R)))
+    assert 0 < below.certificate["lowest"] <= closed
+    above = robust(f, 1.01 * distance / f)
+    assert above.robust == "depends" and not above.certificate["proven"]
+    forces = np.array(above.counterexample["forces"])
+    assert np.linalg.norm(forces[0] - [-f, 0.0]) <= 1.01 * distance
+    other = granstab.analyze(perturbed(two(f), forces), metric="L", rotation_length=1).summary
+    assert other["verdict"] == "unstable" and other["sufficient"]
+
+
+def test_vertex_certificate_against_a_dense_sampling_of_the_band():
+    """A band the certificate proves (f = 20, 0.99 of the distance to f*): 200 forces on its edge and inside are all
+    stable, and no sampled λ_min (less its accuracy) is below the certificate's lowest value."""
+    f = 20.0
+    R = 0.99 * (F_STAR - f)
+    got = robust(f, R / f)
+    assert got.robust == "holds" and got.certificate["proven"]
+    rng = np.random.default_rng(3)
+    angles = np.r_[np.linspace(0, 2 * np.pi, 120, endpoint=False), rng.uniform(0, 2 * np.pi, 80)]
+    radii = np.r_[np.full(120, R * (1 - 1e-9)), R * np.sqrt(rng.uniform(size=80))]
+    lowest = np.inf
+    for a, r in zip(angles, radii):
+        res = granstab.analyze(perturbed(two(f), np.array([[-f + r * np.cos(a), r * np.sin(a)]])), metric="L",
+                               rotation_length=1, attribution=False, keep="all")
+        assert res.summary["verdict"] == "stable" and res.summary["sufficient"]
+        b = res.branches[0]
+        lowest = min(lowest, float(np.min((b.stability_eigenvalues - b.accuracy)[b.codes != RIGID])))
+    assert got.certificate["lowest"] <= lowest
 
 
 def test_holds_is_never_contradicted_inside_the_band():
