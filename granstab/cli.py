@@ -285,7 +285,8 @@ def parse_strain(text: str | None, dim: int):
 
 
 def uncertainty_arguments(p, balance: bool = True) -> None:
-    """--force-uncertainty, --position-uncertainty, --balance (issue 42, docs/uncertainty.md)."""
+    """--force-uncertainty, --position-uncertainty, --balance (issue 42, docs/uncertainty.md); balance=False (scan,
+    track): --search-counterexamples too."""
     p.add_argument("--force-uncertainty", default=None, metavar="REL[,ABS]",
                    help="each contact force within REL·|f| + ABS of its value: the verdict holds / depends on the "
                         "data / undecided (docs/uncertainty.md)")
@@ -295,7 +296,6 @@ def uncertainty_arguments(p, balance: bool = True) -> None:
         p.add_argument("--search-counterexamples", action="store_true",
                        help="clusters the batched bound does not decide: the per-cluster bound and the search for "
                             "forces within the band that change the verdict (depends; costs more: BENCHMARKS.md)")
-        return
     p.add_argument("--balance", choices=["loads", "least-squares"], default="loads",
                    help="loads (default): the loads absorb the measured imbalance; least-squares: forces moved to the "
                         "nearest balanced set, weighted by the force uncertainty")
@@ -545,7 +545,8 @@ def cmd_scan(args) -> int:
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.format,
                        device=args.device, attribution=not args.no_attribution, inputs=args.input,
-                       overwrite=args.overwrite, uncertainty=band_options(args))
+                       overwrite=args.overwrite, uncertainty=band_options(args), balance=args.balance,
+                       exempt=None if loaded.wall_flags is None else np.asarray(loaded.wall_flags) != 0)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     warned = write_import_warnings(args.out, loaded.report, [(loaded.report.get("frame"), loaded.warnings)])
@@ -826,7 +827,7 @@ def cmd_track(args) -> int:
                     window=args.window, d2min_radius=args.d2min_radius, event_quantity=args.event_quantity,
                     event_threshold=args.event_threshold, soft_modes=args.soft_modes, rings=args.rings,
                     boundary=args.boundary, workers=args.workers, progress=args.progress, seed=args.seed,
-                    overwrite=args.overwrite, uncertainty=band_options(args), **options)
+                    overwrite=args.overwrite, uncertainty=band_options(args), balance=args.balance, **options)
     resumed = summary["cost"]["resumed"]
     lines = [f"{summary['frames']} frames ({resumed} already in the folder) in {summary['cost']['seconds']:.1f} s; "
              f"{summary['events']} events ({summary['thresholds']['event_quantity']} drops over "

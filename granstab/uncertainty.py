@@ -32,7 +32,7 @@ from .mechanics.uncertainty import (
 )
 from .model.scene import Scene, SceneError, equilibrium_loads
 
-__all__ = ["Band", "DataRobustness", "data_robustness", "perturbed"]
+__all__ = ["Band", "DataRobustness", "balance_scene", "data_robustness", "perturbed"]
 
 CONSISTENT = (PLUS, MINUS, BOTH)
 SEARCH_STEPS = 3          # counter-example steps: each goes to the band's edge along the current work gradient
@@ -397,6 +397,19 @@ def position_norms(scene: Scene, length: float, Dp: np.ndarray) -> np.ndarray:
 
 def _norm2(X: np.ndarray) -> np.ndarray:
     return np.abs(np.linalg.eigvalsh(X)).max(axis=-1)
+
+
+def balance_scene(scene: Scene, uncertainty: dict | None, how: str, exempt=None):
+    """(scene, None) as given (how = "loads": the loads absorb the imbalance), or (the balanced scene, the balance
+    report without its per-contact lists) for "least-squares" (uncertainty.balance_least_squares, weighted by the
+    band of `uncertainty`'s rel and abs)."""
+    if how == "loads":
+        return scene, None
+    if how != "least-squares":
+        raise SceneError(f"--balance: loads or least-squares, got {how!r}")
+    band = Band(rel=(uncertainty or {}).get("rel", 0.0), abs=(uncertainty or {}).get("abs", 0.0))
+    out, report = balance_least_squares(scene, band, exempt=exempt)
+    return out, {k: v for k, v in report.items() if k not in ("correction_norm", "correction_over_band")}
 
 
 def balance_least_squares(scene: Scene, band: Band, exempt=None) -> tuple[Scene, dict]:
