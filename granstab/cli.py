@@ -196,7 +196,7 @@ def cmd_analyze(args) -> int:
         beat.stage("reading")
         with strict_numerics(source_of(args.scene)):
             loaded = load_with_import_options(args.scene, args)
-            band = band_of(args)
+            band = band_of(args, loaded)
             scene, balance = balanced(loaded, band, args.balance)
             try:
                 planned = plan(scene, **options)
@@ -289,7 +289,8 @@ def uncertainty_arguments(p, balance: bool = True) -> None:
     track): --search-counterexamples too."""
     p.add_argument("--force-uncertainty", default=None, metavar="REL[,ABS]",
                    help="each contact force within REL·|f| + ABS of its value: the verdict holds / depends on the "
-                        "data / undecided (docs/uncertainty.md)")
+                        "data / undecided (docs/uncertainty.md); analyze: 'file' takes each contact's from the "
+                        "input's f_err (or fn_err, ft_err) column")
     p.add_argument("--position-uncertainty", type=positive_number, default=None, metavar="LEN",
                    help="contact points and centres within LEN (first order only)")
     if not balance:
@@ -301,11 +302,18 @@ def uncertainty_arguments(p, balance: bool = True) -> None:
                         "nearest balanced set, weighted by the force uncertainty")
 
 
-def band_of(args):
-    """The Band of --force-uncertainty / --position-uncertainty, or None."""
+def band_of(args, loaded=None):
+    """The Band of --force-uncertainty / --position-uncertainty, or None; `--force-uncertainty file`: the input's
+    per-contact columns (f_err, or fn_err and ft_err: `loaded.force_uncertainty`; analyze only)."""
     from .mechanics.uncertainty import Band, parse_force_uncertainty
     if args.force_uncertainty is None and args.position_uncertainty is None:
         return None
+    if args.force_uncertainty == "file":
+        if loaded is None or loaded.force_uncertainty is None:
+            raise InputError("--force-uncertainty file: " + ("the input has no per-contact uncertainty columns "
+                             "(f_err, or fn_err and ft_err: docs/formats.md)" if loaded is not None else
+                             "per-contact columns are read by analyze only; give REL[,ABS]"))
+        return Band(per_contact=loaded.force_uncertainty, position=args.position_uncertainty or 0.0)
     try:
         rel, abs_ = parse_force_uncertainty(args.force_uncertainty or "0")
     except ValueError as exc:

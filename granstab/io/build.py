@@ -78,6 +78,7 @@ class Snapshot:
     bodies: dict | None = None  # rigid bodies (x: centres of mass, radius: bounding radii): contact points, ρ of
                                 # both sides, inertia, wall moments and the geometry entry (io/bodies.py says which)
     law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
+    force_uncertainty: tuple | None = None  # ((M,) radius of each force's stated uncertainty, which columns)
     shaped: dict | None = None     # shaped grains (not spheres): arm_p, arm_q (M, d) from each centre to the contact
                                    # point, curvature_p/q (M, d, d), report; optional inertia (N, d, d)
     length_unit: str = "file units"
@@ -212,11 +213,15 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         "duplicates": snap.notes.get("duplicates", "none (one row per contact)"),
     })
     report.update({k: v for k, v in snap.notes.items() if k not in report})
+    err = None if snap.force_uncertainty is None else snap.force_uncertainty[0][c]
+    if err is not None:
+        report["force_uncertainty"] = {"source": snap.force_uncertainty[1], **_stats(err)}
     report["warnings"] = import_warnings(report)
     return Loaded(scene=scene, report=report, frames=snap.frames,
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
                   orientation=None if snap.orientation is None else snap.orientation[inside],
-                  shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None)
+                  shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None,
+                  force_uncertainty=err)
 
 
 # ------------------------------------------------------------------------------------------------ checks
