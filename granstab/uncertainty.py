@@ -132,7 +132,8 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
         if cert["proven"]:
             return DataRobustness(robust="holds", certificate=cert, seconds=time.perf_counter() - start,
                                   reason=f"proven at the band's vertices ({cert['analyses']} analyses)", **common)
-    found = _search(data, res, max_sliding, inside) if search else None
+    probe = None if cert is None or cert["probe"] is None else np.array(cert["probe"])
+    found = _search(data, res, max_sliding, inside, probe) if search else None
     if found is not None:
         return DataRobustness(robust="depends", counterexample=found, seconds=time.perf_counter() - start,
                               reason=f"forces within the band give {found['verdict']}", certificate=cert, **common)
@@ -328,32 +329,43 @@ def _onto_cone(data: _Data):
     return f + np.where(move[:, None], step, 0.0) if move.any() else None
 
 
-def _search(data: _Data, res, max_sliding, inside=None):
-    """A force set within the band whose `analyze` proves another verdict than the data's (up to SEARCH_STEPS steps
-    from each side the verdict can move to), or None."""
+def _search(data: _Data, res, max_sliding, inside=None, probe=None):
+    """A force set within the band whose `analyze` proves another verdict than the data's (the vertex certificate's
+    `probe` first, then up to SEARCH_STEPS steps from each side the verdict can move to), or None."""
     verdict = res.verdict.verdict
     m = res.metric
     name, length = ("inertia", None) if m.rotation_length is None else ("L", m.rotation_length)
+
+    def other(force):
+        """(the analysis of `force`, its counter-example dict or None); (None, None) where analyze refuses it."""
+        try:
+            got = analyze(perturbed(data.scene, force), metric=name, rotation_length=length,
+                          max_sliding=max_sliding, attribution=False, keep="all")
+        except (SceneError, ValueError):         # a perturbed set the analysis refuses is no counter-example
+            return None, None
+        got = got if inside is None else focus(got, *inside)
+        if got.verdict.verdict == verdict or not got.verdict.sufficient:
+            return got, None
+        used = np.linalg.norm(force - data.scene.force, axis=1)
+        delta = data.band.force_radius(data.scene.force)
+        frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0)))
+        return got, {"verdict": got.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
+
+    found = other(probe)[1] if probe is not None else None
     sides = {"stable": (True,), "unstable": (False,), "neutral": (True, False)}.get(verdict, ())
-    for lower in sides:
+    for lower in sides if found is None else ():
         current = res
         onto = _onto_cone(data) if lower else None
         for step in range(SEARCH_STEPS):
             force = onto if step == 0 and onto is not None else _step(data, current, lower, first=step == 0)
             if force is None:
                 break
-            try:
-                current = analyze(perturbed(data.scene, force), metric=name, rotation_length=length,
-                                  max_sliding=max_sliding, attribution=False, keep="all")
-            except (SceneError, ValueError):     # a perturbed set the analysis refuses is no counter-example
+            current, found = other(force)
+            if current is None or found is not None:
                 break
-            current = current if inside is None else focus(current, *inside)
-            if current.verdict.verdict != verdict and current.verdict.sufficient:
-                used = np.linalg.norm(force - data.scene.force, axis=1)
-                delta = data.band.force_radius(data.scene.force)
-                frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0)))
-                return {"verdict": current.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
-    return None
+        if found is not None:
+            break
+    return found
 
 
 def position_norms(scene: Scene, length: float, Dp: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ BUDGET = 64        # analyses the certificate may spend (the data's own included
 CONTACTS = 2       # contacts enumerated (the largest δ_c β_c); the others enter by Weyl
 FIRST = {1: 8, 2: 4}   # sectors per enumerated contact at the start
 WIDEN = 1.0 + 1e-9     # the vertices' radius rounded up (cos and the forces' sums in floating point)
+INSIDE = 1.0 - 1e-9    # a probe inside the band: this fraction of each enumerated contact's radius
 
 
 def eligible(scene, band, mob, ext) -> bool:
@@ -40,7 +41,10 @@ def eligible(scene, band, mob, ext) -> bool:
 def certify(ext, delta: np.ndarray, weight: np.ndarray, *, budget: int = BUDGET, contacts: int = CONTACTS) -> dict:
     """Whether every branch of `ext` (an analysis of the scene, contacts of open mobilisation sliding) stays positive
     definite off its rigid modes for every force within δ (M,) of the data (module docstring). weight (M,): δ_c β_c,
-    the Weyl bound of each contact. Returns {"proven", "analyses", "enumerated", "exact", "rest", "lowest"}."""
+    the Weyl bound of each contact. Before a cell is bisected, the forces at its sectors' middles on the band's edge
+    are analysed: where they are not proven positive no proof can follow, and they are returned (`probe`, (M, d): a
+    candidate counter-example for the search). Returns {"proven", "analyses", "enumerated", "exact", "rest",
+    "lowest", "probe"}."""
     scene = ext.scene
     chosen = np.argsort(-weight, kind="stable")[:contacts]
     chosen = chosen[delta[chosen] > 0]
@@ -55,13 +59,17 @@ def certify(ext, delta: np.ndarray, weight: np.ndarray, *, budget: int = BUDGET,
     heap = []
     for cell in itertools.product(list(zip(edges[:-1], edges[1:])), repeat=K):
         heapq.heappush(heap, (_lower(value, cell, delta[chosen]), cell))
-    proven = False
+    proven, probe = False, None
     while heap:
         low, cell = heap[0]
         if low > rest:
             proven = True
             break
-        if value.count + 3 ** K > budget:           # a bisection adds at most 3^K vertices
+        if value.count + 3 ** K + 1 > budget:       # a bisection adds at most 3^K vertices and the probe
+            break
+        inner = tuple((0.5 * (a + b), d * INSIDE) for (a, b), d in zip(cell, delta[chosen]))
+        if value(inner) <= rest:                    # a force inside the band not proven: no proof can follow
+            probe = value.forces(inner)
             break
         heapq.heappop(heap)
         j = int(np.argmax([b - a for a, b in cell]))
@@ -71,7 +79,8 @@ def certify(ext, delta: np.ndarray, weight: np.ndarray, *, budget: int = BUDGET,
             heapq.heappush(heap, (_lower(value, part, delta[chosen]), part))
     lowest = min((h[0] for h in heap), default=np.inf)
     return {"proven": proven, "analyses": value.count, "enumerated": [int(c) for c in chosen],
-            "exact": bool(not others[delta > 0].any()), "rest": rest, "lowest": float(lowest)}
+            "exact": bool(not others[delta > 0].any()), "rest": rest, "lowest": float(lowest),
+            "probe": None if probe is None else probe.tolist()}
 
 
 def _lower(value, cell, delta) -> float:
@@ -105,13 +114,17 @@ class _values:
             self.cache[point] = self._value(point)
         return self.cache[point]
 
-    def _value(self, point) -> float:
-        from .uncertainty import perturbed
+    def forces(self, point) -> np.ndarray:
+        """The forces (M, d) of a point: the enumerated contacts' moved by R e(θ)."""
         force = self.frozen.force.copy()
         for c, p in zip(self.chosen, point):
             if p is not None:
                 force[c] += p[1] * np.array([np.cos(p[0]), np.sin(p[0])])
-        scene = perturbed(self.frozen, force)
+        return force
+
+    def _value(self, point) -> float:
+        from .uncertainty import perturbed
+        scene = perturbed(self.frozen, self.forces(point))
         ft = scene.tangential_force()
         if np.any(self.sliding & ((np.sum(ft * self.ft, axis=1) <= 0) | ~scene.has_sliding_direction())):
             return -np.inf
