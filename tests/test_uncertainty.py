@@ -108,6 +108,32 @@ def test_vertex_certificate_against_a_dense_sampling_of_the_band():
     assert got.certificate["lowest"] <= lowest
 
 
+def test_vertex_certificate_with_more_contacts_than_it_enumerates():
+    """Four disks of a triangular lattice (5 elastic contacts, ρ/r = 1.3) under a band of 7 |f| (large, so that the
+    bound alone proves only 0.97× of it): the certificate enumerates two contacts and bounds the other three by Weyl
+    (exact: False) and proves it; 100 force sets on the band's edge and inside are all stable, none with a lowest
+    non-rigid eigenvalue below the certificate's lowest vertex value less the Weyl rest."""
+    from dataclasses import replace
+
+    from granstab.model.packings import lattice
+    scene = lattice(2, size=2, kind="triangular", f_over_k=0.01, curvature_ratio=1.3, seed=2)
+    scene = replace(scene, state=("elastic",) * scene.n_contacts)
+    got = data_robustness(scene, Band(rel=7.0))
+    cert = got.certificate
+    assert got.robust == "holds" and got.margin < 1 and cert["proven"] and not cert["exact"]
+    assert len(cert["enumerated"]) == 2 and cert["rest"] > 0
+    delta = 7.0 * np.linalg.norm(scene.force, axis=1) * (1 - 1e-9)
+    rng = np.random.default_rng(0)
+    for i in range(100):
+        angle = rng.uniform(0, 2 * np.pi, scene.n_contacts)
+        radius = delta * (1.0 if i % 2 == 0 else np.sqrt(rng.uniform(size=scene.n_contacts)))
+        res = granstab.analyze(perturbed(scene, scene.force + radius[:, None] * np.c_[np.cos(angle), np.sin(angle)]),
+                               metric="L", attribution=False, keep="all")
+        assert res.summary["verdict"] == "stable" and res.summary["sufficient"]
+        b = res.branches[0]
+        assert np.min((b.stability_eigenvalues + b.accuracy)[b.codes != RIGID]) >= cert["lowest"] - cert["rest"]
+
+
 def test_holds_is_never_contradicted_inside_the_band():
     """Random forces in a band that holds give the same verdict (the bound is a promise)."""
     rng = np.random.default_rng(1)
