@@ -65,6 +65,8 @@ class DataRobustness:
         out = asdict(self)
         out["uncertain"], out["unbounded"] = list(self.uncertain), list(self.unbounded)
         out["margin"] = _finite(self.margin)
+        if self.certificate is not None:
+            out["certificate"] = {**self.certificate, "lowest": _finite(self.certificate["lowest"])}
         return out
 
 

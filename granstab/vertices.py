@@ -29,13 +29,15 @@ CONTACTS = 2       # contacts enumerated (the largest δ_c β_c); the others ent
 FIRST = {1: 8, 2: 4}   # sectors per enumerated contact at the start
 WIDEN = 1.0 + 1e-9     # the vertices' radius rounded up (cos and the forces' sums in floating point)
 INSIDE = 1.0 - 1e-9    # a probe inside the band: this fraction of each enumerated contact's radius
+MOST_DOF = 600         # larger scenes are left to the bound (64 analyses of a packing: minutes)
 
 
 def eligible(scene, band, mob, ext) -> bool:
-    """The certificate applies: 2D, no position band, no moment band, every branch kept, no contact whose sliding
-    direction can turn (mobilisation: `unbounded`)."""
-    return (scene.dim == 2 and band.position == 0 and not np.any(band.moment_radius(scene.moment) > 0)
-            and not mob["unbounded"].any() and len(ext.branches) == ext.verdict.n_branches)
+    """The certificate applies: 2D, at most MOST_DOF dofs on the dense path, no position band, no moment band, every
+    branch kept, no contact whose sliding direction can turn (mobilisation: `unbounded`)."""
+    return (scene.dim == 2 and scene.n_dof <= MOST_DOF and ext.backend == "dense" and band.position == 0
+            and not np.any(band.moment_radius(scene.moment) > 0) and not mob["unbounded"].any()
+            and len(ext.branches) == ext.verdict.n_branches)
 
 
 def certify(ext, delta: np.ndarray, weight: np.ndarray, *, budget: int = BUDGET, contacts: int = CONTACTS) -> dict:

@@ -159,6 +159,24 @@ def test_analyze_cli(tmp_path, capsys):
     assert "--force-uncertainty" in capsys.readouterr().err
 
 
+def test_analyze_cli_vertex_certificate(tmp_path, capsys):
+    """analyze --force-uncertainty at 0.99 of the distance to f*: holds by the vertex certificate, in the JSON (a
+    non-finite lowest value is written as a string, so the JSON stays strict) and in the table's line."""
+    path = tmp_path / "two.json"
+    path.write_text(json.dumps(granstab.scene_to_dict(two(20.0))))
+    band = str(0.99 * (F_STAR - 20.0) / 20.0)
+    assert main(["analyze", str(path), "--metric", "L", "--rotation-length", "1", "--force-uncertainty", band,
+                 "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)["data_uncertainty"]
+    assert got["robust"] == "holds" and got["margin"] < 1 and got["certificate"]["proven"]
+    assert main(["analyze", str(path), "--metric", "L", "--rotation-length", "1", "--force-uncertainty", band]) == 0
+    assert "HOLDS" in capsys.readouterr().out
+    from granstab.uncertainty import DataRobustness
+    odd = DataRobustness(robust="undecided", verdict="stable", margin=0.5, bound=1.0, band="", reason="",
+                         certificate={"proven": False, "lowest": -np.inf, "probe": None})
+    assert odd.to_dict()["certificate"]["lowest"] == "-inf"
+
+
 def test_balance_least_squares():
     """The balanced forces balance every particle to round-off, the report's corrections are the forces' changes,
     and this cut cluster (its rim's cut contacts not exempt) needs corrections far outside a 10 % band; the
