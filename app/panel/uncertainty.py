@@ -62,4 +62,7 @@ class BandControl:
         self.ui.write_verdict()
 
     def write(self, s) -> None:
-        self.text.content = robust_sentence(robustness(s), s.force_band)
+        """The sentence, sent only when it changes (an unchanged write is a message to the page all the same)."""
+        text = robust_sentence(robustness(s), s.force_band)
+        if text != self.text.content:
+            self.text.content = text
