@@ -130,7 +130,7 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
     cert = None
     if (budget > 0 and verdict == "stable" and res.verdict.sufficient and inside is None
             and vertices.eligible(scene, band, mob, ext)):
-        cert = vertices.certify(ext, data.delta, weight, budget=budget)
+        cert = vertices.certify(ext, data.delta, weight, perturbed, budget=budget)
         if cert["proven"]:
             return DataRobustness(robust="holds", certificate=cert, seconds=time.perf_counter() - start,
                                   reason=f"proven at the band's vertices ({cert['analyses']} analyses)", **common)

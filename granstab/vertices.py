@@ -40,10 +40,12 @@ def eligible(scene, band, mob, ext) -> bool:
             and len(ext.branches) == ext.verdict.n_branches)
 
 
-def certify(ext, delta: np.ndarray, weight: np.ndarray, *, budget: int = BUDGET, contacts: int = CONTACTS) -> dict:
+def certify(ext, delta: np.ndarray, weight: np.ndarray, perturbed, *, budget: int = BUDGET,
+            contacts: int = CONTACTS) -> dict:
     """Whether every branch of `ext` (an analysis of the scene, contacts of open mobilisation sliding) stays positive
     definite off its rigid modes for every force within δ (M,) of the data (module docstring). weight (M,): δ_c β_c,
-    the Weyl bound of each contact. Before a cell is bisected, the forces at its sectors' middles on the band's edge
+    the Weyl bound of each contact; perturbed(scene, forces): the scene with other forces (uncertainty.perturbed).
+    Before a cell is bisected, the forces at its sectors' middles on the band's edge
     are analysed: where they are not proven positive no proof can follow, and they are returned (`probe`, (M, d): a
     candidate counter-example for the search). Returns {"proven", "analyses", "enumerated", "exact", "rest",
     "lowest", "probe"}."""
@@ -54,7 +56,7 @@ def certify(ext, delta: np.ndarray, weight: np.ndarray, *, budget: int = BUDGET,
     others[chosen] = False
     rest = float(np.sum(weight[others]))
     frozen = replace(scene, state=tuple(np.where(scene.at_yield(), "sliding", "elastic")))
-    value = _values(ext, frozen, chosen, delta)
+    value = _values(ext, frozen, chosen, perturbed)
     K = len(chosen)
     first = FIRST.get(K, 2)
     edges = np.linspace(0.0, 2 * np.pi, first + 1)
@@ -100,8 +102,8 @@ class _values:
     family (a sliding contact's tangential force changes sign or vanishes, the rigid modes or branches differ) or
     `analyze` refuses it."""
 
-    def __init__(self, ext, frozen, chosen, delta):
-        self.ext, self.frozen, self.chosen = ext, frozen, chosen
+    def __init__(self, ext, frozen, chosen, perturbed):
+        self.ext, self.frozen, self.chosen, self.perturbed = ext, frozen, chosen, perturbed
         self.cache, self.count = {}, 0
         self.rigid = [int(np.sum(b.codes == RIGID)) for b in ext.branches]
         self.sliding = frozen.at_yield()
@@ -125,8 +127,7 @@ class _values:
         return force
 
     def _value(self, point) -> float:
-        from .uncertainty import perturbed
-        scene = perturbed(self.frozen, self.forces(point))
+        scene = self.perturbed(self.frozen, self.forces(point))
         ft = scene.tangential_force()
         if np.any(self.sliding & ((np.sum(ft * self.ft, axis=1) <= 0) | ~scene.has_sliding_direction())):
             return -np.inf
