@@ -213,15 +213,11 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
         "duplicates": snap.notes.get("duplicates", "none (one row per contact)"),
     })
     report.update({k: v for k, v in snap.notes.items() if k not in report})
-    err = None if snap.force_uncertainty is None else snap.force_uncertainty[0][c]
-    if err is not None:
-        report["force_uncertainty"] = {"source": snap.force_uncertainty[1], **_stats(err)}
     report["warnings"] = import_warnings(report)
-    return Loaded(scene=scene, report=report, frames=snap.frames,
+    return Loaded(scene=scene, report=report, frames=snap.frames, force_uncertainty=_force_uncertainty(snap, c, report),
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
                   orientation=None if snap.orientation is None else snap.orientation[inside],
-                  shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None,
-                  force_uncertainty=err)
+                  shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None)
 
 
 # ------------------------------------------------------------------------------------------------ checks
@@ -307,6 +303,15 @@ class Pairs:
             return f"{self.names[self.p[which]]}-{self.names[self.q[which]]}"
         which = np.asarray(which)
         return [self[c] for c in (np.flatnonzero(which) if which.dtype == bool else which)]
+
+
+def _force_uncertainty(snap: Snapshot, c: np.ndarray, report: dict):
+    """The file's per-contact force uncertainty of the scene's contacts `c` (None without one), said in the report."""
+    if snap.force_uncertainty is None:
+        return None
+    err = snap.force_uncertainty[0][c]
+    report["force_uncertainty"] = {"source": snap.force_uncertainty[1], **_stats(err)}
+    return err
 
 
 def _stats(values) -> dict:
