@@ -140,7 +140,7 @@ def cmd_analyze(args) -> int:
         beat.stage("reading")
         with strict_numerics(source_of(args.scene)):
             loaded = load_with_import_options(args.scene, args)
-            band = band_of(args)
+            band = band_of(args, loaded)
             scene, balance = balanced(loaded, band, args.balance)
             try:
                 planned = plan(scene, **options)
@@ -299,7 +299,8 @@ def cmd_scan(args) -> int:
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.out_format,
                        device=args.device, attribution=not args.no_attribution, inputs=args.input,
-                       overwrite=args.overwrite, uncertainty=band_options(args))
+                       overwrite=args.overwrite, uncertainty=band_options(args), balance=args.balance,
+                       exempt=None if loaded.wall_flags is None else np.asarray(loaded.wall_flags) != 0)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     warned = write_import_warnings(args.out, loaded.report, [(loaded.report.get("frame"), loaded.warnings)])
@@ -382,7 +383,7 @@ def cmd_track(args) -> int:
                     window=args.window, d2min_radius=args.d2min_radius, event_quantity=args.event_quantity,
                     event_threshold=args.event_threshold, soft_modes=args.soft_modes, rings=args.rings,
                     boundary=args.boundary, workers=args.workers, progress=args.progress, seed=args.seed,
-                    overwrite=args.overwrite, uncertainty=band_options(args), **options)
+                    overwrite=args.overwrite, uncertainty=band_options(args), balance=args.balance, **options)
     print(json.dumps(summary) if args.json else "\n".join(track_lines(summary, args.out)))
     return 0
 

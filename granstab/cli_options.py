@@ -48,27 +48,35 @@ def parse_strain(text: str | None, dim: int):
 
 
 def uncertainty_arguments(p, balance: bool = True) -> None:
-    """--force-uncertainty, --position-uncertainty, --balance (issue 42, docs/uncertainty.md)."""
+    """--force-uncertainty, --position-uncertainty, --balance (issue 42, docs/uncertainty.md); balance=False (scan,
+    track): --search-counterexamples too."""
     p.add_argument("--force-uncertainty", default=None, metavar="REL[,ABS]",
                    help="each contact force within REL·|f| + ABS of its value: the verdict holds / depends on the "
-                        "data / undecided (docs/uncertainty.md)")
+                        "data / undecided (docs/uncertainty.md); analyze: 'file' takes each contact's from the "
+                        "input's f_err (or fn_err, ft_err) column")
     p.add_argument("--position-uncertainty", type=positive_number, default=None, metavar="LEN",
                    help="contact points and centres within LEN (first order only)")
     if not balance:
         p.add_argument("--search-counterexamples", action="store_true",
                        help="clusters the batched bound does not decide: the per-cluster bound and the search for "
                             "forces within the band that change the verdict (depends; costs more: BENCHMARKS.md)")
-        return
     p.add_argument("--balance", choices=["loads", "least-squares"], default="loads",
                    help="loads (default): the loads absorb the measured imbalance; least-squares: forces moved to the "
                         "nearest balanced set, weighted by the force uncertainty")
 
 
-def band_of(args):
-    """The Band of --force-uncertainty / --position-uncertainty, or None."""
+def band_of(args, loaded=None):
+    """The Band of --force-uncertainty / --position-uncertainty, or None; `--force-uncertainty file`: the input's
+    per-contact columns (f_err, or fn_err and ft_err: `loaded.force_uncertainty`; analyze only)."""
     from .mechanics.uncertainty import Band, parse_force_uncertainty
     if args.force_uncertainty is None and args.position_uncertainty is None:
         return None
+    if args.force_uncertainty == "file":
+        if loaded is None or loaded.force_uncertainty is None:
+            raise InputError("--force-uncertainty file: " + ("the input has no per-contact uncertainty columns "
+                             "(f_err, or fn_err and ft_err: docs/formats.md)" if loaded is not None else
+                             "per-contact columns are read by analyze only; give REL[,ABS]"))
+        return Band(per_contact=loaded.force_uncertainty, position=args.position_uncertainty or 0.0)
     try:
         rel, abs_ = parse_force_uncertainty(args.force_uncertainty or "0")
     except ValueError as exc:

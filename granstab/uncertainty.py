@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from . import vertices
 from .analysis import analyze, focus, inside_share
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from .mechanics.stiffness import contact_blocks, geometric
@@ -31,7 +32,7 @@ from .mechanics.uncertainty import (
 )
 from .model.scene import Scene, SceneError, equilibrium_loads
 
-__all__ = ["Band", "DataRobustness", "data_robustness", "perturbed"]
+__all__ = ["Band", "DataRobustness", "balance_scene", "data_robustness", "perturbed"]
 
 CONSISTENT = (PLUS, MINUS, BOTH)
 SEARCH_STEPS = 3          # counter-example steps: each goes to the band's edge along the current work gradient
@@ -44,7 +45,8 @@ class DataRobustness:
     up to which the bound proves the verdict (> 1: holds); `bound`: ‖Δ sym(𝓗)‖₂ at the band (eigenvalue units);
     `uncertain`, `unbounded`: contacts whose mobilisation the band leaves open (counted in both states) or whose
     sliding direction can turn (no bound); `counterexample`: the forces (M, d) and its proven verdict, with the
-    largest correction as a fraction of each contact's band; `first_order`: a position band entered the bound."""
+    largest correction as a fraction of each contact's band; `first_order`: a position band entered the bound;
+    `certificate`: the vertex certificate of a stable verdict where the bound does not prove it (vertices.py)."""
 
     robust: str
     verdict: str
@@ -57,11 +59,14 @@ class DataRobustness:
     counterexample: dict | None = None
     first_order: bool = False
     seconds: float = 0.0
+    certificate: dict | None = None
 
     def to_dict(self) -> dict:
         out = asdict(self)
         out["uncertain"], out["unbounded"] = list(self.uncertain), list(self.unbounded)
         out["margin"] = _finite(self.margin)
+        if self.certificate is not None:
+            out["certificate"] = {**self.certificate, "lowest": _finite(self.certificate["lowest"])}
         return out
 
 
@@ -90,11 +95,14 @@ class _Data:
 
 
 def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_length: float | None = None,
-                    max_sliding: int = 16, analysis=None, search: bool = True, inside=None) -> DataRobustness:
+                    max_sliding: int = 16, analysis=None, search: bool = True, inside=None,
+                    budget: int = vertices.BUDGET) -> DataRobustness:
     """Whether the verdict of `scene` (in `metric`, one of L, L/10, 10L, inertia with diagonal blocks) holds for
     every force within `band` (module docstring). `analysis`: the scene's `analyze` in that metric, if at hand.
     `inside` = (particle indices, share) (the scan's --boundary embedded): the verdict on those particles' modes
-    (analysis.focus); stability is then still proven over every mode, instability by a fixed vector mostly inside."""
+    (analysis.focus); stability is then still proven over every mode, instability by a fixed vector mostly inside.
+    `budget`: the analyses the vertex certificate (vertices.py) may spend where the bound does not prove a stable
+    verdict (0: none)."""
     start = time.perf_counter()
     whole = analysis or analyze(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
                                 attribution=False, keep="all")
@@ -104,8 +112,8 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
         raise ValueError("data uncertainty: the metric must be diagonal (L metrics, or inertia with scalar inertia)")
     mob = mobilisation(scene, band)
     data = _Data.of(scene, band)
-    e_force, e_position = _bound(data, m)
-    e = e_force + e_position
+    weight, e_position = _bound(data, m)
+    e = float(np.sum(weight)) + e_position
     ext = whole
     if mob["uncertain"].any():        # contacts that may reach the cone: their sliding branches count too
         state = np.where(mob["uncertain"], "sliding", np.asarray(scene.state))
@@ -119,20 +127,28 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
     if margin > 1 and res.verdict.sufficient and verdict in ("stable", "unstable"):
         return DataRobustness(robust="holds", reason=f"proven by the bound up to {margin:.3g}× the band",
                               seconds=time.perf_counter() - start, **common)
-    found = _search(data, res, max_sliding, inside) if search else None
+    cert = None
+    if (budget > 0 and verdict == "stable" and res.verdict.sufficient and inside is None
+            and vertices.eligible(scene, band, mob, ext)):
+        cert = vertices.certify(ext, data.delta, weight, perturbed, budget=budget)
+        if cert["proven"]:
+            return DataRobustness(robust="holds", certificate=cert, seconds=time.perf_counter() - start,
+                                  reason=f"proven at the band's vertices ({cert['analyses']} analyses)", **common)
+    probe = None if cert is None or cert["probe"] is None else np.array(cert["probe"])
+    found = _search(data, res, max_sliding, inside, probe) if search else None
     if found is not None:
         return DataRobustness(robust="depends", counterexample=found, seconds=time.perf_counter() - start,
-                              reason=f"forces within the band give {found['verdict']}", **common)
+                              reason=f"forces within the band give {found['verdict']}", certificate=cert, **common)
     why = (f"the bound proves {margin:.3g}× the band" if np.isfinite(margin) else "no bound")
-    return DataRobustness(robust="undecided", reason=f"{why}; no counter-example found",
+    return DataRobustness(robust="undecided", reason=f"{why}; no counter-example found", certificate=cert,
                           seconds=time.perf_counter() - start, **common)
 
 
-def _bound(data: _Data, metric) -> tuple[float, float]:
-    """e = Σ_c δ_c β_c in the metric's dofs (mechanics/uncertainty.py), and the first-order position term (0 without
-    a position band)."""
+def _bound(data: _Data, metric) -> tuple[np.ndarray, float]:
+    """δ_c β_c per contact in the metric's dofs (their sum: e, mechanics/uncertainty.py), and the first-order
+    position term (0 without a position band)."""
     Dp = metric.diagonal[data.index]
-    e = float(np.sum(data.delta * contact_norms(data.G, Dp)))
+    e = data.delta * contact_norms(data.G, Dp)
     position = float(np.sum(position_norms(data.scene, data.band.position, Dp))) if data.band.position > 0 else 0.0
     return e, position
 
@@ -315,32 +331,43 @@ def _onto_cone(data: _Data):
     return f + np.where(move[:, None], step, 0.0) if move.any() else None
 
 
-def _search(data: _Data, res, max_sliding, inside=None):
-    """A force set within the band whose `analyze` proves another verdict than the data's (up to SEARCH_STEPS steps
-    from each side the verdict can move to), or None."""
+def _search(data: _Data, res, max_sliding, inside=None, probe=None):
+    """A force set within the band whose `analyze` proves another verdict than the data's (the vertex certificate's
+    `probe` first, then up to SEARCH_STEPS steps from each side the verdict can move to), or None."""
     verdict = res.verdict.verdict
     m = res.metric
     name, length = ("inertia", None) if m.rotation_length is None else ("L", m.rotation_length)
+
+    def other(force):
+        """(the analysis of `force`, its counter-example dict or None); (None, None) where analyze refuses it."""
+        try:
+            got = analyze(perturbed(data.scene, force), metric=name, rotation_length=length,
+                          max_sliding=max_sliding, attribution=False, keep="all")
+        except (SceneError, ValueError):         # a perturbed set the analysis refuses is no counter-example
+            return None, None
+        got = got if inside is None else focus(got, *inside)
+        if got.verdict.verdict == verdict or not got.verdict.sufficient:
+            return got, None
+        used = np.linalg.norm(force - data.scene.force, axis=1)
+        delta = data.band.force_radius(data.scene.force)
+        frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0)))
+        return got, {"verdict": got.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
+
+    found = other(probe)[1] if probe is not None else None
     sides = {"stable": (True,), "unstable": (False,), "neutral": (True, False)}.get(verdict, ())
-    for lower in sides:
+    for lower in sides if found is None else ():
         current = res
         onto = _onto_cone(data) if lower else None
         for step in range(SEARCH_STEPS):
             force = onto if step == 0 and onto is not None else _step(data, current, lower, first=step == 0)
             if force is None:
                 break
-            try:
-                current = analyze(perturbed(data.scene, force), metric=name, rotation_length=length,
-                                  max_sliding=max_sliding, attribution=False, keep="all")
-            except (SceneError, ValueError):     # a perturbed set the analysis refuses is no counter-example
+            current, found = other(force)
+            if current is None or found is not None:
                 break
-            current = current if inside is None else focus(current, *inside)
-            if current.verdict.verdict != verdict and current.verdict.sufficient:
-                used = np.linalg.norm(force - data.scene.force, axis=1)
-                delta = data.band.force_radius(data.scene.force)
-                frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0)))
-                return {"verdict": current.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
-    return None
+        if found is not None:
+            break
+    return found
 
 
 def position_norms(scene: Scene, length: float, Dp: np.ndarray) -> np.ndarray:
@@ -384,6 +411,19 @@ def position_norms(scene: Scene, length: float, Dp: np.ndarray) -> np.ndarray:
 
 def _norm2(X: np.ndarray) -> np.ndarray:
     return np.abs(np.linalg.eigvalsh(X)).max(axis=-1)
+
+
+def balance_scene(scene: Scene, uncertainty: dict | None, how: str, exempt=None):
+    """(scene, None) as given (how = "loads": the loads absorb the imbalance), or (the balanced scene, the balance
+    report without its per-contact lists) for "least-squares" (uncertainty.balance_least_squares, weighted by the
+    band of `uncertainty`'s rel and abs)."""
+    if how == "loads":
+        return scene, None
+    if how != "least-squares":
+        raise SceneError(f"--balance: loads or least-squares, got {how!r}")
+    band = Band(rel=(uncertainty or {}).get("rel", 0.0), abs=(uncertainty or {}).get("abs", 0.0))
+    out, report = balance_least_squares(scene, band, exempt=exempt)
+    return out, {k: v for k, v in report.items() if k not in ("correction_norm", "correction_over_band")}
 
 
 def balance_least_squares(scene: Scene, band: Band, exempt=None) -> tuple[Scene, dict]:

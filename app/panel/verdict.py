@@ -6,6 +6,7 @@ import threading
 from pathlib import Path
 
 from ..text import badge, details_markdown, headline_html, metric_row, notation_html
+from .uncertainty import BandControl
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 
@@ -28,6 +29,7 @@ class VerdictPanel:
         self.details = gui.add_markdown("")
         check = gui.add_button("Check other metrics")
         check.on_click(lambda _: ui.run(self._check_metrics))
+        self.band = BandControl(ui, gui)                  # issue 42: the force uncertainty (panel/uncertainty.py)
 
     def write_controls(self, s) -> None:
         self.metric.visible = len(s.metric_choices) > 1
@@ -41,6 +43,7 @@ class VerdictPanel:
         row = metric_row(s.metric, s.metrics, s.revision, self._checking == s.revision,
                          s.scene is not None and s.scene.mass is not None, s.family_estimate())
         self.details.content = details_markdown(s, row)
+        self.band.write(s)
         return verdict
 
     def _set_metric(self) -> None:

@@ -76,6 +76,7 @@ class Snapshot:
     bodies: dict | None = None  # rigid bodies (x: centres of mass, radius: bounding radii): contact points, ρ of
                                 # both sides, inertia, wall moments and the geometry entry (io/bodies.py says which)
     law: dict = field(default_factory=dict)   # k, alpha, mu the file gives: {key: (value, where)}
+    force_uncertainty: tuple | None = None  # ((M,) radius of each force's stated uncertainty, which columns)
     shaped: dict | None = None     # shaped grains (not spheres): arm_p, arm_q (M, d) from each centre to the contact
                                    # point, curvature_p/q (M, d, d), report; optional inertia (N, d, d)
     length_unit: str = "file units"
@@ -186,7 +187,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     })
     report.update({k: v for k, v in snap.notes.items() if k not in report})
     report["warnings"] = import_warnings(report)
-    return Loaded(scene=scene, report=report, frames=snap.frames,
+    return Loaded(scene=scene, report=report, frames=snap.frames, force_uncertainty=_force_uncertainty(snap, c, report),
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
                   orientation=None if snap.orientation is None else snap.orientation[inside],
                   shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None)
@@ -321,6 +322,15 @@ class Pairs:
             return f"{self.names[self.p[which]]}-{self.names[self.q[which]]}"
         which = np.asarray(which)
         return [self[c] for c in (np.flatnonzero(which) if which.dtype == bool else which)]
+
+
+def _force_uncertainty(snap: Snapshot, c: np.ndarray, report: dict):
+    """The file's per-contact force uncertainty of the scene's contacts `c` (None without one), said in the report."""
+    if snap.force_uncertainty is None:
+        return None
+    err = snap.force_uncertainty[0][c]
+    report["force_uncertainty"] = {"source": snap.force_uncertainty[1], **_stats(err)}
+    return err
 
 
 def _stats(values) -> dict:

@@ -21,6 +21,7 @@ CONTACT_NAMES = {
     "frx", "fry", "frz",          # … or LAMMPS granular rolling resistance force f_r (pair/local p5 p6 p7):
                                   #   moment R_eff f_r × n on id1, R_eff = R1 R2/(R1 + R2)
     "mobilised",                  # nonzero: at the Coulomb limit by the file's own test
+    "f_err", "fn_err", "ft_err",  # the force's stated uncertainty: |δf| <= f_err, or √(fn_err² + ft_err²) (issue 42)
     "kn", "kt", "mu",             # the file's contact law per contact: k = kn, α = kt/kn, μ
     "delx", "dely", "delz", "cx", "cy", "cz", "delta", "frame",   # read and checked or ignored
     "-",                          # ignore this column
@@ -168,3 +169,23 @@ def particle_orientation(col: dict, dim: int, line_of_row, where: str) -> np.nda
                              f"(quati = quatj = 0), got {q[tilted[0], 1]:.6g} {q[tilted[0], 2]:.6g}")
     return q
 
+
+
+def force_uncertainty(col: dict, where) -> tuple[np.ndarray | None, str | None]:
+    """Per contact row the radius of the force's stated uncertainty (docs/uncertainty.md): `f_err`, or `fn_err` and
+    `ft_err` together (the ball around their box: √(fn_err² + ft_err²)); (None, None) without them. A missing,
+    negative or non-finite value: SceneError naming the file, line and field (`where(row)`: "<file>: line L")."""
+    names = ["f_err"] if "f_err" in col else [n for n in ("fn_err", "ft_err") if n in col]
+    if not names:
+        return None, None
+    if names == ["fn_err"] or names == ["ft_err"]:
+        raise SceneError(f"{where(0)}: {'ft_err' if names == ['fn_err'] else 'fn_err'}: missing column "
+                         f"({names[0]} needs its partner, or give f_err)")
+    for name in names:
+        bad = ~(np.isfinite(col[name]) & (col[name] >= 0))
+        if bad.any():
+            r = int(np.flatnonzero(bad)[0])
+            raise SceneError(f"{where(r)}: {name}: the force uncertainty must be finite and >= 0, got "
+                             f"{col[name][r]!r}")
+    value = col["f_err"] if names == ["f_err"] else np.hypot(col["fn_err"], col["ft_err"])
+    return value.astype(float), " and ".join(names) + (" columns" if len(names) > 1 else " column")

@@ -157,6 +157,7 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
     with np.errstate(invalid="ignore", divide="ignore"):     # f_r columns: R_eff f_r × n (wall rows: unused)
         moment = cols.contact_moments(ccol, dim, branch / np.linalg.norm(branch, axis=1)[:, None],
                                  radius[p] * radius[q] / (radius[p] + radius[q]))
+    force_err, err_from = cols.force_uncertainty(ccol, cline_of)
     wall_load, walls = _walls(wall, p, force, len(ids), ccol["id2"])
     rows = np.flatnonzero(~wall)
     law = _law(ccol, rows, cpath)
@@ -169,7 +170,7 @@ def read_tables(paths: list[Path], frame=None, columns: str | None = None, progr
                     if np.all(ids == np.round(ids)) else ids, x=x, radius=radius, p=p, q=q, force=force,
                     normal=normal, moment=moment, mobilised=mobilised, wall_load=wall_load, law=law,
                     orientation=orientation,
-                    lattice=lattice,
+                    lattice=lattice, force_uncertainty=None if force_err is None else (force_err[keep], err_from),
                     frame=None if which is None else float(which), frames=frames,
                     notes={"duplicates": duplicates, "forces_from": how, "walls": walls,
                            "columns": cols.column_note(cpath, header_names, cnames, bool(columns))},

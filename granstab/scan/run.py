@@ -21,6 +21,7 @@ from ..model.errors import Interrupted
 from ..model.scene import Scene, SceneError
 from ..solve.device import backend
 from ..solve.threads import blas_threads
+from ..uncertainty import balance_scene
 from .batch import EMBEDDED_INSIDE, batchable, rim_flags, solve_chunk
 from .clusters import (
     DEFAULT_BOUNDARY,
@@ -292,7 +293,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
          device: str = "cpu", attribution: bool = True, inputs=None, overwrite: bool = False,
-         uncertainty: dict | None = None) -> dict:
+         uncertainty: dict | None = None, balance: str = "loads", exempt=None) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -329,6 +330,10 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         The data's uncertainty (mechanics.uncertainty.Band fields: rel, abs, position; and "search": True for the
         per-cluster bound and counter-example search where the batched bound does not decide): the columns
         data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
+    balance, exempt : {"loads", "least-squares"}, (N,) bool or None
+        "least-squares": the packing's forces moved to the nearest balanced set first (weighted by the
+        uncertainty's band; `exempt`: particles whose loads stay free, e.g. wall particles), as `analyze --balance`
+        (granstab.uncertainty.balance_least_squares); the summary's "balance" says how far (docs/uncertainty.md).
 
     Returns
     -------
@@ -339,6 +344,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     """
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = _options(rings, metric, max_sliding, sample_branches, boundary, attribution, uncertainty)
+    scene, balanced = balance_scene(scene, uncertainty, balance, exempt)
+    if balanced is not None:
+        options["balance"] = balance
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
@@ -353,7 +361,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
             if bar is not None:
                 bar.close()
         summary = out.finish(scene, chosen, seconds=time.perf_counter() - start, n_new=len(todo),
-                             extra={"resumed": int(len(chosen) - len(todo)), "workers": ran})
+                             extra={"resumed": int(len(chosen) - len(todo)), "workers": ran,
+                                    **({"balance": balanced} if balanced is not None else {})})
         if figures:
             from .figure import write_figures
             write_figures(scene, out.path)

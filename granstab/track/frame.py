@@ -20,6 +20,7 @@ from ..mechanics.branches import RIGID
 from ..model.scene import Scene, SceneError
 from ..scan.clusters import particle_shares
 from ..solve.threads import blas_threads
+from ..uncertainty import balance_scene
 from . import softspots
 from .motion import contact_keys
 from .quantities import macroscopic, per_particle
@@ -140,13 +141,16 @@ def frame_task(spec: dict, position: int, key) -> dict:
     times = {}
     start = time.perf_counter()
     loaded = spec["source"].read(key)                # granstab.io.Source: this frame's rows only
-    scene = loaded.scene
+    scene, balanced = balance_scene(loaded.scene, spec["scan_options"].get("uncertainty"),
+                                    spec.get("balance", "loads"),
+                                    None if loaded.wall_flags is None else np.asarray(loaded.wall_flags) != 0)
     times["read"] = time.perf_counter() - start
     core, walls, index = core_scene(scene, loaded.wall_flags)
     row = {"frame": position, "step": float("nan") if key is None else float(key), **macroscopic(scene),
            "n_rattlers": scene.n_particles - core.n_particles, "dim": scene.dim,
            "cell": [] if scene.cell is None else scene.cell.ravel().tolist(),
-           "import_warnings": list(loaded.warnings), "import_report": json.dumps(loaded.report, default=str)}
+           "import_warnings": list(loaded.warnings), "import_report": json.dumps(loaded.report, default=str),
+           **({"balance": json.dumps(balanced)} if balanced is not None else {})}
     part = {"frame": np.full(scene.n_particles, position, np.int64), "name": np.asarray(scene.names, dtype=object),
             **{a: scene.x[:, k] for k, a in enumerate("xyz"[:scene.dim])}, **per_particle(scene),
             "random": np.random.default_rng([spec["seed"], position]).random(scene.n_particles)}

@@ -57,7 +57,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
           window: int = 1, d2min_radius: float | None = None, event_quantity: str = "shear_stress",
           event_threshold: float = 0.05, soft_modes: int = 5, rings: int = 1, boundary: str = DEFAULT_BOUNDARY,
           workers: int | None = None, progress: bool = False, seed: int = 0, overwrite: bool = False,
-          uncertainty: dict | None = None,
+          uncertainty: dict | None = None, balance: str = "loads",
           **import_options) -> dict:
     """Track a sequence of frames (docs/track.md).
 
@@ -95,6 +95,9 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     uncertainty : dict, optional
         With `scan`: the data's uncertainty (granstab.scan's `uncertainty`): each frame's scan gets data_robust
         (docs/uncertainty.md).
+    balance : {"loads", "least-squares"}
+        "least-squares": each frame's forces moved to the nearest balanced set before its analyses, its wall
+        particles exempt (granstab.scan's `balance`; the frame row's `balance` says how far).
 
     Returns
     -------
@@ -115,7 +118,8 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
     spec = {"inputs": paths, "format": format, "import": {k: v for k, v in options.items()}, "out": str(out),
             "whole": whole, "scan": scan, "rigidity": rigidity, "soft_modes": soft_modes, "seed": seed,
             "scan_options": {"rings": rings, "boundary": boundary,
-                             **({"uncertainty": uncertainty} if uncertainty else {})}}
+                             **({"uncertainty": uncertainty} if uncertainty else {})},
+            **({"balance": balance} if balance != "loads" else {})}
     stated = {**{k: v for k, v in spec.items() if k != "out"}, "frames": frames, "window": window,
               "d2min_radius": d2min_radius, "event_quantity": event_quantity, "event_threshold": event_threshold}
     _open(out, stated, paths, overwrite, source.spans([keys[k] for k in positions]))

@@ -11,9 +11,10 @@ import pytest
 
 import granstab
 from granstab.cli import main
+from granstab.mechanics.branches import RIGID
 from granstab.mechanics.stiffness import contact_blocks, geometric
 from granstab.mechanics.uncertainty import Band, unit_blocks
-from granstab.paper.two_particle import lambda5
+from granstab.paper.two_particle import lambda5, lambda6
 from granstab.uncertainty import balance_least_squares, data_robustness, perturbed
 
 RHO = 1.2
@@ -66,6 +67,73 @@ def test_band_clear_of_the_threshold_holds(f, rel):
         assert abs(got.margin - (f - F_STAR) / (rel * f)) <= 1e-6 * got.margin
 
 
+@pytest.mark.parametrize("f", [5.0, 20.0])
+def test_vertex_certificate_is_exact_at_the_closed_form_threshold(f):
+    """The band's radius at 0.99 and 1.01 of the distance to the nearest threshold (f = 0, where λ⁽⁶⁾ = f(ρ − r)
+    changes sign, or f* of λ⁽⁵⁾): holds (by the vertex certificate, vertices.py: the bound alone proves < 0.6× the
+    band here) and depends, with a counter-example inside the band that `analyze` proves unstable. The certificate's
+    lowest value is a lower bound of the closed-form λ_min over the band, min(λ⁽⁵⁾(f + R), λ⁽⁶⁾(f − R)), and > 0."""
+    distance = min(f, F_STAR - f)
+    below = robust(f, 0.99 * distance / f)
+    assert below.robust == "holds" and below.margin < 0.6 and below.certificate["proven"]
+    assert below.certificate["exact"] and below.certificate["analyses"] <= 64
+    R = 0.99 * distance
+    closed = min(float(lambda5(1, 1, 1, RHO, f + R)), float(lambda6(1, RHO, f - R)))
+    assert 0 < below.certificate["lowest"] <= closed
+    above = robust(f, 1.01 * distance / f)
+    assert above.robust == "depends" and not above.certificate["proven"]
+    forces = np.array(above.counterexample["forces"])
+    assert np.linalg.norm(forces[0] - [-f, 0.0]) <= 1.01 * distance
+    other = granstab.analyze(perturbed(two(f), forces), metric="L", rotation_length=1).summary
+    assert other["verdict"] == "unstable" and other["sufficient"]
+
+
+def test_vertex_certificate_against_a_dense_sampling_of_the_band():
+    """A band the certificate proves (f = 20, 0.99 of the distance to f*): 200 forces on its edge and inside are all
+    stable, and no sampled λ_min (less its accuracy) is below the certificate's lowest value."""
+    f = 20.0
+    R = 0.99 * (F_STAR - f)
+    got = robust(f, R / f)
+    assert got.robust == "holds" and got.certificate["proven"]
+    rng = np.random.default_rng(3)
+    angles = np.r_[np.linspace(0, 2 * np.pi, 120, endpoint=False), rng.uniform(0, 2 * np.pi, 80)]
+    radii = np.r_[np.full(120, R * (1 - 1e-9)), R * np.sqrt(rng.uniform(size=80))]
+    lowest = np.inf
+    for a, r in zip(angles, radii):
+        res = granstab.analyze(perturbed(two(f), np.array([[-f + r * np.cos(a), r * np.sin(a)]])), metric="L",
+                               rotation_length=1, attribution=False, keep="all")
+        assert res.summary["verdict"] == "stable" and res.summary["sufficient"]
+        b = res.branches[0]
+        lowest = min(lowest, float(np.min((b.stability_eigenvalues - b.accuracy)[b.codes != RIGID])))
+    assert got.certificate["lowest"] <= lowest
+
+
+def test_vertex_certificate_with_more_contacts_than_it_enumerates():
+    """Four disks of a triangular lattice (5 elastic contacts, ρ/r = 1.3) under a band of 7 |f| (large, so that the
+    bound alone proves only 0.97× of it): the certificate enumerates two contacts and bounds the other three by Weyl
+    (exact: False) and proves it; 100 force sets on the band's edge and inside are all stable, none with a lowest
+    non-rigid eigenvalue below the certificate's lowest vertex value less the Weyl rest."""
+    from dataclasses import replace
+
+    from granstab.model.packings import lattice
+    scene = lattice(2, size=2, kind="triangular", f_over_k=0.01, curvature_ratio=1.3, seed=2)
+    scene = replace(scene, state=("elastic",) * scene.n_contacts)
+    got = data_robustness(scene, Band(rel=7.0))
+    cert = got.certificate
+    assert got.robust == "holds" and got.margin < 1 and cert["proven"] and not cert["exact"]
+    assert len(cert["enumerated"]) == 2 and cert["rest"] > 0
+    delta = 7.0 * np.linalg.norm(scene.force, axis=1) * (1 - 1e-9)
+    rng = np.random.default_rng(0)
+    for i in range(100):
+        angle = rng.uniform(0, 2 * np.pi, scene.n_contacts)
+        radius = delta * (1.0 if i % 2 == 0 else np.sqrt(rng.uniform(size=scene.n_contacts)))
+        res = granstab.analyze(perturbed(scene, scene.force + radius[:, None] * np.c_[np.cos(angle), np.sin(angle)]),
+                               metric="L", attribution=False, keep="all")
+        assert res.summary["verdict"] == "stable" and res.summary["sufficient"]
+        b = res.branches[0]
+        assert np.min((b.stability_eigenvalues + b.accuracy)[b.codes != RIGID]) >= cert["lowest"] - cert["rest"]
+
+
 def test_holds_is_never_contradicted_inside_the_band():
     """Random forces in a band that holds give the same verdict (the bound is a promise)."""
     rng = np.random.default_rng(1)
@@ -89,6 +157,24 @@ def test_analyze_cli(tmp_path, capsys):
     assert data["balance"]["method"] == "loads absorb the imbalance"
     assert main(["analyze", str(path), "--force-uncertainty", "0.1,x"]) == 2
     assert "--force-uncertainty" in capsys.readouterr().err
+
+
+def test_analyze_cli_vertex_certificate(tmp_path, capsys):
+    """analyze --force-uncertainty at 0.99 of the distance to f*: holds by the vertex certificate, in the JSON (a
+    non-finite lowest value is written as a string, so the JSON stays strict) and in the table's line."""
+    path = tmp_path / "two.json"
+    path.write_text(json.dumps(granstab.scene_to_dict(two(20.0))))
+    band = str(0.99 * (F_STAR - 20.0) / 20.0)
+    assert main(["analyze", str(path), "--metric", "L", "--rotation-length", "1", "--force-uncertainty", band,
+                 "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)["data_uncertainty"]
+    assert got["robust"] == "holds" and got["margin"] < 1 and got["certificate"]["proven"]
+    assert main(["analyze", str(path), "--metric", "L", "--rotation-length", "1", "--force-uncertainty", band]) == 0
+    assert "HOLDS" in capsys.readouterr().out
+    from granstab.uncertainty import DataRobustness
+    odd = DataRobustness(robust="undecided", verdict="stable", margin=0.5, bound=1.0, band="", reason="",
+                         certificate={"proven": False, "lowest": -np.inf, "probe": None})
+    assert odd.to_dict()["certificate"]["lowest"] == "-inf"
 
 
 def test_balance_least_squares():

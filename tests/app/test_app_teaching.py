@@ -111,6 +111,7 @@ def test_friction_always_gives_a_verdict(app, browser):
                 page.locator(f'[id="{ui.preset._impl.uuid}"]').click()
                 page.get_by_role("option", name=preset_label(preset)).click()
                 wait_for(lambda p=preset: ui.session.preset == p, timeout=60, what=preset)
+                shows_last_sent(page, ui)    # the new preset's controls written first: typing raced their μ
             for text in values:
                 typed(page, ui, "mu", text)
                 wait_for(lambda t=text: ui.session.params["mu"] == float(t), timeout=60, what=f"μ = {text}")

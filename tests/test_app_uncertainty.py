@@ -1,0 +1,63 @@
+"""The explorer's *Force uncertainty* control (issue 42, app/panel/uncertainty.py): the plain sentence of each
+answer, nothing computed at 0 %, and a session whose band changes what the Verdict tab says (no browser)."""
+from types import SimpleNamespace
+
+import numpy as np
+
+import granstab
+from granstab.uncertainty import DataRobustness
+from granstab_app.panel import uncertainty as panel
+from granstab_app.state import Session
+
+
+def result(robust, **extra):
+    return DataRobustness(robust=robust, verdict="stable", margin=extra.pop("margin", 0.5), bound=1.0,
+                          band="forces ±(0.1·|f| + 0)", reason="", **extra)
+
+
+def test_sentences():
+    assert panel.robust_sentence(result("holds"), 0) == "" and panel.robust_sentence(None, 10) == ""
+    assert panel.robust_sentence(result("holds", margin=2.0), 10).startswith("**Holds under ±10 %:**")
+    flip = result("depends", counterexample={"verdict": "unstable", "forces": [[-23.5, 0.25]],
+                                             "largest_band_fraction": 0.99})
+    text = panel.robust_sentence(flip, 15, names=["p–q"])
+    assert text.startswith("**Depends on the data:**") and "unstable instead of stable" in text
+    assert "p–q: (-23.5, 0.25)" in text
+    assert "proven for 0.28× the band only" in panel.robust_sentence(result("undecided", margin=0.28), 5)
+    assert "no bound applies" in panel.robust_sentence(result("undecided", margin=-np.inf), 5)
+
+
+def test_the_band_changes_the_session_report(monkeypatch):
+    """The default pair: at 0 % nothing is computed; at 10 % the verdict holds (the pair's thresholds, f = 0 and
+    f*, are far), computed once per revision and band; a new revision computes again."""
+    s = Session()
+    calls = []
+    real = panel.data_robustness
+    monkeypatch.setattr(panel, "data_robustness", lambda *a, **k: calls.append(k) or real(*a, **k))
+    assert panel.robustness(s) is None and calls == []
+    s.force_band = 10.0
+    got = panel.robustness(s)
+    assert got.robust == "holds" and got.verdict == s.analysis.verdict.verdict and len(calls) == 1
+    assert calls[0]["analysis"] is s.analysis                     # the session's own analysis, reused
+    assert panel.robustness(s) is got and len(calls) == 1
+    assert panel.robust_sentence(got, s.force_band).startswith("**Holds under ±10 %:**")
+    s.set_params(rho_r=s.params["rho_r"] * 1.1)
+    assert panel.robustness(s) is not got and len(calls) == 2
+
+
+def test_a_band_across_the_threshold_shows_its_counter_example():
+    """The paper's pair (ρ = 1.2, f = 22: the band ±15 % crosses f* = 24): depends, and the forces shown give the
+    other verdict."""
+    scene = granstab.scene_from_dict({
+        "dim": 2, "particles": [{"name": "p", "x": [0.0, 0.0]}, {"name": "q", "x": [2.0, 0.0]}],
+        "contacts": [{"p": "p", "q": "q", "point": [1.0, 0.0], "normal": [1.0, 0.0], "curvature_p": -1 / 1.2,
+                      "curvature_q": -1 / 1.2, "force": [-22.0, 0.0], "k": 1.0, "alpha": 1.0, "state": "elastic"}]})
+    analysis = granstab.analyze(scene, metric="L", attribution=False, keep="all")
+    s = SimpleNamespace(force_band=15.0, analysis=analysis, scene=scene, on_map=False, revision=1,
+                        robust=(None, None))
+    got = panel.robustness(s)
+    assert got.robust == "depends"
+    assert "unstable instead of stable" in panel.robust_sentence(got, 15.0)
+    from granstab.uncertainty import perturbed
+    other = granstab.analyze(perturbed(scene, np.array(got.counterexample["forces"])), metric="L")
+    assert other.summary["verdict"] == "unstable"
