@@ -1,7 +1,7 @@
 """The *Force uncertainty* control of the Verdict tab (issue 42): a relative band ±x % on every contact force, and
 one plain sentence saying whether the verdict holds under it, depends on the data (a counter-example's forces
 shown) or is undecided. 0 % (the default) runs nothing. `robust_sentence` and `robustness` are pure of viser
-(tests/test_app_uncertainty.py); granstab.uncertainty.data_robustness does the work (docs/uncertainty.md)."""
+(tests/app/test_app_uncertainty.py); granstab.uncertainty.data_robustness does the work (docs/uncertainty.md)."""
 from __future__ import annotations
 
 import numpy as np
