@@ -289,8 +289,7 @@ def select_centers(scene: Scene, centers) -> np.ndarray:
 
 
 def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = "L", max_sliding: int = 8,
-         boundary: str = DEFAULT_BOUNDARY,
-         sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
+         boundary: str = DEFAULT_BOUNDARY, sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
          device: str = "cpu", attribution: bool = True, inputs=None, overwrite: bool = False,
          uncertainty: dict | None = None, balance: str = "loads", exempt=None) -> dict:
@@ -331,9 +330,8 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         per-cluster bound and counter-example search where the batched bound does not decide): the columns
         data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
     balance, exempt : {"loads", "least-squares"}, (N,) bool or None
-        "least-squares": the packing's forces moved to the nearest balanced set first (weighted by the
-        uncertainty's band; `exempt`: particles whose loads stay free, e.g. wall particles), as `analyze --balance`
-        (granstab.uncertainty.balance_least_squares); the summary's "balance" says how far (docs/uncertainty.md).
+        "least-squares": forces moved to the nearest balanced set first (weighted by the band; `exempt`: loads
+        kept free, e.g. walls), as `analyze --balance`; the summary's "balance" says how far (docs/uncertainty.md).
 
     Returns
     -------
@@ -345,8 +343,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = _options(rings, metric, max_sliding, sample_branches, boundary, attribution, uncertainty)
     scene, balanced = balance_scene(scene, uncertainty, balance, exempt)
-    if balanced is not None:
-        options["balance"] = balance
+    options.update({"balance": balance} if balanced is not None else {})
     device = backend(device).name                                   # a missing GPU fails here, in one line
     out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)

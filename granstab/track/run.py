@@ -57,8 +57,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
           window: int = 1, d2min_radius: float | None = None, event_quantity: str = "shear_stress",
           event_threshold: float = 0.05, soft_modes: int = 5, rings: int = 1, boundary: str = DEFAULT_BOUNDARY,
           workers: int | None = None, progress: bool = False, seed: int = 0, overwrite: bool = False,
-          uncertainty: dict | None = None, balance: str = "loads",
-          **import_options) -> dict:
+          uncertainty: dict | None = None, balance: str = "loads", **import_options) -> dict:
     """Track a sequence of frames (docs/track.md).
 
     Parameters
@@ -96,8 +95,7 @@ def track(inputs, out_dir, *, format: str = "auto", frames: str | None = None, w
         With `scan`: the data's uncertainty (granstab.scan's `uncertainty`): each frame's scan gets data_robust
         (docs/uncertainty.md).
     balance : {"loads", "least-squares"}
-        "least-squares": each frame's forces moved to the nearest balanced set before its analyses, its wall
-        particles exempt (granstab.scan's `balance`; the frame row's `balance` says how far).
+        "least-squares": each frame's forces balanced first, walls exempt (as granstab.scan's; row's `balance`).
 
     Returns
     -------
