@@ -34,6 +34,7 @@ class Loaded:
     wall_flags: object = None     # (N,) per scene particle: -1 / +1 at a wall the file flags (annulus), else None
     orientation: object = None    # (N, 4) per scene particle: the file's unit quaternions (w, x, y, z), else None
     shape: object = None          # (N, 5) per scene particle: superquadric semi-axes a, b, c and blockiness n1, n2
+    parts: object = None          # rigid bodies' round parts (clump spheres, polygon vertices): build._parts
 
     @property
     def warnings(self) -> list[str]:
