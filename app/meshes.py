@@ -4,7 +4,11 @@ them in the viser scene.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from granstab.model.outline import rounded_polygon
 
 
 def to3(v: np.ndarray, z: float = 0.0) -> np.ndarray:
@@ -26,18 +30,33 @@ def rot3(R: np.ndarray) -> np.ndarray:
 
 def wxyz(R: np.ndarray) -> np.ndarray:
     """Quaternion (w, x, y, z) of a rotation matrix (2D: about e3)."""
-    R = rot3(R)
-    w = np.sqrt(max(0.0, 1.0 + np.trace(R))) / 2
-    if w > 1e-6:
-        return np.array([w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)])
-    i = int(np.argmax(np.diag(R)))
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = np.sqrt(max(0.0, 1.0 + R[i, i] - R[j, j] - R[k, k])) * 2
-    q = np.zeros(4)
-    q[0] = (R[k, j] - R[j, k]) / s
-    q[1 + i] = s / 4
-    q[1 + j] = (R[j, i] + R[i, j]) / s
-    q[1 + k] = (R[k, i] + R[i, k]) / s
+    return quaternions(rot3(R)[None])[0]
+
+
+def quaternions(R: np.ndarray) -> np.ndarray:
+    """Quaternions (N, 4) (w, x, y, z) of rotation matrices (N, 3, 3), vectorised: from the trace where w > 1e-6,
+    else from the largest diagonal entry (Shepperd's branches)."""
+    R = np.asarray(R, float)
+    N = len(R)
+    q = np.zeros((N, 4))
+    w = np.sqrt(np.maximum(0.0, 1.0 + np.trace(R, axis1=1, axis2=2))) / 2
+    big = w > 1e-6
+    wb = np.where(big, w, 1.0)
+    q[:, 0] = w
+    q[:, 1] = (R[:, 2, 1] - R[:, 1, 2]) / (4 * wb)
+    q[:, 2] = (R[:, 0, 2] - R[:, 2, 0]) / (4 * wb)
+    q[:, 3] = (R[:, 1, 0] - R[:, 0, 1]) / (4 * wb)
+    rows = np.flatnonzero(~big)
+    if rows.size:
+        i = np.argmax(np.diagonal(R[rows], axis1=1, axis2=2), axis=1)
+        j, k = (i + 1) % 3, (i + 2) % 3
+        Rr = R[rows]
+        at = lambda a, b: Rr[np.arange(len(rows)), a, b]            # noqa: E731
+        s = np.sqrt(np.maximum(0.0, 1.0 + at(i, i) - at(j, j) - at(k, k))) * 2
+        q[rows, 0] = (at(k, j) - at(j, k)) / s
+        q[rows, 1 + i] = s / 4
+        q[rows, 1 + j] = (at(j, i) + at(i, j)) / s
+        q[rows, 1 + k] = (at(k, i) + at(i, k)) / s
     return q
 
 
@@ -80,9 +99,52 @@ def ellipsoid(axes, n_lat: int = 24, n_lon: int = 48):
 
 
 def body_mesh(body, thickness: float, size: float):
+    if body.kind == "rounded_polygon":          # its outline from the one kernel (granstab.model.outline)
+        _, vertices, radius = body.grain
+        return extruded_outline(rounded_polygon(np.array(vertices), radius), thickness)
     if len(body.axes) == 2:
         return extruded_outline(outline(body, size), thickness)
     return ellipsoid(body.axes)
+
+
+@dataclass(frozen=True)
+class Instances:
+    """One shared mesh drawn many times (viser's batched meshes): vertices (V, 3) and faces (F, 3) in body axes,
+    and per instance the body it belongs to (K,) (an index into the bodies), its offset from that body's centre
+    in body axes (K, 3) and its uniform scale (K,)."""
+
+    key: tuple
+    vertices: np.ndarray
+    faces: np.ndarray
+    body: np.ndarray
+    offset: np.ndarray
+    scale: np.ndarray
+
+    def poses(self, x: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Instance positions (K, 3) and quaternions (K, 4) for body centres x (N, 3) and rotations R (N, 3, 3):
+        x_b + R_b offset, R_b (a body moves and turns rigidly with its parts)."""
+        Rb = R[self.body]
+        return x[self.body] + np.einsum("kij,kj->ki", Rb, self.offset), quaternions(Rb)
+
+
+def grain_instances(bodies, resolution: int = 16) -> list[Instances]:
+    """The 3D grains of `bodies` (models.grain_bodies) as instanced meshes: one mesh per distinct superquadric
+    (granstab.model.surface.mesh, the one shape kernel), one unit sphere for every clump's member spheres (scaled
+    by each sphere's radius)."""
+    from granstab.model.surface import Superquadric, mesh
+    groups: dict[tuple, list] = {}
+    for i, body in enumerate(bodies):
+        if body.kind == "superquadric":
+            groups.setdefault(body.grain, []).append((i, (0.0, 0.0, 0.0), 1.0))
+        else:
+            groups.setdefault(("sphere",), []).extend((i, part[:3], part[3]) for part in body.grain[1])
+    out = []
+    for key, items in groups.items():
+        shape = Superquadric(*key[1:]) if key[0] == "superquadric" else Superquadric(1.0, 1.0, 1.0)
+        V, F = mesh(shape, resolution)
+        body, offset, scale = zip(*items)
+        out.append(Instances(key, V, F.astype(np.uint32), np.array(body), np.array(offset, float), np.array(scale)))
+    return out
 
 
 def outline(body, size: float, n: int = 96) -> np.ndarray:
