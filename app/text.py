@@ -26,6 +26,8 @@ PRESETS = {      # each preset's title and what it shows, in one line (the Scene
     "spheres_tetrahedron": ("Four spheres (3D)", "A tetrahedron with sliding apex contacts and contact moments."),
     "annulus_frame": ("A real packing: 143 photoelastic disks", "Measured forces from an experiment: where does "
                       "it give way?"),
+    "superquadric_cluster": ("Five blocky grains (3D, LIGGGHTS)", "Corners pressed on faces: their tight curvature "
+                             "rolls the grains off — unstable by shape."),
 }
 
 
