@@ -80,6 +80,10 @@ def test_superquadric_preset_is_one_instanced_mesh_per_shape_on_the_grains_poses
     data = json.loads(PRESET.read_text())
     distinct = {tuple(p["shape"][k] for k in ("a", "b", "c", "n1", "n2")) for p in data["particles"]}
     assert cluster.analysis.summary["verdict"] == "unstable"
+    attribution = granstab.analyze(cluster.scene).attribution          # why: the curvature term (Hg2) decides
+    assert attribution.mechanism == "geometric"
+    parts = attribution.to_dict()["work_parts"]
+    assert min(parts, key=parts.get) == "Hg2" and parts["Hg2"] < 0
     view = SceneView(RecordingScene())
     view.draw_particles(cluster)
     grains = {k: v for k, v in view.api.sent.items() if k.startswith("/particles/grains/")}
