@@ -30,34 +30,26 @@ def rot3(R: np.ndarray) -> np.ndarray:
 
 def wxyz(R: np.ndarray) -> np.ndarray:
     """Quaternion (w, x, y, z) of a rotation matrix (2D: about e3)."""
-    return quaternions(rot3(R)[None])[0]
+    R = rot3(R)
+    w = np.sqrt(max(0.0, 1.0 + np.trace(R))) / 2
+    if w > 1e-6:
+        return np.array([w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)])
+    i = int(np.argmax(np.diag(R)))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = np.sqrt(max(0.0, 1.0 + R[i, i] - R[j, j] - R[k, k])) * 2
+    q = np.zeros(4)
+    q[0] = (R[k, j] - R[j, k]) / s
+    q[1 + i] = s / 4
+    q[1 + j] = (R[j, i] + R[i, j]) / s
+    q[1 + k] = (R[k, i] + R[i, k]) / s
+    return q
 
 
 def quaternions(R: np.ndarray) -> np.ndarray:
-    """Quaternions (N, 4) (w, x, y, z) of rotation matrices (N, 3, 3), vectorised: from the trace where w > 1e-6,
-    else from the largest diagonal entry (Shepperd's branches)."""
-    R = np.asarray(R, float)
-    N = len(R)
-    q = np.zeros((N, 4))
-    w = np.sqrt(np.maximum(0.0, 1.0 + np.trace(R, axis1=1, axis2=2))) / 2
-    big = w > 1e-6
-    wb = np.where(big, w, 1.0)
-    q[:, 0] = w
-    q[:, 1] = (R[:, 2, 1] - R[:, 1, 2]) / (4 * wb)
-    q[:, 2] = (R[:, 0, 2] - R[:, 2, 0]) / (4 * wb)
-    q[:, 3] = (R[:, 1, 0] - R[:, 0, 1]) / (4 * wb)
-    rows = np.flatnonzero(~big)
-    if rows.size:
-        i = np.argmax(np.diagonal(R[rows], axis1=1, axis2=2), axis=1)
-        j, k = (i + 1) % 3, (i + 2) % 3
-        Rr = R[rows]
-        at = lambda a, b: Rr[np.arange(len(rows)), a, b]            # noqa: E731
-        s = np.sqrt(np.maximum(0.0, 1.0 + at(i, i) - at(j, j) - at(k, k))) * 2
-        q[rows, 0] = (at(k, j) - at(j, k)) / s
-        q[rows, 1 + i] = s / 4
-        q[rows, 1 + j] = (at(j, i) + at(i, j)) / s
-        q[rows, 1 + k] = (at(k, i) + at(i, k)) / s
-    return q
+    """Quaternions (N, 4) (w, x, y, z) of rotation matrices (N, 3, 3), vectorised (scipy's Rotation: many grains'
+    instances at once; `wxyz` stays the one-body path of the disk and sphere scenes)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_matrix(np.asarray(R, float)).as_quat()[:, [3, 0, 1, 2]]
 
 
 def quat_matrix(q) -> np.ndarray:

@@ -13,18 +13,18 @@ import pytest
 from granstab.cli import main
 from granstab_app.browser import CHROMIUM, FLAGS
 
-REPO = Path(__file__).resolve().parent.parent
-
+REPO = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
+    """An explorer on a presets folder of the superquadric preset and the YADE clump fixture, converted."""
     from granstab_app.server import App
-    folder = tmp_path_factory.mktemp("presets")
-    shutil.copy(REPO / "presets" / "superquadric_cluster.json", folder)
+    folder = tmp_path_factory.mktemp("grain_presets")
     assert main(["convert", str(REPO / "tests" / "data" / "io" / "yade_clumps"), "--out",
                  str(folder / "clumps.json")]) == 0
+    shutil.copy(REPO / "presets" / "superquadric_cluster.json", folder)
     running = App(host="127.0.0.1", port=0, presets_dir=folder, preset="superquadric_cluster")
     yield running
     running.stop()
