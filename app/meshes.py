@@ -91,9 +91,6 @@ def ellipsoid(axes, n_lat: int = 24, n_lon: int = 48):
 
 
 def body_mesh(body, thickness: float, size: float):
-    if body.kind == "rounded_polygon":          # its outline from the one kernel (granstab.model.outline)
-        _, vertices, radius = body.grain
-        return extruded_outline(rounded_polygon(np.array(vertices), radius), thickness)
     if len(body.axes) == 2:
         return extruded_outline(outline(body, size), thickness)
     return ellipsoid(body.axes)
@@ -143,7 +140,11 @@ def outline(body, size: float, n: int = 96) -> np.ndarray:
     """A 2D particle's outline in body axes (counter-clockwise, star-shaped about its centre): its ellipse, with the
     socket of each concave contact side (Body.sockets) cut in. Near such a contact the outline follows the socket's
     circle over about ±1.2 size of arc (at most ±60°, and only where seen from the centre), the particle reaching
-    around its partner like a glove; elsewhere the ellipse, less what lies inside a socket circle."""
+    around its partner like a glove; elsewhere the ellipse, less what lies inside a socket circle. A rounded polygon
+    (models.grain_bodies): its rounded outline (granstab.model.outline.rounded_polygon, the one kernel)."""
+    if body.kind == "rounded_polygon":
+        _, vertices, radius = body.grain
+        return rounded_polygon(np.array(vertices), radius)
     a, b = body.axes[0], body.axes[1]
     arcs = [arc for arc in (socket_arc(*socket, size) for socket in body.sockets) if arc is not None]
 

@@ -174,7 +174,8 @@ def test_clump_instances_are_the_engines_member_spheres():
 def test_rounded_polygons_are_drawn_by_their_rounded_outline():
     """A LAMMPS rounded-polygon packing opens drawn as its bodies: each outline point lies at the rounding radius
     from its polygon (distance to the sides, computed here), the mesh's top face is that outline, and every contact
-    point of a body lies inside its outline (within the rounding radius of the polygon)."""
+    point of a body lies inside its outline (within the rounding radius of the polygon); a mode's grey rest ghost is
+    the same outline."""
     loaded = load([str(p) for p in POLYGONS])
     grains = from_loaded(loaded)
     assert grains.kind == "rounded_polygon"
@@ -197,6 +198,12 @@ def test_rounded_polygons_are_drawn_by_their_rounded_outline():
         for index, arm in ((scene.p, scene.r_pq), (scene.q, scene.r_qp)):          # arms (periodic: to q's copy)
             mine = arm[index == i]
             assert np.all(distance(mine, np.array(vertices)) <= radius * (1 + 1e-9))
+    view = SceneView(RecordingScene())
+    view.show_rest(bodies, bodies, 1.0)                       # a mode's rest ghost: the same outlines, grey
+    segments = view.api.sent["/rest/outline"][1][0]
+    _, vertices, radius = bodies[0].grain
+    first = segments[:len(vertices) * 8, 0, :2] - bodies[0].x    # 8 points a corner (rounded_polygon's default)
+    assert np.allclose(distance(first, np.array(vertices)), radius, rtol=0, atol=1e-12 * (1 + radius))
 
 
 def test_scene_files_keep_the_shapes_and_refuse_bad_ones(tmp_path, capsys):
