@@ -230,6 +230,11 @@ def test_scene_files_keep_the_shapes_and_refuse_bad_ones(tmp_path, capsys):
     path.write_text(json.dumps(bad))
     with pytest.raises(granstab.SceneError, match=r"particles\[2\].*: shape: missing"):
         granstab.load_scene(path)
+    for particle in bad["particles"]:
+        particle.pop("shape", None)
+    path.write_text(json.dumps(bad))
+    with pytest.raises(granstab.SceneError, match=r"particles\[0\].*: orientation: given without a shape"):
+        granstab.load_scene(path)
 
 
 def test_superquadric_semi_axes_follow_the_length_scale():

@@ -75,7 +75,7 @@ def from_loaded(loaded) -> Grains | None:
     if loaded.shape is not None:
         q = np.asarray(loaded.orientation, float)
         return Grains("superquadric", scene.dim, q / np.linalg.norm(q, axis=1)[:, None], shape=np.asarray(loaded.shape))
-    parts = getattr(loaded, "parts", None)
+    parts = loaded.parts
     if parts is None:
         return None
     return Grains(parts["kind"], scene.dim, identity(scene.n_particles), body=np.asarray(parts["body"]),
@@ -86,9 +86,12 @@ def from_particles(particles: list, dim: int, source: str) -> Grains | None:
     """The grains of a scene file's `particles` (parsed dicts), checked (one-line SceneError naming the file, the
     entry and the field), or None where no particle has a `shape`."""
     have = [isinstance(p, dict) and "shape" in p for p in particles]
-    if not any(have):
-        return None
     reader = _Reader(source, particles, dim)
+    if not any(have):
+        alone = [i for i, p in enumerate(particles) if isinstance(p, dict) and "orientation" in p]
+        if alone:
+            reader.fail(alone[0], "orientation", "given without a shape (it orients the grain's shape)")
+        return None
     for i, p in enumerate(particles):
         if not have[i]:
             reader.fail(i, "shape", "missing (every particle has a shape or none has)")
