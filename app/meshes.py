@@ -4,7 +4,11 @@ them in the viser scene.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from granstab.model.outline import rounded_polygon
 
 
 def to3(v: np.ndarray, z: float = 0.0) -> np.ndarray:
@@ -39,6 +43,13 @@ def wxyz(R: np.ndarray) -> np.ndarray:
     q[1 + j] = (R[j, i] + R[i, j]) / s
     q[1 + k] = (R[k, i] + R[i, k]) / s
     return q
+
+
+def quaternions(R: np.ndarray) -> np.ndarray:
+    """Quaternions (N, 4) (w, x, y, z) of rotation matrices (N, 3, 3), vectorised (scipy's Rotation: many grains'
+    instances at once; `wxyz` stays the one-body path of the disk and sphere scenes)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_matrix(np.asarray(R, float)).as_quat()[:, [3, 0, 1, 2]]
 
 
 def quat_matrix(q) -> np.ndarray:
@@ -85,11 +96,55 @@ def body_mesh(body, thickness: float, size: float):
     return ellipsoid(body.axes)
 
 
+@dataclass(frozen=True)
+class Instances:
+    """One shared mesh drawn many times (viser's batched meshes): vertices (V, 3) and faces (F, 3) in body axes,
+    and per instance the body it belongs to (K,) (an index into the bodies), its offset from that body's centre
+    in body axes (K, 3) and its uniform scale (K,)."""
+
+    key: tuple
+    vertices: np.ndarray
+    faces: np.ndarray
+    body: np.ndarray
+    offset: np.ndarray
+    scale: np.ndarray
+
+    def poses(self, x: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Instance positions (K, 3) and quaternions (K, 4) for body centres x (N, 3) and rotations R (N, 3, 3):
+        x_b + R_b offset, R_b (a body moves and turns rigidly with its parts)."""
+        Rb = R[self.body]
+        return x[self.body] + np.einsum("kij,kj->ki", Rb, self.offset), quaternions(Rb)
+
+
+def grain_instances(bodies, resolution: int = 16) -> list[Instances]:
+    """The 3D grains of `bodies` (models.grain_bodies) as instanced meshes: one mesh per distinct superquadric
+    (granstab.model.surface.mesh, the one shape kernel), one unit sphere for every clump's member spheres (scaled
+    by each sphere's radius)."""
+    from granstab.model.surface import Superquadric, mesh
+    groups: dict[tuple, list] = {}
+    for i, body in enumerate(bodies):
+        if body.kind == "superquadric":
+            groups.setdefault(body.grain, []).append((i, (0.0, 0.0, 0.0), 1.0))
+        else:
+            groups.setdefault(("sphere",), []).extend((i, part[:3], part[3]) for part in body.grain[1])
+    out = []
+    for key, items in groups.items():
+        shape = Superquadric(*key[1:]) if key[0] == "superquadric" else Superquadric(1.0, 1.0, 1.0)
+        V, F = mesh(shape, resolution)
+        body, offset, scale = zip(*items)
+        out.append(Instances(key, V, F.astype(np.uint32), np.array(body), np.array(offset, float), np.array(scale)))
+    return out
+
+
 def outline(body, size: float, n: int = 96) -> np.ndarray:
     """A 2D particle's outline in body axes (counter-clockwise, star-shaped about its centre): its ellipse, with the
     socket of each concave contact side (Body.sockets) cut in. Near such a contact the outline follows the socket's
     circle over about ±1.2 size of arc (at most ±60°, and only where seen from the centre), the particle reaching
-    around its partner like a glove; elsewhere the ellipse, less what lies inside a socket circle."""
+    around its partner like a glove; elsewhere the ellipse, less what lies inside a socket circle. A rounded polygon
+    (models.grain_bodies): its rounded outline (granstab.model.outline.rounded_polygon, the one kernel)."""
+    if body.kind == "rounded_polygon":
+        _, vertices, radius = body.grain
+        return rounded_polygon(np.array(vertices), radius)
     a, b = body.axes[0], body.axes[1]
     arcs = [arc for arc in (socket_arc(*socket, size) for socket in body.sockets) if arc is not None]
 

@@ -213,7 +213,7 @@ class Readings:
         for body in self.bodies():
             i = index[body.name]
             dR = rotation_matrix(self.scene.dim, amplitude * s * dth[i])
-            out.append(Body(body.name, body.kind, body.axes, body.x + amplitude * s * du[i], dR @ body.R))
+            out.append(replace(body, x=body.x + amplitude * s * du[i], R=dR @ body.R))   # its shape kept
         return out
 
     def rolling_eigenvalue(self) -> float | None:

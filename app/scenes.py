@@ -24,7 +24,7 @@ import numpy as np
 
 import granstab
 from granstab.io import shapefile
-from granstab.model import shapes
+from granstab.model import grains, shapes
 from granstab.model.outline import tip_ellipse
 
 from .params import defaults
@@ -34,7 +34,10 @@ from .protocols import SceneModel
 @dataclass(frozen=True)
 class Body:
     """A particle to draw: kind "ellipse"|"disk" (2D) or "ellipsoid"|"sphere" (3D), semi-axes, pose x (d,), R (d, d);
-    2D `sockets`: its concave contact sides (contact_sockets), cut into the drawn outline (app.meshes.outline)."""
+    2D `sockets`: its concave contact sides (contact_sockets), cut into the drawn outline (app.meshes.outline).
+    A grain with a true shape (granstab.model.grains; `grain_bodies`): kind "superquadric", "clump" or
+    "rounded_polygon", `grain` its shape in body axes (hashable: ("superquadric", a, b, c, n1, n2), ("clump",
+    ((x, y, z, r), …)), ("rounded_polygon", ((x, y), …), r)), axes its semi-axes or bounding radius."""
 
     name: str
     kind: str
@@ -42,6 +45,7 @@ class Body:
     x: np.ndarray
     R: np.ndarray
     sockets: tuple = ()
+    grain: tuple = ()
 
 
 # ------------------------------------------------------------------------------------------------ the pair
@@ -225,6 +229,7 @@ class ContactModel(SceneModel):
     frames: list | None = None # the frames its input holds (None: one)
     frame: object = None       # the frame shown
     path: str = ""             # where it was read from (to read another frame)
+    grains: object = None     # the particles' true shapes (granstab.model.grains.Grains), drawn as they are; None
     kind = "contacts"
     draggable = False
 
@@ -289,8 +294,11 @@ class ContactModel(SceneModel):
                 "and the loads follow from the forces.")
 
     def bodies(self, P: dict) -> list[Body]:
-        """Disks (spheres) of radius the smallest distance from the centre to one of the particle's contact points."""
+        """The grains as they are (`grain_bodies`), else disks (spheres) of radius the smallest distance from the
+        centre to one of the particle's contact points."""
         s = self.scene
+        if self.grains is not None:
+            return grain_bodies(s, self.grains)
         radius = np.full(s.n_particles, np.inf)
         if s.n_contacts:
             np.minimum.at(radius, s.p, np.linalg.norm(s.r_pq, axis=1))
@@ -301,6 +309,28 @@ class ContactModel(SceneModel):
         sockets = contact_sockets(s) if s.dim == 2 else {}
         return [Body(name, kind, (float(radius[i]),) * s.dim, s.x[i].copy(), np.eye(s.dim), sockets.get(i, ()))
                 for i, name in enumerate(s.names)]
+
+
+def grain_bodies(scene: granstab.Scene, grains) -> list[Body]:
+    """The bodies of a scene's grains (granstab.model.grains.Grains, in the scene's particle order): superquadrics
+    with their semi-axes, clumps and rounded polygons with their parts and bounding radius, each at its centre and
+    orientation."""
+    from granstab.io.bodies import rotation
+    R = rotation(grains.orientation)[:, :scene.dim, :scene.dim]
+    out = []
+    for i, name in enumerate(scene.names):
+        if grains.kind == "superquadric":
+            a, b, c, n1, n2 = map(float, grains.shape[i])
+            axes, grain = (a, b, c), ("superquadric", a, b, c, n1, n2)
+        else:
+            offset, radius = grains.parts_of(i)
+            bound = float(np.max(np.linalg.norm(offset, axis=1) + radius))
+            axes = (bound,) * scene.dim
+            grain = (("clump", tuple(map(tuple, np.column_stack([offset, radius]).tolist())))
+                     if grains.kind == "clump" else
+                     ("rounded_polygon", tuple(map(tuple, offset.tolist())), float(radius[0])))
+        out.append(Body(name, grains.kind, axes, scene.x[i].copy(), R[i], grain=grain))
+    return out
 
 
 def shape_title(title: str, scene: granstab.Scene) -> str:
@@ -397,8 +427,11 @@ def ghost_positions(x: np.ndarray, images: tuple[np.ndarray, np.ndarray]) -> np.
     return x[index] + shift
 
 
-def model_for_scene(scene: granstab.Scene):
-    """The two-particle model if the scene is the symmetric pair, else a contact-level model."""
+def model_for_scene(scene: granstab.Scene, grains=None):
+    """The two-particle model if the scene is the symmetric pair (of disks), else a contact-level model (drawn with
+    its `grains`' true shapes where given)."""
+    if grains is not None:
+        return ContactModel(scene, grains=grains)
     return TwoParticleModel.from_scene(scene) or ContactModel(scene)
 
 
@@ -420,7 +453,8 @@ def model_from_dict(data, source: str):
     """The model of a parsed scene file: shape format → ShapeModel, contact level → pair or ContactModel."""
     if shapefile.is_shape_scene(data):
         return ShapeModel.from_dict(data, source)
-    return model_for_scene(granstab.scene_from_dict(data, source=source))
+    scene = granstab.scene_from_dict(data, source=source)
+    return model_for_scene(scene, grains.from_particles(data["particles"], scene.dim, source))
 
 
 def _opened(path):
@@ -446,7 +480,7 @@ def load_model(path, frame=None):
         imported = _opened(path).read(frame)           # indexed once per file version (granstab.io.open)
         frames = list(imported.frames) if imported.frames else None
         return ContactModel(imported.scene, report=format_report(imported.report), frames=frames,
-                            frame=imported.report.get("frame"), path=str(path))
+                            frame=imported.report.get("frame"), path=str(path), grains=grains.from_loaded(imported))
     return model_from_dict(read_scene_file(path), str(path))
 
 
@@ -458,6 +492,7 @@ __all__ = [
     "cell_edges",
     "contact_sockets",
     "ghost_positions",
+    "grain_bodies",
     "load_model",
     "model_for_scene",
     "model_from_dict",

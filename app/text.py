@@ -26,6 +26,8 @@ PRESETS = {      # each preset's title and what it shows, in one line (the Scene
     "spheres_tetrahedron": ("Four spheres (3D)", "A tetrahedron with sliding apex contacts and contact moments."),
     "annulus_frame": ("A real packing: 143 photoelastic disks", "Measured forces from an experiment: where does "
                       "it give way?"),
+    "superquadric_cluster": ("Five blocky grains (3D, LIGGGHTS)", "Corners pressed on faces: their tight curvature "
+                             "rolls the grains off — unstable by shape."),
 }
 
 
@@ -140,9 +142,12 @@ def info_markdown(s, verdict: str | None) -> str:
     note = "\n\n".join(x for x in (s.report().get("notice"), s.adjusted, s.caveat) if x)
     params = ", ".join(f"{PARAMS[k].label} = {s.params[k]:g} ({PARAMS[k].hint})" for k in s.used_params)
     report = s.model.report
+    grains = getattr(s.model, "grains", None)
     drag = ("" if s.on_map else " Drag a particle by its arrows (the arc turns it): contacts and forces follow the "
             "geometry." if s.draggable else " Its contacts are given in the file (points, normals, curvatures, "
-            "forces), not shapes: the particles cannot be dragged.")
+            "forces), not shapes: the particles cannot be dragged." if grains is None else
+            f" Drawn as they are ({grains.kind.replace('_', ' ')}s, from the file); the contacts are the file's "
+            "(points, normals, curvatures, forces): the particles cannot be dragged.")
     kind = verdict if s.on_map else s.kind.replace("_", " ")      # a map says which map
     title, line = PRESETS.get(str(s.preset), (None, None))
     return (f"**{title}** — {line}\n\n" if title else "") + (f"{note}\n\n" if note else "") + (f"{kind} scene" + (f" · {params}." if params else ".")) + drag + (

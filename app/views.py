@@ -5,6 +5,7 @@ Node tree (names are per client):
   /particles/<name>            pose of the particle: transform controls when draggable, else a plain frame
   /particles/<name>/body       the animation offset (identity unless a mode is playing)
   /particles/<name>/body/mesh  the shape, in body axes;  …/body/marker  a stripe along body e1 (shows rotation)
+  /particles/grains/<k>        3D grains as they are (superquadrics, clumps): shared meshes, instanced (grainview.py)
   /contacts/…                  points, normals, force arrows, osculating arcs (world axes)
   /cell                        the outline of a periodic scene's cell
   /cell/images                 its periodic images near the faces (lighter; they move with their particles' mode)
@@ -16,6 +17,7 @@ import numpy as np
 
 from .cellview import OverlayView
 from .fieldview import FieldView
+from .grainview import GrainView
 from .meshes import body_mesh, circle_data, digest, osculating_arcs, outline, quat_matrix, rot3, to3, wxyz
 from .modes import rotation_matrix
 from .scenes import ghost_positions
@@ -34,7 +36,7 @@ MAX_ARROWS = 24       # contacts drawn with force arrows (3D meshes); more conta
 
 # ------------------------------------------------------------------------------------------ the view
 
-class SceneView(FieldView, OverlayView):
+class SceneView(FieldView, OverlayView, GrainView):
     """Holds one client's scene handles; every method only writes handles from session data."""
 
     def __init__(self, scene_api):
@@ -47,6 +49,7 @@ class SceneView(FieldView, OverlayView):
         self.colours: dict[str, tuple] = {}       # particle name → colour shown now
         self.colours_by_mode = False
         self.cloud = None                         # the point cloud of a large packing (one node for all)
+        self.grains, self.grain_nodes = [], []    # 3D grains drawn as they are: instanced meshes (grainview.py)
         self._cloud_colours = None                # digest of the colours it shows
         self.contacts_frame = None                # parent of every contact drawing (hidden while a mode plays)
         self.key = None                           # (model id, particle names, draggable) the tree was built for
@@ -72,14 +75,16 @@ class SceneView(FieldView, OverlayView):
         self.dim = session.scene_dim
         size = session.size
         key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
+        if self.dim == 3 and bodies and bodies[0].grain:        # superquadrics, clumps: instanced, any number
+            self.draw_grains(bodies, key, PALETTE)
+            return
         if len(bodies) > MESH_MAX:
             self._draw_cloud(bodies, key)
             return
         rebuilt = key != self.key
         if rebuilt:
             self.api.remove_by_name("/particles")
-            self.cloud = None
-            self.nodes, self.inner, self.mesh_keys, self.meshes, self.markers, self.colours = {}, {}, {}, {}, {}, {}
+            self.clear_particles()
             self.key = key
             for body in bodies:
                 name = f"/particles/{body.name}"
@@ -100,7 +105,7 @@ class SceneView(FieldView, OverlayView):
             if body.name != skip and moved:          # unchanged poses are not re-sent
                 node.position = to3(body.x)
                 node.wxyz = wxyz(body.R)
-            mkey = (body.axes, body.sockets, round(size, 9))
+            mkey = (body.axes, body.sockets, body.grain, round(size, 9))
             if self.mesh_keys.get(body.name) != mkey:
                 self.mesh_keys[body.name] = mkey
                 self._draw_body(body, PALETTE[i % len(PALETTE)], size)
@@ -136,7 +141,7 @@ class SceneView(FieldView, OverlayView):
         if cloud == self.key:
             return
         self.api.remove_by_name("/particles")
-        self.nodes, self.inner, self.mesh_keys, self.meshes, self.markers, self.colours = {}, {}, {}, {}, {}, {}
+        self.clear_particles()
         self.key = cloud
         radius = float(np.median([max(b.axes) for b in bodies]))
         self._cloud_colours = None
@@ -156,6 +161,7 @@ class SceneView(FieldView, OverlayView):
             if digest((), rgb) != self._cloud_colours:
                 self._cloud_colours = digest((), rgb)
                 self.cloud.colors = rgb
+        self.colour_grains(names, colours, PALETTE)
         for i, name in enumerate(names):
             colour = PALETTE[i % len(PALETTE)] if colours is None else tuple(int(c) for c in colours[i])
             if self.colours.get(name) != colour and name in self.meshes:
@@ -184,6 +190,7 @@ class SceneView(FieldView, OverlayView):
         contact drawings belong to the undeformed state: hidden while a mode plays (stop_animation shows them)."""
         self._contacts_visible(False)
         self._animate_points(bodies)
+        self.move_grains(bodies)
         for body in bodies:
             base, frame = self.base.get(body.name), self.inner.get(body.name)
             if base is None or frame is None:                # not drawn, or a point of the cloud
@@ -223,6 +230,7 @@ class SceneView(FieldView, OverlayView):
     def stop_animation(self) -> None:
         self.api.remove_by_name("/rest")
         self._animate_points(self.base.values())
+        self.move_grains(list(self.base.values()))
         for frame in self.inner.values():
             frame.position = (0.0, 0.0, 0.0)
             frame.wxyz = (1.0, 0.0, 0.0, 0.0)

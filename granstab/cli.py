@@ -270,11 +270,21 @@ def cmd_convert(args) -> int:
         save_scene(loaded.scene, args.out)             # binary: 10⁶ contacts in a fraction of a second
     else:
         with paused_gc():
-            text = json.dumps(scene_to_dict(loaded.scene))
+            data = scene_to_dict(loaded.scene)
+            for entry, extra in zip(data["particles"], _grain_entries(loaded)):
+                entry.update(extra)                    # the grains' true shapes, for drawing (model/grains.py)
+            text = json.dumps(data)
         Path(args.out).write_text(text, encoding="utf-8")
     report = {**loaded.report, "out": args.out}
     print(json.dumps(report) if args.json else format_report(report) + f"\nwrote {args.out}")
     return 0
+
+
+def _grain_entries(loaded) -> list:
+    """Per particle, the `shape` and `orientation` entries of an import's grains (none for disks and spheres)."""
+    from .model.grains import from_loaded
+    grains = from_loaded(loaded)
+    return [] if grains is None else grains.entries()
 
 
 def cmd_extract(args) -> int:

@@ -79,6 +79,8 @@ class Snapshot:
     force_uncertainty: tuple | None = None  # ((M,) radius of each force's stated uncertainty, which columns)
     shaped: dict | None = None     # shaped grains (not spheres): arm_p, arm_q (M, d) from each centre to the contact
                                    # point, curvature_p/q (M, d, d), report; optional inertia (N, d, d)
+    parts: dict | None = None      # a rigid body's round parts, for drawing (model/grains.py): kind, body (K,),
+                                   # offset (K, d) from the body's centre (world axes), radius (K,)
     length_unit: str = "file units"
     frame: object = None
     frames: list | None = None
@@ -190,7 +192,27 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     return Loaded(scene=scene, report=report, frames=snap.frames, force_uncertainty=_force_uncertainty(snap, c, report),
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
                   orientation=None if snap.orientation is None else snap.orientation[inside],
-                  shape=snap.shaped["shape"][inside] if snap.shaped and "shape" in snap.shaped else None)
+                  shape=_shape(snap, inside, scale), parts=_parts(snap.parts, inside, scale))
+
+
+def _shape(snap: Snapshot, inside: np.ndarray, scale: float):
+    """The scene particles' superquadric parameters (semi-axes in scene units), or None."""
+    if not snap.shaped or "shape" not in snap.shaped:
+        return None
+    shape = np.array(snap.shaped["shape"][inside], float)
+    shape[:, :3] *= scale
+    return shape
+
+
+def _parts(parts: dict | None, inside: np.ndarray, scale: float):
+    """The scene particles' round parts (Snapshot.parts), body indices renumbered, lengths in scene units."""
+    if parts is None:
+        return None
+    new = np.full(int(max(parts["body"].max(initial=-1), inside.max(initial=-1))) + 1, -1)
+    new[inside] = np.arange(len(inside))
+    keep = new[parts["body"]] >= 0
+    return {"kind": parts["kind"], "body": new[parts["body"][keep]], "offset": parts["offset"][keep] * scale,
+            "radius": parts["radius"][keep] * scale}
 
 
 def _rattlers(scene, inside, keep: bool):

@@ -53,6 +53,7 @@ def clump_snapshot(source: str, fmt: str, bodies: dict, members: dict, contacts:
                     orientation=bodies.get("quat"), law={k: (v[rows], w) for k, (v, w) in law.items()},
                     notes=notes, particle_line=lines["body"], contact_line=lambda c: lines["contact"](rows[c]))
     snap.bodies = {"inertia": bodies.get("inertia")}
+    snap.parts = {"kind": "clump", "body": body_of, "offset": x - bodies["x"][body_of], "radius": R}
     parts = {"c1": x[m1], "c2": x[m2], "R1": R[m1], "R2": R[m2], "flat1": np.zeros(len(rows), bool),
              "flat2": np.zeros(len(rows), bool), "name1": members["id"][m1], "name2": members["id"][m2],
              "point": contacts["point"][rows]}

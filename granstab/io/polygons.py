@@ -275,6 +275,9 @@ def read_step(index, timestep=None, progress=None) -> Snapshot:
                     orientation=np.stack([A[k] for k in ("c_q[1]", "c_q[2]", "c_q[3]", "c_q[4]")], 1)
                     if "c_q[4]" in A else None)
     snap.bodies = {"inertia": izz.reshape(-1, 1, 1)}
+    body, vertex = np.nonzero(np.arange(verts.shape[1]) < count[:, None])       # in order around each polygon
+    snap.parts = {"kind": "rounded_polygon", "body": body, "offset": verts[body, vertex] - x[body],
+                  "radius": rounding[body]}
     parts = {"c1": c1, "c2": c2, "R1": rounding[p], "R2": rounding[q], "flat1": np.zeros(len(p), bool),
              "flat2": found["flat2"], "name1": np.array([f"{ids[b]}:vertex{k}" for b, k in zip(p, found["vertex"])]),
              "name2": np.array([f"{ids[b]}:{'side' if f else 'vertex'}{k}" for b, k, f in

@@ -35,6 +35,7 @@ class Loaded:
     orientation: object = None    # (N, 4) per scene particle: the file's unit quaternions (w, x, y, z), else None
     shape: object = None          # (N, 5) per scene particle: superquadric semi-axes a, b, c and blockiness n1, n2
     force_uncertainty: object = None  # (M,) per scene contact: the file's force uncertainty radius (f_err), else None
+    parts: object = None          # rigid bodies' round parts (clump spheres, polygon vertices): build._parts
 
     @property
     def warnings(self) -> list[str]:

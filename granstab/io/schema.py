@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model import grains
 from ..model.errors import SceneError, describe, first
 from ..model.periodic import check_cell, check_images
 from ..model.scene import LAW_DEFAULTS, LAW_KEYS, STATES, Scene, build_scene
@@ -14,6 +15,7 @@ from .syntax import paused_gc
 
 TOP_KEYS = {"dim", "title", "cell", "defaults", "particles", "contacts"}
 PARTICLE_KEYS = {"name", "x", "load", "moment", "mass", "inertia", "fixed"}
+GRAIN_KEYS = {"shape", "orientation"}   # the grains' true shapes, for drawing (model/grains.py): text formats only
 CONTACT_KEYS = {"p", "q", "image", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state",
                 *LAW_KEYS}
 
@@ -25,8 +27,10 @@ def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEF
     law = read_law(Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, _base_law(dim))
     if not isinstance(data.get("particles"), list) or not data["particles"]:
         top.fail("particles", "must be a non-empty array of tables")
-    particles = TextTable(source, "particles", data["particles"], PARTICLE_KEYS)
+    particles = TextTable(source, "particles", data["particles"], PARTICLE_KEYS | GRAIN_KEYS)
     contacts = TextTable(source, "contacts", data.get("contacts", []), CONTACT_KEYS)
+    if particles.present("shape").any() or particles.present("orientation").any():
+        grains.from_particles(data["particles"], dim, source)
     return _scene_from_tables(dim, title, law, particles, contacts, source, tol, data.get("cell"))
 
 

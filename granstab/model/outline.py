@@ -24,3 +24,23 @@ def support_outline(S: np.ndarray, n: np.ndarray) -> np.ndarray:
     n = np.asarray(n, float)
     Sn = n @ np.asarray(S, float).T
     return Sn / np.sqrt(np.sum(n * Sn, axis=-1))[..., None]
+
+
+def rounded_polygon(vertices: np.ndarray, radius: float, per_corner: int = 8) -> np.ndarray:
+    """Counter-clockwise outline (V·per_corner, 2) of a rounded polygon (LAMMPS `body rounded/polygon`): the convex
+    polygon `vertices` (V, 2, in order around it, either way) swept by a disk of `radius`. Each vertex contributes
+    an arc of that radius from the outward normal of its incoming side to that of its outgoing side; the straight
+    sides join consecutive arcs."""
+    v = np.asarray(vertices, float)
+    x, y = v[:, 0], v[:, 1]
+    if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:           # clockwise: reverse
+        v = v[::-1]
+    side = np.roll(v, -1, axis=0) - v                                  # side i: vertex i → i + 1
+    out = np.arctan2(-side[:, 0], side[:, 1])                          # its outward normal's angle
+    start = np.roll(out, 1)                                            # the incoming side of vertex i
+    turn = np.mod(out - start, 2 * np.pi)
+    turn = np.where(turn > np.pi, 0.0, turn)                           # a reflex vertex: no arc
+    t = np.linspace(0.0, 1.0, per_corner)
+    angle = start[:, None] + turn[:, None] * t[None, :]
+    arcs = v[:, None, :] + radius * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    return arcs.reshape(-1, 2)
