@@ -9,11 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import ROOT  # noqa: E402
 
 from granstab.cli import main
 from granstab_app.browser import CHROMIUM, FLAGS
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = ROOT
 pytestmark = pytest.mark.browser
 
 

@@ -10,11 +10,11 @@ Tolerances: 1e-9 relative to the grain size for points (meshes are built in floa
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from helpers import ROOT  # noqa: E402
 
 import granstab
 from granstab.cli import main
@@ -26,7 +26,7 @@ from granstab_app.modes import mode_offsets, rotation_matrix
 from granstab_app.state import Session
 from granstab_app.views import SceneView
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = ROOT
 PRESET = REPO / "presets" / "superquadric_cluster.json"
 SQ = REPO / "tests" / "data" / "liggghts_superquadric"
 IO = REPO / "tests" / "data" / "io"
