@@ -50,7 +50,7 @@ def markdown(results: dict) -> str:
     return "\n".join([
         "## App latency",
         "",
-        "The core calls behind one slider move (app.models (TwoParticleModel.build, ShapeModel.build) + "
+        "The core calls behind one slider move (app.scenes (TwoParticleModel.build, ShapeModel.build) + "
         f"granstab.analyze, as app/state.py calls them); medians over ≥ {results['repeats']} repeats.",
         "",
         table(["scene", "contacts", "scene build", "analyze", "build + analyze", "analyze breakdown"], rows),

@@ -1,6 +1,6 @@
 """The figures of docs/shapes.md ("what shape changes, shown"), from the two tracked loading runs.
 
-    D=tests/data/liggghts_superquadric; LAW="--k 677 --alpha 0.8235 --mu 0.5"
+    D=tests/data/liggghts_superquadric; LAW="--contact-k 677 --alpha 0.8235 --mu 0.5"
     granstab track $D/load/atoms.dump $D/load/contacts.dump $D/in.settle --scan --out track_sq $LAW
     granstab track $D/load/spheres/atoms.dump $D/load/spheres/contacts.dump $D/spheres/in.settle_spheres \
         --scan --out track_sph $LAW

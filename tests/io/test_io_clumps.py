@@ -115,7 +115,16 @@ def check_clumps(loaded, bodies, members, pairs, n_walls):
     tangent = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
     for K, rho in ((scene.curvature_p, rho_p), (scene.curvature_q, rho_q)):   # the member sphere's, ρ = R − δ/2
         assert np.abs(K + tangent / rho[:, None, None]).max() <= 1e-12 / rho.min()
-    np.testing.assert_allclose(scene.force, pairs["force"], rtol=0, atol=1e-12 * np.abs(pairs["force"]).max())
+    # the file's forces, except contacts at yield (within yield_rtol of the cone, or outside it): projected onto the
+    # cone and marked sliding, each moved by at most the report's largest change (≤ yield_rtol 1e-4 where none lies
+    # outside); YADE's slipping contacts sit at the cone to ~1e-5
+    size = np.linalg.norm(pairs["force"], axis=1)
+    moved = np.linalg.norm(scene.force - pairs["force"], axis=1) > 1e-12 * np.abs(pairs["force"]).max()
+    assert all(scene.state[c] == "sliding" for c in np.flatnonzero(moved))
+    cone = report["cone"]
+    assert cone["outside"]["count"] > 0 or cone["largest_change_over_force"] <= cone["yield_rtol"]
+    assert np.all(np.linalg.norm(scene.force - pairs["force"], axis=1)
+                  <= (cone["largest_change_over_force"] * (1 + 1e-9) + 1e-12) * size + 1e-12 * size.max())
     np.testing.assert_allclose(scene.mass, bodies["mass"][order], rtol=1e-15)
     np.testing.assert_allclose(scene.inertia, bodies["inertia"][order], rtol=0,
                                atol=1e-12 * np.abs(bodies["inertia"]).max())
