@@ -21,8 +21,8 @@ from granstab.cli import main
 from granstab.io import load
 from granstab.model.grains import from_loaded, from_particles
 from granstab_app.meshes import body_mesh, grain_instances
-from granstab_app.scenes import ContactModel, load_model
 from granstab_app.modes import mode_offsets, rotation_matrix
+from granstab_app.scenes import ContactModel, load_model
 from granstab_app.state import Session
 from granstab_app.views import SceneView
 
