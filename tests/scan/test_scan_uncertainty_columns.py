@@ -52,3 +52,19 @@ def test_no_columns_is_one_line_naming_the_file(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "contacts.csv" in err and "no per-contact uncertainty columns" in err
     assert not (tmp_path / "s").exists()
+
+
+
+def test_a_cluster_takes_its_own_contacts_entries(tmp_path):
+    """Every cluster (loads boundary, and with the held ring of `fixed`) carries the f_err of exactly its contacts,
+    looked up here by their particle pair in the file (all seven values distinct)."""
+    from granstab.io import load
+    from granstab.scan import extract
+    values = [0.1 + 0.01 * i for i in range(len(ROWS))]
+    by_pair = {frozenset(map(str, row[:2])): v for row, v in zip(ROWS, values)}
+    scene = load(write(tmp_path, values=[[v] for v in values]), mu=0.5).scene
+    for center in map(str, range(1, 7)):
+        for boundary in ("loads", "fixed"):
+            sub = extract(scene, center, rings=1, boundary=boundary)
+            want = [by_pair[frozenset((sub.names[a], sub.names[b]))] for a, b in zip(sub.p, sub.q)]
+            assert sub.n_contacts > 0 and np.array_equal(sub.force_err, want)
