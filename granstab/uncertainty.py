@@ -452,7 +452,8 @@ def balance_least_squares(scene: Scene, band: Band, exempt=None) -> tuple[Scene,
     y = lsqr(A, target, atol=1e-15, btol=1e-15, iter_lim=20 * (M * d + 10))[0]
     correction = (W @ y).reshape(M, d)
     balanced = perturbed(scene, scene.force + correction)
-    ratio = np.divide(np.linalg.norm(correction, axis=1), delta, out=np.full(M, np.inf), where=delta > 0)
+    moved = np.linalg.norm(correction, axis=1)
+    ratio = np.divide(moved, delta, out=np.where(moved > 0, np.inf, 0.0), where=delta > 0)   # δ = 0: held exactly
     after = np.concatenate(equilibrium_loads(balanced), axis=1).reshape(-1)[rows]
     scale = float(np.max(np.linalg.norm(scene.force, axis=1), initial=0.0))
     report = {"method": "least-squares", "exempt_particles": int(held.sum()),

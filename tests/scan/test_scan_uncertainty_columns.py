@@ -68,3 +68,20 @@ def test_a_cluster_takes_its_own_contacts_entries(tmp_path):
             sub = extract(scene, center, rings=1, boundary=boundary)
             want = [by_pair[frozenset((sub.names[a], sub.names[b]))] for a, b in zip(sub.p, sub.q)]
             assert sub.n_contacts > 0 and np.array_equal(sub.force_err, want)
+
+
+def test_least_squares_balance_moves_only_the_contacts_with_a_band(tmp_path, capsys):
+    """--balance least-squares weighted by the file's f_err: contacts with f_err = 0 keep their forces bit for bit,
+    the loud one moves, and the report's largest correction over the band is finite (0/0 is a contact held exactly,
+    not an infinite ratio: the summary was not valid JSON before)."""
+    from granstab.io import load
+    from granstab.uncertainty import balance_scene
+    paths = write(tmp_path, values=[[100.0] if i == LOUD else [0.0] for i in range(len(ROWS))])
+    scene = load(paths, mu=0.5).scene
+    out, report = balance_scene(scene, {"per_contact": "the file's f_err column"}, "least-squares")
+    quiet = np.arange(len(ROWS)) != LOUD
+    assert np.array_equal(out.force[quiet], scene.force[quiet]) and np.linalg.norm(out.force - scene.force) > 0
+    assert 0 < report["largest_correction_over_band"] < 1 and report["inside_band"] is True
+    assert main(["scan", *paths, "--mu", "0.5", "--force-uncertainty", "file", "--balance", "least-squares",
+                 "--out", str(tmp_path / "s")]) == 0
+    assert json.loads((tmp_path / "s" / "summary.json").read_text())["balance"]["inside_band"] is True
