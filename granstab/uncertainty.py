@@ -418,11 +418,11 @@ def balance_scene(scene: Scene, uncertainty: dict | None, how: str, exempt=None)
     """(scene, None) as given (how = "loads": the loads absorb the imbalance), or (the balanced scene, the balance
     report without its per-contact lists) for "least-squares" (uncertainty.balance_least_squares, weighted by the
     band of `uncertainty`'s rel and abs, or the file's per-contact columns)."""
+    band = band_from(uncertainty or {}, scene)             # asked for per-contact columns it lacks: one line
     if how == "loads":
         return scene, None
     if how != "least-squares":
         raise SceneError(f"--balance: loads or least-squares, got {how!r}")
-    band = band_from({k: v for k, v in (uncertainty or {}).items() if k != "position"}, scene)
     out, report = balance_least_squares(scene, band, exempt=exempt)
     return out, {k: v for k, v in report.items() if k not in ("correction_norm", "correction_over_band")}
 

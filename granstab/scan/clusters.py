@@ -181,8 +181,9 @@ def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None
                   state=tuple(itemgetter(*c)(scene.state)) if len(c) > 1 else tuple(scene.state[i] for i in c),
                   source=scene.source, tol=scene.tol, fixed=fixed if fixed.any() else None,
                   mass=None if scene.mass is None else scene.mass[every],
-                  inertia=None if scene.inertia is None else scene.inertia[every],
-                  force_err=None if scene.force_err is None else scene.force_err[c])
+                  inertia=None if scene.inertia is None else scene.inertia[every])
+    if scene.force_err is not None:                 # the file's per-contact uncertainty (issue 42): its contacts'
+        fields["force_err"] = scene.force_err[c]
     return fields
 
 

@@ -16,7 +16,6 @@ import numpy as np
 from ..analysis import analyze, focus, mode_works
 from ..mechanics.attribution import mechanism
 from ..mechanics.branches import RIGID
-from ..mechanics.uncertainty import band_from
 from ..mechanics.verdicts import verdict_columns
 from ..model.errors import Interrupted
 from ..model.scene import Scene, SceneError
@@ -327,10 +326,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         The files the scene was read from: their sizes, times and content hashes are recorded (inputs.json), and a
         resume with changed ones is refused (scan/resume.py); overwrite: start afresh in a folder that holds a scan.
     uncertainty : dict, optional
-        The data's uncertainty (mechanics.uncertainty.Band fields: rel, abs, position; "per_contact": a text naming
-        the file's columns, then each contact's `Scene.force_err` is its force radius; and "search": True for the
-        per-cluster bound and counter-example search where the batched bound does not decide): the columns
-        data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
+        The data's band (Band's rel, abs, position; "per_contact": the file's columns named, Scene.force_err the radii;
+        "search": the per-cluster bound and counter-example search where the batched bound does not decide): the
+        columns data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
     balance, exempt : {"loads", "least-squares"}, (N,) bool or None
         "least-squares": forces moved to the nearest balanced set first (weighted by the band; `exempt`: loads
         kept free, e.g. walls), as `analyze --balance`; the summary's "balance" says how far (docs/uncertainty.md).
@@ -344,8 +342,6 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     """
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = _options(rings, metric, max_sliding, sample_branches, boundary, attribution, uncertainty)
-    if uncertainty:
-        band_from(uncertainty, scene)                               # no per-contact columns: one line, nothing made
     scene, balanced = balance_scene(scene, uncertainty, balance, exempt)
     options.update({"balance": balance} if balanced is not None else {})
     device = backend(device).name                                   # a missing GPU fails here, in one line
