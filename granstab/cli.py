@@ -309,7 +309,7 @@ def cmd_scan(args) -> int:
                        boundary=args.boundary, max_sliding=args.max_sliding, sample_branches=args.sample_branches,
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.out_format,
                        device=args.device, attribution=not args.no_attribution, inputs=args.input,
-                       overwrite=args.overwrite, uncertainty=band_options(args), balance=args.balance,
+                       overwrite=args.overwrite, uncertainty=band_options(args, loaded), balance=args.balance,
                        exempt=None if loaded.wall_flags is None else np.asarray(loaded.wall_flags) != 0)
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None

@@ -52,7 +52,7 @@ def uncertainty_arguments(p, balance: bool = True) -> None:
     track): --search-counterexamples too."""
     p.add_argument("--force-uncertainty", default=None, metavar="REL[,ABS]",
                    help="each contact force within REL·|f| + ABS of its value: the verdict holds / depends on the "
-                        "data / undecided (docs/uncertainty.md); analyze: 'file' takes each contact's from the "
+                        "data / undecided (docs/uncertainty.md); 'file' (analyze, scan, track) takes each contact's from the "
                         "input's f_err (or fn_err, ft_err) column")
     p.add_argument("--position-uncertainty", type=positive_number, default=None, metavar="LEN",
                    help="contact points and centres within LEN (first order only)")
@@ -67,16 +67,12 @@ def uncertainty_arguments(p, balance: bool = True) -> None:
 
 def band_of(args, loaded=None):
     """The Band of --force-uncertainty / --position-uncertainty, or None; `--force-uncertainty file`: the input's
-    per-contact columns (f_err, or fn_err and ft_err: `loaded.force_uncertainty`; analyze only)."""
-    from .mechanics.uncertainty import Band, parse_force_uncertainty
+    per-contact columns (f_err, or fn_err and ft_err: `loaded.force_uncertainty`)."""
+    from .mechanics.uncertainty import Band, band_from, parse_force_uncertainty
     if args.force_uncertainty is None and args.position_uncertainty is None:
         return None
     if args.force_uncertainty == "file":
-        if loaded is None or loaded.force_uncertainty is None:
-            raise InputError("--force-uncertainty file: " + ("the input has no per-contact uncertainty columns "
-                             "(f_err, or fn_err and ft_err: docs/formats.md)" if loaded is not None else
-                             "per-contact columns are read by analyze only; give REL[,ABS]"))
-        return Band(per_contact=loaded.force_uncertainty, position=args.position_uncertainty or 0.0)
+        return band_from({"per_contact": True, "position": args.position_uncertainty or 0.0}, loaded.scene)
     try:
         rel, abs_ = parse_force_uncertainty(args.force_uncertainty or "0")
     except ValueError as exc:
@@ -84,11 +80,17 @@ def band_of(args, loaded=None):
     return Band(rel=rel, abs=abs_, position=args.position_uncertainty or 0.0)
 
 
-def band_options(args) -> dict | None:
-    """The scan's `uncertainty` option (Band fields, search) of --force-uncertainty / --position-uncertainty."""
+def band_options(args, loaded=None) -> dict | None:
+    """The scan's `uncertainty` option (Band fields, search) of --force-uncertainty / --position-uncertainty;
+    `file`: "per_contact" names the columns (the scan takes each scene's own, Scene.force_err), so that
+    summary.json says where the band came from (the inputs' hash covers their values)."""
+    search = {"search": bool(getattr(args, "search_counterexamples", False))}
+    if args.force_uncertainty == "file":
+        source = (loaded.report.get("force_uncertainty") or {}).get("source") if loaded is not None else None
+        return {"rel": 0.0, "abs": 0.0, "position": args.position_uncertainty or 0.0,
+                "per_contact": f"the file's {source or 'f_err (or fn_err, ft_err) columns'}", **search}
     band = band_of(args)
-    return None if band is None else {"rel": band.rel, "abs": band.abs, "position": band.position,
-                                      "search": bool(getattr(args, "search_counterexamples", False))}
+    return None if band is None else {"rel": band.rel, "abs": band.abs, "position": band.position, **search}
 
 
 def positive_number(text: str) -> float:

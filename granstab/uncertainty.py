@@ -23,6 +23,7 @@ from .mechanics.stiffness import contact_blocks, geometric
 from .mechanics.uncertainty import (
     SAFETY,
     Band,
+    band_from,
     contact_norms,
     focused_factors,
     mobilisation,
@@ -416,12 +417,12 @@ def _norm2(X: np.ndarray) -> np.ndarray:
 def balance_scene(scene: Scene, uncertainty: dict | None, how: str, exempt=None):
     """(scene, None) as given (how = "loads": the loads absorb the imbalance), or (the balanced scene, the balance
     report without its per-contact lists) for "least-squares" (uncertainty.balance_least_squares, weighted by the
-    band of `uncertainty`'s rel and abs)."""
+    band of `uncertainty`'s rel and abs, or the file's per-contact columns)."""
+    band = band_from(uncertainty or {}, scene)             # asked for per-contact columns it lacks: one line
     if how == "loads":
         return scene, None
     if how != "least-squares":
         raise SceneError(f"--balance: loads or least-squares, got {how!r}")
-    band = Band(rel=(uncertainty or {}).get("rel", 0.0), abs=(uncertainty or {}).get("abs", 0.0))
     out, report = balance_least_squares(scene, band, exempt=exempt)
     return out, {k: v for k, v in report.items() if k not in ("correction_norm", "correction_over_band")}
 
@@ -451,7 +452,8 @@ def balance_least_squares(scene: Scene, band: Band, exempt=None) -> tuple[Scene,
     y = lsqr(A, target, atol=1e-15, btol=1e-15, iter_lim=20 * (M * d + 10))[0]
     correction = (W @ y).reshape(M, d)
     balanced = perturbed(scene, scene.force + correction)
-    ratio = np.divide(np.linalg.norm(correction, axis=1), delta, out=np.full(M, np.inf), where=delta > 0)
+    moved = np.linalg.norm(correction, axis=1)
+    ratio = np.divide(moved, delta, out=np.where(moved > 0, np.inf, 0.0), where=delta > 0)   # δ = 0: held exactly
     after = np.concatenate(equilibrium_loads(balanced), axis=1).reshape(-1)[rows]
     scale = float(np.max(np.linalg.norm(scene.force, axis=1), initial=0.0))
     report = {"method": "least-squares", "exempt_particles": int(held.sum()),

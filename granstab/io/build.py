@@ -32,7 +32,7 @@ the first particle, in the file's units); `build` turns it into a granstab Scene
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -189,7 +189,9 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     })
     report.update({k: v for k, v in snap.notes.items() if k not in report})
     report["warnings"] = import_warnings(report)
-    return Loaded(scene=scene, report=report, frames=snap.frames, force_uncertainty=_force_uncertainty(snap, c, report),
+    err = _force_uncertainty(snap, c, report)               # the scene carries it too: scan's clusters slice it
+    return Loaded(scene=scene if err is None else replace(scene, force_err=err), report=report, frames=snap.frames,
+                  force_uncertainty=err,
                   wall_flags=None if snap.wall_flags is None else snap.wall_flags[inside],
                   orientation=None if snap.orientation is None else snap.orientation[inside],
                   shape=_shape(snap, inside, scale), parts=_parts(snap.parts, inside, scale))

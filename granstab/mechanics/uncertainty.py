@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..model.errors import SceneError
 from ..model.tolerances import EPS
 from ..model.vec import rot_dim
 from .stiffness import contact_blocks, geometric
@@ -57,6 +58,19 @@ class Band:
         if self.position:
             parts.append(f"positions ±{self.position:g} (first order)")
         return ", ".join(parts)
+
+
+def band_from(options: dict, scene) -> Band:
+    """The Band of a scan's `uncertainty` option for `scene` (a packing, chunk or cluster): rel, abs, position and,
+    with "per_contact" (`--force-uncertainty file`), the scene's own contacts' `force_err` (the file's columns)."""
+    per = None
+    if options.get("per_contact"):
+        if scene.force_err is None:
+            raise SceneError(f"{scene.source}: --force-uncertainty file: the input has no per-contact uncertainty "
+                             "columns (f_err, or fn_err and ft_err: docs/formats.md)")
+        per = scene.force_err
+    return Band(rel=options.get("rel", 0.0), abs=options.get("abs", 0.0), position=options.get("position", 0.0),
+                per_contact=per)
 
 
 def parse_force_uncertainty(text: str) -> tuple[float, float]:

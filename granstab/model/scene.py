@@ -65,6 +65,8 @@ class Scene:
         Masses and rotational inertia (the inertia metric), and particles held fixed (supports).
     title, source, tol : str, str, Tolerances
         A title, the name errors give the input, the tolerances it was checked with.
+    force_err : ndarray or None, (M,)
+        The input's per-contact force uncertainty radius (f_err columns: `--force-uncertainty file`, issue 42).
     """
 
     dim: int
@@ -94,12 +96,15 @@ class Scene:
     cell: np.ndarray | None = None        # (d, d) lattice vectors as rows; None: not periodic
     image: np.ndarray | None = None       # (M, d) int: q's copy is x^q + image @ cell; None → zeros
     curvature_sum: np.ndarray | None = None   # (M, d, d) K^p + K^q from the input; None → the tensors' sum
+    force_err: np.ndarray | None = None       # (M,) the file's per-contact force uncertainty; None: not given
 
     def __post_init__(self):
         if self.image is None:
             object.__setattr__(self, "image", np.zeros((len(self.p), self.dim), dtype=np.int64))
         if self.curvature_sum is None:
             object.__setattr__(self, "curvature_sum", self.curvature_p + self.curvature_q)
+        if self.force_err is not None and len(self.force_err) != len(self.p):     # a stale one after a contact cut
+            raise SceneError(f"{self.source}: force_err: {len(self.force_err)} values for {len(self.p)} contacts")
 
     def without_rattlers(self) -> tuple[Scene, np.ndarray]:
         """The scene without its particles that have no contact (rattlers: nothing to analyse) and the indices of

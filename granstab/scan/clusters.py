@@ -182,6 +182,8 @@ def cut(scene: Scene, keep: np.ndarray, title: str = "", hold: np.ndarray | None
                   source=scene.source, tol=scene.tol, fixed=fixed if fixed.any() else None,
                   mass=None if scene.mass is None else scene.mass[every],
                   inertia=None if scene.inertia is None else scene.inertia[every])
+    if scene.force_err is not None:                 # the file's per-contact uncertainty (issue 42): its contacts'
+        fields["force_err"] = scene.force_err[c]
     return fields
 
 

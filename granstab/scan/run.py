@@ -326,9 +326,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         The files the scene was read from: their sizes, times and content hashes are recorded (inputs.json), and a
         resume with changed ones is refused (scan/resume.py); overwrite: start afresh in a folder that holds a scan.
     uncertainty : dict, optional
-        The data's uncertainty (mechanics.uncertainty.Band fields: rel, abs, position; and "search": True for the
-        per-cluster bound and counter-example search where the batched bound does not decide): the columns
-        data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
+        The data's band (Band's rel, abs, position; "per_contact": the file's columns named, Scene.force_err the radii;
+        "search": the per-cluster bound and counter-example search where the batched bound does not decide): the
+        columns data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
     balance, exempt : {"loads", "least-squares"}, (N,) bool or None
         "least-squares": forces moved to the nearest balanced set first (weighted by the band; `exempt`: loads
         kept free, e.g. walls), as `analyze --balance`; the summary's "balance" says how far (docs/uncertainty.md).

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mechanics.uncertainty import Band, contact_norms, mobilisation, radius, unit_blocks, work_gradient
+from ..mechanics.uncertainty import band_from, contact_norms, mobilisation, radius, unit_blocks, work_gradient
 from ..model.scene import SceneError
 from ..uncertainty import data_robustness
 from .clusters import boundary_rings, cluster
@@ -22,7 +22,7 @@ from .clusters import boundary_rings, cluster
 def band_parts(scene, band: dict) -> dict:
     """What the batch needs of the band for the chunk's scene: the unit blocks G (M, J, n, n), the radii δ (M,) and
     `open` (M,): contacts of uncertain mobilisation or turning sliding direction (mechanics.uncertainty.mobilisation)."""
-    band = Band(**{k: v for k, v in band.items() if k != "search"})
+    band = band_from(band, scene)
     mob = mobilisation(scene, band)
     return {"G": unit_blocks(scene), "delta": radius(scene, band), "open": mob["uncertain"] | mob["unbounded"]}
 
@@ -61,7 +61,7 @@ def robust_columns(scene, centers, member_lists, rows: dict, options: dict, grap
     margin = np.where(verdicts == "stable", rows["robust_stable"],
                       np.where(verdicts == "unstable", rows["robust_unstable"], np.nan))
     fast = rows["sufficient"] & ~rows["robust_open"] & (margin > 1)
-    band = Band(**{k: v for k, v in options["uncertainty"].items() if k != "search"})
+    band = band_from(options["uncertainty"], scene)
     robust = np.where(fast, "holds", "").astype(object)
     example = np.full(len(centers), None, dtype=object)
     search = options["uncertainty"].get("search", False)
@@ -79,7 +79,7 @@ def robust_columns(scene, centers, member_lists, rows: dict, options: dict, grap
         try:
             sub = cluster(scene, centers[i], options["rings"], boundary, graph=graph)
             inside = (sub_index(sub, scene, member_lists[i]), share) if embedded else None
-            got = data_robustness(sub, band, metric=metric, max_sliding=options["max_sliding"], inside=inside,
+            got = data_robustness(sub, band_from(options["uncertainty"], sub), metric=metric, max_sliding=options["max_sliding"], inside=inside,
                                   search=search)
         except (SceneError, ValueError):
             robust[i] = "undecided"
