@@ -182,7 +182,7 @@ def test_a_polygon_without_rounding_is_refused(tmp_path):
 def test_shapes_without_curvature_are_refused_in_one_line(tmp_path, style, what):
     script = tmp_path / "in.script"
     script.write_text(f"atom_style {style}\n")
-    dumps = DATA / "io" / "lammps"
+    dumps = FIXTURE.parent / "lammps"              # tests/data/io/lammps (DATA here names the example data file)
     with pytest.raises(SceneError) as err:
         granstab.io.load(sorted(dumps.glob("*.dump")) + [script])
     message = str(err.value)

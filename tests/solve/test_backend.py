@@ -74,6 +74,13 @@ def test_cli_device_gpu_without_cupy_is_one_line_exit_2():
     assert len(lines) == 1 and "CuPy" in lines[0] and "--device" in lines[0]
 
 
+@pytest.fixture(autouse=True)
+def _no_process_cap(monkeypatch):
+    """An explorer test earlier in the run may have capped the process's BLAS threads (threads.cap_process): the
+    policy tests here start uncapped (they failed only in the full suite, after the app folder)."""
+    monkeypatch.setattr(threads, "_process_cap", None)
+
+
 def test_thread_policy_by_size(monkeypatch):
     monkeypatch.setattr(threads, "runnable", lambda fresh=False: 0.0)               # at rest (busy: tests/solve/test_plan.py)
     assert threads.for_size(48) == 1
