@@ -528,7 +528,7 @@ def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
     bodies = snap.bodies or {}
     if snap.wall_load is not None:        # a body resting on a wall alone: its scale is Σ|f|, not |Σ f| ≈ 0
         net += snap.wall_load
-        fscale += bodies.get("wall_force_scale", np.linalg.norm(snap.wall_load, axis=1))
+        fscale += bodies["wall_force_scale"] if "wall_force_scale" in bodies else np.linalg.norm(snap.wall_load, axis=1)
     if bodies.get("wall_moment") is not None:
         torque += bodies["wall_moment"]
         mscale += bodies["wall_moment_scale"]
