@@ -31,6 +31,7 @@ from .mechanics.verdicts import (
     summarize,
 )
 from .model.scene import Scene, SceneError
+from .solve.budget import OverBudget
 from .solve.methods import METHODS, Timer, choose_method
 from .solve.plan import Plan, plan
 
@@ -261,6 +262,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     planned = plan(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
                    sample_branches=sample_branches, method=method, k=k, device=device, lowrank=lowrank,
                    uniqueness=uniqueness, attribution=attribution)
+    if planned.memory and not planned.memory["fits"]:                  # would not fit in memory (solve/memory.py)
+        raise OverBudget(planned.refusal)
     backend = choose_method(scene, planned.method, k, device, planned.lowrank, uniqueness)
     timer = Timer()
     with timer("total"):

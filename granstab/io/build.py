@@ -345,7 +345,8 @@ class Pairs:
         if np.ndim(which) == 0:
             return f"{self.names[self.p[which]]}-{self.names[self.q[which]]}"
         which = np.asarray(which)
-        return [self[c] for c in (np.flatnonzero(which) if which.dtype == bool else which)]
+        which = np.flatnonzero(which) if which.dtype == bool else which
+        return list(self.names[self.p[which]] + "-" + self.names[self.q[which]])   # object arrays: no Python loop
 
 
 def _force_uncertainty(snap: Snapshot, c: np.ndarray, report: dict):

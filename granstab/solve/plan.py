@@ -66,6 +66,7 @@ class Plan:
     one_metric_s: float | None = None   # the primary metric alone (the refusal's alternative to the family)
     deficit: int = 0               # non-rigid modes surely at zero (`deficit`): the sparse path's ARPACK pairs
     fitted: dict | None = None     # the default plan fitted to budget.ASK_SECONDS (`fit`): what that left out
+    memory: dict | None = None     # the sparse path's peak memory estimate against what is available (memory.py)
 
     def to_dict(self) -> dict:
         """The `cost` object of `granstab analyze --json --plan` (and the planned part of every run's `cost`)."""
@@ -75,7 +76,7 @@ class Plan:
                 "uniqueness": self.uniqueness, "robustness": self.robustness, "attribution": self.attribution,
                 "floppy": self.floppy, "left_out": list(self.left_out), "workers": self.workers,
                 "estimated_s": self.estimated_s, "estimate_parts": dict(self.parts), "refusal": self.refusal,
-                "fitted": self.fitted}
+                "fitted": self.fitted, "memory": self.memory}
 
     def lines(self) -> list[str]:
         """`granstab analyze --plan`: the plan in a few lines, then the estimate."""
@@ -168,10 +169,21 @@ def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None 
              robustness=fam and not sparse and not sampled and scene.fixed is None
              and n_branches * float(n) ** 3 <= ROBUST_MAX_WORK, floppy=lowrank and floppy(scene),
              left_out=(), estimated_s=None, deficit=deficit(scene) if sparse else 0)
+    if sparse:
+        p = _with_memory(p, scene)
     p = _with_left_out(p, k, fam)
-    if not estimate or gpu or refusal:
+    if not estimate or gpu or p.refusal:
         return p
     return _estimated(p, k, rest)
+
+
+def _with_memory(p: Plan, scene: Scene) -> Plan:
+    """The sparse plan with its peak memory estimate, refused (one line) where it exceeds what is available."""
+    from .memory import refusal
+    from .sparse import LU_MAX_DOF_3D
+    solver = "shift-invert" if scene.dim == 2 or p.n_dof <= LU_MAX_DOF_3D else "lobpcg"
+    info, refused = refusal(scene.source, p.n_dof, scene.n_contacts, scene.dim, solver)
+    return replace(p, memory=info, refusal=p.refusal or refused)
 
 
 def _with_left_out(p: Plan, k: int, fam: bool) -> Plan:

@@ -1,0 +1,70 @@
+"""The sparse path's memory (issue 41): its peak estimated before it runs (solve/memory.py) and a run that would not
+fit refused in one line with the estimate and what it would need, never started (and killed by the OOM killer);
+tested with a fake memory limit (GRANSTAB_MEMORY)."""
+import json
+
+import pytest
+
+import granstab
+from granstab.cli import main
+from granstab.model.packings import random_packing
+from granstab.solve import memory
+from granstab.solve.budget import OverBudget
+from granstab.solve.sparse import DENSE_MAX_DOF
+
+
+@pytest.fixture(scope="module")
+def big(tmp_path_factory):
+    """A 2D packing above the dense limit (the sparse path), as a scene file."""
+    scene = random_packing(2, 900, seed=4)
+    assert scene.n_dof > DENSE_MAX_DOF
+    return scene, granstab.save_scene(scene, tmp_path_factory.mktemp("mem") / "big.npz")
+
+
+def test_estimate_matches_the_calibration():
+    """The periodic benchmark's measured peaks (memory.py's docstring): 2212 MB at 3.0·10⁵ dofs, 4.6 GB at 6.0·10⁵;
+    the estimate within 10 % of both, and the 10⁶-disk packing (3·10⁶ dofs) over 20 GB (what issue 41 reports)."""
+    for n, measured in ((299_880, 2212 * 2 ** 20), (600_480, 4.6 * 2 ** 30)):
+        est = sum(memory.sparse_peak(n, n, 2, "shift-invert").values())
+        assert abs(est / measured - 1) < 0.1
+    assert sum(memory.sparse_peak(3_000_000, 3_000_000, 2, "shift-invert").values()) > 20 * 2 ** 30
+    assert memory.sparse_peak(10 ** 6, 10 ** 6, 3, "lobpcg").keys() == {"assembly", "lobpcg"}
+
+
+def test_parse_bytes():
+    assert memory.parse_bytes("2G") == 2 * 2 ** 30 and memory.parse_bytes("512m") == 2 ** 29
+    assert memory.parse_bytes("1000") == 1000 and memory.parse_bytes("1.5GB") == 3 * 2 ** 29
+    for bad in ("lots", "-1G", "0"):
+        with pytest.raises(ValueError, match="GRANSTAB_MEMORY"):
+            memory.parse_bytes(bad)
+
+
+def test_cli_refuses_in_one_line_what_would_not_fit(big, monkeypatch, capsys):
+    """A fake limit below the estimate: exit 2, one line with the estimate, what is available and what to do; the
+    analysis never starts. The same scene runs (exit 0) with the limit lifted above it, and --plan shows the
+    estimate."""
+    scene, path = big
+    import granstab.cli as cli
+    need = sum(memory.sparse_peak(scene.n_dof, scene.n_contacts, 2, "shift-invert").values())
+    monkeypatch.setenv("GRANSTAB_MEMORY", str(int(need / 2)))
+    ran = []
+    real = cli.analyze
+    monkeypatch.setattr(cli, "analyze", lambda *a, **k: ran.append(1) or real(*a, **k))
+    assert main(["analyze", str(path), "--json", "--metric", "L", "--timeout", "60"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    line = [e for e in err if "refused" in e]
+    assert len(line) == 1 and not ran
+    assert f"needs about {need / 2 ** 30:.3g} GB" in line[0] and f"{need / 2 / 2 ** 30:.3g} GB available" in line[0]
+    assert "GRANSTAB_MEMORY" in line[0] and str(path) in line[0]
+    monkeypatch.setenv("GRANSTAB_MEMORY", str(int(need * 2)))
+    assert main(["analyze", str(path), "--json", "--metric", "L", "--timeout", "60", "--plan"]) == 0
+    cost = json.loads(capsys.readouterr().out)["cost"]
+    assert cost["memory"]["fits"] and cost["memory"]["estimated_bytes"] == pytest.approx(need)
+    assert cost["refusal"] is None
+
+
+def test_python_api_refuses_too(big, monkeypatch):
+    scene, _ = big
+    monkeypatch.setenv("GRANSTAB_MEMORY", "1M")
+    with pytest.raises(OverBudget, match="refused: the sparse path"):
+        granstab.analyze(scene, metric="L")
