@@ -320,6 +320,9 @@ class SparseMethod:
             notes["warnings"].append(f"{ritz} of {len(branches)} branches as Ritz updates of one elastic solve "
                                      "(ritz.SparseRitz: count below σ exact by inertia, residuals ≤ 1e-12·‖Hs‖), "
                                      "the others by shift-invert")
+        if any(b_modes.method == "lobpcg-gpu" for _, b_modes in found):
+            notes["warnings"].append("on the GPU: LOBPCG with block-Jacobi preconditioning (solve/blockiter.py), "
+                                     "residuals and bounds recomputed in float64 on the host; no inertia counts")
         if unverified:
             notes["warnings"].append(f"{unverified} branch(es): the inertia check could not prove that the computed "
                                      "eigenvalues are the lowest ones")
@@ -336,8 +339,14 @@ class SparseMethod:
         verified per branch, shift-invert ARPACK where that fails), a single one, or branches whose Ritz problem
         would not fit RITZ_BYTES (many sliding contacts: its basis grows by 4 columns and its updates by one
         width² matrix a contact), by shift-invert directly, one after the other."""
+        from .device import backend
         from .sparse import lowest_modes
         Ms = spb.A.shape[1]
+        if backend(self.device).name == "gpu":                     # LOBPCG on the device, no factor (blockiter.py)
+            from .blockiter import device_lowest
+            for mask in masks:
+                yield device_lowest(spb, kk, mask, device=self.device)
+            return
         if len(masks) > 1 and ritz_fits(Ms, kk):
             from .ritz import SparseRitz
             yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)

@@ -170,18 +170,20 @@ def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None 
              and n_branches * float(n) ** 3 <= ROBUST_MAX_WORK, floppy=lowrank and floppy(scene),
              left_out=(), estimated_s=None, deficit=deficit(scene) if sparse else 0)
     if sparse:
-        p = _with_memory(p, scene)
+        p = _with_memory(p, scene, device)
     p = _with_left_out(p, k, fam)
     if not estimate or gpu or p.refusal:
         return p
     return _estimated(p, k, rest)
 
 
-def _with_memory(p: Plan, scene: Scene) -> Plan:
+def _with_memory(p: Plan, scene: Scene, device: str) -> Plan:
     """The sparse plan with its peak memory estimate, refused (one line) where it exceeds what is available."""
+    from .device import backend
     from .memory import refusal
     from .sparse import LU_MAX_DOF_3D
-    solver = "shift-invert" if scene.dim == 2 or p.n_dof <= LU_MAX_DOF_3D else "lobpcg"
+    factor = (scene.dim == 2 or p.n_dof <= LU_MAX_DOF_3D) and backend(device).name == "cpu"
+    solver = "shift-invert" if factor else "lobpcg"
     info, refused = refusal(scene.source, p.n_dof, scene.n_contacts, scene.dim, solver)
     return replace(p, memory=info, refusal=p.refusal or refused)
 
