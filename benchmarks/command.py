@@ -18,7 +18,7 @@ def add(sub) -> None:
                    help="rerun only this topic (repeatable; choose from granstab_bench.TOPICS): its section of the "
                         "existing BENCHMARKS.md is rewritten, the others are kept byte for byte")
     p.add_argument("--device", choices=["cpu", "gpu"], default="cpu",
-                   help="gpu: the GPU topics (branches, scan: GPU beside CPU) into BENCHMARKS-gpu.md")
+                   help="gpu: the GPU topics (branches, scan, million: GPU beside CPU) into BENCHMARKS-gpu.md")
     p.set_defaults(run=cmd_bench)
 
 

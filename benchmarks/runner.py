@@ -40,7 +40,7 @@ there.
 """
 
 
-GPU_TOPICS = ("branches", "scan")   # the topics that measure the GPU beside the CPU wherever CuPy sees one
+GPU_TOPICS = ("branches", "scan", "million")   # the topics that measure the GPU beside the CPU wherever CuPy sees one
 
 
 FILES = {"cpu": ("BENCHMARKS.md", "results.json"), "gpu": ("BENCHMARKS-gpu.md", "results-gpu.json")}
