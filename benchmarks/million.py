@@ -173,7 +173,7 @@ def markdown(results: dict) -> str:
         f"**Reading** (goal ≤ {results['goal_read_s']:g} s). *CPU*: the process's CPU time of the load; *parser*: "
         "numpy.loadtxt's share of it; *load*: the 1-minute load average before and after, on 2 cores shared with "
         "other work (wall times above a load of 2 are stretched by it: the CPU time is what the work costs); "
-        "*where*: the granstab functions with the most CPU time (cumulative, nested).",
+        "*where*: the granstab functions with the most CPU time of their own (not counting what they call).",
         "",
         table(["particles", "contacts", "MB", "wall", "CPU", "parser", "peak memory", "load", "where"], read_rows),
         "",
