@@ -24,6 +24,8 @@ import math
 import os
 from pathlib import Path
 
+from .budget import OverBudget
+
 FILL_2D = 14.0            # factor entries per n log₂ n (module docstring)
 FILL_3D = 40.0            # factor entries per n^{4/3}
 FACTOR_BYTES = 12         # float64 factor + its float32 copy, per entry
@@ -51,15 +53,15 @@ def sparse_peak(n: int, n_contacts: int, dim: int, method: str) -> dict:
 
 
 def parse_bytes(text: str) -> int:
-    """'2G', '512M', '1073741824' → bytes; ValueError (one line) otherwise."""
+    """'2G', '512M', '1073741824' → bytes; budget.OverBudget (one line: the CLI's exit 2) otherwise."""
     t = text.strip().upper().removesuffix("B")
     unit = t[-1:] if t[-1:] in UNITS and not t[-1:].isdigit() else ""
     try:
         value = float(t[:len(t) - len(unit)])
     except ValueError:
-        raise ValueError(f"GRANSTAB_MEMORY: not a size ({text!r}; e.g. 16G, 512M or bytes)") from None
-    if not value > 0:
-        raise ValueError(f"GRANSTAB_MEMORY: must be positive ({text!r})")
+        raise OverBudget(f"GRANSTAB_MEMORY: not a size ({text!r}; e.g. 16G, 512M or bytes)") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise OverBudget(f"GRANSTAB_MEMORY: must be a positive finite size ({text!r})")
     return int(value * UNITS[unit])
 
 

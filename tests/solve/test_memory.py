@@ -34,9 +34,16 @@ def test_estimate_matches_the_calibration():
 def test_parse_bytes():
     assert memory.parse_bytes("2G") == 2 * 2 ** 30 and memory.parse_bytes("512m") == 2 ** 29
     assert memory.parse_bytes("1000") == 1000 and memory.parse_bytes("1.5GB") == 3 * 2 ** 29
-    for bad in ("lots", "-1G", "0"):
-        with pytest.raises(ValueError, match="GRANSTAB_MEMORY"):
+    for bad in ("lots", "-1G", "0", "inf", "nanG"):
+        with pytest.raises(OverBudget, match="GRANSTAB_MEMORY"):
             memory.parse_bytes(bad)
+
+
+def test_cli_bad_memory_setting_is_one_line(big, monkeypatch, capsys):
+    monkeypatch.setenv("GRANSTAB_MEMORY", "lots")
+    assert main(["analyze", str(big[1]), "--json", "--metric", "L", "--timeout", "60"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == "GRANSTAB_MEMORY: not a size ('lots'; e.g. 16G, 512M or bytes)"
 
 
 def test_cli_refuses_in_one_line_what_would_not_fit(big, monkeypatch, capsys):
