@@ -55,6 +55,7 @@ def clump_snapshot(source: str, fmt: str, bodies: dict, members: dict, contacts:
                     "not a member sphere")
     m1w, m1 = m1[wall], m1[rows]
     offset = minimum_image(members["x"] - bodies["x"][body_of], lattice)[0]    # member from its centre of mass
+    _check_reach(offset, lattice, members["id"], lines["member"])
     x, R = bodies["x"][body_of] + offset, members["radius"]
     c2, shift = minimum_image(x[m2] - x[m1], lattice)             # the second member's image next to the first
     c2 = x[m1] + c2
@@ -74,6 +75,23 @@ def clump_snapshot(source: str, fmt: str, bodies: dict, members: dict, contacts:
     walls = {"body": body_of[m1w], "force": contacts["force"][wall],
              "point": _near(contacts["point"][wall], x[m1w], lattice)}
     return body_snapshot(snap, parts, walls, gravity, "clump")
+
+
+def _check_reach(offset: np.ndarray, lattice, ids, line) -> None:
+    """Each member closer to its clump's centre of mass than half the cell's narrowest width (the spacing of its
+    lattice planes, 1/|b_i| for the reciprocal vectors b_i of the periodic axes): its image is then unambiguous."""
+    if lattice is None:
+        return
+    periodic = ~np.isnan(lattice).any(axis=1)
+    rows = np.where(periodic[:, None], np.nan_to_num(lattice), 1e6 * np.abs(np.nan_to_num(lattice)).max()
+                    * np.eye(len(lattice)))                   # an open axis: a row too long to matter
+    half = 0.5 / np.linalg.norm(np.linalg.inv(rows), axis=0)[periodic].max()
+    far = np.linalg.norm(offset, axis=1)
+    bad = np.flatnonzero(far >= half)
+    if bad.size:
+        m = bad[0]
+        raise SceneError(f"{line(m)}: member {ids[m]}: x: {far[m]:.6g} from its clump's centre of mass, not less than "
+                         f"half the periodic cell's width ({half:.6g}): which image belongs to the clump is ambiguous")
 
 
 def _near(point: np.ndarray, anchor: np.ndarray, lattice) -> np.ndarray:

@@ -11,6 +11,7 @@ to the point midway in the members' overlap (minimum image: the engines wrap mem
 cell separately, or not at all), its branch vector to the image of q's clump that the contact touches; each clump's
 balance; the stress of `granstab moduli` equal to the virial of the dumped forces; analyze, scan, moduli exit 0."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -204,3 +205,21 @@ def test_liggghts_periodic_multisphere_packing_converts_and_balances(liggghts_ru
 
 def test_liggghts_periodic_multisphere_fixture_converts_and_balances(tmp_path, capsys):
     check_liggghts(DATA / "liggghts_multisphere_periodic", tmp_path, capsys)
+
+
+def test_a_member_half_a_cell_from_its_centre_of_mass_is_refused(tmp_path):
+    """In a cell too small for the clumps (0.06 for members 0.035-0.054 from their centre of mass) the minimum
+    images of the members cannot be the clump's: a member found at half the cell's width or more is refused in one
+    line naming the member table's line (nearer ones cannot be told from their images: docs/formats.md)."""
+    folder = DATA / "yade_clumps_periodic"
+    for name in ("members.csv", "contacts.csv"):
+        (tmp_path / name).write_text((folder / name).read_text())
+    lines = (folder / "bodies.csv").read_text().splitlines()
+    lines = [("# cell: 0.06 0 0 0 0.06 0 0 0 0.06" if t.startswith("# cell:") else t) for t in lines]
+    (tmp_path / "bodies.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(granstab.SceneError) as err:
+        granstab.io.load(tmp_path)
+    message = str(err.value)
+    assert re.fullmatch(rf"{re.escape(str(tmp_path / 'members.csv'))}: line \d+: member \d+: x: 0\.0[3-5]\d* from its "
+                        r"clump's centre of mass, not less than half the periodic cell's width \(0\.03\): which image "
+                        r"belongs to the clump is ambiguous", message), message
