@@ -10,7 +10,8 @@ force is below 1e-6 (or for 20000 more steps).
 Clumps and contacts cross the cell's faces: YADE keeps positions unwrapped (a clump's members move with it), a
 contact's second member may be an image (Interaction.cellDist). A last step with the integrator off recomputes
 every contact at the positions written, then examples/yade/export_clumps.py writes OUTDIR/bodies.csv (with its
-`# cell:` line), OUTDIR/members.csv and OUTDIR/contacts.csv.
+`# cell:` line), OUTDIR/members.csv and OUTDIR/contacts.csv. Runs are not bit-reproducible (Debian's yade
+2023.02a: the contact count varies by a few from run to run); the tests check properties, not numbers.
 """
 import os
 import random
@@ -57,7 +58,7 @@ O.engines = [
     triax,
     newton,
 ]
-O.dt = 0.2 * PWaveTimeStep()                       # fixed (GlobalStiffnessTimeStepper misjudges clumps)
+O.dt = 0.2 * PWaveTimeStep()                       # fixed: with GlobalStiffnessTimeStepper some runs blew up here
 while O.iter < 100000:                             # isotropic compression to about 10 kPa
     O.run(1000, True)
     print("compress", O.iter, O.cell.hSize[0, 0], unbalancedForce(), kineticEnergy(), triax.stress, flush=True)
