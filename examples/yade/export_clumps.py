@@ -34,6 +34,9 @@ def export_clumps(bodies_path="bodies.csv", members_path="members.csv", contacts
     clumps.update(alone)
     with open(bodies_path, "w") as out:
         out.write("# gravity: " + " ".join(repr(float(g)) for g in gravity) + "\n")
+        if O.periodic:                                               # rows a_i = columns of hSize
+            h = O.cell.hSize
+            out.write("# cell: " + " ".join(repr(h[i, j]) for j in range(3) for i in range(3)) + "\n")
         out.write("body,x,y,z,mass,quatw,quati,quatj,quatk,inertia1,inertia2,inertia3\n")
         for i, b in clumps.items():
             s = b.state

@@ -64,7 +64,8 @@ def body_snapshot(snap: Snapshot, parts: dict, walls: dict | None, gravity, what
 
     parts: "c1", "c2" (M, d) part centres (a side's: the foot point), "R1", "R2" (M,) part radii, "flat1",
     "flat2" (M,) bool sides, "name1", "name2" (M,) part ids (errors), optionally "point" (M, d) the engine's own
-    contact points (checked, reported). walls: "body" (W,), "force" (W, d) on the body, "point" (W, d), or None.
+    contact points (checked, reported), optionally "shift" (M, d) the lattice shift of q's image in a periodic
+    cell (x_q − shift·lattice is the copy the contact touches: build.py's branch). walls: "body" (W,), "force" (W, d) on the body, "point" (W, d), or None.
     gravity: (d,) or None (with masses: m g on each body). `what`: "clump"/"polygon", for messages. Sets
     snap.bodies (build.py reads it): "point" (M, d), "rho" (M, 2) (∞: flat), "inertia" (N, r, r) or None,
     "wall_moment" (N, r) and "wall_moment_scale" (N,) (Σ r × f and Σ|r||f| of the walls about x),
@@ -102,6 +103,7 @@ def body_snapshot(snap: Snapshot, parts: dict, walls: dict | None, gravity, what
         force_scale = force_scale + snap.mass * np.linalg.norm(gravity)
     snap.normal, snap.wall_load = e, load
     snap.bodies = {"point": point, "rho": rho, "inertia": snap.bodies and snap.bodies.get("inertia"),
+                   "shift": parts.get("shift"),
                    "wall_moment": moment, "wall_moment_scale": scale, "wall_force_scale": force_scale,
                    "geometry": geometry}
     snap.notes["walls"] = {"wall_contacts": 0 if walls is None else int(len(walls["body"])),

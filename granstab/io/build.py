@@ -129,7 +129,7 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     scale = opts.length_scale
     x = snap.x * scale
     radius = snap.radius * scale
-    branch, shifts = branch_vectors(x, snap.p, snap.q, None if snap.lattice is None else snap.lattice * scale)
+    branch, shifts = _branches(snap, x, scale)
     d = np.linalg.norm(branch, axis=1)
     if np.any(d == 0):
         c = int(np.flatnonzero(d == 0)[0])
@@ -372,6 +372,16 @@ def branch_vectors(x, p, q, lattice):
     """x_q − x_p, their minimum image when `lattice` (rows; NaN row = open axis) is given, and the integer lattice
     shifts s used (M, d): the branch is x_q − s·lattice − x_p, so q's image is −s (model.periodic.minimum_image)."""
     return minimum_image(x[q] - x[p], lattice)
+
+
+def _branches(snap: Snapshot, x, scale: float):
+    """branch_vectors, or in a periodic cell the images of q a rigid-body reader found through the touching parts
+    (`bodies["shift"]`: a body reaches beyond the minimum image of the centres of mass when it is large)."""
+    lattice = None if snap.lattice is None else snap.lattice * scale
+    shifts = (snap.bodies or {}).get("shift")
+    if lattice is None or shifts is None:
+        return branch_vectors(x, snap.p, snap.q, lattice)
+    return x[snap.q] - x[snap.p] - shifts @ np.nan_to_num(lattice), shifts
 
 
 def _geometry(rule, rad_p, rad_q, d, e, normal, snap, pair):

@@ -2,6 +2,7 @@
 engine) and the conversion every clump reader shares (LIGGGHTS multisphere: multisphere.py).
 
     bodies.csv    # gravity: gx gy gz                        (optional; m g acts at each centre of mass)
+                  # cell: a11 a12 a13 a21 ... a33                (optional: a periodic cell, rows a_i)
                   body,x,y,z,mass,quatw,quati,quatj,quatk,inertia1,inertia2,inertia3
     members.csv   id,body,x,y,z,radius
     contacts.csv  id1,id2,fx,fy,fz,cx,cy,cz[,kn,kt,mu]
@@ -10,7 +11,10 @@ x y z of a body: its centre of mass; quat: body → world rotation (w first); in
 the rotated body axes (YADE's State.inertia with State.ori). A contact names two member spheres (a negative id2 is
 a wall: its force is a load on the member's clump, with its moment about the centre of mass); f is the force on id1
 by id2; c the engine's contact point (checked against the members' geometry, and the point of a wall's force).
-bodies.py gives the geometry: arm from the centre of mass, normal and curvature of the member spheres.
+bodies.py gives the geometry: arm from the centre of mass, normal and curvature of the member spheres. In a
+periodic cell (`# cell:` above the body or member table's header, as generic.py's) members and contacts may cross
+the cell's faces: clump_snapshot takes minimum images (members from their centre of mass, a contact's second member
+from its first).
 """
 from __future__ import annotations
 
@@ -19,10 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from ..model.errors import SceneError
+from ..model.periodic import minimum_image
 from .bodies import body_snapshot, inertia_tensor, rotation
 from .build import Snapshot
 from .columns import to_indices, unique_ids
-from .generic import header, table_names
+from .generic import header, table_cell, table_names
 from .lines import read_table
 from .registry import Format, register
 
@@ -33,10 +38,15 @@ LAW_COLUMNS = ("kn", "kt", "mu")
 
 
 def clump_snapshot(source: str, fmt: str, bodies: dict, members: dict, contacts: dict, gravity, law: dict,
-                   lines: dict, notes: dict) -> Snapshot:
+                   lines: dict, notes: dict, lattice=None) -> Snapshot:
     """The body snapshot of clumps. bodies: "id" (N,), "x" (N, 3), "mass" (N,), "inertia" (N, 3, 3) or None,
     "quat" (N, 4) or None; members: "id", "body" (body ids), "x", "radius"; contacts: "id1", "id2" (member ids, id2
-    < 0 a wall), "force" on id1, "point"; lines: "body", "member", "contact" (row → "<file>: line L")."""
+    < 0 a wall), "force" on id1, "point"; lines: "body", "member", "contact" (row → "<file>: line L").
+
+    lattice: a periodic cell's rows (NaN row: an open axis) or None. Each member then sits at its clump's centre of
+    mass plus the minimum image of its offset (the engine may wrap members and centres separately), a member
+    contact's second member at the minimum image from the first, which fixes the image of q's clump (the contact's
+    lattice shift, handed to build.py); engine and wall points are moved to the first member's image."""
     body_of = to_indices(bodies["id"], members["body"], "body", lines["member"], "not in the body table")
     wall = contacts["id2"] < 0
     m1 = to_indices(members["id"], contacts["id1"], "id1", lines["contact"], "not a member sphere")
@@ -44,21 +54,49 @@ def clump_snapshot(source: str, fmt: str, bodies: dict, members: dict, contacts:
     m2 = to_indices(members["id"], contacts["id2"][rows], "id2", lambda r: lines["contact"](rows[r]),
                     "not a member sphere")
     m1w, m1 = m1[wall], m1[rows]
-    x, R = members["x"], members["radius"]
-    reach = np.linalg.norm(x - bodies["x"][body_of], axis=1) + R
+    offset = minimum_image(members["x"] - bodies["x"][body_of], lattice)[0]    # member from its centre of mass
+    _check_reach(offset, lattice, members["id"], lines["member"])
+    x, R = bodies["x"][body_of] + offset, members["radius"]
+    c2, shift = minimum_image(x[m2] - x[m1], lattice)             # the second member's image next to the first
+    c2 = x[m1] + c2
+    reach = np.linalg.norm(offset, axis=1) + R
     bound = np.zeros(len(bodies["id"]))
     np.maximum.at(bound, body_of, reach)
     snap = Snapshot(source=source, format=fmt, dim=3, ids=bodies["id"], x=bodies["x"], radius=bound,
                     p=body_of[m1], q=body_of[m2], force=contacts["force"][rows], mass=bodies["mass"],
                     orientation=bodies.get("quat"), law={k: (v[rows], w) for k, (v, w) in law.items()},
-                    notes=notes, particle_line=lines["body"], contact_line=lambda c: lines["contact"](rows[c]))
+                    notes=notes, particle_line=lines["body"], contact_line=lambda c: lines["contact"](rows[c]),
+                    lattice=lattice)
     snap.bodies = {"inertia": bodies.get("inertia")}
-    snap.parts = {"kind": "clump", "body": body_of, "offset": x - bodies["x"][body_of], "radius": R}
-    parts = {"c1": x[m1], "c2": x[m2], "R1": R[m1], "R2": R[m2], "flat1": np.zeros(len(rows), bool),
+    snap.parts = {"kind": "clump", "body": body_of, "offset": offset, "radius": R}
+    parts = {"c1": x[m1], "c2": c2, "R1": R[m1], "R2": R[m2], "flat1": np.zeros(len(rows), bool),
              "flat2": np.zeros(len(rows), bool), "name1": members["id"][m1], "name2": members["id"][m2],
-             "point": contacts["point"][rows]}
-    walls = {"body": body_of[m1w], "force": contacts["force"][wall], "point": contacts["point"][wall]}
+             "point": _near(contacts["point"][rows], x[m1], lattice), "shift": shift}
+    walls = {"body": body_of[m1w], "force": contacts["force"][wall],
+             "point": _near(contacts["point"][wall], x[m1w], lattice)}
     return body_snapshot(snap, parts, walls, gravity, "clump")
+
+
+def _check_reach(offset: np.ndarray, lattice, ids, line) -> None:
+    """Each member closer to its clump's centre of mass than half the cell's narrowest width (the spacing of its
+    lattice planes, 1/|b_i| for the reciprocal vectors b_i of the periodic axes): its image is then unambiguous."""
+    if lattice is None:
+        return
+    periodic = ~np.isnan(lattice).any(axis=1)
+    rows = np.where(periodic[:, None], np.nan_to_num(lattice), 1e6 * np.abs(np.nan_to_num(lattice)).max()
+                    * np.eye(len(lattice)))                   # an open axis: a row too long to matter
+    half = 0.5 / np.linalg.norm(np.linalg.inv(rows), axis=0)[periodic].max()
+    far = np.linalg.norm(offset, axis=1)
+    bad = np.flatnonzero(far >= half)
+    if bad.size:
+        m = bad[0]
+        raise SceneError(f"{line(m)}: member {ids[m]}: x: {far[m]:.6g} from its clump's centre of mass, not less than "
+                         f"half the periodic cell's width ({half:.6g}): which image belongs to the clump is ambiguous")
+
+
+def _near(point: np.ndarray, anchor: np.ndarray, lattice) -> np.ndarray:
+    """The image of each point nearest to its anchor (a member's centre in its clump's image)."""
+    return anchor + minimum_image(point - anchor, lattice)[0]
 
 
 # ------------------------------------------------------------------------------------------------ clump tables
@@ -156,7 +194,8 @@ def read_clump_tables(paths: list[Path]) -> Snapshot:
         law["alpha"] = (C["kt"] / C["kn"], f"{kinds['contacts'].name} columns kt / kn")
     source = " + ".join(str(kinds[k]) for k in ("bodies", "members", "contacts"))
     return clump_snapshot(source, "clumps", bodies, members, contacts, _gravity(kinds["bodies"]), law,
-                          {"body": bline, "member": mline, "contact": cline}, {})
+                          {"body": bline, "member": mline, "contact": cline}, {},
+                          table_cell([kinds["bodies"], kinds["members"]], 3))
 
 
 register(Format("clumps", sniff=is_clump_tables, read=lambda paths, request, progress: read_clump_tables(paths)))

@@ -449,14 +449,18 @@ def _contact_columns(path: Path, block: Block, columns: str | None, script) -> l
 
 # shapes without a rounding radius or a smooth surface: no curvature at a sharp vertex or edge (issue 37)
 UNCURVED = {"tri": "triangles (a mesh)", "line": "line segments (a mesh)",
-            "body nparticle": "rigid bodies of point sub-particles",
-            "body rounded/polyhedron": "3D rounded polyhedra (not read yet: only 2D body rounded/polygon)"}
+            "body nparticle": "rigid bodies of point sub-particles"}
+POLYHEDRA = ("3D rounded polyhedra: not read yet (LAMMPS dumps none of their contacts: pair body/rounded/polyhedron "
+             "has no single(), so no pair/local, and granstab does not reproduce its edge-face and edge-edge contact "
+             "model as it does body rounded/polygon's; docs/formats.md)")
 
 
 def _refuse_uncurved(script: dict) -> None:
     """One line for an atom style whose grains granstab cannot give a curvature (UNCURVED)."""
     words, number = script.get("atom_style") or ([], 0)
     key = " ".join(words[:2]) if words[:1] == ["body"] else " ".join(words[:1])
+    if key == "body rounded/polyhedron":
+        raise SceneError(f"{script['source']}: line {number}: atom_style: {' '.join(words)}: {POLYHEDRA}")
     if key in UNCURVED:
         raise SceneError(f"{script['source']}: line {number}: atom_style: {' '.join(words)}: {UNCURVED[key]}: no "
                          "curvature at a sharp vertex or edge (granstab needs rounded or smooth grains: spheres, "

@@ -11,7 +11,9 @@ The script says what each column is (its compute lines), the contact law (lammps
 coefficientFriction) and gravity (`fix ID all gravity g vector gx gy gz`: m g on each body). A wall contact's
 point: LIGGGHTS 3.8 writes contactPoint = 0 for mesh walls, so it is the member centre moved by R − δ/2 against the
 normal force (a sphere on a plane). quat is (w, x, y, z) (LAMMPS order), checked against ex/ey/ez_space (the
-rotation's columns) and reported. The clump geometry is clumps.py's and bodies.py's.
+rotation's columns) and reported. The clump geometry is clumps.py's and bodies.py's. A periodic box (`boundary p p
+f`, `p p p`; the dumps' BOX BOUNDS): LIGGGHTS wraps each member atom and each xcm into the box separately, and a
+member's contactPoint lies beside the first atom; clumps.clump_snapshot takes the minimum images.
 """
 from __future__ import annotations
 
@@ -113,8 +115,6 @@ def read_step(index: DumpSet, timestep=None, progress=None):
             raise SceneError(f"{index.paths[0]}: need the dumps of atoms (with mol), contacts, walls (wall/gran/local, "
                              f"when the script has walls) and bodies: no {'atoms' if atoms is None else kind} dump")
     apath, ablock = atoms
-    if lattice_of(ablock, 3) is not None:
-        raise SceneError(f"{apath}: BOX BOUNDS: periodic: clumps are read in boxes with walls only")
     snap = _snapshot(script, apath, ablock, tables, step, update)
     snap.frames = index.frames
     return snap
@@ -163,7 +163,7 @@ def _snapshot(script, apath, ablock, tables, step, update):
              f"from ex/ey/ez_space {quat_check:.3g}" if quat_check is not None else "not dumped"}
     law = {k: (np.broadcast_to(np.asarray(v, float), (nrows,)), w) for k, (v, w) in law.items()}
     snap = clump_snapshot(f"{apath} + {tables['contacts'][0]} + {wpath} + {bpath}", "liggghts_multisphere", bodies,
-                          members, contacts, gravity, law, lines, notes)
+                          members, contacts, gravity, law, lines, notes, lattice_of(ablock, 3))
     snap.frame = int(step)
     return snap
 

@@ -18,7 +18,9 @@ def unwrap(snap, x, shifts, keep_c, scale):
     if snap.lattice is None or not np.any(shifts):
         return x, cut
     N = len(x)
-    c = np.flatnonzero(keep_c)
+    kept = np.flatnonzero(keep_c)
+    key = np.minimum(snap.p[kept], snap.q[kept]).astype(np.int64) * N + np.maximum(snap.p[kept], snap.q[kept])
+    c = kept[np.sort(np.unique(key, return_index=True)[1])]   # one edge a pair (rigid bodies touch at several points)
     p, q = snap.p[c], snap.q[c]
     contacts = coo_matrix((np.ones(len(c)), (p, q)), shape=(N, N))
     _, label = connected_components(contacts, directed=False)
@@ -44,7 +46,7 @@ def unwrap(snap, x, shifts, keep_c, scale):
     image = total[:N]
     lattice = np.nan_to_num(snap.lattice) * scale
     unwrapped = x - image @ lattice
-    cut[c] = np.any(image[q] - image[p] != shifts[c], axis=1)
+    cut[kept] = np.any(image[snap.q[kept]] - image[snap.p[kept]] != shifts[kept], axis=1)
     return unwrapped, cut
 
 

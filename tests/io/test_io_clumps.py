@@ -134,9 +134,10 @@ def check_clumps(loaded, bodies, members, pairs, n_walls):
     return report
 
 
-def check_commands(scene_path, tmp_path, capsys):
-    """analyze, scan, rigidity and export of the converted clump scene exit 0 and write their outputs."""
-    for argv in (["analyze", str(scene_path), "--method", "sparse", "--k", "3"],
+def check_commands(scene_path, tmp_path, capsys, analyze=()):
+    """analyze (with the options `analyze`), scan, rigidity and export of the converted clump scene exit 0 and write
+    their outputs."""
+    for argv in (["analyze", str(scene_path), "--method", "sparse", "--k", "3", *analyze],
                  ["scan", str(scene_path), "--out", str(tmp_path / "scan")],
                  ["rigidity", str(scene_path), "--out", str(tmp_path / "rigid")],
                  ["export", str(scene_path), "--scan-dir", str(tmp_path / "scan"), "--out", str(tmp_path / "vtp")],
@@ -145,9 +146,11 @@ def check_commands(scene_path, tmp_path, capsys):
         out = capsys.readouterr()
         assert rc == 0, (argv, out.err[-2000:])
     scanned = json.loads((tmp_path / "scan" / "summary.json").read_text())
-    assert scanned["clusters"] == granstab.load_scene(scene_path).n_particles
+    scene = granstab.load_scene(scene_path)
+    assert scanned["clusters"] == scene.n_particles
     assert (tmp_path / "rigid" / "rigidity.json").is_file()
-    assert len(list((tmp_path / "vtp").glob("*.vtp"))) == 2 and list((tmp_path / "xyz").glob("*.xyz"))
+    vtp = len(list((tmp_path / "vtp").glob("*.vtp")))              # particles, contacts (and a periodic scene's cell)
+    assert vtp == 2 + scene.periodic and list((tmp_path / "xyz").glob("*.xyz"))
 
 
 # ------------------------------------------------------------------------------------------------ YADE
