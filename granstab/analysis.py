@@ -246,9 +246,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         Called with each `Branch` of the primary metric as it is finished; a bar with the time left, or a reporter
         with stages (granstab.io.progress.Heartbeat: a line a minute where no bar can be drawn).
     attribution, rim : an unstable dense result gets ``attribution`` (`attribute`; rim: particles with cut contacts).
-    estimate : bool
-        The plan's time estimate in ``cost`` (False: ``estimated_s`` None, no read of the machine's load, which
-        costs up to 0.3 s on a busy machine: a scan's clusters and a track's frames, whose time is measured).
+    estimate : False: ``cost`` without the time estimate (no read of the load, 0.3 s on a busy machine: a scan's
+        clusters, a track's frames).
 
     Returns
     -------
