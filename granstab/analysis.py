@@ -219,7 +219,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
             device: str = "cpu", lowrank: bool | None = None, keep: str = "auto", attribution: bool = True,
-            rim=None, uniqueness: bool = True) -> Analysis:
+            rim=None, uniqueness: bool = True, estimate: bool = True) -> Analysis:
     """Analyse every loading branch of `scene`: spectra, consistent modes and verdicts (Sec. 3, Appendix D).
 
     Parameters
@@ -247,6 +247,8 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         Called with each `Branch` of the primary metric as it is finished; a bar with the time left, or a reporter
         with stages (granstab.io.progress.Heartbeat: a line a minute where no bar can be drawn).
     attribution, rim : an unstable dense result gets ``attribution`` (`attribute`; rim: particles with cut contacts).
+    estimate : False: ``cost`` without the time estimate (no read of the load, 0.3 s on a busy machine: a scan's
+        clusters, a track's frames).
 
     Returns
     -------
@@ -261,7 +263,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
     planned = plan(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
                    sample_branches=sample_branches, method=method, k=k, device=device, lowrank=lowrank,
-                   uniqueness=uniqueness, attribution=attribution)
+                   uniqueness=uniqueness, attribution=attribution, estimate=estimate)
     if planned.memory and not planned.memory["fits"]:                  # would not fit in memory (solve/memory.py)
         raise OverBudget(planned.refusal)
     backend = choose_method(scene, planned.method, k, device, planned.lowrank, uniqueness)

@@ -192,11 +192,9 @@ def _positions(sub, centers: np.ndarray, local: np.ndarray, sizes: np.ndarray, p
     if sub.cell is None:
         return x, np.zeros(len(sizes), dtype=bool)
     N = sub.n_particles
-    starts = np.r_[0, np.cumsum(sizes)[:-1]]
     keys = np.repeat(np.arange(len(sizes)), sizes) * N + local
     roots = np.searchsorted(keys, np.arange(len(sizes)) * N + centers)
-    start = starts[pairs["cluster"]]
-    shift, loops = unwrap(len(local), start + pairs["lp"], start + pairs["lq"], sub.image[pairs["contact"]], roots)
+    shift, loops = unwrap(len(local), pairs["at_p"], pairs["at_q"], sub.image[pairs["contact"]], roots)
     wraps = np.bincount(pairs["cluster"], weights=loops, minlength=len(sizes)) > 0
     return x + lattice_offset(shift, sub.cell), wraps
 

@@ -79,7 +79,7 @@ def cluster_row(scene: Scene, center: int, keep: np.ndarray, options: dict, grap
         sub = cluster(scene, center, options["rings"], options.get("boundary", "loads"), graph=graph)
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
                       sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()),
-                      attribution=False)
+                      attribution=False, estimate=False)
     except SceneError as exc:
         return Row.failed(center_id, ids, str(exc), time.perf_counter() - start)
     inner = _sub_index(sub, scene, keep)
@@ -159,7 +159,7 @@ def _control_by_analyze(scene: Scene, center: int, keep, options: dict) -> str:
             return "stable"                                           # nothing free to move
         res = analyze(sub, metric=options["metric"], max_sliding=options["max_sliding"],
                       sample_branches=options["sample_branches"], seed=zlib.crc32(scene.names[center].encode()),
-                      attribution=False)
+                      attribution=False, estimate=False)
     except SceneError:
         return "error"
     if options["control"] == "elastic" and boundary_rings(options.get("boundary", "loads"))[0] == "embedded":

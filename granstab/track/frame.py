@@ -28,10 +28,10 @@ from .quantities import macroscopic, per_particle
 PREDICTORS = ("unstable_fraction", "unstable_fraction_nonboundary", "cluster_lambda_min", "soft_participation",
               "in_largest_rigid_cluster", "soft_spots_branch", "soft_spots_frictionless")          # NaN where the stage that computes them was not asked for
 WHOLE = {"metric": "L", "max_sliding": 0, "sample_branches": 0, "keep": "all", "attribution": False,
-         "uniqueness": False}
+         "uniqueness": False, "estimate": False}
 # the whole packing: its all-loading and all-unloading branches only (sample_masks), in the scan's metric L, their
 # stability only: no metric family or robustness, no attribution, no ℍ^i (uniqueness, Type-2), none of which the
-# row uses (on 300 spheres ℍ^i's eig and SVDs were most of a frame's time)
+# row uses (on 300 spheres ℍ^i's eig and SVDs were most of a frame's time), no time estimate (the frame's is measured)
 
 
 def core_scene(scene: Scene, wall_flags):

@@ -120,9 +120,7 @@ def lead_times(lam: np.ndarray, n_negative, steps: np.ndarray, event_start: np.n
         row = {"frame_position": int(e), "lambda_min": _num(lam[e])}
         end = steps[min(ends[e], n - 1)] if ends[e] < n else steps[e] + (steps[e] - steps[e - 1] if e else 0.0)
         for name, unstable in readings.items():
-            k = 0
-            while e - k >= 0 and unstable[e - k]:
-                k += 1
+            k = run_before(unstable, e)
             row[f"lead_frames_{name}"] = k
             row[f"lead_steps_{name}"] = _num(end - steps[e - k + 1]) if k else 0.0
         events.append(row)
@@ -132,6 +130,40 @@ def lead_times(lam: np.ndarray, n_negative, steps: np.ndarray, event_start: np.n
             "unstable_frame_rate": {k: _num(np.mean(v[np.isfinite(lam)])) if np.isfinite(lam).any() else None
                                     for k, v in readings.items()},
             "spearman_rho": _num(rho), "spearman_p": _num(p), "frames_to_next_event": to_next.tolist()}
+
+
+def run_before(sign: np.ndarray, e: int) -> int:
+    """How many frames up to and including position e hold `sign` without a break (the lead of an event at e)."""
+    k = 0
+    while e - k >= 0 and sign[e - k]:
+        k += 1
+    return k
+
+
+SIGN_QUANTILE = 0.75    # a frame-level predictor signals at a frame whose oriented score is in the run's top quarter
+
+
+def predictor_leads(by_name: dict, event_start: np.ndarray) -> dict:
+    """Per frame-level predictor (`frame_predictors`, oriented by FRAME: larger, more likely to fail) the lead of
+    each event: the frames without a break up to its start at which the predictor signals (its score at or above
+    the run's SIGN_QUANTILE quantile, fixed before the results; strictly above where that quantile is the minimum,
+    so that a count that is mostly 0 signals only when positive), beside the base rate r of signalling frames and
+    what frames signalling independently at that rate would give: a lead ≥ 1 for a share r of the events, a mean
+    lead r/(1 − r) (geometric)."""
+    out = {}
+    for name, score in by_name.items():
+        s = FRAME[name] * np.asarray(score, float)
+        ok = np.isfinite(s)
+        if not ok.any() or not len(event_start):
+            continue
+        q = np.quantile(s[ok], SIGN_QUANTILE)
+        sign = ok & ((s > q) if q == s[ok].min() else (s >= q))
+        leads = [run_before(sign, e) for e in np.unique(event_start)]
+        r = float(sign[ok].mean())
+        out[name] = {"leads": leads, "base_rate": r, "share_led": float(np.mean(np.array(leads) > 0)),
+                     "mean_lead": float(np.mean(leads)), "null_share_led": r,
+                     "null_mean_lead": r / (1 - r) if r < 1 else None}
+    return out
 
 
 def _num(v) -> float | None:
@@ -202,10 +234,10 @@ def cases(out_dir, structure_wanted: bool = True) -> tuple[list, dict]:
         x = np.stack([particles[a] for a in "xyz" if a in particles], axis=1)
         structure = baselines.frame_features(x, frame_positions(particles["frame"], order), cells,
                                              frames["mean_contact_distance"])
-    found = [*particle_cases(particles, order, window, structure),
-             *event_cases(frame_predictors(frames, particles, order), label, valid, window)]
+    by_name = frame_predictors(frames, particles, order)
+    found = [*particle_cases(particles, order, window, structure), *event_cases(by_name, label, valid, window)]
     return found, {"window": window, "frames": frames, "order": order, "start": start, "end": end,
-                   "n_events": int(label[valid].sum())}
+                   "n_events": int(label[valid].sum()), "frame_scores": by_name}
 
 
 def read_strings(out_dir: Path) -> tuple[np.ndarray, list]:
@@ -306,8 +338,9 @@ def read_columns(path: Path, skip: tuple = ()) -> dict:
 
 def run(out_dir) -> dict:
     """Read a track folder (frames.parquet, particles.parquet, events.json, the window W of summary.json), write
-    prediction.json (the AUC list), prediction_lead.json (λ_min before each event) and prediction.txt (the targets,
-    the conventions and the verdict); return {rows, lead, verdict}."""
+    prediction.json (the AUC list), prediction_lead.json (λ_min before each event, per branch, and every frame-level
+    predictor's leads against its base rate, `frame_predictors`) and prediction.txt (the targets, the conventions
+    and the verdict); return {rows, lead, frame_predictors, verdict}."""
     out_dir = Path(out_dir)
     found, ctx = cases(out_dir)
     n_events = ctx["n_events"]
@@ -319,17 +352,22 @@ def run(out_dir) -> dict:
                               ctx["end"])
             for b in ("unloading", "loading")
             if f"lambda_min_{b}" in frames and np.isfinite(frames[f"lambda_min_{b}"]).any()}
-    text = verdict(rows, lead)
+    leads = predictor_leads(ctx["frame_scores"], ctx["start"])
+    text = verdict(rows, lead) + "".join(
+        f"\n{name} in its top quarter up to an event's start: {v['share_led']:.2f} of events (independent frames "
+        f"at its base rate: {v['null_share_led']:.2f}), mean lead {v['mean_lead']:.2f} frames (independent: "
+        + ("n/a" if v["null_mean_lead"] is None else f"{v['null_mean_lead']:.2f}") + ")."
+        for name, v in leads.items())
     if not any(r["predictor"] == "softness" for r in rows):
         import importlib.util
         text += "\n" + (baselines.MISSING if importlib.util.find_spec("sklearn") is None else
                         "softness not computed: no target had both classes in the first half of the frames")
     clean = [{k: (_num(v) if isinstance(v, float) else v) for k, v in r.items()} for r in rows]
     (out_dir / "prediction.json").write_text(json.dumps(clean, indent=1))
-    (out_dir / "prediction_lead.json").write_text(json.dumps(lead, indent=1))
+    (out_dir / "prediction_lead.json").write_text(json.dumps({**lead, "frame_predictors": leads}, indent=1))
     (out_dir / "prediction.txt").write_text(header(ctx["window"]) + "\n" + text + "\n"
                                             + proven_frames(frames, ctx["order"]) + "\n")
-    return {"rows": clean, "lead": lead, "verdict": text}
+    return {"rows": clean, "lead": lead, "frame_predictors": leads, "verdict": text}
 
 
 def header(window: int) -> str:

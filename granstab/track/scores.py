@@ -14,7 +14,8 @@ A resample's cumulative weights are m @ (per-block cumulative counts), one matri
 `BINS` runs the scores are put in `BINS` quantile bins (ties kept together) for the resamples only, and each
 resample's deviation from the binned estimate is added to the exact one (a shift below 1/BINS of the ranks). The
 interval is the 2.5 and 97.5 percentiles of `N_BOOT` resamples (seed `SEED`), widened to hold the estimate where
-it falls outside (the `note` says so). Too few blocks with a positive (`MIN_EVENTS`, from the calibration
+it falls outside (the `note` says so), then its two arms scaled by `small_sample_factor` of the blocks holding the
+rarer class (the percentile interval over few blocks is too narrow: 0.925 coverage at 20 frames) and cut to [0, 1]. Too few blocks with a positive (`MIN_EVENTS`, from the calibration
 of tests/track/test_track_scores.py: the random score's interval covers 0.5 in 93–97 % of seeds from there on) and the
 interval is not printed (null, with a `note`).
 """
@@ -96,6 +97,18 @@ def metrics(score, label) -> dict:
     return {k: float(v[0]) for k, v in weighted_metrics(label[order], last, np.ones((1, len(score)))).items()}
 
 
+def small_sample_factor(k: int) -> float:
+    """How much wider than the percentiles an interval over k informative blocks is drawn: sqrt(k / (k − 1)) (the
+    bootstrap's variance of a mean over k blocks is (k − 1)/k of the unbiased one) × t_{k−1} / z at 97.5 % (the
+    spread itself estimated from k blocks). Measured, random score: the share of seeds whose interval holds 0.5 went
+    from 0.925 to 0.9525 (per particle, 20 frames × 50 rows, 400 seeds) and from 0.945 to 0.9625 (20 events in 60
+    frames); tests/track/test_track_scores.py."""
+    from scipy.stats import norm, t
+    if k < 2:
+        return float("inf")
+    return float(np.sqrt(k / (k - 1)) * t.ppf(0.975, k - 1) / norm.ppf(0.975))
+
+
 def with_intervals(score, label, block, n_boot: int = N_BOOT, seed: int = SEED,
                    min_events: int = MIN_EVENTS) -> dict:
     """The three metrics and their 95 % block-bootstrap intervals (module docstring); rows with a NaN score dropped.
@@ -126,7 +139,7 @@ def with_intervals(score, label, block, n_boot: int = N_BOOT, seed: int = SEED,
     if len(last) > BINS:                              # binned: each resample's deviation from the binned estimate
         centre = block_metrics(label, block, binned, np.ones((1, F)))
         boot = {k: v - centre[k][0] + out[k] for k, v in boot.items()}
-    widened = []
+    widened, c = [], small_sample_factor(min(out["n_blocks_positive"], len(np.unique(block[~label]))))
     for k in METRICS:
         b = boot[k][np.isfinite(boot[k])]
         if len(b) < n_boot // 2:                       # most resamples without a positive: no interval
@@ -134,7 +147,9 @@ def with_intervals(score, label, block, n_boot: int = N_BOOT, seed: int = SEED,
         low, high = np.percentile(b, [2.5, 97.5])
         if not low <= out[k] <= high:
             widened.append(k)
-        out[f"{k}_ci_low"], out[f"{k}_ci_high"] = float(min(low, out[k])), float(max(high, out[k]))
+        low, high = min(low, out[k]), max(high, out[k])
+        out[f"{k}_ci_low"] = float(max(0.0, out[k] - c * (out[k] - low)))        # every metric is in [0, 1]
+        out[f"{k}_ci_high"] = float(min(1.0, out[k] + c * (high - out[k])))
     if widened:
         out["note"] = "interval widened to hold the estimate: " + ", ".join(widened)
     return out

@@ -91,6 +91,24 @@ def test_lead_times_count_the_unstable_run_before_each_event():
     assert "proven" not in predict.lead_times(lam, np.full(7, -1), steps, np.array([2]))["readings"]   # the fill
 
 
+def test_every_frame_predictor_has_leads_against_its_base_rate():
+    """8 frames, events starting at 3 and 7. stress_ratio (larger: more likely): its top quarter (>= the 0.75
+    quantile 0.4) is frames 2, 3 (0.7, 0.9): the event at 3 has lead 2, at 7 (0.1) none; base rate 2/8, so
+    independent frames would lead a quarter of the events and a mean of (1/4)/(3/4) = 1/3 frame. z is negated
+    (fewer contacts: more likely). n_negative_loading is mostly 0: it signals only where positive (frame 7)."""
+    by_name = {"stress_ratio": np.array([0.1, 0.2, 0.7, 0.9, 0.3, 0.2, 0.1, 0.1]),
+               "z": np.array([4.0, 4.0, 4.0, 3.0, 4.0, 4.0, 4.0, 4.0]),
+               "n_negative_loading": np.array([0, 0, 0, 0, 0, 0, 0, 2.0])}
+    got = predict.predictor_leads(by_name, np.array([3, 7]))
+    s = got["stress_ratio"]
+    assert s["leads"] == [2, 0] and s["share_led"] == 0.5 and s["mean_lead"] == 1.0
+    assert s["base_rate"] == 0.25 and s["null_share_led"] == 0.25
+    assert s["null_mean_lead"] == pytest.approx(1 / 3, abs=1e-15)
+    assert got["z"]["leads"] == [1, 0] and got["z"]["base_rate"] == 1 / 8        # only frame 3 (z = 3) signals
+    assert got["n_negative_loading"]["leads"] == [0, 1] and got["n_negative_loading"]["base_rate"] == 1 / 8
+    assert predict.predictor_leads(by_name, np.array([], int)) == {}
+
+
 def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
     truth = write(tmp_path)
     result = predict.run(tmp_path)

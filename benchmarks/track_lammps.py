@@ -1,0 +1,83 @@
+"""Track, issue 39's cost goal: the 2,000-disk, 200-frame 2D LAMMPS run (examples/track/in.shear2d_track, n 2000,
+μ = 0.5) with `--whole --scan --predict` in 20 min on this 2-core machine, i.e. about 6 s a frame all in.
+
+The full size runs LAMMPS for 40 frames (Debian's lmp, niced: a 200-frame run takes 10 min of a loaded machine
+before anything is tracked; a frame's cost is its 2,000 disks', the same at frame 40 or 200) and tracks every
+`every`-th of them in this process (one worker, so that the CPU time is this process's): per frame the median wall time of each
+stage (read, whole, scan) and the CPU time of the whole track call per tracked frame; *extrapolated*: 200 × that
+CPU time over 2 cores (frames are independent tasks: `--workers 2`), which the machine's load does not enter, and
+200 × the median wall time, which it does. The between-frames pass and `--predict` run on the tracked frames only
+(their cost at 200 frames is not measured here). Without lmp: nothing is measured (the section says so).
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+from granstab.track import track
+
+ROOT = Path(__file__).resolve().parent.parent
+SCRIPT = ROOT / "examples" / "track" / "in.shear2d_track"
+QUICK = {"particles": 300, "frames": 4, "every": 1}
+FULL = {"particles": 2000, "frames": 40, "every": 4}
+GOAL_SECONDS = 1200.0
+GOAL_FRAMES = 200
+
+
+def lammps(folder: Path, n: int, frames: int) -> list[Path]:
+    """The sheared run's dumps (examples/track/in.shear2d_track) in `folder`."""
+    subprocess.run(["nice", "-n", "10", "lmp", "-in", str(SCRIPT), "-var", "n", str(n), "-var", "frames",
+                    str(frames), "-log", "none", "-screen", "none"], cwd=folder, check=True, timeout=1800)
+    return [folder / "atoms_shear2d_track.dump", folder / "contacts_shear2d_track.dump", SCRIPT]
+
+
+def run(quick: bool = False) -> dict:
+    cfg = QUICK if quick else FULL
+    if shutil.which("lmp") is None:
+        return {"skipped": "no lmp on this machine", **cfg}
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        paths = lammps(folder, cfg["particles"], cfg["frames"])
+        load = [os.getloadavg()[0]]
+        begun, cpu = time.perf_counter(), time.process_time()
+        summary = track(paths, folder / "out", whole=True, scan=True, predict=True, figures=False, workers=1,
+                        frames=f"0:{10 ** 12}:{cfg['every']}")
+        seconds, cpu = time.perf_counter() - begun, time.process_time() - cpu
+        load.append(os.getloadavg()[0])
+        rows = [json.loads(p.read_text()) for p in sorted((folder / "out" / "parts").glob("frame-*.json"))]
+    tracked = len(rows)
+    stages = {k: statistics.median(r["seconds"].get(k, 0.0) for r in rows) for k in ("read", "whole", "scan")}
+    per_frame_wall = statistics.median(sum(r["seconds"].values()) for r in rows)
+    return {**cfg, "tracked": tracked, "seconds": seconds, "cpu_seconds": cpu, "cpu_per_frame": cpu / tracked,
+            "median_stages": stages, "median_frame_wall": per_frame_wall, "after_frames": summary.get("after"),
+            "between": summary["cost"]["stages"].get("between"), "load": load, "goal_seconds": GOAL_SECONDS,
+            "extrapolated_cpu_2_cores": GOAL_FRAMES * cpu / tracked / 2,
+            "extrapolated_wall_serial": GOAL_FRAMES * per_frame_wall}
+
+
+def markdown(results: dict) -> str:
+    r = results
+    head = ["## Track: 2,000 LAMMPS disks with --whole --scan --predict (issue 39)", ""]
+    if "skipped" in r:
+        return "\n".join(head + [f"Not measured: {r['skipped']}.", ""])
+    s = r["median_stages"]
+    return "\n".join(head + [
+        "`granstab.track.track(dumps, out, whole=True, scan=True, predict=True)` on examples/track/in.shear2d_track "
+        f"at {r['particles']:,} disks, μ = 0.5, {r['frames']} frames written by LAMMPS, every {r['every']}-th tracked "
+        f"({r['tracked']}) in this process. Goal: all 200 frames in {r['goal_seconds']:.0f} s on 2 cores. "
+        "*extrapolated (CPU / 2 cores)*: 200 × the CPU time per tracked frame over 2 workers (frames are independent "
+        "tasks; the load does not enter it); *serial wall*: 200 × the median frame's wall time at this load. "
+        f"1-minute load average {r['load'][0]:.1f} at the start, {r['load'][1]:.1f} at the end, on 2 CPUs.", "",
+        "| tracked frames | total wall (CPU) | CPU / frame | median frame wall: read / whole / scan | between + "
+        "predict | extrapolated 200 frames: CPU / 2 cores | serial wall at this load |",
+        "|---|---|---|---|---|---|---|",
+        f"| {r['tracked']} | {r['seconds']:.0f} s ({r['cpu_seconds']:.0f} s) | **{r['cpu_per_frame']:.1f} s** | "
+        f"{r['median_frame_wall']:.1f} s: {s['read']:.2f} / {s['whole']:.1f} / {s['scan']:.1f} s | "
+        f"{r['between'] or 0:.1f} s + predict | **{r['extrapolated_cpu_2_cores']:.0f} s** (goal "
+        f"{r['goal_seconds']:.0f} s) | {r['extrapolated_wall_serial']:.0f} s |", ""])
