@@ -260,7 +260,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
     planned = plan(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
                    sample_branches=sample_branches, method=method, k=k, device=device, lowrank=lowrank,
-                   uniqueness=uniqueness, attribution=attribution)
+                   uniqueness=uniqueness, attribution=attribution, seed=seed)
     backend = choose_method(scene, planned.method, k, device, planned.lowrank, uniqueness)
     timer = Timer()
     with timer("total"):

@@ -8,11 +8,13 @@ import numpy as np
 from .device import backend
 from .krylov import _norms, _sym, extend
 from .lowrank import stack, sym_updates
+from .multifrontal import factor
 from .sparse import Modes, Shifted, _finish, _lowrank, lowest_modes, operator
 
 GUARD = 6            # extra Ritz vectors carried by the refinement (faster convergence of the kk lowest)
 TAYLOR = 6           # powers (B_0 - σ)⁻ʲ[A, S] in the basis: each a block solve of 2·d·Ms columns; 2 powers left
                      # residuals ~5e-9‖Hs‖ on 10⁴-10⁵ disks (two refinements per branch), 6 reach ~4e-13 (none)
+STEPS = 4            # refinements of a branch's Ritz vectors before shift-invert redoes it
 
 
 class SparseRitz:
@@ -60,7 +62,7 @@ class SparseRitz:
         self.W = np.concatenate([base, more], axis=1)
         self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
         self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0, "direct": 0, "refinements": 0}
-        self.steps = 4
+        self.steps = STEPS
 
     def _rayleigh(self, krylov, base: np.ndarray, more: np.ndarray, shifted) -> np.ndarray:
         """Wᵀ Hs W for W = [base, more]: with `krylov` (base = its X) X's block from the iteration's own Xᵀ B X
@@ -106,9 +108,7 @@ class SparseRitz:
         return self._shifted(on).n_below
 
     def _shifted(self, on: np.ndarray) -> Shifted:
-        fac = self.factorization
-        U, K = _lowrank(self.spb, on, self.spb.norm)
-        return Shifted(fac, U, K, fac.sigma, fac.n_neg, Z=branch_solved(self.spb, self.solved, on))
+        return branch_shifted(self.spb, self.factorization, self.solved, on)
 
     def _branch(self, mask, on: np.ndarray, Y: np.ndarray, kk: int, block: int):
         """One branch from its Ritz vectors W·Y: accepted where its Ritz values below σ are all ν of its eigenvalues
@@ -149,9 +149,32 @@ class SparseRitz:
         return basis @ y[:, :V.shape[1]]
 
 
+def branch_shifted(spb, fac, solved: dict, on: np.ndarray) -> Shifted:
+    """(B - σI)⁻¹ of the branch whose sliding contacts are `on` (sparse.Shifted: its inertia count n_below) from the
+    shared factor and the solves made once (`branch_solved`)."""
+    U, K = _lowrank(spb, on, spb.norm)
+    return Shifted(fac, U, K, fac.sigma, fac.n_neg, Z=branch_solved(spb, solved, on))
+
+
 def branch_solved(spb, solved: dict, on: np.ndarray) -> np.ndarray:
     """(Hs - σI)⁻¹ U for sparse._lowrank's U = [Q, Y, T, A_on, S_on] of a branch, by linearity from the solves made
     once (`solved`: Q, Hs Q, T, A and S solved; Y = Hs Q + ½(A_on S_onᵀ Q + S_on A_onᵀ Q))."""
     A, S, z = spb.A[:, on], spb.S[:, on], solved
     ZY = z["HQ"] + 0.5 * (z["A"][:, on] @ (S.T @ spb.Q) + z["S"][:, on] @ (A.T @ spb.Q))
     return np.concatenate([z["Q"], ZY, z["T"], z["A"][:, on], z["S"][:, on]], axis=1)
+
+
+def below_counts(spb, masks: np.ndarray) -> np.ndarray | None:
+    """ν of each branch in `masks` (eigenvalues below the run's σ, exact by inertia) without any eigen-solve: the
+    factor of Hs - σI and one block solve of [Q, Hs Q, T, A, S], as SparseRitz makes them, then each branch's
+    Woodbury capacitance (`SparseRitz.below`). The plan's probe (plan.py): how many branches go to shift-invert and
+    with how many pairs. None where the factor gives no count."""
+    from .sparse import SIGMA_REL
+    fac = factor(spb, -SIGMA_REL * spb.norm)
+    if fac.n_neg is None:
+        return None
+    r, d, Ms = spb.Q.shape[1], spb.scene.dim, spb.A.shape[1]
+    Z = fac.solve(np.concatenate([spb.Q, spb.Hs @ spb.Q, spb.R[:, :d], spb.A, spb.S], axis=1))
+    solved = dict(zip(("Q", "HQ", "T", "A", "S"), np.split(Z, np.cumsum([r, r, d, Ms]), axis=1)))
+    out = [branch_shifted(spb, fac, solved, on).n_below for on in masks[:, spb.sliding] == 1]
+    return None if None in out else np.array(out)
