@@ -122,7 +122,7 @@ def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = Fa
 #: eigh), RITZ_BRANCH_PER_DOF per n (its vectors, residuals, inertia) and each refinement RITZ_REFINE per n·(w +
 #: 3(kk + GUARD))² plus RITZ_REFINE_PER_DOF per n: 0.5 a branch with no eigenvalue below σ (ν = 0: 0-1 measured),
 #: ritz.SparseRitz.steps (4) where 0 < ν < kk (the sheared frame: 4 in each of 3; their negative modes lie outside the
-#: basis built about σ). A branch with ν >= kk skips Ritz (ritz.py) and is solved by shift-invert, ARPACK_PAIR_DOF
+#: basis built about σ). A branch with ν >= kk skips Ritz (ritz.py) and is solved by shift-invert, ARPACK_PAIR_*
 #: per n·(kk + ν) (the sheared frame: 6 of 10 branches, ν = 8-15, 9.7 s of CPU time for 100 pairs); ν of each branch
 #: is counted before the run by the plan's probe (plan.probe: one factorisation and the inertia of each branch's
 #: Woodbury update, no eigen-solve). Beyond methods.RITZ_BYTES each branch is a
@@ -139,7 +139,11 @@ RITZ_REFINE_PER_DOF = 5e-6
 RITZ_REFINEMENTS = 0.5          # refinements of a branch with ν = 0 (0-1 measured); 0 < ν < kk: ritz steps (4)
 RITZ_KRYLOV = 48                # the basis: kk + this (the elastic block Krylov space) …
 RITZ_COLUMNS_PER_SLIDING = 8.5  # … + this a sliding contact (of the 2·TAYLOR = 12 its Taylor powers add at most)
-ARPACK_PAIR_DOF = 2e-5          # a branch solved by shift-invert with the shared factor, per n·(kk + ν) pairs
+ARPACK_PAIR_DOF = 4.6e-6         # a branch solved by shift-invert with the shared factor, per n·(kk + ν) pairs, …
+ARPACK_PAIR_COLUMN = 2.1e-7      # … and per n·(kk + ν)·u, u = 6 + Ms the Woodbury columns of an average branch (each
+                                 # solve applies them): the sheared frame (u 91, ν 8-15) 9.7 s measured, 9.7 s so; the
+                                 # superquadric packing of FLOPPY_PAIR_DOF (u 16, ν 21-25, 30 pairs) 0.3-0.45 s a
+                                 # branch measured at load 2-10, 0.36 s so
 SHIFT_PER_DOF_SLIDING = 1.3e-7
 SHIFT_CUBE = 4.1e-9
 FLOPPY_PAIR_DOF = 6e-6  # a branch whose modes at or below zero (`plan.deficit`: a floppy 3D packing's rattling
@@ -192,6 +196,7 @@ def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int 
     from .ritz import GUARD, STEPS
     Ms, kk, n = n_sliding, k + 1, n_dof
     nu = np.zeros(1) if below is None or not len(below) else np.asarray(below, float)
+    pair = n * (ARPACK_PAIR_DOF + ARPACK_PAIR_COLUMN * (6 + Ms))   # a shift-invert pair (ARPACK_PAIR_*)
     out = {"setup": SPARSE_SETUP_PER_DOF * n}
     if n_branches > 1 and ritz_fits(Ms, kk):
         w = ritz_width(n, Ms, kk)
@@ -200,14 +205,14 @@ def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int 
         out["ritz"] = (RITZ_INIT * n * w * w + ritz * (RITZ_EIGH * float(w) ** 3
                        + RITZ_BRANCH_PER_DOF * n) + steps * (RITZ_REFINE * n * (w + 3 * (kk + GUARD)) ** 2
                                                            + RITZ_REFINE_PER_DOF * n))
-        out["direct"] = n_branches * np.mean((kk + nu) * (nu >= kk)) * ARPACK_PAIR_DOF * n
+        out["direct"] = n_branches * np.mean((kk + nu) * (nu >= kk)) * pair
         out["fallback"] = RITZ_FALLBACK.get(metric, 0.0) * max(ritz - 1, 0) * ARPACK_BRANCH_PER_DOF * n
     else:
         out["shift_invert"] = n_branches * (SPARSE_BRANCH_FIXED + SPARSE_BRANCH_PER_DOF * n
                                             + SHIFT_PER_DOF_SLIDING * n * Ms + SHIFT_CUBE * float(Ms) ** 3
-                                            + np.mean(nu) * ARPACK_PAIR_DOF * n)
-    if deficit >= kk:
-        out["floppy"] = n_branches * FLOPPY_PAIR_DOF * n * (kk + min(deficit, FLOPPY_CROWD * kk))
+                                            + np.mean(nu) * pair)
+    if deficit >= kk:                   # the probed branches with ν >= kk are priced with their own ν above
+        out["floppy"] = n_branches * np.mean(nu < kk) * FLOPPY_PAIR_DOF * n * (kk + min(deficit, FLOPPY_CROWD * kk))
     return {key: float(v) for key, v in out.items()}
 
 

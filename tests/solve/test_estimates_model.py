@@ -132,5 +132,6 @@ def test_the_ritz_path_of_many_sliding_contacts_is_predicted_by_the_plan(at_rest
     assert np.sum(nu >= 7) == 6                                               # straight to shift-invert
     width = budget.ritz_width(p.n_dof, 85, 7)
     assert abs(width / ritz.W.shape[1] - 1) <= 0.25 and ritz.W.shape[1] > 1.5 * (7 + 8 + 4 * 85)
-    assert p.parts["direct"] == pytest.approx(np.sum((7 + nu) * (nu >= 7)) * budget.ARPACK_PAIR_DOF * p.n_dof)
+    assert p.parts["direct"] == pytest.approx(np.sum((7 + nu) * (nu >= 7)) * p.n_dof
+                                          * (budget.ARPACK_PAIR_DOF + budget.ARPACK_PAIR_COLUMN * (6 + 85)))
     assert 1 / PROMISE <= p.estimated_s / 18.1 <= PROMISE
