@@ -137,6 +137,10 @@ RITZ_BRANCH_PER_DOF = 6e-6
 RITZ_REFINE = 1.4e-10
 RITZ_REFINE_PER_DOF = 5e-6
 RITZ_REFINEMENTS = 0.5          # refinements of a branch with ν = 0 (0-1 measured); 0 < ν < kk: ritz steps (4)
+RITZ_3D = (2.5, 3.0)            # 3D: (refinements of a branch with ν = 0, cost factor on the basis and each refinement):
+                                # 3D random packings of 3,000 dofs, Ms = 20 and 30: 2.6 and 3 refinements a branch, the
+                                # basis 0.8 and 0.97 s, a refinement 0.15 and 0.11 s (denser operator and factor than
+                                # 2D's: 4.7×, 3.5× and 1.7× the 2D model); 2D: (RITZ_REFINEMENTS, 1)
 RITZ_KRYLOV = 48                # the basis: kk + this (the elastic block Krylov space) …
 RITZ_COLUMNS_PER_SLIDING = 8.5  # … + this a sliding contact (of the 2·TAYLOR = 12 its Taylor powers add at most)
 ARPACK_PAIR_DOF = 4.6e-6         # a branch solved by shift-invert with the shared factor, per n·(kk + ν) pairs, …
@@ -168,16 +172,16 @@ RITZ_FALLBACK = {"10L": 1.0}     # the share of a metric's branches (the elastic
 
 
 def sparse_estimate(n_dof: int, n_branches: int, n_metrics=1, n_sliding: int = 0, k: int = 6,
-                    deficit: int = 0, below: dict | None = None) -> float:
+                    deficit: int = 0, below: dict | None = None, dim: int = 2) -> float:
     """Estimated wall seconds of the sparse path (calibration above, scaled by `speed`): per metric, the elastic
     solve's set-up and every branch's update, Ritz (one basis for all branches) or, by methods.ritz_fits,
     shift-invert ARPACK; where Ritz is used, the branches of a metric whose Ritz updates fall back to ARPACK
     (RITZ_FALLBACK); where `deficit` (plan.deficit) is k + 1 or more, every branch's ARPACK solve of k + ν pairs.
     `n_metrics`: the metrics' names (a tuple), or their number (the family's first ones: L, L/10, 10L); `below`:
-    per metric name, the probed ν of a sample of its branches (plan.probe; none: ν = 0)."""
+    per metric name, the probed ν of a sample of its branches (plan.probe; none: ν = 0); dim: the scene's (RITZ_3D)."""
     names = n_metrics if isinstance(n_metrics, tuple) else ("L", "L/10", "10L")[:n_metrics]
     below = below or {}
-    return sum(sum(sparse_parts(n_dof, n_branches, name, n_sliding, k, deficit, below.get(name)).values())
+    return sum(sum(sparse_parts(n_dof, n_branches, name, n_sliding, k, deficit, below.get(name), dim).values())
                for name in names) * speed()
 
 
@@ -187,7 +191,7 @@ def ritz_width(n_dof: int, n_sliding: int, kk: int) -> int:
 
 
 def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int = 0, k: int = 6,
-                 deficit: int = 0, below=None) -> dict:
+                 deficit: int = 0, below=None, dim: int = 2) -> dict:
     """One metric's part of `sparse_estimate` on the calibration machine, by step: "setup", "ritz" (the basis and
     the branches it solves) or "shift_invert", "direct" (the branches with kk or more eigenvalues below σ, straight
     to shift-invert), "fallback" (RITZ_FALLBACK's ARPACK solves), "floppy". `below`: the probed ν of a sample of
@@ -201,10 +205,10 @@ def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int 
     if n_branches > 1 and ritz_fits(Ms, kk):
         w = ritz_width(n, Ms, kk)
         ritz = n_branches * np.mean(nu < kk)
-        steps = n_branches * np.mean(np.where(nu == 0, RITZ_REFINEMENTS, STEPS) * (nu < kk))
-        out["ritz"] = (RITZ_INIT * n * w * w + ritz * (RITZ_EIGH * float(w) ** 3
-                       + RITZ_BRANCH_PER_DOF * n) + steps * (RITZ_REFINE * n * (w + 3 * (kk + GUARD)) ** 2
-                                                           + RITZ_REFINE_PER_DOF * n))
+        refinements, heavier = RITZ_3D if dim == 3 else (RITZ_REFINEMENTS, 1.0)
+        steps = n_branches * np.mean(np.where(nu == 0, refinements, STEPS) * (nu < kk))
+        out["ritz"] = (heavier * RITZ_INIT * n * w * w + ritz * (RITZ_EIGH * float(w) ** 3 + RITZ_BRANCH_PER_DOF * n)
+                       + heavier * steps * (RITZ_REFINE * n * (w + 3 * (kk + GUARD)) ** 2 + RITZ_REFINE_PER_DOF * n))
         out["direct"] = n_branches * np.mean((kk + nu) * (nu >= kk)) * pair
         out["fallback"] = RITZ_FALLBACK.get(metric, 0.0) * max(ritz - 1, 0) * ARPACK_BRANCH_PER_DOF * n
     else:

@@ -67,6 +67,7 @@ class Plan:
     deficit: int = 0               # non-rigid modes surely at zero (`deficit`): the sparse path's ARPACK pairs
     fitted: dict | None = None     # the default plan fitted to budget.ASK_SECONDS (`fit`): what that left out
     below: dict = field(default_factory=dict)   # `probe`: per metric, ν of a sample of the branches (sparse path)
+    dim: int = 2
 
     def to_dict(self) -> dict:
         """The `cost` object of `granstab analyze --json --plan` (and the planned part of every run's `cost`)."""
@@ -168,7 +169,7 @@ def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None 
              uniqueness=uniqueness and not sparse, attribution=attribution and not sparse,
              robustness=fam and not sparse and not sampled and scene.fixed is None
              and n_branches * float(n) ** 3 <= ROBUST_MAX_WORK, floppy=lowrank and floppy(scene),
-             left_out=(), estimated_s=None, deficit=deficit(scene) if sparse else 0)
+             left_out=(), estimated_s=None, deficit=deficit(scene) if sparse else 0, dim=scene.dim)
     p = _with_left_out(p, k, fam)
     if not estimate or gpu or refusal:
         return p
@@ -205,9 +206,9 @@ def _estimated(p: Plan, k: int, rest: bool = False) -> Plan:
     if p.path == "sparse":                     # by step, summed over the metrics (budget.sparse_parts)
         for name in p.metrics:
             for step, seconds in budget.sparse_parts(n, L, name, p.n_sliding, k, p.deficit,
-                                                     p.below.get(name)).items():
+                                                     p.below.get(name), p.dim).items():
                 parts[step] = parts.get(step, 0.0) + seconds * budget.speed()
-        one = budget.sparse_estimate(n, L, p.metrics[:1], p.n_sliding, k, p.deficit, p.below)
+        one = budget.sparse_estimate(n, L, p.metrics[:1], p.n_sliding, k, p.deficit, p.below, p.dim)
     else:
         full = (budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=not p.uniqueness)   # no ℍ^i: eigh
                 if not p.lowrank or p.floppy else 0.0)
