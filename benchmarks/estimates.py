@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import granstab
-from granstab.model.packings import random_packing
+from granstab.model.packings import jammed, random_packing
 from granstab.model.scene import equilibrium_loads
 from granstab.solve.plan import plan
 
@@ -207,12 +207,35 @@ def held_out(folder: Path) -> list:
     if frame is not None:
         scenes.insert(3, ("1,400-disk sheared periodic LAMMPS run, frame 23, --sample-branches 8 --metric L", frame,
                           ["--sample-branches", "8", "--metric", "L"], True))
+    scenes += own(folder)
     out = [(name, granstab.save_scene(scene, folder / f"case{i}.npz"), args, force)
            for i, (name, scene, args, force) in enumerate(scenes)]
     corpus = ROOT / "tests" / "corpus"
     expected = json.loads((corpus / "expected.json").read_text(encoding="utf-8"))
     out += [(f"corpus {name}", corpus / name, expected[name].get("args", ["--timeout", "20"]), False)
             for name in sorted(expected) if expected[name]["exit"] == 0 or name.startswith("slow_")]
+    return out
+
+
+def own(folder: Path) -> list:
+    """Held-out scenes the model was not calibrated on (session 8): other sizes, 2D and 3D, metrics, periodic,
+    sparse and dense, and another frame of the sheared run (made by `sheared_frame`, 24 frames)."""
+    out = [("3D random packing, 500 spheres, 20 at yield, --sample-branches 6 --metric L (sparse, 3,000 dofs)",
+            random_packing(3, 500, n_sliding=20, seed=5), ["--sample-branches", "6", "--metric", "L"], False),
+           ("2D random packing, 900 disks, 40 at yield, --sample-branches 6 --metric L/10 (sparse)",
+            random_packing(2, 900, n_sliding=40, seed=6), ["--sample-branches", "6", "--metric", "L/10"], False),
+           ("2D random packing, 500 disks, 3 at yield, family (dense)", random_packing(2, 500, n_sliding=3, seed=8),
+            [], True),
+           ("3D cluster, 20 spheres, 4 at yield, --metric 10L (dense)", random_packing(3, 20, n_sliding=4, seed=7),
+            ["--metric", "10L"], False),
+           ("jammed periodic 2D packing, 300 disks, frictionless, family (dense, periodic)", jammed(2, 300, seed=3),
+            [], False)]
+    atoms = folder / "atoms_shear2d_track.dump"
+    if atoms.exists():
+        source = granstab.io.open([atoms, folder / "contacts_shear2d_track.dump",
+                                   ROOT / "examples" / "track" / "in.shear2d_track"])
+        out.append(("1,400-disk sheared run, frame 12, --sample-branches 8 --metric 10L (sparse)",
+                    source.read(source.frames[12]).scene, ["--sample-branches", "8", "--metric", "10L"], True))
     return out
 
 

@@ -263,7 +263,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     primary = [m.name for m in metrics].index("L") if metric == "family" else 0
     planned = plan(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
                    sample_branches=sample_branches, method=method, k=k, device=device, lowrank=lowrank,
-                   uniqueness=uniqueness, attribution=attribution, estimate=estimate)
+                   uniqueness=uniqueness, attribution=attribution, estimate=estimate, seed=seed)
     if planned.memory and not planned.memory["fits"]:                  # would not fit in memory (solve/memory.py)
         raise OverBudget(planned.refusal)
     backend = choose_method(scene, planned.method, k, device, planned.lowrank, uniqueness)

@@ -112,19 +112,42 @@ def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = Fa
 #: and 3·10⁵ dofs, 4 branches, since the solver's speed-up of issue 24: 2.0 s and 17.4-18.8 s measured at a load
 #: of 1-1.3, 2.3 s and 19.2 s estimated) and a branch's update a fixed cost plus ∝ n (a 3,072-dof random packing,
 #: 10 sliding contacts, 1,024 branches: metric L 51 s, its family of 3 metrics 386 s measured; 115 and 344 s
-#: estimated; the family's metrics since counted one by one, RITZ_FALLBACK). Many sliding contacts Ms (issue 38: a 1,400-disk frame, 10 sampled branches, 1.37 s estimated,
-#: 47 s measured) cost more, measured 2026-11-29 on 4,107 dofs: the Ritz basis of w = k + 9 + 4 Ms columns
-#: (ritz.py; Ms = 20, 50, 100: 0.45, 1.1, 9.4 s) takes RITZ_INIT per Ms·w² once (its stacked updates) and, a
-#: branch, RITZ_BRANCH per w³ (eigh of the basis) and RITZ_PER_DOF_WIDTH per n·w (a 1,800-dof packing, 5 sliding,
-#: 32 branches: 0.85 s, 0.025 s a branch, where the fixed cost of shift-invert was counted: 3.9 s); beyond methods.RITZ_BYTES each branch is a
+#: estimated; the family's metrics since counted one by one, RITZ_FALLBACK). Many sliding contacts Ms (issue 38: frame
+#: 23 of a sheared 1,400-disk LAMMPS run, Ms = 85, 10 sampled branches: 10.4× its estimate) cost more, measured
+#: 2026-11-29 (CPU time, this machine, load 2-10) on random 2D packings of 1,728 and 4,107 dofs (Ms = 5, 6, 30, 100),
+#: a 3D one of 3,000 (Ms = 30) and the sheared frame (4,101 dofs): the Ritz basis (ritz.py: the elastic block Krylov
+#: space, then 2·TAYLOR·Ms Taylor columns less those dependent) was 102, 111, 349, 806, 305 and 792 columns (the old
+#: model's k + 9 + 4 Ms: 35-415), `ritz_width`; its set-up (the elastic solve, the Taylor solves, orthonormalisation)
+#: 0.09-3.0 s, the elastic solve in the set-up above and RITZ_INIT per n·w² (the Taylor columns); a branch RITZ_EIGH per w³ (its share of the stacked
+#: eigh), RITZ_BRANCH_PER_DOF per n (its vectors, residuals, inertia) and each refinement RITZ_REFINE per n·(w +
+#: 3(kk + GUARD))² plus RITZ_REFINE_PER_DOF per n: 0.5 a branch with no eigenvalue below σ (ν = 0: 0-1 measured),
+#: ritz.SparseRitz.steps (4) where 0 < ν < kk (the sheared frame: 4 in each of 3; their negative modes lie outside the
+#: basis built about σ). A branch with ν >= kk skips Ritz (ritz.py) and is solved by shift-invert, ARPACK_PAIR_*
+#: per n·(kk + ν) (the sheared frame: 6 of 10 branches, ν = 8-15, 9.7 s of CPU time for 100 pairs); ν of each branch
+#: is counted before the run by the plan's probe (plan.probe: one factorisation and the inertia of each branch's
+#: Woodbury update, no eigen-solve). Beyond methods.RITZ_BYTES each branch is a
 #: shift-invert with a rank-2Ms Woodbury update (Ms = 200, 500: 2.7, 9.1 s), SHIFT_PER_DOF_SLIDING per n·Ms and
 #: SHIFT_CUBE per Ms³ a branch.
 SPARSE_SETUP_PER_DOF = 6e-5
 SPARSE_BRANCH_FIXED = 0.11
 SPARSE_BRANCH_PER_DOF = 6e-7
-RITZ_INIT = 1.6e-7
-RITZ_BRANCH = 5e-9
-RITZ_PER_DOF_WIDTH = 3e-7
+RITZ_INIT = 1.1e-9
+RITZ_EIGH = 4e-10
+RITZ_BRANCH_PER_DOF = 6e-6
+RITZ_REFINE = 1.4e-10
+RITZ_REFINE_PER_DOF = 5e-6
+RITZ_REFINEMENTS = 0.5          # refinements of a branch with ν = 0 (0-1 measured); 0 < ν < kk: ritz steps (4)
+RITZ_3D = (2.5, 3.0)            # 3D: (refinements of a branch with ν = 0, cost factor on the basis and each refinement):
+                                # 3D random packings of 3,000 dofs, Ms = 20 and 30: 2.6 and 3 refinements a branch, the
+                                # basis 0.8 and 0.97 s, a refinement 0.15 and 0.11 s (denser operator and factor than
+                                # 2D's: 4.7×, 3.5× and 1.7× the 2D model); 2D: (RITZ_REFINEMENTS, 1)
+RITZ_KRYLOV = 48                # the basis: kk + this (the elastic block Krylov space) …
+RITZ_COLUMNS_PER_SLIDING = 8.5  # … + this a sliding contact (of the 2·TAYLOR = 12 its Taylor powers add at most)
+ARPACK_PAIR_DOF = 4.6e-6         # a branch solved by shift-invert with the shared factor, per n·(kk + ν) pairs, …
+ARPACK_PAIR_COLUMN = 2.1e-7      # … and per n·(kk + ν)·u, u = 6 + Ms the Woodbury columns of an average branch (each
+                                 # solve applies them): the sheared frame (u 91, ν 8-15) 9.7 s measured, 9.7 s so; the
+                                 # superquadric packing of FLOPPY_PAIR_DOF (u 16, ν 21-25, 30 pairs) 0.3-0.45 s a
+                                 # branch measured at load 2-10, 0.36 s so
 SHIFT_PER_DOF_SLIDING = 1.3e-7
 SHIFT_CUBE = 4.1e-9
 FLOPPY_PAIR_DOF = 6e-6  # a branch whose modes at or below zero (`plan.deficit`: a floppy 3D packing's rattling
@@ -149,33 +172,52 @@ RITZ_FALLBACK = {"10L": 1.0}     # the share of a metric's branches (the elastic
 
 
 def sparse_estimate(n_dof: int, n_branches: int, n_metrics=1, n_sliding: int = 0, k: int = 6,
-                    deficit: int = 0) -> float:
+                    deficit: int = 0, below: dict | None = None, dim: int = 2) -> float:
     """Estimated wall seconds of the sparse path (calibration above, scaled by `speed`): per metric, the elastic
     solve's set-up and every branch's update, Ritz (one basis for all branches) or, by methods.ritz_fits,
     shift-invert ARPACK; where Ritz is used, the branches of a metric whose Ritz updates fall back to ARPACK
     (RITZ_FALLBACK); where `deficit` (plan.deficit) is k + 1 or more, every branch's ARPACK solve of k + ν pairs.
-    `n_metrics`: the metrics' names (a tuple), or their number (the family's first ones: L, L/10, 10L)."""
+    `n_metrics`: the metrics' names (a tuple), or their number (the family's first ones: L, L/10, 10L); `below`:
+    per metric name, the probed ν of a sample of its branches (plan.probe; none: ν = 0); dim: the scene's (RITZ_3D)."""
     names = n_metrics if isinstance(n_metrics, tuple) else ("L", "L/10", "10L")[:n_metrics]
-    return sum(sum(sparse_parts(n_dof, n_branches, name, n_sliding, k, deficit).values()) for name in names) * speed()
+    below = below or {}
+    return sum(sum(sparse_parts(n_dof, n_branches, name, n_sliding, k, deficit, below.get(name), dim).values())
+               for name in names) * speed()
+
+
+def ritz_width(n_dof: int, n_sliding: int, kk: int) -> int:
+    """The predicted columns of ritz.SparseRitz's basis (calibration above; at most the dofs)."""
+    return int(min(n_dof, kk + RITZ_KRYLOV + RITZ_COLUMNS_PER_SLIDING * n_sliding))
 
 
 def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int = 0, k: int = 6,
-                 deficit: int = 0) -> dict:
-    """One metric's part of `sparse_estimate` on the calibration machine, by step: "setup", "ritz" or
-    "shift_invert", "fallback" (RITZ_FALLBACK's ARPACK solves), "floppy"."""
+                 deficit: int = 0, below=None, dim: int = 2) -> dict:
+    """One metric's part of `sparse_estimate` on the calibration machine, by step: "setup", "ritz" (the basis and
+    the branches it solves) or "shift_invert", "direct" (the branches with kk or more eigenvalues below σ, straight
+    to shift-invert), "fallback" (RITZ_FALLBACK's ARPACK solves), "floppy". `below`: the probed ν of a sample of
+    the branches (their shares stand for all n_branches), or None (ν = 0)."""
     from .methods import ritz_fits
+    from .ritz import GUARD, STEPS
     Ms, kk, n = n_sliding, k + 1, n_dof
+    nu = np.zeros(1) if below is None or not len(below) else np.asarray(below, float)
+    pair = n * (ARPACK_PAIR_DOF + ARPACK_PAIR_COLUMN * (6 + Ms))   # a shift-invert pair (ARPACK_PAIR_*)
     out = {"setup": SPARSE_SETUP_PER_DOF * n}
     if n_branches > 1 and ritz_fits(Ms, kk):
-        w = kk + 8 + 4 * Ms
-        out["ritz"] = RITZ_INIT * Ms * w * w + n_branches * (RITZ_BRANCH * float(w) ** 3 + RITZ_PER_DOF_WIDTH * n * w)
-        out["fallback"] = RITZ_FALLBACK.get(metric, 0.0) * (n_branches - 1) * ARPACK_BRANCH_PER_DOF * n
+        w = ritz_width(n, Ms, kk)
+        ritz = n_branches * np.mean(nu < kk)
+        refinements, heavier = RITZ_3D if dim == 3 else (RITZ_REFINEMENTS, 1.0)
+        steps = n_branches * np.mean(np.where(nu == 0, refinements, STEPS) * (nu < kk))
+        out["ritz"] = (heavier * RITZ_INIT * n * w * w + ritz * (RITZ_EIGH * float(w) ** 3 + RITZ_BRANCH_PER_DOF * n)
+                       + heavier * steps * (RITZ_REFINE * n * (w + 3 * (kk + GUARD)) ** 2 + RITZ_REFINE_PER_DOF * n))
+        out["direct"] = n_branches * np.mean((kk + nu) * (nu >= kk)) * pair
+        out["fallback"] = RITZ_FALLBACK.get(metric, 0.0) * max(ritz - 1, 0) * ARPACK_BRANCH_PER_DOF * n
     else:
         out["shift_invert"] = n_branches * (SPARSE_BRANCH_FIXED + SPARSE_BRANCH_PER_DOF * n
-                                            + SHIFT_PER_DOF_SLIDING * n * Ms + SHIFT_CUBE * float(Ms) ** 3)
-    if deficit >= kk:
-        out["floppy"] = n_branches * FLOPPY_PAIR_DOF * n * (kk + min(deficit, FLOPPY_CROWD * kk))
-    return out
+                                            + SHIFT_PER_DOF_SLIDING * n * Ms + SHIFT_CUBE * float(Ms) ** 3
+                                            + np.mean(nu) * pair)
+    if deficit >= kk:                   # the probed branches with ν >= kk are priced with their own ν above
+        out["floppy"] = n_branches * np.mean(nu < kk) * FLOPPY_PAIR_DOF * n * (kk + min(deficit, FLOPPY_CROWD * kk))
+    return {key: float(v) for key, v in out.items()}
 
 
 def refuse_over(source: str, seconds: float, timeout: float | None, work: str, alternatives: str = "") -> None:

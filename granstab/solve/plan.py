@@ -67,6 +67,8 @@ class Plan:
     deficit: int = 0               # non-rigid modes surely at zero (`deficit`): the sparse path's ARPACK pairs
     fitted: dict | None = None     # the default plan fitted to budget.ASK_SECONDS (`fit`): what that left out
     memory: dict | None = None     # the sparse path's peak memory estimate against what is available (memory.py)
+    below: dict = field(default_factory=dict)   # `probe`: per metric, ν of a sample of the branches (sparse path)
+    dim: int = 2
 
     def to_dict(self) -> dict:
         """The `cost` object of `granstab analyze --json --plan` (and the planned part of every run's `cost`)."""
@@ -76,7 +78,8 @@ class Plan:
                 "uniqueness": self.uniqueness, "robustness": self.robustness, "attribution": self.attribution,
                 "floppy": self.floppy, "left_out": list(self.left_out), "workers": self.workers,
                 "estimated_s": self.estimated_s, "estimate_parts": dict(self.parts), "refusal": self.refusal,
-                "fitted": self.fitted, "memory": self.memory}
+                "fitted": self.fitted, "memory": self.memory,
+                "probed_below": {m: [int(v) for v in nu] for m, nu in self.below.items()}}
 
     def lines(self) -> list[str]:
         """`granstab analyze --plan`: the plan in a few lines, then the estimate."""
@@ -136,10 +139,10 @@ def deficit(scene: Scene) -> int:
 def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
          sample_branches: int | None = None, method: str = "auto", k: int = 6, device: str = "cpu",
          lowrank: bool | None = None, uniqueness: bool = True, attribution: bool = True,
-         estimate: bool = True, rest: bool = False) -> Plan:
+         estimate: bool = True, rest: bool = False, seed: int = 0) -> Plan:
     """The plan of `analyze(scene, **options)` (same options; module docstring); estimate=False skips the estimate
-    (and its probe); rest=True estimates for this machine at rest (every core free: `fit`'s choice, which must not
-    depend on the load of the moment)."""
+    (and its probes); rest=True estimates for this machine at rest (every core free: `fit`'s choice, which must not
+    depend on the load of the moment); seed: the sampled branches' (`probe`)."""
     from .lowrank import use_lowrank
     from .sparse import DENSE_MAX_DOF
     n_sliding = int(np.sum(scene.at_yield()))
@@ -168,13 +171,13 @@ def plan(scene: Scene, *, metric: str = "family", rotation_length: float | None 
              uniqueness=uniqueness and not sparse, attribution=attribution and not sparse,
              robustness=fam and not sparse and not sampled and scene.fixed is None
              and n_branches * float(n) ** 3 <= ROBUST_MAX_WORK, floppy=lowrank and floppy(scene),
-             left_out=(), estimated_s=None, deficit=deficit(scene) if sparse else 0)
+             left_out=(), estimated_s=None, deficit=deficit(scene) if sparse else 0, dim=scene.dim)
     if sparse:
         p = _with_memory(p, scene, device)
     p = _with_left_out(p, k, fam)
     if not estimate or gpu or p.refusal:
         return p
-    return _estimated(p, k, rest)
+    return _estimated(replace(p, below=probe(scene, p, rotation_length, k, sample_branches, seed)), k, rest)
 
 
 def _with_memory(p: Plan, scene: Scene, device: str) -> Plan:
@@ -217,9 +220,10 @@ def _estimated(p: Plan, k: int, rest: bool = False) -> Plan:
     parts = {}
     if p.path == "sparse":                     # by step, summed over the metrics (budget.sparse_parts)
         for name in p.metrics:
-            for step, seconds in budget.sparse_parts(n, L, name, p.n_sliding, k, p.deficit).items():
+            for step, seconds in budget.sparse_parts(n, L, name, p.n_sliding, k, p.deficit,
+                                                     p.below.get(name), p.dim).items():
                 parts[step] = parts.get(step, 0.0) + seconds * budget.speed()
-        one = budget.sparse_estimate(n, L, p.metrics[:1], p.n_sliding, k, p.deficit)
+        one = budget.sparse_estimate(n, L, p.metrics[:1], p.n_sliding, k, p.deficit, p.below, p.dim)
     else:
         full = (budget.branch_seconds(n, min(budget.MEASURE_STACK, L), lowrank=not p.uniqueness)   # no ℍ^i: eigh
                 if not p.lowrank or p.floppy else 0.0)
@@ -240,6 +244,61 @@ def _estimated(p: Plan, k: int, rest: bool = False) -> Plan:
     one *= slow
     return replace(p, estimated_s=sum(parts.values()), parts=parts, workers=workers,
                     one_metric_s=float(one + parts.get("attribution", 0.0)))
+
+
+PROBE_BRANCHES = 32   # `probe`: at most this many of the run's branches (the sampled ones, or a sample of all)
+_PROBED: dict = {}    # `probe`'s counts of the last scene: {(metric, rotation length, mask): ν}
+
+
+def probe(scene: Scene, p: Plan, rotation_length: float | None, k: int, sample_branches: int | None,
+          seed: int) -> dict:
+    """ν, the eigenvalues below the run's shift σ, of up to PROBE_BRANCHES of the branches the run will solve, per
+    metric (ritz.below_counts: one factorisation and a block solve a metric, each branch's inertia from its
+    Woodbury update; no eigen-solve): where the sparse path solves several branches of kk = k + 1 or more sliding
+    contacts, the branches with ν >= kk skip the Ritz updates (ritz.py) and ν sets their cost and that of the
+    refinements (budget.sparse_parts); elsewhere, or where the factor gives no count, {} (ν = 0 assumed). The masks
+    are the run's (analysis.analyze: sample_masks with the same seed), or a seeded sample of all 2^Ms; the counts
+    are exact and independent of the machine, kept for the last scene (`fit` plans it several times)."""
+    from ..mechanics.branches import sample_masks
+    from ..mechanics.metric import resolve
+    from .assembled import sparse_parts, sparse_problem
+    from .ritz import below_counts
+    from .threads import blas_threads
+    if p.path != "sparse" or p.n_branches < 2 or p.n_sliding < k + 1:
+        return {}
+    sliding = np.flatnonzero(scene.at_yield())
+    n_sample = min(sample_branches if p.sampled else PROBE_BRANCHES, PROBE_BRANCHES - 2)
+    masks = sample_masks(sliding, scene.n_contacts, n_sample, seed)
+    metrics = family(scene, rotation_length) if len(p.metrics) > 1 else [resolve(scene, p.metrics[0],
+                                                                                  rotation_length)]
+    key = _fingerprint(scene)
+    if _PROBED.get("scene") != key:
+        _PROBED.clear()
+        _PROBED["scene"] = key
+    out, parts = {}, None
+    for m in (m for m in metrics if m.name in p.metrics):
+        keys = [(m.name, rotation_length, mask.tobytes()) for mask in masks]
+        if any(kk not in _PROBED for kk in keys):
+            parts = parts or sparse_parts(scene)
+            with blas_threads(1):                   # thin products and small dense steps (as SparseMethod.solve)
+                counts = below_counts(sparse_problem(scene, metric=m, parts=parts), masks)
+            _PROBED.update(zip(keys, [None] * len(keys) if counts is None else counts.tolist()))
+        nu = [_PROBED[kk] for kk in keys]
+        if None not in nu:
+            out[m.name] = tuple(nu)
+    return out
+
+
+def _fingerprint(scene: Scene) -> str:
+    """A digest of what the scene's stiffness is made of (positions, contacts, forces, laws, states)."""
+    import hashlib
+    h = hashlib.blake2b(digest_size=16)
+    for name in ("x", "p", "q", "point", "normal", "force", "moment", "k", "alpha", "mu", "curvature_p",
+                 "curvature_q", "cell"):
+        value = getattr(scene, name, None)
+        h.update(b"-" if value is None else np.ascontiguousarray(value).tobytes())
+    h.update(scene.at_yield().tobytes())
+    return h.hexdigest()
 
 
 FIT_SAMPLES = (62, 14, 4)  # random branches tried by `fit` (with the all-loading and all-unloading ones: 64, 16, 6)

@@ -8,11 +8,13 @@ import numpy as np
 from .device import backend
 from .krylov import _norms, _sym, extend
 from .lowrank import stack, sym_updates
+from .multifrontal import factor
 from .sparse import Modes, Shifted, _finish, _lowrank, lowest_modes, operator
 
 GUARD = 6            # extra Ritz vectors carried by the refinement (faster convergence of the kk lowest)
 TAYLOR = 6           # powers (B_0 - σ)⁻ʲ[A, S] in the basis: each a block solve of 2·d·Ms columns; 2 powers left
                      # residuals ~5e-9‖Hs‖ on 10⁴-10⁵ disks (two refinements per branch), 6 reach ~4e-13 (none)
+STEPS = 4            # refinements of a branch's Ritz vectors before shift-invert redoes it
 
 
 class SparseRitz:
@@ -59,8 +61,8 @@ class SparseRitz:
         self.M0 = self._rayleigh(krylov, base, more, shifted)
         self.W = np.concatenate([base, more], axis=1)
         self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
-        self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0}
-        self.steps = 4
+        self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0, "direct": 0, "refinements": 0}
+        self.steps = STEPS
 
     def _rayleigh(self, krylov, base: np.ndarray, more: np.ndarray, shifted) -> np.ndarray:
         """Wᵀ Hs W for W = [base, more]: with `krylov` (base = its X) X's block from the iteration's own Xᵀ B X
@@ -77,48 +79,59 @@ class SparseRitz:
         return _sym(np.block([[krylov.G - P.T @ (K @ P), side.T], [side, corner]]))
 
     def modes(self, masks: np.ndarray, kk: int):
-        """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order."""
-        spb = self.spb
+        """Modes (sparse.Modes) of the kk lowest non-rigid eigenpairs of each branch in `masks`, in order. A branch
+        with kk or more eigenvalues below σ (`below`: exact by inertia, known before any Ritz work) cannot be
+        accepted here (`_branch`: the Ritz values below σ must be all ν of them and fewer than kk): it goes straight
+        to shift-invert, as it did after refinements that could not succeed, and takes no part in the stacked eigh."""
+        spb, fac = self.spb, self.factorization
         be = backend(self.device)
         on = (masks[:, spb.sliding] == 1).astype(float)
+        nus = [None if fac is None else self.below(on[i] == 1) for i in range(len(masks))]
+        hopeful = [i for i, nu in enumerate(nus) if nu is not None and nu < kk]
+        self.stats["direct"] = len(masks) - len(hopeful)
         block = min(kk + GUARD, self.W.shape[1])
-        with be.threads(self.W.shape[1]):
-            _, Y = be.xp.linalg.eigh(stack(be.xp, self.M0, self.updates, be.asarray(on)))
-            Y = be.to_host(Y[:, :, :block])
-        fac = self.factorization
+        Y = {}
+        if hopeful:
+            with be.threads(self.W.shape[1]):
+                _, Yh = be.xp.linalg.eigh(stack(be.xp, self.M0, self.updates, be.asarray(on[hopeful])))
+                Y = dict(zip(hopeful, be.to_host(Yh[:, :, :block])))
         for i, mask in enumerate(masks):
-            if fac is None:
-                self.stats["arpack"] += 1
-                yield lowest_modes(spb, kk, mask, tol=self.tol)
-                continue
-            U, K = _lowrank(spb, on[i] == 1, spb.norm)
-            shifted = Shifted(fac, U, K, fac.sigma, fac.n_neg, Z=self._solved(on[i] == 1))
-            Bop = operator(spb, mask, spb.norm)
-            mask8 = np.asarray(mask, np.int8)
-            V = self.W @ Y[i]
-            for step in range(self.steps + 1):
-                modes = _finish(spb, Bop, np.zeros(block), V, mask8, fac.sigma, False, shifted.n_below, "ritz", {})
-                nu, found = shifted.n_below, int(np.sum(modes.eigenvalues < fac.sigma))
-                if nu is not None and nu == found < kk and modes.residuals[:kk].max() <= self.rtol:
-                    out = Modes(modes.eigenvalues[:kk], modes.vectors[:, :kk], modes.residuals[:kk], mask8,
-                                fac.sigma, True, nu, "ritz",              # the kk lowest of those _finish made
-                                {"factorization": fac, "basis": self.W.shape[1], "refinements": step})
-                    self.stats["ritz"] += 1
-                    yield out
-                    break
-                if step < self.steps:
-                    V = self._refine(spb, Bop, shifted, modes.vectors)
+            if i in Y:
+                yield self._branch(mask, on[i] == 1, Y[i], kk, block)
             else:
                 self.stats["arpack"] += 1
                 yield lowest_modes(spb, kk, mask, factorization=fac, tol=self.tol)
 
-    def _solved(self, on: np.ndarray) -> np.ndarray:
-        """(Hs - σI)⁻¹ U for sparse._lowrank's U = [Q, Y, T, A_on, S_on] of a branch, by linearity from the solves
-        made once (Y = Hs Q + ½(A_on S_onᵀ Q + S_on A_onᵀ Q))."""
-        spb, z = self.spb, self.solved
-        A, S = spb.A[:, on], spb.S[:, on]
-        ZY = z["HQ"] + 0.5 * (z["A"][:, on] @ (S.T @ spb.Q) + z["S"][:, on] @ (A.T @ spb.Q))
-        return np.concatenate([z["Q"], ZY, z["T"], z["A"][:, on], z["S"][:, on]], axis=1)
+    def below(self, on: np.ndarray) -> int | None:
+        """ν: the eigenvalues below σ of the branch whose sliding contacts are `on` (sparse.Shifted's inertia count
+        from the shared factor and the solves made once; None where the factor gives no count)."""
+        return self._shifted(on).n_below
+
+    def _shifted(self, on: np.ndarray) -> Shifted:
+        return branch_shifted(self.spb, self.factorization, self.solved, on)
+
+    def _branch(self, mask, on: np.ndarray, Y: np.ndarray, kk: int, block: int):
+        """One branch from its Ritz vectors W·Y: accepted where its Ritz values below σ are all ν of its eigenvalues
+        there, fewer than kk, and every residual is within rtol·‖Hs‖; refined up to `steps` times, else redone by
+        shift-invert."""
+        spb, fac = self.spb, self.factorization
+        shifted = self._shifted(on)
+        Bop = operator(spb, mask, spb.norm)
+        mask8 = np.asarray(mask, np.int8)
+        V = self.W @ Y
+        for step in range(self.steps + 1):
+            modes = _finish(spb, Bop, np.zeros(block), V, mask8, fac.sigma, False, shifted.n_below, "ritz", {})
+            nu, found = shifted.n_below, int(np.sum(modes.eigenvalues < fac.sigma))
+            if nu is not None and nu == found < kk and modes.residuals[:kk].max() <= self.rtol:
+                self.stats["ritz"] += 1
+                self.stats["refinements"] += step
+                return Modes(modes.eigenvalues[:kk], modes.vectors[:, :kk], modes.residuals[:kk], mask8,
+                             fac.sigma, True, nu, "ritz",              # the kk lowest of those _finish made
+                             {"factorization": fac, "basis": self.W.shape[1], "refinements": step})
+            if step < self.steps:
+                V = self._refine(spb, Bop, shifted, modes.vectors)
+        self.stats["arpack"] += 1
+        return lowest_modes(spb, kk, mask, factorization=fac, tol=self.tol)
 
     def _refine(self, spb, Bop, shifted, V):
         """Rayleigh-Ritz on span[W, V, (B - σ)⁻¹R, (B - σ)⁻²R] with R the residuals BV - VΘ (block shift-invert with the
@@ -134,3 +147,34 @@ class SparseRitz:
         G = _sym(basis.T @ Bop.matmat(basis))
         _, y = np.linalg.eigh(G)
         return basis @ y[:, :V.shape[1]]
+
+
+def branch_shifted(spb, fac, solved: dict, on: np.ndarray) -> Shifted:
+    """(B - σI)⁻¹ of the branch whose sliding contacts are `on` (sparse.Shifted: its inertia count n_below) from the
+    shared factor and the solves made once (`branch_solved`)."""
+    U, K = _lowrank(spb, on, spb.norm)
+    return Shifted(fac, U, K, fac.sigma, fac.n_neg, Z=branch_solved(spb, solved, on))
+
+
+def branch_solved(spb, solved: dict, on: np.ndarray) -> np.ndarray:
+    """(Hs - σI)⁻¹ U for sparse._lowrank's U = [Q, Y, T, A_on, S_on] of a branch, by linearity from the solves made
+    once (`solved`: Q, Hs Q, T, A and S solved; Y = Hs Q + ½(A_on S_onᵀ Q + S_on A_onᵀ Q))."""
+    A, S, z = spb.A[:, on], spb.S[:, on], solved
+    ZY = z["HQ"] + 0.5 * (z["A"][:, on] @ (S.T @ spb.Q) + z["S"][:, on] @ (A.T @ spb.Q))
+    return np.concatenate([z["Q"], ZY, z["T"], z["A"][:, on], z["S"][:, on]], axis=1)
+
+
+def below_counts(spb, masks: np.ndarray) -> np.ndarray | None:
+    """ν of each branch in `masks` (eigenvalues below the run's σ, exact by inertia) without any eigen-solve: the
+    factor of Hs - σI and one block solve of [Q, Hs Q, T, A, S], as SparseRitz makes them, then each branch's
+    Woodbury capacitance (`SparseRitz.below`). The plan's probe (plan.py): how many branches go to shift-invert and
+    with how many pairs. None where the factor gives no count."""
+    from .sparse import SIGMA_REL
+    fac = factor(spb, -SIGMA_REL * spb.norm)
+    if fac.n_neg is None:
+        return None
+    r, d, Ms = spb.Q.shape[1], spb.scene.dim, spb.A.shape[1]
+    Z = fac.solve(np.concatenate([spb.Q, spb.Hs @ spb.Q, spb.R[:, :d], spb.A, spb.S], axis=1))
+    solved = dict(zip(("Q", "HQ", "T", "A", "S"), np.split(Z, np.cumsum([r, r, d, Ms]), axis=1)))
+    out = [branch_shifted(spb, fac, solved, on).n_below for on in masks[:, spb.sliding] == 1]
+    return None if None in out else np.array(out)
