@@ -215,6 +215,12 @@ def _result_warnings(scene, state, notes, problem, branches, verdict, keep) -> l
     return warnings
 
 
+def _refuse_over_memory(planned) -> None:
+    """A sparse run whose peak memory estimate exceeds what is available is refused in one line (solve/memory.py)."""
+    if planned.memory and not planned.memory["fits"]:
+        raise OverBudget(planned.refusal)
+
+
 def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | None = None, max_sliding: int = 16,
             on_branch=None, method: str = "auto", k: int = 6, progress: bool = False,
             sample_branches: int | None = None, seed: int = 0, rotation_length_: float | None = None,
@@ -247,8 +253,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
         Called with each `Branch` of the primary metric as it is finished; a bar with the time left, or a reporter
         with stages (granstab.io.progress.Heartbeat: a line a minute where no bar can be drawn).
     attribution, rim : an unstable dense result gets ``attribution`` (`attribute`; rim: particles with cut contacts).
-    estimate : False: ``cost`` without the time estimate (no read of the load, 0.3 s on a busy machine: a scan's
-        clusters, a track's frames).
+    estimate : False: ``cost`` without the time estimate (no read of the load: a scan's clusters, a track's frames).
 
     Returns
     -------
@@ -264,8 +269,7 @@ def analyze(scene: Scene, *, metric: str = "family", rotation_length: float | No
     planned = plan(scene, metric=metric, rotation_length=rotation_length, max_sliding=max_sliding,
                    sample_branches=sample_branches, method=method, k=k, device=device, lowrank=lowrank,
                    uniqueness=uniqueness, attribution=attribution, estimate=estimate, seed=seed)
-    if planned.memory and not planned.memory["fits"]:                  # would not fit in memory (solve/memory.py)
-        raise OverBudget(planned.refusal)
+    _refuse_over_memory(planned)
     backend = choose_method(scene, planned.method, k, device, planned.lowrank, uniqueness)
     timer = Timer()
     with timer("total"):
