@@ -7,8 +7,9 @@ import numpy as np
 
 COVERED_PX = 0            # px of the canvas under a panel: none (viser 1.1 docks panels beside the canvas, which
                           # is the free part; 430 + 400 here kept a 1024 px page's pair at 56 px of its 186)
-PHONE_PX, PHONE_BAND = 600, 0.38      # a portrait canvas narrower than PHONE_PX px: viser's panel covers all but its
-                          # top ~40 % (390×844: from y = 337 px), so the scene is fitted into the top PHONE_BAND
+PHONE_PX, PHONE_BAND = 480, 0.38      # a portrait canvas narrower than PHONE_PX px: viser's panel covers all but its
+                          # top ~40 % (390×844: from y = 337 px), so the scene is fitted into the top PHONE_BAND; a
+                          # 1400×900 page's canvas between both docked columns is 570×900 (600 here shrank its pair)
 TOP, OBLIQUE = "top-down", "oblique (heights readable)"     # the 2D camera views
 
 
