@@ -139,7 +139,8 @@ class Recording:
             top = float(x[:, 1 if s.scene_dim == 2 else 2].max()) + BADGE_OVER * s.size   # room for the detail's lines
             at = self.badge_at = (float(x[:, 0].mean()), top, 0.0) if s.scene_dim == 2 else (
                 float(x[:, 0].mean()), float(x[:, 1].mean()), top)
-            self.server.scene.add_label("/badge", badge, position=at, font_screen_scale=1.6, anchor="bottom-center")
+            self.server.scene.add_label("/badge", badge.replace(" · ", "\n"), position=at, font_screen_scale=1.6,
+                                        anchor="bottom-center")           # the verdict, then the mode: a phone's width
             self.server.scene.add_label("/badge/detail", "\n".join(textwrap.wrap(detail, DETAIL_CHARS)),
                                         position=(0.0, 0.0, 0.0), font_screen_scale=0.9, anchor="top-center")
             rgb = tuple(int(VERDICT_COLOR.get(verdict, "#555555")[i:i + 2], 16) for i in (1, 3, 5))
