@@ -733,5 +733,5 @@ def test_on_a_phone_the_pair_is_fitted_above_the_panel(pair):
         assert 0 <= top and bottom <= PHONE_BAND * camera.image_height and 0 <= side[0] and side[1] <= 390
     for width in (1400, 570):
         wide = SimpleNamespace(fov=np.radians(75.0), image_width=width, image_height=900)
-        centred = camera_pose(pair, False, False, lambda w, h: fit_distance(w, h, wide))
+        centred = camera_pose(pair, False, False, lambda w, h, c=wide: fit_distance(w, h, c))
         assert above_sheet(centred, wide) == centred
