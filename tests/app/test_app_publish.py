@@ -34,6 +34,16 @@ def four_page(tmp_path_factory):
     return out, publish("four_disk", out)
 
 
+def page_of(pw, tmp_path, width: int, height: int, errors: list):
+    """A fresh headless Chromium of that viewport and its page, page errors and console errors into `errors`."""
+    ctx = pw.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=str(CHROMIUM),
+                                                headless=True, args=FLAGS, viewport={"width": width, "height": height})
+    page = ctx.new_page()
+    page.on("pageerror", lambda exc: errors.append(f"pageerror: {exc}"))
+    page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
+    return ctx, page
+
+
 def test_the_pair_sweep_states_the_closed_form_verdict_at_each_step(pair_page):
     """Each step's badge: λ⁽⁶⁾/k = f/(kr)·(ρ/r − 1) (r = L = 1, the paper's Sec. 4.1) and its sign's verdict. The
     eigen-solver's error is ~1e-13 of the largest eigenvalue (≈ 4 k): 1e-10 absolute is far above it and far below
@@ -85,12 +95,8 @@ def test_the_published_page_plays_offline(pair_page, tmp_path):
     out, _ = pair_page
     errors, requests = [], []
     with sync_playwright() as pw:
-        ctx = pw.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=str(CHROMIUM),
-                                                    headless=True, args=FLAGS, viewport={"width": 1200, "height": 800})
+        ctx, page = page_of(pw, tmp_path, 1200, 800, errors)
         try:
-            page = ctx.new_page()
-            page.on("pageerror", lambda exc: errors.append(f"pageerror: {exc}"))
-            page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
             page.on("request", lambda r: requests.append(r.url) if r.url.split(":")[0] not in ("file", "data", "blob")
                     else None)
             page.goto(out.as_uri())
@@ -237,16 +243,13 @@ def test_the_badge_and_the_particles_are_in_view_on_a_screen_and_a_phone(page, r
 def test_the_published_pair_fits_a_phone(pair_page, tmp_path):
     """Issue 36: on a 390×844 phone the note sits at the bottom (its inline style outranked the phone's media rule:
     it covered the whole screen from y = 8 px) and the page's first script hands viser's client the phone's camera as
-    initialCamera* URL parameters; nothing overflows the width; no page error."""
+    initialCamera* URL parameters; nothing overflows the width; no page or console error."""
     from playwright.sync_api import sync_playwright
     out, done = pair_page
     errors = []
     with sync_playwright() as pw:
-        ctx = pw.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=str(CHROMIUM),
-                                                    headless=True, args=FLAGS, viewport={"width": 390, "height": 844})
+        ctx, page = page_of(pw, tmp_path, 390, 844, errors)
         try:
-            page = ctx.new_page()
-            page.on("pageerror", lambda exc: errors.append(f"pageerror: {exc}"))
             page.goto(out.as_uri())
             page.wait_for_selector("canvas", timeout=60_000)
             note = page.locator("#granstab-note").bounding_box()
