@@ -15,6 +15,7 @@ import contextlib
 import html
 import io
 import re
+import textwrap
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -23,7 +24,7 @@ import viser
 
 import granstab
 
-from .camera import camera_pose, fit_distance
+from .camera import above_sheet, camera_pose, fit_distance
 from .figures import contour_html
 from .panel.modes import unstable
 from .readings import SAME_MODE
@@ -37,10 +38,23 @@ CYCLE = 1.6                                        # s: one period of a played m
 HOLD = 0.8                                         # s: a step shown at rest (contact drawings on) before its mode plays
 MODES = 3                                          # the other scenes: their lowest consistent modes played, at most
 AMPLITUDE = 0.35                                   # the explorer's default mode amplitude (× particle size)
-PHONE = ("@media (max-width:600px){#granstab-note{left:8px;right:8px;top:auto;bottom:60px;max-width:none;"
-         "max-height:30vh}}")                       # a phone: the note at the bottom, the scene above it
+NOTE_STYLE = ("#granstab-note{position:fixed;top:8px;right:8px;max-width:340px;max-height:calc(100vh - 90px);"
+              "overflow:auto;z-index:1000;background:rgba(255,255,255,0.92);border:1px solid #bbb;border-radius:6px;"
+              "padding:8px 10px;font:13px/1.35 sans-serif;color:#222}"
+              "@media (max-width:600px){#granstab-note{left:8px;right:8px;top:auto;bottom:60px;max-width:none;"
+              "max-height:30vh}}")  # a phone: the note at the bottom, the scene above it (in the style sheet: an
+                                    # inline style outranks a media rule, and the note covered the whole phone)
 MAX_BYTES = 5_000_000                              # the largest page written
 VIEWPORT = SimpleNamespace(fov=75.0 * np.pi / 180.0, image_width=1600, image_height=1000)   # viser's default fov
+PHONE_VIEWPORT = SimpleNamespace(fov=VIEWPORT.fov, image_width=390, image_height=844)   # a portrait phone: the scene
+PHONE_BAND = 0.6                                   # in its top 60 %, above the note (from 63 % down: NOTE_STYLE)
+BADGE_OVER, LAMP_OVER = 2.2, 1.4                   # particle sizes: the badge over the top particle, the lamp over it
+BADGE_ROOM = 2.8                                   # particle sizes above the scene kept in view: badge, lamp
+DETAIL_CHARS = 64                                  # the badge's detail line wrapped at: a phone's width
+PHONE_CAMERA = ("<script>if(matchMedia('(max-width:600px) and (orientation:portrait)').matches&&"
+                "!location.search.includes('initialCamera')){{const q=new URLSearchParams(location.search);"
+                "{params}history.replaceState(null,'','?'+q+location.hash)}}</script>")   # before viser's client reads
+                                    # its URL: its initialCamera* parameters outrank the recorded camera
 NOTE = ("<b>A recording</b> of the granstab explorer ({title}). It plays {what}. The playback bar at the bottom "
         "pauses it (its left button) and scrubs through it; drag the view to turn the camera. A recording has no "
         "controls of its own: the particles cannot be dragged and there are no sliders — run <code>granstab-app</code> "
@@ -49,7 +63,8 @@ NOTE = ("<b>A recording</b> of the granstab explorer ({title}). It plays {what}.
 
 def publish(preset: str, out: Path | str) -> dict:
     """Write the page of `preset` (a preset name or a scene file) to `out`; returns {"bytes", "seconds", "steps",
-    "sweep", "badges"}: badges lists each step's (ρ/r or mode eigenvalue, verdict word, λ⁽⁶⁾/k or None) as drawn.
+    "sweep", "badges", "cameras", "badge_at"}: badges lists each step's (ρ/r or mode eigenvalue, verdict word, λ⁽⁶⁾/k
+    or None) as drawn; cameras the first step's pose on the page and on a phone; badge_at where its badge hangs.
     Raises granstab.SceneError (one line) when the scene cannot be read or analysed, or the page would be too large."""
     folder = Path(out).resolve().parent
     if not folder.is_dir():
@@ -75,7 +90,7 @@ def publish(preset: str, out: Path | str) -> dict:
                                   f"{MAX_BYTES / 1e6:.0f} MB limit")
     Path(out).write_text(text, encoding="utf-8")
     return {"bytes": size, "seconds": page.seconds, "steps": steps, "sweep": session.kind == "two_particle",
-            "badges": page.badges}
+            "badges": page.badges, "cameras": {"page": page.pose, "phone": page.phone_pose}, "badge_at": page.badge_at}
 
 
 class Recording:
@@ -89,6 +104,9 @@ class Recording:
         self.recorder = self.server.get_scene_serializer()
         self.seconds = 0.0
         self.badges: list[tuple] = []                       # what each step's badge states (publish's return)
+        self.pose: dict = {}                                # the first step's camera (kept: no jumps)
+        self.phone_pose: dict = {}                          # the same on a phone (phone_camera)
+        self.badge_at: tuple = ()                           # where the last step's badge hangs
         scene = self.server.scene
         scene.configure_environment_map(hdri=None)          # as the explorer: no HDR map, plain lights
         scene.configure_default_lights(enabled=True, cast_shadow=False)
@@ -116,22 +134,30 @@ class Recording:
             if field is not None:
                 view.draw_field(s, field, (s.params["rho_r"], s.params["f_kr"], s.rolling_eigenvalue()))
             if not self.badges[1:]:                          # the camera of the first step, kept (no jumps)
-                pose = camera_pose(s, s.scene_dim == 2 and field is not None, True,
-                                   lambda w, h: fit_distance(w, h, VIEWPORT, covered=0.0))
-                camera = self.server.initial_camera
-                camera.position, camera.look_at, camera.up = pose["position"], pose["look_at"], pose["up_direction"]
-                camera.near, camera.far = pose["near"], pose["far"]
+                self.fit_cameras(field is not None)
             x = np.array([b.x for b in s.bodies()])
-            top = float(x[:, 1].max()) + 1.6 * s.size if s.scene_dim == 2 else float(x[:, 2].max()) + 1.6 * s.size
-            at = (float(x[:, 0].mean()), top, 0.0) if s.scene_dim == 2 else (float(x[:, 0].mean()),
-                                                                               float(x[:, 1].mean()), top)
-            self.server.scene.add_label("/badge", badge, position=at, font_screen_scale=1.6, anchor="bottom-center")
-            self.server.scene.add_label("/badge/detail", detail, position=(0.0, 0.0, 0.0), font_screen_scale=0.9,
-                                        anchor="top-center")
+            top = float(x[:, 1 if s.scene_dim == 2 else 2].max()) + BADGE_OVER * s.size   # room for the detail's lines
+            at = self.badge_at = (float(x[:, 0].mean()), top, 0.0) if s.scene_dim == 2 else (
+                float(x[:, 0].mean()), float(x[:, 1].mean()), top)
+            self.server.scene.add_label("/badge", badge.replace(" · ", "\n"), position=at, font_screen_scale=1.6,
+                                        anchor="bottom-center")           # the verdict, then the mode: a phone's width
+            self.server.scene.add_label("/badge/detail", "\n".join(textwrap.wrap(detail, DETAIL_CHARS)),
+                                        position=(0.0, 0.0, 0.0), font_screen_scale=0.9, anchor="top-center")
             rgb = tuple(int(VERDICT_COLOR.get(verdict, "#555555")[i:i + 2], 16) for i in (1, 3, 5))
             self.server.scene.add_icosphere("/badge/lamp", radius=0.3 * s.size, color=rgb,
-                                            position=(0.0, 0.7 * s.size, 0.0) if s.scene_dim == 2
-                                            else (0.0, 0.0, 0.7 * s.size))
+                                            position=(0.0, LAMP_OVER * s.size, 0.0) if s.scene_dim == 2
+                                            else (0.0, 0.0, LAMP_OVER * s.size))
+
+    def fit_cameras(self, field: bool) -> None:
+        """The page's camera (fitted to VIEWPORT, the λ⁽⁶⁾ surface included) and the phone's (PHONE_VIEWPORT: the
+        particles only, above the note; phone_camera), each with BADGE_ROOM above the scene for the badge."""
+        s, oblique = self.session, self.session.scene_dim == 2 and field
+        self.pose, self.phone_pose = (camera_pose(s, oblique, surface, lambda w, h, v=v: fit_distance(
+            w, h, v, 0.0, band=PHONE_BAND), above=BADGE_ROOM) for v, surface in ((VIEWPORT, True), (PHONE_VIEWPORT, False)))
+        self.phone_pose = above_sheet(self.phone_pose, PHONE_VIEWPORT, PHONE_BAND)
+        camera, pose = self.server.initial_camera, self.pose
+        camera.position, camera.look_at, camera.up = pose["position"], pose["look_at"], pose["up_direction"]
+        camera.near, camera.far = pose["near"], pose["far"]
 
     def colour(self, mode) -> None:
         """Particles coloured by their share of `mode` where the explorer does so (more than two particles)."""
@@ -195,12 +221,20 @@ class Recording:
         title = title if len(str(title)) <= 90 else f"{str(title)[:89]}…"
         note = NOTE.format(title=html.escape(str(title)), what=what) + watch_html(s)
         text = self.recorder.as_html()
-        box = (f'<style>{PHONE}</style><div id="granstab-note" style="position:fixed;top:8px;right:8px;'
-               'max-width:340px;max-height:calc(100vh - 90px);overflow:auto;z-index:1000;'
-               f'background:rgba(255,255,255,0.92);border:1px solid #bbb;border-radius:6px;padding:8px 10px;'
-               f'font:13px/1.35 sans-serif;color:#222">{note}</div>')
+        box = f'<style>{NOTE_STYLE}</style><div id="granstab-note">{note}</div>'
         text = re.sub(r"<title>.*?</title>", f"<title>granstab: {html.escape(str(title))}</title>", text, count=1)
+        text = text.replace("<head>", "<head>" + phone_camera(self.phone_pose), 1)
         return text.replace("</body>", box + "</body>", 1)
+
+
+def phone_camera(pose: dict) -> str:
+    """The page's first script: on a portrait phone the camera `pose` (the scene fitted above the note, as the
+    explorer fits a phone: camera.above_sheet) given to viser's client as its initialCamera* URL parameters (the
+    recorded camera is fitted to a 1600×1000 canvas: on a phone it cut the pair off at the sides)."""
+    names = {"position": "initialCameraPosition", "look_at": "initialCameraLookAt", "up_direction": "initialCameraUp"}
+    params = "".join(f"q.set('{name}','{','.join(f'{float(x):.6g}' for x in pose[key])}');"
+                     for key, name in names.items())
+    return PHONE_CAMERA.format(params=params)
 
 
 def watch_html(s: Session) -> str:

@@ -65,6 +65,10 @@ SAMPLE_GAP = 0.02        # sees the threads that happen to be ready at that inst
                          # 6 and 9 in two scans a second apart with two busy processes started between; the plan
                          # estimated 1.1× more for a run that took 6.6× longer, 3.4× its estimate)
 _runnable_cache = [-1.0, 0.0, 1.0]   # when read, ready threads of others, slowdown (`slowdown`)
+FRESH_SECONDS = 1.0      # a fresh read is reused this long while it is the last read: a plan reads the load three
+                         # times and the explorer's pair moves several times a second (5 scans each cost its slider
+                         # move 0.3 s at load 6, its analysis 0.02 s: the page's 100 ms goal, issue 36)
+_fresh_at = [-1.0]       # when the last fresh read was made
 
 
 def runnable(fresh: bool = False) -> float:
@@ -74,9 +78,12 @@ def runnable(fresh: bool = False) -> float:
     10 of niced work ran an analysis at full speed, and an estimate scaled by that load was 5× too high). Without
     /proc: the 1-minute load average less this process. fresh: read now (a plan: once a run), the mean of
     FRESH_SAMPLES scans, not within RUNNABLE_SECONDS of the last read (the BLAS policy, at every dense call: one
-    scan). The same scans give `slowdown`."""
+    scan); a fresh read within FRESH_SECONDS of the last one, if nothing read since, is that one. The same scans
+    give `slowdown`."""
     now = time.monotonic()
     if not fresh and now - _runnable_cache[0] < RUNNABLE_SECONDS:
+        return _runnable_cache[1]
+    if fresh and _runnable_cache[0] == _fresh_at[0] and now - _fresh_at[0] < FRESH_SECONDS:
         return _runnable_cache[1]
     try:
         counts, slow = [], []
@@ -96,6 +103,8 @@ def runnable(fresh: bool = False) -> float:
             count = 0.0
         factor = max(1.0, (count + 1) / cores())
     _runnable_cache[:] = [time.monotonic(), max(float(count), 0.0), factor]
+    if fresh:
+        _fresh_at[0] = _runnable_cache[0]
     return _runnable_cache[1]
 
 

@@ -27,6 +27,23 @@ def pair_page(tmp_path_factory):
     return out, publish("two_particle", out)
 
 
+@pytest.fixture(scope="module")
+def four_page(tmp_path_factory):
+    from granstab_app.publish import publish
+    out = tmp_path_factory.mktemp("page") / "four.html"
+    return out, publish("four_disk", out)
+
+
+def page_of(pw, tmp_path, width: int, height: int, errors: list):
+    """A fresh headless Chromium of that viewport and its page, page errors and console errors into `errors`."""
+    ctx = pw.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=str(CHROMIUM),
+                                                headless=True, args=FLAGS, viewport={"width": width, "height": height})
+    page = ctx.new_page()
+    page.on("pageerror", lambda exc: errors.append(f"pageerror: {exc}"))
+    page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
+    return ctx, page
+
+
 def test_the_pair_sweep_states_the_closed_form_verdict_at_each_step(pair_page):
     """Each step's badge: λ⁽⁶⁾/k = f/(kr)·(ρ/r − 1) (r = L = 1, the paper's Sec. 4.1) and its sign's verdict. The
     eigen-solver's error is ~1e-13 of the largest eigenvalue (≈ 4 k): 1e-10 absolute is far above it and far below
@@ -40,11 +57,11 @@ def test_the_pair_sweep_states_the_closed_form_verdict_at_each_step(pair_page):
     assert 0 < done["bytes"] == out.stat().st_size <= 5_000_000
 
 
-def test_another_scene_plays_its_lowest_consistent_modes(tmp_path):
+def test_another_scene_plays_its_lowest_consistent_modes(four_page):
     """four_disk (the paper's Sec. 4.2) has 9 consistent negative eigenvalues: the page plays the lowest 3 distinct
     modes, in increasing order, each negative, under the UNSTABLE badge."""
-    from granstab_app.publish import MODES, publish
-    done = publish("four_disk", tmp_path / "four.html")
+    from granstab_app.publish import MODES
+    _, done = four_page
     lam = [b[0] for b in done["badges"]]
     assert not done["sweep"] and len(lam) == MODES and lam == sorted(lam) and max(lam) < 0
     assert {b[1] for b in done["badges"]} == {"unstable"}
@@ -78,12 +95,8 @@ def test_the_published_page_plays_offline(pair_page, tmp_path):
     out, _ = pair_page
     errors, requests = [], []
     with sync_playwright() as pw:
-        ctx = pw.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=str(CHROMIUM),
-                                                    headless=True, args=FLAGS, viewport={"width": 1200, "height": 800})
+        ctx, page = page_of(pw, tmp_path, 1200, 800, errors)
         try:
-            page = ctx.new_page()
-            page.on("pageerror", lambda exc: errors.append(f"pageerror: {exc}"))
-            page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
             page.on("request", lambda r: requests.append(r.url) if r.url.split(":")[0] not in ("file", "data", "blob")
                     else None)
             page.goto(out.as_uri())
@@ -189,3 +202,62 @@ def test_the_pair_page_is_a_hand_out(pair_page):
     text = out.read_text(encoding="utf-8")
     assert "What to watch." in text and 'class="granstab-contour"' in text and "@media (max-width:600px)" in text
     assert text.count("sharper than a circle") >= 1 and "eq:" not in text.split("granstab-note", 1)[1][:4000]
+
+
+def on_canvas(pose: dict, canvas, point) -> np.ndarray:
+    """Pixel (x from the left, y from the top) of `point` seen by a pinhole camera at `pose` (position, look_at,
+    up_direction) with viser's vertical field of view `canvas.fov` on a canvas of canvas.image_width × image_height."""
+    eye, target, up = (np.array(pose[k], float) for k in ("position", "look_at", "up_direction"))
+    ahead = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(ahead, up) / np.linalg.norm(np.cross(ahead, up))
+    d = np.asarray(point, float) - eye
+    px = 0.5 * canvas.image_height / np.tan(0.5 * canvas.fov) / (d @ ahead)      # px per unit at the point's depth
+    return np.array([0.5 * canvas.image_width + px * (d @ right),
+                     0.5 * canvas.image_height - px * (d @ np.cross(right, ahead))])
+
+
+@pytest.mark.parametrize("page", ["pair_page", "four_page"])
+def test_the_badge_and_the_particles_are_in_view_on_a_screen_and_a_phone(page, request):
+    """Issue 36: the recorded badge (its anchor: its text rises ~30 px above it, its lamp over that) and every particle
+    (centre ± its size across the screen) project inside the page's 1600×1000 canvas and, with the phone's camera,
+    inside a 390×844 phone's width and above its note (the top PHONE_BAND). four_disk's badge hung above the canvas
+    (off-screen at 1400×900), and on a phone the pair ran off both sides (fitted to 1600×1000 only)."""
+    from granstab_app.publish import PHONE_BAND, PHONE_VIEWPORT, VIEWPORT
+    from granstab_app.state import Session
+    _, done = request.getfixturevalue(page)
+    s = Session("two_particle" if done["sweep"] else "four_disk")
+    if done["sweep"]:
+        s.set_params(rho_r=float(done["badges"][0][0]))           # the first step: the one the cameras fit
+    for pose, canvas, bottom in ((done["cameras"]["page"], VIEWPORT, VIEWPORT.image_height),
+                                 (done["cameras"]["phone"], PHONE_VIEWPORT, PHONE_BAND * PHONE_VIEWPORT.image_height)):
+        x, y = on_canvas(pose, canvas, done["badge_at"])
+        assert 0 < x < canvas.image_width and 60 < y < bottom, (page, canvas.image_width, x, y)
+        for b in s.bodies():
+            for side in (-1, 1):
+                point = np.append(b.x + side * np.array([max(b.axes), 0.0]), 0.0)
+                x, y = on_canvas(pose, canvas, point)
+                assert 0 <= x <= canvas.image_width and 0 <= y <= bottom, (page, canvas.image_width, b.name, x, y)
+
+
+@pytest.mark.browser
+def test_the_published_pair_fits_a_phone(pair_page, tmp_path):
+    """Issue 36: on a 390×844 phone the note sits at the bottom (its inline style outranked the phone's media rule:
+    it covered the whole screen from y = 8 px) and the page's first script hands viser's client the phone's camera as
+    initialCamera* URL parameters; nothing overflows the width; no page or console error."""
+    from playwright.sync_api import sync_playwright
+    out, done = pair_page
+    errors = []
+    with sync_playwright() as pw:
+        ctx, page = page_of(pw, tmp_path, 390, 844, errors)
+        try:
+            page.goto(out.as_uri())
+            page.wait_for_selector("canvas", timeout=60_000)
+            note = page.locator("#granstab-note").bounding_box()
+            query = page.evaluate("location.search")
+            wide = page.evaluate("document.documentElement.scrollWidth")
+        finally:
+            ctx.close()
+    assert errors == [] and wide <= 390
+    assert note["y"] >= 0.5 * 844 and note["y"] + note["height"] <= 844 - 40, note
+    position = re.search(r"initialCameraPosition=([^&]+)", query).group(1).replace("%2C", ",")
+    assert np.allclose([float(v) for v in position.split(",")], done["cameras"]["phone"]["position"], rtol=1e-5)

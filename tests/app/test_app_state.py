@@ -717,8 +717,8 @@ def test_the_whole_annulus_is_analysed_on_a_few_sampled_branches():
 def test_on_a_phone_the_pair_is_fitted_above_the_panel(pair):
     """Issue 36: on a 390×844 canvas viser's panel covers all below y ≈ 337 px (40 %), and the pair, fitted to the
     whole canvas and centred, lay under it. Top-down, each body's drawn reach (1.2 × its size, camera_pose) now
-    projects (pinhole, the camera's vertical field of view) inside the canvas's top PHONE_BAND; a 1400×900 canvas
-    keeps the centred pose."""
+    projects (pinhole, the camera's vertical field of view) inside the canvas's top PHONE_BAND; a 1400×900 page's
+    canvas between both docked columns (570×900: portrait too, and it was taken for a phone) keeps the centred pose."""
     from granstab_app.camera import PHONE_BAND, above_sheet, camera_pose, fit_distance
     camera = SimpleNamespace(fov=np.radians(75.0), image_width=390, image_height=844)
     pose = above_sheet(camera_pose(pair, False, False, lambda w, h: fit_distance(w, h, camera)), camera)
@@ -731,6 +731,7 @@ def test_on_a_phone_the_pair_is_fitted_above_the_panel(pair):
         bottom = 0.5 * camera.image_height - (b.x[1] - reach - position[1]) * px
         side = 0.5 * camera.image_width + (np.array([-reach, reach]) + b.x[0] - position[0]) * px
         assert 0 <= top and bottom <= PHONE_BAND * camera.image_height and 0 <= side[0] and side[1] <= 390
-    wide = SimpleNamespace(fov=np.radians(75.0), image_width=1400, image_height=900)
-    centred = camera_pose(pair, False, False, lambda w, h: fit_distance(w, h, wide))
-    assert above_sheet(centred, wide) == centred
+    for width in (1400, 570):
+        wide = SimpleNamespace(fov=np.radians(75.0), image_width=width, image_height=900)
+        centred = camera_pose(pair, False, False, lambda w, h, c=wide: fit_distance(w, h, c))
+        assert above_sheet(centred, wide) == centred

@@ -1,17 +1,21 @@
 """The explorer as a teaching instrument (issue 36), in headless Chromium: every control gives a verdict, typed
 numbers are taken as typed, plain words in the visible text, the 3D view usable on a projector and a phone, the
 modes shown consistent with the verdict. One server and one browser for the module; each page listens for page
-errors. GRANSTAB_APP_SHOTS=folder saves the screenshots of docs/ (docs/teaching-*.png).
+errors and console errors. GRANSTAB_APP_SHOTS=folder saves the screenshots of docs/ (docs/teaching-*.png).
 """
 from __future__ import annotations
 
+import io
 import os
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from test_app_browser import CHROMIUM, FLAGS, REPO, wait_for
 from test_app_pages import shows_last_sent, ui_of
+from test_app_publish import on_canvas
 
 from granstab_app.browser import number_box
 from granstab_app.text import preset_label
@@ -38,6 +42,8 @@ def browser(tmp_path_factory):
 def opened(ctx, app, errors, preset: str | None = None):
     page = ctx.new_page()
     page.on("pageerror", lambda exc: errors.append(f"pageerror at {page.viewport_size}: {exc}"))
+    page.on("console", lambda m: errors.append(f"console error at {page.viewport_size}: {m.text}")
+            if m.type == "error" else None)
     page.goto(app.url + (f"/?preset={preset}" if preset else ""))
     page.wait_for_selector(".granstab-verdict", timeout=90_000)
     return page, ui_of(app, page)
@@ -60,22 +66,49 @@ def wide_canvas(page, least: float):
     return box
 
 
-def typed(page, ui, key: str, text: str) -> None:
-    """Type `text` into a slider's number box key by key, as a person does (fill() sets it at once)."""
+def typed(page, ui, key: str, text: str, done: str = "Tab") -> None:
+    """Type `text` into a slider's number box key by key, as a person does (fill() sets it at once), then leave the
+    box with `done` (Tab or Enter)."""
     box = number_box(page, ui.sliders[key])
     box.click()
     box.press("Control+a")
     box.press("Backspace")
     box.type(text, delay=150)
-    box.press("Tab")
+    box.press(done)
+
+
+def drawn_height(page, ui) -> tuple[float, tuple]:
+    """The height in px of the pair's first grain as the canvas shows it (its top face: the connected patch of the
+    colour found halfway between its centre and its far tip, where no arrow, arc or marker is drawn), and the camera
+    position it was seen from."""
+    from PIL import Image
+    from scipy import ndimage
+    cam, canvas = ui.client.camera, page.locator("canvas").first
+    img = np.asarray(Image.open(io.BytesIO(canvas.screenshot())).convert("RGB"), float)
+    view = SimpleNamespace(fov=cam.fov, image_width=img.shape[1], image_height=img.shape[0])
+    body = ui.session.bodies()[0]
+    seed = np.append(body.x - 0.5 * body.axes[0] * np.asarray(body.R)[:, 0], 0.1 * ui.session.size)
+    pose = {"position": cam.position, "look_at": cam.look_at, "up_direction": cam.up_direction}
+    x, y = np.round(on_canvas(pose, view, seed)).astype(int)
+    colour = img[y - 1:y + 2, x - 1:x + 2].mean(axis=(0, 1))
+    patch, _ = ndimage.label(np.abs(img - colour).sum(axis=2) < 45)
+    rows = np.flatnonzero((patch == patch[y, x]).any(axis=1))
+    assert 0 < rows[0] and rows[-1] < img.shape[0] - 1, f"no grain at ({x}, {y}) px: the background's colour there"
+    return float(rows[-1] - rows[0] + 1), tuple(np.round(cam.position, 9))
 
 
 def test_the_pair_takes_typed_numbers_and_speaks_plainly(app, browser):
     """ρ/r typed "0.5" is 0.5 (it was 0.52: the first "0" was clamped to 0.2 and written back while typing); the
     visible text holds no "eq:", "sym(" or "b0 #" (the badge's reason and the mode names were research words); the
-    plain sentence under the badge follows the curvature; the drawn pair's screenshots at ρ/r = 0.5, 1, 1.5."""
+    plain sentence under the badge follows the curvature; the drawn pair's screenshots at ρ/r = 0.5, 1, 1.5.
+    The curvature is drawn: each grain is an ellipse of semi-axis r along the line of centres and tip radius ρ, so
+    its width across that line is 2√(ρr) and the drawn heights at ρ/r = 1.5 and 1 over that at 0.5 are √3 and √2
+    (they were 1 and 1: circles whatever ρ/r). 12 % allows the oblique view's perspective and the edge pixels (a
+    grain ≈ 100 px across here); at ρ/r = 0.5 the grain is at least 45 px tall at 1400×900 (64 px) (the canvas between both columns was
+    taken for a phone's and the pair fitted into its top 38 %, 25 px tall)."""
     errors: list[str] = []
     ctx = browser(1400, 900)
+    heights, cameras = {}, set()
     try:
         page, ui = opened(ctx, app, errors)
         for text, value, verdict, words in (("1.5", 1.5, "stable", "flatter than a circle"),
@@ -88,8 +121,13 @@ def test_the_pair_takes_typed_numbers_and_speaks_plainly(app, browser):
             visible = page.evaluate("document.body.innerText")
             assert words in visible
             assert not any(word in visible for word in ("eq:", "sym(", "b0 #")), visible
+            heights[value], camera = drawn_height(page, ui)
+            cameras.add(camera)
             shot(page, f"teaching-pair-{text}.png")
         assert number_box(page, ui.sliders["rho_r"]).input_value() == "0.5"
+        assert len(cameras) == 1 and heights[0.5] >= 45, (cameras, heights)      # one camera: heights compare
+        assert heights[1.5] / heights[0.5] == pytest.approx(np.sqrt(3.0), rel=0.12), heights
+        assert heights[1.0] / heights[0.5] == pytest.approx(np.sqrt(2.0), rel=0.12), heights
         page.locator("summary").filter(has_text="What the words and symbols mean").click()
         assert "Branches." in page.locator(".granstab-notation").inner_text()
     finally:
@@ -113,7 +151,7 @@ def test_friction_always_gives_a_verdict(app, browser):
                 wait_for(lambda p=preset: ui.session.preset == p, timeout=60, what=preset)
                 shows_last_sent(page, ui)    # the new preset's controls written first: typing raced their μ
             for text in values:
-                typed(page, ui, "mu", text)
+                typed(page, ui, "mu", text, done="Enter")
                 wait_for(lambda t=text: ui.session.params["mu"] == float(t), timeout=60, what=f"μ = {text}")
                 shows_last_sent(page, ui)
                 assert page.locator(".granstab-verdict").get_attribute("data-verdict") in VERDICTS

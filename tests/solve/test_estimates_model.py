@@ -68,6 +68,7 @@ def test_the_estimate_follows_the_load_and_the_free_cores(monkeypatch, disks1400
     monkeypatch.setattr(threads, "ready", lambda: [])
     rest = plan(disks1400, metric="L")
     monkeypatch.setattr(threads, "ready", lambda: [(1, "session a"), (2, "session b")])
+    monkeypatch.setattr(threads, "_fresh_at", [-1.0])          # the next plan over FRESH_SECONDS later: read afresh
     busy = plan(disks1400, metric="L")
     assert rest.workers == 2 and busy.workers == 1
     assert busy.estimated_s == pytest.approx(1.5 * rest.estimated_s, rel=1e-12)
@@ -84,6 +85,21 @@ def test_a_fresh_load_read_is_the_mean_of_several_scans(monkeypatch):
     assert threads.runnable() == 2.0                          # within RUNNABLE_SECONDS: the cached read
     monkeypatch.setattr(threads, "_runnable_cache", [-1.0, 0.0])
     assert threads.runnable() == 7.0                          # a stale cache: one scan
+
+
+def test_a_fresh_load_read_is_reused_for_a_second(monkeypatch):
+    """Issue 36: a plan reads the load fresh three times and the explorer's pair moves several times a second; each
+    fresh read scanned /proc FRESH_SAMPLES times (0.3 s a move at load 6, for a 0.02 s analysis). A fresh read within
+    FRESH_SECONDS of the last one, with nothing read since, is that one; once the cache is stale (or another read
+    came between) it scans again."""
+    scans = []
+    monkeypatch.setattr(threads, "ready", lambda: scans.append(1) or [(1, "s1"), (2, "s2")])
+    monkeypatch.setattr(threads, "SAMPLE_GAP", 0.0)
+    monkeypatch.setattr(threads, "_runnable_cache", [-1.0, 0.0, 1.0])
+    assert threads.runnable(fresh=True) == 2.0 and len(scans) == threads.FRESH_SAMPLES
+    assert threads.runnable(fresh=True) == 2.0 and len(scans) == threads.FRESH_SAMPLES     # reused
+    monkeypatch.setattr(threads, "_fresh_at", [threads._fresh_at[0] - threads.FRESH_SECONDS])   # a second later
+    assert threads.runnable(fresh=True) == 2.0 and len(scans) == 2 * threads.FRESH_SAMPLES
 
 
 def test_the_slowdown_follows_the_scheduling_groups():
