@@ -81,7 +81,7 @@ def test_scan_takes_the_band_from_the_dump(tmp_path, capsys):
     with_err_columns(contacts, constant=0.15)
     args = [str(LAMMPS / "atoms2d.dump"), str(contacts), "--timestep", "18000", "--columns", COLUMNS + ",f_err",
             "--k", "1000", "--alpha", "0.5", "--mu", "0.5", "--centers", "every:32", "--workers", "1",
-            "--no-attribution", "--no-figures"]
+            "--no-attribution"]
     rows = {}
     for name, band in (("file", "file"), ("uniform", "0,0.15")):
         assert main(["scan", *args, "--out", str(tmp_path / name), "--force-uncertainty", band]) == 0
