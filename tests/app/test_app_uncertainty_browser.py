@@ -8,20 +8,18 @@ import os
 import shutil
 
 import pytest
-from test_app_browser import CHROMIUM, FLAGS, verdict_on_page, wait_for
+from test_app_browser import verdict_on_page, wait_for
 
-from granstab_app.browser import number_box
+from granstab_app.browser import chromium, number_box
 
 pytestmark = pytest.mark.browser
 
 
 def test_position_slider_in_the_page(explorer, tmp_path):
     from playwright.sync_api import sync_playwright
-    assert CHROMIUM.exists(), "Debian chromium is required: bash .ci/run installs it (apt-get install -y chromium)"
     app = explorer("two_particle.toml")
     with sync_playwright() as pw:
-        ctx = pw.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=str(CHROMIUM),
-                                                    headless=True, args=FLAGS, viewport={"width": 1600, "height": 1000})
+        ctx = chromium(pw, tmp_path / "profile")
         try:
             page = ctx.new_page()
             page.goto(app.url)
