@@ -384,8 +384,9 @@ def _search(data: _Data, res, max_sliding, inside=None, probe=None):
 def position_norms(scene: Scene, length: float, Dp: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
     """First order only (no remainder): per contact a bound of ‖Δ sym(D H_c D)‖₂ (with v (M, n), a vector's scaled
     dofs at each contact: of |v_cᵀ Δ sym(D H_c D) v_c|, the change of its work) when the contact point and both
-    reference points move by up to `length` and (2D) the normal turns by up to 2·length/|b^pq| (round particles:
-    the centre line's turn), from central differences of the contact's blocks."""
+    reference points move by up to `length` and the normal turns by up to 2·length/|b^pq| (round particles: the
+    centre line's turn; 3D: about either tangent axis, the curvatures with it), from central differences of the
+    contact's blocks."""
     M, d = scene.n_contacts, scene.dim
     h = 1e-6 * np.maximum(np.linalg.norm(scene.r_pq, axis=1) + np.linalg.norm(scene.r_qp, axis=1), 1e-300)
     pts = np.concatenate([scene.x[scene.p], scene.q_copy])
@@ -415,13 +416,31 @@ def position_norms(scene: Scene, length: float, Dp: np.ndarray, v: np.ndarray | 
         sq = sum(size((block(shifted(what, j, 1)) - block(shifted(what, j, -1))) / (2 * h[:, None, None])) ** 2
                  for j in range(d))
         total += length * np.sqrt(sq)
-    if d == 2:
-        turn = 2 * length / np.linalg.norm(scene.branch, axis=1)
-        rot = [np.stack([np.cos(t) * scene.normal[:, 0] - np.sin(t) * scene.normal[:, 1],
-                         np.sin(t) * scene.normal[:, 0] + np.cos(t) * scene.normal[:, 1]], axis=1) for t in (h, -h)]
-        dn = (block(replace(base, normal=rot[0])) - block(replace(base, normal=rot[1]))) / (2 * h[:, None, None])
-        total += turn * size(dn)
-    return total
+    turn = 2 * length / np.linalg.norm(scene.branch, axis=1)
+    sq = sum(size((block(plus) - block(minus)) / (2 * h[:, None, None])) ** 2 for plus, minus in _turned(base, h))
+    return total + turn * np.sqrt(sq)
+
+
+def _turned(base: Scene, h: np.ndarray) -> list:
+    """The scene with each contact's normal turned by ±h (M,) about each tangent axis (2D: e3; 3D: t1, t2, the
+    curvature tensors turned with it, Rodrigues): [(plus, minus)] an axis."""
+    n = base.normal
+    if base.dim == 2:
+        return [tuple(replace(base, normal=np.stack([np.cos(t) * n[:, 0] - np.sin(t) * n[:, 1],
+                                                     np.sin(t) * n[:, 0] + np.cos(t) * n[:, 1]], axis=1))
+                      for t in (h, -h))]
+    from .model.vec import cross_matrix, tangent_basis
+    out = []
+    for axis in np.moveaxis(tangent_basis(n), -1, 0):
+        K = cross_matrix(axis)
+        pair = []
+        for t in (h, -h):
+            R = np.eye(3) + np.sin(t)[:, None, None] * K + (1 - np.cos(t))[:, None, None] * (K @ K)
+            turn = {key: R @ getattr(base, key) @ np.swapaxes(R, 1, 2)
+                    for key in ("curvature_p", "curvature_q", "curvature_sum")}
+            pair.append(replace(base, normal=np.einsum("mij,mj->mi", R, n), **turn))
+        out.append(tuple(pair))
+    return out
 
 
 def _norm2(X: np.ndarray) -> np.ndarray:

@@ -61,3 +61,46 @@ def test_position_band_margin_of_the_unstable_pair():
     assert small.margin > 1 and abs(small.margin / twice.margin - 2) <= 1e-6
     far = data_robustness(scene, Band(position=0.005 * small.margin * 20), metric="L", rotation_length=1.0)
     assert far.robust != "holds" and abs(far.margin - 1 / 20) <= 1e-6
+
+
+def test_the_3d_normal_turn_enters_the_position_term():
+    """3D (two spheres, tests/analysis/test_vertices_3d.py's pair at f = 10): `_turned` turns each normal by ±h about
+    both tangent axes, the curvature tensors with it (K'n' = 0 and the angle h, to 1e-12), and the position term
+    bounds the blocks' change under an actual turn of 2·LEN/|b| about random tangent axes plus moves of LEN of the
+    contact point and q's centre (LEN = 1e-4: first order, +1 %)."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_vertices_3d import pair as spheres
+
+    from granstab.model.vec import cross_matrix
+    from granstab.uncertainty import _turned
+    scene = spheres(10.0)
+    h = np.array([1e-3])
+    turns = _turned(scene, h)
+    assert len(turns) == 2
+    for plus, minus in turns:
+        for s in (plus, minus):
+            assert np.abs(np.einsum("mij,mj->mi", s.curvature_p, s.normal)).max() <= 1e-12
+            assert abs(np.arccos(np.clip(s.normal[0] @ scene.normal[0], -1, 1)) - h[0]) <= 1e-12
+    length = 1e-4
+    predicted = position_norms(scene, length, np.ones((1, 12)))[0]
+
+    def X(s):
+        b = contact_blocks(s).blocks
+        A = geometric(b)[0] + b["Hm"][0]
+        return 0.5 * (A + A.T)
+
+    rng = np.random.default_rng(4)
+    n = scene.normal[0]
+    for _ in range(10):
+        axis = rng.normal(size=3)
+        axis -= (axis @ n) * n
+        axis /= np.linalg.norm(axis)
+        K = cross_matrix(axis[None])[0]
+        t = 2 * length / np.linalg.norm(scene.branch[0])
+        R = np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
+        a, c = (length * v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
+        moved = replace(scene, normal=(R @ n)[None], point=scene.point + a, x=scene.x + np.array([[0, 0, 0], c]),
+                        **{k: R @ getattr(scene, k) @ R.T for k in ("curvature_p", "curvature_q", "curvature_sum")})
+        assert 0 < np.linalg.norm(X(moved) - X(scene), 2) <= 1.01 * predicted
