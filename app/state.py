@@ -56,6 +56,7 @@ class Session(Readings):
         self.metrics: dict | None = None     # the metric-family check, when asked for (check_metrics)
         self.metric = "L"                    # the projection metric of the verdict: "L" or "inertia" (with masses)
         self.force_band = 0.0                # ± % on every contact force (panel/uncertainty.py; 0: not asked)
+        self.position_band = 0.0             # ± % of a radius on every contact position (the same; 0: not asked)
         self.robust: tuple = (None, None)    # ((revision, band), its data_robustness), computed when shown
         self.error: str | None = None
         self.notice: str | None = None

@@ -166,7 +166,7 @@ def _margin(verdict: str, res, ext, data: _Data, bound: tuple, mob, inside=None)
             return -np.inf
         return max(_stable_margin(ext, data, e, position),
                    _focused_margin(ext, e, inside) if inside is not None else -np.inf)
-    return _unstable_margin(res, data, position, mob)
+    return _unstable_margin(res, data, mob)
 
 
 def _first_order(res, data: _Data, v) -> tuple[float, float]:
@@ -203,7 +203,8 @@ def _stable_margin(ext, data: _Data, e: float, position: float = 0.0) -> float:
         if gap <= 0 or e <= 0 or not np.isfinite(l2):
             best = min(best, weyl)
             continue
-        F, K = (x + position for x in _first_order(ext, data, b.stability_vectors[:, j]))   # position: Weyl
+        F, K = _first_order(ext, data, b.stability_vectors[:, j])
+        F, K = F + _position_work(ext, data, b.stability_vectors[:, j]), K + position     # positions: first order
         tilt = 2 * np.sqrt(2) * min(1.0, a1 / gap)
         lo_t = _largest_factor(l1 - a1, l2, F + tilt * e, min(K + tilt * e, e), e)
         best = min(best, max(lo_t, weyl))
@@ -239,9 +240,9 @@ def _largest_factor(low1: float, low2: float, F: float, K: float, e: float) -> f
     return lo
 
 
-def _unstable_margin(res, data: _Data, position: float, mob) -> float:
+def _unstable_margin(res, data: _Data, mob) -> float:
     """max over consistent negative eigenpairs of (−λ − δ − changing)/F(v), F the exact first-order term of the fixed
-    vector (`_first_order`) and `changing` the sliding work a ⊗ s of the contacts whose yield state the band leaves
+    vector (`_first_order`) plus its positions' first-order term (`_position_work`) and `changing` the sliding work a ⊗ s of the contacts whose yield state the band leaves
     open and that load under the vector (at yield: may unload; uncertain: may load)."""
     open_ = mob["uncertain"] | (data.scene.at_yield() & (data.delta > 0))
     best = -np.inf
@@ -253,10 +254,19 @@ def _unstable_margin(res, data: _Data, position: float, mob) -> float:
             a = np.einsum("mn,mn->m", data.slide_left, U)
             sign = 1 if b.codes[j] in (PLUS, BOTH) else -1
             changing = float(np.sum(np.abs(a * s)[open_ & (sign * s > 0)]))
-            F = _first_order(res, data, b.stability_vectors[:, j])[0] + position
+            F = _first_order(res, data, b.stability_vectors[:, j])[0] + _position_work(res, data, b.stability_vectors[:, j])
             slack = -b.stability_eigenvalues[j] - b.accuracy[j] - changing
             best = max(best, slack / F if F > 0 else (np.inf if slack > 0 else -np.inf))
     return best
+
+
+def _position_work(res, data: _Data, v: np.ndarray) -> float:
+    """The largest first-order change of the fixed unit vector v's work ṽᵀ sym(𝓗) ṽ when the positions move within
+    the band (`position_norms` with the vector: per contact |ṽ_cᵀ ∂X_c ṽ_c|, not ‖∂X_c‖); 0 without a position band."""
+    if data.band.position <= 0:
+        return 0.0
+    scaled = _scaled(res, v)[data.index]
+    return float(np.sum(position_norms(data.scene, data.band.position, res.metric.diagonal[data.index], scaled)))
 
 
 def _scaled(res, v: np.ndarray) -> np.ndarray:
@@ -371,10 +381,12 @@ def _search(data: _Data, res, max_sliding, inside=None, probe=None):
     return found
 
 
-def position_norms(scene: Scene, length: float, Dp: np.ndarray) -> np.ndarray:
-    """First order only (no remainder): per contact a bound of ‖Δ sym(D H_c D)‖₂ when the contact point and both
+def position_norms(scene: Scene, length: float, Dp: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+    """First order only (no remainder): per contact a bound of ‖Δ sym(D H_c D)‖₂ (with v (M, n), a vector's scaled
+    dofs at each contact: of |v_cᵀ Δ sym(D H_c D) v_c|, the change of its work) when the contact point and both
     reference points move by up to `length` and the normal turns by up to 2·length/|b^pq| (round particles: the
-    centre line's turn), from central differences of the contact's blocks (2D)."""
+    centre line's turn; 3D: about either tangent axis, the curvatures with it), from central differences of the
+    contact's blocks."""
     M, d = scene.n_contacts, scene.dim
     h = 1e-6 * np.maximum(np.linalg.norm(scene.r_pq, axis=1) + np.linalg.norm(scene.r_qp, axis=1), 1e-300)
     pts = np.concatenate([scene.x[scene.p], scene.q_copy])
@@ -396,18 +408,39 @@ def position_norms(scene: Scene, length: float, Dp: np.ndarray) -> np.ndarray:
         x[(slice(0, M) if what == "p" else slice(M, 2 * M))] += step
         return replace(base, x=x)
 
+    def size(dX):
+        return _norm2(dX) if v is None else np.abs(np.einsum("ma,mab,mb->m", v, dX, v))
+
     total = np.zeros(M)
     for what in ("point", "p", "q"):
-        sq = sum(_norm2((block(shifted(what, j, 1)) - block(shifted(what, j, -1))) / (2 * h[:, None, None])) ** 2
+        sq = sum(size((block(shifted(what, j, 1)) - block(shifted(what, j, -1))) / (2 * h[:, None, None])) ** 2
                  for j in range(d))
         total += length * np.sqrt(sq)
-    if d == 2:
-        turn = 2 * length / np.linalg.norm(scene.branch, axis=1)
-        rot = [np.stack([np.cos(t) * scene.normal[:, 0] - np.sin(t) * scene.normal[:, 1],
-                         np.sin(t) * scene.normal[:, 0] + np.cos(t) * scene.normal[:, 1]], axis=1) for t in (h, -h)]
-        dn = (block(replace(base, normal=rot[0])) - block(replace(base, normal=rot[1]))) / (2 * h[:, None, None])
-        total += turn * _norm2(dn)
-    return total
+    turn = 2 * length / np.linalg.norm(scene.branch, axis=1)
+    sq = sum(size((block(plus) - block(minus)) / (2 * h[:, None, None])) ** 2 for plus, minus in _turned(base, h))
+    return total + turn * np.sqrt(sq)
+
+
+def _turned(base: Scene, h: np.ndarray) -> list:
+    """The scene with each contact's normal turned by ±h (M,) about each tangent axis (2D: e3; 3D: t1, t2, the
+    curvature tensors turned with it, Rodrigues): [(plus, minus)] an axis."""
+    n = base.normal
+    if base.dim == 2:
+        return [tuple(replace(base, normal=np.stack([np.cos(t) * n[:, 0] - np.sin(t) * n[:, 1],
+                                                     np.sin(t) * n[:, 0] + np.cos(t) * n[:, 1]], axis=1))
+                      for t in (h, -h))]
+    from .model.vec import cross_matrix, tangent_basis
+    out = []
+    for axis in np.moveaxis(tangent_basis(n), -1, 0):
+        K = cross_matrix(axis)
+        pair = []
+        for t in (h, -h):
+            R = np.eye(3) + np.sin(t)[:, None, None] * K + (1 - np.cos(t))[:, None, None] * (K @ K)
+            turn = {key: R @ getattr(base, key) @ np.swapaxes(R, 1, 2)
+                    for key in ("curvature_p", "curvature_q", "curvature_sum")}
+            pair.append(replace(base, normal=np.einsum("mij,mj->mi", R, n), **turn))
+        out.append(tuple(pair))
+    return out
 
 
 def _norm2(X: np.ndarray) -> np.ndarray:

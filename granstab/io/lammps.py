@@ -36,6 +36,7 @@ from .columns import (
     columns_option,
     contact_forces,
     contact_moments,
+    force_uncertainty,
     particle_orientation,
     to_indices,
     unique_ids,
@@ -385,11 +386,13 @@ def read_step(index: DumpIndex, timestep=None, columns: str | None = None, progr
                "rule": "dropped: R_1 + R_2 − d ≤ 0 (pair/local lists neighbours that do not touch)"}
     law, notes = contact_law(script, radius[p[touching]], radius[q[touching]], delta[touching])
     rows = np.flatnonzero(touching)
+    err, err_from = force_uncertainty(col, line)          # f_err, or fn_err and ft_err (issue 42), where named
     return Snapshot(
         source=f"{apath} + {cpath}", format="lammps", dim=dim, ids=ids, x=x[:, :dim], radius=radius, mass=mass,
         orientation=orientation,
         p=p[touching], q=q[touching], force=force[touching], lattice=lattice, law=law, frame=int(step),
         moment=None if moment is None else moment[touching],
+        force_uncertainty=None if err is None else (err[touching], err_from),
         frames=list(index.frames),
         notes={"non_touching_pairs": dropped, "law_notes": notes, "dimension": dim, "forces_from": how,
                **({} if lattice is None else {"periodic": {"kind": "LAMMPS " + (

@@ -2,6 +2,8 @@
 `Scene`, column by column (vectorised), with one-line errors naming the entry and field; and back."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..model import grains
@@ -17,7 +19,7 @@ TOP_KEYS = {"dim", "title", "cell", "defaults", "particles", "contacts"}
 PARTICLE_KEYS = {"name", "x", "load", "moment", "mass", "inertia", "fixed"}
 GRAIN_KEYS = {"shape", "orientation"}   # the grains' true shapes, for drawing (model/grains.py): text formats only
 CONTACT_KEYS = {"p", "q", "image", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state",
-                *LAW_KEYS}
+                "force_err", *LAW_KEYS}
 
 
 
@@ -61,6 +63,8 @@ def scene_arrays(scene: Scene) -> dict:
         out[f"contacts/{key}"] = _kappa(K, scene.normal) if scalar else K
     if scene.fixed is not None:
         out["particles/fixed"] = scene.fixed
+    if scene.force_err is not None:
+        out["contacts/force_err"] = scene.force_err
     if scene.mass is not None:
         out["particles/mass"] = scene.mass
         out["particles/inertia"] = scene.inertia[:, 0, 0] if scalar else scene.inertia
@@ -166,9 +170,25 @@ def _scene_from_tables(dim, title, law, particles, contacts, source, tol, cell=N
         c = state.index(sorted(wrong)[0])
         contacts.fail(c, "state", f"must be one of {', '.join(STATES)}, got {state[c]!r}")
     arrays["state"] = tuple(state)
-    return build_scene(dim, names, x, arrays, loads, moments, title=title, source=source, tol=tol,
-                       entries=contacts.label, particle_entries=particles.label, mass=mass, inertia=inertia,
-                       fixed=fixed, cell=cell, image=image)
+    scene = build_scene(dim, names, x, arrays, loads, moments, title=title, source=source, tol=tol,
+                        entries=contacts.label, particle_entries=particles.label, mass=mass, inertia=inertia,
+                        fixed=fixed, cell=cell, image=image)
+    err = _force_err_column(contacts)
+    return scene if err is None else replace(scene, force_err=err)
+
+
+def _force_err_column(contacts) -> np.ndarray | None:
+    """Optional `force_err` of each contact (issue 42): the radius of its force's stated uncertainty, force units,
+    finite and >= 0, given for every contact or none (a cluster written by `extract` keeps its band). None: none."""
+    have = contacts.present("force_err")
+    if not have.any():
+        return None
+    if not have.all():
+        contacts.fail(first(~have), "force_err", "missing (given for other contacts: give it for every one)")
+    err = contacts.numbers("force_err")
+    if (err < 0).any():
+        contacts.fail(first(err < 0), "force_err", f"must be >= 0, got {err[first(err < 0)]}")
+    return err
 
 
 def _fixed_column(particles) -> np.ndarray | None:
@@ -359,7 +379,7 @@ def scene_to_dict(scene: Scene) -> dict:
 
     contact_keys = ("p", "q") + (("image",) if scene.cell is not None else ()) + (
         "point", "normal", "curvature_p", "curvature_q", "force", "moment", "k", "alpha", "mu", "rolling_stiffness",
-        "state")
+        "state") + (("force_err",) if scene.force_err is not None else ())
     particle_keys = (("name", "x", "load", "moment") + (("mass", "inertia") if scene.mass is not None else ())
                      + (("fixed",) if scene.fixed is not None else ()))
     with paused_gc():

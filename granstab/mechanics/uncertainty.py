@@ -67,7 +67,7 @@ def band_from(options: dict, scene) -> Band:
     if options.get("per_contact"):
         if scene.force_err is None:
             raise SceneError(f"{scene.source}: --force-uncertainty file: the input has no per-contact uncertainty "
-                             "columns (f_err, or fn_err and ft_err: docs/formats.md)")
+                             "columns (f_err, or fn_err and ft_err; a scene file's force_err: docs/formats.md)")
         per = scene.force_err
     return Band(rel=options.get("rel", 0.0), abs=options.get("abs", 0.0), position=options.get("position", 0.0),
                 per_contact=per)

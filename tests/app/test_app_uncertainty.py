@@ -1,4 +1,4 @@
-"""The explorer's *Force uncertainty* control (issue 42, app/panel/uncertainty.py): the plain sentence of each
+"""The explorer's *Force uncertainty* and *Position uncertainty* controls (issue 42, app/panel/uncertainty.py): the plain sentence of each
 answer, nothing computed at 0 %, and a session whose band changes what the Verdict tab says (no browser)."""
 from types import SimpleNamespace
 
@@ -53,11 +53,50 @@ def test_a_band_across_the_threshold_shows_its_counter_example():
         "contacts": [{"p": "p", "q": "q", "point": [1.0, 0.0], "normal": [1.0, 0.0], "curvature_p": -1 / 1.2,
                       "curvature_q": -1 / 1.2, "force": [-22.0, 0.0], "k": 1.0, "alpha": 1.0, "state": "elastic"}]})
     analysis = granstab.analyze(scene, metric="L", attribution=False, keep="all")
-    s = SimpleNamespace(force_band=15.0, analysis=analysis, scene=scene, on_map=False, revision=1,
-                        robust=(None, None))
+    s = SimpleNamespace(force_band=15.0, position_band=0.0, analysis=analysis, scene=scene, on_map=False,
+                        revision=1, robust=(None, None))
     got = panel.robustness(s)
     assert got.robust == "depends"
     assert "unstable instead of stable" in panel.robust_sentence(got, 15.0)
     from granstab.uncertainty import perturbed
     other = granstab.analyze(perturbed(scene, np.array(got.counterexample["forces"])), metric="L")
     assert other.summary["verdict"] == "unstable"
+
+
+def test_position_band_server_side(monkeypatch):
+    """The default pair (unstable: the rolling mode λ⁽⁶⁾ = f(ρ − r) = −0.005, r = 1): nothing computed at 0 on both
+    sliders; ±2 % of a radius is Band(position=0.02 · the mean arm = 0.02), the same result as data_robustness
+    called directly (holds, margin 25 = (r − ρ)/LEN: λ⁽⁶⁾ = f(ρ − r) moves by f per unit of arm, first order), said
+    in plain words;
+    with ±10 % on the forces too the band is both, and the margin smaller; a new band computes again."""
+    from granstab.mechanics.uncertainty import Band
+    s = Session()
+    calls = []
+    real = panel.data_robustness
+    monkeypatch.setattr(panel, "data_robustness", lambda *a, **k: calls.append(a[1]) or real(*a, **k))
+    assert panel.robustness(s) is None and calls == [] and s.position_band == 0
+    assert panel.radius(s.scene) == 1.0
+    s.position_band = 2.0
+    got = panel.robustness(s)
+    assert calls[-1] == Band(position=0.02) and got.first_order
+    direct = real(s.scene, Band(position=0.02), metric="L", rotation_length=s.analysis.length)
+    assert got.robust == direct.robust == "holds" and got.margin == direct.margin
+    assert abs(got.margin - 25.0) <= 1e-6 * 25
+    text = panel.robust_sentence(got, s.force_band, position=s.position_band)
+    assert text.startswith("**Holds under ±2 % of a radius in the positions:**")
+    assert "contact positions within ±2 % of a radius" in text and "to first order" in text
+    s.force_band = 10.0
+    both = panel.robustness(s)
+    assert len(calls) == 2 and calls[-1] == Band(rel=0.1, position=0.02) and both.margin < got.margin
+    assert panel.robust_sentence(both, 10.0, position=2.0).startswith(
+        "**Holds under ±10 % in the forces and ±2 % of a radius in the positions:**")
+
+
+def test_position_sentences_for_depends_and_undecided():
+    flip = result("depends", counterexample={"verdict": "unstable", "forces": [[-23.5, 0.25]],
+                                             "largest_band_fraction": 0.99})
+    text = panel.robust_sentence(flip, 15, names=["p–q"], position=1.0)
+    assert "Counter-example forces (positions as measured): p–q: (-23.5, 0.25)" in text
+    assert panel.robust_sentence(result("undecided"), 0, position=0.5).startswith(
+        "**Undecided at ±0.5 % of a radius in the positions:**")
+    assert panel.robust_sentence(result("holds"), 0, position=0) == ""
