@@ -7,6 +7,7 @@ import json
 import re
 import sys
 import types
+from pathlib import Path
 
 import pytest
 
@@ -66,8 +67,8 @@ SMALLEST = {
     "branches": {"QUICK": {"ms": (4, 6), "full_max": 16, "loop_max": 8, "memory_ms": (4, 5), "worst_ms": 3,
                            "sparse": (500, 2), "arpack_max": 2}},
     "leave_out": {"QUICK": {"particles": 200}},
-    "scan": {"QUICK": {"sizes": {2: 300, 3: 60}, "sample": 16, "memory": (300, 600)}},
-    "attribution": {"QUICK": {"random": 60}},
+    "scan": {"QUICK": {"sizes": {2: 300}, "sample": 16, "memory": (300, 600)}},   # 3 Dask clusters a size
+    "attribution": {"QUICK": {"random": 60}, "DATASIM": Path("no DataSim")},        # 1,024 disks scanned 4 times
     "reading": {"QUICK_SIZES": (300, 1000)},
     "converting": {"QUICK_SIZES": (300, 1000)},       # its quick sizes: test_converting_checks_what_it_converts
     "superquadrics": {"QUICK_SIZES": (500,)},
@@ -84,9 +85,9 @@ SMALLEST = {
 
 
 def smallest(monkeypatch) -> None:
-    """Every topic of SMALLEST at those sizes; the estimates topic on its first three quick cases (the annulus frame
-    in µm, the floppy full path, the low-rank 3D cluster: tests/solve/test_plan.py checks all of them as a ratio),
-    its busy processes none."""
+    """Every topic of SMALLEST at those sizes; the browser latency on the pair's page alone; the estimates topic on its
+    first three quick cases (the annulus frame in µm, the floppy full path, the low-rank 3D cluster:
+    tests/solve/test_plan.py checks all of them as a ratio), its busy processes none."""
     for topic, names in SMALLEST.items():
         module = importlib.import_module(f"granstab_bench.{topic}")
         for name, value in names.items():
@@ -95,12 +96,15 @@ def smallest(monkeypatch) -> None:
                 assert set(value) <= set(old), (topic, name, sorted(set(value) - set(old)))
                 value = {**old, **value}
             monkeypatch.setattr(module, name, value)
-    from granstab_bench import estimates
+    from granstab_bench import browser_latency, estimates
+    pair = browser_latency.SCENES["two_particle"]              # the 143-disk page in Chromium: tests/app
+    monkeypatch.setattr(browser_latency, "SCENES", {"two_particle": pair})
     quick_cases = estimates.cases(quick=True)[:3]
     monkeypatch.setattr(estimates, "cases", lambda quick=False: quick_cases)
     monkeypatch.setattr(estimates, "busy", lambda n=2: (lambda: None))
 
 
+@pytest.mark.slow
 def test_quick_run_of_every_topic(tmp_path, monkeypatch):
     """Every topic runs against the current core (a renamed core function breaks here, not in a release run) and
     lands in BENCHMARKS.md, its table of contents and results.json; no topic's subprocess failed (a failed size is a
