@@ -7,6 +7,7 @@ import json
 import re
 import sys
 import types
+from pathlib import Path
 
 import pytest
 
@@ -54,13 +55,64 @@ def test_converting_checks_what_it_converts():
     assert "## Converting DEM output" in converting.markdown(results)
 
 
+# The smallest sizes at which each topic still runs every one of its paths (its plumbing: the core functions it
+# calls, its tables, figures and results), replacing attributes of the topic's module in test_quick_run_of_every_topic;
+# a dict names only the entries it changes. The --quick sizes took 5 minutes of CI on a 2-core machine; the sizes
+# themselves are the benchmarks' business. No busy processes (estimates, app_load): a load is a measuring condition.
+SMALLEST = {
+    "assembly": {"QUICK": {"sizes_2d": (300, 1000), "sizes_3d": (300, 1000), "loop_contacts": 50}},
+    "sparse_vs_dense": {"QUICK": {"sizes_2d": (40, 80), "sizes_3d": (32,)}},
+    "scaling": {"QUICK": {"sizes_2d": (300, 600), "dense_reference": 100}},
+    "field": {"QUICK": {"loop_points": 100}},
+    "branches": {"QUICK": {"ms": (4, 6), "full_max": 16, "loop_max": 8, "memory_ms": (4, 5), "worst_ms": 3,
+                           "sparse": (500, 2), "arpack_max": 2}},
+    "leave_out": {"QUICK": {"particles": 200}},
+    "scan": {"QUICK": {"sizes": {2: 300}, "sample": 16, "memory": (300, 600)}},   # 3 Dask clusters a size
+    "attribution": {"QUICK": {"random": 60}, "DATASIM": Path("no DataSim")},        # 1,024 disks scanned 4 times
+    "reading": {"QUICK_SIZES": (300, 1000)},
+    "converting": {"QUICK_SIZES": (300, 1000)},       # its quick sizes: test_converting_checks_what_it_converts
+    "superquadrics": {"QUICK_SIZES": (500,)},
+    "periodic": {"QUICK": {"moduli": (60,)}},         # analyze (700,): its one size, above the dense limit
+    "jamming": {"QUICK": {"sizes": {32: 1}}, "BOOTSTRAP": 20},
+    "app_load": {"BUSY": 0},
+    "sessions": {"SESSIONS": {True: 3}, "WARM": 2, "CLASS": 2},
+    "classroom": {"PAGES": {True: 3}, "ANNULUS": {True: 1}, "QUIET_MOVES": {True: 2}, "MOVES": {True: 2}},
+    "rigidity": {"QUICK": {"sizes": (200,)}},
+    "track": {"QUICK": {"particles": 200, "frames": 2}},
+    "frames": {"QUICK": {"frames": 4, "particles": 100}},
+    "uncertainty": {"QUICK": {"random": 50}},
+}
+
+
+def smallest(monkeypatch) -> None:
+    """Every topic of SMALLEST at those sizes; the browser latency on the pair's page alone; the estimates topic on its
+    first three quick cases (the annulus frame in µm, the floppy full path, the low-rank 3D cluster:
+    tests/solve/test_plan.py checks all of them as a ratio), its busy processes none."""
+    for topic, names in SMALLEST.items():
+        module = importlib.import_module(f"granstab_bench.{topic}")
+        for name, value in names.items():
+            old = getattr(module, name)                     # AttributeError: the topic renamed what is shrunk here
+            if isinstance(old, dict):
+                assert set(value) <= set(old), (topic, name, sorted(set(value) - set(old)))
+                value = {**old, **value}
+            monkeypatch.setattr(module, name, value)
+    from granstab_bench import browser_latency, estimates
+    pair = browser_latency.SCENES["two_particle"]              # the 143-disk page in Chromium: tests/app
+    monkeypatch.setattr(browser_latency, "SCENES", {"two_particle": pair})
+    quick_cases = estimates.cases(quick=True)[:3]
+    monkeypatch.setattr(estimates, "cases", lambda quick=False: quick_cases)
+    monkeypatch.setattr(estimates, "busy", lambda n=2: (lambda: None))
+
+
 @pytest.mark.slow
 def test_quick_run_of_every_topic(tmp_path, monkeypatch):
     """Every topic runs against the current core (a renamed core function breaks here, not in a release run) and
-    lands in BENCHMARKS.md, its table of contents and results.json. Each timing is one call (timing.ONCE): this
-    tests the benchmark code, it does not measure (13 min with the repeats at a load of 20-60 on 2 cores)."""
+    lands in BENCHMARKS.md, its table of contents and results.json; no topic's subprocess failed (a failed size is a
+    row saying so, not an error). Each timing is one call (timing.ONCE) at the sizes of SMALLEST: this tests the
+    benchmark code, it does not measure."""
     from granstab_bench import timing
     monkeypatch.setattr(timing, "ONCE", True)
+    smallest(monkeypatch)
     assert main(["bench", "--quick", "--out", str(tmp_path)]) == 0
     text = (tmp_path / "BENCHMARKS.md").read_text(encoding="utf-8")
     results = json.loads((tmp_path / "docs" / "bench" / "results.json").read_text())
@@ -68,6 +120,20 @@ def test_quick_run_of_every_topic(tmp_path, monkeypatch):
     headings = [line[3:] for line in text.splitlines() if line.startswith("## ")]
     assert len(headings) == len(TOPICS) + 1 and headings[-1] == "Using the fast paths"
     assert all(f"- [{h}](#" in text for h in headings)
+    children = results["scaling"]["results"]["sizes"] + results["periodic"]["results"]["cases"]
+    assert len(children) == 4 and not [d for d in children if "failed" in d]
+
+
+def test_smallest_sizes_start_no_busy_process(monkeypatch):
+    """With SMALLEST (attributes the topics have: a renamed one fails here) the estimates topic starts no process:
+    its busy() is a no-op, its cases are three small ones."""
+    import subprocess
+    smallest(monkeypatch)
+    from granstab_bench import branches, estimates
+    assert branches.QUICK["ms"] == (4, 6) and branches.QUICK["full_max"] == 16
+    monkeypatch.setattr(subprocess, "Popen", lambda *a, **k: pytest.fail("a process was started"))
+    estimates.busy()()
+    assert [name[:7] for name, _, _ in estimates.cases(quick=True)] == ["annulus", "150 dis", "3D clus"]
 
 
 # ----------------------------------------------------------------------------------------------- the writer
