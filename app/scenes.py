@@ -472,7 +472,7 @@ def _open_cached(path: str, stamp: tuple):
 
 
 def load_model(path, frame=None):
-    """The model of a scene file (TOML/JSON, shape or contact format) or of anything else `granstab.load_scene`
+    """The model of a scene file (TOML/JSON, shape or contact format; NPZ) or of anything else `granstab.load_scene`
     reads (DEM snapshots, RigidLibrary folders: granstab.io.load, with its validation report and frames);
     raises SceneError with one line."""
     from granstab.io import format_report, is_snapshot
@@ -481,6 +481,9 @@ def load_model(path, frame=None):
         frames = list(imported.frames) if imported.frames else None
         return ContactModel(imported.scene, report=format_report(imported.report), frames=frames,
                             frame=imported.report.get("frame"), path=str(path), grains=grains.from_loaded(imported))
+    if Path(path).suffix.lower() == ".npz":           # a binary scene (save_scene), with its grains' shapes
+        binary = granstab.io.load(path)
+        return model_for_scene(binary.scene, binary.grains)
     return model_from_dict(read_scene_file(path), str(path))
 
 

@@ -292,7 +292,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          boundary: str = DEFAULT_BOUNDARY, sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
          device: str = "cpu", attribution: bool = True, inputs=None, overwrite: bool = False,
-         uncertainty: dict | None = None, balance: str = "loads", exempt=None) -> dict:
+         uncertainty: dict | None = None, balance: str = "loads", exempt=None, shapes=None) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -332,6 +332,9 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     balance, exempt : {"loads", "least-squares"}, (N,) bool or None
         "least-squares": forces moved to the nearest balanced set first (weighted by the band; `exempt`: loads
         kept free, e.g. walls), as `analyze --balance`; the summary's "balance" says how far (docs/uncertainty.md).
+    shapes : model.grains.Grains, optional
+        The grains' true shapes (superquadrics, clumps, rounded polygons): kept in packing.npz (its `grains/…`
+        arrays), so that the explorer draws the map and its clusters as they are; disks and spheres have none.
 
     Returns
     -------
@@ -345,7 +348,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     scene, balanced = balance_scene(scene, uncertainty, balance, exempt)
     options.update({"balance": balance} if balanced is not None else {})
     device = backend(device).name                                   # a missing GPU fails here, in one line
-    out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite)
+    out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite, shapes=shapes)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
     chosen = select_centers(scene, centers)
     todo = chosen[~np.isin(chosen, out.done_centers())]
