@@ -180,12 +180,13 @@ def from_arrays(arrays: dict, dim: int, names, source: str) -> Grains | None:
 def _checked(g: Grains, fail) -> Grains:
     """The rules of every grain, vectorised (text and NPZ alike): finite numbers, positive sizes, blockiness ≥ 2, at
     least one sphere a clump and three vertices a polygon, one rounding radius a polygon, a nonzero quaternion
-    (normalised). `fail(i, field, msg)` raises naming particle i's entry."""
+    (normalised where it is not a unit one already). `fail(i, field, msg)` raises naming particle i's entry."""
     norm = np.linalg.norm(g.orientation, axis=1)
     bad = ~np.isfinite(g.orientation).all(axis=1) | ~(norm > 0)
     if bad.any():
         fail(int(np.argmax(bad)), "orientation", "must be a finite nonzero quaternion (w, x, y, z)")
-    g = replace(g, orientation=g.orientation / norm[:, None])
+    unit = np.abs(norm - 1.0) <= 4 * np.finfo(float).eps         # unit to round-off: kept as given (exact round trip)
+    g = replace(g, orientation=g.orientation / np.where(unit, 1.0, norm)[:, None])
     if g.kind == "superquadric":
         bad = ~(np.isfinite(g.shape).all(axis=1) & (g.shape > 0).all(axis=1))
         if bad.any():
