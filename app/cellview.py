@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 
 from .meshes import digest, fans, grain_instances, outline, rot3, to3
-from .scenes import Body, cell_edges, ghost_positions, periodic_images
+from .scenes import IMAGE_REACH, Body, cell_edges, ghost_positions, periodic_images
 
 CELL = (90, 90, 90)                     # a periodic scene's cell outline
 GHOST = (200, 215, 235)                 # periodic images of the particles near the cell's faces (lighter)
-GHOST_OPACITY = 0.35                    # 3D grains' images: fainter than the grains (0.6)
+GHOST_OPACITY = 0.15                    # 3D grains' images: faint beside the grains (0.6), which they surround
 
 
 class Images:
@@ -84,7 +84,7 @@ class OverlayView:
         if edges is None:
             return
         self.api.add_line_segments("/cell", to3(edges, 0.0), CELL, thickness=2.0, thickness_units="screen")
-        images = periodic_images(scene, 2.0 * session.size)
+        images = periodic_images(scene, IMAGE_REACH * session.size)
         if len(images[0]) and not session.on_map:             # 2D: under the particles they copy
             bodies = [self.base.get(name) or Body(name, "point", (), x, np.eye(scene.dim))      # as drawn
                       for name, x in zip(scene.names, scene.x)]

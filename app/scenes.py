@@ -399,6 +399,9 @@ def cell_edges(scene: granstab.Scene) -> np.ndarray | None:
     return np.array([[points[i], points[j]] for i, j in pairs])
 
 
+IMAGE_REACH = 2.0      # periodic images are drawn for particles within this many sizes (Session.size) of a face
+
+
 def periodic_images(scene: granstab.Scene, reach: float) -> tuple[np.ndarray, np.ndarray] | None:
     """The periodic images drawn beside the cell: every particle within `reach` of a face of the outline
     (cell_edges), copied across to the opposite side by the lattice shift n @ cell, n in {-1, 0, 1}^d other than 0
@@ -490,6 +493,7 @@ def load_model(path, frame=None):
 __all__ = [
     "Body",
     "ContactModel",
+    "IMAGE_REACH",
     "ShapeModel",
     "TwoParticleModel",
     "cell_edges",

@@ -264,7 +264,6 @@ def cmd_reproduce(args) -> int:
 def cmd_convert(args) -> int:
     """Snapshot(s) (or a scene file) → contact-level scene JSON or NPZ; prints the validation report (issue 9)."""
     from .io import format_report
-
     from .model.grains import from_loaded
     loaded = load_with_import_options(args.inputs, args)
     if Path(args.out).suffix.lower() == ".npz":      # binary: 10⁶ contacts in a fraction of a second
