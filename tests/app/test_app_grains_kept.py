@@ -11,6 +11,7 @@ extent for positions (float64 sums), 1e-12 for rotation matrices (unit quantitie
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from granstab.cli import main
 from granstab.io import load
 from granstab.io.scenes import save_scene
 from granstab.model.grains import from_loaded
+from granstab_app.modes import rotation_matrix
 from granstab_app.scanmap import load_scan_map
 from granstab_app.scenes import load_model
 from granstab_app.state import Session
@@ -33,12 +35,12 @@ SQ_FILES = [str(SQ / n) for n in ("atoms.dump", "contacts.dump", "in.settle")]
 PERIODIC = SQ / "periodic"
 
 
-def dump_grains(path) -> dict:
-    """{id: (x (3,), quaternion (4,) w x y z, shape (5,) a b c n1 n2)} of a LIGGGHTS atoms.dump's last frame."""
-    lines = path.read_text().splitlines()
-    head = max(i for i, line in enumerate(lines) if line.startswith("ITEM: ATOMS"))
+def dump_grains(path, frame: int = 0) -> dict:
+    """{id: (x (3,), quaternion (4,) w x y z, shape (5,) a b c n1 n2)} of a LIGGGHTS atoms.dump's `frame`-th frame."""
+    lines = path.read_text().split("ITEM: TIMESTEP")[1 + frame].splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("ITEM: ATOMS"))
     cols = lines[head].split()[2:]
-    rows = np.array([line.split() for line in lines[head + 1:] if line.strip()], float)
+    rows = np.array([line.split() for line in lines[head + 1:] if line.strip()], float)      # one frame's rows
     col = {name: rows[:, cols.index(name)] for name in cols}
     x = np.column_stack([col["x"], col["y"], col["z"]])
     q = np.column_stack([col[f"quat{k}"] for k in (1, 2, 3, 4)])
@@ -164,7 +166,7 @@ def test_npz_grains_are_checked_in_one_line(tmp_path):
 def test_periodic_images_are_drawn_with_their_grains_shape_and_orientation():
     """A periodic superquadric packing: every image near the cell's faces is its grain's mesh (the grain's shape) at
     x + n @ cell (a lattice shift, n in {-1, 0, 1}³) with the grain's orientation; a mode frame moves each image as
-    its grain (x + du, same rotation), and stopping puts it back."""
+    its grain (x + du, the same rotation dR R), and stopping puts it back."""
     s = Session(str(PERIODIC))
     assert s.error is None and s.scene.cell is not None
     dumped = dump_grains(PERIODIC / "atoms.dump")
@@ -189,8 +191,9 @@ def test_periodic_images_are_drawn_with_their_grains_shape_and_orientation():
             assert np.max(np.abs(R - matrix([dumped[name][1]])[0])) <= 1e-12
             count += 1
     assert count == len(view.ghosts.images[0]) > 10
-    mode = min((m for m in s.modes() if m.consistent), key=lambda m: m.eigenvalue)
-    moved = s.mode_bodies(mode, 0.5, 0.5 * np.pi)
+    rng = np.random.default_rng(5)                                          # a rigid motion of every grain, as a
+    moved = [replace(b, x=b.x + 0.1 * s.size * rng.normal(size=3),          # mode's frame moves them
+                     R=rotation_matrix(3, 0.3 * rng.normal(size=3)) @ b.R) for b in s.bodies()]
     at = {b.name: b for b in moved}
     view.animate(moved)
     handle = view.api.sent[nodes[0]][2]
@@ -265,3 +268,22 @@ def test_a_rounded_polygon_legend(tmp_path, capsys):
     view.draw_particles(s)
     text = legend_markdown(s.scene, view.options, view.draw_contacts(s), False, 5000, 400)
     assert "each rounded polygon as the file gives it" in text and "periodic images" in text
+
+
+def test_a_tracked_frames_cluster_is_drawn_as_it_is(tmp_path, capsys):
+    """`granstab track … --scan` keeps each frame's grains in its scan folder: the cluster opened from a tracked
+    frame draws every grain with its dumped shape, centre and orientation (one frame of the loading run)."""
+    D = SQ / "load"
+    out = tmp_path / "track"
+    assert main(["track", str(D / "atoms.dump"), str(D / "contacts.dump"), str(SQ / "in.settle"), "--scan",
+                 "--out", str(out), "--frames", "40000:40000", "--no-figures", "--workers", "1"]) == 0
+    capsys.readouterr()
+    s = Session(str(out))
+    assert s.error is None and s.on_map
+    centre = s.model.scan_map().scene.names[17]
+    assert s.open_cluster(centre), s.error
+    dumped = dump_grains(D / "atoms.dump")
+    view = SceneView(RecordingScene())
+    view.draw_particles(s)
+    scale = np.abs(np.array([v[0] for v in dumped.values()])).max()
+    assert assert_drawn_as_dumped(view, s.scene.names, dumped, scale) == s.scene.n_particles > 3
