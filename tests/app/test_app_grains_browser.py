@@ -136,6 +136,8 @@ def test_rounded_polygons_open_drawn_by_their_outlines(app, tmp_path, capsys):
             ui = next(u for u in list(app.uis.values()) if u.session.preset == "polygons")
             page.get_by_text("each rounded polygon as the file gives it").first.wait_for(timeout=30_000)
             assert page.get_by_text("periodic images of the particles near its faces").count() >= 1
+            for close in page.locator("button.mantine-Notification-closeButton").all():
+                close.click()
             page.wait_for_timeout(3000)
             shot = tmp_path / "grains_polygons_1024x768.png"
             page.screenshot(path=str(shot))
