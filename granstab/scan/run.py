@@ -329,19 +329,16 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         The data's band (Band's rel, abs, position; "per_contact": the file's columns named, Scene.force_err the radii;
         "search": the per-cluster bound and counter-example search where the batched bound does not decide): the
         columns data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
-    balance, exempt : {"loads", "least-squares"}, (N,) bool or None
+    balance, exempt, shapes : {"loads", "least-squares"}, (N,) bool or None, model.grains.Grains or None
         "least-squares": forces moved to the nearest balanced set first (weighted by the band; `exempt`: loads
         kept free, e.g. walls), as `analyze --balance`; the summary's "balance" says how far (docs/uncertainty.md).
-    shapes : model.grains.Grains, optional
-        The grains' true shapes (superquadrics, clumps, rounded polygons): kept in packing.npz (its `grains/…`
-        arrays), so that the explorer draws the map and its clusters as they are; disks and spheres have none.
+        `shapes`: the grains' true shapes, kept in packing.npz (`grains/…`) for the explorer (spheres: None).
 
     Returns
     -------
     dict
         summary.json: counts per verdict, time, clusters per second, the options, how many clusters a resumed
-        scan found done ("resumed") and where it ran ("workers": count, where, why). The folder also holds
-        clusters.* (one row a cluster) and particles.* (the map: ``unstable_fraction`` per particle).
+        scan found done ("resumed") and where it ran ("workers": count, where, why); the folder's other files above.
     """
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = _options(rings, metric, max_sliding, sample_branches, boundary, attribution, uncertainty)

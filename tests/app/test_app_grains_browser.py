@@ -13,7 +13,7 @@ from helpers import ROOT  # noqa: E402
 from test_app_grains import POLYGONS  # noqa: E402
 
 from granstab.cli import main
-from granstab_app.browser import CHROMIUM, FLAGS
+from granstab_app.browser import CHROMIUM, FLAGS, chromium
 
 REPO = ROOT
 pytestmark = pytest.mark.browser
@@ -49,12 +49,18 @@ def rendered(shot: Path) -> None:
     assert centre.std() > 10.0, f"{shot.name}: the 3D scene did not render"
 
 
-def show(ctx, app, preset: str, kind: str, errors: list, folder: Path) -> dict:
-    """Open `preset` in a new tab (?preset=), wait for its analysis and its instanced grains, screenshot it (and, for
-    the superquadrics, a frame of the lowest mode); returns {name: screenshot}."""
+def watched_page(ctx, errors: list):
+    """A new tab whose page errors and console errors are appended to `errors`."""
     page = ctx.new_page()
     page.on("pageerror", lambda exc: errors.append(f"pageerror: {exc}"))
     page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
+    return page
+
+
+def show(ctx, app, preset: str, kind: str, errors: list, folder: Path) -> dict:
+    """Open `preset` in a new tab (?preset=), wait for its analysis and its instanced grains, screenshot it (and, for
+    the superquadrics, a frame of the lowest mode); returns {name: screenshot}."""
+    page = watched_page(ctx, errors)
     page.goto(app.url + f"/?preset={preset}")
     page.wait_for_selector('.granstab-verdict[data-verdict="unstable"]', timeout=120_000)
     wait_until(page, lambda: any(u.session.preset == preset and u.session.analysis is not None
@@ -122,12 +128,9 @@ def test_rounded_polygons_open_drawn_by_their_outlines(app, tmp_path, capsys):
     capsys.readouterr()
     errors: list[str] = []
     with sync_playwright() as pw:
-        ctx = pw.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=str(CHROMIUM),
-                                                    headless=True, args=FLAGS, viewport={"width": 1024, "height": 768})
+        ctx = chromium(pw, tmp_path / "profile", 1024, 768)
         try:
-            page = ctx.new_page()
-            page.on("pageerror", lambda exc: errors.append(f"pageerror: {exc}"))
-            page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
+            page = watched_page(ctx, errors)
             page.goto(app.url + "/?preset=polygons")
             page.wait_for_selector(".granstab-verdict[data-verdict]", timeout=120_000)
             wait_until(page, lambda: any(u.session.preset == "polygons" and u.session.analysis is not None
