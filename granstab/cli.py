@@ -248,8 +248,9 @@ def cmd_rigidity(args) -> int:
         from .rigidity.figure import write_figure
         result["figure"] = str(write_figure(loaded.scene, result, args.figure))
     if args.out:
+        from .model.grains import from_loaded
         from .rigidity.output import write_result
-        result["out"] = str(write_result(loaded.scene, result, args.out))
+        result["out"] = str(write_result(loaded.scene, result, args.out, from_loaded(loaded)))
     print(json.dumps(result, allow_nan=False) if args.json else "\n".join([format_rigidity(result),
                                                                           *import_lines(loaded)]))
     return 0

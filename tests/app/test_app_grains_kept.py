@@ -287,3 +287,22 @@ def test_a_tracked_frames_cluster_is_drawn_as_it_is(tmp_path, capsys):
     view.draw_particles(s)
     scale = np.abs(np.array([v[0] for v in dumped.values()])).max()
     assert assert_drawn_as_dumped(view, s.scene.names, dumped, scale) == s.scene.n_particles > 3
+
+
+def test_a_rigidity_folder_keeps_the_grains(tmp_path, capsys):
+    """`granstab rigidity … --out DIR` keeps the grains in its packing.npz: the rigidity map and the neighbourhood
+    opened from it draw each grain with its dumped shape, centre and orientation."""
+    out = tmp_path / "rigidity"
+    assert main(["rigidity", *SQ_FILES, "--out", str(out)]) == 0
+    capsys.readouterr()
+    dumped = dump_grains(SQ / "atoms.dump")
+    scale = np.abs(np.array([v[0] for v in dumped.values()])).max()
+    s = Session(str(out))
+    assert s.error is None and s.on_map
+    view = SceneView(RecordingScene())
+    view.draw_particles(s)
+    assert assert_drawn_as_dumped(view, s.scene.names, dumped, scale) == s.scene.n_particles
+    assert s.open_cluster(s.scene.names[30]), s.error
+    view = SceneView(RecordingScene())
+    view.draw_particles(s)
+    assert assert_drawn_as_dumped(view, s.scene.names, dumped, scale) == s.scene.n_particles > 3
