@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .scenes import IMAGE_REACH, cell_edges
+
 COVERED_PX = 0            # px of the canvas under a panel: none (viser 1.1 docks panels beside the canvas, which
                           # is the free part; 430 + 400 here kept a 1024 px page's pair at 56 px of its 186)
 PHONE_PX, PHONE_BAND = 480, 0.38      # a portrait canvas narrower than PHONE_PX px: viser's panel covers all but its
@@ -24,6 +26,11 @@ def camera_pose(s, oblique: bool, surface: bool, fit, above: float = 0.0) -> dic
     reach = 1.2 * np.array([max(b.axes) for b in bodies])[:, None]   # each body by its own size (hand_in_glove's
                                                                       # q is larger than the mean)
     lo, hi = (x - reach).min(axis=0), (x + reach).max(axis=0)
+    edges = None if s.scene is None or s.on_map else cell_edges(s.scene)
+    if edges is not None:                        # the periodic images beside the cell's outline are in view too
+        beyond = (IMAGE_REACH + 1.2) * s.size
+        lo = np.minimum(lo, edges.reshape(-1, s.scene.dim).min(axis=0) - beyond)
+        hi = np.maximum(hi, edges.reshape(-1, s.scene.dim).max(axis=0) + beyond)
     hi[-1] += above * s.size                                          # 2D: y, 3D: z
     span = float(np.max(hi - lo))
     pose = {"near": 1e-3 * span, "far": 1e2 * span}                     # packings in px or in m

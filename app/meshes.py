@@ -179,6 +179,20 @@ def outline(body, size: float, n: int = 96) -> np.ndarray:
     return np.concatenate(points)[order]
 
 
+def fans(rings: list) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Closed outlines (each (n_g, 2), star-shaped about its origin) as one filled mesh: each a fan of triangles about
+    its centre. Returns ((owner (V,): the outline of each vertex, points (V, 2) in its body axes), faces (F, 3))."""
+    owner, points, faces, start = [], [], [], 0
+    for g, ring in enumerate(rings):
+        n = len(ring)
+        i = np.arange(n)
+        owner.append(np.full(n + 1, g))
+        points.append(np.concatenate([[[0.0, 0.0]], ring]))
+        faces.append(start + np.stack([np.zeros(n, int), 1 + i, 1 + (i + 1) % n], axis=1))
+        start += n + 1
+    return (np.concatenate(owner), np.concatenate(points)), np.concatenate(faces).astype(np.uint32)
+
+
 def socket_arc(cx: float, cy: float, rho: float, angle: float, size: float, m: int = 48):
     """The drawn part of a socket (Body.sockets: its circle's centre c relative to the particle's centre, radius ρ,
     direction from c to the contact): (points (m, 2) on the circle, c, ρ), or None where the particle's centre is

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 import granstab
+from granstab.model.grains import cut
 
 from .scanmap import CUT_GREY, ScanMapModel
 from .scenes import ContactModel
@@ -105,14 +106,16 @@ class RigidityMapModel(ScanMapModel):
         where = f"rigid cluster {label}" if label >= 0 else "no rigid cluster"
         sub = cluster(self.scene, center, 1, "loads", title=f"neighbourhood of {name} ({where}) from "
                                                           f"{Path(self.path).name}")
-        return ContactModel(sub, report=f"particle {name}: in {where} of the {self.model} model")
+        return ContactModel(sub, report=f"particle {name}: in {where} of the {self.model} model",
+                            grains=cut(self.grains, self.scene, sub))
 
 
 def load_rigidity_map(path) -> RigidityMapModel:
     """The model of a rigidity folder; one-line SceneError when it cannot be read."""
     from granstab.rigidity.output import read_result
-    scene, result = read_result(path)
+    packing, result = read_result(path)
+    scene = packing.scene
     model = "physical" if "physical" in result else "generic"
     N = scene.n_particles
     return RigidityMapModel(scene, np.full(N, np.nan), np.zeros(N), np.full(N, "", dtype=object), {}, result,
-                            str(path), result=result, model=model)
+                            str(path), grains=packing.grains, result=result, model=model)

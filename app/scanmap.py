@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 import granstab
+from granstab.model.grains import cut
 
 from .params import defaults
 from .protocols import MapModel
@@ -60,6 +61,7 @@ class ScanMapModel(MapModel):
     members: dict
     summary: dict
     path: str
+    grains: object = None          # the grains' true shapes the scan kept (model.grains.Grains), else None
     kind = "scan_map"
     draggable = False
     params_used = ()
@@ -76,7 +78,7 @@ class ScanMapModel(MapModel):
         return map_colours(self.fraction, self.by_cut)
 
     def bodies(self, P: dict) -> list[Body]:
-        return ContactModel(self.scene).bodies(P)
+        return ContactModel(self.scene, grains=self.grains).bodies(P)
 
     @property
     def report(self) -> str:
@@ -99,11 +101,12 @@ class ScanMapModel(MapModel):
                  f"{Path(self.path).name}")
         sub = cluster(self.scene, center, rings, boundary, title=title)
         return ContactModel(sub, report=f"cluster of particle {name}: its own verdict in the scan "
-                                        f"{self.own[center] or '—'}; {len(self.members[center])} particles")
+                                        f"{self.own[center] or '—'}; {len(self.members[center])} particles",
+                            grains=cut(self.grains, self.scene, sub))
 
     def pick(self, origin, direction) -> str | None:
         """The particle under a click ray (`pick_particle`), or None."""
-        i = pick_particle(self.scene.x, np.array([b.axes[0] for b in self.bodies({})]), origin, direction)
+        i = pick_particle(self.scene.x, np.array([max(b.axes) for b in self.bodies({})]), origin, direction)
         return None if i is None else self.scene.names[i]
 
 
@@ -128,17 +131,18 @@ def pick_particle(x: np.ndarray, radius: np.ndarray, origin, direction) -> int |
 
 def load_scan_map(path) -> ScanMapModel:
     """The model of a scan folder, its packing the folder's own; one-line SceneError when it cannot be read."""
-    from granstab.scan import read_map, read_packing
+    from granstab.scan import open_packing, read_map
     from granstab.scan.figure import map_fractions
     path = Path(path)
     data = read_map(path)
-    scene = read_packing(path)
+    packing = open_packing(path)
+    scene = packing.scene
     particles = data["particles"]
     if list(particles["name"]) != list(scene.names):
         raise granstab.SceneError(f"{path}: particles: the names do not match those of its packing (was the folder "
                                   "changed since the scan?)")
     clusters = data["clusters"]
     members = {int(c): np.asarray(row, dtype=np.int64) for c, row in zip(clusters["center"], clusters["members"])}
-    packing, by_cut = map_fractions(scene, clusters)      # the figure's shares: scans without mechanism, all packing
-    return ScanMapModel(scene, packing, by_cut, np.asarray(particles["own_verdict"], dtype=object), members,
-                        data["summary"], str(path))
+    packing_share, by_cut = map_fractions(scene, clusters)      # the figure's shares: scans without mechanism, all packing
+    return ScanMapModel(scene, packing_share, by_cut, np.asarray(particles["own_verdict"], dtype=object), members,
+                        data["summary"], str(path), grains=packing.grains)

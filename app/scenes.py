@@ -399,6 +399,9 @@ def cell_edges(scene: granstab.Scene) -> np.ndarray | None:
     return np.array([[points[i], points[j]] for i, j in pairs])
 
 
+IMAGE_REACH = 2.0      # periodic images are drawn for particles within this many sizes (Session.size) of a face
+
+
 def periodic_images(scene: granstab.Scene, reach: float) -> tuple[np.ndarray, np.ndarray] | None:
     """The periodic images drawn beside the cell: every particle within `reach` of a face of the outline
     (cell_edges), copied across to the opposite side by the lattice shift n @ cell, n in {-1, 0, 1}^d other than 0
@@ -472,7 +475,7 @@ def _open_cached(path: str, stamp: tuple):
 
 
 def load_model(path, frame=None):
-    """The model of a scene file (TOML/JSON, shape or contact format) or of anything else `granstab.load_scene`
+    """The model of a scene file (TOML/JSON, shape or contact format; NPZ) or of anything else `granstab.load_scene`
     reads (DEM snapshots, RigidLibrary folders: granstab.io.load, with its validation report and frames);
     raises SceneError with one line."""
     from granstab.io import format_report, is_snapshot
@@ -481,12 +484,16 @@ def load_model(path, frame=None):
         frames = list(imported.frames) if imported.frames else None
         return ContactModel(imported.scene, report=format_report(imported.report), frames=frames,
                             frame=imported.report.get("frame"), path=str(path), grains=grains.from_loaded(imported))
+    if Path(path).suffix.lower() == ".npz":           # a binary scene (save_scene), with its grains' shapes
+        binary = granstab.io.load(path)
+        return model_for_scene(binary.scene, binary.grains)
     return model_from_dict(read_scene_file(path), str(path))
 
 
 __all__ = [
     "Body",
     "ContactModel",
+    "IMAGE_REACH",
     "ShapeModel",
     "TwoParticleModel",
     "cell_edges",

@@ -215,6 +215,18 @@ def metric_row(metric: str, metrics: dict | None, revision: int, checking: bool,
                       for x in metrics["metrics"])
 
 
+PARTICLE_LEGEND = {        # what app/views.py drew the particles as (SceneView.drawn) → the legend's words
+    "stripe": "Dark stripe: a body axis (turns with the particle).",
+    "dot": "Dark dot: the end of a body axis (turns with the particle).",
+    "rounded_polygon": "Grains: each rounded polygon as the file gives it (its vertices swept by the rounding "
+                       "radius); dark stripe: a body axis (turns with it).",
+    "superquadric": "Grains: each superquadric as the file gives it (semi-axes, blockiness, orientation), "
+                    "translucent; its shape shows how it turns.",
+    "clump": "Grains: each clump as its member spheres (one colour a clump; they move as one body), translucent.",
+    "cloud": "Dots: the particles' centres (a packing this large is drawn as points).",
+}
+
+
 def legend_markdown(scene, options: dict, legend: dict, lines_off: bool, lines_max: int, mesh_max: int) -> str:
     """What the drawing shows now, and only that (`options`: the Display tab's ticks; `legend`: SceneView's
     numbers; `lines_off`: force lines and normals are off by default for this size)."""
@@ -230,8 +242,11 @@ def legend_markdown(scene, options: dict, legend: dict, lines_off: bool, lines_m
         parts.append("Blue lines: normals n^pq.")
     if contacts and options["osculating"] and scene.n_contacts <= mesh_max:
         parts.append("Purple arcs: osculating circles (radius ρ at each contact).")
-    if scene is not None and scene.n_particles <= mesh_max:
-        parts.append("Dark stripe: a body axis (turns with the particle).")
+    if scene is not None and legend.get("drawn") in PARTICLE_LEGEND:
+        parts.append(PARTICLE_LEGEND[legend["drawn"]])
+    if getattr(scene, "cell", None) is not None:
+        parts.append("Pale copies beyond the cell's outline: periodic images of the particles near its faces "
+                     "(each at its particle's orientation; they move with it).")
     if lines_off and not (options["forces"] or options["normals"]):
         parts.append(f"Force lines and normals are off above {lines_max:,} contacts (seconds per frame in a "
                      "browser without a GPU): tick them under *Display*.")

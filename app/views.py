@@ -20,7 +20,6 @@ from .fieldview import FieldView
 from .grainview import GrainView
 from .meshes import body_mesh, circle_data, digest, osculating_arcs, outline, quat_matrix, rot3, to3, wxyz
 from .modes import rotation_matrix
-from .scenes import ghost_positions
 
 PALETTE = [(120, 170, 230), (240, 170, 110), (150, 205, 140), (215, 150, 205), (230, 215, 120), (140, 210, 210)]
 MARKER = (40, 40, 60)
@@ -53,6 +52,7 @@ class SceneView(FieldView, OverlayView, GrainView):
         self._cloud_colours = None                # digest of the colours it shows
         self.contacts_frame = None                # parent of every contact drawing (hidden while a mode plays)
         self.key = None                           # (model id, particle names, draggable) the tree was built for
+        self.drawn = None                         # what the particles are drawn as (text.PARTICLE_LEGEND's keys)
         self.on_drag = None                       # callback(name, event) set by the panel
         self.on_pick = None                       # callback(rho_r, f_kr): a click on the λ⁽⁶⁾ surface
         self.options = {"normals": True, "forces": True, "osculating": True, "surface": True, "force_scale": 1.0}
@@ -60,7 +60,7 @@ class SceneView(FieldView, OverlayView, GrainView):
         self._contact_keys: dict[str, bytes] = {}     # what /contacts shows now: digest per group
         self._contact_nodes: dict[str, tuple] = {}    # /contacts/… node name → (its kind, its handle): see _put
         self._cell_key: object = False            # what /cell shows now (None: nothing; False: not drawn yet)
-        self.ghosts = None                        # (point cloud, scene names, periodic_images, z) of /cell/images
+        self.ghosts = None                        # the periodic images of /cell/images (cellview.Images)
         self._field_key = None                    # (field id, scale) the λ⁽⁶⁾ surface shows; None: none drawn
         self._marker = None                       # its current-state marker
         self._field_lim = 1.0                     # the largest |λ⁽⁶⁾/k| of the surface shown (its height scale)
@@ -75,7 +75,10 @@ class SceneView(FieldView, OverlayView, GrainView):
         self.dim = session.scene_dim
         size = session.size
         key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
-        if self.dim == 3 and bodies and bodies[0].grain:        # superquadrics, clumps: instanced, any number
+        grain = bodies[0].kind if bodies and bodies[0].grain else None
+        self.drawn = ("cloud" if len(bodies) > MESH_MAX and not (grain and self.dim == 3) else
+                      grain or ("stripe" if self.dim == 2 else "dot"))           # what the legend names
+        if self.dim == 3 and grain:                  # superquadrics, clumps: instanced, any number
             self.draw_grains(bodies, key, PALETTE)
             return
         if len(bodies) > MESH_MAX:
@@ -205,9 +208,7 @@ class SceneView(FieldView, OverlayView, GrainView):
         if self.cloud is not None:
             self.cloud.points = np.array([to3(b.x) for b in bodies])
         if self.ghosts is not None:
-            cloud, names, images, z = self.ghosts
-            at = {b.name: b.x for b in bodies}
-            cloud.points = to3(ghost_positions(np.array([at[n] for n in names]), images), z)
+            self.ghosts.move(bodies)
 
     def show_rest(self, rest, peak, size: float) -> None:
         """While a mode plays: a ghost of the rest position (each 2D particle's outline, grey) and an arrow from each
@@ -255,7 +256,7 @@ class SceneView(FieldView, OverlayView, GrainView):
         scene, size, o = session.scene, session.size, self.options
         if scene is None or scene.n_contacts == 0 or session.on_map:     # a map: particles, and a
             self._draw_map_contacts(session)                                         # rigidity map's contacts
-            return {"max_force": 0.0, "arrow": 0.0}
+            return {"max_force": 0.0, "arrow": 0.0, "drawn": self.drawn}
         if "map" in self._contact_keys:                  # back from a rigidity map: its contacts go
             self.api.remove_by_name("/contacts")
             self.contacts_frame, self._contact_keys, self._contact_nodes = None, {}, {}
@@ -278,7 +279,7 @@ class SceneView(FieldView, OverlayView, GrainView):
                 self._draw_forces(scene, size, P, fmag, fmax, arrow, yielding)
             else:
                 self._drop("/contacts/forces")
-        return {"max_force": fmax, "arrow": arrow / size, "lines": scene.n_contacts > MAX_ARROWS}
+        return {"max_force": fmax, "arrow": arrow / size, "lines": scene.n_contacts > MAX_ARROWS, "drawn": self.drawn}
 
     def _draw_geometry(self, scene, size, P, z) -> None:
         self._put("/contacts/points", "points", P, COLORS["point"], point_size=0.08 * size, point_shape="circle")

@@ -248,8 +248,9 @@ def cmd_rigidity(args) -> int:
         from .rigidity.figure import write_figure
         result["figure"] = str(write_figure(loaded.scene, result, args.figure))
     if args.out:
+        from .model.grains import from_loaded
         from .rigidity.output import write_result
-        result["out"] = str(write_result(loaded.scene, result, args.out))
+        result["out"] = str(write_result(loaded.scene, result, args.out, from_loaded(loaded)))
     print(json.dumps(result, allow_nan=False) if args.json else "\n".join([format_rigidity(result),
                                                                           *import_lines(loaded)]))
     return 0
@@ -264,35 +265,27 @@ def cmd_reproduce(args) -> int:
 def cmd_convert(args) -> int:
     """Snapshot(s) (or a scene file) → contact-level scene JSON or NPZ; prints the validation report (issue 9)."""
     from .io import format_report
-
+    from .model.grains import from_loaded
     loaded = load_with_import_options(args.inputs, args)
-    if Path(args.out).suffix.lower() == ".npz":
-        save_scene(loaded.scene, args.out)             # binary: 10⁶ contacts in a fraction of a second
+    if Path(args.out).suffix.lower() == ".npz":      # binary: 10⁶ contacts in a fraction of a second
+        save_scene(loaded.scene, args.out, shapes=from_loaded(loaded))   # with the grains' true shapes
     else:
         with paused_gc():
-            data = scene_to_dict(loaded.scene)
-            for entry, extra in zip(data["particles"], _grain_entries(loaded)):
-                entry.update(extra)                    # the grains' true shapes, for drawing (model/grains.py)
-            text = json.dumps(data)
+            text = json.dumps(scene_to_dict(loaded.scene, from_loaded(loaded)))
         Path(args.out).write_text(text, encoding="utf-8")
     report = {**loaded.report, "out": args.out}
     print(json.dumps(report) if args.json else format_report(report) + f"\nwrote {args.out}")
     return 0
 
 
-def _grain_entries(loaded) -> list:
-    """Per particle, the `shape` and `orientation` entries of an import's grains (none for disks and spheres)."""
-    from .model.grains import from_loaded
-    grains = from_loaded(loaded)
-    return [] if grains is None else grains.entries()
-
-
 def cmd_extract(args) -> int:
     """The cluster of one particle as a scene file (issue 10): re-analyse, open in the app, check by hand."""
+    from .model.grains import cut, from_loaded
     from .scan import extract
     loaded = load_with_import_options(args.input, args)
     sub = extract(loaded.scene, args.center, rings=args.rings, boundary=args.boundary)
-    Path(args.out).write_text(json.dumps(scene_to_dict(sub), allow_nan=False), encoding="utf-8")
+    shapes = cut(from_loaded(loaded), loaded.scene, sub)               # the cluster's grains as they are
+    Path(args.out).write_text(json.dumps(scene_to_dict(sub, shapes), allow_nan=False), encoding="utf-8")
     held = "" if sub.fixed is None else f" ({int(sub.fixed.sum())} of them held fixed)"
     print("\n".join([f"wrote {args.out}: {sub.n_particles} particles{held}, {sub.n_contacts} contacts",
                      *import_lines(loaded)]))
@@ -301,6 +294,7 @@ def cmd_extract(args) -> int:
 
 def cmd_scan(args) -> int:
     """Every local cluster of a packing → DIR/clusters, particles, summary.json, map (issue 10)."""
+    from .model.grains import from_loaded
     from .scan import scan
     from .solve.device import DeviceError
     loaded = load_with_import_options(args.input, args)
@@ -310,7 +304,8 @@ def cmd_scan(args) -> int:
                        scheduler=args.scheduler, workers=args.workers, progress=args.progress, fmt=args.out_format,
                        device=args.device, attribution=not args.no_attribution, inputs=args.input,
                        overwrite=args.overwrite, uncertainty=band_options(args, loaded), balance=args.balance,
-                       exempt=None if loaded.wall_flags is None else np.asarray(loaded.wall_flags) != 0)
+                       exempt=None if loaded.wall_flags is None else np.asarray(loaded.wall_flags) != 0,
+                       shapes=from_loaded(loaded))
     except DeviceError as exc:
         raise InputError(f"--device: {exc}") from None
     warned = write_import_warnings(args.out, loaded.report, [(loaded.report.get("frame"), loaded.warnings)])

@@ -36,6 +36,7 @@ class Loaded:
     shape: object = None          # (N, 5) per scene particle: superquadric semi-axes a, b, c and blockiness n1, n2
     force_uncertainty: object = None  # (M,) per scene contact: the file's force uncertainty radius (f_err), else None
     parts: object = None          # rigid bodies' round parts (clump spheres, polygon vertices): build._parts
+    grains: object = None         # a scene file's grains (model.grains.Grains: its shapes, for drawing), else None
 
     @property
     def warnings(self) -> list[str]:
@@ -55,7 +56,7 @@ class Request:
 
 @dataclass(frozen=True)
 class Format:
-    """One readable format. sniff(paths) -> bool; read(paths, request, progress) -> Scene (scene_file) or
+    """One readable format. sniff(paths) -> bool; read(paths, request, progress) -> (Scene, grains) (scene_file) or
     build.Snapshot; `folder`: it reads a folder itself (a folder of any other format stands for its files);
     `columns`: it takes --columns; `index` (optional): index(paths, request, progress) -> an object with `frames`
     (the keys, in order), `warnings` (frames left out, one line each) and `read(frame, request, progress)` ->

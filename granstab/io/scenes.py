@@ -13,9 +13,9 @@ from ..model.tolerances import DEFAULT, Tolerances
 from .progress import ReadProgress
 from .registry import Format, Request, register
 from .schema import (
-    contact_scene_from_dict,
+    contact_scene_and_grains,
+    scene_and_grains_from_arrays,
     scene_arrays,
-    scene_from_arrays,
     scene_to_dict,
 )
 from .shapefile import is_shape_scene, shape_scene_from_dict
@@ -30,21 +30,23 @@ from .syntax import (
 )
 
 
-def read_scene_file(path: Path, syntax: str, tol: Tolerances, progress: ReadProgress) -> Scene:
+def read_scene_file(path: Path, syntax: str, tol: Tolerances, progress: ReadProgress):
     """Read one scene file in `syntax` ("toml", "json" or "npz": `save_scene`'s binary form of the same schema) and
-    check it. Raises SceneError with a one-line message naming the file, entry and field. `progress`: told the
-    bytes read, then the stages (parse, checks)."""
+    check it: (Scene, its grains' shapes (model.grains.Grains) or None). Raises SceneError with a one-line message
+    naming the file, entry and field. `progress`: told the bytes read, then the stages (parse, checks)."""
     source = str(path)
     if syntax == "npz":
         arrays = load_npz(path, source)
         progress.stage("checks")
-        return scene_from_arrays(arrays, source=source, tol=tol)
+        return scene_and_grains_from_arrays(arrays, source=source, tol=tol)
     raw = read_bytes(path, progress.update)
     progress.stage("parse")
     data = parse_json(raw, source) if syntax == "json" else parse_toml(decode(raw, source), source)
     del raw
     progress.stage("checks")
-    return scene_from_dict(data, source=source, tol=tol)
+    if is_shape_scene(data):
+        return shape_scene_from_dict(data, source=source, tol=tol), None
+    return contact_scene_and_grains(data, source=source, tol=tol)
 
 
 def _scene_format(syntax: str) -> Format:
@@ -66,15 +68,17 @@ for _syntax in ("toml", "json", "npz"):
     _scene_format(_syntax)
 
 
-def save_scene(scene: Scene, path) -> Path:
+def save_scene(scene: Scene, path, shapes=None) -> Path:
     """Write `scene` as .json (strict: no NaN/Infinity) or .npz (binary: the same fields as whole arrays, fast for
-    10⁵–10⁶ contacts); `granstab.load_scene` reads either back to the same arrays. Other suffixes are refused."""
+    10⁵–10⁶ contacts); `granstab.load_scene` reads either back to the same arrays. Other suffixes are refused.
+    `shapes` (model.grains.Grains, optional): the grains' true shapes, kept beside the scene (`granstab.io.load`
+    returns them as Loaded.grains; docs/formats.md)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".npz":
-        write_npz(scene_arrays(scene), path)
+        write_npz(scene_arrays(scene, shapes), path)
     elif suffix == ".json":
-        write_json(scene_to_dict(scene), path)           # both pause the garbage collector (syntax.paused_gc)
+        write_json(scene_to_dict(scene, shapes), path)   # both pause the garbage collector (syntax.paused_gc)
     else:
         raise SceneError(f"{path}: save_scene writes .json or .npz, not {suffix or 'a file without suffix'!r}")
     return path
@@ -87,4 +91,4 @@ def scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) ->
     geometry (shapefile.py, model/shapes.py); any other is contact-level (schema.py)."""
     if is_shape_scene(data):
         return shape_scene_from_dict(data, source=source, tol=tol)
-    return contact_scene_from_dict(data, source=source, tol=tol)
+    return contact_scene_and_grains(data, source=source, tol=tol)[0]

@@ -17,33 +17,35 @@ from .syntax import paused_gc
 
 TOP_KEYS = {"dim", "title", "cell", "defaults", "particles", "contacts"}
 PARTICLE_KEYS = {"name", "x", "load", "moment", "mass", "inertia", "fixed"}
-GRAIN_KEYS = {"shape", "orientation"}   # the grains' true shapes, for drawing (model/grains.py): text formats only
+GRAIN_KEYS = {"shape", "orientation"}   # the grains' true shapes, for drawing (model/grains.py); NPZ: grains/…
 CONTACT_KEYS = {"p", "q", "image", "point", "normal", "curvature_p", "curvature_q", "force", "moment", "state",
                 "force_err", *LAW_KEYS}
 
 
 
-def contact_scene_from_dict(data, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
-    """Build and validate a Scene from the parsed contact-level file format (a dict); scenes.py dispatches."""
+def contact_scene_and_grains(data, source: str = "<scene>", tol: Tolerances = DEFAULT):
+    """Build and validate a Scene from the parsed contact-level file format (a dict; scenes.py dispatches), with its
+    grains' shapes (model.grains.from_particles) or None: (Scene, Grains | None)."""
     top, dim, title = read_header(data, source, TOP_KEYS)
     law = read_law(Reader(source, "defaults", data.get("defaults", {}), set(LAW_KEYS)), dim, _base_law(dim))
     if not isinstance(data.get("particles"), list) or not data["particles"]:
         top.fail("particles", "must be a non-empty array of tables")
     particles = TextTable(source, "particles", data["particles"], PARTICLE_KEYS | GRAIN_KEYS)
     contacts = TextTable(source, "contacts", data.get("contacts", []), CONTACT_KEYS)
-    if particles.present("shape").any() or particles.present("orientation").any():
-        grains.from_particles(data["particles"], dim, source)
-    return _scene_from_tables(dim, title, law, particles, contacts, source, tol, data.get("cell"))
+    shaped = particles.present("shape").any() or particles.present("orientation").any()
+    found = grains.from_particles(data["particles"], dim, source) if shaped else None
+    return _scene_from_tables(dim, title, law, particles, contacts, source, tol, data.get("cell")), found
 
 
 NPZ_META = ("dim", "title")
 NPZ_CELL = "cell"   # (d, d) array, only in a periodic scene
 
 
-def scene_arrays(scene: Scene) -> dict:
+def scene_arrays(scene: Scene, shapes=None) -> dict:
     """The file format as whole arrays (NPZ): `particles/<field>` and `contacts/<field>` over the entries, the
     same fields and units as the text format (2D curvatures and moments as scalars; p, q as 0-based particle
-    indices, which scene_from_arrays also accepts as names)."""
+    indices, which scene_and_grains_from_arrays also accepts as names); `shapes` (model.grains.Grains, optional): the grains'
+    `grains/…` arrays (Grains.arrays), only in a scene that has them."""
     names = np.array(scene.names, dtype=str)
     scalar = scene.dim == 2
     out = {"dim": np.array(scene.dim), "title": np.array(scene.title, dtype=str),
@@ -68,7 +70,7 @@ def scene_arrays(scene: Scene) -> dict:
     if scene.mass is not None:
         out["particles/mass"] = scene.mass
         out["particles/inertia"] = scene.inertia[:, 0, 0] if scalar else scene.inertia
-    return out
+    return out if shapes is None else {**out, **shapes.arrays()}
 
 
 def _kappa(K: np.ndarray, normal: np.ndarray) -> np.ndarray:
@@ -77,13 +79,15 @@ def _kappa(K: np.ndarray, normal: np.ndarray) -> np.ndarray:
     return np.einsum("mi,mij,mj->m", t, K, t)
 
 
-def scene_from_arrays(arrays: dict, source: str = "<scene>", tol: Tolerances = DEFAULT) -> Scene:
-    """Build and validate a Scene from `scene_arrays`' dict (an .npz file): the same checks as the text format."""
+def scene_and_grains_from_arrays(arrays: dict, source: str = "<scene>", tol: Tolerances = DEFAULT):
+    """Build and validate a Scene from `scene_arrays`' dict (an .npz file), with the same checks as the text format,
+    and its grains (model.grains.from_arrays) or None: (Scene, Grains | None)."""
     allowed = {*NPZ_META, NPZ_CELL, *(f"particles/{k}" for k in PARTICLE_KEYS),
                *(f"contacts/{k}" for k in CONTACT_KEYS)}
-    unknown = sorted(set(arrays) - allowed)
+    unknown = sorted(k for k in set(arrays) - allowed if not k.startswith(grains.PREFIX))
     if unknown:
-        raise SceneError(f"{source}: {unknown[0]}: unknown array (allowed: {', '.join(sorted(allowed))})")
+        raise SceneError(f"{source}: {unknown[0]}: unknown array (allowed: {', '.join(sorted(allowed))}, "
+                          f"{grains.PREFIX}…)")
     meta = {}
     for key in NPZ_META:
         value = arrays.get(key)
@@ -105,7 +109,8 @@ def scene_from_arrays(arrays: dict, source: str = "<scene>", tol: Tolerances = D
     particles, contacts = table("particles"), table("contacts")
     if not len(particles):
         top.fail("particles", "must be a non-empty array")
-    return _scene_from_tables(dim, title, _base_law(dim), particles, contacts, source, tol, arrays.get(NPZ_CELL))
+    scene = _scene_from_tables(dim, title, _base_law(dim), particles, contacts, source, tol, arrays.get(NPZ_CELL))
+    return scene, grains.from_arrays(arrays, dim, scene.names, source)
 
 
 def _base_law(dim: int) -> dict:
@@ -360,15 +365,16 @@ def read_particles(top: Reader, data: dict, allowed: set, read) -> list:
     return out
 
 
-def scene_to_dict(scene: Scene) -> dict:
+def scene_to_dict(scene: Scene, shapes=None) -> dict:
     """The scene as the contact-level file format (docs/formats.md): a dict of plain lists and numbers.
 
     ``dim``, ``title``, ``particles`` (N dicts: ``name``, ``x`` (d,), ``load`` (d,), ``moment`` (a number in 2D,
     (3,) in 3D) and, where known, ``mass``, ``inertia``, ``fixed``) and ``contacts`` (M dicts: ``p``, ``q`` (names),
     ``point``, ``normal``, ``force`` (d,), ``curvature_p``, ``curvature_q`` (a number in 2D, (3, 3) in 3D),
     ``moment``, ``k``, ``alpha``, ``mu``, ``rolling_stiffness``, ``state``, and ``image`` (d,) in a periodic
-    scene, which also has ``cell`` (d, d)); d = dim. `scene_from_dict` reads it
-    back to the same arrays. Built column-wise from `scene_arrays`.
+    scene, which also has ``cell`` (d, d)); d = dim; with `shapes` (model.grains.Grains) each particle's ``shape``
+    (and 3D ``orientation``). `scene_from_dict` reads it back to the same arrays. Built column-wise from
+    `scene_arrays`.
     """
     cols = scene_arrays(scene)
     names = cols["particles/name"]
@@ -386,4 +392,7 @@ def scene_to_dict(scene: Scene) -> dict:
         out = {"dim": scene.dim, "title": scene.title}
         if scene.cell is not None:
             out["cell"] = scene.cell.tolist()
-        return {**out, "particles": rows("particles", particle_keys), "contacts": rows("contacts", contact_keys)}
+        particles = rows("particles", particle_keys)
+        for entry, extra in zip(particles, [] if shapes is None else shapes.entries()):
+            entry.update(extra)                        # the grains' true shapes, for drawing (model/grains.py)
+        return {**out, "particles": particles, "contacts": rows("contacts", contact_keys)}

@@ -87,8 +87,8 @@ class Source:
         with ReadProgress(self.paths, self.progress and bar is None) as own:
             got = self.index.read(frame, self.request, bar or own)
             if fmt.scene_file:
-                return Loaded(got, {"source": str(self.paths[0]), "format": fmt.name, "read_as": "scene file",
-                                    "warnings": []})
+                return Loaded(got[0], {"source": str(self.paths[0]), "format": fmt.name, "read_as": "scene file",
+                                       "warnings": []}, grains=got[1])     # its grains' shapes (model/grains.py)
             loaded = build(got, Options(**self.options), progress=bar or own, tol=self.tol)
         if self.warnings:
             loaded.report["frames_left_out"] = self.warnings

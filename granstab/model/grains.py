@@ -10,11 +10,12 @@ grains' shapes are what the explorer draws and what a scene file keeps beside it
     orientation = [w, x, y, z]                                   (3D, optional: body → world; default: none)
 
 Offsets and vertices are in body axes (the world's where no orientation is given). Every particle of a scene has a
-shape of one kind, or none has; `Grains` holds them as arrays.
+shape of one kind, or none has; `Grains` holds them as arrays, which are also their NPZ form (`Grains.arrays`,
+`from_arrays`: a scan folder's packing.npz keeps them). Text and NPZ are checked by the same rules (`_checked`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -22,6 +23,8 @@ from .errors import SceneError
 
 KINDS = ("superquadric", "clump", "rounded_polygon")
 SUPERQUADRIC = ("a", "b", "c", "n1", "n2")
+PREFIX = "grains/"          # the NPZ arrays' names: grains/kind, grains/orientation, grains/shape or body/offset/radius
+PART_ARRAYS = ("body", "offset", "radius")
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,36 @@ class Grains:
             out.append({"shape": shape, **({"orientation": self.orientation[i].tolist()} if self.dim == 3 else {})})
         return out
 
+    def arrays(self) -> dict:
+        """The NPZ form: `grains/kind` (0-d string), `grains/orientation` (N, 4) (3D only: a 2D grain's vertices are
+        in the scene's axes), then `grains/shape` (N, 5) of superquadrics, or `grains/body` (K,) 0-based particle
+        indices, `grains/offset` (K, d) and `grains/radius` (K,) of clumps' spheres and polygons' vertices."""
+        out = {PREFIX + "kind": np.array(self.kind)}
+        if self.dim == 3:
+            out[PREFIX + "orientation"] = self.orientation
+        if self.kind == "superquadric":
+            return {**out, PREFIX + "shape": self.shape}
+        return {**out, **{PREFIX + key: getattr(self, key) for key in PART_ARRAYS}}
+
+    def take(self, index) -> Grains:
+        """The grains of particles `index` (in that order): a cluster's, cut from its packing."""
+        index = np.asarray(index, dtype=np.int64)
+        if self.kind == "superquadric":
+            return replace(self, orientation=self.orientation[index], shape=self.shape[index])
+        new = np.full(self.n_particles, -1)
+        new[index] = np.arange(len(index))
+        keep = new[self.body] >= 0
+        return replace(self, orientation=self.orientation[index], body=new[self.body[keep]],
+                       offset=self.offset[keep], radius=self.radius[keep])
+
+
+def cut(grains: Grains | None, scene, sub) -> Grains | None:
+    """The grains of `sub`, a scene cut from `scene` (a cluster, an extract: its particles found by name)."""
+    if grains is None:
+        return None
+    index = {name: i for i, name in enumerate(scene.names)}
+    return grains.take([index[name] for name in sub.names])
+
 
 def identity(n: int) -> np.ndarray:
     """(n, 4) identity quaternions."""
@@ -69,9 +102,12 @@ def identity(n: int) -> np.ndarray:
 
 
 def from_loaded(loaded) -> Grains | None:
-    """The grains of an imported snapshot (io.Loaded: `shape` and `orientation` of superquadrics, `parts` of clumps
-    and rounded polygons, offsets in world axes), or None (disks, spheres)."""
+    """The grains of an import (io.Loaded): a scene file's own (`grains`: its `shape` entries or `grains/…` arrays),
+    or a snapshot's (`shape` and `orientation` of superquadrics, `parts` of clumps and rounded polygons, offsets in
+    world axes); None for disks and spheres."""
     scene = loaded.scene
+    if getattr(loaded, "grains", None) is not None:
+        return loaded.grains
     if loaded.shape is not None:
         q = np.asarray(loaded.orientation, float)
         return Grains("superquadric", scene.dim, q / np.linalg.norm(q, axis=1)[:, None], shape=np.asarray(loaded.shape))
@@ -99,8 +135,85 @@ def from_particles(particles: list, dim: int, source: str) -> Grains | None:
     return reader.grains()
 
 
+def from_arrays(arrays: dict, dim: int, names, source: str) -> Grains | None:
+    """The grains of an NPZ scene's `grains/…` arrays (`Grains.arrays`) for its particles `names`, checked as the
+    text form is (one-line SceneError naming the file, the array and the particle), or None where it has none."""
+    given = {key[len(PREFIX):] for key in arrays if key.startswith(PREFIX)}
+    if not given:
+        return None
+    n = len(names)
+
+    def fail(i, key: str, msg: str):
+        where = f"[{i}] (particle {names[i]!r})" if i is not None else ""
+        raise SceneError(f"{source}: {PREFIX}{key}{where}: {msg}")
+
+    kind = arrays.get(PREFIX + "kind")
+    allowed = [k for k in KINDS if (k == "rounded_polygon") == (dim == 2)]
+    if kind is None or kind.shape != () or kind.dtype.kind != "U" or kind.item() not in allowed:
+        fail(None, "kind", f"must be one of {', '.join(allowed)} (a 0-d string)")
+    kind = str(kind.item())
+    wanted = {"kind", *(("orientation",) if dim == 3 else ()), *(("shape",) if kind == "superquadric" else PART_ARRAYS)}
+    if given != wanted:
+        odd = sorted(given ^ wanted)[0]
+        fail(None, odd, f"{'missing' if odd in wanted else 'not an array'} of a {kind} scene (it has "
+             f"{', '.join(PREFIX + k for k in sorted(wanted))})")
+
+    def numbers(key: str, shape: tuple) -> np.ndarray:
+        a = arrays[PREFIX + key]
+        if a.dtype.kind not in "fiu" or a.ndim != len(shape) or any(s and m != s for s, m in zip(shape, a.shape)):
+            fail(None, key, f"must be numbers of shape {tuple(s or 'K' for s in shape)}, got {a.dtype} {a.shape}")
+        return a.astype(float)
+
+    q = numbers("orientation", (n, 4)) if dim == 3 else identity(n)
+    if kind == "superquadric":
+        return _checked(Grains(kind, dim, q, shape=numbers("shape", (n, 5))), fail)
+    body = arrays[PREFIX + "body"]
+    if body.dtype.kind not in "iu" or body.ndim != 1:
+        fail(None, "body", f"must be integer particle indices (K,), got {body.dtype} {body.shape}")
+    outside = (body < 0) | (body >= n)
+    if outside.any():
+        fail(None, "body", f"particle index {body[np.argmax(outside)]} is not in 0..{n - 1}")
+    offset, radius = numbers("offset", (len(body), dim)), numbers("radius", (len(body),))
+    return _checked(Grains(kind, dim, q, body=body.astype(np.int64), offset=offset, radius=radius), fail)
+
+
+def _checked(g: Grains, fail) -> Grains:
+    """The rules of every grain, vectorised (text and NPZ alike): finite numbers, positive sizes, blockiness ≥ 2, at
+    least one sphere a clump and three vertices a polygon, one rounding radius a polygon, a nonzero quaternion
+    (normalised where it is not a unit one already). `fail(i, field, msg)` raises naming particle i's entry."""
+    norm = np.linalg.norm(g.orientation, axis=1)
+    bad = ~np.isfinite(g.orientation).all(axis=1) | ~(norm > 0)
+    if bad.any():
+        fail(int(np.argmax(bad)), "orientation", "must be a finite nonzero quaternion (w, x, y, z)")
+    unit = np.abs(norm - 1.0) <= 4 * np.finfo(float).eps         # unit to round-off: kept as given (exact round trip)
+    g = replace(g, orientation=g.orientation / np.where(unit, 1.0, norm)[:, None])
+    if g.kind == "superquadric":
+        bad = ~(np.isfinite(g.shape).all(axis=1) & (g.shape > 0).all(axis=1))
+        if bad.any():
+            fail(int(np.argmax(bad)), "shape", "a, b, c, n1, n2 must be finite and > 0")
+        bad = (g.shape[:, 3:] < 2).any(axis=1)
+        if bad.any():
+            fail(int(np.argmax(bad)), "shape", "blockiness n1, n2 must be >= 2")
+        return g
+    part = (np.isfinite(g.offset).all(axis=1) & np.isfinite(g.radius)) & (g.radius > 0)
+    if not part.all():
+        fail(int(g.body[np.argmax(~part)]), "shape", "parts must be finite numbers, radius > 0")
+    count = np.bincount(g.body, minlength=g.n_particles)
+    least = 1 if g.kind == "clump" else 3
+    if (count < least).any():
+        fail(int(np.argmax(count < least)), "shape", "a clump needs >= 1 sphere, a polygon >= 3 vertices")
+    if g.kind == "rounded_polygon":
+        first = np.full(g.n_particles, np.nan)
+        first[g.body[::-1]] = g.radius[::-1]
+        uneven = first[g.body] != g.radius
+        if uneven.any():
+            fail(int(g.body[np.argmax(uneven)]), "shape", "a rounded polygon has one rounding radius")
+    return g
+
+
 class _Reader:
-    """Reads and checks the `shape` and `orientation` entries of the particles, one at a time."""
+    """Reads the `shape` and `orientation` entries of the particles, one at a time (their structure: kind, keys,
+    numbers of the right shape); `grains` checks the values (`_checked`)."""
 
     def __init__(self, source: str, particles: list, dim: int):
         self.source, self.particles, self.dim = source, particles, dim
@@ -110,15 +223,13 @@ class _Reader:
         name = self.particles[i].get("name") if isinstance(self.particles[i], dict) else None
         raise SceneError(f"{self.source}: particles[{i}]{f' ({name!r})' if name is not None else ''}: {key}: {msg}")
 
-    def numbers(self, i: int, key: str, value, shape: tuple, positive: bool = False) -> np.ndarray:
+    def numbers(self, i: int, key: str, value, shape: tuple) -> np.ndarray:
         try:
             a = np.asarray(value, float)
         except (TypeError, ValueError):
             self.fail(i, key, f"must be numbers of shape {shape}")
         if a.dtype == object or a.ndim != len(shape) or any(s and n != s for s, n in zip(shape, a.shape)):
             self.fail(i, key, f"must be numbers of shape {shape}, got shape {a.shape}")
-        if not np.all(np.isfinite(a)) or (positive and not np.all(a > 0)):
-            self.fail(i, key, "must be finite" + (" and > 0" if positive else ""))
         return a
 
     def read(self, i: int, p: dict) -> None:
@@ -135,34 +246,24 @@ class _Reader:
         if set(s) != allowed:
             self.fail(i, "shape", f"a {kind} has the keys {', '.join(sorted(allowed))}, got {', '.join(sorted(s))}")
         if kind == "superquadric":
-            value = self.numbers(i, "shape", [s[k] for k in SUPERQUADRIC], (5,), positive=True)
-            if value[3] < 2 or value[4] < 2:
-                self.fail(i, "shape", "blockiness n1, n2 must be >= 2")
-            self.shape.append(value)
+            self.shape.append(self.numbers(i, "shape", [s[k] for k in SUPERQUADRIC], (5,)))
         else:
             parts = (self.numbers(i, "shape.spheres", s["spheres"], (0, 4)) if kind == "clump" else
                      np.column_stack([self.numbers(i, "shape.vertices", s["vertices"], (0, 2)),
-                                      np.full(len(s["vertices"]), self.numbers(i, "shape.radius", s["radius"], (),
-                                                                               positive=True))]))
-            if len(parts) < (1 if kind == "clump" else 3) or not np.all(parts[:, -1] > 0):
-                self.fail(i, "shape", "a clump needs >= 1 sphere of radius > 0, a polygon >= 3 vertices")
+                                      np.full(len(s["vertices"]), self.numbers(i, "shape.radius", s["radius"], ()))]))
             self.body.append(np.full(len(parts), i))
             self.offset.append(parts[:, :-1])
             self.radius.append(parts[:, -1])
-        q = p.get("orientation", [1.0, 0.0, 0.0, 0.0])
         if "orientation" in p and self.dim == 2:
             self.fail(i, "orientation", "3D only (a rounded polygon's vertices are given in the scene's axes)")
-        q = self.numbers(i, "orientation", q, (4,))
-        if not np.linalg.norm(q) > 0:
-            self.fail(i, "orientation", "must be a nonzero quaternion (w, x, y, z)")
-        self.q.append(q / np.linalg.norm(q))
+        self.q.append(self.numbers(i, "orientation", p.get("orientation", [1.0, 0.0, 0.0, 0.0]), (4,)))
 
     def grains(self) -> Grains:
         q = np.array(self.q)
         if self.kind == "superquadric":
-            return Grains(self.kind, self.dim, q, shape=np.array(self.shape))
-        return Grains(self.kind, self.dim, q, body=np.concatenate(self.body), offset=np.concatenate(self.offset),
-                      radius=np.concatenate(self.radius))
+            return _checked(Grains(self.kind, self.dim, q, shape=np.array(self.shape)), self.fail)
+        return _checked(Grains(self.kind, self.dim, q, body=np.concatenate(self.body),
+                               offset=np.concatenate(self.offset), radius=np.concatenate(self.radius)), self.fail)
 
 
-__all__ = ["Grains", "KINDS", "from_loaded", "from_particles"]
+__all__ = ["Grains", "KINDS", "cut", "from_arrays", "from_loaded", "from_particles"]

@@ -8,7 +8,7 @@
 Needs the `scan` extra (pyarrow; dask.distributed for more than one worker; matplotlib for the figures).
 """
 from .clusters import cluster, extract, members, subscene
-from .output import read_map, read_packing
+from .output import open_packing, read_map, read_packing
 from .run import scan
 
-__all__ = ["cluster", "extract", "members", "read_map", "read_packing", "scan", "subscene"]
+__all__ = ["cluster", "extract", "members", "open_packing", "read_map", "read_packing", "scan", "subscene"]

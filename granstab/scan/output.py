@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import load_scene
+from ..io import load
 from ..io.scenes import save_scene
 from ..model.scene import Scene, SceneError
 from . import resume
@@ -28,7 +28,8 @@ class ScanOutput:
     """The scan directory: packing.npz, options.json (checked on resume), parts/ (streamed rows), the final tables.
     The parts are kept in memory too (`tables`), so that `finish` does not read them back."""
 
-    def __init__(self, out_dir, fmt: str, options: dict, scene: Scene, inputs=None, overwrite: bool = False):
+    def __init__(self, out_dir, fmt: str, options: dict, scene: Scene, inputs=None, overwrite: bool = False,
+                 shapes=None):
         if fmt not in FORMATS:
             raise SceneError(f"--format: one of {', '.join(FORMATS)}, got {fmt!r}")
         self.path, self.fmt = Path(out_dir), fmt
@@ -36,7 +37,7 @@ class ScanOutput:
         self.parts.mkdir(parents=True, exist_ok=True)
         stated = {**options, "source": scene.source, "packing": PACKING, "format": fmt}
         # the packing before options.json: a scan folder has its packing
-        hold_options(self.path, stated, "scan", first=lambda: _save_packing(scene, self.path / PACKING),
+        hold_options(self.path, stated, "scan", first=lambda: _save_packing(scene, self.path / PACKING, shapes),
                      inputs=inputs, overwrite=overwrite)
         self.options = stated
         self.tables = [_feather().read_table(f) for f in sorted(self.parts.glob("*.arrow"))]   # an interrupted scan's
@@ -121,10 +122,11 @@ def _feather():
     return pyarrow.feather
 
 
-def _save_packing(scene: Scene, path: Path) -> None:
-    """The packing as NPZ (granstab.save_scene), written whole and then renamed: a killed scan leaves no torn file."""
+def _save_packing(scene: Scene, path: Path, shapes=None) -> None:
+    """The packing as NPZ (granstab.save_scene, with the grains' `shapes` where it has them), written whole and then
+    renamed: a killed scan leaves no torn file."""
     tmp = path.with_name(f"{path.stem}-{uuid.uuid4().hex}.npz")
-    save_scene(scene, tmp)
+    save_scene(scene, tmp, shapes)
     tmp.rename(path)
 
 
@@ -233,8 +235,13 @@ def read_map(out_dir) -> dict:
 
 def read_packing(out_dir) -> Scene:
     """The packing a scan folder holds (packing.npz): the scene its rows' indices point into."""
+    return open_packing(out_dir).scene
+
+
+def open_packing(out_dir):
+    """The packing a scan folder holds as io.Loaded: its scene and, where kept, its grains' shapes (`grains`)."""
     path = Path(out_dir) / PACKING
     if not path.is_file():
         raise SceneError(f"{out_dir}: no {PACKING} (a scan folder written before scans kept their packing: "
                          "run the scan again)")
-    return load_scene(path)
+    return load(path)

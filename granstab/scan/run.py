@@ -292,7 +292,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
          boundary: str = DEFAULT_BOUNDARY, sample_branches: int = 32, scheduler: str | None = None, workers: int | None = None,
          chunk: int | None = None, progress: bool = False, fmt: str = "parquet", figures: bool = True,
          device: str = "cpu", attribution: bool = True, inputs=None, overwrite: bool = False,
-         uncertainty: dict | None = None, balance: str = "loads", exempt=None) -> dict:
+         uncertainty: dict | None = None, balance: str = "loads", exempt=None, shapes=None) -> dict:
     """Analyse the cluster of every centre of `scene` and write the tables and the map into `out_dir`: the packing
     (packing.npz, so that the folder is self-contained), clusters.* (centres and members as particle indices into
     it), particles.*, summary.json and the map.
@@ -329,23 +329,23 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
         The data's band (Band's rel, abs, position; "per_contact": the file's columns named, Scene.force_err the radii;
         "search": the per-cluster bound and counter-example search where the batched bound does not decide): the
         columns data_robust, robust_margin and counterexample (scan/uncertain.py, docs/uncertainty.md).
-    balance, exempt : {"loads", "least-squares"}, (N,) bool or None
+    balance, exempt, shapes : {"loads", "least-squares"}, (N,) bool or None, model.grains.Grains or None
         "least-squares": forces moved to the nearest balanced set first (weighted by the band; `exempt`: loads
         kept free, e.g. walls), as `analyze --balance`; the summary's "balance" says how far (docs/uncertainty.md).
+        `shapes`: the grains' true shapes, kept in packing.npz (`grains/…`) for the explorer (spheres: None).
 
     Returns
     -------
     dict
         summary.json: counts per verdict, time, clusters per second, the options, how many clusters a resumed
-        scan found done ("resumed") and where it ran ("workers": count, where, why). The folder also holds
-        clusters.* (one row a cluster) and particles.* (the map: ``unstable_fraction`` per particle).
+        scan found done ("resumed") and where it ran ("workers": count, where, why); the folder's other files above.
     """
     require_extras(scheduler, workers, figures)                     # before the folder: one line, nothing made
     options = _options(rings, metric, max_sliding, sample_branches, boundary, attribution, uncertainty)
     scene, balanced = balance_scene(scene, uncertainty, balance, exempt)
     options.update({"balance": balance} if balanced is not None else {})
     device = backend(device).name                                   # a missing GPU fails here, in one line
-    out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite)
+    out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite, shapes=shapes)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
     chosen = select_centers(scene, centers)
     todo = chosen[~np.isin(chosen, out.done_centers())]

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..analysis import analyze
 from ..mechanics.branches import RIGID
+from ..model.grains import cut, from_loaded
 from ..model.scene import Scene, SceneError
 from ..scan.clusters import particle_shares
 from ..solve.threads import blas_threads
@@ -97,12 +98,13 @@ def whole_row(res) -> dict:
             "whole_proven": int(v.sufficient), "whole_hinges_on_tolerance": int(v.hinges_on_tolerance)}
 
 
-def scan_map(core: Scene, folder: Path, scan_options: dict) -> tuple[dict, dict]:
-    """The local scan of the frame (granstab.scan.scan, serial, into `folder`: it resumes there) → the frame's scan
-    summary and per particle: the unstable fraction of the clusters containing it, the same counting only unstable
-    clusters whose mechanism is not `boundary` (docs/attribution.md), the lowest λ_min of those clusters."""
+def scan_map(core: Scene, folder: Path, scan_options: dict, shapes=None) -> tuple[dict, dict]:
+    """The local scan of the frame (granstab.scan.scan, serial, into `folder`: it resumes there; with the grains'
+    `shapes` where they have them) → the frame's scan summary and per particle: the unstable fraction of the
+    clusters containing it, the same counting only unstable clusters whose mechanism is not `boundary`
+    (docs/attribution.md), the lowest λ_min of those clusters."""
     from ..scan import read_map, scan
-    scan(core, folder, workers=1, figures=False, progress=False, **scan_options)
+    scan(core, folder, workers=1, figures=False, progress=False, shapes=shapes, **scan_options)
     got = read_map(folder)
     c = got["clusters"]
     sizes = np.array([len(m) for m in c["members"]], dtype=np.int64)
@@ -158,7 +160,7 @@ def frame_task(spec: dict, position: int, key) -> dict:
     times["frame"] = time.perf_counter() - start - times["read"]
     for stage, run in (("whole", lambda: whole(core, spec["soft_modes"])),
                        ("scan", lambda: scan_map(core, Path(spec["out"]) / "scans" / f"frame-{position:06d}",
-                                                 spec["scan_options"])),
+                                                 spec["scan_options"], cut(from_loaded(loaded), scene, core))),
                        ("rigidity", lambda: rigid(core, walls))):
         if not spec[stage]:
             continue
