@@ -11,7 +11,7 @@ cluster), drawn at half the frame's mean contact distance, and no cluster opens.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +22,7 @@ from granstab.model.scene import build_scene
 from .params import defaults
 from .protocols import MapModel
 from .scanmap import is_scan_dir, load_scan_map, map_colours, pick_particle
-from .scenes import Body
+from .scenes import Body, grain_bodies
 
 CONTRACT = "granstab track"
 TOP = 0.9                  # D²min colour scale: dark at the window's 90th percentile (the prediction test's top 10 %)
@@ -179,10 +179,17 @@ class TrackModel(MapModel):
         return np.asarray(cell, float).reshape(d, d) if len(cell) == d * d else None
 
     def bodies(self, P: dict) -> list[Body]:
+        """The frame's particles as disks (spheres) of `radii`, or, where its scan kept the grains' true shapes,
+        each scanned grain as it is (its shape and orientation) at the frame's position."""
         d = self.x.shape[1]
         kind = "disk" if d == 2 else "sphere"
-        return [Body(n, kind, (float(r),) * d, x.copy(), np.eye(d)) for n, r, x in zip(self.names, self.radii(),
-                                                                                          self.x)]
+        disks = [Body(n, kind, (float(r),) * d, x.copy(), np.eye(d)) for n, r, x in zip(self.names, self.radii(),
+                                                                                           self.x)]
+        scan = self.scan_map()
+        if scan is None or scan.grains is None:
+            return disks
+        shaped = {b.name: b for b in grain_bodies(scan.scene, scan.grains)}
+        return [replace(shaped[b.name], x=b.x) if b.name in shaped else b for b in disks]
 
     @property
     def headline(self) -> tuple[str, str]:

@@ -271,8 +271,8 @@ def test_a_rounded_polygon_legend(tmp_path, capsys):
 
 
 def test_a_tracked_frames_cluster_is_drawn_as_it_is(tmp_path, capsys):
-    """`granstab track … --scan` keeps each frame's grains in its scan folder: the cluster opened from a tracked
-    frame draws every grain with its dumped shape, centre and orientation (one frame of the loading run)."""
+    """`granstab track … --scan` keeps each frame's grains in its scan folder: the frame's map and the cluster opened
+    from it draw every scanned grain with its dumped shape, centre and orientation (one frame of the loading run)."""
     D = SQ / "load"
     out = tmp_path / "track"
     assert main(["track", str(D / "atoms.dump"), str(D / "contacts.dump"), str(SQ / "in.settle"), "--scan",
@@ -280,12 +280,16 @@ def test_a_tracked_frames_cluster_is_drawn_as_it_is(tmp_path, capsys):
     capsys.readouterr()
     s = Session(str(out))
     assert s.error is None and s.on_map
+    dumped = dump_grains(D / "atoms.dump")
+    scale = np.abs(np.array([v[0] for v in dumped.values()])).max()
+    view = SceneView(RecordingScene())
+    view.draw_particles(s)                                  # the frame's map: every scanned grain as it is
+    scanned = len(s.model.scan_map().scene.names)
+    assert assert_drawn_as_dumped(view, s.scene.names, dumped, scale) == scanned > 100
     centre = s.model.scan_map().scene.names[17]
     assert s.open_cluster(centre), s.error
-    dumped = dump_grains(D / "atoms.dump")
     view = SceneView(RecordingScene())
     view.draw_particles(s)
-    scale = np.abs(np.array([v[0] for v in dumped.values()])).max()
     assert assert_drawn_as_dumped(view, s.scene.names, dumped, scale) == s.scene.n_particles > 3
 
 
