@@ -80,10 +80,7 @@ class BandControl:
                                           "hold for all of them? 0: not asked (nothing extra is computed)")
         self.slider.on_update(lambda _: ui.run(self._set))
         self.position = gui.add_slider("Position uncertainty ± % of a radius", min=0, max=MOST_POSITION, step=0.5,
-                                       initial_value=0,
-                                       hint="each contact point and particle centre within this share of a particle "
-                                            "radius of where it was measured: does the verdict hold for all of "
-                                            "them? (to first order) 0: not asked (nothing extra is computed)")
+                                       initial_value=0)     # no hint: it would cover the force box above
         self.position.on_update(lambda _: ui.run(self._set))
         self.text = gui.add_markdown("")
 
