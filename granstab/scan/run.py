@@ -453,12 +453,13 @@ def _run_dask(scene, todo, chunk, options, out, bar, *, scheduler, workers):
     next chunk while the workers compute, and holds a few chunks, never all of them. Ctrl-C (workers.py): the
     workers ignore it, this loop stops at the next poll and closes the cluster quietly."""
     from dask.distributed import Client, as_completed
-    cluster = None if scheduler is not None else local_cluster(workers)
-    graph, contacts_of = adjacency(scene), incidence(scene)
-    guide = Guide(todo, chunk)
-    client = Client(scheduler or cluster)
+    cluster = client = None
     try:
-        with sigint_flag() as stop:
+        with sigint_flag() as stop:        # from the start: a Ctrl-C while the cluster starts stops the scan too
+            cluster = None if scheduler is not None else local_cluster(workers)
+            graph, contacts_of = adjacency(scene), incidence(scene)
+            guide = Guide(todo, chunk)
+            client = Client(scheduler or cluster)
             running = as_completed()
 
             def fill():                                 # the cluster's threads now (a real cluster may grow)

@@ -140,15 +140,15 @@ def silence(levels: list | None = None) -> list:
 def close_quietly(client, cluster) -> None:
     """After Ctrl-C: close the Dask client and the local cluster with Dask's logging off, here and in the workers
     (their warnings about tasks cancelled mid-run are not the user's business), whatever they raise. A cluster
-    reached by --scheduler (cluster None) keeps its workers' logging."""
+    reached by --scheduler (cluster None) keeps its workers' logging; either None: not made yet."""
     before = silence()
     try:
-        if cluster is not None:
+        if cluster is not None and client is not None:
             with suppress(Exception):
                 client.run(silence)
-        for close in (client.close, None if cluster is None else cluster.close):
-            if close is not None:
+        for owner in (client, cluster):
+            if owner is not None:
                 with suppress(Exception):
-                    close()
+                    owner.close()
     finally:
         silence(before)

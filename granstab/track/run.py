@@ -193,10 +193,11 @@ def _dask(spec, todo, keys, n: int, bar) -> None:
 
     from ..scan.run import local_cluster
     from ..scan.workers import close_quietly, finished, sigint_flag
-    cluster = local_cluster(n)
-    client = Client(cluster)
+    cluster = client = None
     try:
-        with sigint_flag() as stop:
+        with sigint_flag() as stop:            # from the start: a Ctrl-C while the cluster starts stops it too
+            cluster = local_cluster(n)
+            client = Client(cluster)
             running = as_completed([client.submit(frame_task, spec, k, keys[k], pure=False, retries=1)
                                     for k in todo])
             for future in finished(running, stop, POLL_SECONDS):

@@ -12,6 +12,7 @@ import pytest
 from granstab_app.headless import HeadlessPage
 from granstab_app.server import App
 
+pytestmark = pytest.mark.serial   # a move's messages are those before QUIET s of silence: timing
 QUIET = 0.5                    # s without a message after the move's callback has finished: the move's messages are in
 # Updates of a node already in the page; any other message naming a scene node ("/…") adds one anew or removes it.
 UPDATES = {"SceneNodeUpdateMessage", "SetPositionMessage", "SetOrientationMessage"}

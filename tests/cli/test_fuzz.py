@@ -284,6 +284,7 @@ def chain(dim: int, n: int) -> granstab.Scene:
     return granstab.build_scene(dim, [f"b{i}" for i in range(n)], x, arrays, title="chain")
 
 
+@pytest.mark.serial                     # refused by a time estimate scaled by the machine's speed
 def test_a_long_chain_is_refused_before_work_in_one_line(tmp_path):
     """The issue's silent hang (a 3,000-particle chain ran for minutes without a word): a 20,000-sphere chain on the
     sparse path, whose estimate (budget.sparse_estimate: 3 metrics × about 10 s) exceeds --timeout 0.5, is refused

@@ -122,7 +122,8 @@ print(json.dumps({"arch": sorted({i.get("architecture") for i in threadpool_info
 """
 
 
-@pytest.mark.parametrize(("threads", "coretype", "busy"), [(1, None, False), (2, None, False), (2, None, True),
+@pytest.mark.parametrize(("threads", "coretype", "busy"), [(1, None, False), (2, None, False),
+                                                             pytest.param(2, None, True, marks=pytest.mark.serial),
                                                              (2, "Haswell", False), (2, "SkylakeX", False)])
 def test_committed_signs_do_not_depend_on_blas_threads_kernels_or_load(threads, coretype, busy):
     """The four-disk tables' ±v signs (eigenvectors with entries equal by symmetry; ℍ^i null vectors from an SVD)

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pyarrow as pa
@@ -389,6 +390,24 @@ def test_two_dask_workers_give_the_serial_rows_and_survive_a_killed_worker(tmp_p
         assert list(a[key]) == list(b[key]), key
     assert np.array_equal(a["lambda_min"], b["lambda_min"])
 
+
+
+def test_a_ctrl_c_before_the_first_task_closes_the_cluster_and_keeps_nothing(tmp_path, monkeypatch):
+    """Ctrl-C after the local cluster started but before any task (here: while the client cuts the packing's
+    graph): the cluster is closed, the scan says it kept 0 clusters, and the folder holds no part. It raised past
+    the closing before (the cluster's workers were left to Python's exit); a fake cluster records its closing."""
+    import granstab.scan.run as run
+    from granstab.model.errors import Interrupted
+    closed = []
+
+    def interrupted(*_):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run, "local_cluster", lambda workers: SimpleNamespace(close=lambda: closed.append(workers)))
+    monkeypatch.setattr(run, "adjacency", interrupted)
+    with pytest.raises(Interrupted, match=r"interrupted \(Ctrl-C\): 0 of 143 clusters kept in "):
+        scan(granstab.load_scene(ANNULUS), tmp_path, workers=2, figures=False)
+    assert closed == [2] and not list((tmp_path / "parts").glob("*.arrow"))
 
 def test_cli_scan_and_extract_round_trip(tmp_path):
     out = tmp_path / "scan"

@@ -90,6 +90,7 @@ CASES = cases(quick=True)      # a small case of every path (benchmarks/estimate
 
 
 @pytest.mark.parametrize("name,scene,options", CASES, ids=[c[0] for c in CASES])
+@pytest.mark.serial                     # a measured time against an estimate
 def test_the_estimate_holds_as_a_ratio(name, scene, options):
     """measured / estimated within RATIO either way (a ratio, never an absolute time)."""
     p = plan(scene, **options)
@@ -100,6 +101,7 @@ def test_the_estimate_holds_as_a_ratio(name, scene, options):
                                         f"{res.timings['total']:.3g} s"
 
 
+@pytest.mark.serial                     # reads the machine's ready threads, starts busy ones
 def test_blas_threads_follow_the_free_cores(monkeypatch):
     """Two busy processes beside a run on 2 cores: one BLAS thread (two would wait for each other at every call:
     26× slower, issue 38); at rest every core; small matrices one thread whatever the load. `runnable` counts the
@@ -127,6 +129,7 @@ def test_blas_threads_follow_the_free_cores(monkeypatch):
     assert all(p.pid in found for p in spinners) and niced.pid not in found and os.getpid() not in found
 
 
+@pytest.mark.serial                     # the probe's speed against the calibration
 def test_the_probe_is_measured_once_and_scales_the_sparse_calibration():
     first = budget.speed()
     assert budget.speed() == first and 0.05 < first < 20        # cached; a machine within 20× of the calibration
