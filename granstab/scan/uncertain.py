@@ -21,10 +21,11 @@ from .clusters import boundary_rings, cluster
 
 def band_parts(scene, band: dict) -> dict:
     """What the batch needs of the band for the chunk's scene: the unit blocks G (M, J, n, n), the radii δ (M,) and
-    `open` (M,): contacts of uncertain mobilisation or turning sliding direction (mechanics.uncertainty.mobilisation)."""
+    `open` (M,): contacts of uncertain mobilisation or a sliding term not affine in the band (3D: h turns), which the
+    batch does not bound (mechanics.uncertainty.mobilisation): their clusters go to data_robustness."""
     band = band_from(band, scene)
     mob = mobilisation(scene, band)
-    return {"G": unit_blocks(scene), "delta": radius(scene, band), "open": mob["uncertain"] | mob["unbounded"]}
+    return {"G": unit_blocks(scene), "delta": radius(scene, band), "open": mob["uncertain"] | mob["unbounded"] | mob["turning"]}
 
 
 def batch_margins(parts: dict, blocks, st: dict, modes: dict, lam, bounds, owner, G: int) -> dict:
