@@ -34,8 +34,9 @@ from .mechanics.uncertainty import (
     work_gradient,
 )
 from .model.scene import Scene, SceneError, equilibrium_loads
+from .moves import moved_positions, work_gradient_positions
 
-__all__ = ["Band", "DataRobustness", "balance_scene", "data_robustness", "perturbed"]
+__all__ = ["Band", "DataRobustness", "balance_scene", "counterexample_scene", "data_robustness", "perturbed"]
 
 CONSISTENT = (PLUS, MINUS, BOTH)
 SEARCH_STEPS = 3          # counter-example steps: each goes to the band's edge along the current work gradient
@@ -146,7 +147,8 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
     found = _search(data, res, max_sliding, inside, probe) if search else None
     if found is not None:
         return DataRobustness(robust="depends", counterexample=found, seconds=time.perf_counter() - start,
-                              reason=f"forces within the band give {found['verdict']}", certificate=cert, **common)
+                              reason=f"{'positions and forces' if 'x' in found else 'forces'} within the band give "
+                                     f"{found['verdict']}", certificate=cert, **common)
     why = (f"the bound proves {margin:.3g}× the band" if np.isfinite(margin) else "no bound")
     return DataRobustness(robust="undecided", reason=f"{why}; no counter-example found", certificate=cert,
                           seconds=time.perf_counter() - start, **common)
@@ -389,16 +391,19 @@ def _onto_cone(data: _Data):
 
 
 def _search(data: _Data, res, max_sliding, inside=None, probe=None):
-    """A force set within the band whose `analyze` proves another verdict than the data's (the vertex certificate's
-    `probe` first, then up to SEARCH_STEPS steps from each side the verdict can move to), or None."""
+    """A force set (and, with a position band, positions) within the band whose `analyze` proves another verdict
+    than the data's (the vertex certificate's `probe` first, then up to SEARCH_STEPS steps from each side the
+    verdict can move to: forces alone, then positions with them, `_position_step`), or None."""
     verdict = res.verdict.verdict
     m = res.metric
     name, length = ("inertia", None) if m.rotation_length is None else ("L", m.rotation_length)
 
-    def other(force):
-        """(the analysis of `force`, its counter-example dict or None); (None, None) where analyze refuses it."""
+    def other(force, dx=None, dpoint=None):
+        """(the analysis of `force` (at positions moved by dx, dpoint), its counter-example dict or None); (None,
+        None) where analyze refuses it."""
+        scene = data.scene if dx is None else moved_positions(data.scene, data.scene.x + dx, data.scene.point + dpoint)
         try:
-            got = analyze(perturbed(data.scene, force), metric=name, rotation_length=length,
+            got = analyze(perturbed(scene, force), metric=name, rotation_length=length,
                           max_sliding=max_sliding, attribution=False, keep="all")
         except (SceneError, ValueError):         # a perturbed set the analysis refuses is no counter-example
             return None, None
@@ -407,24 +412,61 @@ def _search(data: _Data, res, max_sliding, inside=None, probe=None):
             return got, None
         used = np.linalg.norm(force - data.scene.force, axis=1)
         delta = data.band.force_radius(data.scene.force)
-        frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0)))
-        return got, {"verdict": got.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
+        frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0), initial=0.0))
+        out = {"verdict": got.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
+        if dx is not None:
+            out.update(x=scene.x.tolist(), point=scene.point.tolist(), normal=scene.normal.tolist(),
+                       largest_position_move=float(max(np.linalg.norm(dx, axis=1).max(initial=0.0),
+                                                       np.linalg.norm(dpoint, axis=1).max(initial=0.0))))
+        return got, out
 
     found = other(probe)[1] if probe is not None else None
     sides = {"stable": (True,), "unstable": (False,), "neutral": (True, False)}.get(verdict, ())
-    for lower in sides if found is None else ():
-        current = res
-        onto = _onto_cone(data) if lower else None
-        for step in range(SEARCH_STEPS):
-            force = onto if step == 0 and onto is not None else _step(data, current, lower, first=step == 0)
-            if force is None:
+    for moving in (False, True) if data.band.position > 0 else (False,):
+        for lower in sides if found is None else ():
+            current = res
+            onto = _onto_cone(data) if lower and not moving else None
+            for step in range(SEARCH_STEPS):
+                if moving:
+                    move = _position_step(data, current, lower)
+                else:
+                    move = onto if step == 0 and onto is not None else _step(data, current, lower, first=step == 0)
+                    move = None if move is None else (move,)
+                if move is None:
+                    break
+                current, found = other(*move)
+                if current is None or found is not None:
+                    break
+            if found is not None:
                 break
-            current, found = other(force)
-            if current is None or found is not None:
-                break
-        if found is not None:
-            break
     return found
+
+
+def _position_step(data: _Data, res, lower: bool):
+    """(forces, dx, dpoint): every centre and contact point moved to the band's edge (INSIDE it) along the first-order
+    gradient of the target eigenpair's work (moves.work_gradient_positions at the current analysis `res`), down
+    (lower) or up, and the forces of `_step` with it; None without a target."""
+    got = _target(res, lower)
+    if got is None:
+        return None
+    U = _motion(res, got[1])[data.index]
+    gx, gp = work_gradient_positions(res.scene, U)
+    length = (-1 if lower else 1) * data.band.position * INSIDE
+
+    def edge(g):
+        norm = np.linalg.norm(g, axis=1, keepdims=True)
+        return length * np.divide(g, norm, out=np.zeros_like(g), where=norm > 0)
+    force = _step(data, res, lower, first=False)
+    return (data.scene.force if force is None else force), edge(gx), edge(gp)
+
+
+def counterexample_scene(scene: Scene, counterexample: dict) -> Scene:
+    """The scene a counter-example describes: its forces (`perturbed`) at its positions where it moved them
+    (moves.moved_positions, the normals and curvatures turned with the centre lines), for `analyze` to re-check."""
+    if "x" in counterexample:
+        scene = moved_positions(scene, np.asarray(counterexample["x"], dtype=float),
+                                np.asarray(counterexample["point"], dtype=float))
+    return perturbed(scene, np.asarray(counterexample["forces"], dtype=float))
 
 
 def balance_scene(scene: Scene, uncertainty: dict | None, how: str, exempt=None):

@@ -250,32 +250,6 @@ def test_focused_factors_keep_outside_modes_outside():
             assert np.all(np.sum(W[inside][:, low] ** 2, axis=0) < need)
 
 
-def test_position_norms_bound_a_small_move_to_first_order():
-    """position_norms (first order): moving the contact point and q's centre by LEN (and so turning nothing: the
-    normal is given) changes the contact's block by at most the predicted norm, up to second order (LEN = 1e-4 of
-    the radius: within 1 %)."""
-    from dataclasses import replace
-
-    from granstab.uncertainty import position_norms
-    scene = two(10.0)
-    D = np.ones((1, 6))
-    length = 1e-4
-    predicted = position_norms(scene, length, D)[0]
-
-    def block(s):
-        b = contact_blocks(s).blocks
-        X = geometric(b) + b["Hm"]
-        return 0.5 * (X + np.swapaxes(X, 1, 2))[0]
-
-    rng = np.random.default_rng(0)
-    for _ in range(10):
-        step = rng.normal(size=2)
-        step *= length / np.linalg.norm(step)
-        moved = replace(scene, point=scene.point + step, x=scene.x + np.array([[0.0, 0.0], step]))
-        change = np.linalg.norm(block(moved) - block(scene), 2)
-        assert 0 < change <= 1.01 * predicted
-
-
 def test_scan_columns_and_map(tmp_path):
     """`scan --force-uncertainty 0.15 --search-counterexamples` of the two-particle scene at f = 22 (the band
     crosses f* = 24): both clusters depend on the data, their rows carry the counter-example's forces, which give
