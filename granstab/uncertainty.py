@@ -70,7 +70,7 @@ class DataRobustness:
     def to_dict(self) -> dict:
         out = asdict(self)
         out["uncertain"], out["unbounded"] = list(self.uncertain), list(self.unbounded)
-        out["margin"] = _finite(self.margin)
+        out["margin"], out["bound"], out["nonaffine"] = (_finite(v) for v in (self.margin, self.bound, self.nonaffine))
         if self.certificate is not None:
             out["certificate"] = {**self.certificate, "lowest": _finite(self.certificate["lowest"])}
         return out
@@ -178,7 +178,8 @@ def _nonaffine(data: _Data, res, mob, e: float) -> list:
         c = contact_changes(scene, t * band.position, L, t * force, t * moment)
         turn = projection_change(scene, t * band.position, L, rotations)
         moved = float(np.sum(c["block"] + np.where(may_slide > 0, c["slide"], 0.0)))
-        total = (moved + 2 * turn * (size + t * e)) * SAFETY if turn < 1 else np.inf
+        with np.errstate(all="ignore"):
+            total = (moved + 2 * turn * (size + t * e)) * SAFETY if turn < 1 else np.inf
         work = _vector_work(data, res, t, L, may_slide, turn, float(np.sum(c["rigid"])))
         out.append((t, total / t, c["s"], work))
     return out
@@ -196,7 +197,8 @@ def _vector_work(data: _Data, res, t: float, L: float, may_slide, turn: float, r
         c = contact_changes(scene, t * band.position, L, t * band.force_radius(scene.force),
                             t * band.moment_radius(scene.moment), u)
         own = float(np.sum(c["block"] + np.where(may_slide > 0, c["slide"], 0.0)))
-        return (own + (2 + turn) * turn * rigid) * SAFETY / t if turn < 1 else np.inf
+        with np.errstate(all="ignore"):
+            return (own + (2 + turn) * turn * rigid) * SAFETY / t if turn < 1 else np.inf
     return work
 
 

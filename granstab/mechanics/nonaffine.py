@@ -51,9 +51,8 @@ class Ball:
         return Ball(self.size + other.size, self.moved + other.moved)
 
     def __matmul__(self, other: Ball) -> Ball:
-        with np.errstate(invalid="ignore"):         # inf·0 (an unbounded factor times an absent one): nan, read as inf
-            return Ball(self.size * other.size,
-                        self.size * other.moved + self.moved * other.size + self.moved * other.moved)
+        return Ball(self.size * other.size,
+                    self.size * other.moved + self.moved * other.size + self.moved * other.moved)
 
     def __mul__(self, c) -> Ball:
         return Ball(self.size * c, self.moved * c)
@@ -104,6 +103,12 @@ def _curvatures(scene, ell: float, turn: Ball, theta: np.ndarray):
 
 
 def contact_changes(scene, ell: float, L: float, delta: np.ndarray, delta_m: np.ndarray, v=None) -> dict:
+    """`_changes` with every floating-point exception ignored (an unbounded factor is inf, inf·0 is read as inf)."""
+    with np.errstate(all="ignore"):
+        return _changes(scene, ell, L, delta, delta_m, v)
+
+
+def _changes(scene, ell: float, L: float, delta: np.ndarray, delta_m: np.ndarray, v=None) -> dict:
     """Per contact (M,) bounds over the band (module docstring), inf where none holds: `block`, ‖Δ X̃_c‖ with X̃_c =
     D(Hg1 + Hg2 + Hg3 + Hm_el)D; `slide`, ‖Δ D(a ⊗ s)D‖ (a contact that may slide); `s`, ‖Δ D s‖ (S = s·U moves by at
     most that × ‖Ũ_c‖); `rigid`, a bound of ‖(Hg3 + ½(Hg1 + Hg2))'‖ over the band (the only parts a rigid rotation
@@ -206,6 +211,8 @@ def projection_change(scene, ell: float, L: float, rotations: int) -> float:
     ‖P' − P‖ = ‖(I − P')P‖ <= ‖ΔC̃‖ ‖C̃⁺‖, ‖C̃⁺‖ = λ_min(C̃ᵀC̃)^-½ with C̃ᵀC̃ >= N L² I. 0 without rotations."""
     if rotations == 0 or ell <= 0:
         return 0.0
+    if not np.isfinite(ell):
+        return np.inf
     C = rotation_columns(scene.x, L)
     n = scene.n_particles
     low = max(n * L * L, float(np.linalg.eigvalsh(C.T @ C).min()) * (1 - 1e-9))

@@ -3,7 +3,9 @@ positions (granstab.moves, `_position_step`), written out and re-analysed by the
 force band, whose sliding direction h turns with the force (a Weyl-type bound over the contact's force ball)."""
 import functools
 import json
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +18,8 @@ from granstab.mechanics.uncertainty import Band, mobilisation
 from granstab.uncertainty import _Data, _nonaffine, counterexample_scene, data_robustness, perturbed
 
 RHO = 1.2
+sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).parents[1] / "track"))
 
 
 def pair(rho, f=0.01):
@@ -146,3 +150,53 @@ def test_the_3d_turn_enters_only_where_a_sliding_contact_has_a_band():
     assert len(knots) > 1 and all(k[1] > 0 for k in knots)
     flat = replace(pair(1.2), state=("auto",))
     assert not mobilisation(flat, Band(rel=0.1))["turning"].any()
+
+
+def test_position_uncertainty_on_analyze_scan_and_track(tmp_path, capsys):
+    """`--position-uncertainty LEN` on the three commands (the 3×2 grid of test_uncertainty_columns, unstable): a
+    band of 1e-7 is proven by the rigorous bound (analyze: `nonaffine` > 0 in the JSON; scan and each track frame:
+    every cluster holds), a band of 0.3 (near a third of a radius) is not: no bound closes there (the curvature
+    sum's pseudo-inverse may change rank: `bound` and `nonaffine` "inf" in the JSON), and the search moves the
+    positions to a stable counter-example: depends."""
+    from test_track_uncertainty_columns import write_frames
+    from test_uncertainty_columns import write
+
+    from granstab.scan import read_map
+    paths = write(tmp_path)
+    for length, want in (("1e-7", "holds"), ("0.3", None)):
+        assert main(["analyze", *paths, "--mu", "0.5", "--metric", "L", "--position-uncertainty", length,
+                     "--json"]) == 0
+        got = json.loads(capsys.readouterr().out)["data_uncertainty"]
+        if want == "holds":
+            assert got["robust"] == "holds" and 0 < got["nonaffine"] < got["bound"] * (1 + 1e-12)
+        else:
+            assert got["robust"] == "depends" and got["nonaffine"] == got["bound"] == "inf"
+            assert got["counterexample"]["verdict"] == "stable" and len(got["counterexample"]["x"]) == 6
+    assert main(["scan", *paths, "--mu", "0.5", "--boundary", "loads", "--position-uncertainty", "1e-7",
+                 "--workers", "1", "--out", str(tmp_path / "s")]) == 0
+    assert set(read_map(tmp_path / "s")["clusters"]["data_robust"]) == {"holds"}
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    assert main(["track", *write_frames(frames, loud=[3, 0]), "--mu", "0.5", "--scan", "--boundary", "loads",
+                 "--position-uncertainty", "1e-7", "--workers", "1", "--no-figures", "--out", str(tmp_path / "t")]) == 0
+    for frame in (0, 1):
+        c = read_map(tmp_path / "t" / "scans" / f"frame-{frame:06d}")["clusters"]
+        assert set(c["data_robust"]) == {"holds"}
+
+
+def test_a_contact_of_uncertain_mobilisation_counts_in_both_states():
+    """The stable pair (ρ = 1.2, f = 0.1) with an "auto" contact just inside the cone (|f_t| = 0.99 μ f_n): a band of
+    5 % can take it onto the cone, so it is `uncertain` and the bound is taken over its sliding branch too (a
+    sliding contact adds a negative direction: the margin falls below the same scene's with the contact held
+    elastic); a band of 0.1 % cannot (not uncertain, the margin as the elastic one's)."""
+    def scene(state):
+        return granstab.scene_from_dict({
+            "dim": 2, "particles": [{"name": "p", "x": [0.0, 0.0]}, {"name": "q", "x": [2.0, 0.0]}],
+            "contacts": [{"p": "p", "q": "q", "point": [1.0, 0.0], "normal": [1.0, 0.0], "curvature_p": -1 / RHO,
+                          "curvature_q": -1 / RHO, "force": [-0.1, 0.99 * 0.5 * 0.1], "k": 1.0, "alpha": 1.0,
+                          "mu": 0.5, "state": state}]})
+    wide = data_robustness(scene("auto"), Band(rel=0.05), metric="L", rotation_length=1.0, search=False)
+    held = data_robustness(scene("elastic"), Band(rel=0.05), metric="L", rotation_length=1.0, search=False)
+    assert wide.uncertain == (0,) and held.uncertain == () and wide.margin < held.margin
+    narrow = data_robustness(scene("auto"), Band(rel=0.001), metric="L", rotation_length=1.0, search=False)
+    assert narrow.uncertain == () and narrow.robust == "holds"
