@@ -157,7 +157,8 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
 def _nonaffine(data: _Data, res, mob, e: float) -> list:
     """[(t, slope, shift, work)]: at each band factor t of KNOTS, slope = e_x(t)/t, e_x(t) a bound of ‖Δ sym(𝓗)‖₂
     from what is not affine in the forces (mechanics/nonaffine.py: Σ_c ‖ΔX̃_c‖ over the contacts, their sliding terms
-    where they may slide, and 2‖ΔP̃‖(‖sym H̃‖ + t e) for the projection's move, P'S'P' − PS̄P in the full space);
+    where they may slide, and 2‖ΔP̃‖‖S̄‖ for the projection's move, P'S'P' − PS̄P in the full space, with
+    ‖S̄‖ <= ‖sym H̃‖ + t e + that sum);
     shift (M,) the bound of ‖Δs̃_c‖ at t (the S values' move per unit motion); work(v) the slope of the same bound
     for the work of a fixed unit vector ṽ = P̃v (`_vector_work`). e_x is convex with e_x(0) = 0, so
     e_x(s) <= s·slope for s <= t: a margin found with that slope is proven up to t. [(inf, 0, 0, 0)] where nothing
@@ -179,7 +180,7 @@ def _nonaffine(data: _Data, res, mob, e: float) -> list:
         turn = projection_change(scene, t * band.position, L, rotations)
         moved = float(np.sum(c["block"] + np.where(may_slide > 0, c["slide"], 0.0)))
         with np.errstate(all="ignore"):
-            total = (moved + 2 * turn * (size + t * e)) * SAFETY if turn < 1 else np.inf
+            total = (moved + 2 * turn * (size + t * e + moved)) * SAFETY if turn < 1 else np.inf
         work = _vector_work(data, res, t, L, may_slide, turn, float(np.sum(c["rigid"])))
         out.append((t, total / t, c["s"], work))
     return out
