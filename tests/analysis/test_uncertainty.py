@@ -263,11 +263,32 @@ def test_focused_factors_keep_outside_modes_outside():
             assert np.all(np.sum(W[inside][:, low] ** 2, axis=0) < need)
 
 
+def hatched_map(folder, scene) -> dict:
+    """The map of a scan folder drawn again (scan.figure.write_figures, the figure kept): the centres of the
+    collections hatched DEPENDS_HATCH and whether the legend names them."""
+    from granstab.scan import figure
+    kept = []
+    real = figure._save
+    try:
+        figure._save = lambda fig, stem: kept.append(fig) or []
+        figure.write_figures(scene, folder)
+    finally:
+        figure._save = real
+    ax = kept[0].axes[0]
+    centres = {tuple(np.round(xy, 9)) for c in ax.collections if c.get_hatch() == figure.DEPENDS_HATCH
+               for xy in c.get_offsets()}
+    legend = any("depends on the data" in t.get_text() for a in kept[0].axes if a.get_legend()
+                 for t in a.get_legend().get_texts())
+    import matplotlib.pyplot as plt
+    plt.close("all")
+    return {"centres": centres, "legend": legend}
+
+
 def test_scan_columns_and_map(tmp_path):
     """`scan --force-uncertainty 0.15 --search-counterexamples` of the two-particle scene at f = 22 (the band
     crosses f* = 24): both clusters depend on the data, their rows carry the counter-example's forces, which give
-    the other verdict, and the map is drawn (hatching their centres); at f = 16 and 0.05 the batched bound alone
-    (no search) proves both."""
+    the other verdict, and the map hatches both centres (DEPENDS_HATCH) with a legend entry saying what the
+    hatching means; at f = 16 and 0.05 the batched bound alone (no search) proves both."""
     from granstab.scan import read_map
     path = tmp_path / "two.json"
     path.write_text(json.dumps(granstab.scene_to_dict(two(22.0))))
@@ -280,6 +301,8 @@ def test_scan_columns_and_map(tmp_path):
         got = granstab.analyze(perturbed(two(22.0), np.reshape(forces, (1, 2))), metric="L")
         assert got.verdict.verdict == "unstable" != rows["verdict"][0]
     assert (tmp_path / "a" / "map.png").exists()
+    drawn = hatched_map(tmp_path / "a", two(22.0))
+    assert drawn["centres"] == {(0.0, 0.0), (2.0, 0.0)} and drawn["legend"]
     path.write_text(json.dumps(granstab.scene_to_dict(two(16.0))))
     assert main(common + ["--out", str(tmp_path / "b"), "--force-uncertainty", "0.05"]) == 0
     assert list(read_map(tmp_path / "b")["clusters"]["data_robust"]) == ["holds", "holds"]
