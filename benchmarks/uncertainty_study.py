@@ -27,7 +27,7 @@ from granstab.model.scene import SceneError
 from granstab.scan import read_map, scan
 from granstab.scan.clusters import adjacency, cluster
 from granstab.scan.run import _sub_index
-from granstab.uncertainty import data_robustness, perturbed
+from granstab.uncertainty import counterexample_from_flat, counterexample_scene, data_robustness
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "rigidlibrary" / "DataAnnulus"
 
@@ -107,9 +107,8 @@ def held_out(pairs: list[dict], metric: str = "L") -> dict:
     failed = []
     depends = [p for p in pairs if p["robust"] == "depends"]
     for p in depends:
-        scene = p["scene_a"]
-        forces = np.reshape(p["counterexample"], scene.force.shape)
-        got = granstab.analyze(perturbed(scene, forces), metric=metric, attribution=False).verdict
+        scene = counterexample_scene(p["scene_a"], counterexample_from_flat(p["scene_a"], p["counterexample"]))
+        got = granstab.analyze(scene, metric=metric, attribution=False).verdict
         if got.verdict == p["verdict_a"] or not got.sufficient:
             failed.append(p["centre"])
     return {"holds_within_band": len(holds), "holds_changed": wrong, "depends": len(depends),

@@ -36,7 +36,8 @@ from .mechanics.uncertainty import (
 from .model.scene import Scene, SceneError, equilibrium_loads
 from .moves import moved_positions, work_gradient_positions
 
-__all__ = ["Band", "DataRobustness", "balance_scene", "counterexample_scene", "data_robustness", "perturbed"]
+__all__ = ["Band", "DataRobustness", "balance_scene", "counterexample_from_flat", "counterexample_scene",
+           "data_robustness", "flat_counterexample", "perturbed"]
 
 CONSISTENT = (PLUS, MINUS, BOTH)
 SEARCH_STEPS = 3          # counter-example steps: each goes to the band's edge along the current work gradient
@@ -461,6 +462,25 @@ def _position_step(data: _Data, res, lower: bool):
         return length * np.divide(g, norm, out=np.zeros_like(g), where=norm > 0)
     force = _step(data, res, lower, first=False)
     return (data.scene.force if force is None else force), edge(gx), edge(gp)
+
+
+def flat_counterexample(counterexample: dict) -> list:
+    """A counter-example as one flat list (the scan's `counterexample` column): its forces (M·d), then, where it
+    moved the positions, the centres (N·d) and the contact points (M·d)."""
+    parts = [counterexample["forces"]] + ([counterexample["x"], counterexample["point"]] if "x" in counterexample
+                                         else [])
+    return [float(v) for part in parts for v in np.ravel(part)]
+
+
+def counterexample_from_flat(scene: Scene, flat) -> dict:
+    """The counter-example of `flat_counterexample`'s list for the cluster's `scene` (its forces, and its positions
+    where the list is long enough to hold them)."""
+    flat = np.asarray(flat, dtype=float)
+    M, N, d = scene.n_contacts, scene.n_particles, scene.dim
+    out = {"forces": flat[:M * d].reshape(M, d)}
+    if flat.size == (2 * M + N) * d:
+        out.update(x=flat[M * d:(M + N) * d].reshape(N, d), point=flat[(M + N) * d:].reshape(M, d))
+    return out
 
 
 def counterexample_scene(scene: Scene, counterexample: dict) -> Scene:

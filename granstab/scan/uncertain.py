@@ -15,7 +15,7 @@ import numpy as np
 
 from ..mechanics.uncertainty import band_from, contact_norms, mobilisation, radius, unit_blocks, work_gradient
 from ..model.scene import SceneError
-from ..uncertainty import data_robustness
+from ..uncertainty import data_robustness, flat_counterexample
 from .clusters import boundary_rings, cluster
 
 
@@ -54,7 +54,8 @@ def batch_margins(parts: dict, blocks, st: dict, modes: dict, lam, bounds, owner
 
 def robust_columns(scene, centers, member_lists, rows: dict, options: dict, graph, sub_index, share: float) -> dict:
     """data_robust (holds / depends / undecided; "" where the row is an error), robust_margin (the factor of the
-    band the bound proves) and counterexample (depends: the forces, flat) of each centre, in the order of `centers`.
+    band the bound proves) and counterexample (depends: the forces, flat, and the positions where it moved them:
+    granstab.uncertainty.flat_counterexample) of each centre, in the order of `centers`.
     rows: the rows' "verdict", "sufficient" and the batch's margins (NaN where the cluster was not batched). The
     rest (and all with a position band): data_robustness on the cluster's scene (a cluster whose verdict there
     differs from its row's is undecided); `share`: the embedded boundary's EMBEDDED_INSIDE."""
@@ -88,5 +89,5 @@ def robust_columns(scene, centers, member_lists, rows: dict, options: dict, grap
         robust[i] = got.robust if got.verdict == verdicts[i] else "undecided"
         margin[i] = got.margin
         if robust[i] == "depends":
-            example[i] = np.ravel(got.counterexample["forces"]).tolist()
+            example[i] = flat_counterexample(got.counterexample)
     return {"data_robust": robust, "robust_margin": margin, "counterexample": example}

@@ -200,3 +200,22 @@ def test_a_contact_of_uncertain_mobilisation_counts_in_both_states():
     assert wide.uncertain == (0,) and held.uncertain == () and wide.margin < held.margin
     narrow = data_robustness(scene("auto"), Band(rel=0.001), metric="L", rotation_length=1.0, search=False)
     assert narrow.uncertain == () and narrow.robust == "holds"
+
+
+def test_a_scan_row_keeps_a_position_counterexample(tmp_path):
+    """`scan --position-uncertainty 0.03 --search-counterexamples` of the stable pair (ρ − r = 0.02): both rows depend
+    on the data, and their `counterexample` holds the forces, then the moved centres and points
+    (uncertainty.flat_counterexample), from which the cluster's scene is rebuilt and proven unstable."""
+    from granstab.scan import read_map
+    from granstab.uncertainty import counterexample_from_flat
+    path = tmp_path / "pair.json"
+    path.write_text(json.dumps(granstab.scene_to_dict(pair(1.02))))
+    assert main(["scan", str(path), "--boundary", "loads", "--workers", "1", "--metric", "L", "--out",
+                 str(tmp_path / "s"), "--position-uncertainty", "0.03", "--search-counterexamples"]) == 0
+    rows = read_map(tmp_path / "s")["clusters"]
+    assert list(rows["data_robust"]) == ["depends", "depends"]
+    for flat in rows["counterexample"]:
+        cx = counterexample_from_flat(pair(1.02), flat)
+        assert len(flat) == 8 and np.all(np.linalg.norm(cx["x"] - pair(1.02).x, axis=1) <= 0.03)
+        got = granstab.analyze(counterexample_scene(pair(1.02), cx), metric="L", rotation_length=1.0)
+        assert got.summary["verdict"] == "unstable" and got.verdict.sufficient
