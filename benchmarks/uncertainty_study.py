@@ -16,6 +16,7 @@ import json
 import tempfile
 import time
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ from granstab.model.scene import SceneError
 from granstab.scan import read_map, scan
 from granstab.scan.clusters import adjacency, cluster
 from granstab.scan.run import _sub_index
-from granstab.uncertainty import data_robustness, perturbed
+from granstab.uncertainty import counterexample_from_flat, counterexample_scene, data_robustness
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "rigidlibrary" / "DataAnnulus"
 
@@ -59,10 +60,24 @@ def median_spread(a, b) -> float:
     return float(np.median(rel))
 
 
+def spread_band(a, b):
+    """Scene a with `force_err` the spread |f_b − f_a| of each contact in both solutions (a hair wider), |f_a| where b
+    lacks it: `scan --force-uncertainty file` then gives each cluster the other solution's distance as its band, so
+    the other solution lies in the band by construction wherever a cluster has the same contacts in both."""
+    theirs = {k: i for i, k in enumerate(pair_keys(b))}
+    err = np.linalg.norm(a.force, axis=1).copy()
+    for i, k in enumerate(pair_keys(a)):
+        if k in theirs:
+            j = theirs[k]
+            fb = b.force[j] if a.names[a.p[i]] == b.names[b.p[j]] else -b.force[j]
+            err[i] = np.linalg.norm(fb - a.force[i])
+    return replace(a, force_err=err * (1 + 1e-9))
+
+
 def compare(a, b, rows_a: dict, rows_b: dict, options: dict) -> list[dict]:
     """Per centre scanned in both: the verdicts, data_robust of `a`, and (where the cluster's scene has the same
     particles and contacts in both) the other solution's forces in a's order and whether each is within a's band."""
-    rel, abs_ = options["uncertainty"]["rel"], options["uncertainty"]["abs"]
+    rel, abs_ = options["uncertainty"].get("rel", 0.0), options["uncertainty"].get("abs", 0.0)
     ga, gb = adjacency(a), adjacency(b)
     index_b = {name: i for i, name in enumerate(b.names)}
     verdict_b = {b.names[c]: v for c, v in zip(rows_b["center"], rows_b["verdict"])}
@@ -74,8 +89,9 @@ def compare(a, b, rows_a: dict, rows_b: dict, options: dict) -> list[dict]:
         sub_a = cluster(a, c, options["rings"], options["boundary"], graph=ga)
         sub_b = cluster(b, index_b[name], options["rings"], options["boundary"], graph=gb)
         other = forces_in(sub_a, sub_b)
-        within = None if other is None else bool(np.all(
-            np.linalg.norm(other - sub_a.force, axis=1) <= rel * np.linalg.norm(sub_a.force, axis=1) + abs_))
+        band = sub_a.force_err if options["uncertainty"].get("per_contact") else \
+            rel * np.linalg.norm(sub_a.force, axis=1) + abs_
+        within = None if other is None else bool(np.all(np.linalg.norm(other - sub_a.force, axis=1) <= band))
         out.append({"centre": name, "verdict_a": rows_a["verdict"][i], "verdict_b": verdict_b[name],
                     "robust": rows_a["data_robust"][i], "same_contacts": other is not None, "within": within,
                     "counterexample": rows_a["counterexample"][i], "scene_a": sub_a, "other": other,
@@ -91,9 +107,8 @@ def held_out(pairs: list[dict], metric: str = "L") -> dict:
     failed = []
     depends = [p for p in pairs if p["robust"] == "depends"]
     for p in depends:
-        scene = p["scene_a"]
-        forces = np.reshape(p["counterexample"], scene.force.shape)
-        got = granstab.analyze(perturbed(scene, forces), metric=metric, attribution=False).verdict
+        scene = counterexample_scene(p["scene_a"], counterexample_from_flat(p["scene_a"], p["counterexample"]))
+        got = granstab.analyze(scene, metric=metric, attribution=False).verdict
         if got.verdict == p["verdict_a"] or not got.sufficient:
             failed.append(p["centre"])
     return {"holds_within_band": len(holds), "holds_changed": wrong, "depends": len(depends),
@@ -128,11 +143,17 @@ def at_the_spread(pairs: list[dict], boundary: str) -> dict:
 
 def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1, scenes=None,
           spread: bool = False) -> dict:
-    """Both solutions scanned alike (rel: the band; None: the median spread) at the same centres, compared and
-    checked. scenes: `solutions(frame)`, if at hand; spread: also `at_the_spread`."""
+    """Both solutions scanned alike (rel: the band; None: the median spread; "spread": each contact's own spread,
+    `spread_band`, through the scan's per-contact band) at the same centres, compared and checked. scenes:
+    `solutions(frame)`, if at hand; spread: also `at_the_spread`."""
     a, b = scenes or solutions(frame)
-    rel = median_spread(a, b) if rel is None else rel
-    options = {"rings": rings, "boundary": boundary, "uncertainty": {"rel": rel, "abs": 0.0, "search": True}}
+    if rel == "spread":
+        a = spread_band(a, b)
+        band = {"per_contact": True, "search": True}
+    else:
+        rel = median_spread(a, b) if rel is None else rel
+        band = {"rel": rel, "abs": 0.0, "search": True}
+    options = {"rings": rings, "boundary": boundary, "uncertainty": band}
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         scan(a, Path(tmp) / "a", centers=centers, rings=rings, boundary=boundary, workers=1, figures=False,
@@ -159,12 +180,13 @@ def study(frame: int, rel: float | None, centers, boundary: str, rings: int = 1,
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--frame", type=int, default=1)
-    p.add_argument("--rel", type=float, default=None, help="the band (default: the median spread)")
+    p.add_argument("--rel", default=None, help="the band (default: the median spread; 'spread': each contact's own)")
     p.add_argument("--centers", default="all")
     p.add_argument("--boundary", default="embedded:1")
     p.add_argument("--spread", action="store_true", help="also each cluster with the spread itself as its band")
     args = p.parse_args(argv)
-    print(json.dumps(study(args.frame, args.rel, args.centers, args.boundary, spread=args.spread), indent=1))
+    rel = args.rel if args.rel in (None, "spread") else float(args.rel)
+    print(json.dumps(study(args.frame, rel, args.centers, args.boundary, spread=args.spread), indent=1))
 
 
 if __name__ == "__main__":

@@ -55,7 +55,7 @@ def uncertainty_arguments(p, balance: bool = True) -> None:
                         "data / undecided (docs/uncertainty.md); 'file' (analyze, scan, track) takes each contact's from the "
                         "input's f_err (or fn_err, ft_err) column")
     p.add_argument("--position-uncertainty", type=positive_number, default=None, metavar="LEN",
-                   help="contact points and centres within LEN (first order only)")
+                   help="contact points and centres within LEN (a rigorous bound: docs/uncertainty.md)")
     if not balance:
         p.add_argument("--search-counterexamples", action="store_true",
                        help="clusters the batched bound does not decide: the per-cluster bound and the search for "

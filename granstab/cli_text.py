@@ -108,7 +108,7 @@ def uncertainty_lines(robust, balance: dict) -> list[str]:
            f"{balance['largest_correction_over_band']:.3g}× a contact's band)")]
     if robust is not None:
         out.append(f"data uncertainty ({robust.band}): the verdict {robust.verdict} {robust.robust.upper()} — "
-                   f"{robust.reason}" + ("; first order in positions" if robust.first_order else ""))
+                   f"{robust.reason}")
     return out
 
 

@@ -6,8 +6,9 @@ A verdict (eq:stab, eq:instab) of measured data becomes one of
              eigenvector's work for instability), added to the floating-point bounds of accuracy.py;
   depends    a force set within the band whose `analyze` proves the other verdict, exhibited (its forces returned);
   undecided  neither, with the margin (the factor of the band that the bound proves).
-The metric is the analysis's primary one (L by default). Position uncertainty adds a first-order term only
-(`position_norms`): a verdict it enters says so (`first_order`).
+The metric is the analysis's primary one (L by default). What the band moves that is not affine in the forces
+(positions; a 3D sliding contact's direction) is bounded rigorously by mechanics/nonaffine.py at a few band factors
+(KNOTS), convex in the factor, so that each margin is proven (`_nonaffine`).
 """
 from __future__ import annotations
 
@@ -19,7 +20,8 @@ import numpy as np
 from . import vertices
 from .analysis import analyze, focus, inside_share
 from .mechanics.branches import BOTH, MINUS, PLUS, RIGID
-from .mechanics.stiffness import contact_blocks, geometric
+from .mechanics.nonaffine import contact_changes, projection_change, symmetric_norm
+from .mechanics.stiffness import contact_blocks
 from .mechanics.uncertainty import (
     SAFETY,
     Band,
@@ -32,12 +34,15 @@ from .mechanics.uncertainty import (
     work_gradient,
 )
 from .model.scene import Scene, SceneError, equilibrium_loads
+from .moves import moved_positions, work_gradient_positions
 
-__all__ = ["Band", "DataRobustness", "balance_scene", "data_robustness", "perturbed"]
+__all__ = ["Band", "DataRobustness", "balance_scene", "counterexample_from_flat", "counterexample_scene",
+           "data_robustness", "flat_counterexample", "perturbed"]
 
 CONSISTENT = (PLUS, MINUS, BOTH)
 SEARCH_STEPS = 3          # counter-example steps: each goes to the band's edge along the current work gradient
 INSIDE = 1.0 - 1e-9       # a counter-example's corrections stay this fraction inside the band
+KNOTS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)   # band factors at which the non-affine part is bounded (`_nonaffine`)
 
 
 @dataclass(frozen=True)
@@ -45,9 +50,10 @@ class DataRobustness:
     """`robust` (holds / depends / undecided) of the data's `verdict` under `band`; `margin`: the factor of the band
     up to which the bound proves the verdict (> 1: holds); `bound`: ‖Δ sym(𝓗)‖₂ at the band (eigenvalue units);
     `uncertain`, `unbounded`: contacts whose mobilisation the band leaves open (counted in both states) or whose
-    sliding direction can turn (no bound); `counterexample`: the forces (M, d) and its proven verdict, with the
-    largest correction as a fraction of each contact's band; `first_order`: a position band entered the bound;
-    `certificate`: the vertex certificate of a stable verdict where the bound does not prove it (vertices.py)."""
+    tangential force can vanish (no bound); `counterexample`: the forces (M, d) and its proven verdict, with the
+    largest correction as a fraction of each contact's band (and with a position band, where the search moved them,
+    the positions: `x` (N, d), `point` (M, d), `normal` (M, d)); `nonaffine`: the part of `bound` that is not affine
+    in the forces (positions, 3D sliding turns: mechanics/nonaffine.py); `certificate`: the vertex certificate of a stable verdict where the bound does not prove it (vertices.py)."""
 
     robust: str
     verdict: str
@@ -58,14 +64,14 @@ class DataRobustness:
     uncertain: tuple = ()
     unbounded: tuple = ()
     counterexample: dict | None = None
-    first_order: bool = False
+    nonaffine: float = 0.0
     seconds: float = 0.0
     certificate: dict | None = None
 
     def to_dict(self) -> dict:
         out = asdict(self)
         out["uncertain"], out["unbounded"] = list(self.uncertain), list(self.unbounded)
-        out["margin"] = _finite(self.margin)
+        out["margin"], out["bound"], out["nonaffine"] = (_finite(v) for v in (self.margin, self.bound, self.nonaffine))
         if self.certificate is not None:
             out["certificate"] = {**self.certificate, "lowest": _finite(self.certificate["lowest"])}
         return out
@@ -113,18 +119,21 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
         raise ValueError("data uncertainty: the metric must be diagonal (L metrics, or inertia with scalar inertia)")
     mob = mobilisation(scene, band)
     data = _Data.of(scene, band)
-    weight, e_position = _bound(data, m)
-    e = float(np.sum(weight)) + e_position
+    weight = data.delta * contact_norms(data.G, m.diagonal[data.index])     # δ_c β_c (mechanics/uncertainty.py)
+    e = float(np.sum(weight))
     ext = whole
     if mob["uncertain"].any():        # contacts that may reach the cone: their sliding branches count too
         state = np.where(mob["uncertain"], "sliding", np.asarray(scene.state))
         ext = analyze(replace(scene, state=tuple(state)), metric=m.name if m.rotation_length is None else "L",
                       rotation_length=m.rotation_length, max_sliding=max_sliding, attribution=False, keep="all")
     verdict = res.verdict.verdict
-    margin = _margin(verdict, res, ext, data, (e, e_position), mob, inside)
-    common = dict(verdict=verdict, margin=margin, bound=e, band=band.describe(),
+    knots = _nonaffine(data, whole, mob, e)
+    moves = band.position > 0 and whole.problem.projection.C.shape[-1] > 0
+    margin = max(min(_margin(verdict, res, ext, data, e, k, mob, inside, moves), k[0]) for k in knots)
+    extra = next((k[1] for k in knots if k[0] == 1.0), 0.0)
+    common = dict(verdict=verdict, margin=margin, bound=e + extra, band=band.describe(), nonaffine=extra,
                   uncertain=tuple(int(i) for i in np.flatnonzero(mob["uncertain"])),
-                  unbounded=tuple(int(i) for i in np.flatnonzero(mob["unbounded"])), first_order=band.position > 0)
+                  unbounded=tuple(int(i) for i in np.flatnonzero(mob["unbounded"])))
     if margin > 1 and res.verdict.sufficient and verdict in ("stable", "unstable"):
         return DataRobustness(robust="holds", reason=f"proven by the bound up to {margin:.3g}× the band",
                               seconds=time.perf_counter() - start, **common)
@@ -139,34 +148,78 @@ def data_robustness(scene: Scene, band: Band, *, metric: str = "L", rotation_len
     found = _search(data, res, max_sliding, inside, probe) if search else None
     if found is not None:
         return DataRobustness(robust="depends", counterexample=found, seconds=time.perf_counter() - start,
-                              reason=f"forces within the band give {found['verdict']}", certificate=cert, **common)
+                              reason=f"{'positions and forces' if 'x' in found else 'forces'} within the band give "
+                                     f"{found['verdict']}", certificate=cert, **common)
     why = (f"the bound proves {margin:.3g}× the band" if np.isfinite(margin) else "no bound")
     return DataRobustness(robust="undecided", reason=f"{why}; no counter-example found", certificate=cert,
                           seconds=time.perf_counter() - start, **common)
 
 
-def _bound(data: _Data, metric) -> tuple[np.ndarray, float]:
-    """δ_c β_c per contact in the metric's dofs (their sum: e, mechanics/uncertainty.py), and the first-order
-    position term (0 without a position band)."""
-    Dp = metric.diagonal[data.index]
-    e = data.delta * contact_norms(data.G, Dp)
-    position = float(np.sum(position_norms(data.scene, data.band.position, Dp))) if data.band.position > 0 else 0.0
-    return e, position
+def _nonaffine(data: _Data, res, mob, e: float) -> list:
+    """[(t, slope, shift, work)]: at each band factor t of KNOTS, slope = e_x(t)/t, e_x(t) a bound of ‖Δ sym(𝓗)‖₂
+    from what is not affine in the forces (mechanics/nonaffine.py: Σ_c ‖ΔX̃_c‖ over the contacts, their sliding terms
+    where they may slide, and 2‖ΔP̃‖‖S̄‖ for the projection's move, P'S'P' − PS̄P in the full space, with
+    ‖S̄‖ <= ‖sym H̃‖ + t e + that sum);
+    shift (M,) the bound of ‖Δs̃_c‖ at t (the S values' move per unit motion); work(v) the slope of the same bound
+    for the work of a fixed unit vector ṽ = P̃v (`_vector_work`). e_x is convex with e_x(0) = 0, so
+    e_x(s) <= s·slope for s <= t: a margin found with that slope is proven up to t. [(inf, 0, 0, 0)] where nothing
+    is non-affine; [(1, inf, inf, inf)] where no bound is given (a metric without one rotation length)."""
+    band, scene = data.band, data.scene
+    zero = np.zeros(scene.n_contacts)
+    if band.position <= 0 and not mob["turning"].any():
+        return [(np.inf, 0.0, zero, lambda v: 0.0)]
+    L = res.metric.rotation_length
+    rotations = res.problem.projection.C.shape[-1]
+    if L is None or (res.problem.free is not None and rotations):
+        return [(1.0, np.inf, zero + np.inf, lambda v: np.inf)]
+    may_slide = (scene.at_yield() | mob["uncertain"]).astype(float)
+    size = symmetric_norm(contact_blocks(scene), res.metric.diagonal[data.index], may_slide, scene.n_dof)
+    force, moment = band.force_radius(scene.force), band.moment_radius(scene.moment)
+    out = []
+    for t in KNOTS:
+        c = contact_changes(scene, t * band.position, L, t * force, t * moment)
+        turn = projection_change(scene, t * band.position, L, rotations)
+        moved = float(np.sum(c["block"] + np.where(may_slide > 0, c["slide"], 0.0)))
+        with np.errstate(all="ignore"):
+            total = (moved + 2 * turn * (size + t * e + moved)) * SAFETY if turn < 1 else np.inf
+        work = _vector_work(data, res, t, L, may_slide, turn, float(np.sum(c["rigid"])))
+        out.append((t, total / t, c["s"], work))
+    return out
 
 
-def _margin(verdict: str, res, ext, data: _Data, bound: tuple, mob, inside=None) -> float:
+def _vector_work(data: _Data, res, t: float, L: float, may_slide, turn: float, rigid: float):
+    """v ↦ the slope (over t) of a bound of |q'(ṽ) − q(ṽ)| for the unit vector ṽ = P̃v when the non-affine part moves
+    at band factor t, q'(y) = yᵀP̃'S'P̃'y: ṽᵀ(S' − S̄)ṽ <= Σ_c |Δ(ṽ_cᵀX̃_c ṽ_c)| (nonaffine.contact_changes with the
+    vector: the work's own change), and with w = (P̃ − P̃')ṽ, a rigid rotation of the moved geometry (‖w‖ <= ‖ΔP̃‖), |−2wᵀS'ṽ + wᵀS'w| <=
+    (2 + ‖w‖)‖S'w‖, ‖S'w‖ <= ‖w‖ Σ_c ‖(Hg3 + ½(Hg1 + Hg2))'_c‖ (`rigid`): the elastic parts vanish on w."""
+    band, scene = data.band, data.scene
+
+    def work(v):
+        u = _scaled(res, v)[data.index]
+        c = contact_changes(scene, t * band.position, L, t * band.force_radius(scene.force),
+                            t * band.moment_radius(scene.moment), u)
+        own = float(np.sum(c["block"] + np.where(may_slide > 0, c["slide"], 0.0)))
+        with np.errstate(all="ignore"):
+            return (own + (2 + turn) * turn * rigid) * SAFETY / t if turn < 1 else np.inf
+    return work
+
+
+def _margin(verdict: str, res, ext, data: _Data, e: float, knot: tuple, mob, inside=None, moves=False) -> float:
     """The factor of the band the bound proves: stability over every branch of `ext` (the uncertain contacts sliding
     too, `_stable_margin`; focused: `_focused_margin`); instability from the data's consistent negative
-    eigenvectors (`_unstable_margin`). bound: (e, its position part)."""
-    if mob["unbounded"].any() or verdict not in ("stable", "unstable"):
+    eigenvectors (`_unstable_margin`). e: the affine part's bound; knot: (t, slope, shift) of `_nonaffine` (the
+    non-affine part taken linear, valid up to t); moves: the rigid-motion projection moves with the positions."""
+    slope, shift, work = knot[1:]
+    if mob["unbounded"].any() or verdict not in ("stable", "unstable") or not np.isfinite(slope):
         return -np.inf
-    e, position = bound
     if verdict == "stable":
         if len(ext.branches) < ext.verdict.n_branches:
             return -np.inf
-        return max(_stable_margin(ext, data, e, position),
-                   _focused_margin(ext, e, inside) if inside is not None else -np.inf)
-    return _unstable_margin(res, data, mob)
+        if moves:             # the projection moves: Weyl on P'S'P' − PSP in the full space (nonaffine.py) only
+            return _stable_margin(ext, data, e + slope, weyl_only=True)
+        return max(_stable_margin(ext, data, e + slope, slope),
+                   _focused_margin(ext, e + slope, inside) if inside is not None else -np.inf)
+    return _unstable_margin(res, data, mob, work, shift)
 
 
 def _first_order(res, data: _Data, v) -> tuple[float, float]:
@@ -182,7 +235,7 @@ def _first_order(res, data: _Data, v) -> tuple[float, float]:
     return F, K
 
 
-def _stable_margin(ext, data: _Data, e: float, position: float = 0.0) -> float:
+def _stable_margin(ext, data: _Data, e: float, extra: float = 0.0, weyl_only: bool = False) -> float:
     """min over branches of the largest t for which the lowest eigenvalue of every matrix within t × the band stays
     positive: λ_min(A + E) >= the lower eigenvalue of [[λ₁ − t F(v₁) − c, t e], [t e, λ₂ − t e]] (x = c v₁ + s w, w ⟂
     v₁, ‖E‖ <= t e, |v₁ᵀEv₁| <= t F), with λ₁, λ₂ the lowest two exact eigenvalues bounded by the computed ones and
@@ -200,11 +253,11 @@ def _stable_margin(ext, data: _Data, e: float, position: float = 0.0) -> float:
         l1, a1 = b.stability_eigenvalues[j], b.accuracy[j]
         l2 = lo[1] if lam.size > 1 else np.inf
         gap = l2 - (l1 + a1)
-        if gap <= 0 or e <= 0 or not np.isfinite(l2):
+        if gap <= 0 or e <= 0 or not np.isfinite(l2) or weyl_only:
             best = min(best, weyl)
             continue
         F, K = _first_order(ext, data, b.stability_vectors[:, j])
-        F, K = F + _position_work(ext, data, b.stability_vectors[:, j]), K + position     # positions: first order
+        F, K = F + extra, K + extra                      # the non-affine part: |v₁ᵀE v₁|, ‖E v₁‖ <= ‖E‖
         tilt = 2 * np.sqrt(2) * min(1.0, a1 / gap)
         lo_t = _largest_factor(l1 - a1, l2, F + tilt * e, min(K + tilt * e, e), e)
         best = min(best, max(lo_t, weyl))
@@ -240,10 +293,13 @@ def _largest_factor(low1: float, low2: float, F: float, K: float, e: float) -> f
     return lo
 
 
-def _unstable_margin(res, data: _Data, mob) -> float:
-    """max over consistent negative eigenpairs of (−λ − δ − changing)/F(v), F the exact first-order term of the fixed
-    vector (`_first_order`) plus its positions' first-order term (`_position_work`) and `changing` the sliding work a ⊗ s of the contacts whose yield state the band leaves
-    open and that load under the vector (at yield: may unload; uncertain: may load)."""
+def _unstable_margin(res, data: _Data, mob, extra=None, shift=None) -> float:
+    """max over consistent negative eigenpairs of (−λ − δ − changing)/(F(v) + extra(v)), F the exact first-order term
+    of the fixed vector (`_first_order`), extra(v) the non-affine part's slope for that vector (`_vector_work`: with
+    moved positions the perturbed problem's vector is P̃'ṽ) and
+    `changing` the sliding work a ⊗ s of the contacts whose yield state the band leaves open and that load under the
+    vector (at yield: may unload; uncertain: may load). With `shift` (M,) (the S values' move per unit motion) a
+    vector counts only where no contact at yield can change the sign of its S = s·U (its consistency, eq:flow)."""
     open_ = mob["uncertain"] | (data.scene.at_yield() & (data.delta > 0))
     best = -np.inf
     for b in res.branches:
@@ -252,21 +308,17 @@ def _unstable_margin(res, data: _Data, mob) -> float:
             U = _motion(res, b.stability_vectors[:, j])[data.index]
             s = np.einsum("mn,mn->m", data.slide_right, U)
             a = np.einsum("mn,mn->m", data.slide_left, U)
+            if shift is not None:
+                move = shift * np.linalg.norm(_scaled(res, b.stability_vectors[:, j])[data.index], axis=1)
+                if np.any(data.scene.at_yield() & (move > 0) & ~(np.abs(s) > move)):
+                    continue
             sign = 1 if b.codes[j] in (PLUS, BOTH) else -1
             changing = float(np.sum(np.abs(a * s)[open_ & (sign * s > 0)]))
-            F = _first_order(res, data, b.stability_vectors[:, j])[0] + _position_work(res, data, b.stability_vectors[:, j])
+            F = _first_order(res, data, b.stability_vectors[:, j])[0]
+            F = F + (extra(b.stability_vectors[:, j]) if extra is not None else 0.0)
             slack = -b.stability_eigenvalues[j] - b.accuracy[j] - changing
             best = max(best, slack / F if F > 0 else (np.inf if slack > 0 else -np.inf))
     return best
-
-
-def _position_work(res, data: _Data, v: np.ndarray) -> float:
-    """The largest first-order change of the fixed unit vector v's work ṽᵀ sym(𝓗) ṽ when the positions move within
-    the band (`position_norms` with the vector: per contact |ṽ_cᵀ ∂X_c ṽ_c|, not ‖∂X_c‖); 0 without a position band."""
-    if data.band.position <= 0:
-        return 0.0
-    scaled = _scaled(res, v)[data.index]
-    return float(np.sum(position_norms(data.scene, data.band.position, res.metric.diagonal[data.index], scaled)))
 
 
 def _scaled(res, v: np.ndarray) -> np.ndarray:
@@ -343,16 +395,19 @@ def _onto_cone(data: _Data):
 
 
 def _search(data: _Data, res, max_sliding, inside=None, probe=None):
-    """A force set within the band whose `analyze` proves another verdict than the data's (the vertex certificate's
-    `probe` first, then up to SEARCH_STEPS steps from each side the verdict can move to), or None."""
+    """A force set (and, with a position band, positions) within the band whose `analyze` proves another verdict
+    than the data's (the vertex certificate's `probe` first, then up to SEARCH_STEPS steps from each side the
+    verdict can move to: forces alone, then positions with them, `_position_step`), or None."""
     verdict = res.verdict.verdict
     m = res.metric
     name, length = ("inertia", None) if m.rotation_length is None else ("L", m.rotation_length)
 
-    def other(force):
-        """(the analysis of `force`, its counter-example dict or None); (None, None) where analyze refuses it."""
+    def other(force, dx=None, dpoint=None):
+        """(the analysis of `force` (at positions moved by dx, dpoint), its counter-example dict or None); (None,
+        None) where analyze refuses it."""
+        scene = data.scene if dx is None else moved_positions(data.scene, data.scene.x + dx, data.scene.point + dpoint)
         try:
-            got = analyze(perturbed(data.scene, force), metric=name, rotation_length=length,
+            got = analyze(perturbed(scene, force), metric=name, rotation_length=length,
                           max_sliding=max_sliding, attribution=False, keep="all")
         except (SceneError, ValueError):         # a perturbed set the analysis refuses is no counter-example
             return None, None
@@ -361,90 +416,80 @@ def _search(data: _Data, res, max_sliding, inside=None, probe=None):
             return got, None
         used = np.linalg.norm(force - data.scene.force, axis=1)
         delta = data.band.force_radius(data.scene.force)
-        frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0)))
-        return got, {"verdict": got.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
+        frac = float(np.max(np.divide(used, delta, out=np.zeros_like(used), where=delta > 0), initial=0.0))
+        out = {"verdict": got.verdict.verdict, "forces": force.tolist(), "largest_band_fraction": frac}
+        if dx is not None:
+            out.update(x=scene.x.tolist(), point=scene.point.tolist(), normal=scene.normal.tolist(),
+                       largest_position_move=float(max(np.linalg.norm(dx, axis=1).max(initial=0.0),
+                                                       np.linalg.norm(dpoint, axis=1).max(initial=0.0))))
+        return got, out
 
     found = other(probe)[1] if probe is not None else None
     sides = {"stable": (True,), "unstable": (False,), "neutral": (True, False)}.get(verdict, ())
-    for lower in sides if found is None else ():
-        current = res
-        onto = _onto_cone(data) if lower else None
-        for step in range(SEARCH_STEPS):
-            force = onto if step == 0 and onto is not None else _step(data, current, lower, first=step == 0)
-            if force is None:
+    for moving in (False, True) if data.band.position > 0 else (False,):
+        for lower in sides if found is None else ():
+            current = res
+            onto = _onto_cone(data) if lower and not moving else None
+            for step in range(SEARCH_STEPS):
+                if moving:
+                    move = _position_step(data, current, lower)
+                else:
+                    move = onto if step == 0 and onto is not None else _step(data, current, lower, first=step == 0)
+                    move = None if move is None else (move,)
+                if move is None:
+                    break
+                current, found = other(*move)
+                if current is None or found is not None:
+                    break
+            if found is not None:
                 break
-            current, found = other(force)
-            if current is None or found is not None:
-                break
-        if found is not None:
-            break
     return found
 
 
-def position_norms(scene: Scene, length: float, Dp: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
-    """First order only (no remainder): per contact a bound of ‖Δ sym(D H_c D)‖₂ (with v (M, n), a vector's scaled
-    dofs at each contact: of |v_cᵀ Δ sym(D H_c D) v_c|, the change of its work) when the contact point and both
-    reference points move by up to `length` and the normal turns by up to 2·length/|b^pq| (round particles: the
-    centre line's turn; 3D: about either tangent axis, the curvatures with it), from central differences of the
-    contact's blocks."""
-    M, d = scene.n_contacts, scene.dim
-    h = 1e-6 * np.maximum(np.linalg.norm(scene.r_pq, axis=1) + np.linalg.norm(scene.r_qp, axis=1), 1e-300)
-    pts = np.concatenate([scene.x[scene.p], scene.q_copy])
-    base = replace(scene, names=tuple(f"c{i}" for i in range(2 * M)), x=pts, p=np.arange(M), q=M + np.arange(M),
-                   image=np.zeros((M, d), dtype=np.int64), cell=None, load=np.zeros((2 * M, d)),
-                   load_moment=np.zeros((2 * M, scene.load_moment.shape[1])), mass=None, inertia=None, fixed=None)
+def _position_step(data: _Data, res, lower: bool):
+    """(forces, dx, dpoint): every centre and contact point moved to the band's edge (INSIDE it) along the first-order
+    gradient of the target eigenpair's work (moves.work_gradient_positions at the current analysis `res`), down
+    (lower) or up, and the forces of `_step` with it; None without a target."""
+    got = _target(res, lower)
+    if got is None:
+        return None
+    U = _motion(res, got[1])[data.index]
+    gx, gp = work_gradient_positions(res.scene, U)
+    length = (-1 if lower else 1) * data.band.position * INSIDE
 
-    def block(s):
-        b = contact_blocks(s).blocks
-        X = (geometric(b) + b["Hm"]) * Dp[:, :, None] * Dp[:, None, :]
-        return 0.5 * (X + np.swapaxes(X, 1, 2))
-
-    def shifted(what, j, sign):
-        step = np.zeros((M, d))
-        step[:, j] = sign * h
-        if what == "point":
-            return replace(base, point=scene.point + step)
-        x = base.x.copy()
-        x[(slice(0, M) if what == "p" else slice(M, 2 * M))] += step
-        return replace(base, x=x)
-
-    def size(dX):
-        return _norm2(dX) if v is None else np.abs(np.einsum("ma,mab,mb->m", v, dX, v))
-
-    total = np.zeros(M)
-    for what in ("point", "p", "q"):
-        sq = sum(size((block(shifted(what, j, 1)) - block(shifted(what, j, -1))) / (2 * h[:, None, None])) ** 2
-                 for j in range(d))
-        total += length * np.sqrt(sq)
-    turn = 2 * length / np.linalg.norm(scene.branch, axis=1)
-    sq = sum(size((block(plus) - block(minus)) / (2 * h[:, None, None])) ** 2 for plus, minus in _turned(base, h))
-    return total + turn * np.sqrt(sq)
+    def edge(g):
+        norm = np.linalg.norm(g, axis=1, keepdims=True)
+        return length * np.divide(g, norm, out=np.zeros_like(g), where=norm > 0)
+    force = _step(data, res, lower, first=False)
+    return (data.scene.force if force is None else force), edge(gx), edge(gp)
 
 
-def _turned(base: Scene, h: np.ndarray) -> list:
-    """The scene with each contact's normal turned by ±h (M,) about each tangent axis (2D: e3; 3D: t1, t2, the
-    curvature tensors turned with it, Rodrigues): [(plus, minus)] an axis."""
-    n = base.normal
-    if base.dim == 2:
-        return [tuple(replace(base, normal=np.stack([np.cos(t) * n[:, 0] - np.sin(t) * n[:, 1],
-                                                     np.sin(t) * n[:, 0] + np.cos(t) * n[:, 1]], axis=1))
-                      for t in (h, -h))]
-    from .model.vec import cross_matrix, tangent_basis
-    out = []
-    for axis in np.moveaxis(tangent_basis(n), -1, 0):
-        K = cross_matrix(axis)
-        pair = []
-        for t in (h, -h):
-            R = np.eye(3) + np.sin(t)[:, None, None] * K + (1 - np.cos(t))[:, None, None] * (K @ K)
-            turn = {key: R @ getattr(base, key) @ np.swapaxes(R, 1, 2)
-                    for key in ("curvature_p", "curvature_q", "curvature_sum")}
-            pair.append(replace(base, normal=np.einsum("mij,mj->mi", R, n), **turn))
-        out.append(tuple(pair))
+def flat_counterexample(counterexample: dict) -> list:
+    """A counter-example as one flat list (the scan's `counterexample` column): its forces (M·d), then, where it
+    moved the positions, the centres (N·d) and the contact points (M·d)."""
+    parts = [counterexample["forces"]] + ([counterexample["x"], counterexample["point"]] if "x" in counterexample
+                                         else [])
+    return [float(v) for part in parts for v in np.ravel(part)]
+
+
+def counterexample_from_flat(scene: Scene, flat) -> dict:
+    """The counter-example of `flat_counterexample`'s list for the cluster's `scene` (its forces, and its positions
+    where the list is long enough to hold them)."""
+    flat = np.asarray(flat, dtype=float)
+    M, N, d = scene.n_contacts, scene.n_particles, scene.dim
+    out = {"forces": flat[:M * d].reshape(M, d)}
+    if flat.size == (2 * M + N) * d:
+        out.update(x=flat[M * d:(M + N) * d].reshape(N, d), point=flat[(M + N) * d:].reshape(M, d))
     return out
 
 
-def _norm2(X: np.ndarray) -> np.ndarray:
-    return np.abs(np.linalg.eigvalsh(X)).max(axis=-1)
+def counterexample_scene(scene: Scene, counterexample: dict) -> Scene:
+    """The scene a counter-example describes: its forces (`perturbed`) at its positions where it moved them
+    (moves.moved_positions, the normals and curvatures turned with the centre lines), for `analyze` to re-check."""
+    if "x" in counterexample:
+        scene = moved_positions(scene, np.asarray(counterexample["x"], dtype=float),
+                                np.asarray(counterexample["point"], dtype=float))
+    return perturbed(scene, np.asarray(counterexample["forces"], dtype=float))
 
 
 def balance_scene(scene: Scene, uncertainty: dict | None, how: str, exempt=None):

@@ -60,10 +60,11 @@ COVERS = {
 
 def eligible(scene, band, mob, ext) -> bool:
     """The certificate applies: at most MOST_DOF dofs on the dense path, no position band, no moment band, every
-    branch kept, no contact whose sliding direction can turn (mobilisation: `unbounded`; in 3D every contact that
-    may slide and has a band)."""
+    branch kept, no contact whose sliding direction can turn (mobilisation: `unbounded`, and `turning`: in 3D every
+    contact that may slide and has a band; λ_min is concave in the forces only where the branch's H is affine)."""
     return (scene.n_dof <= MOST_DOF and ext.backend == "dense" and band.position == 0
             and not np.any(band.moment_radius(scene.moment) > 0) and not mob["unbounded"].any()
+            and not mob["turning"].any()
             and len(ext.branches) == ext.verdict.n_branches)
 
 

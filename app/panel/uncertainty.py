@@ -1,9 +1,9 @@
 """The *Force uncertainty* and *Position uncertainty* controls of the Verdict tab (issue 42): a relative band ±x % on
 every contact force and a band of ±y % of a radius on every contact and reference point, and one plain sentence
-saying whether the verdict holds under them, depends on the data (a counter-example's forces shown; its positions
-are the measured ones) or is undecided. 0 on both (the default) runs nothing. `robust_sentence` and `robustness`
+saying whether the verdict holds under them, depends on the data (a counter-example's forces shown, and whether it
+moved the positions) or is undecided. 0 on both (the default) runs nothing. `robust_sentence` and `robustness`
 are pure of viser (tests/app/test_app_uncertainty.py); granstab.uncertainty.data_robustness does the work
-(docs/uncertainty.md: the position band enters to first order)."""
+(docs/uncertainty.md: the position band's bound is rigorous, mechanics/nonaffine.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -53,20 +53,20 @@ def robust_sentence(robust, percent: float, names=None, position: float = 0.0) -
     if robust is None or not (percent or position):
         return ""
     band, within = _bands(percent, position)
-    first = " (for the positions: to first order, without a remainder)" if position else ""
     if robust.robust == "holds":
         return (f"**Holds under {band}:** every set of {within} gives the same verdict ({robust.verdict}) — proven, "
-                f"not sampled{first}.")
+                "not sampled.")
     if robust.robust == "depends":
         forces = np.asarray(robust.counterexample["forces"])
         labels = names or [f"c{i}" for i in range(len(forces))]
         shown = ", ".join(f"{n}: ({', '.join(f'{v:.4g}' for v in f)})" for n, f in zip(labels, forces))
-        kept = " (positions as measured)" if position else ""
+        kept = (" (at moved positions)" if "x" in robust.counterexample else " (positions as measured)") if position \
+            else ""
         return (f"**Depends on the data:** a force set within {band} makes it "
                 f"{robust.counterexample['verdict']} instead of {robust.verdict}. Counter-example forces{kept}: "
                 f"{shown}.")
     proven = f"proven for {robust.margin:.2g}× the band only" if np.isfinite(robust.margin) else "no bound applies"
-    return (f"**Undecided at {band}:** neither proven to hold ({proven}{first}) nor shown to change by a set of "
+    return (f"**Undecided at {band}:** neither proven to hold ({proven}) nor shown to change by a set of "
             f"{within}.")
 
 
@@ -79,7 +79,7 @@ class BandControl:
                                      hint="each contact force within this percentage of its value: does the verdict "
                                           "hold for all of them? 0: not asked (nothing extra is computed)")
         self.slider.on_update(lambda _: ui.run(self._set))
-        self.position = gui.add_slider("Position uncertainty ± % of a radius", min=0, max=MOST_POSITION, step=0.5,
+        self.position = gui.add_slider("Position uncertainty ± % of a radius", min=0, max=MOST_POSITION, step=0.1,
                                        initial_value=0)     # no hint: it would cover the force box above
         self.position.on_update(lambda _: ui.run(self._set))
         self.text = gui.add_markdown("")

@@ -15,8 +15,9 @@ w_cj = U_cᵀ G_cj U_c (U = D P v over the contact's dofs), whose worst case ove
 order and exact: no remainder, H being affine). Both are added to the floating-point bounds of accuracy.py.
 
 Contacts whose mobilisation is itself uncertain (state "auto" and within the band of the cone |f_t| = μ f_n) count
-in both states: the caller adds their sliding branches. Where the sign of f_t can flip within the band (2D) or in
-3D (h turns continuously), the sliding term is not affine and no bound is given here (`unbounded`).
+in both states: the caller adds their sliding branches. Where f_t can vanish within the band no bound is given
+(`unbounded`); where h turns (3D) or positions move, the sliding term and the geometry are not affine in the band:
+nonaffine.py bounds that part.
 """
 from __future__ import annotations
 
@@ -36,7 +37,7 @@ SAFETY = 1.0 + 1e-10      # the norms below are computed in floating point: roun
 class Band:
     """The stated uncertainty of the data: each contact force within rel·|f| + abs (and moment within rel·|m|) of
     its measured value (`per_contact` (M,), from a file's columns, replaces rel·|f| + abs where given); positions
-    (contact points and reference points) within `position` (first order only: `position_norms`)."""
+    (particle centres and contact points) within `position` (nonaffine.py: the model and its rigorous bound)."""
 
     rel: float = 0.0
     abs: float = 0.0
@@ -56,7 +57,7 @@ class Band:
         parts = [f"forces ±({self.rel:g}·|f| + {self.abs:g})" if self.per_contact is None
                  else "forces ± the file's per-contact uncertainty"]
         if self.position:
-            parts.append(f"positions ±{self.position:g} (first order)")
+            parts.append(f"positions ±{self.position:g}")
         return ", ".join(parts)
 
 
@@ -121,19 +122,25 @@ def radius(scene, band: Band) -> np.ndarray:
 
 def mobilisation(scene, band: Band) -> dict:
     """Which contacts' yield state the band leaves open (eq:yield, Q = |f_t| + μ f·n): `uncertain` (M,) bool, state
-    "auto" not at yield whose Q can reach the cone (|ΔQ| <= (1 + μ)‖δf‖, plus the yield test's own tolerance);
-    `unbounded` (M,) bool, contacts that may be at yield and whose sliding direction h can turn within the band (2D:
-    |f_t| <= δ, the sign of f_t open; 3D: every such contact with δ > 0)."""
+    "auto" not at yield whose Q can reach the cone (|ΔQ| <= (1 + μ)(δ + θ(|f| + δ)), θ the normal's turn under a
+    position band (nonaffine.normal_turn), plus the yield test's own tolerance); `unbounded` (M,) bool, contacts that
+    may be at yield and whose tangential force can vanish within the band (|f_t| <= δ + θ(|f| + δ): the sign of f_t
+    open in 2D, h undefined in 3D); `turning` (M,) bool, contacts that may slide and whose sliding term is not affine
+    in the band (3D with δ > 0: h turns with f_t; any with a position band), bounded by nonaffine.py."""
+    from .nonaffine import normal_turn
     delta = band.force_radius(scene.force)
     at_yield = scene.at_yield()
     Q = scene.yield_function()
     scale = np.linalg.norm(scene.force, axis=1) + delta
-    reach = (1.0 + scene.mu) * delta + scene.tol.yield_rtol * scale
-    uncertain = (np.asarray(scene.state) == "auto") & ~at_yield & (Q >= -reach) & (delta > 0)
+    theta = normal_turn(scene, band.position) if band.position > 0 else np.zeros(scene.n_contacts)
+    move = delta + theta * scale
+    reach = (1.0 + scene.mu) * move + scene.tol.yield_rtol * scale
+    uncertain = (np.asarray(scene.state) == "auto") & ~at_yield & (Q >= -reach) & (move > 0)
     may_slide = at_yield | uncertain
     ft = np.linalg.norm(scene.tangential_force(), axis=1)
-    turns = (ft <= delta * SAFETY) if scene.dim == 2 else (delta > 0)
-    return {"uncertain": uncertain, "unbounded": may_slide & turns & (delta > 0)}
+    unbounded = may_slide & (ft <= move * SAFETY) & (move > 0)
+    turning = may_slide & ((delta > 0) & (scene.dim == 3) | (theta > 0))
+    return {"uncertain": uncertain, "unbounded": unbounded, "turning": turning}
 
 
 def margins(lam, bounds, codes, e, owner, groups: int, rigid: int, consistent) -> dict:

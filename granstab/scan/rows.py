@@ -45,7 +45,8 @@ class Row:
     fixed_control: str = ""
     data_robust: str = ""                   # issue 42 (scan/uncertain.py): holds / depends / undecided, "" without
     robust_margin: float | None = None      # a band; the factor of the band the bound proves (> 1: holds)
-    counterexample: list[float] | None = None   # depends: the forces (flat, d a contact) of the cluster's scene
+    counterexample: list[float] | None = None   # depends: the forces (flat, d a contact) of the cluster's scene,
+    #                                             then its moved centres and points (uncertainty.flat_counterexample)
                                                 # (clusters.cluster, its contact order) that give the other verdict
 
     @classmethod

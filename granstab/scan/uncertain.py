@@ -15,16 +15,17 @@ import numpy as np
 
 from ..mechanics.uncertainty import band_from, contact_norms, mobilisation, radius, unit_blocks, work_gradient
 from ..model.scene import SceneError
-from ..uncertainty import data_robustness
+from ..uncertainty import data_robustness, flat_counterexample
 from .clusters import boundary_rings, cluster
 
 
 def band_parts(scene, band: dict) -> dict:
     """What the batch needs of the band for the chunk's scene: the unit blocks G (M, J, n, n), the radii δ (M,) and
-    `open` (M,): contacts of uncertain mobilisation or turning sliding direction (mechanics.uncertainty.mobilisation)."""
+    `open` (M,): contacts of uncertain mobilisation or a sliding term not affine in the band (3D: h turns), which the
+    batch does not bound (mechanics.uncertainty.mobilisation): their clusters go to data_robustness."""
     band = band_from(band, scene)
     mob = mobilisation(scene, band)
-    return {"G": unit_blocks(scene), "delta": radius(scene, band), "open": mob["uncertain"] | mob["unbounded"]}
+    return {"G": unit_blocks(scene), "delta": radius(scene, band), "open": mob["uncertain"] | mob["unbounded"] | mob["turning"]}
 
 
 def batch_margins(parts: dict, blocks, st: dict, modes: dict, lam, bounds, owner, G: int) -> dict:
@@ -53,7 +54,8 @@ def batch_margins(parts: dict, blocks, st: dict, modes: dict, lam, bounds, owner
 
 def robust_columns(scene, centers, member_lists, rows: dict, options: dict, graph, sub_index, share: float) -> dict:
     """data_robust (holds / depends / undecided; "" where the row is an error), robust_margin (the factor of the
-    band the bound proves) and counterexample (depends: the forces, flat) of each centre, in the order of `centers`.
+    band the bound proves) and counterexample (depends: the forces, flat, and the positions where it moved them:
+    granstab.uncertainty.flat_counterexample) of each centre, in the order of `centers`.
     rows: the rows' "verdict", "sufficient" and the batch's margins (NaN where the cluster was not batched). The
     rest (and all with a position band): data_robustness on the cluster's scene (a cluster whose verdict there
     differs from its row's is undecided); `share`: the embedded boundary's EMBEDDED_INSIDE."""
@@ -87,5 +89,5 @@ def robust_columns(scene, centers, member_lists, rows: dict, options: dict, grap
         robust[i] = got.robust if got.verdict == verdicts[i] else "undecided"
         margin[i] = got.margin
         if robust[i] == "depends":
-            example[i] = np.ravel(got.counterexample["forces"]).tolist()
+            example[i] = flat_counterexample(got.counterexample)
     return {"data_robust": robust, "robust_margin": margin, "counterexample": example}

@@ -65,9 +65,9 @@ def test_a_band_across_the_threshold_shows_its_counter_example():
 
 def test_position_band_server_side(monkeypatch):
     """The default pair (unstable: the rolling mode λ⁽⁶⁾ = f(ρ − r) = −0.005, r = 1): nothing computed at 0 on both
-    sliders; ±2 % of a radius is Band(position=0.02 · the mean arm = 0.02), the same result as data_robustness
-    called directly (holds, margin 25 = (r − ρ)/LEN: λ⁽⁶⁾ = f(ρ − r) moves by f per unit of arm, first order), said
-    in plain words;
+    sliders; ±0.1 % of a radius is Band(position=0.001 · the mean arm = 0.001), the same result as data_robustness
+    called directly (holds: the rigorous bound, mechanics/nonaffine.py, proves a margin above 4), said in plain words;
+    ±2 % is undecided (the bound proves about 0.22× the band; the old first-order estimate said 25×, no promise);
     with ±10 % on the forces too the band is both, and the margin smaller; a new band computes again."""
     from granstab.mechanics.uncertainty import Band
     s = Session()
@@ -76,20 +76,23 @@ def test_position_band_server_side(monkeypatch):
     monkeypatch.setattr(panel, "data_robustness", lambda *a, **k: calls.append(a[1]) or real(*a, **k))
     assert panel.robustness(s) is None and calls == [] and s.position_band == 0
     assert panel.radius(s.scene) == 1.0
-    s.position_band = 2.0
+    s.position_band = 0.1
     got = panel.robustness(s)
-    assert calls[-1] == Band(position=0.02) and got.first_order
-    direct = real(s.scene, Band(position=0.02), metric="L", rotation_length=s.analysis.length)
-    assert got.robust == direct.robust == "holds" and got.margin == direct.margin
-    assert abs(got.margin - 25.0) <= 1e-6 * 25
+    assert calls[-1] == Band(position=0.001) and got.nonaffine > 0
+    direct = real(s.scene, Band(position=0.001), metric="L", rotation_length=s.analysis.length)
+    assert got.robust == direct.robust == "holds" and got.margin == direct.margin and got.margin > 4
     text = panel.robust_sentence(got, s.force_band, position=s.position_band)
-    assert text.startswith("**Holds under ±2 % of a radius in the positions:**")
-    assert "contact positions within ±2 % of a radius" in text and "to first order" in text
+    assert text.startswith("**Holds under ±0.1 % of a radius in the positions:**")
+    assert "contact positions within ±0.1 % of a radius" in text and "first order" not in text
     s.force_band = 10.0
     both = panel.robustness(s)
-    assert len(calls) == 2 and calls[-1] == Band(rel=0.1, position=0.02) and both.margin < got.margin
-    assert panel.robust_sentence(both, 10.0, position=2.0).startswith(
-        "**Holds under ±10 % in the forces and ±2 % of a radius in the positions:**")
+    assert len(calls) == 2 and calls[-1] == Band(rel=0.1, position=0.001) and both.margin < got.margin
+    assert panel.robust_sentence(both, 10.0, position=0.1).startswith(
+        "**Holds under ±10 % in the forces and ±0.1 % of a radius in the positions:**")
+    s.force_band, s.position_band = 0.0, 2.0
+    wide = panel.robustness(s)
+    assert len(calls) == 3 and wide.robust == "undecided" and 0.1 < wide.margin < 1
+    assert panel.robust_sentence(wide, 0.0, position=2.0).startswith("**Undecided at ±2 % of a radius")
 
 
 def test_position_sentences_for_depends_and_undecided():

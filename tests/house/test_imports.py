@@ -14,7 +14,7 @@ from helpers import ROOT  # noqa: E402
 PACKAGE = ROOT / "granstab"
 FORBIDDEN = ("app", "granstab_app", "viser", "benchmarks", "granstab_bench")   # top-level packages the core never loads
 #: the rooms from the bottom up: a module may import its own room and the rooms before it, never one after it
-ROOMS = (("model",), ("io", "mechanics"), ("solve",), ("analysis", "moduli", "uncertainty", "vertices"), ("__init__",),
+ROOMS = (("model",), ("io", "mechanics"), ("solve",), ("analysis", "moduli", "uncertainty", "vertices", "moves"), ("__init__",),
          ("scan", "paper", "rigidity"), ("track",), ("export",), ("cli", "cli_text", "cli_options"),
          ("__main__",))
 REPORT_WRITERS = ("granstab.paper.examples", "granstab.paper.markdown", "granstab.paper.figures")
