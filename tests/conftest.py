@@ -7,18 +7,7 @@ import mode)."""
 import sys
 from pathlib import Path
 
-import pytest
-
 TESTS = Path(__file__).resolve().parent
 for folder in [TESTS, *sorted(p for p in TESTS.iterdir() if p.is_dir() and any(p.glob("test_*.py")))]:
     if str(folder) not in sys.path:
         sys.path.insert(0, str(folder))
-
-
-@pytest.hookimpl(tryfirst=True)         # before `-m` selects: a browser test is selected by `-m serial`
-def pytest_collection_modifyitems(items):
-    """Every browser test is serial (docs/testing.md): headless Chromium draws the 3D view on the CPU, and its
-    waits and boxes are measured; .ci/run runs the serial tests alone, after the rest ran on two workers."""
-    for item in items:
-        if item.get_closest_marker("browser") and not item.get_closest_marker("serial"):
-            item.add_marker(pytest.mark.serial)

@@ -58,6 +58,7 @@ def verdict_on_page(page, verdict, timeout=20_000):
     page.wait_for_selector(f'.granstab-verdict[data-verdict="{verdict}"]', timeout=timeout)
 
 
+@pytest.mark.serial                     # verdicts awaited within deadlines (load-sensitive)
 def test_explorer_end_to_end(app, tmp_path):
     from playwright.sync_api import sync_playwright
 

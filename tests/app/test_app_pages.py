@@ -322,6 +322,7 @@ def scan_dir(tmp_path_factory):
     return folder / "scan"
 
 
+@pytest.mark.serial                     # a measured frame time
 def test_a_large_packing_stays_responsive(app, browser, tmp_path):
     """A 10⁴-disk lattice (29,601 contacts) typed into *Path on server*: drawn, not analysed, and the page keeps
     drawing frames quickly: force lines and normals are off above LINES_MAX contacts until ticked (the legend says

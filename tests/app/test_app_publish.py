@@ -88,6 +88,7 @@ def test_the_host_warning():
     assert parse_args(["--host", "0.0.0.0", "--password", "w"]).password == "w"
 
 
+@pytest.mark.serial                     # the playback clock against real time
 @pytest.mark.browser
 def test_the_published_page_plays_offline(pair_page, tmp_path):
     from PIL import Image

@@ -135,6 +135,7 @@ def test_the_pair_takes_typed_numbers_and_speaks_plainly(app, browser):
     assert errors == []
 
 
+@pytest.mark.serial                     # a verdict within a deadline at every friction (load-sensitive)
 def test_friction_always_gives_a_verdict(app, browser):
     """μ typed into four_disk's box (its contacts all sliding at μ = 0.5) gives a verdict at 0, 0.3, 0.7 and 1.5,
     spheres_tetrahedron at 0.4 and 0.6: the sliding contacts keep to the new friction cone, and the page says so;
