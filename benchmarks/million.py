@@ -65,19 +65,21 @@ def read_child(folder: Path) -> dict:
             "mb": sum(p.stat().st_size for p in paths) / 2 ** 20, "top": [[s, name] for s, name in top]}
 
 
-def read_case(folder: Path) -> dict:
-    """read_child in a fresh interpreter: its peak resident memory (wait4) beside its own numbers."""
+def child(*args) -> dict:
+    """`python -m granstab_bench.million ARGS` in a fresh interpreter: its JSON line, its peak resident memory
+    (wait4) and the 1-minute load average before and after."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     load = os.getloadavg()[0]
     with tempfile.TemporaryFile() as out:
-        proc = subprocess.Popen([sys.executable, "-m", "granstab_bench.million", "read", str(folder)], stdout=out,
+        proc = subprocess.Popen([sys.executable, "-m", "granstab_bench.million", *map(str, args)], stdout=out,
                                 stderr=subprocess.DEVNULL, env=env, cwd=ROOT)
         _, status, usage = os.wait4(proc.pid, 0)
         out.seek(0)
         text = out.read().decode().strip().splitlines()
     if os.waitstatus_to_exitcode(status) != 0 or not text:
-        return {"failed": True, "load": [load, os.getloadavg()[0]]}
-    return {**json.loads(text[-1]), "peak_mb": usage.ru_maxrss / 1024, "load": [load, os.getloadavg()[0]]}
+        return {"failed": True, "rc": os.waitstatus_to_exitcode(status), "load": [load, os.getloadavg()[0]]}
+    return {**json.loads(text[-1]), "peak_mb": usage.ru_maxrss / 1024, "load": [load, os.getloadavg()[0]],
+            "at": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
 
 
 def whole_memory(n: int) -> dict:
@@ -99,7 +101,67 @@ def _whole(scene, device: str) -> dict:
     return {"wall": wall, "lambda_min": min(low), "branches": len(r.branches), "verdict": r.summary["verdict"],
             "residual": float(r.errors["eigen_residual_stability"]),
             "bound": float(max(b.bounds.max() for b in r.branches)),
-            "counts": all(b.negative_count["total"] for b in r.branches)}
+            "counts": all(b.negative_count["total"] for b in r.branches),
+            "below": [b.negative_count["count"] for b in r.branches], "timings": dict(r.timings),
+            "warnings": list(r.warnings)}
+
+
+PHASES = ("granstab.solve.methods:SparseMethod.prepare", "granstab.solve.methods:SparseMethod.problem",
+          "granstab.solve.multifrontal:Factor.__init__", "granstab.solve.sparse:_block_near",
+          "granstab.solve.ritz:SparseRitz.__init__", "granstab.solve.ritz:SparseRitz._branch",
+          "granstab.solve.sparse:sparse_branch", "granstab.solve.methods:SparseMethod.errors")
+LIMIT_GB = 18.5      # the whole packing's child stops itself above this resident memory (a shared machine)
+
+
+def whole_child(n: int, sliding: int = 1) -> dict:
+    """In this (fresh) process: the periodic benchmark's packing of about n disks with `sliding` contacts at yield
+    (2^sliding branches), `_whole` of it with its phases traced (memtrace: wall, CPU, resident memory at entry and
+    peak), the estimate it was planned with beside the measured peak."""
+    from .memtrace import Trace, resident
+    from .periodic_child import periodic_packing
+    t = time.perf_counter()
+    scene = periodic_packing(n, sliding)
+    built, scene_gb = time.perf_counter() - t, resident() / 2 ** 30
+    estimate = whole_memory(scene.n_particles)
+    with Trace(*PHASES, limit=LIMIT_GB * 2 ** 30) as trace:
+        c = time.process_time()
+        out = _whole(scene, "cpu")
+        out["cpu"] = time.process_time() - c
+    return {**out, "particles": scene.n_particles, "contacts": scene.n_contacts, "dofs": scene.n_dof,
+            "t_scene": built, "scene_gb": scene_gb, "peak_gb": trace.peak_gb(), "phases": trace.phases(),
+            "estimated_gb": estimate["estimated_bytes"] / 2 ** 30}
+
+
+def scan_case(folder: Path, out: Path, workers: int = 2) -> dict:
+    """`granstab scan FOLDER --out OUT --workers W --json` in a fresh process: wall and CPU time (the command and its
+    Dask workers), the peak resident memory of the command and of each worker (psutil, sampled every 0.5 s: each
+    process's highest), its summary, and the load before and after."""
+    import psutil
+    load = os.getloadavg()[0]
+    cmd = [sys.executable, "-m", "granstab", "scan", str(folder), "--out", str(out), "--overwrite", "--workers",
+           str(workers), "--json"]
+    t = time.perf_counter()
+    with tempfile.TemporaryFile() as stdout:
+        proc = psutil.Popen(cmd, stdout=stdout, stderr=subprocess.DEVNULL)
+        peak, cpu = {}, {}
+        while proc.poll() is None:
+            try:
+                for p in [proc, *proc.children(recursive=True)]:
+                    with p.oneshot():
+                        peak[p.pid] = max(peak.get(p.pid, 0), p.memory_info().rss)
+                        times = p.cpu_times()
+                        cpu[p.pid] = times.user + times.system
+            except psutil.Error:
+                pass
+            time.sleep(0.5)
+        wall = time.perf_counter() - t
+        stdout.seek(0)
+        text = stdout.read().decode().strip()
+    main_mb = peak.pop(proc.pid, 0) / 2 ** 20
+    return {"rc": proc.returncode, "wall": wall, "cpu_sampled": sum(cpu.values()), "main_mb": main_mb,
+            "worker_mb": sorted((v / 2 ** 20 for v in peak.values()), reverse=True),
+            "summary": json.loads(text.splitlines()[-1]) if proc.returncode == 0 and text else None,
+            "load": [load, os.getloadavg()[0]]}
 
 
 def gpu_case(n: int) -> dict:
@@ -115,19 +177,32 @@ def gpu_case(n: int) -> dict:
     return {"particles": scene.n_particles, "gpu": _whole(scene, "gpu"), "cpu": _whole(scene, "cpu")}
 
 
+def measured(name: str) -> dict | None:
+    """A case measured before, under the benchmark lock (`python -m granstab_bench.million read|whole …` through
+    `child`, its JSON line saved as MILLION_MEASURED/NAME.json): reused, with its own time and load, where the 10⁶
+    cases take longer than a busy shared machine leaves for one `granstab bench` run; None where not given."""
+    folder = os.environ.get("MILLION_MEASURED")
+    path = Path(folder) / f"{name}.json" if folder else None
+    return {**json.loads(path.read_text()), "reused": str(path)} if path and path.is_file() else None
+
+
 def run(quick: bool = False, device: str = "cpu") -> dict:
     if device == "gpu":
         return {"gpu": gpu_case(QUICK_PARTICLES if quick else PARTICLES)}
     n = QUICK_PARTICLES if quick else PARTICLES
+    if not quick and measured("read") and measured("whole"):
+        return {"reading": measured("read"), "estimates": [whole_memory(m) for m in WHOLE],
+                "whole": measured("whole"), "goal_read_s": 20.0, "goal_memory_gb": 20.0, "goal_whole_s": 600.0}
     given = os.environ.get("MILLION_DATA")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(given) if given and not quick else Path(tmp)
         t = time.perf_counter()
         write_dumps(n, folder)
         written = time.perf_counter() - t
-        reading = read_case(folder)
-    return {"reading": {**reading, "t_write": written}, "whole": [whole_memory(m) for m in WHOLE],
-            "goal_read_s": 20.0, "goal_memory_gb": 20.0}
+        reading = child("read", folder)
+    whole = child("whole", n)
+    return {"reading": {**reading, "t_write": written}, "estimates": [whole_memory(m) for m in WHOLE],
+            "whole": whole, "goal_read_s": 20.0, "goal_memory_gb": 20.0, "goal_whole_s": 600.0}
 
 
 def _gb(b) -> str:
@@ -150,21 +225,37 @@ def gpu_markdown(g: dict) -> str:
                                        rows)])
 
 
+def _reading_rows(r: dict) -> list:
+    if r.get("failed"):
+        return [["failed", "", "", "", "", "", "", "", ""]]
+    where = "; ".join(f"{name} {s:.1f} s" for s, name in r["top"][:4])
+    return [[f"{r['particles']:,}", f"{r['contacts']:,} ({r['rows']:,} rows)", f"{r['mb']:.0f}", f"{r['wall']:.1f} s",
+             f"{r['cpu']:.1f} s", f"{r['parse_cpu']:.1f} s ({r['parse_cpu'] / max(r['cpu'], 1e-9):.0%})",
+             f"{r['peak_mb']:.0f} MB", "{:.1f} → {:.1f}".format(*r["load"]) + (f" ({r['at']})" if "at" in r else ""),
+             where]]
+
+
+def _whole_rows(w: dict) -> tuple[list, list]:
+    """The whole packing's row and its phases' rows (memtrace: wall, CPU, resident at entry and peak)."""
+    if w.get("failed"):
+        return [["failed (rc {})".format(w.get("rc")), *[""] * 11]], []
+    row = [f"{w['particles']:,} / {w['contacts']:,} / {w['dofs']:,}", str(w["branches"]), f"{w['wall']:.0f} s",
+           f"{w['cpu']:.0f} s", f"{w['peak_mb'] / 1024:.1f} GB", f"{w['estimated_gb']:.1f} GB",
+           "{:.1f} → {:.1f}".format(*w["load"]) + (f" ({w['at']})" if "at" in w else ""), f"{w['lambda_min']:.10g}", f"{w['residual']:.1e}",
+           f"{w['bound']:.1e}", "proven, " + "/".join(map(str, w["below"])) + " below σ" if w["counts"] else "no",
+           w["verdict"]]
+    phases = [[p["phase"], f"{p['wall']:.1f} s", f"{p['cpu']:.1f} s", f"{p['entry_gb']:.2f} GB",
+               f"{p['peak_gb']:.2f} GB"] for p in w["phases"]]
+    return [row], phases
+
+
 def markdown(results: dict) -> str:
     if "gpu" in results:
         return gpu_markdown(results["gpu"])
-    r = results["reading"]
-    if r.get("failed"):
-        read_rows = [["failed", "", "", "", "", "", "", ""]]
-    else:
-        where = "; ".join(f"{name} {s:.1f} s" for s, name in r["top"][:4])
-        read_rows = [[f"{r['particles']:,}", f"{r['contacts']:,} ({r['rows']:,} rows)", f"{r['mb']:.0f}",
-                      f"{r['wall']:.1f} s", f"{r['cpu']:.1f} s", f"{r['parse_cpu']:.1f} s "
-                      f"({r['parse_cpu'] / max(r['cpu'], 1e-9):.0%})", f"{r['peak_mb']:.0f} MB",
-                      "{:.1f} → {:.1f}".format(*r["load"]), where]]
-    whole = [[f"{w['particles']:,}", f"{w['dofs']:,}", ", ".join(f"{k} {_gb(v)}" for k, v in w["parts"].items()),
-              _gb(w["estimated_bytes"]), f"{_gb(w['available_bytes'])} ({w['available_from']})",
-              "fits" if w["fits"] else "refused in one line"] for w in results["whole"]]
+    estimates = [[f"{w['particles']:,}", f"{w['dofs']:,}", ", ".join(f"{k} {_gb(v)}" for k, v in w["parts"].items()),
+                  _gb(w["estimated_bytes"]), f"{_gb(w['available_bytes'])} ({w['available_from']})",
+                  "fits" if w["fits"] else "refused in one line"] for w in results["estimates"]]
+    whole, phases = _whole_rows(results["whole"])
     return "\n".join([
         "## A million grains (issue 41)",
         "",
@@ -175,31 +266,44 @@ def markdown(results: dict) -> str:
         "other work (wall times above a load of 2 are stretched by it: the CPU time is what the work costs); "
         "*where*: the granstab functions with the most CPU time of their own (not counting what they call).",
         "",
-        table(["particles", "contacts", "MB", "wall", "CPU", "parser", "peak memory", "load", "where"], read_rows),
+        table(["particles", "contacts", "MB", "wall", "CPU", "parser", "peak memory", "load", "where"],
+              _reading_rows(results["reading"])),
         "",
-        f"**The whole packing's memory** (goal ≤ {results['goal_memory_gb']:g} GB), estimated before any work "
-        "(solve/memory.py), against the memory available when this ran:",
+        f"**The whole packing** (goal ≤ {results['goal_whole_s'] / 60:g} min and ≤ {results['goal_memory_gb']:g} "
+        "GB): `granstab.analyze(scene, k=6, metric=\"L\")` of the periodic benchmark's packing with one contact at "
+        "yield (the elastic and the all-loading branch), in a fresh process; *peak*: its resident peak (wait4); "
+        "*estimated*: solve/memory.py's estimate, made before the run; *residual*: the largest ‖Bv − λv‖/‖Hs‖; "
+        "*bound*: the largest reported error bound of an eigenvalue (residual and formation error, "
+        "accuracy.vector_bounds); *counts*: the number of eigenvalues below σ by inertia (multifrontal.py).",
         "",
-        table(["disks", "dofs", "parts", "estimated peak", "available", "here"], whole),
+        table(["disks / contacts / dofs", "branches", "wall", "CPU", "peak", "estimated", "load", "λ_min",
+               "residual", "bound", "counts", "verdict"], whole),
         "",
-        WHERE_TIME,
+        "**Where its time and memory go** (benchmarks/memtrace.py: each phase's wall and CPU time, the resident "
+        "memory when it began and the highest sampled while it ran; nested phases inside SparseRitz.__init__):",
+        "",
+        table(["phase", "wall", "CPU", "resident at entry", "peak during"], phases),
+        "",
+        "**The whole packing's memory estimated before any work** (solve/memory.py; refused in one line where it "
+        "exceeds what is available):",
+        "",
+        table(["disks", "dofs", "parts", "estimated peak", "available", "here"], estimates),
+        "",
+        NOT_DONE,
     ])
 
 
-WHERE_TIME = (
-    "**Where the whole packing's time goes** (cProfile in CPU time, 2026-11-29, `granstab.analyze(scene, k=6, "
-    "metric=\"L\")` of the periodic benchmark's 2·10⁵ disks, 6.0·10⁵ dofs, 2 contacts at yield, 4 branches, load "
-    "~8 on 2 cores: 67 s of CPU time in 209 s of wall time): the block shift-invert Krylov solve of the elastic "
-    "branch 25 s (its 15 float32 block solves on the multifrontal factor 13 s, orthogonalisation 5 s, products with "
-    "B 4 s), the multifrontal factorisation 17 s (front elimination 12 s, of which extend-add 4 s; the dissection 2 "
-    "s), the Ritz basis of the branches 6.5 s (Taylor block solves), the assembly 9.6 s (contact blocks and sparse "
-    "parts), the branches' Rayleigh quotients and bounds 2.6 s, the identity checks 1 s; peak resident memory 4.6 GB "
-    "(`granstab analyze --json` of the NPZ scene, 600 MB of it reading). Not run here: 10⁶ disks whole (the "
-    "estimate above, 22 GB, is over this machine's ~19 GB available and over the issue's 20 GB: refused; its CPU "
-    "time, extrapolated as n log n from the 2·10⁵ profile, ~6 min), the moduli of 10⁶ disks and the 10⁶-particle "
-    "scan end to end (read, chunk, Dask with 2 workers, write, the explorer's map).")
+NOT_DONE = (
+    "**Not run here**: the moduli of 10⁶ disks (moduli.py factors the grounded non-symmetric H by SuperLU in "
+    "minimum-degree order, an LU of both triangles that would not fit at 3·10⁶ dofs; the multifrontal factor above "
+    "is symmetric), and the 10⁶-particle scan end to end with the explorer's map (its map builds one Body per "
+    "particle in Python).")
 
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["read"]:
         print(json.dumps(read_child(Path(sys.argv[2]))))
+    elif sys.argv[1:2] == ["scan"]:
+        print(json.dumps(scan_case(Path(sys.argv[2]), Path(sys.argv[3])), default=float))
+    elif sys.argv[1:2] == ["whole"]:
+        print(json.dumps(whole_child(int(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) > 3 else 1), default=float))
