@@ -18,9 +18,9 @@ The parts (bytes; n dofs, M contacts, per = dofs a particle):
 Fitted to the periodic benchmark's packing with one contact at yield (benchmarks/million.py, memtrace's phases,
 2026-11-29): at 3.0·10⁶ dofs (10⁶ disks) resident 4.83 GB before the factor (the parts), the factor 6.8 GB (8.07
 bytes per estimated entry), the block Krylov solve 4.2 GB more (188 columns), peak 15.83 GB; the estimate gives
-15.9 GB. The memory this machine can give: MemAvailable (/proc/meminfo), within the process's cgroup limit where one
-is set, or the environment's GRANSTAB_MEMORY (bytes, or with a suffix K, M, G: a cap the user sets,
-e.g. on a machine shared with others)."""
+15.9 GB; at 6.0·10⁵ dofs (2·10⁵ disks) 3.78 GB measured, 3.73 estimated. The memory this machine can give:
+MemAvailable (/proc/meminfo), within the process's cgroup limit where one is set, or the environment's
+GRANSTAB_MEMORY (bytes, or with a suffix K, M, G: a cap the user sets, e.g. on a machine shared with others)."""
 from __future__ import annotations
 
 import math
