@@ -78,7 +78,7 @@ class SceneView(FieldView, OverlayView, GrainView):
         self.drawn = ("cloud" if len(bodies) > MESH_MAX and not (grain and self.dim == 3) else
                       grain or ("stripe" if self.dim == 2 else "dot"))           # what the legend names
         if self.drawn == "cloud":                    # keyed by its arrays: no per-particle tuple each redraw
-            self._draw_cloud(bodies, (session.preset, session.draggable, self.dim))
+            self.draw_cloud(bodies, (session.preset, session.draggable, self.dim), PALETTE[0])
             return
         size = session.size
         key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
@@ -137,23 +137,6 @@ class SceneView(FieldView, OverlayView, GrainView):
             self.api.add_mesh_simple(f"{base}/marker", Vs, np.array([[0, 1, 2], [0, 2, 3]], np.uint32), color=MARKER,
                                      side="double") if self.dim == 2 else
             self.api.add_icosphere(f"{base}/marker", radius=0.12 * size, color=MARKER, position=(body.axes[0], 0.0, 0.0)))
-
-    def _draw_cloud(self, bodies, key) -> None:
-        """A large packing: one point cloud of the centres (sized by the median radius), no per-particle nodes."""
-        if self._cloud_of is not bodies:           # a scan map's list is built once and never changes (scanmap.py)
-            self._cloud_of, self._cloud_arrays = bodies, cloud_arrays(bodies)
-        x, radii = self._cloud_arrays
-        cloud = digest(key, x, radii)
-        if cloud == self.key:
-            return
-        self.api.remove_by_name("/particles")
-        self.clear_particles()
-        self.key = cloud
-        radius = float(np.median(radii))
-        self._cloud_colours = None
-        self.cloud = self.api.add_point_cloud("/particles/cloud", points=x, colors=PALETTE[0], point_size=1.8 * radius,
-                                 point_shape="circle")
-        self.base = {b.name: b for b in bodies}
 
     def colour_particles(self, names, shares=None, colours=None, unstable: bool = True) -> None:
         """Colour each particle by its share of a mode (white 0 → dark red 1 where the mode is `unstable`, else
@@ -341,12 +324,6 @@ class SceneView(FieldView, OverlayView, GrainView):
         shaft = 0.035 * size
         self._put("/contacts/forces", "arrows", np.stack([starts, ends], axis=1), colors,
                   shaft_radius=shaft, head_radius=2.5 * shaft, head_length=min(0.15 * size, 0.3 * arrow))
-
-
-def cloud_arrays(bodies) -> tuple[np.ndarray, np.ndarray]:
-    """(centres (N, 3), drawn radii (N,)) of a point cloud's bodies: what the cloud draws, in two arrays."""
-    return (to3(np.array([b.x for b in bodies], float).reshape(len(bodies), -1)),
-            np.array([max(b.axes) for b in bodies], float))
 
 
 def tip(body) -> np.ndarray:
