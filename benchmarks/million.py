@@ -117,6 +117,47 @@ def map_child(folder: Path) -> dict:
     return out
 
 
+def browser_child(folder: Path, shot: Path | None = None) -> dict:
+    """In this (fresh) process: the explorer (in-process server) opened on a scan folder in headless Debian Chromium:
+    wall time from the page's load to the SCAN MAP badge (the map sent and drawn), from typing a particle's name into
+    *Open cluster of* to its cluster's verdict (the GUI answering a control: the cluster cut and analysed), and from
+    *Back to the map* to the map again; screenshots of both into `shot` (a folder) when given."""
+    import tempfile as _tempfile
+
+    from playwright.sync_api import sync_playwright
+
+    from granstab_app.browser import chromium
+    from granstab_app.server import App
+    badge = '.granstab-verdict[data-verdict="scan-map"]'
+    out = {}
+    with sync_playwright() as pw, _tempfile.TemporaryDirectory() as profile:
+        ctx, app = chromium(pw, profile), App(host="127.0.0.1", port=0, preset=str(folder))
+        try:
+            page, t = ctx.new_page(), time.perf_counter()
+            page.goto(app.url)
+            page.wait_for_selector(badge, timeout=300_000)
+            out["map_s"] = time.perf_counter() - t
+            model = next(iter(app.uis.values())).session.model
+            out["particles"], name = model.scene.n_particles, model.scene.names[len(model.scene.names) // 2]
+            t = time.perf_counter()
+            page.locator("input.mantine-TextInput-input:visible").nth(1).fill(name)     # Open cluster of
+            page.wait_for_selector(badge.replace("[", ":not([", 1) + ")", timeout=300_000)
+            out["cluster_s"] = time.perf_counter() - t
+            if shot:
+                page.screenshot(path=str(shot / "million-cluster.png"))
+            t = time.perf_counter()
+            page.get_by_role("button", name="Back to the map").click()
+            page.wait_for_selector(badge, timeout=300_000)
+            out["back_s"] = time.perf_counter() - t
+            if shot:
+                page.wait_for_timeout(2000)
+                page.screenshot(path=str(shot / "million-map.png"))
+        finally:
+            app.stop()
+            ctx.close()
+    return out
+
+
 def whole_memory(n: int) -> dict:
     """The sparse path's peak estimate for the periodic benchmark's packing of about n disks (3 contacts a disk,
     3 dofs a disk), against what is available now (solve/memory.py)."""
@@ -228,6 +269,7 @@ def run(quick: bool = False, device: str = "cpu") -> dict:
     if not quick and measured("read") and measured("whole"):
         whole = [measured(f"whole_{m}") for m in SMALLER] + [measured("whole")]
         return {"reading": measured("read"), "estimates": [whole_memory(m) for m in WHOLE], "map": measured("map"),
+                "browser": measured("browser"),
                 "whole": [w for w in whole if w], "goal_read_s": 20.0, "goal_memory_gb": 20.0, "goal_whole_s": 600.0}
     given = os.environ.get("MILLION_DATA")
     with tempfile.TemporaryDirectory() as tmp:
@@ -240,6 +282,7 @@ def run(quick: bool = False, device: str = "cpu") -> dict:
     scan_folder = os.environ.get("MILLION_SCAN")
     return {"reading": {**reading, "t_write": written}, "estimates": [whole_memory(m) for m in WHOLE],
             "map": child("map", Path(scan_folder)) if scan_folder and not quick else None,
+            "browser": child("browser", Path(scan_folder)) if scan_folder and not quick else None,
             "whole": whole, "goal_read_s": 20.0, "goal_memory_gb": 20.0, "goal_whole_s": 600.0}
 
 
@@ -337,7 +380,7 @@ def markdown(results: dict) -> str:
         "",
         table(["disks", "dofs", "parts", "estimated peak", "available", "here"], estimates),
         "",
-        map_text(results.get("map")),
+        map_text(results.get("map"), results.get("browser")),
         "",
         NOT_DONE,
     ])
@@ -379,8 +422,9 @@ NOT_DONE = (
     "folder), and no browser check of a large map was made (only the drawing without a browser: below).")
 
 
-def map_text(m: dict | None) -> str:
-    """The explorer's scan map drawn without a browser (`map_child`), or why there is no such line."""
+def map_text(m: dict | None, b: dict | None = None) -> str:
+    """The explorer's scan map drawn without a browser (`map_child`) and in one (`browser_child`, `b`), or why there
+    is no such line."""
     if not m:
         return "**The explorer's scan map**: not measured in this run (give MILLION_SCAN, a scan folder)."
     if m.get("failed"):
@@ -392,12 +436,27 @@ def map_text(m: dict | None) -> str:
             f"the one point cloud {m['first_draw']:.3f} s, a redraw {m['draw'] * 1e3:.1f} ms and a recolouring by "
             f"the map's colour array {m['colour'] * 1e3:.2f} ms (medians of 3), peak {m['peak_mb']:.0f} MB. Before "
             "(the cloud's centres and radii walked in Python and a per-name colour loop on every call): a redraw "
-            "0.37 s and a recolouring 0.20 s of CPU at 10⁵ (load 7).")
+            "0.37 s and a recolouring 0.20 s of CPU at 10⁵ (load 7).") + browser_text(b)
+
+
+def browser_text(b: dict | None) -> str:
+    """The same map in headless Chromium (`browser_child`), or that it was not opened."""
+    if not b or b.get("failed"):
+        return " The page in a browser: not measured in this run." if not b else " The page in a browser: failed."
+    return (" In headless Chromium (`python -m granstab_bench.million browser FOLDER [SHOTS]`, software WebGL, "
+            "one run, load {:.1f} → {:.1f}, not under the lock): ".format(*b["load"]) +
+            f"the page loaded to the SCAN MAP badge in {b['map_s']:.1f} s, a particle's name typed into *Open "
+            f"cluster of* answered by its cluster's verdict in {b['cluster_s']:.1f} s (the cluster cut and analysed), "
+            f"*Back to the map* in {b['back_s']:.1f} s (the server's process peaked at {b['peak_mb']:.0f} MB). The screenshot of "
+            "the map shows the packing as one pale square: every one of its clusters is stable, so every disk is "
+            "drawn white (the legend's 0), as the map says.")
 
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["read"]:
         print(json.dumps(read_child(Path(sys.argv[2]))))
+    elif sys.argv[1:2] == ["browser"]:
+        print(json.dumps(browser_child(Path(sys.argv[2]), Path(sys.argv[3]) if len(sys.argv) > 3 else None)))
     elif sys.argv[1:2] == ["map"]:
         print(json.dumps(map_child(Path(sys.argv[2]))))
     elif sys.argv[1:2] == ["scan"]:
