@@ -7,7 +7,7 @@ cluster that the scan's row describes. Particles are indices inside; names appea
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -62,6 +62,7 @@ class ScanMapModel(MapModel):
     summary: dict
     path: str
     grains: object = None          # the grains' true shapes the scan kept (model.grains.Grains), else None
+    _bodies: list | None = field(default=None, init=False, repr=False)    # built once (`bodies`)
     kind = "scan_map"
     draggable = False
     params_used = ()
@@ -78,7 +79,11 @@ class ScanMapModel(MapModel):
         return map_colours(self.fraction, self.by_cut)
 
     def bodies(self, P: dict) -> list[Body]:
-        return ContactModel(self.scene, grains=self.grains).bodies(P)
+        """The packing's bodies, built once: the map never moves (not draggable), and every redraw, the particle
+        size and each click asked for them again (0.74 s of CPU a build for 10⁵ particles, one Body each)."""
+        if self._bodies is None:
+            self._bodies = ContactModel(self.scene, grains=self.grains).bodies(P)
+        return self._bodies
 
     @property
     def report(self) -> str:

@@ -50,6 +50,7 @@ class SceneView(FieldView, OverlayView, GrainView):
         self.cloud = None                         # the point cloud of a large packing (one node for all)
         self.grains, self.grain_nodes = [], []    # 3D grains drawn as they are: instanced meshes (grainview.py)
         self._cloud_colours = None                # digest of the colours it shows
+        self._cloud_of, self._cloud_arrays = None, None   # the bodies list the cloud was formed from, its arrays
         self.contacts_frame = None                # parent of every contact drawing (hidden while a mode plays)
         self.key = None                           # (model id, particle names, draggable) the tree was built for
         self.drawn = None                         # what the particles are drawn as (text.PARTICLE_LEGEND's keys)
@@ -73,16 +74,16 @@ class SceneView(FieldView, OverlayView, GrainView):
         `skip`: a particle being dragged right now (the browser owns its pose until release)."""
         bodies = session.bodies()
         self.dim = session.scene_dim
-        size = session.size
-        key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
         grain = bodies[0].kind if bodies and bodies[0].grain else None
         self.drawn = ("cloud" if len(bodies) > MESH_MAX and not (grain and self.dim == 3) else
                       grain or ("stripe" if self.dim == 2 else "dot"))           # what the legend names
+        if self.drawn == "cloud":                    # keyed by its arrays: no per-particle tuple each redraw
+            self.draw_cloud(bodies, (session.preset, session.draggable, self.dim), PALETTE[0])
+            return
+        size = session.size
+        key = (session.preset, tuple(b.name for b in bodies), session.draggable, self.dim)
         if self.dim == 3 and grain:                  # superquadrics, clumps: instanced, any number
             self.draw_grains(bodies, key, PALETTE)
-            return
-        if len(bodies) > MESH_MAX:
-            self._draw_cloud(bodies, key)
             return
         rebuilt = key != self.key
         if rebuilt:
@@ -137,21 +138,6 @@ class SceneView(FieldView, OverlayView, GrainView):
                                      side="double") if self.dim == 2 else
             self.api.add_icosphere(f"{base}/marker", radius=0.12 * size, color=MARKER, position=(body.axes[0], 0.0, 0.0)))
 
-    def _draw_cloud(self, bodies, key) -> None:
-        """A large packing: one point cloud of the centres (sized by the median radius), no per-particle nodes."""
-        x = np.array([to3(b.x) for b in bodies])
-        cloud = digest(key, x)
-        if cloud == self.key:
-            return
-        self.api.remove_by_name("/particles")
-        self.clear_particles()
-        self.key = cloud
-        radius = float(np.median([max(b.axes) for b in bodies]))
-        self._cloud_colours = None
-        self.cloud = self.api.add_point_cloud("/particles/cloud", points=x, colors=PALETTE[0], point_size=1.8 * radius,
-                                 point_shape="circle")
-        self.base = {b.name: b for b in bodies}
-
     def colour_particles(self, names, shares=None, colours=None, unstable: bool = True) -> None:
         """Colour each particle by its share of a mode (white 0 → dark red 1 where the mode is `unstable`, else
         white → dark blue), by given (N, 3) `colours` (the scan
@@ -165,6 +151,9 @@ class SceneView(FieldView, OverlayView, GrainView):
                 self._cloud_colours = digest((), rgb)
                 self.cloud.colors = rgb
         self.colour_grains(names, colours, PALETTE)
+        if self.cloud is not None and not self.meshes:     # the cloud's colour array is all there is to colour
+            self.colours_by_mode = shares is not None
+            return
         for i, name in enumerate(names):
             colour = PALETTE[i % len(PALETTE)] if colours is None else tuple(int(c) for c in colours[i])
             if self.colours.get(name) != colour and name in self.meshes:

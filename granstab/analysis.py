@@ -192,6 +192,8 @@ def _solve_metrics(backend, state, metrics, primary, masks, timer, on_branch, pr
         main = i == primary
         with timer("assembly" if main else f"metric {m.name}"):
             problem = backend.problem(state, m)
+            if i == order[-1]:
+                backend.release(state)                               # what only the metrics' problems needed
         with timer("branches" if main else f"metric {m.name}"):
             branches, notes = backend.solve(problem, masks, on_branch=on_branch if main else None,
                                             progress=progress, label=f"branches, metric {m.name}",

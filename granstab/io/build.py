@@ -40,7 +40,7 @@ from ..model.errors import SceneError
 from ..model.periodic import minimum_image
 from ..model.scene import build_scene
 from ..model.tolerances import DEFAULT, Tolerances
-from ..model.vec import sum_at
+from ..model.vec import norms, sum_at
 from .registry import Loaded
 from .unwrap import cell_of, periodic_report, unwrap
 from .validation import LAW_DEFAULT, import_warnings
@@ -130,13 +130,14 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
     x = snap.x * scale
     radius = snap.radius * scale
     branch, shifts = _branches(snap, x, scale)
-    d = np.linalg.norm(branch, axis=1)
+    d = norms(branch)
     if np.any(d == 0):
         c = int(np.flatnonzero(d == 0)[0])
         raise SceneError(f"{snap.where('contact', c)}: contact {pair[c]}: x: the two centres coincide")
     e = branch / d[:, None]
     normal = e if snap.normal is None else _unit_normals(snap, pair)
-    arm_p, arm_q, curvature, geometry_report = _contact_geometry(snap, opts, x, radius, branch, normal, pair)
+    arm_p, arm_q, curvature, geometry_report = _contact_geometry(snap, opts, x, radius, (branch, d, e), normal,
+                                                                 pair)
     law, law_report = _law(snap, opts, len(d))
     force, state, cone_report, force_report = _cone(snap, normal, law["mu"], opts, pair)
     report = {"source": snap.source, "format": snap.format, "read_as": "snapshot", "frame": snap.frame,
@@ -155,14 +156,15 @@ def build(snap: Snapshot, opts: Options, progress=None, tol: Tolerances = DEFAUL
                          f"{int(cut.sum())} cut around the cell, {selection['contacts']} outside the region)")
     index = np.cumsum(keep_p) - 1
     c = np.flatnonzero(keep_c)
-    p, q = index[snap.p[c]], index[snap.q[c]]
+    sel = slice(None) if len(c) == len(d) else c        # every contact kept: views, no copies
+    p, q = index[snap.p[sel]], index[snap.q[sel]]
     r = 1 if snap.dim == 2 else 3
-    point = unwrapped[snap.p[c]] + arm_p[c]
+    point = unwrapped[snap.p[sel]] + arm_p[sel]
     arrays = {
-        "p": p, "q": q, "point": point, "normal": normal[c],
-        **{key: value[c] for key, value in curvature.items()},
-        "force": force[c], "moment": np.zeros((len(c), r)) if snap.moment is None else snap.moment[c],
-        "k": law["k"][c], "alpha": law["alpha"][c], "mu": law["mu"][c],
+        "p": p, "q": q, "point": point, "normal": normal[sel],
+        **{key: value[sel] for key, value in curvature.items()},
+        "force": force[sel], "moment": np.zeros((len(c), r)) if snap.moment is None else snap.moment[sel],
+        "k": law["k"][sel], "alpha": law["alpha"][sel], "mu": law["mu"][sel],
         "rolling": np.zeros((len(c), r, r)), "state": tuple(state[c]),
     }
     title = f"{snap.format} {snap.source}" + ("" if snap.frame is None else f" frame {snap.frame}")
@@ -239,12 +241,12 @@ def _check_options(opts: Options, snap: Snapshot) -> None:
     _check_particles(snap)
 
 
-def _contact_geometry(snap: Snapshot, opts: Options, x, radius, branch, normal, pair):
+def _contact_geometry(snap: Snapshot, opts: Options, x, radius, centre_line, normal, pair):
     """Each contact's arms from the centres to its point, the curvatures there and the geometry report: the
-    reader's (shaped grains, rigid bodies) or the geometry rule's (`centres`, `touching`)."""
+    reader's (shaped grains, rigid bodies) or the geometry rule's (`centres`, `touching`). `centre_line`: the
+    branch vectors, their lengths d and unit vectors e."""
     scale = opts.length_scale
-    d = np.linalg.norm(branch, axis=1)
-    e = branch / d[:, None]
+    branch, d, e = centre_line
     if snap.shaped is not None:   # the reader's contact points and curvatures (e.g. superquadrics: model/surface.py)
         arm_p, arm_q = snap.shaped["arm_p"] * scale, snap.shaped["arm_q"] * scale
         curvature = {key: snap.shaped[key] / scale for key in ("curvature_p", "curvature_q")}
@@ -300,9 +302,9 @@ def _check_particles(snap: Snapshot) -> None:
     if len(snap.ids) == 0:
         raise SceneError(f"{where}: no particles")
     ids = np.asarray(snap.ids)
-    uniq, counts = np.unique(ids, return_counts=True)
-    if np.any(counts > 1):
-        i = int(np.flatnonzero(ids == uniq[counts > 1][0])[1])
+    twice = _repeated(ids)
+    if twice is not None:
+        i = int(np.flatnonzero(ids == twice)[1])
         raise SceneError(f"{snap.where('particle', i)}: particle {ids[i]}: id: listed twice in one frame")
     bad = np.flatnonzero(~(snap.radius > 0))
     if bad.size:
@@ -312,9 +314,9 @@ def _check_particles(snap: Snapshot) -> None:
         return
     lo, hi = np.minimum(snap.p, snap.q), np.maximum(snap.p, snap.q)
     key = lo.astype(np.int64) * len(ids) + hi
-    _, first, counts = np.unique(key, return_index=True, return_counts=True)
-    if np.any(counts > 1):
-        c = np.flatnonzero(key == key[first[counts > 1][0]])[1]
+    twice = _repeated(key)
+    if twice is not None:
+        c = np.flatnonzero(key == twice)[1]
         raise SceneError(f"{snap.where('contact', c)}: contact {ids[snap.p[c]]}-{ids[snap.q[c]]}: id2: listed twice in one frame")
     same = np.flatnonzero(snap.p == snap.q)
     if same.size:
@@ -322,8 +324,15 @@ def _check_particles(snap: Snapshot) -> None:
                          "touch itself")
 
 
+def _repeated(values: np.ndarray):
+    """The smallest value listed more than once, or None: one sort (np.unique's counts cost a stable argsort)."""
+    s = np.sort(values, kind="quicksort")
+    same = s[1:] == s[:-1]
+    return s[1:][same][0] if same.any() else None
+
+
 def _unit_normals(snap: Snapshot, pair) -> np.ndarray:
-    norm = np.linalg.norm(snap.normal, axis=1)
+    norm = norms(snap.normal)
     bad = np.flatnonzero(~(np.abs(norm - 1.0) <= 1e-3))
     if bad.size:
         raise SceneError(f"{snap.where('contact', bad[0])}: contact {pair[bad[0]]}: normal: not a unit vector (|n| = {norm[bad[0]]:.6g})")
@@ -405,7 +414,7 @@ def _geometry(rule, rad_p, rad_q, d, e, normal, snap, pair):
     report = {"rule": rule, "distance_over_sum_of_radii": _stats(d / (rad_p + rad_q)),
               "overlap_over_mean_radius": _stats(overlap),
               "extreme_overlaps": {"threshold": OVERLAP_WARN, "count": len(extreme),
-                                   "names": _names(pair[extreme[np.argsort(-overlap[extreme], kind="stable")]])},
+                                   "names": pair[extreme[np.argsort(-overlap[extreme], kind="stable")]]},
               "gaps": int(np.sum(delta < 0)),
               "normal_to_centre_line_deg_max": float(np.degrees(np.arccos(cosine.min()))) if len(d) else 0.0}
     return {"rho_p": rho_p, "rho_q": rho_q}, report
@@ -466,8 +475,8 @@ def _cone(snap: Snapshot, normal, mu, opts: Options, pair):
     fdotn = np.sum(f * normal, axis=1)
     fn = -fdotn
     ft_vec = f - fdotn[:, None] * normal
-    ft = np.linalg.norm(ft_vec, axis=1)
-    fmag = np.linalg.norm(f, axis=1)
+    ft = norms(ft_vec)
+    fmag = norms(f)
     loaded = fmag > 0
     positive = fn > 0
     if np.sum(loaded) and np.sum(fdotn[loaded] > 0) > np.sum(loaded) / 2:
@@ -507,7 +516,7 @@ def _cone(snap: Snapshot, normal, mu, opts: Options, pair):
             "at_yield_by_file_flag": int(np.sum(at_yield & flagged & ~near)),
             "within_tolerance_not_flagged": int(np.sum(near & ~flagged)) if snap.mobilised is not None else 0,
             "outside": {"count": int(outside.sum()), "fraction": float(outside.mean()) if len(f) else 0.0,
-                        "policy": opts.outside_cone, "action": action, "names": _names(pair[outside])},
+                        "policy": opts.outside_cone, "action": action, "names": pair[outside]},
             "largest_ratio_ft_over_mu_fn": float(np.max(ft[positive] / np.maximum(limit[positive], 1e-300)))
             if np.any(positive & (mu > 0)) else None,
             "largest_change_over_force": float(change.max()) if len(f) else 0.0}
@@ -515,7 +524,7 @@ def _cone(snap: Snapshot, normal, mu, opts: Options, pair):
               "compressive": int(np.sum(positive)), "fn_nonpositive": {"count": int(np.sum(~positive)),
                                                                     "with_force": int(tension.sum()),
                                                                     "treated_as": "elastic",
-                                                                    "names": _names(pair[~positive])},
+                                                                    "names": pair[~positive]},
               "fn": _stats(fn)}
     return f, state, cone, report
 
@@ -527,19 +536,19 @@ def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
     N, d = snap.x.shape
     r = 1 if d == 2 else 3
     force = snap.force
-    fmag = np.linalg.norm(force, axis=1)
+    fmag = norms(force)
     moment = np.zeros((len(force), r)) if snap.moment is None else snap.moment
-    mmag = np.linalg.norm(moment, axis=1)
+    mmag = norms(moment)
     side = np.concatenate([snap.p, snap.q])        # p's contributions, then q's: the order np.add.at sums in
     net = sum_at(side, np.concatenate([force, -force]), N)
     torque = sum_at(side, np.concatenate([_cross(arm_p, force) + moment, _cross(arm_q, -force) - moment]), N)
     fscale = sum_at(side, np.concatenate([fmag, fmag]), N)
-    mscale = sum_at(side, np.concatenate([np.linalg.norm(arm_p, axis=1) * fmag + mmag,
-                                           np.linalg.norm(arm_q, axis=1) * fmag + mmag]), N)
+    mscale = sum_at(side, np.concatenate([norms(arm_p) * fmag + mmag,
+                                           norms(arm_q) * fmag + mmag]), N)
     bodies = snap.bodies or {}
     if snap.wall_load is not None:        # a body resting on a wall alone: its scale is Σ|f|, not |Σ f| ≈ 0
         net += snap.wall_load
-        fscale += bodies["wall_force_scale"] if "wall_force_scale" in bodies else np.linalg.norm(snap.wall_load, axis=1)
+        fscale += bodies["wall_force_scale"] if "wall_force_scale" in bodies else norms(snap.wall_load)
     if bodies.get("wall_moment") is not None:
         torque += bodies["wall_moment"]
         mscale += bodies["wall_moment_scale"]
@@ -549,8 +558,8 @@ def _imbalance(snap: Snapshot, arm_p, arm_q) -> dict:
         counted &= snap.wall_flags == 0
         excluded += ", particles touching a wall whose force the file does not give"
     return {"particles": int(counted.sum()), "excluded": excluded,
-            "force": _stats(np.linalg.norm(net[counted], axis=1) / fscale[counted]),
-            "moment": _stats(np.linalg.norm(torque[counted], axis=1) / np.maximum(mscale[counted], 1e-300)),
+            "force": _stats(norms(net[counted]) / fscale[counted]),
+            "moment": _stats(norms(torque[counted]) / np.maximum(mscale[counted], 1e-300)),
             "scale": "|Σf| over Σ|f| of the particle; |Σ(r×f + m)| over Σ(|r||f| + |m|)"}
 
 

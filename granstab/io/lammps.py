@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model.errors import SceneError
+from ..model.vec import norms
 from .build import Snapshot, branch_vectors
 from .columns import (
     CONTACT_NAMES,
@@ -376,7 +377,7 @@ def read_step(index: DumpIndex, timestep=None, columns: str | None = None, progr
     p, q = (to_indices(ids, col[name], name, line, what) for name in ("id1", "id2"))
     lattice = lattice_of(ablock, dim)
     branch = branch_vectors(x[:, :dim], p, q, lattice)[0]
-    d = np.linalg.norm(branch, axis=1)
+    d = norms(branch)
     delta = radius[p] + radius[q] - d
     touching = delta > 0
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -21,7 +21,7 @@ import numpy as np
 from .errors import SceneError, first, row_problem
 from .periodic import check_cell, check_images, check_points, image_offset
 from .tolerances import COORDINATE_RATIO, DEFAULT, MAX_MAGNITUDE, MIN_SCALE, Tolerances
-from .vec import cross, rot_dim, sum_at
+from .vec import cross, norms, rot_dim, sum_at
 
 STATES = ("auto", "elastic", "sliding")
 CONTACT_FIELDS = ("p", "q", "point", "normal", "curvature_p", "curvature_q", "curvature_sum", "force", "moment", "k",
@@ -187,26 +187,27 @@ class Scene:
         fn = np.sum(self.force * self.normal, axis=1)
         return self.force - fn[:, None] * self.normal
 
-    def yield_function(self) -> np.ndarray:
-        """Q^pq = |f_t| + μ f·n (eq:yield), (M,)."""
+    def yield_function(self, ft=None) -> np.ndarray:
+        """Q^pq = |f_t| + μ f·n (eq:yield), (M,); `ft`: |f_t| when already formed."""
         fn = np.sum(self.force * self.normal, axis=1)
-        return np.linalg.norm(self.tangential_force(), axis=1) + self.mu * fn
+        return (norms(self.tangential_force()) if ft is None else ft) + self.mu * fn
 
-    def has_sliding_direction(self) -> np.ndarray:
+    def has_sliding_direction(self, ft=None) -> np.ndarray:
         """|f_t| > yield_rtol·|f|: a tangential force that defines h = f_t/|f_t| (eq:Hdirection), (M,).
 
         A smaller |f_t| is within the yield test's own tolerance of zero and its direction is round-off (a rigid
         rotation of the scene turns an exact 0 into ~1e-16·|f|): treating it as a direction made the
-        classification, and so the number of branches and the verdict, depend on the frame."""
-        ft = np.linalg.norm(self.tangential_force(), axis=1)
-        return ft > self.tol.yield_rtol * np.linalg.norm(self.force, axis=1)
+        classification, and so the number of branches and the verdict, depend on the frame. `ft`: |f_t| when
+        already formed."""
+        ft = norms(self.tangential_force()) if ft is None else ft
+        return ft > self.tol.yield_rtol * norms(self.force)
 
     def at_yield(self) -> np.ndarray:
         """Potentially sliding contacts (Appendix D mask ±1): state "sliding", or "auto" with Q = 0 within
         yield_rtol·|f| and a tangential force to slide along (`has_sliding_direction`). Zero-force and
         frictionless normal contacts have no sliding direction h (eq:Hdirection) and stay elastic."""
         state = np.asarray(self.state)
-        scale = np.linalg.norm(self.force, axis=1)
+        scale = norms(self.force)
         auto = ((state == "auto") & (self.yield_function() >= -self.tol.yield_rtol * scale)
                 & self.has_sliding_direction())
         return (state == "sliding") | auto
@@ -275,16 +276,17 @@ def build_scene(dim, names, x, arrays, loads=None, load_moments=None, *, title="
                  load_moment=np.zeros((N, r)), title=title, source=source, tol=tol, cell=cell, image=image, **arrays)
     given_b, has_b = _given(loads, N, dim)
     given_w, has_w = _given(load_moments, N, r)
-    check_ranges(base, contact_name, particle_name, (given_b, given_w))
+    arms = (base.r_pq, base.r_qp)                   # formed once for every check below (10⁶ contacts: 0.3 s each)
+    check_ranges(base, contact_name, particle_name, (given_b, given_w), arms)
     _check_curvature_sum(base, contact_name)
     check_points(base, contact_name)
     _check_friction(base, contact_name)
-    b_eq, w_eq = equilibrium_loads(base)
-    f_scale, m_scale = _load_scales(base)
+    b_eq, w_eq = equilibrium_loads(base, arms)
+    f_scale, m_scale = _load_scales(base, arms)
     for given, has, eq, scale, key, what in ((given_b, has_b, b_eq, f_scale, "load", "|b + Σf|"),
                                              (given_w, has_w, w_eq, m_scale, "moment", "|w + Σ(r×f + m)|")):
-        res = np.linalg.norm(given - eq, axis=1)
-        bad = has & (res > tol.input_rtol * (scale + np.linalg.norm(given, axis=1)))
+        res = norms(given - eq)
+        bad = has & (res > tol.input_rtol * (scale + norms(given)))
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise SceneError(f"{source}: {particle_name(i)}: {key}: does not balance the contact "
@@ -322,10 +324,10 @@ def _given(values, N: int, width: int):
     return out, has
 
 
-def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
+def check_ranges(scene: Scene, contact_name, particle_name, given=(), arms=None) -> None:
     """Every number finite with |v| <= MAX_MAGNITUDE; k and α >= MIN_SCALE; positions and contact points within
     COORDINATE_RATIO mean contact radii of the origin (beyond it r^pq = point - x loses more than input_rtol to
-    rounding). The first offender is named with its entry and field."""
+    rounding). The first offender is named with its entry and field. `arms`: (r^pq, r^qp) when already formed."""
     per_contact = {"point": scene.point, "normal": scene.normal, "curvature_p": scene.curvature_p,
                    "curvature_q": scene.curvature_q, "curvature_sum": scene.curvature_sum, "force": scene.force,
                    "moment": scene.moment, "k": scene.k, "alpha": scene.alpha, "mu": scene.mu,
@@ -344,7 +346,7 @@ def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
                              "(change units: products with it underflow float64)")
     if M == 0:
         return
-    L = mean_contact_radius(scene)
+    L = mean_contact_radius(scene, arms)
     if not MIN_SCALE <= L <= MAX_MAGNITUDE:
         raise SceneError(f"{scene.source}: contacts: point: the mean contact radius {L:.3g} is outside "
                          f"[{MIN_SCALE:.0e}, {MAX_MAGNITUDE:.0e}] (change units)")
@@ -358,12 +360,13 @@ def check_ranges(scene: Scene, contact_name, particle_name, given=()) -> None:
                              f"would cost r^pq = point - x more than input_rtol; move the scene near the origin")
 
 
-def mean_contact_radius(scene: Scene) -> float:
-    """The mean contact radius over |r^pq| and |r^qp| (1 for a scene without contacts): granstab's length scale."""
+def mean_contact_radius(scene: Scene, arms=None) -> float:
+    """The mean contact radius over |r^pq| and |r^qp| (1 for a scene without contacts): granstab's length scale.
+    `arms`: (r^pq, r^qp) when already formed."""
     if scene.n_contacts == 0:
         return 1.0
-    radii = np.concatenate([np.linalg.norm(scene.r_pq, axis=1), np.linalg.norm(scene.r_qp, axis=1)])
-    L = float(radii.mean())
+    r_pq, r_qp = arms or (scene.r_pq, scene.r_qp)
+    L = float(np.concatenate([norms(r_pq), norms(r_qp)]).mean())
     return L if L > 0 else 1.0
 
 
@@ -385,9 +388,12 @@ def _fmt(v) -> str:
 
 def _check_curvature_sum(scene: Scene, name) -> None:
     """A given curvature_sum must be K^p + K^q to input_rtol of the larger curvature (the same data, summed first)."""
-    scale = np.maximum(np.abs(scene.curvature_p).max(axis=(1, 2), initial=0.0),
-                       np.abs(scene.curvature_q).max(axis=(1, 2), initial=0.0))
-    off = np.abs(scene.curvature_sum - scene.curvature_p - scene.curvature_q).max(axis=(1, 2), initial=0.0)
+    M = scene.n_contacts
+    kp, kq = _rows(scene.curvature_p, M), _rows(scene.curvature_q, M)
+    scale = np.maximum(np.abs(kp).max(axis=1, initial=0.0), np.abs(kq).max(axis=1, initial=0.0))
+    off = _rows(scene.curvature_sum, M) - kp                     # in place from here: no (M, d, d) temporaries
+    off -= kq
+    off = np.abs(off, out=off).max(axis=1, initial=0.0)
     bad = off > scene.tol.input_rtol * scale
     if bad.any():
         c = first(bad)
@@ -399,9 +405,9 @@ def _check_friction(scene: Scene, name) -> None:
     """Forces outside the friction cone ("auto") and "sliding" contacts not at yield are errors."""
     if scene.n_contacts == 0:
         return
-    Q = scene.yield_function()
-    fmag = np.linalg.norm(scene.force, axis=1)
-    ft = np.linalg.norm(scene.tangential_force(), axis=1)
+    ft = norms(scene.tangential_force())
+    Q = scene.yield_function(ft)
+    fmag = norms(scene.force)
     state = np.asarray(scene.state)
     tol = scene.tol.yield_rtol * fmag
     outside = np.flatnonzero((state == "auto") & (Q > tol))
@@ -410,7 +416,7 @@ def _check_friction(scene: Scene, name) -> None:
         raise SceneError(f"{scene.source}: {name(c)}: force: outside the friction cone, Q = {Q[c]:.6g} > 0 "
                          f"(|f_t| = {ft[c]:.6g}, μ|f_n| = {abs(Q[c] - ft[c]):.6g}); set state = \"elastic\" "
                          "for a cohesive contact")
-    direction = scene.has_sliding_direction()
+    direction = scene.has_sliding_direction(ft)
     not_at_yield = np.flatnonzero((state == "sliding") & ((np.abs(Q) > tol) | ~direction))
     if not_at_yield.size:
         c = not_at_yield[0]
@@ -419,26 +425,27 @@ def _check_friction(scene: Scene, name) -> None:
         raise SceneError(f"{scene.source}: {name(c)}: state: \"sliding\" but not at yield ({why})")
 
 
-def equilibrium_loads(scene: Scene):
-    """b^p = -Σ f^pq, w^p = -Σ (r^pq × f^pq + m^pq) over both sides of every contact (eq:equil1)."""
+def equilibrium_loads(scene: Scene, arms=None):
+    """b^p = -Σ f^pq, w^p = -Σ (r^pq × f^pq + m^pq) over both sides of every contact (eq:equil1); `arms`:
+    (r^pq, r^qp) when already formed."""
     N = scene.n_particles
+    r_pq, r_qp = arms or (scene.r_pq, scene.r_qp)
     f = scene.force
     side = np.concatenate([scene.p, scene.q])       # p's terms, then q's (sum_at: in this order, as np.add.at)
     b = sum_at(side, np.concatenate([-f, f]), N)
-    w = sum_at(side, np.concatenate([-(cross(scene.r_pq, f) + scene.moment),
-                                     -(cross(scene.r_qp, -f) - scene.moment)]), N)
+    w = sum_at(side, np.concatenate([-(cross(r_pq, f) + scene.moment), -(cross(r_qp, -f) - scene.moment)]), N)
     return b, w
 
 
-def _load_scales(scene: Scene):
+def _load_scales(scene: Scene, arms):
     """Σ|f| and Σ(|r||f| + |m|) over each particle's contacts: the scale of its load balance."""
     N = scene.n_particles
-    fmag = np.linalg.norm(scene.force, axis=1)
-    mmag = np.linalg.norm(scene.moment, axis=1)
+    r_pq, r_qp = arms
+    fmag = norms(scene.force)
+    mmag = norms(scene.moment)
     side = np.concatenate([scene.p, scene.q])
     fs = sum_at(side, np.concatenate([fmag, fmag]), N)
-    ms = sum_at(side, np.concatenate([np.linalg.norm(scene.r_pq, axis=1) * fmag + mmag,
-                                      np.linalg.norm(scene.r_qp, axis=1) * fmag + mmag]), N)
+    ms = sum_at(side, np.concatenate([norms(r_pq) * fmag + mmag, norms(r_qp) * fmag + mmag]), N)
     return fs, ms
 
 

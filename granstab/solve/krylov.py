@@ -131,17 +131,28 @@ def _block_near(shifted, Bop, sp_: SparseProblem, kk: int, rng) -> tuple | None:
         want = _cluster_end(theta, kk, shifted.sigma)
         top = min(want + BLOCK_GUARD, m)
         keep = min(2 * w, m)                                          # Ritz vectors kept at a restart
-        XY, BVY = X[:, d:d + m] @ Y[:, :keep], BV[:, :m] @ Y[:, :keep]  # (one pass over X and BV each)
-        V = XY[:, :top]
-        resid = BVY[:, :top] - V * theta[:top]
+        V = X[:, d:d + m] @ Y[:, :top]
+        resid = BV[:, :m] @ Y[:, :top] - V * theta[:top]
         res = _norms(resid)
         if res[:want].max(initial=0.0) <= BLOCK_RTOL * sp_.norm:
             return theta[:kk], V[:, :kk], Krylov(X[:, d:d + m], _sym(G))
-        X[:, d:d + keep], BV[:, :keep] = XY, BVY                      # thick restart on the lowest Ritz vectors
+        rotate(X[:, d:d + m], Y[:, :keep])                            # thick restart on the lowest Ritz vectors,
+        rotate(BV[:, :m], Y[:, :keep])                                # in place (no n × keep temporaries)
         m, G = keep, np.diag(theta[:keep])
         active = res > BLOCK_RTOL * sp_.norm
         block = resid[:, active] / res[active]
     return None
+
+
+ROTATE_ROWS = 65536   # rotate: rows a pass (temporaries of ROTATE_ROWS × keep, ~15 MB)
+
+
+def rotate(A: np.ndarray, Y: np.ndarray) -> None:
+    """A[:, :c] ← A Y (Y: m × c, c ≤ m) in place, ROTATE_ROWS rows at a time: the restart's Ritz vectors without the
+    two n × c copies a whole product makes (1.4 GB on 10⁶ disks)."""
+    c = Y.shape[1]
+    for s in range(0, A.shape[0], ROTATE_ROWS):
+        A[s:s + ROTATE_ROWS, :c] = A[s:s + ROTATE_ROWS] @ Y
 
 
 def _append(X, BV, G, m, block, Bop):

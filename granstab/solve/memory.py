@@ -5,19 +5,22 @@ of being killed by the kernel's OOM killer (and taking a shared machine's other 
 The parts (bytes; n dofs, M contacts, per = dofs a particle):
 
 * the factor of Hs - σI (shift-invert, sparse.py; multifrontal.py): its stored entries, float64, plus the float32
-  copy its preconditioning solves read (12 bytes an entry); nested dissection fills ~FILL_2D · n log₂ n entries in 2D
-  (measured 13.4 and 13.9 · n log₂ n on periodic packings of 3·10⁴ and 1.2·10⁵ dofs) and ~FILL_3D · n^{4/3} in 3D
+  copy its preconditioning solves read up to multifrontal.SINGLE_MAX entries (12 bytes an entry, else 8); nested
+  dissection fills ~FILL_2D · n log₂ n entries in 2D (measured 13.4 and 13.9 · n log₂ n on periodic packings of
+  3·10⁴ and 1.2·10⁵ dofs; 8.07 bytes an estimated entry at 3·10⁶ dofs, float64 only) and ~FILL_3D · n^{4/3} in 3D
   (30 and 37 on random packings of 5·10³ and 2.4·10⁴ dofs: not yet asymptotic, the larger taken with a margin);
-* the block Krylov basis and B applied to it (krylov._block_near: 2 × 75 columns, the Ritz vectors kept at a restart
-  and their products: KRYLOV_COLUMNS float64 columns of n), or LOBPCG's blocks (krylov._lobpcg: ~LOBPCG_COLUMNS);
+* the block Krylov basis and B applied to it (krylov._block_near: 2 × 75 columns, restarted in place, and the
+  blocks of a cycle: KRYLOV_COLUMNS float64 columns of n), or LOBPCG's blocks (krylov._lobpcg: ~LOBPCG_COLUMNS);
 * everything else per contact entry (the scene, contact blocks, the sparse parts Hs, Hm, A, S, rigid bases, the
-  Ritz basis): BASE_PER_ENTRY bytes per contact and per² (the contact's share of Hs's blocks).
+  Ritz basis): BASE_PER_ENTRY bytes per contact and per² (the contact's share of Hs's blocks), plus the interpreter
+  and its libraries (BASE_BYTES).
 
-Calibrated on the periodic benchmark (benchmarks/periodic.py, 2D): peak resident memory 2212 MB at 3.0·10⁵ dofs
-(`granstab.analyze`), 4.6 GB at 6.0·10⁵ dofs (`granstab analyze --json` of an NPZ scene, 2026-11-29); the estimate
-gives 2.2 and 4.5 GB. The memory this machine can give: MemAvailable (/proc/meminfo), within the process's cgroup
-limit where one is set, or the environment's GRANSTAB_MEMORY (bytes, or with a suffix K, M, G: a cap the user sets,
-e.g. on a machine shared with others)."""
+Fitted to the periodic benchmark's packing with one contact at yield (benchmarks/million.py, memtrace's phases,
+2026-11-29): at 3.0·10⁶ dofs (10⁶ disks) resident 4.83 GB before the factor (the parts), the factor 6.8 GB (8.07
+bytes per estimated entry), the block Krylov solve 4.2 GB more (188 columns), peak 15.83 GB; the estimate gives
+15.9 GB; at 6.0·10⁵ dofs (2·10⁵ disks) 3.78 GB measured, 3.73 estimated. The memory this machine can give:
+MemAvailable (/proc/meminfo), within the process's cgroup limit where one is set, or the environment's
+GRANSTAB_MEMORY (bytes, or with a suffix K, M, G: a cap the user sets, e.g. on a machine shared with others)."""
 from __future__ import annotations
 
 import math
@@ -25,13 +28,16 @@ import os
 from pathlib import Path
 
 from .budget import OverBudget
+from .multifrontal import SINGLE_MAX
 
 FILL_2D = 14.0            # factor entries per n log₂ n (module docstring)
 FILL_3D = 40.0            # factor entries per n^{4/3}
-FACTOR_BYTES = 12         # float64 factor + its float32 copy, per entry
-KRYLOV_COLUMNS = 213      # columns of n float64 held by the block Krylov solve at its peak (X, B·X, restart products)
+FACTOR_BYTES = 8          # float64 factor, per entry …
+SINGLE_BYTES = 4          # … and its float32 copy (multifrontal.SINGLE_MAX)
+KRYLOV_COLUMNS = 190      # columns of n float64 held by the block Krylov solve at its peak (X, B·X, a cycle's blocks)
 LOBPCG_COLUMNS = 120      # LOBPCG's blocks (X, AX, P, AP, R, AR, M⁻¹R ... of ~10 columns) and its preconditioner
-BASE_PER_ENTRY = 300      # bytes per contact and per² for the scene, blocks, sparse parts (module docstring)
+BASE_PER_ENTRY = 190      # bytes per contact and per² for the scene, blocks, sparse parts (module docstring) …
+BASE_BYTES = 0.12 * 2 ** 30   # … and the interpreter with numpy and scipy loaded
 UNITS = {"": 1, "K": 2 ** 10, "M": 2 ** 20, "G": 2 ** 30, "T": 2 ** 40}
 
 
@@ -43,11 +49,12 @@ def factor_entries(n: int, dim: int) -> float:
 def sparse_peak(n: int, n_contacts: int, dim: int, method: str) -> dict:
     """The sparse path's peak memory by part (bytes; module docstring). method: "shift-invert" or "lobpcg"."""
     per = 3 if dim == 2 else 6
-    parts = {"assembly": float(BASE_PER_ENTRY * n_contacts * per * per)}
+    parts = {"assembly": float(BASE_BYTES + BASE_PER_ENTRY * n_contacts * per * per)}
     if method == "lobpcg":
         parts["lobpcg"] = 8.0 * n * LOBPCG_COLUMNS
     else:
-        parts["factor"] = FACTOR_BYTES * factor_entries(n, dim)
+        entries = factor_entries(n, dim)
+        parts["factor"] = (FACTOR_BYTES + SINGLE_BYTES * (entries <= SINGLE_MAX)) * entries
         parts["krylov"] = 8.0 * n * KRYLOV_COLUMNS
     return parts
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -193,6 +193,9 @@ class DenseMethod:
             parts = dense_parts(scene, blocks)
         return State(scene=scene, sliding=np.flatnonzero(scene.at_yield()), blocks=blocks, parts=parts)
 
+    def release(self, state: State) -> None:
+        """Nothing: the dense parts serve the identity checks after the last metric's problem (errors)."""
+
     def problem(self, state: State, metric: Metric) -> Problem:
         return dense_problem(state.scene, state.blocks, state.parts, metric)
 
@@ -274,6 +277,11 @@ class SparseMethod:
         parts = sparse_parts(scene)
         timer.times.update(parts.timings)                                # blocks, assembly
         return State(scene=scene, sliding=parts.sliding, blocks=parts.local, parts=parts)
+
+    def release(self, state: State) -> None:
+        """After the last metric's problem: the physical H and Hm (two matrices of the size of Hs, 1.5 GB on 10⁶
+        disks) go; the identity checks need only the scaled H̃ and the parts applied to the rigid basis."""
+        state.parts = replace(state.parts, H=None, Hm=None)
 
     def problem(self, state: State, metric: Metric) -> SparseBranchProblem:
         from .sparse import sparse_problem

@@ -36,6 +36,8 @@ if TYPE_CHECKING:
 
 SINGULAR_RTOL = 1e-13   # |λ| of a front's F11 below this · ‖A‖: too close to σ to count
 GROWTH_MAX = 1e8        # an update larger than this · ‖A‖: the elimination is not trusted
+SINGLE_MAX = 3e8        # float32 copies of the factors only up to this many entries (1.2 GB): a 10⁶-disk factor
+                        # (~7·10⁸ entries) solves its preconditioning blocks in float64 instead of holding 2.8 GB more
 
 
 def _fronts(A: sp.csc_matrix, bounds: np.ndarray):
@@ -91,7 +93,10 @@ class Multifrontal:
 
     def _plan(self, dtype) -> list:
         """(s, e, G, W, struct, has W) per front in `dtype` (float32: copies made at the first such solve, half the
-        memory traffic; float64: the factors themselves), so that the solve's loop does no lookups or conversions."""
+        memory traffic, where the factor has at most SINGLE_MAX entries; float64: the factors themselves), so that
+        the solve's loop does no lookups or conversions."""
+        if dtype == np.float32 and self.nnz > SINGLE_MAX:
+            dtype = np.float64
         if dtype not in self.plans:
             b, structs = self.bounds.tolist(), self.structs
             self.plans[dtype] = [(b[i], b[i + 1], G.astype(dtype, copy=False), W.astype(dtype, copy=False),
@@ -104,12 +109,12 @@ class Multifrontal:
         matmul: BLAS gemm, no conversions; the solve is bound by reading the factor once per pass, not by the loop).
         `single`: in float32 with float32 copies of the factors (made at the first such call, half the memory
         traffic), x then has a relative error ~cond(A)·1e-7: only for preconditioning, where the caller computes its
-        residuals in float64 (sparse._block_near); returned in float64."""
+        residuals in float64 (sparse._block_near); returned in float64. Above SINGLE_MAX factor entries there is no
+        copy and `single` solves in float64 (the copy would cost a third of the factor's memory again)."""
         if not self.definite:
             raise ValueError("Multifrontal.solve needs every front positive definite (definite)")
-        dtype = np.float32 if single else np.float64
-        plan = self._plan(dtype)
-        x = np.array(b, dtype=dtype, copy=True)
+        plan = self._plan(np.float32 if single else np.float64)
+        x = np.array(b, dtype=plan[0][2].dtype if plan else float, copy=True)
         X = x.reshape(self.n, -1)
         with blas_threads(1):                                          # small blocks: one thread (threads.py)
             for s, e, G, W, st, has_w in plan:
