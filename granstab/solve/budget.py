@@ -174,7 +174,7 @@ RITZ_FALLBACK = {"10L": 1.0}     # the share of a metric's branches (the elastic
 def sparse_estimate(n_dof: int, n_branches: int, n_metrics=1, n_sliding: int = 0, k: int = 6,
                     deficit: int = 0, below: dict | None = None, dim: int = 2) -> float:
     """Estimated wall seconds of the sparse path (calibration above, scaled by `speed`): per metric, the elastic
-    solve's set-up and every branch's update, Ritz (one basis for all branches) or, by methods.ritz_fits,
+    solve's set-up and every branch's update, Ritz (one basis for all branches) or, by methods.use_ritz,
     shift-invert ARPACK; where Ritz is used, the branches of a metric whose Ritz updates fall back to ARPACK
     (RITZ_FALLBACK); where `deficit` (plan.deficit) is k + 1 or more, every branch's ARPACK solve of k + ν pairs.
     `n_metrics`: the metrics' names (a tuple), or their number (the family's first ones: L, L/10, 10L); `below`:
@@ -196,13 +196,13 @@ def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int 
     the branches it solves) or "shift_invert", "direct" (the branches with kk or more eigenvalues below σ, straight
     to shift-invert), "fallback" (RITZ_FALLBACK's ARPACK solves), "floppy". `below`: the probed ν of a sample of
     the branches (their shares stand for all n_branches), or None (ν = 0)."""
-    from .methods import ritz_fits
+    from .methods import use_ritz
     from .ritz import GUARD, STEPS
     Ms, kk, n = n_sliding, k + 1, n_dof
     nu = np.zeros(1) if below is None or not len(below) else np.asarray(below, float)
     pair = n * (ARPACK_PAIR_DOF + ARPACK_PAIR_COLUMN * (6 + Ms))   # a shift-invert pair (ARPACK_PAIR_*)
     out = {"setup": SPARSE_SETUP_PER_DOF * n}
-    if n_branches > 1 and ritz_fits(Ms, kk):
+    if use_ritz(n_branches, Ms, kk):
         w = ritz_width(n, Ms, kk)
         ritz = n_branches * np.mean(nu < kk)
         refinements, heavier = RITZ_3D if dim == 3 else (RITZ_REFINEMENTS, 1.0)

@@ -167,6 +167,17 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
 RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
 
 
+RITZ_MIN_BRANCHES = 3       # SparseRitz from 3 branches on: for 2 (track's whole stage: all-loading, all-unloading) its
+                            # shared basis costs more than it saves (a sheared 2,000-disk frame, 5,937 dofs, 60 sliding,
+                            # kk = 61: 12.7 s of CPU as Ritz, 5.9 s by shift-invert, the same eigenvalues; issue 39)
+
+
+def use_ritz(n_branches: int, n_sliding: int, kk: int) -> bool:
+    """Whether SparseMethod._modes solves the branches as Ritz updates of one elastic solve (RITZ_MIN_BRANCHES,
+    ritz_fits); else each by shift-invert."""
+    return n_branches >= RITZ_MIN_BRANCHES and ritz_fits(n_sliding, kk)
+
+
 def ritz_fits(n_sliding: int, kk: int) -> bool:
     """Whether the branches of Ms = n_sliding contacts are Ritz updates of one elastic solve (SparseMethod._modes;
     the basis grows by 4 columns and the updates by one width² matrix a contact) within RITZ_BYTES."""
@@ -343,7 +354,7 @@ class SparseMethod:
         return branches, notes
 
     def _modes(self, spb, masks, kk: int):
-        """Modes of every branch: several branches as low-rank updates of one elastic solve (ritz.SparseRitz,
+        """Modes of every branch: RITZ_MIN_BRANCHES or more as low-rank updates of one elastic solve (ritz.SparseRitz,
         verified per branch, shift-invert ARPACK where that fails), a single one, or branches whose Ritz problem
         would not fit RITZ_BYTES (many sliding contacts: its basis grows by 4 columns and its updates by one
         width² matrix a contact), by shift-invert directly, one after the other."""
@@ -355,7 +366,7 @@ class SparseMethod:
             for mask in masks:
                 yield device_lowest(spb, kk, mask, device=self.device)
             return
-        if len(masks) > 1 and ritz_fits(Ms, kk):
+        if use_ritz(len(masks), Ms, kk):
             from .ritz import SparseRitz
             yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)
             return

@@ -18,7 +18,8 @@ DIR/frames.parquet — one row a selected frame, in order:
     −1; sparse path: among the max(6, soft_modes, 1 % of the dofs) lowest eigenpairs computed), whole_verdict, whole_method,
     whole_reason ("not determined because …" where not a proof), whole_proven, whole_hinges_on_tolerance (int64
     1/0, −1), soft_modes (how many), soft_modes_from, soft_spots_count, soft_spots_frictionless_lambda_max,
-    soft_spots_branch_count                                                         [--whole; else the fill]
+    soft_spots_frictionless_method ("dense", "shift-invert, count checked", "lanczos"),
+    soft_spots_frictionless_residual (max ‖Dv − λv‖), soft_spots_branch_count       [--whole; else the fill]
     scan_clusters, scan_unstable, scan_unstable_nonboundary (int64, −1), scan_verdicts (JSON text)   [--scan]
     rigid_largest_particles (int64, −1), rigid_largest_fraction (float64, NaN)                   [--rigidity]
     n_made, n_broken, n_slid (float64: contacts from this frame to frame + W; NaN for the last W frames),

@@ -175,18 +175,20 @@ def _num(v) -> float | None:
 def particle_cases(cols: dict, order: np.ndarray, window: int, structure=None):
     """(target, predictor, oriented score, label, block) of every per-particle test with a finite score; `cols`
     the columns of particles.parquet with `code` (the particle's name as a number); `structure` the rows' G(r)
-    features (baselines.frame_features) for the softness baseline. Blocks: frames."""
+    features (baselines.frame_features) for the softness baseline. Blocks: runs of scores.frame_block contiguous
+    frames."""
     pos = frame_positions(cols["frame"], order)
+    block = pos // scores.frame_block(len(order))
     targets = particle_targets(pos, cols["d2min"], cols["contacts_changed"])
     valid = targets.pop("valid")
     cols = {**cols, "d2min_previous": baselines.previous_d2min(cols["code"], pos, cols["d2min"], window)}
     for target, label in targets.items():
         for name, sign in PARTICLE.items():
             if name in cols and np.isfinite(cols[name][valid]).any():
-                yield target, name, sign * cols[name][valid], label[valid], pos[valid]
+                yield target, name, sign * cols[name][valid], label[valid], block[valid]
         soft = None if structure is None else baselines.softness(structure, label, pos, valid)
         if soft is not None and np.isfinite(soft[valid]).any():
-            yield target, "softness", soft[valid], label[valid], pos[valid]
+            yield target, "softness", soft[valid], label[valid], block[valid]
 
 
 def frame_predictors(frames: dict, particles: dict, order: np.ndarray) -> dict:
@@ -344,8 +346,9 @@ def run(out_dir) -> dict:
     out_dir = Path(out_dir)
     found, ctx = cases(out_dir)
     n_events = ctx["n_events"]
-    rows = [{"target": t, "predictor": p, **scores.with_intervals(s, y, b), "n_events": n_events}
-            for t, p, s, y, b in found]
+    rows = [{"target": t, "predictor": p,
+             **scores.with_intervals(s, y, b, too_few=scores.TOO_FEW if t == "event" else scores.TOO_FEW_FRAMES),
+             "n_events": n_events} for t, p, s, y, b in found]
     frames = ctx["frames"]
     steps = frames.get("step", ctx["order"].astype(float))
     lead = {b: lead_times(frames[f"lambda_min_{b}"], frames.get(f"n_negative_{b}"), steps, ctx["start"],
@@ -378,9 +381,10 @@ def header(window: int) -> str:
                  + ", ".join(k for k, s in {**PARTICLE, **FRAME}.items() if s < 0) + ")")
     lines.append(f"metrics: AUC (Mann–Whitney, ties one half), AP (average precision), precision_top5 (the positives' "
                  f"share of the top {scores.TOP:.0%} of scores); 95 % intervals: percentile bootstrap, "
-                 f"{scores.N_BOOT} resamples, seed {scores.SEED}; per-particle targets resample whole frames (a "
-                 "frame's particles are correlated), the event target runs of W frames; with fewer than "
-                 f"{scores.MIN_EVENTS} blocks holding a positive no interval is given (null, note: too few events): "
+                 f"{scores.N_BOOT} resamples, seed {scores.SEED}; per-particle targets resample runs of ⌈F^(1/3)⌉ "
+                 "contiguous frames (a frame's particles are correlated, and a particle's consecutive windows), the "
+                 f"event target runs of W frames; with fewer than {scores.MIN_EVENTS} blocks holding a positive no "
+                 "interval is given (null, note: too few events, or too few frames): "
                  "below that the random score's AUC interval covered 0.5 in fewer than 93 % of seeds")
     lines.append("baselines of the field (beside coordination, mobilised_fraction, force_magnitude, sliding_distance, "
                  "random):")

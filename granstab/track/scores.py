@@ -1,7 +1,8 @@
 """The prediction test's metrics (issue 39) and their block-bootstrap intervals: AUC (Mann–Whitney, ties one half),
 average precision (AP) and the precision among the top 5 % of scores, vectorised over bootstrap resamples.
 
-A resample draws whole blocks (frames for a per-particle target, runs of W frames for the event target) with
+A resample draws whole blocks (runs of `frame_block` contiguous frames for a per-particle target, runs of W frames
+for the event target) with
 multiplicities m; every metric of the resample is the metric of the rows weighted by m of their block, computed
 from one sort of the scores: tied scores form one run (one threshold), so
 
@@ -31,6 +32,16 @@ BINS = 4096                     # the resamples' score resolution (runs of ties;
 #: the fewest positive blocks (events, for the event target; frames holding a positive, per particle) for an interval
 MIN_EVENTS = 20
 TOO_FEW = "too few events for a calibrated interval (fewer than {k} blocks with a positive)"
+TOO_FEW_FRAMES = ("too few frames for a calibrated interval (fewer than {k} blocks of contiguous frames (frame_block) "
+                  "with a positive)")
+
+
+def frame_block(n_frames: int) -> int:
+    """Frames per block of a per-particle target's bootstrap: ⌈n^(1/3)⌉ contiguous frames (the order of a block
+    bootstrap's block length for a dependent series, Hall, Horowitz & Jing 1995), so that a particle's correlated
+    consecutive windows (D²min persists: the d2min_previous baseline) mostly share a block: 6 at 200 frames, 4 at
+    40, 3 at 20."""
+    return max(1, int(np.ceil(np.round(n_frames ** (1 / 3), 9))))
 
 
 def sorted_runs(score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -110,9 +121,10 @@ def small_sample_factor(k: int) -> float:
 
 
 def with_intervals(score, label, block, n_boot: int = N_BOOT, seed: int = SEED,
-                   min_events: int = MIN_EVENTS) -> dict:
+                   min_events: int = MIN_EVENTS, too_few: str = TOO_FEW) -> dict:
     """The three metrics and their 95 % block-bootstrap intervals (module docstring); rows with a NaN score dropped.
-    Returns {metric, metric_ci_low, metric_ci_high for each metric, n, n_positive, n_blocks_positive, note}."""
+    Returns {metric, metric_ci_low, metric_ci_high for each metric, n, n_positive, n_blocks_positive, note};
+    `too_few`: the note where fewer than `min_events` blocks hold a positive."""
     score, label, block = np.asarray(score, float), np.asarray(label, bool), np.asarray(block)
     keep = np.isfinite(score)
     score, label = score[keep], label[keep]
@@ -130,7 +142,7 @@ def with_intervals(score, label, block, n_boot: int = N_BOOT, seed: int = SEED,
     point = weighted_metrics(label, last, np.ones((1, n)))
     out.update({k: float(v[0]) for k, v in point.items()})
     if out["n_blocks_positive"] < min_events:
-        out["note"] = TOO_FEW.format(k=min_events)
+        out["note"] = too_few.format(k=min_events)
         return out
     F = int(block.max()) + 1
     m = np.random.default_rng(seed).multinomial(F, np.full(F, 1.0 / F), size=n_boot).astype(float)

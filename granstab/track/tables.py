@@ -20,6 +20,7 @@ OPTIONAL = {"lambda_min_unloading": np.nan, "lambda_min_loading": np.nan, "n_neg
             "n_negative_loading": -1, "whole_verdict": "", "whole_method": "", "soft_modes": 0,
             "soft_modes_from": "", "whole_reason": "", "whole_proven": -1, "whole_hinges_on_tolerance": -1,
             "soft_spots_count": 0, "soft_spots_frictionless_lambda_max": np.nan, "soft_spots_branch_count": 0,
+            "soft_spots_frictionless_method": "", "soft_spots_frictionless_residual": np.nan,
             "scan_clusters": -1, "scan_unstable": -1, "scan_unstable_nonboundary": -1, "scan_verdicts": "",
             "rigid_largest_particles": -1, "rigid_largest_fraction": np.nan}   # when the stage was not asked for
 STAGES = ("read", "frame", "whole", "scan", "rigidity")

@@ -14,7 +14,7 @@ from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from granstab.mechanics.stiffness import contact_blocks
 from granstab.model import packings
 from granstab.model.tolerances import DEFAULT
-from granstab.solve import krylov, sparse
+from granstab.solve import krylov, methods, sparse
 
 
 def bound(spb) -> float:
@@ -416,3 +416,23 @@ def test_branches_are_made_on_one_blas_thread(monkeypatch):
     r = granstab.analyze(periodic_packing(800, 1), k=4, metric="L", method="sparse")
     assert r.backend == "sparse" and len(seen) == len(r.branches) == 2
     assert seen == [1, 1]
+
+
+def test_the_two_branches_of_a_whole_packing_go_to_shift_invert_within_their_bounds():
+    """track's whole stage asks for two branches (all-unloading, all-loading; max_sliding 0, sample_branches 0):
+    from RITZ_MIN_BRANCHES on they would be Ritz updates of one elastic solve, with two each branch is solved by
+    shift-invert (cheaper: issue 39, methods.RITZ_MIN_BRANCHES). Each eigenvalue equals the dense one within the
+    branch's reported accuracy (a bound) and the same round-off allowance as above."""
+    s = packings.random_packing(2, 40, n_sliding=3, seed=7)
+    options = dict(metric="L", max_sliding=0, sample_branches=0, uniqueness=False)
+    d = granstab.analyze(s, method="dense", **options)
+    k = 8
+    sres = granstab.analyze(s, method="sparse", k=k, **options)
+    assert sres.summary["n_branches"] == d.summary["n_branches"] == 2
+    assert not any("Ritz updates" in w for w in sres.warnings)
+    assert methods.use_ritz(2, 3, k + 1) is False and methods.use_ritz(3, 3, k + 1) is True
+    for bd, bs in zip(d.branches, sres.branches):
+        assert np.array_equal(bd.mask, bs.mask)
+        m = len(bs.stability_eigenvalues)
+        error = np.abs(bs.stability_eigenvalues - bd.stability_eigenvalues[:m])
+        assert np.all(error <= np.asarray(bs.accuracy) + 64 * s.n_dof * 2.3e-16 * 4)

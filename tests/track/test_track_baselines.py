@@ -63,9 +63,11 @@ def test_participation_on_a_chain_is_its_lowest_mode():
     for dense_below in (10 ** 6, 0):
         softspots.DENSE_BELOW, old = dense_below, softspots.DENSE_BELOW
         try:
-            lam, V = softspots.lowest_modes(L, 1, 1)
+            lam, V, info = softspots.lowest_modes(L, 1, 1)
         finally:
             softspots.DENSE_BELOW = old
+        assert info["method"] == ("dense" if dense_below else "shift-invert, count checked")
+        assert info["residual"] < 1e-12 * 4                     # ‖Lv − λv‖ against ‖L‖ ≤ 4
         assert lam[0] == pytest.approx(2 * (1 - np.cos(np.pi / N)), rel=1e-9)
         share = softspots.participation(V.T.reshape(1, N, 1))
         assert share == pytest.approx(u ** 2 / np.sum(u ** 2), abs=1e-9)
@@ -121,3 +123,30 @@ def test_softness_scores_only_the_second_half_and_learns_a_planted_structure():
     assert np.isnan(out[pos < 5]).all() and np.isfinite(out[pos >= 5]).all()
     from granstab.track.scores import metrics
     assert metrics(out[pos >= 5], label[pos >= 5])["auc"] > 0.8
+
+
+def test_frictionless_modes_by_shift_invert_equal_the_dense_ones_with_their_count_checked():
+    """A jammed packing of 128 disks: the large-packing path (shift-invert below the spectrum, the count below
+    the k-th checked by inertia) gives the dense eigh's lowest 1 % (3 modes) to 1e-9·‖D‖, residuals within
+    1e-10·‖D‖, and the same participation to 1e-8 (a mode's share is sign-free)."""
+    from helpers import DATA
+
+    import granstab
+    from granstab_bench import jamming_packings as jp
+    m = jp.load(DATA / "jammed_disks_n128_p1e-3.json")[0]
+    scene = granstab.scene_from_dict(jp.scene_dict(m["x"], m["radius"], m["cell"]))
+    D = softspots.frictionless_matrix(scene)
+    norm = float(abs(D).sum(axis=1).max())
+    dense = softspots.frictionless(scene)
+    softspots.DENSE_BELOW, old = 0, softspots.DENSE_BELOW
+    try:
+        large = softspots.frictionless(scene)
+    finally:
+        softspots.DENSE_BELOW = old
+    assert dense[0]["soft_spots_frictionless_method"] == "dense"
+    assert large[0]["soft_spots_frictionless_method"] == "shift-invert, count checked"
+    assert large[0]["soft_spots_count"] == 3
+    assert abs(large[0]["soft_spots_frictionless_lambda_max"] - dense[0]["soft_spots_frictionless_lambda_max"]) \
+        < 1e-9 * norm
+    assert large[0]["soft_spots_frictionless_residual"] < 1e-10 * norm
+    assert large[1] == pytest.approx(dense[1], abs=1e-8)

@@ -109,8 +109,9 @@ def test_every_frame_predictor_has_leads_against_its_base_rate():
     assert predict.predictor_leads(by_name, np.array([], int)) == {}
 
 
-def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path):
+def test_run_on_a_contract_folder_finds_the_planted_answers(tmp_path, monkeypatch):
     truth = write(tmp_path)
+    monkeypatch.setattr(scores, "frame_block", lambda n: 1)     # single frames: 24 blocks, intervals printed
     result = predict.run(tmp_path)
     rows = {(r["target"], r["predictor"]): r for r in json.loads((tmp_path / "prediction.json").read_text())}
     planted = rows[("d2min_top10", "unstable_fraction")]
@@ -177,3 +178,19 @@ def test_the_whole_row_says_why_a_verdict_is_not_determined_and_whether_it_hinge
     row = whole_row(SimpleNamespace(verdict=weak, backend="dense"))
     assert row["whole_reason"].startswith("not determined because ") and "unresolved_sign" in row["whole_reason"]
     assert row["whole_proven"] == 0 and row["whole_hinges_on_tolerance"] == 1 and row["whole_method"] == "dense"
+
+
+def test_per_particle_intervals_resample_contiguous_frame_blocks_or_say_too_few_frames(tmp_path):
+    """Per-particle targets resample runs of ⌈F^(1/3)⌉ contiguous frames (scores.frame_block: 3 of the 24 frames
+    here, so 8 blocks): fewer than MIN_EVENTS blocks hold a positive, so no interval is printed and the note says
+    too few frames; the event rows keep their own note."""
+    write(tmp_path)
+    assert [scores.frame_block(n) for n in (20, 24, 40, 200)] == [3, 3, 4, 6]
+    predict.run(tmp_path)
+    rows = json.loads((tmp_path / "prediction.json").read_text())
+    particle = [r for r in rows if r["target"] != "event"]
+    assert particle and all(r["auc_ci_low"] is None for r in particle)
+    notes = {r["note"].split(" (")[0] for r in particle}
+    assert "too few frames for a calibrated interval" in notes <= {"too few frames for a calibrated interval",
+                                                                   "one class is empty: no metric"}, notes
+    assert all(r["note"].startswith("too few events") for r in rows if r["target"] == "event")
