@@ -94,8 +94,8 @@ def cases(quick: bool = False) -> list:
             ("400 disks, 672 contacts, 1 at yield, family (floppy: full path)", thinned(400, 672, 1), {}),
             ("1,400 disks, 300 at yield, 8 sampled, L (sparse shift-invert)",
              random_packing(2, 1400, n_sliding=300, seed=3), {"metric": "L", "sample_branches": 8}),
-            ("1,400 disks, 100 at yield, 8 sampled, L (sparse Ritz)",
-             random_packing(2, 1400, n_sliding=100, seed=3), {"metric": "L", "sample_branches": 8}),
+            ("1,400 disks, 80 at yield, 8 sampled, L (sparse Ritz)",
+             random_packing(2, 1400, n_sliding=80, seed=3), {"metric": "L", "sample_branches": 8}),
             ("1,400 disks, 6 at yield, family (sparse Ritz)", random_packing(2, 1400, n_sliding=6, seed=4), {})]
 
 

@@ -202,12 +202,13 @@ def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int 
     nu = np.zeros(1) if below is None or not len(below) else np.asarray(below, float)
     pair = n * (ARPACK_PAIR_DOF + ARPACK_PAIR_COLUMN * (6 + Ms))   # a shift-invert pair (ARPACK_PAIR_*)
     out = {"setup": SPARSE_SETUP_PER_DOF * n}
-    if n_branches > 1 and ritz_fits(Ms, kk):
+    if n_branches > 1 and ritz_fits(n, Ms, kk):
         w = ritz_width(n, Ms, kk)
         ritz = n_branches * np.mean(nu < kk)
         refinements, heavier = RITZ_3D if dim == 3 else (RITZ_REFINEMENTS, 1.0)
         steps = n_branches * np.mean(np.where(nu == 0, refinements, STEPS) * (nu < kk))
-        out["ritz"] = (heavier * RITZ_INIT * n * w * w + ritz * (RITZ_EIGH * float(w) ** 3 + RITZ_BRANCH_PER_DOF * n)
+        basis = heavier * RITZ_INIT * n * w * w if ritz > 0 else 0.0    # none where every branch has ν >= kk
+        out["ritz"] = (basis + ritz * (RITZ_EIGH * float(w) ** 3 + RITZ_BRANCH_PER_DOF * n)
                        + heavier * steps * (RITZ_REFINE * n * (w + 3 * (kk + GUARD)) ** 2 + RITZ_REFINE_PER_DOF * n))
         out["direct"] = n_branches * np.mean((kk + nu) * (nu >= kk)) * pair
         out["fallback"] = RITZ_FALLBACK.get(metric, 0.0) * max(ritz - 1, 0) * ARPACK_BRANCH_PER_DOF * n

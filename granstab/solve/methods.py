@@ -167,10 +167,12 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
 RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
 
 
-def ritz_fits(n_sliding: int, kk: int) -> bool:
-    """Whether the branches of Ms = n_sliding contacts are Ritz updates of one elastic solve (SparseMethod._modes;
-    the basis grows by 4 columns and the updates by one width² matrix a contact) within RITZ_BYTES."""
-    return 8 * n_sliding * (kk + 8 + 4 * n_sliding) ** 2 <= RITZ_BYTES
+def ritz_fits(n_dof: int, n_sliding: int, kk: int) -> bool:
+    """Whether the branches of Ms = n_sliding contacts are Ritz updates of one elastic solve (SparseMethod._modes):
+    the updates, one width² matrix a contact (ritz.SparseRitz.updates) of the basis's width (budget.ritz_width),
+    within RITZ_BYTES. The estimate (budget.sparse_parts) asks the same."""
+    from .budget import ritz_width
+    return 8 * n_sliding * float(ritz_width(n_dof, n_sliding, kk)) ** 2 <= RITZ_BYTES
 
 
 class DenseMethod:
@@ -337,8 +339,8 @@ class SparseMethod:
     def _modes(self, spb, masks, kk: int):
         """Modes of every branch: several branches as low-rank updates of one elastic solve (ritz.SparseRitz,
         verified per branch, shift-invert ARPACK where that fails), a single one, or branches whose Ritz problem
-        would not fit RITZ_BYTES (many sliding contacts: its basis grows by 4 columns and its updates by one
-        width² matrix a contact), by shift-invert directly, one after the other."""
+        would not fit RITZ_BYTES (many sliding contacts: its basis grows by about 8.5 columns and its updates by
+        one width² matrix a contact: ritz_fits), by shift-invert directly, one after the other."""
         from .device import backend
         from .sparse import lowest_modes
         Ms = spb.A.shape[1]
@@ -347,7 +349,7 @@ class SparseMethod:
             for mask in masks:
                 yield device_lowest(spb, kk, mask, device=self.device)
             return
-        if len(masks) > 1 and ritz_fits(Ms, kk):
+        if len(masks) > 1 and ritz_fits(spb.n, Ms, kk):
             from .ritz import SparseRitz
             yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)
             return
