@@ -36,7 +36,10 @@ MEASURE_DIM = 160      # matrices larger than this are timed at this size and sc
 SCALE_EXPONENT = 2.4   # cost ∝ n^2.4 from MEASURE_DIM to EFFICIENT_DIM (measured; module docstring) …
 EFFICIENT_DIM = 1000   # … and ∝ n³ beyond, where BLAS-3 runs at its full rate (an assumption on the safe side)
 MEASURE_STACK = 4      # matrices timed at once (a few tenths of a second in all, only for work that may be long)
-ASK_SECONDS = 10.0     # without --timeout, the CLI refuses work estimated longer than this (one line, what to do)
+ASK_SECONDS = 10.0     # without --timeout, the CLI refuses work estimated longer than this (one line, what to do) …
+RUN_UNASKED_SECONDS = 90.0  # … unless it is the default plan's cheapest form and estimated within this at rest:
+                            # then it runs, saying so up front (plan.fit; issue 41's held-out 2·10⁵-disk packing)
+UNASKED_HEARTBEAT = 10.0    # … with a heartbeat line this often (the minute's Heartbeat, at a shorter period)
 SETUP_BRANCHES = 2.0   # the low-rank path's work once a metric (the reduction, ℍ^i floors, an unstable result's
                        # attribution and its control analysis), in branches' worth: 0.5 s of 0.72 at 879 dofs
 REFERENCE_PROBE = 0.0056  # CPU seconds per matrix of the low-rank probe at MEASURE_DIM on the calibration machine
