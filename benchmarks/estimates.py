@@ -271,7 +271,7 @@ def ritz_3d(folder: Path) -> list:
     out = [("3D random packing, 108 spheres, 4 at yield, all 16 branches (sparse Ritz, 648 dofs)",
             random_packing(3, 100, n_sliding=4, seed=11), sparse),
            ("3D random packing, 864 spheres, 12 at yield, --sample-branches 6 (sparse Ritz, 5,184 dofs)",
-            random_packing(3, 1000, n_sliding=12, seed=12), [*sparse, "--sample-branches", "6"]),
+            random_packing(3, 1000, n_sliding=12, seed=12), [*sparse, "--max-sliding", "6", "--sample-branches", "6"]),
            ("3D random packing, 500 spheres, 60 at yield, --sample-branches 6 (sparse Ritz)",
             random_packing(3, 500, n_sliding=60, seed=13), [*sparse, "--sample-branches", "6"])]
     for n, keep in ((400, 20), (900, 40)):

@@ -155,7 +155,7 @@ def cmd_analyze(args) -> int:
                 refuse_unfinishable(planned, args.timeout and args.timeout - (time.perf_counter() - start))
                 beat.estimate = planned.estimated_s
                 if unasked_line(planned):                       # over 10 s, nothing cheaper: runs, says so
-                    print(unasked_line(planned), file=sys.stderr)
+                    beat.note(unasked_line(planned))
                     beat.often(UNASKED_HEARTBEAT)
                 if planned.method == "sparse":
                     advice[0] = SPARSE_ADVICE
@@ -356,7 +356,7 @@ def cmd_export(args) -> int:
                 refuse_unfinishable(planned, args.timeout and args.timeout - (time.perf_counter() - start))
                 beat.estimate = planned.estimated_s
                 if unasked_line(planned):                       # over 10 s, nothing cheaper: runs, says so
-                    print(unasked_line(planned), file=sys.stderr)
+                    beat.note(unasked_line(planned))
                     beat.often(UNASKED_HEARTBEAT)
             extra = track_fields(args.track, position, loaded.scene.names) if args.track else None
             beat.stage(f"frame {f}: fields and modes" if f is not None else "fields and modes")

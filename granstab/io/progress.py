@@ -103,6 +103,12 @@ class Heartbeat:
             self.stream.flush()
             last, due = now, now + every
 
+    def note(self, text: str) -> None:
+        """One line now, in the heartbeat's form ('granstab: <what>: 3 s, <text>'), whether or not it beats."""
+        import time
+        self.stream.write(f"granstab: {self.what}: {time.monotonic() - self._start:.0f} s, {text}\n")
+        self.stream.flush()
+
     def line(self) -> str:
         """'granstab: <what>: 70 s, branches, metric L/10 (37 of 128); estimated 46 s in all'."""
         import time

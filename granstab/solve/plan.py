@@ -311,10 +311,11 @@ def fit(scene: Scene, full: Plan, options: dict) -> Plan:
     them given by the user) is refused or estimated longer, the first of `_reductions` whose estimate fits, with
     what it leaves out first in `left_out` and `fitted` saying how to run the full analysis (--timeout with its
     estimate). Where none fits, the cheapest of them all (`full` included) when estimated within
-    budget.RUN_UNASKED_SECONDS (nothing cheaper is left to run: it runs, `fitted["unasked"]`, with a line up front
-    and a heartbeat every budget.UNASKED_HEARTBEAT s in the CLI); else `full` (refused as before). The choice is
-    made on this machine at rest (plan(rest=True)): the plan, and so the verdict, do not depend on the load of the
-    moment (a loaded machine takes longer, and says so); the plan returned carries the estimate at the load now. A
+    budget.RUN_UNASKED_SECONDS at rest and at the load now (nothing cheaper is left to run: it runs,
+    `fitted["unasked"]`, with a line up front and a heartbeat every budget.UNASKED_HEARTBEAT s in the CLI); else
+    `full` (refused as before, as it is refused over 10 s at the load now). The choice is made on this machine at
+    rest (plan(rest=True)): the plan, and so the verdict, do not depend on the load of the moment (a loaded machine
+    takes longer, and says so); the plan returned carries the estimate at the load now. A
     reduced plan must fit FIT_SHARE of the budget. A reduced verdict claims no more than it proves: sampled
     branches prove only instability (verdicts.mark_partial), one metric is not the family's robustness."""
     if full.estimated_s is None:
@@ -332,7 +333,8 @@ def fit(scene: Scene, full: Plan, options: dict) -> Plan:
             cheapest = (at_rest, reduced)
     if cheapest[0] is None or cheapest[0].estimated_s > budget.RUN_UNASKED_SECONDS:
         return full
-    return _fitted(scene, full, options, cheapest[1], unasked=True)
+    unasked = _fitted(scene, full, options, cheapest[1], unasked=True)
+    return unasked if unasked.estimated_s <= budget.RUN_UNASKED_SECONDS else full     # and at the load now
 
 
 def _fitted(scene: Scene, full: Plan, options: dict, reduced: dict, unasked: bool = False) -> Plan:
@@ -392,10 +394,11 @@ def fit_lines(p: Plan, listed: bool = False) -> list[str]:
 
 
 def unasked_line(p: Plan) -> str | None:
-    """The one line on stderr before a run over budget.ASK_SECONDS without --timeout (`fit`'s unasked plan): its
-    estimate and how to cap it; None for any other plan."""
+    """What the CLI says on stderr, as a heartbeat line (io.progress.Heartbeat.note), before a run over
+    budget.ASK_SECONDS without --timeout (`fit`'s unasked plan): its estimate and how to cap it; None for any other
+    plan."""
     if not (p.fitted and p.fitted.get("unasked")):
         return None
-    return (f"granstab: {p.source}: estimated {p.estimated_s:.3g} s on this machine now, over the "
-            f"{budget.ASK_SECONDS:.3g} s a run takes without --timeout, and nothing cheaper is left to run: it runs "
-            f"(a line every {budget.UNASKED_HEARTBEAT:.3g} s on stderr); give --timeout S to cap it")
+    return (f"estimated {p.estimated_s:.3g} s on this machine now, over the {budget.ASK_SECONDS:.3g} s a run takes "
+            f"without --timeout, and nothing cheaper is left to run: it runs (a line every "
+            f"{budget.UNASKED_HEARTBEAT:.3g} s); give --timeout S to cap it")
