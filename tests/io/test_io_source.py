@@ -188,10 +188,17 @@ def test_a_contact_within_the_tolerance_but_not_flagged_stays_sticking(tmp_path)
     assert np.array_equal(np.array(loaded.scene.state) == "sliding", table[:, 4] != 0)
 
 
+def test_without_flags_the_tolerance_decides_and_the_report_says_so(tmp_path):
+    """A LAMMPS dump flags no contact: the report names the tolerance rule (yield_rtol), not the file's flag."""
+    loaded = granstab.io.load(run_of(tmp_path / "run", 1))
+    assert loaded.report["cone"]["rule"].startswith("yield_rtol: |f_t| within yield_rtol")
+    assert loaded.report["cone"]["yield_rtol"] == 1e-4
+
+
 def test_a_default_law_is_said_once_by_every_command(tmp_path, capsys):
     """Dumps without the input script (columns named, no law given): k = 1, α = 1 are built-in defaults. convert,
-    track and scan say so once per run (not once per frame: track read 3) and write it into their output folder
-    (export's once-per-run: test_timesteps_in_one_dump_only_are_named_in_one_line)."""
+    track, scan and export say so once per run (not once per frame: track and export read 3; export printed 105
+    repeated warnings) and write it into their output folder."""
     paths = [str(p) for p in run_of(tmp_path / "run", 3)[:2]]
     law = "law: k = 1, alpha = 1: not in the file, built-in default"
     for argv, record in (
@@ -199,7 +206,9 @@ def test_a_default_law_is_said_once_by_every_command(tmp_path, capsys):
             (["track", *paths, "--columns", COLUMNS, "--mu", "0.5", "--out", str(tmp_path / "t"), "--workers", "1",
               "--no-figures"], tmp_path / "t" / "summary.json"),
             (["scan", *paths, "--columns", COLUMNS, "--mu", "0.5", "--timestep", "0", "--out", str(tmp_path / "c"),
-              "--workers", "1", "--region", "box:0,12,0,12"], tmp_path / "c" / "import.json")):
+              "--workers", "1", "--region", "box:0,12,0,12"], tmp_path / "c" / "import.json"),
+            (["export", *paths, "--columns", COLUMNS, "--mu", "0.5", "--out", str(tmp_path / "e"), "--out-format",
+              "xyz"], tmp_path / "e" / "import.json")):
         assert main(argv) == 0, argv
         assert capsys.readouterr().out.count(law) == 1, argv[0]
         if record:
