@@ -128,7 +128,7 @@ def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = Fa
 #: basis built about σ). A branch with ν >= kk skips Ritz (ritz.py) and is solved by shift-invert, ARPACK_PAIR_*
 #: per n·(kk + ν) (the sheared frame: 6 of 10 branches, ν = 8-15, 9.7 s of CPU time for 100 pairs); ν of each branch
 #: is counted before the run by the plan's probe (plan.probe: one factorisation and the inertia of each branch's
-#: Woodbury update, no eigen-solve). Beyond methods.RITZ_BYTES each branch is a
+#: Woodbury update, no eigen-solve). Beyond RITZ_BYTES (`ritz_fits`) each branch is a
 #: shift-invert with a rank-2Ms Woodbury update (Ms = 200, 500: 2.7, 9.1 s), SHIFT_PER_DOF_SLIDING per n·Ms and
 #: SHIFT_CUBE per Ms³ a branch.
 SPARSE_SETUP_PER_DOF = 6e-5
@@ -177,7 +177,7 @@ RITZ_FALLBACK = {"10L": 1.0}     # the share of a metric's branches (the elastic
 def sparse_estimate(n_dof: int, n_branches: int, n_metrics=1, n_sliding: int = 0, k: int = 6,
                     deficit: int = 0, below: dict | None = None, dim: int = 2) -> float:
     """Estimated wall seconds of the sparse path (calibration above, scaled by `speed`): per metric, the elastic
-    solve's set-up and every branch's update, Ritz (one basis for all branches) or, by methods.ritz_fits,
+    solve's set-up and every branch's update, Ritz (one basis for all branches) or, by `ritz_fits`,
     shift-invert ARPACK; where Ritz is used, the branches of a metric whose Ritz updates fall back to ARPACK
     (RITZ_FALLBACK); where `deficit` (plan.deficit) is k + 1 or more, every branch's ARPACK solve of k + ν pairs.
     `n_metrics`: the metrics' names (a tuple), or their number (the family's first ones: L, L/10, 10L); `below`:
@@ -193,13 +193,22 @@ def ritz_width(n_dof: int, n_sliding: int, kk: int) -> int:
     return int(min(n_dof, kk + RITZ_KRYLOV + RITZ_COLUMNS_PER_SLIDING * n_sliding))
 
 
+RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
+
+
+def ritz_fits(n_dof: int, n_sliding: int, kk: int) -> bool:
+    """Whether the branches of Ms = n_sliding contacts are Ritz updates of one elastic solve (methods.SparseMethod):
+    the updates, one width² matrix a contact (ritz.SparseRitz.updates) of the basis's width (`ritz_width`), within
+    RITZ_BYTES. The run (methods.SparseMethod._modes) and the estimate (`sparse_parts`) ask the same."""
+    return 8 * n_sliding * float(ritz_width(n_dof, n_sliding, kk)) ** 2 <= RITZ_BYTES
+
+
 def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int = 0, k: int = 6,
                  deficit: int = 0, below=None, dim: int = 2) -> dict:
     """One metric's part of `sparse_estimate` on the calibration machine, by step: "setup", "ritz" (the basis and
     the branches it solves) or "shift_invert", "direct" (the branches with kk or more eigenvalues below σ, straight
     to shift-invert), "fallback" (RITZ_FALLBACK's ARPACK solves), "floppy". `below`: the probed ν of a sample of
     the branches (their shares stand for all n_branches), or None (ν = 0)."""
-    from .methods import ritz_fits
     from .ritz import GUARD, STEPS
     Ms, kk, n = n_sliding, k + 1, n_dof
     nu = np.zeros(1) if below is None or not len(below) else np.asarray(below, float)

@@ -29,6 +29,7 @@ from ..mechanics.metric import Metric
 from ..mechanics.rigid import Projection, centred, free_spins, rigid_basis, unit_columns
 from ..mechanics.stiffness import ContactBlocks, assemble_parts, assembled_error, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
+from .budget import ritz_fits
 from .dense import solve_branches
 
 METHODS = ("auto", "dense", "sparse")
@@ -162,17 +163,6 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
                    formation_error=formation_error(scales, projection.C, projection.Cplus, e_K,
                                                    centre_term(scene, metric, R)), free=free,
                    free_spins=len(spins), curvature_entrywise=E, curvature_bound=e_K)
-
-
-RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
-
-
-def ritz_fits(n_dof: int, n_sliding: int, kk: int) -> bool:
-    """Whether the branches of Ms = n_sliding contacts are Ritz updates of one elastic solve (SparseMethod._modes):
-    the updates, one width² matrix a contact (ritz.SparseRitz.updates) of the basis's width (budget.ritz_width),
-    within RITZ_BYTES. The estimate (budget.sparse_parts) asks the same."""
-    from .budget import ritz_width
-    return 8 * n_sliding * float(ritz_width(n_dof, n_sliding, kk)) ** 2 <= RITZ_BYTES
 
 
 class DenseMethod:
@@ -339,7 +329,7 @@ class SparseMethod:
     def _modes(self, spb, masks, kk: int):
         """Modes of every branch: several branches as low-rank updates of one elastic solve (ritz.SparseRitz,
         verified per branch, shift-invert ARPACK where that fails), a single one, or branches whose Ritz problem
-        would not fit RITZ_BYTES (many sliding contacts: its basis grows by about 8.5 columns and its updates by
+        would not fit budget.RITZ_BYTES (many sliding contacts: its basis grows by about 8.5 columns and its updates by
         one width² matrix a contact: ritz_fits), by shift-invert directly, one after the other."""
         from .device import backend
         from .sparse import lowest_modes

@@ -159,9 +159,9 @@ def test_no_ritz_basis_is_built_where_every_branch_goes_to_shift_invert(monkeypa
     update (ritz.SparseRitz.modes). Where that holds for every branch (here 8 sampled branches of 192 dofs with 12-17
     below σ, probed by the plan) no basis is built (its width grows by ~8.5 columns a sliding contact:
     budget.ritz_width) and every branch is a shift-invert solve with the shared factor, as where the Ritz problem
-    does not fit (methods.RITZ_BYTES: the same eigenvalues within both bounds); where some branch can use it
+    does not fit (budget.RITZ_BYTES: the same eigenvalues within both bounds); where some branch can use it
     (forces a third as large: ν 0-3), the basis is built once. The estimate leaves it out too ("ritz" 0)."""
-    from granstab.solve import methods, ritz
+    from granstab.solve import ritz
     builds, sym_updates = [], ritz.sym_updates
     monkeypatch.setattr(ritz, "sym_updates", lambda *a: builds.append(1) or sym_updates(*a))   # once a basis
     options = {"metric": "L", "method": "sparse", "k": 6, "max_sliding": 6, "sample_branches": 6}
@@ -170,7 +170,7 @@ def test_no_ritz_basis_is_built_where_every_branch_goes_to_shift_invert(monkeypa
     assert p.n_branches == 8 and min(p.below["L"]) >= 7 and p.parts["ritz"] == 0 and p.parts["direct"] > 0
     res = granstab.analyze(crushed, **options)
     assert builds == [] and len(res.branches) == 8
-    monkeypatch.setattr(methods, "RITZ_BYTES", 0)
+    monkeypatch.setattr(budget, "RITZ_BYTES", 0)
     direct = granstab.analyze(crushed, **options)
     for a, b in zip(res.branches, direct.branches):
         bound = 1e-10 * np.abs(a.stability_eigenvalues).max()      # both verified to 1e-12 ‖Hs‖
