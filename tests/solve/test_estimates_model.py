@@ -66,6 +66,7 @@ def test_the_estimate_follows_the_load_and_the_free_cores(monkeypatch, disks1400
     monkeypatch.setattr(threads, "cores", lambda: 2)
     monkeypatch.setattr(threads, "SAMPLE_GAP", 0.0)
     monkeypatch.setattr(threads, "ready", lambda: [])
+    monkeypatch.setattr(threads, "_fresh_at", [-1.0])          # not an earlier test's fresh read (FRESH_SECONDS)
     rest = plan(disks1400, metric="L")
     monkeypatch.setattr(threads, "ready", lambda: [(1, "session a"), (2, "session b")])
     monkeypatch.setattr(threads, "_fresh_at", [-1.0])          # the next plan over FRESH_SECONDS later: read afresh
