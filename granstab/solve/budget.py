@@ -140,15 +140,15 @@ RITZ_BRANCH_PER_DOF = 6e-6
 RITZ_REFINE = 1.4e-10
 RITZ_REFINE_PER_DOF = 5e-6
 RITZ_REFINEMENTS = 0.5          # refinements of a branch with ν = 0 (0-1 measured); 0 < ν < kk: ritz steps (4)
-RITZ_3D = (1.25, 3.0)           # 3D: (refinements of a branch with ν = 0, cost factor on the basis and each refinement):
+RITZ_3D = (1.0, 3.0)            # 3D: (refinements of a branch with ν = 0, cost factor on the basis and each refinement):
                                 # 3D random packings of 3,000 dofs, Ms = 20 and 30: 2.6 and 3 refinements a branch, the
                                 # basis 0.8 and 0.97 s, a refinement 0.15 and 0.11 s (denser operator and factor than
                                 # 2D's: 4.7×, 3.5× and 1.7× the 2D model); 2D: (RITZ_REFINEMENTS, 1). Refinements a
                                 # branch with ν = 0, measured 2026-11-29 (ritz.SparseRitz.stats, benchmarks/estimates
                                 # ritz_3d): random packings of 648, 3,000 (Ms 20, 60) and 5,184 dofs 3.6, 2.6, 0.9, 3;
                                 # a sheared periodic LAMMPS frame of 2,316 dofs (Ms 20) 0: the count is not predicted
-                                # (the basis width does not tell periodic from bounded), 1.25 sets those five within
-                                # 3× of their CPU time (0.36-2.0×; 2.5 left the periodic frame at 0.23×)
+                                # (the basis width does not tell periodic from bounded), 1 sets those five within
+                                # 3× of their CPU time (0.41-2.3×; 2.5 left the periodic frame at 0.23×)
 RITZ_KRYLOV = 48                # the basis: kk + this (the elastic block Krylov space) …
 RITZ_COLUMNS_PER_SLIDING = 8.5  # … + this a sliding contact (of the 2·TAYLOR = 12 its Taylor powers add at most)
 ARPACK_PAIR_DOF = 4.6e-6         # a branch solved by shift-invert with the shared factor, per n·(kk + ν) pairs, …
