@@ -16,6 +16,7 @@ sparse path, random and sheared periodic LAMMPS frames (budget.RITZ_3D's calibra
 from __future__ import annotations
 
 import dataclasses
+import functools
 import io
 import json
 import os
@@ -296,14 +297,19 @@ def run_ritz_3d(busy_too: bool = True) -> dict:
         cases_ = [(name, granstab.save_scene(scene, Path(tmp) / f"r3d{i}.npz"), args)
                   for i, (name, scene, args, _) in enumerate(ritz_3d(Path(tmp)))]
         for name, path, args in cases_:
-            results["rest"][name] = check(path, args)
-            if busy_too:
-                end = busy()
-                try:
-                    results["busy"][name] = check(path, args)
-                finally:
-                    end()
+            rest_and_busy(results, name, functools.partial(check, path, args), busy_too)
     return results
+
+
+def rest_and_busy(results: dict, name: str, once, busy_too: bool = True) -> None:
+    """results["rest"][name] = once(), then (busy_too) results["busy"][name] = once() beside two busy processes."""
+    results["rest"][name] = once()
+    if busy_too:
+        end = busy()
+        try:
+            results["busy"][name] = once()
+        finally:
+            end()
 
 
 def _floor(name: str) -> float:
@@ -375,13 +381,7 @@ def run(quick: bool = False, loaded: bool = False) -> dict:
         return {"held_out": run_held_out(), "load": {"case": name, **at_load(scene, options, repeats=1)}}
     results = {"rest": {}, "busy": {}}
     for case, sc, opts in cases(quick):
-        results["rest"][case] = measure(sc, opts)
-        if loaded:
-            end = busy()
-            try:
-                results["busy"][case] = measure(sc, opts)
-            finally:
-                end()
+        rest_and_busy(results, case, functools.partial(measure, sc, opts), loaded)
     results["load"] = {"case": name, **at_load(scene, options, repeats=1)}
     return results
 
