@@ -233,6 +233,10 @@ def test_the_cheapest_default_plan_within_90_s_runs_unasked_with_a_line_and_a_he
     assert "estimated 40 s on this machine now" in lines[0] and "--timeout S" in lines[0]
     assert sum("--timeout" in line for line in lines) == 1
     assert len(lines) >= 4                                 # 1 s of work, a line every 0.15 s
+    assert main(["analyze", str(small_file), "--plan"]) == 0           # --plan says so, runs nothing
+    out = capsys.readouterr().out
+    assert "branches: 4 per metric (all) × 1 metric(s): L" in out and "nothing cheaper fits the 10 s" in out
+    assert "the full analysis needs about 120 s: run it with --timeout 144" in out
     _priced(monkeypatch, 100.0)
     assert main(["analyze", str(small_file), "--json"]) == 2
     out, err = capsys.readouterr()
