@@ -9,11 +9,14 @@ yield) by default and forced with --timeout, and every file of the fuzz corpus (
 2 s listed. Every case at rest and beside two busy processes (`python -c 'while 1: pass'` twice): "at rest" on a
 shared machine is never at rest, so the load (threads at this priority ready to run, and the 1-minute load
 average) is recorded beside every number; the estimate follows the machine's speed (budget.speed, a timed probe)
-and its free cores (threads.free_cores, threads.slowdown). `cases(quick=True)`: small scenes of every path, run
-through the Python API (tests/solve/test_plan.py)."""
+and its free cores (threads.free_cores, threads.slowdown). `cases(quick=True)`: small scenes of every path, measured
+through the Python API (`--quick`, with `--busy` beside busy processes too: each ratio flagged outside 3×; the unit
+test tests/solve/test_plan.py checks only that their runs follow their plans, no timing). `ritz_3d`: 3D scenes of the
+sparse path, random and sheared periodic LAMMPS frames (budget.RITZ_3D's calibration; `--ritz-3d` runs them alone)."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import io
 import json
 import os
@@ -94,8 +97,8 @@ def cases(quick: bool = False) -> list:
             ("400 disks, 672 contacts, 1 at yield, family (floppy: full path)", thinned(400, 672, 1), {}),
             ("1,400 disks, 300 at yield, 8 sampled, L (sparse shift-invert)",
              random_packing(2, 1400, n_sliding=300, seed=3), {"metric": "L", "sample_branches": 8}),
-            ("1,400 disks, 100 at yield, 8 sampled, L (sparse Ritz)",
-             random_packing(2, 1400, n_sliding=100, seed=3), {"metric": "L", "sample_branches": 8}),
+            ("1,400 disks, 80 at yield, 8 sampled, L (sparse Ritz)",
+             random_packing(2, 1400, n_sliding=80, seed=3), {"metric": "L", "sample_branches": 8}),
             ("1,400 disks, 6 at yield, family (sparse Ritz)", random_packing(2, 1400, n_sliding=6, seed=4), {})]
 
 
@@ -207,7 +210,7 @@ def held_out(folder: Path) -> list:
     if frame is not None:
         scenes.insert(3, ("1,400-disk sheared periodic LAMMPS run, frame 23, --sample-branches 8 --metric L", frame,
                           ["--sample-branches", "8", "--metric", "L"], True))
-    scenes += own(folder)
+    scenes += own(folder) + ritz_3d(folder)
     out = [(name, granstab.save_scene(scene, folder / f"case{i}.npz"), args, force)
            for i, (name, scene, args, force) in enumerate(scenes)]
     corpus = ROOT / "tests" / "corpus"
@@ -237,6 +240,76 @@ def own(folder: Path) -> list:
         out.append(("1,400-disk sheared run, frame 12, --sample-branches 8 --metric 10L (sparse)",
                     source.read(source.frames[12]).scene, ["--sample-branches", "8", "--metric", "10L"], True))
     return out
+
+
+def sheared_3d(folder: Path, n: int):
+    """The last of 2 frames of a sheared periodic 3D LAMMPS run of n spheres (examples/track/in.shear3d_track;
+    about 10-20 s), as a scene (None without lmp)."""
+    if shutil.which("lmp") is None:
+        return None
+    run = folder / f"shear3d_{n}"
+    run.mkdir(exist_ok=True)
+    subprocess.run(["lmp", "-in", str(ROOT / "examples" / "track" / "in.shear3d_track"), "-var", "n", str(n),
+                    "-var", "frames", "2", "-log", "none", "-screen", "none"], cwd=run, check=True, timeout=900)
+    source = granstab.io.open([run / "atoms_shear3d_track.dump", run / "contacts_shear3d_track.dump",
+                               ROOT / "examples" / "track" / "in.shear3d_track"])
+    return source.read(source.frames[-1]).scene
+
+
+def sticking(scene, n_sliding: int, seed: int = 0):
+    """The scene with all but `n_sliding` of its contacts at yield marked "elastic" (known to stick, as a user
+    states it): fewer branches on the same contact network."""
+    sliding = np.flatnonzero(scene.at_yield())
+    stick = set(np.random.default_rng(seed).permutation(sliding)[n_sliding:].tolist())
+    return dataclasses.replace(scene, state=tuple("elastic" if i in stick else s for i, s in enumerate(scene.state)))
+
+
+def ritz_3d(folder: Path) -> list:
+    """(name, scene, CLI arguments, force) of 3D scenes on the sparse path (budget.RITZ_3D was fitted on two random
+    packings of 3,000 dofs): random packings and frames of a sheared periodic LAMMPS run, 700-5,200 dofs, 4-60
+    sliding contacts on the Ritz path, and a frame's own 100 or so on shift-invert."""
+    sparse = ["--method", "sparse", "--metric", "L", "--timeout", "300"]    # the model measured, not refused at 10 s
+    out = [("3D random packing, 108 spheres, 4 at yield, all 16 branches (sparse Ritz, 648 dofs)",
+            random_packing(3, 100, n_sliding=4, seed=11), sparse),
+           ("3D random packing, 864 spheres, 12 at yield, --sample-branches 6 (sparse Ritz, 5,184 dofs)",
+            random_packing(3, 1000, n_sliding=12, seed=12), [*sparse, "--max-sliding", "6", "--sample-branches", "6"]),
+           ("3D random packing, 500 spheres, 60 at yield, --sample-branches 6 (sparse Ritz)",
+            random_packing(3, 500, n_sliding=60, seed=13), [*sparse, "--sample-branches", "6"])]
+    for n, keep in ((400, 20), (900, 40)):
+        frame = sheared_3d(folder, n)
+        if frame is None:
+            continue
+        dofs = f"{frame.n_dof:,} dofs"
+        out.append((f"sheared periodic 3D LAMMPS frame, {frame.n_particles} spheres, {keep} of its "
+                    f"{int(np.sum(frame.at_yield()))} at yield (the rest stated elastic), --sample-branches 6 (sparse "
+                    f"Ritz, {dofs})", sticking(frame, keep), [*sparse, "--sample-branches", "6"]))
+        if n == 900:
+            out.append((f"sheared periodic 3D LAMMPS frame, {frame.n_particles} spheres, its "
+                        f"{int(np.sum(frame.at_yield()))} at yield, --sample-branches 6 (sparse shift-invert, {dofs})",
+                        frame, [*sparse, "--sample-branches", "6"]))
+    return [(name, scene, args, False) for name, scene, args in out]
+
+
+def run_ritz_3d(busy_too: bool = True) -> dict:
+    """The 3D cases (`ritz_3d`) through the held-out harness (`check`) at rest and beside two busy processes."""
+    results = {"rest": {}, "busy": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        cases_ = [(name, granstab.save_scene(scene, Path(tmp) / f"r3d{i}.npz"), args)
+                  for i, (name, scene, args, _) in enumerate(ritz_3d(Path(tmp)))]
+        for name, path, args in cases_:
+            rest_and_busy(results, name, functools.partial(check, path, args), busy_too)
+    return results
+
+
+def rest_and_busy(results: dict, name: str, once, busy_too: bool = True) -> None:
+    """results["rest"][name] = once(), then (busy_too) results["busy"][name] = once() beside two busy processes."""
+    results["rest"][name] = once()
+    if busy_too:
+        end = busy()
+        try:
+            results["busy"][name] = once()
+        finally:
+            end()
 
 
 def _floor(name: str) -> float:
@@ -308,13 +381,7 @@ def run(quick: bool = False, loaded: bool = False) -> dict:
         return {"held_out": run_held_out(), "load": {"case": name, **at_load(scene, options, repeats=1)}}
     results = {"rest": {}, "busy": {}}
     for case, sc, opts in cases(quick):
-        results["rest"][case] = measure(sc, opts)
-        if loaded:
-            end = busy()
-            try:
-                results["busy"][case] = measure(sc, opts)
-            finally:
-                end()
+        rest_and_busy(results, case, functools.partial(measure, sc, opts), loaded)
     results["load"] = {"case": name, **at_load(scene, options, repeats=1)}
     return results
 
@@ -379,8 +446,8 @@ def markdown(results: dict) -> str:
              "disks (3.3× over before 10L's Ritz updates that fall back to ARPACK were counted: budget.RITZ_FALLBACK) "
              "and the fuzz corpus. The machine is shared: the load is beside every row (threads of other processes "
              "ready to run at this priority, which the plan reads, and the 1-minute load average on 2 CPUs). "
-             "benchmarks/estimates.py; tests/solve/test_plan.py checks small cases as a ratio, tests/solve/test_estimates_model.py "
-             "the model's pieces."]
+             "benchmarks/estimates.py; `--quick` measures small cases of every path (tests/solve/test_plan.py checks only that they "
+             "follow their plans), tests/solve/test_estimates_model.py the model's pieces."]
     if "held_out" in results:
         lines += held_out_lines(results["held_out"])
     else:
@@ -403,10 +470,15 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--quick", action="store_true")
     p.add_argument("--busy", action="store_true", help="quick: two busy processes beside each case too")
+    p.add_argument("--ritz-3d", action="store_true", help="only the 3D sparse cases (ritz_3d), at rest and busy")
     p.add_argument("--json", default=None)
     args = p.parse_args(argv)
-    results = run(args.quick, args.busy)
-    print(markdown(results))
+    if args.ritz_3d:
+        results = {"held_out": {**run_ritz_3d(), "forced": {}}}
+        print("\n".join(held_out_lines(results["held_out"])))
+    else:
+        results = run(args.quick, args.busy)
+        print(markdown(results))
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     return 0

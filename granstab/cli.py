@@ -44,8 +44,8 @@ from .mechanics.stiffness import MaskError, stiffness
 from .model.errors import Interrupted, MissingExtra
 from .model.scene import SceneError
 from .moduli import moduli
-from .solve.budget import DENSE_ADVICE, SPARSE_ADVICE, OverBudget, deadline
-from .solve.plan import fit, fit_lines, plan
+from .solve.budget import DENSE_ADVICE, SPARSE_ADVICE, UNASKED_HEARTBEAT, OverBudget, deadline
+from .solve.plan import fit, fit_lines, plan, unasked_line
 
 
 class NumericalError(Exception):
@@ -154,6 +154,9 @@ def cmd_analyze(args) -> int:
                     return 0
                 refuse_unfinishable(planned, args.timeout and args.timeout - (time.perf_counter() - start))
                 beat.estimate = planned.estimated_s
+                if unasked_line(planned):                       # over 10 s, nothing cheaper: runs, says so
+                    beat.note(unasked_line(planned))
+                    beat.often(UNASKED_HEARTBEAT)
                 if planned.method == "sparse":
                     advice[0] = SPARSE_ADVICE
                 beat.stage("assembly")
@@ -352,6 +355,9 @@ def cmd_export(args) -> int:
                 planned = plan(loaded.scene, **modes_options(args.modes, args.sample_branches, args.max_sliding))
                 refuse_unfinishable(planned, args.timeout and args.timeout - (time.perf_counter() - start))
                 beat.estimate = planned.estimated_s
+                if unasked_line(planned):                       # over 10 s, nothing cheaper: runs, says so
+                    beat.note(unasked_line(planned))
+                    beat.often(UNASKED_HEARTBEAT)
             extra = track_fields(args.track, position, loaded.scene.names) if args.track else None
             beat.stage(f"frame {f}: fields and modes" if f is not None else "fields and modes")
             frames.append(export_frame(loaded.scene, scan=args.scan_dir, modes=args.modes, time=f or 0, extra=extra,

@@ -52,7 +52,7 @@ HEARTBEAT_EVERY = 60.0    # … and between the next ones (module attributes: a 
 
 class Heartbeat:
     """Progress where no bar can be drawn (stderr not a terminal: logs, pipes, CI): after HEARTBEAT_FIRST seconds
-    and then every HEARTBEAT_EVERY, one line on `stream` with the stage, its count and the estimate. The same
+    and then every HEARTBEAT_EVERY (or `often`'s period), one line on `stream` with the stage, its count and the estimate. The same
     interface as the bars (`stage`, `update`, `close`), so the work reports to either; stdout is never touched."""
 
     def __init__(self, what: str, estimate: float | None = None, stream=None, enabled: bool = True):
@@ -60,13 +60,14 @@ class Heartbeat:
         self.what, self.estimate, self.enabled = what, estimate, enabled
         self.stream = stream if stream is not None else sys.stderr
         self.name, self.done, self.total = "starting", 0, None
-        self._stop = self._thread = None
+        self.every = None                  # seconds between lines after the first (None: HEARTBEAT_EVERY; `often`)
+        self._wake = self._thread = None
 
     def __enter__(self):
         import threading
         import time
         self._start = time.monotonic()
-        self._stop = threading.Event()
+        self._wake, self._stopped = threading.Event(), False
         if self.enabled:
             self._thread = threading.Thread(target=self._beat, daemon=True, name="granstab-heartbeat")
             self._thread.start()
@@ -74,16 +75,39 @@ class Heartbeat:
 
     def __exit__(self, *exc):
         """Stop, and wait for a line being written: none may follow the run's own output (or its closed stream)."""
-        self._stop.set()
+        self._stopped = True
+        self._wake.set()
         if self._thread is not None:
             self._thread.join()
 
+    def often(self, seconds: float) -> None:
+        """A line every `seconds` from now on (the next one at most `seconds` after the last, or the start): a run
+        over budget.ASK_SECONDS without --timeout (plan.fit's unasked plan)."""
+        self.every = seconds
+        self._wake.set()
+
     def _beat(self) -> None:
-        wait = HEARTBEAT_FIRST
-        while not self._stop.wait(wait):
+        import time
+        last, due = self._start, self._start + HEARTBEAT_FIRST
+        while not self._stopped:
+            self._wake.wait(max(0.0, due - time.monotonic()))
+            self._wake.clear()
+            if self._stopped:
+                return
+            now = time.monotonic()
+            every = HEARTBEAT_EVERY if self.every is None else self.every
+            if now < due:                                  # woken by `often`: the next line due sooner
+                due = min(due, last + every)
+                continue
             self.stream.write(self.line() + "\n")
             self.stream.flush()
-            wait = HEARTBEAT_EVERY
+            last, due = now, now + every
+
+    def note(self, text: str) -> None:
+        """One line now, in the heartbeat's form ('granstab: <what>: 3 s, <text>'), whether or not it beats."""
+        import time
+        self.stream.write(f"granstab: {self.what}: {time.monotonic() - self._start:.0f} s, {text}\n")
+        self.stream.flush()
 
     def line(self) -> str:
         """'granstab: <what>: 70 s, branches, metric L/10 (37 of 128); estimated 46 s in all'."""

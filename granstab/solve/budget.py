@@ -36,7 +36,10 @@ MEASURE_DIM = 160      # matrices larger than this are timed at this size and sc
 SCALE_EXPONENT = 2.4   # cost ∝ n^2.4 from MEASURE_DIM to EFFICIENT_DIM (measured; module docstring) …
 EFFICIENT_DIM = 1000   # … and ∝ n³ beyond, where BLAS-3 runs at its full rate (an assumption on the safe side)
 MEASURE_STACK = 4      # matrices timed at once (a few tenths of a second in all, only for work that may be long)
-ASK_SECONDS = 10.0     # without --timeout, the CLI refuses work estimated longer than this (one line, what to do)
+ASK_SECONDS = 10.0     # without --timeout, the CLI refuses work estimated longer than this (one line, what to do) …
+RUN_UNASKED_SECONDS = 90.0  # … unless it is the default plan's cheapest form and estimated within this at rest:
+                            # then it runs, saying so up front (plan.fit; issue 41's held-out 2·10⁵-disk packing)
+UNASKED_HEARTBEAT = 10.0    # … with a heartbeat line this often (the minute's Heartbeat, at a shorter period)
 SETUP_BRANCHES = 2.0   # the low-rank path's work once a metric (the reduction, ℍ^i floors, an unstable result's
                        # attribution and its control analysis), in branches' worth: 0.5 s of 0.72 at 879 dofs
 REFERENCE_PROBE = 0.0056  # CPU seconds per matrix of the low-rank probe at MEASURE_DIM on the calibration machine
@@ -125,7 +128,7 @@ def estimate(n_dof: int, n_branches: int, n_metrics: int = 1, lowrank: bool = Fa
 #: basis built about σ). A branch with ν >= kk skips Ritz (ritz.py) and is solved by shift-invert, ARPACK_PAIR_*
 #: per n·(kk + ν) (the sheared frame: 6 of 10 branches, ν = 8-15, 9.7 s of CPU time for 100 pairs); ν of each branch
 #: is counted before the run by the plan's probe (plan.probe: one factorisation and the inertia of each branch's
-#: Woodbury update, no eigen-solve). Beyond methods.RITZ_BYTES each branch is a
+#: Woodbury update, no eigen-solve). Beyond RITZ_BYTES (`ritz_fits`) each branch is a
 #: shift-invert with a rank-2Ms Woodbury update (Ms = 200, 500: 2.7, 9.1 s), SHIFT_PER_DOF_SLIDING per n·Ms and
 #: SHIFT_CUBE per Ms³ a branch.
 SPARSE_SETUP_PER_DOF = 6e-5
@@ -137,10 +140,15 @@ RITZ_BRANCH_PER_DOF = 6e-6
 RITZ_REFINE = 1.4e-10
 RITZ_REFINE_PER_DOF = 5e-6
 RITZ_REFINEMENTS = 0.5          # refinements of a branch with ν = 0 (0-1 measured); 0 < ν < kk: ritz steps (4)
-RITZ_3D = (2.5, 3.0)            # 3D: (refinements of a branch with ν = 0, cost factor on the basis and each refinement):
+RITZ_3D = (1.0, 3.0)            # 3D: (refinements of a branch with ν = 0, cost factor on the basis and each refinement):
                                 # 3D random packings of 3,000 dofs, Ms = 20 and 30: 2.6 and 3 refinements a branch, the
                                 # basis 0.8 and 0.97 s, a refinement 0.15 and 0.11 s (denser operator and factor than
-                                # 2D's: 4.7×, 3.5× and 1.7× the 2D model); 2D: (RITZ_REFINEMENTS, 1)
+                                # 2D's: 4.7×, 3.5× and 1.7× the 2D model); 2D: (RITZ_REFINEMENTS, 1). Refinements a
+                                # branch with ν = 0, measured 2026-11-29 (ritz.SparseRitz.stats, benchmarks/estimates
+                                # ritz_3d): random packings of 648, 3,000 (Ms 20, 60) and 5,184 dofs 3.6, 2.6, 0.9, 3;
+                                # a sheared periodic LAMMPS frame of 2,316 dofs (Ms 20) 0: the count is not predicted
+                                # (the basis width does not tell periodic from bounded), 1 sets those five within
+                                # 3× of their CPU time (0.41-2.3×; 2.5 left the periodic frame at 0.23×)
 RITZ_KRYLOV = 48                # the basis: kk + this (the elastic block Krylov space) …
 RITZ_COLUMNS_PER_SLIDING = 8.5  # … + this a sliding contact (of the 2·TAYLOR = 12 its Taylor powers add at most)
 ARPACK_PAIR_DOF = 4.6e-6         # a branch solved by shift-invert with the shared factor, per n·(kk + ν) pairs, …
@@ -174,7 +182,7 @@ RITZ_FALLBACK = {"10L": 1.0}     # the share of a metric's branches (the elastic
 def sparse_estimate(n_dof: int, n_branches: int, n_metrics=1, n_sliding: int = 0, k: int = 6,
                     deficit: int = 0, below: dict | None = None, dim: int = 2) -> float:
     """Estimated wall seconds of the sparse path (calibration above, scaled by `speed`): per metric, the elastic
-    solve's set-up and every branch's update, Ritz (one basis for all branches) or, by methods.use_ritz,
+    solve's set-up and every branch's update, Ritz (one basis for all branches) or, by `use_ritz`,
     shift-invert ARPACK; where Ritz is used, the branches of a metric whose Ritz updates fall back to ARPACK
     (RITZ_FALLBACK); where `deficit` (plan.deficit) is k + 1 or more, every branch's ARPACK solve of k + ν pairs.
     `n_metrics`: the metrics' names (a tuple), or their number (the family's first ones: L, L/10, 10L); `below`:
@@ -190,24 +198,45 @@ def ritz_width(n_dof: int, n_sliding: int, kk: int) -> int:
     return int(min(n_dof, kk + RITZ_KRYLOV + RITZ_COLUMNS_PER_SLIDING * n_sliding))
 
 
+RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
+
+
+def ritz_fits(n_dof: int, n_sliding: int, kk: int) -> bool:
+    """Whether the branches of Ms = n_sliding contacts are Ritz updates of one elastic solve (methods.SparseMethod):
+    the updates, one width² matrix a contact (ritz.SparseRitz.updates) of the basis's width (`ritz_width`), within
+    RITZ_BYTES. The run (methods.SparseMethod._modes) and the estimate (`sparse_parts`) ask the same."""
+    return 8 * n_sliding * float(ritz_width(n_dof, n_sliding, kk)) ** 2 <= RITZ_BYTES
+
+
+RITZ_MIN_BRANCHES = 3       # SparseRitz from 3 branches on: for 2 (track's whole stage: all-loading, all-unloading) its
+                            # shared basis costs more than it saves (a sheared 2,000-disk frame, 5,937 dofs, 60 sliding,
+                            # kk = 61: 12.7 s of CPU as Ritz, 5.9 s by shift-invert, the same eigenvalues; issue 39)
+
+
+def use_ritz(n_branches: int, n_dof: int, n_sliding: int, kk: int) -> bool:
+    """Whether methods.SparseMethod._modes solves the branches as Ritz updates of one elastic solve
+    (RITZ_MIN_BRANCHES, `ritz_fits`); else each by shift-invert. The run and the estimate ask the same."""
+    return n_branches >= RITZ_MIN_BRANCHES and ritz_fits(n_dof, n_sliding, kk)
+
+
 def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int = 0, k: int = 6,
                  deficit: int = 0, below=None, dim: int = 2) -> dict:
     """One metric's part of `sparse_estimate` on the calibration machine, by step: "setup", "ritz" (the basis and
     the branches it solves) or "shift_invert", "direct" (the branches with kk or more eigenvalues below σ, straight
     to shift-invert), "fallback" (RITZ_FALLBACK's ARPACK solves), "floppy". `below`: the probed ν of a sample of
     the branches (their shares stand for all n_branches), or None (ν = 0)."""
-    from .methods import use_ritz
     from .ritz import GUARD, STEPS
     Ms, kk, n = n_sliding, k + 1, n_dof
     nu = np.zeros(1) if below is None or not len(below) else np.asarray(below, float)
     pair = n * (ARPACK_PAIR_DOF + ARPACK_PAIR_COLUMN * (6 + Ms))   # a shift-invert pair (ARPACK_PAIR_*)
     out = {"setup": SPARSE_SETUP_PER_DOF * n}
-    if use_ritz(n_branches, Ms, kk):
+    if use_ritz(n_branches, n, Ms, kk):
         w = ritz_width(n, Ms, kk)
         ritz = n_branches * np.mean(nu < kk)
         refinements, heavier = RITZ_3D if dim == 3 else (RITZ_REFINEMENTS, 1.0)
         steps = n_branches * np.mean(np.where(nu == 0, refinements, STEPS) * (nu < kk))
-        out["ritz"] = (heavier * RITZ_INIT * n * w * w + ritz * (RITZ_EIGH * float(w) ** 3 + RITZ_BRANCH_PER_DOF * n)
+        basis = heavier * RITZ_INIT * n * w * w if ritz > 0 else 0.0    # none where every branch has ν >= kk
+        out["ritz"] = (basis + ritz * (RITZ_EIGH * float(w) ** 3 + RITZ_BRANCH_PER_DOF * n)
                        + heavier * steps * (RITZ_REFINE * n * (w + 3 * (kk + GUARD)) ** 2 + RITZ_REFINE_PER_DOF * n))
         out["direct"] = n_branches * np.mean((kk + nu) * (nu >= kk)) * pair
         out["fallback"] = RITZ_FALLBACK.get(metric, 0.0) * max(ritz - 1, 0) * ARPACK_BRANCH_PER_DOF * n

@@ -29,6 +29,7 @@ from ..mechanics.metric import Metric
 from ..mechanics.rigid import Projection, centred, free_spins, rigid_basis, unit_columns
 from ..mechanics.stiffness import ContactBlocks, assemble_parts, assembled_error, contact_blocks, geometric
 from ..model.scene import Scene, SceneError
+from .budget import use_ritz
 from .dense import solve_branches
 
 METHODS = ("auto", "dense", "sparse")
@@ -162,26 +163,6 @@ def dense_problem(scene: Scene, blocks: ContactBlocks, parts: dict, metric: Metr
                    formation_error=formation_error(scales, projection.C, projection.Cplus, e_K,
                                                    centre_term(scene, metric, R)), free=free,
                    free_spins=len(spins), curvature_entrywise=E, curvature_bound=e_K)
-
-
-RITZ_BYTES = 512 * 2 ** 20   # the stacked Ritz updates of SparseRitz (Ms width² doubles) at most; beyond: shift-invert
-
-
-RITZ_MIN_BRANCHES = 3       # SparseRitz from 3 branches on: for 2 (track's whole stage: all-loading, all-unloading) its
-                            # shared basis costs more than it saves (a sheared 2,000-disk frame, 5,937 dofs, 60 sliding,
-                            # kk = 61: 12.7 s of CPU as Ritz, 5.9 s by shift-invert, the same eigenvalues; issue 39)
-
-
-def use_ritz(n_branches: int, n_sliding: int, kk: int) -> bool:
-    """Whether SparseMethod._modes solves the branches as Ritz updates of one elastic solve (RITZ_MIN_BRANCHES,
-    ritz_fits); else each by shift-invert."""
-    return n_branches >= RITZ_MIN_BRANCHES and ritz_fits(n_sliding, kk)
-
-
-def ritz_fits(n_sliding: int, kk: int) -> bool:
-    """Whether the branches of Ms = n_sliding contacts are Ritz updates of one elastic solve (SparseMethod._modes;
-    the basis grows by 4 columns and the updates by one width² matrix a contact) within RITZ_BYTES."""
-    return 8 * n_sliding * (kk + 8 + 4 * n_sliding) ** 2 <= RITZ_BYTES
 
 
 class DenseMethod:
@@ -354,10 +335,10 @@ class SparseMethod:
         return branches, notes
 
     def _modes(self, spb, masks, kk: int):
-        """Modes of every branch: RITZ_MIN_BRANCHES or more as low-rank updates of one elastic solve (ritz.SparseRitz,
+        """Modes of every branch: budget.RITZ_MIN_BRANCHES or more as low-rank updates of one elastic solve (ritz.SparseRitz,
         verified per branch, shift-invert ARPACK where that fails), a single one, or branches whose Ritz problem
-        would not fit RITZ_BYTES (many sliding contacts: its basis grows by 4 columns and its updates by one
-        width² matrix a contact), by shift-invert directly, one after the other."""
+        would not fit budget.RITZ_BYTES (many sliding contacts: its basis grows by about 8.5 columns and its updates by
+        one width² matrix a contact: ritz_fits), by shift-invert directly, one after the other."""
         from .device import backend
         from .sparse import lowest_modes
         Ms = spb.A.shape[1]
@@ -366,7 +347,7 @@ class SparseMethod:
             for mask in masks:
                 yield device_lowest(spb, kk, mask, device=self.device)
             return
-        if use_ritz(len(masks), Ms, kk):
+        if use_ritz(len(masks), spb.n, Ms, kk):
             from .ritz import SparseRitz
             yield from SparseRitz(spb, kk, tol=self.tol, device=self.device).modes(masks, kk)
             return

@@ -310,22 +310,41 @@ def fit(scene: Scene, full: Plan, options: dict) -> Plan:
     """The default plan fitted to budget.ASK_SECONDS (issues 36-38): where `full` (the plan of `options`, none of
     them given by the user) is refused or estimated longer, the first of `_reductions` whose estimate fits, with
     what it leaves out first in `left_out` and `fitted` saying how to run the full analysis (--timeout with its
-    estimate); `full` where it fits or nothing does (then refused as before). A reduced plan must fit FIT_SHARE of
-    the budget on this machine at rest (plan(rest=True)): the plan, and so the verdict, do not depend on the load of
-    the moment (a loaded machine takes longer, and says so); the plan returned carries the estimate at the load
-    now. A reduced verdict claims no more than it proves: sampled branches prove only instability
-    (verdicts.mark_partial), one metric is not the family's robustness."""
-    if full.estimated_s is None or (not full.refusal and plan(scene, **options, rest=True).estimated_s
-                                    <= budget.ASK_SECONDS):
+    estimate). Where none fits, the cheapest of them all (`full` included) when estimated within
+    budget.RUN_UNASKED_SECONDS at rest and at the load now (nothing cheaper is left to run: it runs,
+    `fitted["unasked"]`, with a line up front and a heartbeat every budget.UNASKED_HEARTBEAT s in the CLI); else
+    `full` (refused as before, as it is refused over 10 s at the load now). The choice is made on this machine at
+    rest (plan(rest=True)): the plan, and so the verdict, do not depend on the load of the moment (a loaded machine
+    takes longer, and says so); the plan returned carries the estimate at the load now. A
+    reduced plan must fit FIT_SHARE of the budget. A reduced verdict claims no more than it proves: sampled
+    branches prove only instability (verdicts.mark_partial), one metric is not the family's robustness."""
+    if full.estimated_s is None:
+        return full
+    cheapest = (None, options) if full.refusal else (plan(scene, **options, rest=True), options)
+    if cheapest[0] is not None and cheapest[0].estimated_s <= budget.ASK_SECONDS:
         return full
     for reduced in _reductions(full, options):
         at_rest = plan(scene, **reduced, rest=True)
-        if not at_rest.refusal and at_rest.estimated_s <= FIT_SHARE * budget.ASK_SECONDS:
-            p = plan(scene, **reduced)
-            dropped = tuple(f"the metric(s) {', '.join(full.metrics[1:])} of the family (the verdict in L alone: its "
-                            "metric-robustness not evaluated)" for _ in [0] if len(p.metrics) < len(full.metrics))
-            return replace(p, left_out=dropped + p.left_out, fitted=_full_run(scene, full, options, reduced))
-    return full
+        if at_rest.refusal:
+            continue
+        if at_rest.estimated_s <= FIT_SHARE * budget.ASK_SECONDS:
+            return _fitted(scene, full, options, reduced)
+        if cheapest[0] is None or at_rest.estimated_s < cheapest[0].estimated_s:
+            cheapest = (at_rest, reduced)
+    if cheapest[0] is None or cheapest[0].estimated_s > budget.RUN_UNASKED_SECONDS:
+        return full
+    unasked = _fitted(scene, full, options, cheapest[1], unasked=True)
+    return unasked if unasked.estimated_s <= budget.RUN_UNASKED_SECONDS else full     # and at the load now
+
+
+def _fitted(scene: Scene, full: Plan, options: dict, reduced: dict, unasked: bool = False) -> Plan:
+    """The plan of `reduced` (`full` itself where it is `options`), with what it leaves out of `full` first and
+    `fitted` (`_full_run`; unasked: it runs over budget.ASK_SECONDS, `fit`)."""
+    p = full if reduced is options else plan(scene, **reduced)
+    dropped = tuple(f"the metric(s) {', '.join(full.metrics[1:])} of the family (the verdict in L alone: its "
+                    "metric-robustness not evaluated)" for _ in [0] if len(p.metrics) < len(full.metrics))
+    return replace(p, left_out=dropped + p.left_out,
+                   fitted={**_full_run(scene, full, options, reduced), "unasked": unasked})
 
 
 def _reductions(full: Plan, options: dict):
@@ -345,14 +364,16 @@ def _reductions(full: Plan, options: dict):
 
 
 def _full_run(scene: Scene, full: Plan, options: dict, reduced: dict) -> dict:
-    """`Plan.fitted`: the budget fitted to, the options run, and the full analysis's estimate and options."""
+    """`Plan.fitted`: the budget fitted to, the options run, and the full analysis's estimate and options (none
+    where the run is the full analysis)."""
     whole = full if not full.refusal or full.n_sliding > 30 else plan(scene, **{**options,
                                                                                 "max_sliding": full.n_sliding})
     seconds = None if whole.refusal else whole.estimated_s
     flags = ([] if whole is full else [f"--max-sliding {full.n_sliding}"]) + \
         ([f"--timeout {int(np.ceil(1.2 * seconds))}"] if seconds else [])
     return {"budget_s": budget.ASK_SECONDS, "options": reduced, "full_estimated_s": seconds,
-            "full_options": " ".join(flags) if seconds else None}
+            "full_options": " ".join(flags) if seconds and reduced is not options else None,
+            "runs_full": reduced is options}
 
 
 def fit_lines(p: Plan, listed: bool = False) -> list[str]:
@@ -363,5 +384,21 @@ def fit_lines(p: Plan, listed: bool = False) -> list[str]:
     f = p.fitted
     what = "; ".join(p.left_out) if listed else "what it leaves out is listed above"
     full = (f"the full analysis needs about {f['full_estimated_s']:.3g} s: run it with {f['full_options']}"
-            if f["full_options"] else "the full analysis cannot be estimated (too many branches to enumerate)")
+            if f["full_options"] else "this is the full analysis" if f.get("runs_full") else
+            "the full analysis cannot be estimated (too many branches to enumerate)")
+    if f.get("unasked"):
+        return [f"plan: nothing cheaper fits the {f['budget_s']:.3g} s a run takes without --timeout; the cheapest, "
+                f"estimated within {budget.RUN_UNASKED_SECONDS:.3g} s at rest, runs, leaving out: {what or 'nothing'}"
+                f"; {full}"]
     return [f"plan fitted to the {f['budget_s']:.3g} s a run takes without --timeout, leaving out: {what}; {full}"]
+
+
+def unasked_line(p: Plan) -> str | None:
+    """What the CLI says on stderr, as a heartbeat line (io.progress.Heartbeat.note), before a run over
+    budget.ASK_SECONDS without --timeout (`fit`'s unasked plan): its estimate and how to cap it; None for any other
+    plan."""
+    if not (p.fitted and p.fitted.get("unasked")):
+        return None
+    return (f"estimated {p.estimated_s:.3g} s on this machine now, over the {budget.ASK_SECONDS:.3g} s a run takes "
+            f"without --timeout, and nothing cheaper is left to run: it runs (a line every "
+            f"{budget.UNASKED_HEARTBEAT:.3g} s); give --timeout S to cap it")

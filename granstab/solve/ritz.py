@@ -3,6 +3,8 @@ path's counterpart of lowrank.py, a Rayleigh-Ritz problem per branch on a basis 
 (sparse.py) and refined, or redone by shift-invert, where that fails."""
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from .device import backend
@@ -23,7 +25,8 @@ class SparseRitz:
     Branch i's deflated operator is B_i = B_0 + U_i K_i U_iᵀ with U_i in span[A, S] (and the rigid modes). An
     eigenvector of B_i with eigenvalue λ is v = -(B_0 - λ)⁻¹ U_i K_i U_iᵀ v: near the low end it lies in the span of
     the lowest elastic modes and of (B_0 - σ)⁻¹[A, S], (B_0 - σ)⁻²[A, S] (a Taylor expansion of (B_0 - λ)⁻¹ about
-    σ). That space W (n × d, d = K + 4 Ms, orthonormal, rigid-free) is built once from the elastic shift-invert
+    σ). That space W (n × d, d about kk + 48 + 8.5 Ms: budget.ritz_width; orthonormal, rigid-free) is built once
+    (on first need: not where every branch goes straight to shift-invert) from the elastic shift-invert
     solve and its sparse LU; every branch is then the d × d Rayleigh-Ritz problem Wᵀ B_i W = Wᵀ Hs W + a low-rank
     update, stacked on the backend like the dense branches.
 
@@ -37,12 +40,10 @@ class SparseRitz:
         self.spb, self.k, self.tol, self.rtol, self.device = spb, k, tol, rtol, device
         Ms = spb.A.shape[1]
         elastic = lowest_modes(spb, k + extra, None, tol=tol, rhs=np.concatenate([spb.A, spb.S], axis=1))
-        self.factorization = elastic.info.get("factorization")
+        self.factorization = fac = elastic.info.get("factorization")
         shifted = elastic.info.pop("shifted", None)        # the elastic branch's (Hs - σI)⁻¹U, U = [Q, Hs Q, T]
-        R, fac = spb.R, self.factorization
-        krylov = elastic.info.pop("krylov", None)          # block Krylov space (sparse._block_near): orthonormal,
-        base = extend(R, elastic.vectors) if krylov is None else krylov.X    # rigid-free, far more of the low
-        blocks, self.solved = [], None                                       # spectrum than k + extra
+        self._elastic = (shifted, elastic.info.pop("krylov", None), elastic.vectors)   # for `_basis`, if needed
+        self.solved = None
         if fac is not None:                    # (Hs - σI)⁻¹ of every column _lowrank uses: A and S solved with U
             r, d = spb.Q.shape[1], spb.scene.dim
             AS = shifted.rhs_solved
@@ -50,19 +51,34 @@ class SparseRitz:
                 AS = fac.solve(np.concatenate([spb.A, spb.S], axis=1))
             self.solved = dict(zip(("Q", "HQ", "T"), np.split(shifted.Z[:, :2 * r + d], [r, 2 * r], axis=1)),
                                A=AS[:, :Ms], S=AS[:, Ms:])
-            Z = AS
+        self.stats = {"basis": 0, "ritz": 0, "arpack": 0, "direct": 0, "refinements": 0}
+        self.steps = STEPS
+
+    @cached_property
+    def _basis(self) -> tuple:
+        """(W, Wᵀ Hs W, the sliding contacts' updates of it), built once, on first need: not at all where every
+        branch goes straight to shift-invert (`modes`). W: the elastic Krylov space (or the elastic vectors) and
+        TAYLOR powers of (Hs - σI)⁻¹ on [A, S], orthonormal and rigid-free."""
+        spb, (shifted, krylov, vectors) = self.spb, self._elastic
+        R, blocks = spb.R, []
+        base = extend(R, vectors) if krylov is None else krylov.X   # block Krylov space (sparse._block_near):
+        if self.solved is not None:                                 # far more of the low spectrum than k + extra
+            Z = np.concatenate([self.solved["A"], self.solved["S"]], axis=1)
             for j in range(TAYLOR if Z.shape[1] else 0):
                 Z = Z - R @ (R.T @ Z)                        # (Hs - σI)⁻¹ amplifies the rigid part by ~1/|σ|
                 Z /= np.maximum(_norms(Z), 1e-300)
                 blocks.append(Z)
                 if j + 1 < TAYLOR:
-                    Z = fac.solve(Z)
+                    Z = self.factorization.solve(Z)
         more = extend(np.concatenate([R, base], axis=1), np.concatenate(blocks, axis=1)) if blocks else base[:, :0]
-        self.M0 = self._rayleigh(krylov, base, more, shifted)
-        self.W = np.concatenate([base, more], axis=1)
-        self.updates = sym_updates(self.W.T @ spb.A, self.W.T @ spb.S)
-        self.stats = {"basis": self.W.shape[1], "ritz": 0, "arpack": 0, "direct": 0, "refinements": 0}
-        self.steps = STEPS
+        M0 = self._rayleigh(krylov, base, more, shifted)
+        W = np.concatenate([base, more], axis=1)
+        self._elastic, self.stats["basis"] = None, W.shape[1]
+        return W, M0, sym_updates(W.T @ spb.A, W.T @ spb.S)
+
+    W = property(lambda self: self._basis[0], doc="The Ritz basis (n × width; `_basis`).")
+    M0 = property(lambda self: self._basis[1], doc="Wᵀ Hs W.")
+    updates = property(lambda self: self._basis[2], doc="Per sliding contact, its update of Wᵀ Hs W (flattened).")
 
     def _rayleigh(self, krylov, base: np.ndarray, more: np.ndarray, shifted) -> np.ndarray:
         """Wᵀ Hs W for W = [base, more]: with `krylov` (base = its X) X's block from the iteration's own Xᵀ B X
@@ -89,9 +105,9 @@ class SparseRitz:
         nus = [None if fac is None else self.below(on[i] == 1) for i in range(len(masks))]
         hopeful = [i for i, nu in enumerate(nus) if nu is not None and nu < kk]
         self.stats["direct"] = len(masks) - len(hopeful)
-        block = min(kk + GUARD, self.W.shape[1])
-        Y = {}
-        if hopeful:
+        Y, block = {}, 0
+        if hopeful:                                        # the basis only where some branch can use it
+            block = min(kk + GUARD, self.W.shape[1])
             with be.threads(self.W.shape[1]):
                 _, Yh = be.xp.linalg.eigh(stack(be.xp, self.M0, self.updates, be.asarray(on[hopeful])))
                 Y = dict(zip(hopeful, be.to_host(Yh[:, :, :block])))

@@ -188,3 +188,66 @@ def test_a_thousand_disks_on_the_sparse_path_are_refused_before_work(tmp_path, c
     there = budget.speed()
     assert 1 / 3 <= budget.sparse_estimate(n, branches, 3, n_sliding=10) / there / 386.0 <= 3.0
     assert 1 / 3 <= budget.sparse_estimate(n, branches, 1, n_sliding=10) / there / 51.0 <= 3.0
+
+
+@pytest.fixture
+def small_file(tmp_path):
+    path = tmp_path / "small.json"
+    granstab.save_scene(random_packing(2, 40, n_sliding=2, seed=1), path)    # 4 branches, 0.1 s in all
+    return path
+
+
+def _priced(monkeypatch, per_metric: float, often: float = 60.0):
+    """Every plan estimated `per_metric` s a metric (at rest and now; whatever its path and branches)."""
+    from dataclasses import replace
+
+    from granstab.solve import plan as plan_module
+    monkeypatch.setattr(plan_module, "_estimated", lambda p, k, rest=False: replace(
+        p, estimated_s=per_metric * len(p.metrics), parts={"branches": per_metric * len(p.metrics)},
+        one_metric_s=per_metric))
+
+
+def test_the_cheapest_default_plan_within_90_s_runs_unasked_with_a_line_and_a_heartbeat(small_file, monkeypatch,
+                                                                                       capsys):
+    """Issue 41's held-out check runs `granstab analyze FILE --json` without --timeout on a 2·10⁵-disk packing
+    (about a minute). Over budget.ASK_SECONDS, where no reduction of the default plan fits it, its cheapest form
+    (here L alone, 40 s estimated; the family 120 s) runs when estimated within RUN_UNASKED_SECONDS: ONE line on
+    stderr up front with the estimate and --timeout (in the heartbeat's form: a check that allows heartbeat lines
+    allows it), a heartbeat every UNASKED_HEARTBEAT s (set small here, the
+    first line's wait and the minute's left long so that only the shorter period can give the lines), stdout the JSON alone; the result
+    says it was run unasked and what it left out. At 100 s a metric it is refused up front as before."""
+    import granstab.cli as cli
+    _priced(monkeypatch, 40.0)
+    monkeypatch.setattr(progress, "HEARTBEAT_FIRST", 600.0)
+    monkeypatch.setattr(progress, "HEARTBEAT_EVERY", 600.0)
+    monkeypatch.setattr(cli, "UNASKED_HEARTBEAT", 0.15)
+    run = cli.analyze
+    monkeypatch.setattr(cli, "analyze", lambda *a, **kw: (time.sleep(1.0), run(*a, **kw))[1])
+    assert main(["analyze", str(small_file), "--json"]) == 0
+    out, err = capsys.readouterr()
+    data = json.loads(out)
+    assert data["cost"]["metric_names"] == ["L"] and data["cost"]["fitted"]["unasked"] is True
+    assert data["cost"]["estimated_s"] == 40.0 and any("L/10, 10L of the family" in w for w in data["cost"]["left_out"])
+    lines = err.splitlines()                               # every line in the heartbeat's form, the first says why
+    assert all(line.startswith(f"granstab: analyze {small_file}: ") for line in lines)
+    assert "estimated 40 s on this machine now" in lines[0] and "--timeout S" in lines[0]
+    assert sum("--timeout" in line for line in lines) == 1
+    assert len(lines) >= 4                                 # 1 s of work, a line every 0.15 s
+    assert main(["analyze", str(small_file), "--plan"]) == 0           # --plan says so, runs nothing
+    out = capsys.readouterr().out
+    assert "branches: 4 per metric (all) × 1 metric(s): L" in out and "nothing cheaper fits the 10 s" in out
+    assert "the full analysis needs about 120 s: run it with --timeout 144" in out
+    _priced(monkeypatch, 100.0)
+    assert main(["analyze", str(small_file), "--json"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1 and "refused" in err and "give --timeout" in err
+
+
+def test_a_heartbeat_made_more_frequent_wakes_at_once():
+    """`often` shortens the wait already under way: the minute's second line comes at the new period."""
+    import io
+    stream = io.StringIO()
+    with progress.Heartbeat("x", stream=stream) as beat:
+        beat.often(0.1)
+        time.sleep(0.45)
+    assert 3 <= len(stream.getvalue().splitlines()) <= 5

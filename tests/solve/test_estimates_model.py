@@ -153,3 +153,56 @@ def test_the_ritz_path_of_many_sliding_contacts_is_predicted_by_the_plan(at_rest
     assert p.parts["direct"] == pytest.approx(np.sum((7 + nu) * (nu >= 7)) * p.n_dof
                                           * (budget.ARPACK_PAIR_DOF + budget.ARPACK_PAIR_COLUMN * (6 + 85)))
     assert 1 / PROMISE <= p.estimated_s / 18.1 <= PROMISE
+
+
+
+def test_no_ritz_basis_is_built_where_every_branch_goes_to_shift_invert(monkeypatch):
+    """Leave out work the scene does not need: a branch with kk = k + 1 or more eigenvalues below σ cannot be a Ritz
+    update (ritz.SparseRitz.modes). Where that holds for every branch (here 8 sampled branches of 192 dofs with 12-17
+    below σ, probed by the plan) no basis is built (its width grows by ~8.5 columns a sliding contact:
+    budget.ritz_width) and every branch is a shift-invert solve with the shared factor, as where the Ritz problem
+    does not fit (budget.RITZ_BYTES: the same eigenvalues within both bounds); where some branch can use it
+    (forces a third as large: ν 0-3), the basis is built once. The estimate leaves it out too ("ritz" 0)."""
+    from granstab.solve import ritz
+    builds, sym_updates = [], ritz.sym_updates
+    monkeypatch.setattr(ritz, "sym_updates", lambda *a: builds.append(1) or sym_updates(*a))   # once a basis
+    options = {"metric": "L", "method": "sparse", "k": 6, "max_sliding": 6, "sample_branches": 6}
+    crushed = random_packing(2, 60, n_sliding=7, mobilised=0.3, f_over_k=0.3, curvature_ratio=0.2, seed=1)
+    p = plan(crushed, **options)
+    assert p.n_branches == 8 and min(p.below["L"]) >= 7 and p.parts["ritz"] == 0 and p.parts["direct"] > 0
+    res = granstab.analyze(crushed, **options)
+    assert builds == [] and len(res.branches) == 8
+    monkeypatch.setattr(budget, "RITZ_BYTES", 0)
+    direct = granstab.analyze(crushed, **options)
+    for a, b in zip(res.branches, direct.branches):
+        bound = 1e-10 * np.abs(a.stability_eigenvalues).max()      # both verified to 1e-12 ‖Hs‖
+        assert np.allclose(a.stability_eigenvalues, b.stability_eigenvalues, rtol=0, atol=bound)
+    monkeypatch.undo()
+    monkeypatch.setattr(ritz, "sym_updates", lambda *a: builds.append(1) or sym_updates(*a))
+    firm = random_packing(2, 60, n_sliding=7, mobilised=0.3, f_over_k=0.1, curvature_ratio=0.2, seed=1)
+    assert plan(firm, **options).parts["ritz"] > 0
+    granstab.analyze(firm, **options)
+    assert builds == [1]
+
+
+def _scene_3d(name: str):
+    """A 3D random packing "random N MS SEED", or the fixture frame of a sheared periodic 3D LAMMPS run (386 spheres,
+    2,316 dofs, 20 of its 109 contacts at yield, the rest stated elastic: benchmarks/estimates.ritz_3d)."""
+    if name == "periodic":
+        return granstab.load_scene(DATA / "solve" / "sheared3d_386_frame.npz")
+    n, Ms, seed = map(int, name.split()[1:])
+    return random_packing(3, n, n_sliding=Ms, seed=seed)
+
+
+@pytest.mark.parametrize("name,options,cpu", [
+    ("random 100 4 11", {}, 0.71),                                     # 648 dofs, 16 branches, 3.6 refinements each
+    ("random 500 20 5", {"sample_branches": 6}, 3.72),                 # 3,000 dofs, 2.6
+    ("random 500 60 13", {"sample_branches": 6}, 4.79),                # 3,000 dofs, 0.9
+    ("periodic", {"sample_branches": 6}, 0.56)])                       # 2,316 dofs, 0
+def test_the_3d_ritz_estimate_holds_against_measured_cpu_time(at_rest, name, options, cpu):
+    """budget.RITZ_3D against the CPU time of 3D sparse runs (`--method sparse --metric L`, measured 2026-11-29 on
+    this machine, load 9, niced; BENCHMARKS.md "estimates"), within 3× either way: their refinements a branch with
+    ν = 0 were 0-3.6; the periodic frame's 0 was 0.23× its estimate at the old 2.5 refinements priced (0.37× at 1 and speed 1)."""
+    p = plan(_scene_3d(name), method="sparse", metric="L", **options)
+    assert p.path == "sparse" and p.parts["ritz"] > 0
+    assert 1 / PROMISE <= cpu / p.estimated_s <= PROMISE

@@ -430,7 +430,7 @@ def test_the_two_branches_of_a_whole_packing_go_to_shift_invert_within_their_bou
     sres = granstab.analyze(s, method="sparse", k=k, **options)
     assert sres.summary["n_branches"] == d.summary["n_branches"] == 2
     assert not any("Ritz updates" in w for w in sres.warnings)
-    assert methods.use_ritz(2, 3, k + 1) is False and methods.use_ritz(3, 3, k + 1) is True
+    assert budget.use_ritz(2, 10 ** 4, 3, k + 1) is False and budget.use_ritz(3, 10 ** 4, 3, k + 1) is True
     for bd, bs in zip(d.branches, sres.branches):
         assert np.array_equal(bd.mask, bs.mask)
         m = len(bs.stability_eigenvalues)

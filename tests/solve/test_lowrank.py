@@ -161,10 +161,10 @@ def test_branches_whose_ritz_problem_would_not_fit_go_to_shift_invert(monkeypatc
     """Many sliding contacts (a whole periodic packing: hundreds) make the Ritz basis and its Ms width² updates too
     large (RigidLibrary's frame: 19 GiB): past RITZ_BYTES every branch is solved by shift-invert, with the Ritz
     path's eigenvalues within both paths' residual bounds and the same verdict."""
-    from granstab.solve import methods
+    from granstab.solve import budget
     scene = packings.random_packing(2, 30, n_sliding=2, mobilised=0.3, f_over_k=0.1, curvature_ratio=0.2, seed=2)
     ritz = granstab.analyze(scene, method="sparse", k=4)
-    monkeypatch.setattr(methods, "RITZ_BYTES", 0)
+    monkeypatch.setattr(budget, "RITZ_BYTES", 0)
     direct = granstab.analyze(scene, method="sparse", k=4)
     assert any("Ritz updates" in w for w in ritz.warnings) and not any("Ritz updates" in w for w in direct.warnings)
     assert direct.summary["verdict"] == ritz.summary["verdict"] and len(direct.branches) == 4

@@ -1,8 +1,8 @@
 """One plan a run (issues 38, 40): `analysis.plan(scene, **options)` says the method, path, branches per metric,
 metrics, what is left out and the estimate; `analyze` follows it, `granstab analyze --plan` prints it and runs
-nothing, every run's JSON carries `cost.estimated_s` beside `timings.total`; the estimate holds (measured within a
-generous ratio of it on every path; BENCHMARKS.md "estimates" records the ratios) and the BLAS threads follow the
-free cores."""
+nothing, every run's JSON carries `cost.estimated_s` beside `timings.total`; the run follows its plan and the estimate is the
+sum of its parts (how well it holds is timing: benchmarks/estimates.py, BENCHMARKS.md "estimates") and the BLAS
+threads follow the free cores."""
 import json
 import os
 import subprocess
@@ -19,9 +19,6 @@ from granstab.cli import main
 from granstab.model.packings import random_packing
 from granstab.solve import budget, threads
 from granstab_bench.estimates import cases, micrometres, thinned
-
-RATIO = 6.0     # measured/estimated within RATIO either way here (the promise, 3×, is measured in BENCHMARKS.md:
-                # a test beside other tests on a shared machine sees loads of its own)
 
 
 @pytest.fixture(scope="module")
@@ -90,15 +87,18 @@ CASES = cases(quick=True)      # a small case of every path (benchmarks/estimate
 
 
 @pytest.mark.parametrize("name,scene,options", CASES, ids=[c[0] for c in CASES])
-@pytest.mark.serial                     # a measured time against an estimate
-def test_the_estimate_holds_as_a_ratio(name, scene, options):
-    """measured / estimated within RATIO either way (a ratio, never an absolute time)."""
+def test_the_run_follows_its_plan_and_the_estimate_is_its_parts(name, scene, options):
+    """The run takes the plan's path, metrics and branches, and the estimate is the sum of its parts, each positive,
+    on the plan's free cores. How close the estimate comes to the measured time is timing: benchmarks/estimates.py
+    (`granstab bench --only estimates`, and `--quick` for these cases) measures it, BENCHMARKS.md records it."""
     p = plan(scene, **options)
     res = granstab.analyze(scene, **options)
-    assert res.cost["path"] == p.path
-    ratio = res.timings["total"] / p.estimated_s
-    assert 1 / RATIO <= ratio <= RATIO, f"{name}: estimated {p.estimated_s:.3g} s, measured " \
-                                        f"{res.timings['total']:.3g} s"
+    cost = res.cost
+    assert cost["path"] == p.path and cost["metric_names"] == list(p.metrics)
+    assert cost["branches_per_metric"] == p.n_branches and len(res.branches) == p.n_branches
+    assert all(v >= 0 for v in p.parts.values()) and p.estimated_s > 0
+    assert p.estimated_s == pytest.approx(sum(p.parts.values()), rel=1e-12)
+    assert 1 <= p.workers <= threads.cores()
 
 
 @pytest.mark.serial                     # reads the machine's ready threads, starts busy ones
