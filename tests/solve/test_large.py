@@ -14,7 +14,7 @@ from granstab.mechanics.branches import BOTH, MINUS, PLUS, RIGID
 from granstab.mechanics.stiffness import contact_blocks
 from granstab.model import packings
 from granstab.model.tolerances import DEFAULT
-from granstab.solve import krylov, methods, sparse
+from granstab.solve import budget, krylov, sparse
 
 
 def bound(spb) -> float:
