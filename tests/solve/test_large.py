@@ -421,7 +421,7 @@ def test_branches_are_made_on_one_blas_thread(monkeypatch):
 def test_the_two_branches_of_a_whole_packing_go_to_shift_invert_within_their_bounds():
     """track's whole stage asks for two branches (all-unloading, all-loading; max_sliding 0, sample_branches 0):
     from RITZ_MIN_BRANCHES on they would be Ritz updates of one elastic solve, with two each branch is solved by
-    shift-invert (cheaper: issue 39, methods.RITZ_MIN_BRANCHES). Each eigenvalue equals the dense one within the
+    shift-invert (cheaper: issue 39, budget.RITZ_MIN_BRANCHES). Each eigenvalue equals the dense one within the
     branch's reported accuracy (a bound) and the same round-off allowance as above."""
     s = packings.random_packing(2, 40, n_sliding=3, seed=7)
     options = dict(metric="L", max_sliding=0, sample_branches=0, uniqueness=False)
