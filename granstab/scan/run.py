@@ -47,7 +47,7 @@ from .workers import (
     machine,
     require_extras,
     sigint_flag,
-    sigint_ignored,
+    sigint_held,
 )
 
 ROBUST = ("robust_stable", "robust_unstable", "robust_open")   # the batch's margins (scan/uncertain.py)
@@ -435,14 +435,14 @@ def _run_serial(scene, todo, chunk, options, out, bar, cost=None, graphs=None) -
 
 
 def local_cluster(workers: int):
-    """`workers` local processes, one thread and one BLAS thread each (WORKER_ENVIRON), Ctrl-C ignored while they
-    start. No dashboard; the scheduler's own HTTP server takes a free port when 8787 is taken (another cluster on the
-    machine) without distributed's warning on stderr, since nothing of it is the user's to act on."""
+    """`workers` local processes, one thread and one BLAS thread each (WORKER_ENVIRON), Ctrl-C never reaching
+    them (sigint_held). No dashboard; the scheduler's own HTTP server takes a free port when 8787 is taken (another
+    cluster on the machine) without distributed's warning on stderr, since nothing of it is the user's to act on."""
     import warnings
 
     import dask
     from dask.distributed import LocalCluster
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_ignored(), \
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENVIRON}), sigint_held(), \
             warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)

@@ -73,19 +73,24 @@ def require_extras(scheduler: str | None, workers: int | None, figures: bool) ->
 
 
 @contextmanager
-def sigint_ignored():
-    """Processes started inside (Dask's workers) inherit SIGINT ignored: a child keeps an ignored signal across
-    exec and Python then installs no KeyboardInterrupt handler. Ctrl-C at a terminal reaches the whole process
-    group, and only this process should answer it (one line), not every worker with its tracebacks. Main thread
-    only (elsewhere signals cannot be set: no change)."""
-    if threading.current_thread() is not threading.main_thread():
+def sigint_held():
+    """Processes started inside (Dask's workers) never get Ctrl-C: SIGINT is blocked in this thread meanwhile, and a
+    child keeps its parent thread's signal mask across exec (the IO-loop thread that Dask starts here spawns them,
+    with the same mask). Ctrl-C at a terminal reaches the whole process group, and only this process should answer
+    it (one line), not every worker with its tracebacks. A Ctrl-C meanwhile is held, not lost: it reaches this
+    process's handler (sigint_flag's) through another thread, or when the block ends. It was ignored here
+    (SIG_IGN) before, and a Ctrl-C in the 3-8 s of a cluster's start was lost: the scan ran on. Main thread only,
+    where signals can be masked (elsewhere: no change)."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
         yield
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from multiprocessing import resource_tracker
+    resource_tracker.ensure_running()       # started later, it would unblock SIGINT in this thread (its own start)
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 @contextmanager

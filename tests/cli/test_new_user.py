@@ -271,6 +271,30 @@ def test_ctrl_c_in_a_scan_on_dask_workers_is_one_line(tmp_path):
     assert kept == len(np.unique(np.concatenate([_centers(f) for f in (out / "parts").glob("*.arrow")])))
 
 
+@pytest.mark.slow
+@pytest.mark.serial                     # Ctrl-C sent while the work runs: timing
+def test_ctrl_c_while_the_dask_workers_start_stops_the_scan(tmp_path):
+    """Ctrl-C once the first Dask worker's process exists (the cluster takes 3-8 s to start): it was lost (SIGINT was
+    ignored meanwhile, so that the workers inherit it ignored) and the scan ran on to its end, exit 0. Now it is held
+    while they start (workers.sigint_held): one line, exit 130, as many clusters kept as are on disk."""
+    import psutil
+    scene_file, out = packing_file(tmp_path, 2000, 200), tmp_path / "scan"
+    proc = started("scan", scene_file, "--out", out, "--metric", "family", "--workers", "2")
+    me = psutil.Process(proc.pid)
+
+    def a_worker_starts():
+        with suppress(psutil.Error):
+            return any("spawn_main" in " ".join(c.cmdline()) for c in me.children())
+        return False
+
+    _, err = interrupt_when(proc, a_worker_starts)
+    line = one_interrupt_line(err, "scan")
+    assert proc.returncode == 130 and " clusters kept in " in line
+    kept = int(line.split("interrupted (Ctrl-C): ")[1].split(" of ")[0])
+    parts = list((out / "parts").glob("*.arrow")) if (out / "parts").is_dir() else []
+    assert kept == len(np.unique(np.concatenate([_centers(f) for f in parts] + [np.zeros(0, int)])))
+
+
 @pytest.mark.serial                     # Ctrl-C sent while the work runs: timing
 def test_ctrl_c_in_analyze_is_one_line(tmp_path):
     """analyze of 4,096 branches (--timeout: above the 10 s a run takes without it), Ctrl-C once its progress bar

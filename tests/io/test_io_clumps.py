@@ -137,7 +137,9 @@ def check_clumps(loaded, bodies, members, pairs, n_walls):
 def check_commands(scene_path, tmp_path, capsys, analyze=()):
     """analyze (with the options `analyze`), scan, rigidity and export of the converted clump scene exit 0 and write
     their outputs."""
-    for argv in (["analyze", str(scene_path), "--method", "sparse", "--k", "3", *analyze],
+    # --timeout: what is checked is that each command runs, not its time (a loaded machine's CPU-time probe once put
+    # a fresh YADE run's estimate over the 10 s default, and the run was refused)
+    for argv in (["analyze", str(scene_path), "--method", "sparse", "--k", "3", "--timeout", "600", *analyze],
                  ["scan", str(scene_path), "--out", str(tmp_path / "scan")],
                  ["rigidity", str(scene_path), "--out", str(tmp_path / "rigid")],
                  ["export", str(scene_path), "--scan-dir", str(tmp_path / "scan"), "--out", str(tmp_path / "vtp")],
