@@ -16,14 +16,34 @@ Public API (each function's docstring gives its parameters and array shapes; N p
 
 The notation and the paper's equations: docs/equations.md.
 """
-from .analysis import Analysis, analyze
-from .io import Loaded, load, load_scene
-from .io.scenes import save_scene, scene_from_dict, scene_to_dict
-from .mechanics.stiffness import Stiffness, stiffness
-from .mechanics.verdicts import load_response, second_order_work
-from .model.scene import Scene, SceneError, build_scene
-from .model.tolerances import Tolerances
-from .moduli import CellBranch, Moduli, moduli
+import sys
+
+
+def _interrupted_while_starting(kind, value, tb, _previous=sys.excepthook):
+    """A Ctrl-C that ends the program while granstab's modules load (a command's first second, before cli.main can
+    answer it): one line and exit 130, as cli.main says it later, not a traceback of imports. Any other uncaught
+    exception goes to the hook that was there."""
+    frames, at = [], tb
+    while at is not None:
+        frames.append(at.tb_frame.f_code)
+        at = at.tb_next
+    if issubclass(kind, KeyboardInterrupt) and any(c.co_name == "<module>" and c.co_filename.startswith(__path__[0])
+                                                   for c in frames):
+        print("granstab: interrupted (Ctrl-C) while starting; nothing was done", file=sys.stderr, flush=True)
+        import os
+        os._exit(130)
+    _previous(kind, value, tb)
+
+
+sys.excepthook = _interrupted_while_starting
+from .analysis import Analysis, analyze  # noqa: E402 (the hook first)
+from .io import Loaded, load, load_scene  # noqa: E402 (the hook first)
+from .io.scenes import save_scene, scene_from_dict, scene_to_dict  # noqa: E402 (the hook first)
+from .mechanics.stiffness import Stiffness, stiffness  # noqa: E402 (the hook first)
+from .mechanics.verdicts import load_response, second_order_work  # noqa: E402 (the hook first)
+from .model.scene import Scene, SceneError, build_scene  # noqa: E402 (the hook first)
+from .model.tolerances import Tolerances  # noqa: E402 (the hook first)
+from .moduli import CellBranch, Moduli, moduli  # noqa: E402 (the hook first)
 
 __all__ = ["Analysis", "CellBranch", "Loaded", "Moduli", "Scene", "SceneError", "Stiffness", "Tolerances", "analyze", "build_scene", "load",
            "load_response", "load_scene", "moduli", "save_scene", "scene_from_dict", "scene_to_dict", "second_order_work", "stiffness"]

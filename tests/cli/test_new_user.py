@@ -296,6 +296,23 @@ def test_ctrl_c_while_the_dask_workers_start_stops_the_scan(tmp_path):
 
 
 @pytest.mark.serial                     # Ctrl-C sent while the work runs: timing
+def test_ctrl_c_while_granstab_loads_is_one_line():
+    """Ctrl-C in a command's first second, while granstab's modules load (numpy loaded, scipy and the rest not yet:
+    Python's -X importtime lines say where it is): it printed a traceback of imports. Now one line, exit 130."""
+    proc = subprocess.Popen([sys.executable, "-X", "importtime", "-m", "granstab", "analyze", "x.json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+                            start_new_session=True)
+    seen = []
+    while not (seen and seen[-1].split("|")[-1].strip() == "numpy") and proc.poll() is None:
+        seen.append(proc.stderr.readline())
+    assert not any("granstab.cli" in line for line in seen), "granstab loaded before the Ctrl-C could be sent"
+    _, err = interrupt_when(proc, lambda: True)
+    lines = [x for x in err.splitlines() if not x.startswith("import time:")]
+    assert lines == ["granstab: interrupted (Ctrl-C) while starting; nothing was done"], err[-3000:]
+    assert proc.returncode == 130
+
+
+@pytest.mark.serial                     # Ctrl-C sent while the work runs: timing
 def test_ctrl_c_in_analyze_is_one_line(tmp_path):
     """analyze of 4,096 branches (--timeout: above the 10 s a run takes without it), Ctrl-C once its progress bar
     shows: one line (after the bar), exit 130."""
