@@ -75,8 +75,8 @@ def require_extras(scheduler: str | None, workers: int | None, figures: bool) ->
 @contextmanager
 def sigint_held():
     """Processes started inside (Dask's workers) never get Ctrl-C: SIGINT is blocked in this thread meanwhile, and a
-    child keeps its parent thread's signal mask across exec (the IO-loop thread that Dask starts here spawns them,
-    with the same mask). Ctrl-C at a terminal reaches the whole process group, and only this process should answer
+    child keeps its parent thread's signal mask across exec (the threads Dask starts here, which spawn them, inherit
+    the mask). Ctrl-C at a terminal reaches the whole process group, and only this process should answer
     it (one line), not every worker with its tracebacks. A Ctrl-C meanwhile is held, not lost: it reaches this
     process's handler (sigint_flag's) through another thread, or when the block ends. It was ignored here
     (SIG_IGN) before, and a Ctrl-C in the 3-8 s of a cluster's start was lost: the scan ran on. Main thread only,
