@@ -10,5 +10,5 @@ with its "## " heading), optionally `plot(results: dict, figdir: Path)` for its 
 
 TOPICS = ("assembly", "sparse_vs_dense", "scaling", "field", "branches", "app_latency", "accuracy", "leave_out",
           "metrics", "packing300", "scan", "attribution", "reading", "converting", "superquadrics", "periodic", "jamming",
-          "browser_latency", "app_load", "sessions", "classroom", "rigidity", "track", "track_lammps", "frames", "estimates", "uncertainty",
+          "browser_latency", "app_load", "sessions", "classroom", "rigidity", "track", "track_lammps", "calibration", "frames", "estimates", "uncertainty",
           "scale", "million")

@@ -46,10 +46,11 @@ Public API::
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sps
 import scipy.sparse.linalg as spla
 
 from ..mechanics.accuracy import resolved_sign, vector_bounds
@@ -175,6 +176,11 @@ def _on(sp_: SparseProblem, mask) -> np.ndarray:
     return mask[sp_.sliding] == 1
 
 
+OWN_FACTOR_COLUMNS = 64   # a branch whose sliding contacts add more low-rank columns than this gets its own factor
+BLOCK_MAX_WANTED = 32     # _block_near for at most this many eigenpairs (k + ν), ARPACK above: its basis (5 blocks of
+                          # 2kk + 1) costs more than it saves there (2,000 disks, 5,904 dofs: kk = 61 2.2 s against
+                          # ARPACK's 0.8 s, kk = 74 7.3 s against 4.5; kk = 16 0.24 against 0.19, kk = 28 2.9 against
+                          # 3.5: CPU seconds, BENCHMARKS track_lammps)
 LU_MAX_DOF_FALLBACK = 300000   # a LOBPCG that does not converge is redone by shift-invert up to this size
 LU_MAX_DOF_3D = 30000   # method="auto": shift-invert (sparse LU) in 2D and up to this many dofs in 3D, else LOBPCG
 
@@ -184,14 +190,14 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
                  seed: int = 0, rhs: np.ndarray | None = None) -> Modes:
     """The k lowest eigenpairs of sym(𝓗^mask) off the rigid modes (see the module docstring).
 
-    problem: a SparseProblem or a Scene. mask: +1 sliding per contact (default: all elastic).
-    sigma: shift (default -1e-6 ‖Hs‖). tol: eigsh/lobpcg relative tolerance (0 = machine precision).
-    method: "shift-invert" (ARPACK + sparse LU, inertia-verified; the LU fill grows like n log n in 2D and
-    n^{4/3} in 3D), "lobpcg" (LOBPCG with the TwoLevel preconditioner: memory O(contacts), not verified; tol is
-    then the residual tolerance relative to ‖Hs‖, default 1e-8, which gives eigenvalues to ~1e-16 ‖Hs‖) or
-    "auto" (shift-invert in 2D and up to LU_MAX_DOF_3D dofs in 3D, LOBPCG above). factorization: (sigma, lu, n_neg) from an earlier call, reused across
-    branches. rhs (n, c): solved with the first block solve (info["shifted"].rhs_solved, None if σ moved; ritz.py).
-    Returns Modes; info has the timings, the LU fill and, by shift-invert, "shifted" (the branch's Shifted).
+    problem: a SparseProblem or a Scene. mask: +1 sliding per contact (default: all elastic). sigma: shift (default
+    -1e-6 ‖Hs‖). tol: eigsh/lobpcg relative tolerance (0 = machine precision). method: "shift-invert" (ARPACK + sparse
+    LU, inertia-verified; the LU fill grows like n log n in 2D and n^{4/3} in 3D), "lobpcg" (LOBPCG with the TwoLevel
+    preconditioner: memory O(contacts), not verified; tol is then the residual tolerance relative to ‖Hs‖, default
+    1e-8, which gives eigenvalues to ~1e-16 ‖Hs‖) or "auto" (shift-invert in 2D and up to LU_MAX_DOF_3D dofs in 3D,
+    LOBPCG above). factorization: (sigma, lu, n_neg) from an earlier call, reused across branches (not by one with its
+    own, branch_problem). rhs (n, c): solved with the first block solve (info["shifted"].rhs_solved, None if σ moved;
+    ritz.py). Returns Modes; info has the timings, the LU fill and, by shift-invert, "shifted" (the branch's Shifted).
     """
     sp_ = problem if isinstance(problem, SparseProblem) else sparse_problem(problem)
     n = sp_.n
@@ -202,14 +208,16 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
     info: dict = {}
     if k <= 0:
         return Modes(np.zeros(0), np.zeros((n, 0)), np.zeros(0), mask_arr, 0.0, True, 0, method, info)
+    if method == "auto":
+        method = "shift-invert" if sp_.scene.dim == 2 or n <= LU_MAX_DOF_3D else "lobpcg"
+    if method == "shift-invert" and 2 * on.sum() > OWN_FACTOR_COLUMNS and rhs is None:     # branch_problem
+        return _own_factor(sp_, on, mask_arr, k, sigma=sigma, tol=tol, maxiter=maxiter, seed=seed)
     rng = np.random.default_rng(seed)
     v0 = rng.standard_normal(n)
     v0 -= sp_.R @ (sp_.R.T @ v0)
     Bop = operator(sp_, mask, shift)
     if n <= SMALL_DENSE or k >= n - sp_.n_rigid - 1:
         return _dense_small(sp_, Bop, n, k, mask_arr, info)
-    if method == "auto":
-        method = "shift-invert" if sp_.scene.dim == 2 or n <= LU_MAX_DOF_3D else "lobpcg"
     if method == "lobpcg":
         t = time.perf_counter()
         lam, V = _lobpcg(sp_, Bop, k, tol, maxiter, rng, info)
@@ -220,7 +228,6 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
         method = "shift-invert"
     if method != "shift-invert":
         raise ValueError(f"method must be 'auto', 'shift-invert' or 'lobpcg', got {method!r}")
-
     U, K = _lowrank(sp_, on, shift)
     sig = -SIGMA_REL * sp_.norm if sigma is None else float(sigma)
     t = time.perf_counter()
@@ -228,15 +235,14 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
         fac = factorization
     else:
         fac = factor(sp_, sig)
-    info["factor"] = time.perf_counter() - t
-    info["lu_nnz"] = fac.nnz
-    info["factorization"] = fac
+    info.update(factor=time.perf_counter() - t, lu_nnz=fac.nnz, factorization=fac)
     shifted = Shifted(fac, U, K, sig, fac.n_neg, rhs=rhs)
     nu = shifted.n_below
     t = time.perf_counter()
     verified = False
     if nu is not None and nu <= 4 * k + 20:
-        found = _block_near(shifted, Bop, sp_, k + nu, rng) if fac.lu is None and tol == 0 else None
+        block = fac.lu is None and tol == 0 and k + nu <= BLOCK_MAX_WANTED
+        found = _block_near(shifted, Bop, sp_, k + nu, rng) if block else None
         if found is not None:
             lam, V, info["krylov"] = found
         else:
@@ -258,6 +264,26 @@ def lowest_modes(problem, k: int = 6, mask=None, *, sigma: float | None = None, 
     info["solve"] = time.perf_counter() - t
     info["shifted"] = shifted                                          # (Hs - σI)⁻¹U of this branch (ritz.py)
     return _finish(sp_, Bop, lam[:k], V[:, :k], mask_arr, sig, verified, nu, method, info)
+
+
+def branch_problem(sp_: SparseProblem, on: np.ndarray) -> SparseProblem:
+    """The branch whose sliding contacts are `on` as a problem without sliding contacts: its sparse matrix
+    Hs^i = Hs + ½ Σ_on (a sᵀ + s aᵀ) (eq:ContactF; a and s live on the contact's two particles, so Hs^i has Hs's
+    pattern), the same deflation and norm bound. B is the same operator, so its eigenpairs and inertia are the
+    branch's; its own factor replaces the Woodbury correction of 2·|on| columns, whose (Hs - σI)⁻¹U solve and
+    per-solve products cost more than a factorisation once |on| is large (639 sliding contacts of 2,000 disks:
+    1,278 columns, half of the branch's time)."""
+    A, S = sps.csc_matrix(sp_.A[:, on]), sps.csc_matrix(sp_.S[:, on])
+    AS = A @ S.T
+    none = np.zeros((sp_.n, 0))
+    return replace(sp_, Hs=(sp_.Hs + 0.5 * (AS + AS.T)).tocsr(), A=none, S=none, sliding=np.zeros(0, np.intp))
+
+
+def _own_factor(sp_: SparseProblem, on: np.ndarray, mask_arr: np.ndarray, k: int, **options) -> Modes:
+    """lowest_modes of the branch_problem of `on`, the branch's mask and "own_factor" in its info."""
+    modes = lowest_modes(branch_problem(sp_, on), k, None, method="shift-invert", **options)
+    modes.mask, modes.info["own_factor"] = mask_arr, True
+    return modes
 
 
 def _dense_small(sp_: SparseProblem, Bop, n: int, k: int, mask_arr, info: dict) -> Modes:

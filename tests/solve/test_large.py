@@ -436,3 +436,31 @@ def test_the_two_branches_of_a_whole_packing_go_to_shift_invert_within_their_bou
         m = len(bs.stability_eigenvalues)
         error = np.abs(bs.stability_eigenvalues - bd.stability_eigenvalues[:m])
         assert np.all(error <= np.asarray(bs.accuracy) + 64 * s.n_dof * 2.3e-16 * 4)
+
+
+def test_a_branch_with_many_sliding_contacts_factors_its_own_matrix_within_its_bounds():
+    """Issue 39's cost: a branch with more than OWN_FACTOR_COLUMNS / 2 sliding contacts factors its own sparse
+    matrix Hs + ½ Σ (a sᵀ + s aᵀ) (sparse.branch_problem) instead of a Woodbury correction of 2 columns a contact,
+    and more than BLOCK_MAX_WANTED eigenpairs go to ARPACK instead of the block Krylov solve. Both are the same
+    operator B: every eigenvalue equals the dense one of the deflated B (with the low-rank sliding terms, as
+    before) within the round-off bound of this file, the count below σ equals the dense count, for the default
+    shift and for one inside the spectrum (an indefinite factor: SuperLU); the elastic branch (no sliding contact)
+    keeps the block solve up to BLOCK_MAX_WANTED and goes to ARPACK above it."""
+    s = packings.random_packing(2, 150, n_sliding=40, seed=7)
+    spb = sparse.sparse_problem(s)
+    mask = s.at_yield().astype(np.int8)                                  # every sliding contact loading
+    assert 2 * mask.sum() > sparse.OWN_FACTOR_COLUMNS
+    lam_d, _ = dense_deflated(spb, mask)
+    inside = 0.5 * (lam_d[4] + lam_d[5])                                  # five eigenvalues below it
+    for k, sigma in ((6, None), (40, inside)):
+        modes = sparse.lowest_modes(spb, k, mask, sigma=sigma, method="shift-invert")
+        assert modes.info.get("own_factor") and modes.verified and np.array_equal(modes.mask, mask)
+        assert modes.n_below == int(np.sum(lam_d < modes.sigma))
+        assert np.abs(modes.eigenvalues - lam_d[:k]).max() <= bound(spb)
+        assert modes.residuals.max() * spb.norm <= bound(spb)
+    lam_e, _ = dense_deflated(spb)
+    for k, block in ((6, True), (sparse.BLOCK_MAX_WANTED + 8, False)):
+        modes = sparse.lowest_modes(spb, k, method="shift-invert")
+        assert "own_factor" not in modes.info and modes.verified
+        assert ("krylov" in modes.info) is block
+        assert np.abs(modes.eigenvalues - lam_e[:k]).max() <= bound(spb)

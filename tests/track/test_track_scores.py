@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from granstab.track import scores
+from granstab_bench.calibration import coverage
 
 
 def brute(score, label) -> dict:
@@ -83,27 +84,6 @@ def test_binned_resamples_keep_ties_together_and_shift_little():
     assert binned.max() < scores.BINS and len(np.unique(binned[score[order] == 0.5])) == 1
     got = scores.block_metrics(label[order], np.zeros(len(score), int), binned, np.ones((1, 1)))
     assert abs(got["auc"][0] - scores.metrics(score, label)["auc"]) < 1e-3
-
-
-def coverage(n_frames: int, n_events: int, seeds: int, per_frame: int = 1, grouped: bool = False) -> float:
-    """The share of seeds whose 95 % AUC interval holds 0.5 for a random score: the event target (one row a frame,
-    n_events positive frames) or, with per_frame rows, a per-particle target whose positives cluster in frames
-    (`grouped`: resampled in runs of scores.frame_block contiguous frames, as predict does)."""
-    rng = np.random.default_rng(0)
-    block = np.repeat(np.arange(n_frames), per_frame)
-    if per_frame == 1:
-        label = np.zeros(n_frames, bool)
-        label[np.linspace(0, n_frames - 1, n_events).astype(int)] = True
-    else:
-        label = rng.random(len(block)) < rng.uniform(0.0, 0.3, n_frames)[block]
-    min_events = scores.MIN_EVENTS if per_frame == 1 or grouped else 0
-    block = block // scores.frame_block(n_frames) if grouped else block
-    held = 0
-    for seed in range(seeds):
-        score = np.random.default_rng(1000 + seed).random(len(block))
-        r = scores.with_intervals(score, label, block, n_boot=1000, seed=seed, min_events=min_events)
-        held += r["auc_ci_low"] <= 0.5 <= r["auc_ci_high"]
-    return held / seeds
 
 
 def test_calibration_random_score_covers_chance_in_95_percent_of_seeds():
