@@ -208,6 +208,36 @@ def whole_child(n: int, sliding: int = 1) -> dict:
             "estimated_gb": estimate["estimated_bytes"] / 2 ** 30}
 
 
+MODULI_PHASES = ("granstab.moduli:cell_system", "granstab.moduli:_factor",
+                 "granstab.solve.cellsolve:symmetric_factor", "granstab.solve.cellsolve:floor",
+                 "granstab.solve.cellsolve:gmres", "granstab.moduli:_branch")
+
+
+def moduli_child(n: int, sliding: int = 1) -> dict:
+    """In this (fresh) process: `granstab.moduli` of the periodic benchmark's packing of about n disks with `sliding`
+    contacts at yield, its phases traced (memtrace: the chunked assembly, the factor of sym(H) and the one proving
+    the bound's floor, GMRES, the branches); the moduli, their largest bound and residual, and how it solved."""
+    import numpy as np
+
+    import granstab
+
+    from .memtrace import Trace
+    from .periodic_child import periodic_packing
+    t = time.perf_counter()
+    scene = periodic_packing(n, sliding)
+    built = time.perf_counter() - t
+    with Trace(*MODULI_PHASES, limit=LIMIT_GB * 2 ** 30) as trace:
+        t, c = time.perf_counter(), time.process_time()
+        m = granstab.moduli(scene)
+        wall, cpu = time.perf_counter() - t, time.process_time() - c
+    scale = max(float(np.abs(b.mandel).max()) for b in m.branches)
+    return {"particles": scene.n_particles, "contacts": scene.n_contacts, "dofs": scene.n_dof, "t_scene": built,
+            "wall": wall, "cpu": cpu, "peak_gb": trace.peak_gb(), "phases": trace.phases(), "bulk": m.bulk,
+            "shear": m.shear, "branches": len(m.branches), "residual": m.errors["residual"],
+            "bound": m.errors["moduli_bound"], "scale": scale, "solve": m.solve,
+            "fixed_cell": m.verdicts["fixed_cell"]["verdict"]}
+
+
 def scan_case(folder: Path, out: Path, workers: int = 2) -> dict:
     """`granstab scan FOLDER --out OUT --workers W --json` in a fresh process: wall and CPU time (the command and its
     Dask workers), the peak resident memory of the command and of each worker (psutil, sampled every 0.5 s: each
@@ -461,5 +491,7 @@ if __name__ == "__main__":
         print(json.dumps(map_child(Path(sys.argv[2]))))
     elif sys.argv[1:2] == ["scan"]:
         print(json.dumps(scan_case(Path(sys.argv[2]), Path(sys.argv[3])), default=float))
+    elif sys.argv[1:2] == ["moduli"]:
+        print(json.dumps(moduli_child(int(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) > 3 else 1), default=float))
     elif sys.argv[1:2] == ["whole"]:
         print(json.dumps(whole_child(int(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) > 3 else 1), default=float))
