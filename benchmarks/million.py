@@ -278,7 +278,8 @@ def gpu_case(n: int) -> dict:
     from .periodic_child import periodic_packing
     if not gpu_available():
         return {"not_run": "no GPU in this session (CuPy not installed or no CUDA device): the code and its tests "
-                           "(tests/solve/test_blockiter.py, skipped here with that reason) are ready"}
+                           "(tests/solve/test_blockiter.py, skipped here with that reason) are ready; a session with a "
+                           "GPU runs benchmarks/gpu_million.sh in one go (≤ 8 min) to fill this section"}
     scene = periodic_packing(n, 1)
     return {"particles": scene.n_particles, "gpu": _whole(scene, "gpu"), "cpu": _whole(scene, "cpu")}
 

@@ -11,8 +11,8 @@ factorised by SuperLU; above, by GMRES on H preconditioned by the multifrontal C
 (solve/multifrontal.py, solve/gmres.py), which also gives the fixed-cell check (its inertia), so that 10⁶ disks fit
 (one factor of the symmetric part instead of an LU of both triangles).
 
-Each modulus carries a bound (`CellBranch.bound`, docs/bounds.md "Moduli"): with R = Ξ^i - H^i X̂ the residual,
-‖(H^i)⁻¹‖₂ ≤ h^i, and the formation errors ΔH, ΔΞ, ΔΞ', ΔB of cellparts.py (first order in ε),
+Each modulus carries a bound (`CellBranch.bound`, docs/periodic.md "How C is solved"): with R = Ξ^i - H^i X̂ the
+residual, ‖(H^i)⁻¹‖₂ ≤ h^i, and the formation errors ΔH, ΔΞ, ΔΞ', ΔB of cellparts.py (first order in ε),
 
     V |ΔC_ab| ≤ |ΔB_ab| + |ΔΞ'_a|·|X̂_b| + ‖Ξ'_a‖ h^i (‖R_b‖ + ‖ΔΞ_b‖ + ‖ΔH‖‖X̂_b‖) + γ_n |Ξ'_a|·|X̂_b|,
 

@@ -1,7 +1,7 @@
 """The periodic cell's extended stiffness [[H, Ξ], [Ξ', B]] (mechanics/cell.py) of the elastic branch, assembled in
 chunks of contacts (assembled.contact_chunks: one block kernel, stiffness.contact_blocks, for every size; memory
 linear in M with ~10 MB of temporaries per chunk), with entrywise bounds of the error of forming each part from the
-scene's data (docs/bounds.md, "Moduli"):
+scene's data (docs/periodic.md, "How C is solved, and how accurate it is"):
 
 * a contact block K_c = Hm + Hg1 + Hg2 + Hg3 (eq:final1) is rounded relative to its parts' own scales (as
   accuracy.formation_error: 8ε per part), plus the error carried in from rounding K^p + K^q (stiffness's
