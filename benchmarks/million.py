@@ -238,6 +238,46 @@ def moduli_child(n: int, sliding: int = 1) -> dict:
             "fixed_cell": m.verdicts["fixed_cell"]["verdict"]}
 
 
+def _moduli_row(m: dict) -> list:
+    """A moduli run's row."""
+    if m.get("failed"):
+        return ["failed (rc {})".format(m.get("rc")), *[""] * 10]
+    s = m["solve"]
+    return [f"{m['particles']:,} / {m['contacts']:,} / {m['dofs']:,}", f"{m['wall']:.0f} s", f"{m['cpu']:.0f} s",
+            f"{m['peak_mb'] / 1024:.2f} GB", "{:.1f} → {:.1f}".format(*m["load"]) + (f" ({m['at']})" if "at" in m else ""),
+            f"{s.get('gmres_steps', '—')}", f"{s.get('factor_entries', 0) / 1e6:.0f} M",
+            f"{m['bulk']:.10g} / {m['shear']:.10g}", f"{m['residual']:.1e}",
+            "—" if m["bound"] is None else f"{m['bound']:.1e}", m["fixed_cell"]]
+
+
+def moduli_markdown(runs: list | None) -> str:
+    """The moduli's table and the largest run's phases, or why there are none."""
+    if not runs:
+        return "**The moduli**: not measured in this run (`python -m granstab_bench.million moduli N`)."
+    return "\n".join([
+        f"**The moduli** (goal ≤ {MODULI_GOAL_S / 60:g} min and ≤ 20 GB): `granstab.moduli(scene)` of the periodic "
+        "benchmark's packing with one contact at yield (the elastic and the all-loading branch), in a fresh process "
+        "(`python -m granstab_bench.million moduli N`); the parts assembled in chunks of contacts "
+        "(solve/cellparts.py), H solved by GMRES preconditioned by sym(H)'s multifrontal factor (solve/cellsolve.py; "
+        "SuperLU's LU of both triangles would not fit at 10⁶). *peak*: resident peak (wait4); *GMRES*: preconditioned "
+        "products (all right-hand sides together); *factor*: its stored entries; *bulk / shear*: of the elastic "
+        "branch; *residual*: the largest ‖H^i X − Ξ^i‖ / (‖H^i‖∞‖X‖ + ‖Ξ^i‖); *bound*: the largest entrywise bound "
+        "of a modulus over max|C| (residual, ‖H⁻¹‖ ≤ 1/τ proven by the inertia of sym(H) − τI, the formation "
+        "errors; docs/periodic.md); *fixed cell*: sym(H)'s inertia.",
+        "",
+        table(["disks / contacts / dofs", "wall", "CPU", "peak", "load", "GMRES", "factor", "bulk / shear",
+               "residual", "bound", "fixed cell"], [_moduli_row(m) for m in runs]),
+        "",
+        "**Where the largest one's time and memory go** (memtrace; `symmetric_factor` runs twice, inside `_factor` "
+        "(the preconditioner) and inside `floor` (the proof of τ, counts only); GMRES runs inside the first "
+        "`_branch`):",
+        "",
+        table(["phase", "wall", "CPU", "resident at entry", "peak during"], _phase_rows(runs[-1]))])
+
+
+MODULI_GOAL_S = 300.0
+
+
 def scan_case(folder: Path, out: Path, workers: int = 2) -> dict:
     """`granstab scan FOLDER --out OUT --workers W --json` in a fresh process: wall and CPU time (the command and its
     Dask workers), the peak resident memory of the command and of each worker (psutil, sampled every 0.5 s: each
@@ -301,6 +341,7 @@ def run(quick: bool = False, device: str = "cpu") -> dict:
         whole = [measured(f"whole_{m}") for m in SMALLER] + [measured("whole")]
         return {"reading": measured("read"), "estimates": [whole_memory(m) for m in WHOLE], "map": measured("map"),
                 "browser": measured("browser"),
+                "moduli": [m for m in (measured("moduli_100000"), measured("moduli")) if m],
                 "whole": [w for w in whole if w], "goal_read_s": 20.0, "goal_memory_gb": 20.0, "goal_whole_s": 600.0}
     given = os.environ.get("MILLION_DATA")
     with tempfile.TemporaryDirectory() as tmp:
@@ -314,6 +355,7 @@ def run(quick: bool = False, device: str = "cpu") -> dict:
     return {"reading": {**reading, "t_write": written}, "estimates": [whole_memory(m) for m in WHOLE],
             "map": child("map", Path(scan_folder)) if scan_folder and not quick else None,
             "browser": child("browser", Path(scan_folder)) if scan_folder and not quick else None,
+            "moduli": [child("moduli", m) for m in (() if quick else (100_000,))] + [child("moduli", n)],
             "whole": whole, "goal_read_s": 20.0, "goal_memory_gb": 20.0, "goal_whole_s": 600.0}
 
 
@@ -410,6 +452,8 @@ def markdown(results: dict) -> str:
         "exceeds what is available):",
         "",
         table(["disks", "dofs", "parts", "estimated peak", "available", "here"], estimates),
+        "",
+        moduli_markdown(results.get("moduli")),
         "",
         map_text(results.get("map"), results.get("browser")),
         "",
