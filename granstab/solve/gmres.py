@@ -1,14 +1,16 @@
-"""Restarted, right-preconditioned GMRES for several right-hand sides at once (Saad, *Iterative Methods for Sparse
-Linear Systems*, §9.3.2): each column keeps its own Krylov basis and least-squares problem, but the operator and the
-preconditioner are applied to all columns together (one sparse product, one block solve of a factor: BLAS-3),
-which is what the moduli's non-symmetric H needs with sym(H)'s factor as the preconditioner (moduli.py).
+"""Restarted flexible GMRES (FGMRES, right-preconditioned; Saad, *Iterative Methods for Sparse Linear Systems*, §9.4.1)
+for several right-hand sides at once: each column keeps its own Krylov basis and least-squares problem, but the
+operator and the preconditioner are applied to all columns together (one sparse product, one block solve of a factor:
+BLAS-3), which is what the moduli's non-symmetric H needs with sym(H)'s factor as the preconditioner (moduli.py).
+Flexible: the preconditioned vectors Z_j are kept and the update is Σ y_j Z_j, so a preconditioner applied in float32
+(not exactly linear) does not spoil the Arnoldi relation H Z = V H̄.
 
 The returned residuals are recomputed from the operator (not the recurrence's estimate)."""
 from __future__ import annotations
 
 import numpy as np
 
-RESTART = 20   # Krylov vectors per column before a restart (memory: (RESTART + 1) n columns of float64 per column)
+RESTART = 20   # Krylov vectors per column before a restart (memory: 2 RESTART + 1 n-vectors of float64 per column)
 
 
 def _least_squares(Hh: np.ndarray, beta: np.ndarray, j: int):
@@ -36,11 +38,12 @@ def gmres(apply, precondition, B: np.ndarray, tol: float, restart: int = RESTART
         beta = np.linalg.norm(R, axis=0)
         if np.all(beta <= target):
             break
-        V = np.empty((restart + 1, n, m))
+        V, Z = np.empty((restart + 1, n, m)), np.empty((restart, n, m))
         V[0] = R / np.where(beta > 0, beta, 1.0)
         Hh = np.zeros((m, restart + 1, restart))
         for j in range(restart):
-            W = apply(precondition(V[j]))
+            Z[j] = precondition(V[j])
+            W = apply(Z[j])
             steps += 1
             for i in range(j + 1):                         # modified Gram-Schmidt, column by column
                 h = np.einsum("nm,nm->m", V[i], W)
@@ -52,7 +55,7 @@ def gmres(apply, precondition, B: np.ndarray, tol: float, restart: int = RESTART
             y, est = _least_squares(Hh, beta, j + 1)
             if np.all(est <= 0.5 * target) or np.all(hn == 0):
                 break
-        X += precondition(np.einsum("jnm,mj->nm", V[:j + 1], y))
-        del V
+        X += np.einsum("jnm,mj->nm", Z[:j + 1], y)
+        del V, Z
         R = B - apply(X)
     return X, R, steps

@@ -91,12 +91,21 @@ class Multifrontal:
         self.definite = self.ok and all(chol for *_, chol in self.factors)      # Cholesky in every front
         self.nnz = int(sum(G.size + W.size for G, W, *_ in self.factors if G is not None))
         self.plans = {}                                                # per dtype: the fronts as the solve reads them
+        self.single = False                                            # factors held in float32 only (`to_single`)
+
+    def to_single(self) -> None:
+        """Hold the factors in float32 only, front by front (half the memory and of each solve's traffic): for a
+        preconditioner whose caller computes its residuals in float64 (cellsolve.py); every later solve is then in
+        float32 (relative error ~cond·1e-7)."""
+        for i, (G, W, *rest) in enumerate(self.factors):
+            self.factors[i] = (G.astype(np.float32), W.astype(np.float32), *rest)
+        self.plans, self.single = {}, True
 
     def _plan(self, dtype) -> list:
         """(s, e, G, W, struct, has W) per front in `dtype` (float32: copies made at the first such solve, half the
         memory traffic, where the factor has at most SINGLE_MAX entries; float64: the factors themselves), so that
         the solve's loop does no lookups or conversions."""
-        if dtype == np.float32 and self.nnz > SINGLE_MAX:
+        if dtype == np.float32 and self.nnz > SINGLE_MAX and not self.single:
             dtype = np.float64
         if dtype not in self.plans:
             b, structs = self.bounds.tolist(), self.structs
@@ -114,7 +123,7 @@ class Multifrontal:
         copy and `single` solves in float64 (the copy would cost a third of the factor's memory again)."""
         if not self.definite or (self.factors and self.factors[0][0] is None):
             raise ValueError("Multifrontal.solve needs every front positive definite (definite) and kept")
-        plan = self._plan(np.float32 if single else np.float64)
+        plan = self._plan(np.float32 if single or self.single else np.float64)
         x = np.array(b, dtype=plan[0][2].dtype if plan else float, copy=True)
         X = x.reshape(self.n, -1)
         with blas_threads(1):                                          # small blocks: one thread (threads.py)
