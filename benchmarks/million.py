@@ -231,7 +231,9 @@ def moduli_child(n: int, sliding: int = 1) -> dict:
         m = granstab.moduli(scene)
         wall, cpu = time.perf_counter() - t, time.process_time() - c
     scale = max(float(np.abs(b.mandel).max()) for b in m.branches)
-    return {"particles": scene.n_particles, "contacts": scene.n_contacts, "dofs": scene.n_dof, "t_scene": built,
+    import resource
+    proof_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024    # cellsolve.Floor's forked proof
+    return {"proof_process_mb": proof_mb, "particles": scene.n_particles, "contacts": scene.n_contacts, "dofs": scene.n_dof, "t_scene": built,
             "wall": wall, "cpu": cpu, "peak_gb": trace.peak_gb(), "phases": trace.phases(), "bulk": m.bulk,
             "shear": m.shear, "branches": len(m.branches), "residual": m.errors["residual"],
             "bound": m.errors["moduli_bound"], "scale": scale, "solve": m.solve,
@@ -486,11 +488,7 @@ WHERE_TIME = (
 
 
 NOT_DONE = (
-    "**Not measured here** (issue 41's other cases): the moduli of 10⁶ disks — moduli.py assembles the contact "
-    "blocks of all contacts at once (several (M, 6, 6) arrays, ~10 GB at 3·10⁶ contacts) and factors the grounded, "
-    "non-symmetric H by SuperLU in minimum-degree order, an LU of both triangles (roughly twice the symmetric "
-    "factor above, which alone is 6.8 GB): it would not fit in 20 GB as written; it needs the chunked assembly and "
-    "an iterative solve preconditioned by the symmetric multifrontal factor. The 10⁶-particle scan end to end — a "
+    "**Not measured here** (issue 41's other cases): the 10⁶-particle scan end to end — a "
     "smoke run of the 10⁵-disk dumps (`python -m granstab_bench.million scan`, 2 Dask workers, not under the lock, "
     "beside this 10⁶ whole run, load 9-11) took 516 s for 99,856 clusters (194 a second, median 7 ms a cluster), "
     "so 10⁶ would take ~1.5 h at that load. The explorer's map of 10⁶ particles was not opened (no 10⁶ scan "

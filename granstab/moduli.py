@@ -153,8 +153,8 @@ class _Solver:
     ground the translations (X is then the solution with that particle still; C does not see a translation, since
     every block annihilates one). `solve` B ↦ H⁻¹B (SuperLU, or GMRES with sym(H)'s factor: solve/cellsolve.py),
     every branch by Woodbury; `solve` None: H has mechanisms beyond the translations (gear-like rolling, floppy
-    rattlers), so each branch uses the dense pseudo-inverse and `mechanisms` counts its zeros. `inverse` bounds
-    ‖H⁻¹‖₂ (None: not available), `H_error` ‖ΔH‖₂ (formation), `held` the fixed-cell check, `info` how it solved."""
+    rattlers), so each branch uses the dense pseudo-inverse and `mechanisms` counts its zeros. `inverse_bound()`
+    bounds ‖H⁻¹‖₂ (None: not available), `H_error` ‖ΔH‖₂ (formation), `held` the fixed-cell check, `info` how it solved."""
 
     keep: np.ndarray
     H: sp.csr_matrix
@@ -163,7 +163,7 @@ class _Solver:
     solve: object
     d: int
     held: dict
-    inverse: float | None = None
+    inverse: object = None          # a float, None, or a cellsolve.Floor still being proven (`inverse_bound`)
     H_error: float = 0.0
     info: dict = field(default_factory=dict)
     Y: np.ndarray | None = None
@@ -186,9 +186,17 @@ class _Solver:
             X = X - HA @ np.linalg.solve(np.eye(int(on.sum())) + So.T @ HA, So.T @ X)
         return X
 
+    def inverse_bound(self) -> float | None:
+        """The bound of ‖H⁻¹‖₂: `inverse`, or 1/τ once its proof (cellsolve.Floor, perhaps still running) is in."""
+        if hasattr(self.inverse, "tau"):
+            tau = self.inverse.tau()
+            self.info["floor"] = tau
+            self.inverse = None if tau is None else 1.0 / tau
+        return self.inverse
+
     def branch_inverse(self, on: np.ndarray) -> float | None:
         """A bound of ‖(H + A_on S_onᵀ)⁻¹‖₂ by Woodbury from `inverse` (module docstring; first order)."""
-        if self.inverse is None or not on.any():
+        if self.inverse_bound() is None or not on.any():
             return self.inverse
         HA, So = self.Y[:, self.Y.shape[1] - self.A.shape[1]:][:, on], self.S[:, on]     # H⁻¹A_on
         K = np.eye(int(on.sum())) + So.T @ HA
@@ -229,10 +237,9 @@ def _factor(scene: Scene, H, untouched: np.ndarray, A, S, H_error=None) -> _Solv
         if sym.mf.definite:
             info = {"method": "GMRES preconditioned by the multifrontal Cholesky factor of sym(H)",
                     "factor_entries": sym.mf.nnz}
-            tau, theta = cellsolve.floor(scene, Hk, keep, sym)
-            info.update(floor=tau, estimate=theta)
-            return _Solver(**base, solve=cellsolve.iterative(Hk, sym, info), held=held,
-                           inverse=None if tau is None else 1.0 / tau, info=info)
+            floor = cellsolve.Floor(scene, Hk, keep, sym)
+            info.update(estimate=floor.theta)
+            return _Solver(**base, solve=cellsolve.iterative(Hk, sym, info), held=held, inverse=floor, info=info)
         del sym
     elif len(keep) <= DENSE_MAX:
         held, inverse = _held_dense(Hk)
@@ -367,7 +374,7 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
                   verdicts=_verdicts(every, sliding, s_tol, partial, _asymmetry(solver, parts), solver.held),
                   errors=_errors(scene, sigma, every),
                   seconds=time.perf_counter() - start, direction=direction, notes=_notes(scene, Ms, zero),
-                  solve={**solver.info, "inverse_bound": solver.inverse, "dofs": len(solver.keep),
+                  solve={**solver.info, "inverse_bound": solver.inverse_bound(), "dofs": len(solver.keep),
                          "seconds": seconds})
 
 

@@ -7,6 +7,7 @@ One factor of the symmetric part replaces SuperLU's LU of both triangles of the 
 fill): what lets 10⁶ disks fit (BENCHMARKS.md `million`)."""
 from __future__ import annotations
 
+import multiprocessing
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +20,7 @@ GMRES_TOL = 1e-14     # GMRES stops at ‖R‖ ≤ this·‖B‖ per column (the
 FLOOR_BLOCK = 4       # columns of the inverse iteration that estimates λ_min(sym H) …
 FLOOR_STEPS = 3       # … its steps, …
 FLOOR_MARGIN = 8.0    # … and τ = θ_min / this, proven by the inertia of sym(H) - τI (then τ / FLOOR_MARGIN² once)
+PARALLEL_MIN = 200_000   # kept dofs from which that proof runs in a forked process beside GMRES (the second core)
 
 HOW = ("inertia of sym(H) of the elastic branch without the translations, by sparse block elimination "
        "(solve/multifrontal.py; granstab analyze: every branch, consistency and error bounds)")
@@ -69,21 +71,42 @@ def held(mf: Multifrontal) -> dict:
             "negative_count": int(mf.negative), "tolerance": SINGULAR_RTOL, "note": HOW}
 
 
-def floor(scene, H: sp.csr_matrix, keep: np.ndarray, factor: SymmetricFactor, seed: int = 0):
-    """τ > 0 with λ_min(sym H) ≥ τ proven (the inertia of sym(H) - τI: no negative eigenvalue), from the estimate θ
-    of a block inverse iteration with `factor` (τ = θ / FLOOR_MARGIN, then once more / FLOOR_MARGIN²); and θ. τ is
-    None where neither shift is proven."""
-    Hs = 0.5 * (H + H.T)
-    X = np.random.default_rng(seed).standard_normal((H.shape[0], FLOOR_BLOCK))
-    for _ in range(FLOOR_STEPS):
-        X, _ = np.linalg.qr(factor.solve(X))
-    theta = float(np.linalg.eigvalsh(X.T @ (Hs @ X))[0])                # ≥ λ_min (a Rayleigh quotient)
+def _prove(scene, H, keep, theta: float):
+    """τ = θ / FLOOR_MARGIN (then / FLOOR_MARGIN³) where the inertia of sym(H) - τI proves λ_min(sym H) ≥ τ; None."""
     for tau in (theta / FLOOR_MARGIN, theta / FLOOR_MARGIN ** 3):
         if tau > 0:
             count = symmetric_factor(scene, H, keep, tau, factors=False).mf
             if count.ok and count.negative == 0:
-                return tau, theta
-    return None, theta
+                return tau
+    return None
+
+
+class Floor:
+    """τ > 0 with λ_min(sym H) ≥ τ proven (`_prove`), or None, from the estimate θ of a block inverse iteration with
+    sym(H)'s factor; from PARALLEL_MIN kept dofs the elimination runs in a forked process (the second core) while
+    the caller solves, and `tau()` waits for it. The answer is the same either way (an inertia count)."""
+
+    def __init__(self, scene, H: sp.csr_matrix, keep: np.ndarray, factor: SymmetricFactor, seed: int = 0):
+        X = np.random.default_rng(seed).standard_normal((H.shape[0], FLOOR_BLOCK))
+        for _ in range(FLOOR_STEPS):
+            X, _ = np.linalg.qr(factor.solve(X))
+        self.theta = float(np.linalg.eigvalsh(X.T @ (0.5 * (H @ X + H.T @ X)))[0])   # ≥ λ_min: a Rayleigh quotient
+        self._value, self._child = None, None
+        if len(keep) >= PARALLEL_MIN and "fork" in multiprocessing.get_all_start_methods():
+            ours, theirs = multiprocessing.get_context("fork").Pipe(duplex=False)
+            self._child = multiprocessing.get_context("fork").Process(
+                target=lambda: theirs.send(_prove(scene, H, keep, self.theta)), daemon=True)
+            self._child.start()
+            self._pipe = ours
+        else:
+            self._value = _prove(scene, H, keep, self.theta)
+
+    def tau(self) -> float | None:
+        if self._child is not None:
+            self._value = self._pipe.recv()
+            self._child.join()
+            self._child = None
+        return self._value
 
 
 def iterative(H: sp.csr_matrix, factor: SymmetricFactor, info: dict):
