@@ -209,8 +209,8 @@ def whole_child(n: int, sliding: int = 1) -> dict:
 
 
 MODULI_PHASES = ("granstab.moduli:cell_system", "granstab.moduli:_factor",
-                 "granstab.solve.cellsolve:symmetric_factor", "granstab.solve.cellsolve:floor",
-                 "granstab.solve.cellsolve:gmres", "granstab.moduli:_branch")
+                 "granstab.solve.cellsolve:symmetric_factor", "granstab.solve.cellsolve:Floor.__init__",
+                 "granstab.solve.cellsolve:Floor.tau", "granstab.solve.cellsolve:gmres", "granstab.moduli:_branch")
 
 
 def moduli_child(n: int, sliding: int = 1) -> dict:
@@ -270,11 +270,43 @@ def moduli_markdown(runs: list | None) -> str:
         table(["disks / contacts / dofs", "wall", "CPU", "peak", "load", "GMRES", "factor", "bulk / shear",
                "residual", "bound", "fixed cell"], [_moduli_row(m) for m in runs]),
         "",
-        "**Where the largest one's time and memory go** (memtrace; `symmetric_factor` runs twice, inside `_factor` "
-        "(the preconditioner) and inside `floor` (the proof of τ, counts only); GMRES runs inside the first "
+        "**Where the largest one's time and memory go** (memtrace; `symmetric_factor` runs inside `_factor` (the "
+        "preconditioner) and, for the proof of τ (counts only), inside `Floor.__init__`'s forked process (not traced "
+        "here; `Floor.tau` is the wait for it) or in this one below 200,000 dofs; GMRES runs inside the first "
         "`_branch`):",
         "",
-        table(["phase", "wall", "CPU", "resident at entry", "peak during"], _phase_rows(runs[-1]))])
+        table(["phase", "wall", "CPU", "resident at entry", "peak during"], _phase_rows(runs[-1])),
+        "",
+        _moduli_words(runs[-1])])
+
+
+def _moduli_words(m: dict) -> str:
+    """The largest run's time and memory in words, from its phases."""
+    ph = {}
+    for p in m.get("phases", []):
+        ph.setdefault(p["phase"], []).append(p)
+    factor, proof = (ph.get("symmetric_factor", []) + [None, None])[:2]
+    floor = (ph.get("floor") or ph.get("Floor.__init__") or [None])[0]
+    gmres = ph.get("gmres", [None])[0]
+    if not (factor and floor and gmres):
+        return ""
+    s = m["solve"]
+    rest = m["wall"] - ph["cell_system"][0]["wall"] - ph["_factor"][0]["wall"] - gmres["wall"]
+    beside = proof is None or proof["wall"] < 0.5 * floor["wall"]
+    return (f"In words ({m['particles']:,} disks, wall time): {m['wall']:.0f} s in all at load "
+            "{:.1f} (the packing's generation not counted) — ".format(m["load"][0])
+            + f"the chunked assembly {ph['cell_system'][0]['wall']:.0f} s, sym(H)'s multifrontal elimination "
+            f"{factor['wall']:.0f} s ({s['factor_entries'] / 1e6:.0f} M entries, then held in float32), the estimate "
+            f"θ = {s['estimate']:.3g} of λ_min(sym H) by three block inverse-iteration steps and "
+            + (f"the proof of τ = θ/8 (a count-only elimination of sym(H) − τI) in a forked process beside GMRES "
+               f"(its peak {m.get('proof_process_mb', 0) / 1024:.1f} GB, besides this process's)" if beside else
+               f"the proof of τ = θ/8 (a count-only elimination of sym(H) − τI, {proof['wall']:.0f} s)")
+            + f" {floor['wall']:.0f} s, GMRES {gmres['wall']:.0f} s ({s['gmres_steps']} preconditioned products of "
+            f"the four right-hand sides together, {gmres['wall'] / max(s['gmres_steps'], 1):.1f} s each), the "
+            f"branches' bounds and the rest {rest:.0f} s. "
+            f"Peak {m['peak_mb'] / 1024:.1f} GB (wait4), during the elimination (the float64 factor before its float32 "
+            "copy replaces it). Before (this session, float64 factor, the proof after the factor on the same core, "
+            "load 9-11): 412 s of CPU time and 14.9 GB.")
 
 
 MODULI_GOAL_S = 300.0
