@@ -10,6 +10,8 @@ estimated (said so) where it did not.
   granstab_bench.million whole N`), its phases traced by benchmarks/memtrace.py (wall, CPU, resident memory), the
   peak memory estimated before it runs (granstab/solve/memory.py) beside the measured one; a run that does not fit
   is refused in one line (tested with a fake limit: tests/solve/test_memory.py).
+- **The moduli**: `granstab.moduli(scene)` of the same packing in a fresh process (`python -m granstab_bench.million
+  moduli N`), its phases traced by memtrace, the peak by wait4 (and the forked proof's, RUSAGE_CHILDREN).
 
 The folder of the dumps is written once (several minutes: the packing and the text) and reused when given
 (`MILLION_DATA`); cases measured before under the benchmark lock are reused from `MILLION_MEASURED` (`measured`)."""
@@ -271,9 +273,11 @@ def moduli_markdown(runs: list | None) -> str:
                "residual", "bound", "fixed cell"], [_moduli_row(m) for m in runs]),
         "",
         "**Where the largest one's time and memory go** (memtrace; `symmetric_factor` runs inside `_factor` (the "
-        "preconditioner) and, for the proof of τ (counts only), inside `Floor.__init__`'s forked process (not traced "
-        "here; `Floor.tau` is the wait for it) or in this one below 200,000 dofs; GMRES runs inside the first "
-        "`_branch`):",
+        "preconditioner) and, for the proof of τ (counts only), "
+        + ("inside `floor` after it, in this process (the code before the proof ran beside GMRES)"
+           if any(p["phase"] == "floor" for p in runs[-1].get("phases", [])) else
+           "inside `Floor.__init__`'s forked process (not traced here; `Floor.tau` is the wait for it)")
+        + "; GMRES runs inside the first `_branch`):",
         "",
         table(["phase", "wall", "CPU", "resident at entry", "peak during"], _phase_rows(runs[-1])),
         "",
@@ -502,7 +506,10 @@ WHERE_TIME = (
     "contact blocks and assembly 50 s, the metric's congruences and norms 17.5 s, both branches' Ritz updates 5.4 s, "
     "their bounds and consistency tests 2 s, the identity checks 3.8 s. The wall time, 1255 s, is that CPU time at "
     "27% of a core (nice 10 beside other work at nice 0 and -8, load 8-11); at rest the same CPU time is ~6 min of "
-    "wall time (not measured at rest). Memory: the parts 4.8 GB, the factor 6.8 GB (float64 only: no float32 copy "
+    "wall time. A rerun at rest (session 10, 20:38 UTC, alone under /work/wt/quiet, load 2.5 → 1.0, main's code "
+    "with this session's moduli work) was stopped by its own memory guard (memtrace's 18.5 GB, exit 3) after 6.4 min, "
+    "so its wall time and peak at rest are not shown, and the peak is now above the 15.8 GB measured here (not "
+    "diagnosed this session). Memory: the parts 4.8 GB, the factor 6.8 GB (float64 only: no float32 copy "
     "above multifrontal.SINGLE_MAX), the Krylov basis 4.2 GB (restarted in place); the transient peaks of the "
     "assembly (7.2 GB) and of the metric's problem (8.9 GB) fall before the factor. Before the cuts (no release of "
     "the physical H and Hm, a float32 factor copy, restart copies) the same 2·10⁵-disk case peaked at 4.37 GB and "
@@ -514,9 +521,12 @@ WHERE_TIME = (
     "for all the checks, duplicate ids and pairs found by one sort (not np.unique's stable argsort), no copies when "
     "every contact is kept. What is left: numpy.loadtxt's C parser 4.7-6.4 s (a third), the names of the pairs the "
     "report lists (the generator's packing has many overlaps above 0.1 of a radius: 164,441 of 298,305 contacts at "
-    "10⁵) 0.9-1.2 s, the minimum-image branches (read_step and build each form them) 0.9 s. The three timed runs "
-    "were not under the benchmark lock (another engineer's queue held it from 17:23 past the deadline): their CPU "
-    "times (18.2, 18.4, 20.1 s) carry the load's noise, and the goal, 20 s, is met with little margin.")
+    "10⁵) 0.9-1.2 s, the minimum-image branches (read_step and build each form them) 0.9 s. Those three runs (18.2, "
+    "18.4, 20.1 s of CPU) were at load 7.5; measured again at rest (the table: under /work/wt/quiet, alone, load "
+    "1.0) the load takes 15.2-17.7 s of CPU and the same wall time, median 17.3 s, with cProfile's per-call "
+    "overhead counted in it: numpy.loadtxt's parser 4.5-6.2 s, the rest spread over build.py's steps (0.5-0.9 s "
+    "each: __getitem__, branch_vectors, build, _curvature), lammps.read_step 0.55-0.64 s and vec.sum_at 0.44-0.49 s. "
+    "The goal, 20 s, is met at rest with 2.7 s to spare; it was not cut further this session.")
 
 
 NOT_DONE = (
