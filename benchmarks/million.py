@@ -469,8 +469,8 @@ def markdown(results: dict) -> str:
         f"**The whole packing** (goal ≤ {results['goal_whole_s'] / 60:g} min and ≤ {results['goal_memory_gb']:g} "
         "GB): `granstab.analyze(scene, k=6, metric=\"L\")` of the periodic benchmark's packing with one contact at "
         "yield (the elastic and the all-loading branch), in a fresh process (nice 10, under the benchmark lock); "
-        "*peak*: its resident peak (wait4); *estimated*: solve/memory.py's estimate when it ran (the 10⁶ run's by the "
-        "model before its re-fit to that run's phases; re-fitted, 15.9 GB: the last table); *residual*: the largest "
+        "*peak*: its resident peak (wait4); *estimated*: solve/memory.py's estimate by the model re-fitted to the 10⁶ "
+        "run's phases (that run itself was planned with 18.1 GB, the model before the re-fit); *residual*: the largest "
         "‖Bv − λv‖/‖Hs‖; "
         "*bound*: the largest reported error bound of an eigenvalue (residual and formation error, "
         "accuracy.vector_bounds); *counts*: the number of eigenvalues below σ by inertia (multifrontal.py).",
