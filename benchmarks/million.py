@@ -284,6 +284,12 @@ def moduli_markdown(runs: list | None) -> str:
         _moduli_words(runs[-1])])
 
 
+def own(m: dict, floor: dict) -> tuple:
+    """The forked proof's resident peak and its part not shared with this process (GB)."""
+    total = m.get("proof_process_mb", 0) / 1024
+    return total, max(total - floor["entry_gb"], 0.0)
+
+
 def _moduli_words(m: dict) -> str:
     """The largest run's time and memory in words, from its phases."""
     ph = {}
@@ -303,14 +309,19 @@ def _moduli_words(m: dict) -> str:
             f"{factor['wall']:.0f} s ({s['factor_entries'] / 1e6:.0f} M entries, then held in float32), the estimate "
             f"θ = {s['estimate']:.3g} of λ_min(sym H) by three block inverse-iteration steps and "
             + (f"the proof of τ = θ/8 (a count-only elimination of sym(H) − τI) in a forked process beside GMRES "
-               f"(its peak {m.get('proof_process_mb', 0) / 1024:.1f} GB, besides this process's)" if beside else
+               f"(resident {own(m, floor)[0]:.1f} GB at its peak, of which the {floor['entry_gb']:.1f} GB this process "
+               f"held at the fork are shared copy-on-write: about {own(m, floor)[1]:.1f} GB of its own, so the two "
+               f"together at most {m['peak_mb'] / 1024 + own(m, floor)[1]:.1f} GB)" if beside else
                f"the proof of τ = θ/8 (a count-only elimination of sym(H) − τI, {proof['wall']:.0f} s)")
-            + f" {floor['wall']:.0f} s, GMRES {gmres['wall']:.0f} s ({s['gmres_steps']} preconditioned products of "
+            + f" {floor['wall']:.0f} s" + (f" (the proof itself overlapped GMRES; waiting for it took "
+                                          f"{ph['Floor.tau'][0]['wall']:.0f} s more)" if beside and "Floor.tau" in ph
+                                          else "") + f", GMRES {gmres['wall']:.0f} s ({s['gmres_steps']} preconditioned products of "
             f"the four right-hand sides together, {gmres['wall'] / max(s['gmres_steps'], 1):.1f} s each), the "
             f"branches' bounds and the rest {rest:.0f} s. "
-            f"Peak {m['peak_mb'] / 1024:.1f} GB (wait4), during the elimination (the float64 factor before its float32 "
-            "copy replaces it). Before (this session, float64 factor, the proof after the factor on the same core, "
-            "load 9-11): 412 s of CPU time and 14.9 GB.")
+            f"This process's peak {m['peak_mb'] / 1024:.1f} GB (wait4), during the elimination (the float64 factor "
+            "before its float32 copy replaces it) and GMRES. Before (this session): with a float64 factor and the proof "
+            "after the factor on one core, 412 s of CPU time and 14.9 GB (load 9-11); with the float32 factor and the "
+            "proof still on one core, 346 s at rest (load 1.0) and 13.8 GB.")
 
 
 MODULI_GOAL_S = 300.0
