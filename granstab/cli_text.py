@@ -96,7 +96,7 @@ def format_moduli(result, scene) -> str:
     z = result.zero_modes
     lines.append(f"zero modes: {z['translations']} translations, {z['free_spins']} free spins, {z['rattlers']} "
                  f"rattlers, {z['mechanisms']} mechanisms")
-    lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in result.errors.items())
+    lines.append("errors (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in result.errors.items() if v is not None)
                  + f"; time {1e3 * result.seconds:.1f} ms")
     lines += [f"note: {n}" for n in result.notes]
     return "\n".join(lines)

@@ -4,8 +4,22 @@ stability at fixed cell and at fixed stress (docs/periodic.md).
 Branch i (a mask of the potentially sliding contacts, eq:ContactF) has the extended stiffness
 [[H^i, Ξ^i], [Ξ'^i, B^i]] (mechanics/cell.py); with no load on the particles the fluctuations follow a strain ε
 as Ũ = -H^i⁺ Ξ^i ε, and C^i = (B^i - Ξ'^i H^i⁺ Ξ^i) / V in the Mandel basis. H^i⁺ acts on the complement of the d
-translations (a bordered system) and of the dofs no contact touches (free spins, rattlers): one sparse LU of the
-elastic bordered matrix serves every right-hand side and, through Woodbury, every branch.
+translations (a bordered system) and of the dofs no contact touches (free spins, rattlers): one solve of the
+elastic H serves every right-hand side and, through Woodbury, every branch. The parts are assembled in chunks of
+contacts (solve/cellparts.py: one block kernel at every size, memory linear in M). Up to DENSE_MAX kept dofs H is
+factorised by SuperLU; above, by GMRES on H preconditioned by the multifrontal Cholesky factor of sym(H)
+(solve/multifrontal.py, solve/gmres.py), which also gives the fixed-cell check (its inertia), so that 10⁶ disks fit
+(one factor of the symmetric part instead of an LU of both triangles).
+
+Each modulus carries a bound (`CellBranch.bound`, docs/periodic.md "How C is solved"): with R = Ξ^i - H^i X̂ the
+residual, ‖(H^i)⁻¹‖₂ ≤ h^i, and the formation errors ΔH, ΔΞ, ΔΞ', ΔB of cellparts.py (first order in ε),
+
+    V |ΔC_ab| ≤ |ΔB_ab| + |ΔΞ'_a|·|X̂_b| + ‖Ξ'_a‖ h^i (‖R_b‖ + ‖ΔΞ_b‖ + ‖ΔH‖‖X̂_b‖) + γ_n |Ξ'_a|·|X̂_b|,
+
+where ‖H⁻¹‖₂ ≤ 1/τ because xᵀHx = xᵀ sym(H) x ≥ τ‖x‖² once sym(H) - τI is proven positive definite (its
+inertia, a second elimination; dense: its eigenvalues), and a branch's h^i follows from Woodbury,
+h^i ≤ h (1 + ‖H⁻¹A_on‖ ‖(I + S_onᵀH⁻¹A_on)⁻¹‖ ‖S_on‖). Where sym(H) is not positive definite there is no such
+τ and the bound is not available (None).
 """
 from __future__ import annotations
 
@@ -16,14 +30,14 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .mechanics.assembly import sliding_factors
+from .mechanics.accuracy import curvature_error, gamma
 from .mechanics.branches import enumerate_masks, s_limits, sample_masks
-from .mechanics.cell import cell_parts, mandel_basis, stress, stress_work, to_tensor
+from .mechanics.cell import mandel_basis, stress, stress_work, to_tensor
 from .mechanics.rigid import untouched_dofs
-from .mechanics.stiffness import assemble_parts, contact_blocks
 from .model.scene import Scene, SceneError
 from .model.tolerances import EPS
 from .model.vec import rot_dim
+from .solve.cellparts import cell_system
 from .solve.threads import blas_threads
 
 __all__ = ["CellBranch", "Moduli", "moduli"]
@@ -36,7 +50,8 @@ class CellBranch:
     """The cell's response on one branch: `mask` (M,) (+1 loading/sliding, -1 unloading, 0 not at yield),
     `mandel` C^i (m, m) and `C` (d, d, d, d); `fixed_stress` C^i - Q (m, m) (cell.stress_work); the eigenvalues
     of their symmetric parts; `residual` of the non-affine solve ‖H^i X - Ξ^i‖ / (‖H^i‖∞‖X‖ + ‖Ξ^i‖);
-    `symmetry_defect` ‖C - Cᵀ‖ / ‖C‖ (Mandel, Frobenius; 0 for a conservative law up to round-off)."""
+    `symmetry_defect` ‖C - Cᵀ‖ / ‖C‖ (Mandel, Frobenius; 0 for a conservative law up to round-off); `bound` (m, m)
+    |C^i - Ĉ^i| ≤ bound entrywise (Mandel; module docstring), None where not available."""
 
     name: str
     mask: np.ndarray
@@ -45,6 +60,7 @@ class CellBranch:
     residual: float
     response: np.ndarray = field(repr=False)      # X = H^i⁺ Ξ^i (n, m): Ũ = -X ε
     s_values: np.ndarray = field(repr=False)      # (Ms, m): S of each potentially sliding contact per unit strain
+    bound: np.ndarray | None = None
 
     @property
     def C(self) -> np.ndarray:
@@ -66,7 +82,8 @@ class CellBranch:
         return {"name": self.name, "mask": [int(v) for v in self.mask], "C": self.C.tolist(),
                 "mandel": self.mandel.tolist(), "eigenvalues": self.eigenvalues.tolist(),
                 "fixed_stress_eigenvalues": self.fixed_stress_eigenvalues.tolist(),
-                "residual": self.residual, "symmetry_defect": self.symmetry_defect}
+                "residual": self.residual, "symmetry_defect": self.symmetry_defect,
+                "bound": None if self.bound is None else self.bound.tolist()}
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +103,7 @@ class Moduli:
     seconds: float
     direction: dict | None = None
     notes: tuple = ()
+    solve: dict = field(default_factory=dict)
 
     @property
     def C(self) -> np.ndarray:
@@ -121,10 +139,11 @@ class Moduli:
                                                             "xx, yy, zz, yz, xz, xy"),
                 "branches": [b.to_dict() for b in self.branches], "direction": self.direction,
                 "zero_modes": self.zero_modes, "verdicts": self.verdicts, "errors": self.errors,
-                "seconds": self.seconds, "notes": list(self.notes)}
+                "seconds": self.seconds, "notes": list(self.notes), "solve": self.solve}
 
 
 DENSE_MAX = 3000     # kept dofs up to which a singular H is handled by a dense pseudo-inverse (mechanisms)
+ITERATIVE_MIN = DENSE_MAX   # kept dofs above which H is solved by GMRES with sym(H)'s factor (below: SuperLU)
 PINV_RTOL = 1e-10    # singular values of H below this times the largest: its mechanisms (dense fallback only)
 
 
@@ -132,16 +151,21 @@ PINV_RTOL = 1e-10    # singular values of H below this times the largest: its me
 class _Solver:
     """X^i = H^i⁺ Ξ^i on the kept dofs: those some contact touches, less the d translations of one particle that
     ground the translations (X is then the solution with that particle still; C does not see a translation, since
-    every block annihilates one). `lu`: H factorised once (sparse LU), every branch by Woodbury; `lu` None: H has
-    mechanisms beyond the translations (gear-like rolling, floppy rattlers), so each branch uses the dense
-    pseudo-inverse and `mechanisms` counts its zeros."""
+    every block annihilates one). `solve` B ↦ H⁻¹B (SuperLU, or GMRES with sym(H)'s factor: solve/cellsolve.py),
+    every branch by Woodbury; `solve` None: H has mechanisms beyond the translations (gear-like rolling, floppy
+    rattlers), so each branch uses the dense pseudo-inverse and `mechanisms` counts its zeros. `inverse_bound()`
+    bounds ‖H⁻¹‖₂ (None: not available), `H_error` ‖ΔH‖₂ (formation), `held` the fixed-cell check, `info` how it solved."""
 
     keep: np.ndarray
     H: sp.csr_matrix
     A: np.ndarray
     S: np.ndarray
-    lu: object
+    solve: object
     d: int
+    held: dict
+    inverse: object = None          # a float, None, or a cellsolve.Floor still being proven (`inverse_bound`)
+    H_error: float = 0.0
+    info: dict = field(default_factory=dict)
     Y: np.ndarray | None = None
     mechanisms: int = 0
 
@@ -151,16 +175,32 @@ class _Solver:
         Ao, So = self.A[:, on], self.S[:, on]
         if not len(self.keep):                                        # nothing but the cell moves
             return np.zeros((0, m))
-        if self.lu is None:
+        if self.solve is None:
             H = self.H.toarray() + Ao @ So.T
             return np.linalg.pinv(H, rcond=PINV_RTOL) @ (parts.Xi[self.keep] + Ao @ parts.S_cell[:, on].T)
         if self.Y is None:                                            # H⁻¹[Ξ, A]: one solve, every branch
-            self.Y = self.lu.solve(np.hstack([parts.Xi[self.keep], self.A]))
+            self.Y = self.solve(np.hstack([parts.Xi[self.keep], self.A]))
         X = self.Y[:, :m] + self.Y[:, m:][:, on] @ parts.S_cell[:, on].T
         if on.any():
             HA = self.Y[:, m:][:, on]
             X = X - HA @ np.linalg.solve(np.eye(int(on.sum())) + So.T @ HA, So.T @ X)
         return X
+
+    def inverse_bound(self) -> float | None:
+        """The bound of ‖H⁻¹‖₂: `inverse`, or 1/τ once its proof (cellsolve.Floor, perhaps still running) is in."""
+        if hasattr(self.inverse, "tau"):
+            tau = self.inverse.tau()
+            self.info["floor"] = tau
+            self.inverse = None if tau is None else 1.0 / tau
+        return self.inverse
+
+    def branch_inverse(self, on: np.ndarray) -> float | None:
+        """A bound of ‖(H + A_on S_onᵀ)⁻¹‖₂ by Woodbury from `inverse` (module docstring; first order)."""
+        if self.inverse_bound() is None or not on.any():
+            return self.inverse
+        HA, So = self.Y[:, self.Y.shape[1] - self.A.shape[1]:][:, on], self.S[:, on]     # H⁻¹A_on
+        K = np.eye(int(on.sum())) + So.T @ HA
+        return self.inverse * (1.0 + np.linalg.norm(HA) * np.linalg.norm(np.linalg.inv(K), 2) * np.linalg.norm(So))
 
 
 def _inf_norm(H) -> float:
@@ -179,46 +219,91 @@ def _grounded(scene: Scene, untouched: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
-def _factor(scene: Scene, H, untouched: np.ndarray, A, S) -> _Solver:
-    """The solver on the kept dofs (`_grounded`): sparse LU (minimum-degree order of Hᵀ + H), or the dense
-    fallback where H is singular there (mechanisms)."""
+def _factor(scene: Scene, H, untouched: np.ndarray, A, S, H_error=None) -> _Solver:
+    """The solver on the kept dofs (`_grounded`): above DENSE_MAX GMRES with sym(H)'s multifrontal factor where
+    sym(H) is positive definite (solve/cellsolve.py); else sparse LU (minimum-degree order of Hᵀ + H), or the dense
+    pseudo-inverse where H is singular there (mechanisms)."""
     keep = _grounded(scene, untouched)
     Hk = H[keep][:, keep].tocsr()
     A, S = A[keep], S[keep]
+    e_H = 0.0 if H_error is None or not len(keep) else curvature_error(H_error[keep][:, keep].tocsr())
+    base = {"keep": keep, "H": Hk, "A": A, "S": S, "d": scene.dim, "H_error": e_H}
     if not len(keep):
-        return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim)
+        return _Solver(**base, solve=None, held=_held_dense(Hk)[0])
+    if len(keep) > max(DENSE_MAX, ITERATIVE_MIN):
+        from .solve import cellsolve
+        sym = cellsolve.symmetric_factor(scene, Hk, keep)
+        held = cellsolve.held(sym.mf)
+        if sym.mf.definite:
+            info = {"method": "GMRES preconditioned by the multifrontal Cholesky factor of sym(H)",
+                    "factor_entries": sym.mf.nnz}
+            floor = cellsolve.Floor(scene, Hk, keep, sym)
+            info.update(estimate=floor.theta)
+            return _Solver(**base, solve=cellsolve.iterative(Hk, sym, info), held=held, inverse=floor, info=info)
+        del sym
+    elif len(keep) <= DENSE_MAX:
+        held, inverse = _held_dense(Hk)
+    else:                                                            # SuperLU above DENSE_MAX: no bound of ‖H⁻¹‖
+        from .solve import cellsolve
+        held, inverse = cellsolve.held(cellsolve.symmetric_factor(scene, Hk, keep, factors=False).mf), None
     scale = max(_inf_norm(Hk), 1e-300)
     try:
         lu = spla.splu(Hk.tocsc(), permc_spec="MMD_AT_PLUS_A")
         singular = float(np.abs(lu.U.diagonal()).min()) < PIVOT_RTOL * scale
     except RuntimeError:                                             # exactly singular
         lu, singular = None, True
+    info = {"method": "SuperLU (minimum degree of Hᵀ + H)"}
     if not singular:
-        return _Solver(keep=keep, H=Hk, A=A, S=S, lu=lu, d=scene.dim)
+        return _Solver(**base, solve=lu.solve, held=held, inverse=inverse, info=info)
     if len(keep) > DENSE_MAX:
         raise SceneError(f"{scene.source}: moduli: the stiffness has zero modes beyond the {scene.dim} translations "
                          f"and the untouched dofs (mechanisms or floppy rattlers) and {len(keep)} dofs are too many "
                          f"for the dense pseudo-inverse (at most {DENSE_MAX}): remove rattlers")
     sv = np.linalg.svd(Hk.toarray(), compute_uv=False)
-    return _Solver(keep=keep, H=Hk, A=A, S=S, lu=None, d=scene.dim, mechanisms=int(np.sum(sv <= PINV_RTOL * sv.max())))
+    return _Solver(**base, solve=None, held=held, info={"method": "dense pseudo-inverse"},
+                   mechanisms=int(np.sum(sv <= PINV_RTOL * sv.max())))
 
 
-def _branch(name, mask, on, solver, parts, volume, Q) -> CellBranch:
-    """C^i = (B^i - Ξ'^i X^i)/V of the branch with the loading contacts `on` (bool (Ms,)), X^i = H^i⁺ Ξ^i."""
+def _branch(name, mask, on, solver, system, volume, Q) -> CellBranch:
+    """C^i = (B^i - Ξ'^i X^i)/V of the branch with the loading contacts `on` (bool (Ms,)), X^i = H^i⁺ Ξ^i, and
+    its bound (`_bound`)."""
+    parts = system.parts
     Ao, So = solver.A[:, on], solver.S[:, on]
     Xi = parts.Xi[solver.keep] + Ao @ parts.S_cell[:, on].T
     X = solver.response(parts, on)
-    HX = solver.H @ X + Ao @ (So.T @ X)
+    R = Xi - (solver.H @ X + Ao @ (So.T @ X))
     norm = _inf_norm(solver.H) + float(np.abs(Ao).sum(axis=1).max(initial=0.0)
                                                           * np.abs(So).sum(axis=0).max(initial=0.0))
-    residual = float(np.abs(HX - Xi).max(initial=0.0) / max(norm * np.abs(X).max(initial=0.0)
-                                                              + np.abs(Xi).max(initial=0.0), 1e-300))
+    residual = float(np.abs(R).max(initial=0.0) / max(norm * np.abs(X).max(initial=0.0)
+                                                       + np.abs(Xi).max(initial=0.0), 1e-300))
     left = parts.Xi_left[:, solver.keep] + parts.A_cell[:, on] @ So.T
     B = parts.B + parts.A_cell[:, on] @ parts.S_cell[:, on].T
     C = (B - left @ X) / volume
     s_values = parts.S_cell.T - solver.S.T @ X                        # S per unit strain, Ũ = -X ε
     return CellBranch(name=name, mask=mask, mandel=C, fixed_stress=C - Q, residual=residual, response=X,
-                      s_values=s_values)
+                      s_values=s_values, bound=_bound(solver, system, on, X, R, Xi, left, volume))
+
+
+def _bound(solver, system, on, X, R, Xi, left, volume):
+    """|C^i - Ĉ^i| ≤ this (m, m), entrywise (module docstring), None where ‖(H^i)⁻¹‖ has no bound. The sliding
+    terms' formation: 8ε of |a||s| (accuracy.part_scales); the residual's own rounding γ_k(|H||X| + |Ξ|)."""
+    h = solver.branch_inverse(on) if len(solver.keep) else 0.0
+    if h is None:
+        return None
+    keep, parts = solver.keep, system.parts
+    Ao, So = np.abs(solver.A[:, on]), np.abs(solver.S[:, on])
+    Ac, Sc = np.abs(parts.A_cell[:, on]), np.abs(parts.S_cell[:, on])
+    slide = 8 * EPS
+    Xa = np.abs(X)
+    rows = int(np.diff(solver.H.indptr).max(initial=0)) + int(on.sum()) + 2
+    rnd = gamma(rows) * np.linalg.norm(abs(solver.H) @ Xa + Ao @ (So.T @ Xa) + np.abs(Xi), axis=0)
+    Xi_err = np.linalg.norm(system.Xi_error[keep] + slide * Ao @ Sc.T, axis=0)
+    e_H = solver.H_error + slide * float(system.sliding_scale[on].sum())
+    inner = np.linalg.norm(R, axis=0) + rnd + Xi_err + e_H * np.linalg.norm(X, axis=0)
+    left_err = system.left_error[:, keep] + slide * Ac @ So.T
+    E = (system.B_error + slide * Ac @ Sc.T + left_err @ Xa + np.outer(np.linalg.norm(left, axis=1), h * inner)
+         + gamma(len(keep) + 2) * np.abs(left) @ Xa)
+    return E / volume
 
 
 def _stage(progress, name: str, total: int | None = None) -> None:
@@ -253,16 +338,15 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     if not scene.periodic:
         raise SceneError(f"{scene.source}: moduli need a periodic scene (a `cell`); this one has none")
     _stage(progress, "assembly")
-    blocks = contact_blocks(scene)
-    H = assemble_parts(scene, blocks)["H"].tocsr()
-    sliding = np.flatnonzero(scene.at_yield())
-    A, S = sliding_factors(blocks, sliding)
-    parts = cell_parts(scene, blocks, sliding)
+    system = cell_system(scene)
+    H, A, S, sliding, parts = system.H, system.A, system.S, system.sliding, system.parts
     scale = max(_inf_norm(H), 1e-300)
     untouched = np.zeros(scene.n_dof, bool)
     untouched[untouched_dofs(H, parts.Xi, parts.Xi_left.T, A, S, scale=scale)] = True
     _stage(progress, "factorisation")
-    solver = _factor(scene, H, untouched, A, S)
+    seconds = {"assembly": time.perf_counter() - start}
+    solver = _factor(scene, H, untouched, A, S, system.H_error)
+    seconds["factorisation"] = time.perf_counter() - start - seconds["assembly"]
     volume, sigma = scene.volume, stress(scene)
     Q = stress_work(sigma)
     Ms = len(sliding)
@@ -273,7 +357,7 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     every = []
     with blas_threads(1):            # small dense Woodbury solves per branch: one BLAS thread (solve/threads.py)
         for mk in masks:
-            every.append(_branch("tangent", mk, mk[sliding] == 1, solver, parts, volume, Q))
+            every.append(_branch("tangent", mk, mk[sliding] == 1, solver, system, volume, Q))
             if progress is not None:
                 progress.update()
     signs = masks[:, sliding]
@@ -285,10 +369,13 @@ def moduli(scene: Scene, *, strain=None, max_sliding: int = 12, sample_branches:
     direction = None if strain is None else _direction(scene, strain, sliding, every, s_tol, partial)
     zero = {**_zero_modes(scene, untouched), "mechanisms": solver.mechanisms}
     _stage(progress, "fixed-cell check")
+    seconds["branches"] = time.perf_counter() - start - sum(seconds.values())
     return Moduli(dim=scene.dim, volume=volume, stress=sigma, branches=branches, zero_modes=zero,
-                  verdicts=_verdicts(every, sliding, s_tol, partial, _asymmetry(solver, parts), _held(scene, solver)),
+                  verdicts=_verdicts(every, sliding, s_tol, partial, _asymmetry(solver, parts), solver.held),
                   errors=_errors(scene, sigma, every),
-                  seconds=time.perf_counter() - start, direction=direction, notes=_notes(scene, Ms, zero))
+                  seconds=time.perf_counter() - start, direction=direction, notes=_notes(scene, Ms, zero),
+                  solve={**solver.info, "inverse_bound": solver.inverse_bound(), "dofs": len(solver.keep),
+                         "seconds": seconds})
 
 
 def _consistent(branch, sliding, e: np.ndarray, s_tol: float) -> bool:
@@ -343,7 +430,10 @@ def _errors(scene: Scene, sigma: np.ndarray, branches) -> dict:
     fmag = np.linalg.norm(scene.force, axis=1)
     bmag = np.linalg.norm(scene.branch, axis=1)
     load = float(np.linalg.norm(scene.load, axis=1).max(initial=0.0) / max(fmag.max(initial=0.0), 1e-300))
+    bounds = [b.bound for b in branches]
+    scale = max(max(float(np.abs(b.mandel).max()) for b in branches), 1e-300)
     return {"residual": max(b.residual for b in branches),
+            "moduli_bound": None if any(e is None for e in bounds) else max(float(e.max()) for e in bounds) / scale,
             "symmetry_defect": max(b.symmetry_defect for b in branches),
             "stress_asymmetry": float(np.abs(sigma - sigma.T).max() * scene.volume / max(fmag @ bmag, 1e-300)),
             "load_residual": load}
@@ -364,48 +454,22 @@ SYMMETRIC_RTOL = 1e-12   # an extended matrix this close to symmetric is a conse
 #                          is the minimum of the second-order work over the particles' motions)
 
 
-def _held(scene: Scene, solver) -> dict:
+def _held_dense(H) -> tuple:
     """The particles at fixed cell, elastic branch, conservative view: the eigenvalues of sym(H) on the kept dofs
-    (the translations grounded: positive there iff positive off the translations); dense up to DENSE_MAX dofs,
-    beyond by its inertia (`_held_sparse`). `granstab analyze` gives the full answer (every branch, consistency,
-    error bounds)."""
-    if len(solver.keep) > DENSE_MAX:
-        return _held_sparse(scene, solver)
-    H = solver.H.toarray()
-    rest = np.linalg.eigvalsh(0.5 * (H + H.T))                        # translations grounded (`_grounded`)
+    (the translations grounded: positive there iff positive off the translations), up to DENSE_MAX dofs (beyond:
+    its inertia, solve/cellsolve.held); and the bound 1/(λ_min - tolerance) of ‖H⁻¹‖₂ where that is positive
+    (module docstring), else None. `granstab analyze` gives the full answer (every branch, consistency, error
+    bounds)."""
+    rest = np.linalg.eigvalsh(0.5 * (H + H.T).toarray())               # translations grounded (`_grounded`)
     tol = 1e3 * EPS * max(float(np.abs(rest).max(initial=0.0)), 1e-300) * max(len(rest), 1)
     if not rest.size:
         return {"verdict": "stable", "min_eigenvalue": None, "tolerance": tol,
-                "note": "nothing but the translations moves at fixed cell"}
+                "note": "nothing but the translations moves at fixed cell"}, 0.0
     low = float(rest.min())
-    return {"verdict": "stable" if low > tol else "unstable" if low < -tol else "neutral", "min_eigenvalue": low,
+    held = {"verdict": "stable" if low > tol else "unstable" if low < -tol else "neutral", "min_eigenvalue": low,
             "tolerance": tol, "note": "sym(H) of the elastic branch without the translations (granstab analyze: "
                                       "every branch, consistency and error bounds)"}
-
-
-def _held_sparse(scene: Scene, solver) -> dict:
-    """`_held` above DENSE_MAX dofs: the number of negative eigenvalues of sym(H) on the kept dofs by sparse block
-    elimination in a nested-dissection order (solve/multifrontal.py: a congruence, Sylvester's law of inertia;
-    it refuses to count where an eigenvalue lies within SINGULAR_RTOL·‖H‖ of zero: then neutral or not resolved)."""
-    from .solve.multifrontal import SINGULAR_RTOL, Multifrontal
-    from .solve.sparse import dissection_order
-    per = scene.dof_per_particle
-    order, sizes = dissection_order(scene.x, scene.p, scene.q, nodes=True)
-    position = np.full(scene.n_dof, -1)
-    position[solver.keep] = np.arange(len(solver.keep))
-    dofs = position[(order[:, None] * per + np.arange(per)).reshape(-1)]
-    node = np.repeat(np.arange(len(sizes)), sizes * per)[dofs >= 0]   # the node of each kept dof, in that order
-    perm = dofs[dofs >= 0]
-    Hs = (0.5 * (solver.H + solver.H.T)).tocsr()[perm][:, perm]
-    mf = Multifrontal(Hs, np.r_[0, np.cumsum(np.bincount(node, minlength=len(sizes)))])
-    how = ("inertia of sym(H) of the elastic branch without the translations, by sparse block elimination "
-           "(solve/multifrontal.py; granstab analyze: every branch, consistency and error bounds)")
-    if not mf.ok:
-        return {"verdict": "not determined", "min_eigenvalue": None, "negative_count": None,
-                "tolerance": SINGULAR_RTOL, "note": f"an eigenvalue within {SINGULAR_RTOL:g}·‖H‖ of zero: neutral "
-                                                    f"or unresolved; {how}"}
-    return {"verdict": "unstable" if mf.negative else "stable", "min_eigenvalue": None,
-            "negative_count": int(mf.negative), "tolerance": SINGULAR_RTOL, "note": how}
+    return held, (1.0 / (low - tol) if low > tol else None)
 
 
 def _verdicts(every, sliding, s_tol: float, partial: bool, asymmetry: float, held: dict) -> dict:

@@ -56,12 +56,14 @@ def stress(scene: Scene, volume: float | None = None) -> np.ndarray:
     return np.einsum("mi,mj->ij", scene.force, scene.branch) / (scene.volume if volume is None else volume)
 
 
-def strain_columns(scene: Scene) -> np.ndarray:
-    """G_c (M, n_loc, m): the local motion of each contact under a unit strain E_a, E_a b^pq on q's translation."""
+def strain_columns(scene: Scene, branch: np.ndarray | None = None) -> np.ndarray:
+    """G_c (M, n_loc, m): the local motion of each contact under a unit strain E_a, E_a b^pq on q's translation
+    (`branch`: the branch vectors of some of the scene's contacts, default all of them)."""
     d, r = scene.dim, rot_dim(scene.dim)
     E = mandel_basis(d)
-    G = np.zeros((scene.n_contacts, 2 * (d + r), len(E)))
-    G[:, d + r:2 * d + r, :] = np.einsum("aij,mj->mia", E, scene.branch)
+    branch = scene.branch if branch is None else branch
+    G = np.zeros((len(branch), 2 * (d + r), len(E)))
+    G[:, d + r:2 * d + r, :] = np.einsum("aij,mj->mia", E, branch)
     return G
 
 

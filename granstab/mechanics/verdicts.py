@@ -222,7 +222,7 @@ def verdict_of(counts: dict, notes: dict | None, n_branches: int, type2: bool = 
         verdict = "not determined"
         because.append("partial_spectrum")
         reason = ("no consistent negative or zero eigenpair among the computed ones, but negative eigenvalues beyond "
-                  f"them are not excluded; rerun with k >= {notes.get('suggest_k', '?')}")
+                  "them are not excluded; " + notes.get("partial_because", f"rerun with k >= {notes.get('suggest_k', '?')}"))
     else:
         verdict = "stable"
         reason = "every branch positive definite off the rigid modes (eq:stab)"

@@ -59,6 +59,15 @@ def sparse_peak(n: int, n_contacts: int, dim: int, method: str) -> dict:
     return parts
 
 
+def no_inertia(scene, n: int) -> str:
+    """Why a whole packing solved by LOBPCG (3D above sparse.LU_MAX_DOF_3D dofs, or on a GPU) has no inertia count,
+    with the memory its factor would need (`factor_entries`, float64)."""
+    need = FACTOR_BYTES * factor_entries(n, scene.dim) / 2 ** 30
+    return (f"no inertia count, so nothing proves the computed eigenvalues are the lowest: LOBPCG runs without a "
+            f"factorisation (the nested-dissection factor of {n} dofs in {scene.dim}D would take about {need:.3g} GB; "
+            "its fill grows as n^4/3 in 3D, and the GPU has no sparse factorisation)")
+
+
 def parse_bytes(text: str) -> int:
     """'2G', '512M', '1073741824' → bytes; budget.OverBudget (one line: the CLI's exit 2) otherwise."""
     t = text.strip().upper().removesuffix("B")

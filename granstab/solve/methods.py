@@ -323,9 +323,14 @@ class SparseMethod:
         if any(b_modes.method == "lobpcg-gpu" for _, b_modes in found):
             notes["warnings"].append("on the GPU: LOBPCG with block-Jacobi preconditioning (solve/blockiter.py), "
                                      "residuals and bounds recomputed in float64 on the host; no inertia counts")
-        if unverified:
-            notes["warnings"].append(f"{unverified} branch(es): the inertia check could not prove that the computed "
-                                     "eigenvalues are the lowest ones")
+        iterative = sum(m.method.startswith("lobpcg") for _, m in found)
+        if unverified > iterative:
+            notes["warnings"].append(f"{unverified - iterative} branch(es): the inertia check could not prove that the "
+                                     "computed eigenvalues are the lowest ones")
+        if iterative:
+            from .memory import no_inertia
+            notes["partial_because"] = no_inertia(spb.scene, spb.n)
+            notes["warnings"].append(f"{iterative} branch(es): {notes['partial_because']}")
         if cut:
             notes["warnings"].append(f"{cut} branch(es): the highest computed eigenvalue belongs to a repeated cluster "
                                      "that extends beyond k; its consistency search covers only the computed part")

@@ -64,9 +64,10 @@ class Multifrontal:
     """The block elimination of the symmetric A (n × n, in its own order) with nodes `bounds` (increasing dof offsets
     from 0 to n): A = L̂ S L̂ᵀ (module docstring). `negative`: the number of negative eigenvalues of A (None where
     refused, and then `ok` is False and nothing can be solved); `nnz`: the stored factor entries; `solve(b)`:
-    A⁻¹ b for b (n,) or (n, m)."""
+    A⁻¹ b for b (n,) or (n, m). `keep` False: the count only, each front's factor dropped once eliminated (memory:
+    the fronts and pending updates, not the factor)."""
 
-    def __init__(self, A: sp.spmatrix, bounds: np.ndarray):
+    def __init__(self, A: sp.spmatrix, bounds: np.ndarray, keep: bool = True):
         A = sp.csc_matrix(A)
         A.sum_duplicates()
         A.sort_indices()
@@ -84,18 +85,27 @@ class Multifrontal:
                 if out is None:
                     self.negative, self.factors = None, []
                     break
-                self.factors.append(out)
+                self.factors.append(out if keep else (None, None, *out[2:]))
                 self.negative += int(np.sum(out[2] < 0))
         self.ok = self.negative is not None
         self.definite = self.ok and all(chol for *_, chol in self.factors)      # Cholesky in every front
-        self.nnz = int(sum(G.size + W.size for G, W, *_ in self.factors))
+        self.nnz = int(sum(G.size + W.size for G, W, *_ in self.factors if G is not None))
         self.plans = {}                                                # per dtype: the fronts as the solve reads them
+        self.single = False                                            # factors held in float32 only (`to_single`)
+
+    def to_single(self) -> None:
+        """Hold the factors in float32 only, front by front (half the memory and of each solve's traffic): for a
+        preconditioner whose caller computes its residuals in float64 (cellsolve.py); every later solve is then in
+        float32 (relative error ~cond·1e-7)."""
+        for i, (G, W, *rest) in enumerate(self.factors):
+            self.factors[i] = (G.astype(np.float32), W.astype(np.float32), *rest)
+        self.plans, self.single = {}, True
 
     def _plan(self, dtype) -> list:
         """(s, e, G, W, struct, has W) per front in `dtype` (float32: copies made at the first such solve, half the
         memory traffic, where the factor has at most SINGLE_MAX entries; float64: the factors themselves), so that
         the solve's loop does no lookups or conversions."""
-        if dtype == np.float32 and self.nnz > SINGLE_MAX:
+        if dtype == np.float32 and self.nnz > SINGLE_MAX and not self.single:
             dtype = np.float64
         if dtype not in self.plans:
             b, structs = self.bounds.tolist(), self.structs
@@ -111,9 +121,9 @@ class Multifrontal:
         traffic), x then has a relative error ~cond(A)·1e-7: only for preconditioning, where the caller computes its
         residuals in float64 (sparse._block_near); returned in float64. Above SINGLE_MAX factor entries there is no
         copy and `single` solves in float64 (the copy would cost a third of the factor's memory again)."""
-        if not self.definite:
-            raise ValueError("Multifrontal.solve needs every front positive definite (definite)")
-        plan = self._plan(np.float32 if single else np.float64)
+        if not self.definite or (self.factors and self.factors[0][0] is None):
+            raise ValueError("Multifrontal.solve needs every front positive definite (definite) and kept")
+        plan = self._plan(np.float32 if single or self.single else np.float64)
         x = np.array(b, dtype=plan[0][2].dtype if plan else float, copy=True)
         X = x.reshape(self.n, -1)
         with blas_threads(1):                                          # small blocks: one thread (threads.py)

@@ -416,6 +416,8 @@ def sparse_branch(problem: Problem, spb, modes, mask, k: int):
     # every negative eigenvalue is among the computed ones when the next one (k+1) is resolved positive, or when
     # the inertia count below σ is covered and nothing between σ and the bound is left uncomputed
     total = bool(top[0] > top[1]) or k >= n - n_rigid
+    if modes.n_below is None and not modes.verified and k < n - n_rigid:
+        total = False          # no inertia count (LOBPCG: no factorisation): nothing excludes an eigenvalue below
     count = int(np.sum(signs < 0))
     if modes.n_below is not None and modes.verified:
         count = max(count, int(modes.n_below))

@@ -3,10 +3,12 @@ fit refused in one line with the estimate and what it would need, never started 
 tested with a fake memory limit (GRANSTAB_MEMORY)."""
 import json
 
+import numpy as np
 import pytest
 
 import granstab
 from granstab.cli import main
+from granstab.mechanics.branches import RIGID
 from granstab.model.packings import random_packing
 from granstab.solve import memory
 from granstab.solve.budget import OverBudget
@@ -80,3 +82,35 @@ def test_python_api_refuses_too(big, monkeypatch):
     monkeypatch.setenv("GRANSTAB_MEMORY", "1M")
     with pytest.raises(OverBudget, match="refused: the sparse path"):
         granstab.analyze(scene, metric="L")
+
+
+def test_a_million_spheres_are_refused_in_one_line_with_what_they_need(monkeypatch):
+    """10⁶ spheres (6·10⁶ dofs, ~3·10⁶ contacts): above sparse.LU_MAX_DOF_3D the whole packing is LOBPCG's (no
+    factor), whose parts alone exceed 20 GB here: refused in one line, with the estimate (assembly and LOBPCG blocks)."""
+    monkeypatch.setenv("GRANSTAB_MEMORY", "20G")
+    parts = memory.sparse_peak(6_000_000, 3_000_000, 3, "lobpcg")
+    info, line = memory.refusal("spheres", 6_000_000, 3_000_000, 3, "lobpcg")
+    need = sum(parts.values())
+    assert not info["fits"] and need > 20 * 2 ** 30
+    assert line.startswith("spheres: refused: the sparse path (lobpcg) of 6000000 dofs")
+    assert f"needs about {need / 2 ** 30:.3g} GB" in line and "\n" not in line
+
+
+def test_spheres_above_the_factor_limit_get_bounded_modes_and_no_inertia_claim(monkeypatch):
+    """A 3D packing above LU_MAX_DOF_3D (lowered here to 100 dofs): LOBPCG's lowest modes, each within its reported
+    bound of the inertia-verified shift-invert ones, but no inertia count: the count is not a total, the verdict is
+    not a proof of stability, and a warning says why (no factorisation, and the memory one would take)."""
+    from granstab.solve import sparse
+    from granstab.solve.assembled import sparse_problem
+    monkeypatch.setattr(sparse, "LU_MAX_DOF_3D", 100)
+    scene = random_packing(3, 500, seed=4)
+    r = granstab.analyze(scene, k=6, metric="L")
+    b = r.branches[0]
+    assert r.backend == "sparse" and not b.negative_count["total"]
+    assert r.summary["verdict"] == "not determined" and not r.summary["sufficient"]
+    assert "no inertia count" in r.summary["reason"] and any("LOBPCG runs without a factorisation" in w
+                                                            for w in r.warnings)
+    ref = sparse.lowest_modes(sparse_problem(scene), k=6, method="shift-invert")
+    assert ref.verified
+    got = b.stability_eigenvalues[b.codes != RIGID]
+    assert np.all(np.abs(got - ref.eigenvalues[:len(got)]) <= b.bounds[b.codes != RIGID])
