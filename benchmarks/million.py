@@ -209,9 +209,10 @@ def whole_child(n: int, sliding: int = 1) -> dict:
 
 
 def scan_case(folder: Path, out: Path, workers: int = 2) -> dict:
-    """`granstab scan FOLDER --out OUT --workers W --json` in a fresh process: wall and CPU time (the command and its
-    Dask workers), the peak resident memory of the command and of each worker (psutil, sampled every 0.5 s: each
-    process's highest), its summary, and the load before and after."""
+    """`granstab scan FOLDER --out OUT --workers W --json` in a fresh process: wall and CPU time (the command, which
+    also runs Dask's scheduler and nannies, and its worker processes apart), the peak resident memory of the command
+    and of each worker (psutil, sampled every 0.5 s: each process's highest), its summary (without the import
+    report), and the load before and after."""
     import psutil
     load = os.getloadavg()[0]
     cmd = [sys.executable, "-m", "granstab", "scan", str(folder), "--out", str(out), "--overwrite", "--workers",
@@ -221,23 +222,34 @@ def scan_case(folder: Path, out: Path, workers: int = 2) -> dict:
         proc = psutil.Popen(cmd, stdout=stdout, stderr=subprocess.DEVNULL)
         peak, cpu = {}, {}
         while proc.poll() is None:
-            try:
-                for p in [proc, *proc.children(recursive=True)]:
+            for p in [proc, *_children(proc)]:
+                try:
                     with p.oneshot():
                         peak[p.pid] = max(peak.get(p.pid, 0), p.memory_info().rss)
                         times = p.cpu_times()
                         cpu[p.pid] = times.user + times.system
-            except psutil.Error:
-                pass
+                except psutil.Error:
+                    pass
             time.sleep(0.5)
         wall = time.perf_counter() - t
         stdout.seek(0)
         text = stdout.read().decode().strip()
-    main_mb = peak.pop(proc.pid, 0) / 2 ** 20
-    return {"rc": proc.returncode, "wall": wall, "cpu_sampled": sum(cpu.values()), "main_mb": main_mb,
-            "worker_mb": sorted((v / 2 ** 20 for v in peak.values()), reverse=True),
-            "summary": json.loads(text.splitlines()[-1]) if proc.returncode == 0 and text else None,
-            "load": [load, os.getloadavg()[0]]}
+    main_mb, main_cpu = peak.pop(proc.pid, 0) / 2 ** 20, cpu.pop(proc.pid, 0.0)
+    workers_mb = sorted((v / 2 ** 20 for v in peak.values()), reverse=True)
+    summary = json.loads(text.splitlines()[-1]) if proc.returncode == 0 and text else None
+    if summary:
+        summary.pop("import", None)
+    return {"rc": proc.returncode, "wall": wall, "cpu_main": main_cpu, "cpu_children": sum(cpu.values()),
+            "main_mb": main_mb, "worker_mb": workers_mb[:workers], "summary": summary,
+            "load": [load, os.getloadavg()[0]], "at": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
+
+
+def _children(proc) -> list:
+    import psutil
+    try:
+        return proc.children(recursive=True)
+    except psutil.Error:
+        return []
 
 
 def gpu_case(n: int) -> dict:
