@@ -281,7 +281,7 @@ def run(quick: bool = False, device: str = "cpu") -> dict:
     if not quick and measured("read") and measured("whole"):
         whole = [measured(f"whole_{m}") for m in SMALLER] + [measured("whole")]
         return {"reading": measured("read"), "estimates": [whole_memory(m) for m in WHOLE], "map": measured("map"),
-                "browser": measured("browser"),
+                "browser": measured("browser"), "scan": [measured(f"scan_{m}") for m in SCANS],
                 "whole": [w for w in whole if w], "goal_read_s": 20.0, "goal_memory_gb": 20.0, "goal_whole_s": 600.0}
     given = os.environ.get("MILLION_DATA")
     with tempfile.TemporaryDirectory() as tmp:
@@ -394,6 +394,8 @@ def markdown(results: dict) -> str:
         "",
         map_text(results.get("map"), results.get("browser")),
         "",
+        scan_text(results.get("scan")),
+        "",
         NOT_DONE,
     ])
 
@@ -427,11 +429,35 @@ NOT_DONE = (
     "blocks of all contacts at once (several (M, 6, 6) arrays, ~10 GB at 3·10⁶ contacts) and factors the grounded, "
     "non-symmetric H by SuperLU in minimum-degree order, an LU of both triangles (roughly twice the symmetric "
     "factor above, which alone is 6.8 GB): it would not fit in 20 GB as written; it needs the chunked assembly and "
-    "an iterative solve preconditioned by the symmetric multifrontal factor. The 10⁶-particle scan end to end — a "
-    "smoke run of the 10⁵-disk dumps (`python -m granstab_bench.million scan`, 2 Dask workers, not under the lock, "
-    "beside this 10⁶ whole run, load 9-11) took 516 s for 99,856 clusters (194 a second, median 7 ms a cluster), "
-    "so 10⁶ would take ~1.5 h at that load. The explorer's map of 10⁶ particles was not opened (no 10⁶ scan "
-    "folder), and no browser check of a large map was made (only the drawing without a browser: below).")
+    "an iterative solve preconditioned by the symmetric multifrontal factor.")
+
+
+SCANS = ("100000", "1000000")     # the scans end to end whose measured cases (MILLION_MEASURED/scan_N.json) are shown
+SCAN_WHERE = ""                  # where the 10⁶ scan's time goes, in words (filled in from its profile)
+
+
+def scan_text(scans: list | None) -> str:
+    """The scans end to end (`scan_case`: `python -m granstab_bench.million scan DUMPS OUT`), one line each."""
+    rows = [s for s in scans or [] if s and not s.get("failed") and s.get("summary")]
+    if not rows:
+        return "**The scan end to end**: not measured in this run (MILLION_MEASURED/scan_N.json)."
+    head = ("**The scan end to end** (goal: 10⁶ particles ≤ 10 min with 2 workers): `granstab scan DUMPS --out OUT "
+            "--workers 2 --json` of the LAMMPS dumps (atoms.dump, contacts.dump, in.bench: benchmarks/converting.py's "
+            "layout) in a fresh process — reading, the packing kept (packing.npz), chunks cut in Z-order, the "
+            "clusters on 2 local Dask workers, parts streamed to disk, the tables and the map (map.png/.svg, "
+            "lambda_min.png/.svg) written; default options (rings 1, metric L, boundary embedded:1, attribution). "
+            "*wall*: the command; *CPU*: the command's process (reading, the client, Dask's scheduler and nannies, "
+            "the tables and figures) and its workers' (psutil, sampled every 0.5 s); *memory*: each process's "
+            "resident peak; *loop*: the scan's own seconds (summary.json) and clusters a second in it.")
+    table_rows = [[f"{r['summary']['n_particles']:,}", f"{r['summary']['clusters']:,}", f"{r['wall']:.0f} s",
+                   f"{r['cpu_main']:.0f} s + {r['cpu_children']:.0f} s",
+                   f"{r['main_mb'] / 1024:.2f} GB; " + ", ".join(f"{w:.0f} MB" for w in r["worker_mb"]),
+                   f"{r['summary']['seconds']:.0f} s, {r['summary']['clusters_per_second']:.0f}/s",
+                   ", ".join(f"{n:,} {v}" for v, n in r["summary"]["verdicts"].items()),
+                   "{:.1f} → {:.1f}".format(*r["load"]) + (f" ({r['at']})" if "at" in r else "")] for r in rows]
+    return "\n".join([head, "", table(["particles", "clusters", "wall", "CPU: command + workers",
+                                       "memory: command; workers", "loop", "verdicts", "load"], table_rows),
+                      *(["", SCAN_WHERE] if SCAN_WHERE else [])])
 
 
 def map_text(m: dict | None, b: dict | None = None) -> str:
