@@ -217,7 +217,7 @@ def scan_case(folder: Path, out: Path, workers: int = 2) -> dict:
     load = os.getloadavg()[0]
     cmd = [sys.executable, "-m", "granstab", "scan", str(folder), "--out", str(out), "--overwrite", "--workers",
            str(workers), "--json"]
-    t = time.perf_counter()
+    t, started = time.perf_counter(), time.time()
     with tempfile.TemporaryFile() as stdout:
         proc = psutil.Popen(cmd, stdout=stdout, stderr=subprocess.DEVNULL)
         peak, cpu = {}, {}
@@ -240,8 +240,19 @@ def scan_case(folder: Path, out: Path, workers: int = 2) -> dict:
     if summary:
         summary.pop("import", None)
     return {"rc": proc.returncode, "wall": wall, "cpu_main": main_cpu, "cpu_children": sum(cpu.values()),
-            "main_mb": main_mb, "worker_mb": workers_mb[:workers], "summary": summary,
+            "main_mb": main_mb, "worker_mb": workers_mb[:workers], "summary": summary, "phases": _phases(out, started),
             "load": [load, os.getloadavg()[0]], "at": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
+
+
+def _phases(out: Path, started: float) -> dict:
+    """Seconds from the command's start to each step, by the times its files were written: the packing (after the
+    reading), the first and the last part (the loop), the clusters table (the finish), the map (the figures)."""
+    parts = sorted(p.stat().st_mtime for p in (out / "parts").glob("*.arrow"))
+    files = {"packing": out / "packing.npz", "tables": out / "summary.json", "map": out / "map.svg",
+             "figures": out / "lambda_min.svg"}
+    got = {key: f.stat().st_mtime - started for key, f in files.items() if f.exists()}
+    return {**got, **({"first_part": parts[0] - started, "last_part": parts[-1] - started, "parts": len(parts)}
+                      if parts else {})}
 
 
 def _children(proc) -> list:
