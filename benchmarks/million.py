@@ -444,7 +444,27 @@ NOT_DONE = (
 
 
 SCANS = ("100000", "1000000")     # the scans end to end whose measured cases (MILLION_MEASURED/scan_N.json) are shown
-SCAN_WHERE = ""                  # where the 10⁶ scan's time goes, in words (filled in from its profile)
+SCAN_WHERE = (                   # where the 10⁶ scan's time goes, in words (its phases and the profiles below)
+    "Where the 10⁶ scan's time goes (by the times its files were written; quiet: nothing else ran, the load "
+    "average still falling from the jobs before): reading the dumps and keeping the packing 17 s, the two workers "
+    "started and the first part on disk at 20 s, the loop 224.7 s (435 tasks; the workers at ~91% of a core each, "
+    "the command at ~26%: cutting the chunks, Dask's client and scheduler, the parts written), the tables 2.3 s, "
+    "the figures 10.8 s (the map drawn as pixels above 2·10⁵ particles: figure._pixels; one disk at a time it was "
+    "16 s of CPU at 10⁵, most of it the radii's per-particle median loop and the 10⁵ ellipses). The workers' "
+    "409 s of CPU are 0.41 ms a cluster: in one chunk's profile (10⁵ packing, 1,024 clusters) the eigenvalues "
+    "(LAPACK syevd, 57-75 dofs a cluster) ~40%, the stacked matrices (scattering the contact blocks, the formation "
+    "bounds) ~35%, the chunk's contact blocks, layout and tallies the rest. **Before** (main e6619d2; last "
+    "session's smoke run: 516 s for the 99,856 clusters at load 9-11, 194 a second): (1) centres taken in the "
+    "file's order, which in the benchmark's dumps (as in a DEM's insertion order) is not spatial, so a task of "
+    "500 clusters carried a scene of 16,727 particles (10 MB shipped, its contact blocks built for all): 1.69 ms "
+    "of CPU a cluster in one process at load 0.5, 0.84 ms with the centres in Z-order (`clusters.spatial_order`: "
+    "955 particles, 0.65 MB); (2) tasks of 0.05-0.3 s (~86 clusters at that load, 3.4 particles a centre in "
+    "Z-order): now 0.25-1 s (1.3-1.7 a centre); (3) every embedded:1 cluster solved with eigenvectors to tell its "
+    "negative modes' place: now a cluster without sliding contacts gets its eigenvalues first (`eigvalsh`) and "
+    "keeps them when they are all proven positive (`batch._values_first`; the verdicts, counts and λ_min within "
+    "the bounds, tested against `analyze`), ~0.55 ms a cluster in one process at load ~6; (4) the map's per-disk "
+    "drawing. The 10⁵ row above ran under the heavy queue beside other engineers' jobs (load 6-9): its wall time is "
+    "stretched, its CPU time is what the work costs.")
 
 
 def scan_text(scans: list | None) -> str:
