@@ -137,8 +137,9 @@ def browser_child(folder: Path, shot: Path | None = None) -> dict:
             page.goto(app.url)
             page.wait_for_selector(badge, timeout=300_000)
             out["map_s"] = time.perf_counter() - t
-            model = next(iter(app.uis.values())).session.model
-            out["particles"], name = model.scene.n_particles, model.scene.names[len(model.scene.names) // 2]
+            import pyarrow.parquet as pq
+            names = pq.read_table(folder / "particles.parquet", columns=["name"]).column("name")
+            out["particles"], name = len(names), names[len(names) // 2].as_py()
             t = time.perf_counter()
             page.locator("input.mantine-TextInput-input:visible").nth(1).fill(name)     # Open cluster of
             page.wait_for_selector(badge.replace("[", ":not([", 1) + ")", timeout=300_000)
