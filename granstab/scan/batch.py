@@ -17,7 +17,9 @@ On the CPU a cluster without sliding contacts (one branch; every eigenpair consi
 needed) is solved for its eigenvalues only (`eigvalsh`, ~0.45× the cost of `eigh` at n ≈ 80), with the wider
 a-priori bounds of accuracy.value_bounds instead of residual bounds; its row says `path: batched-values` and its
 `eigen_residual` is that a-priori error relative to max |λ|. An eigenvalue those bounds cannot resolve sends the
-cluster to `analyze`, as any other non-rigid zero does. On a GPU (Jacobi, no such a-priori bound) every cluster
+cluster to `analyze`, as any other non-rigid zero does. With --boundary embedded a negative or zero mode counts only
+when it lies mostly in the cluster, which takes its vector: there a cluster keeps its eigenvalues only when they
+are all proven positive (the scan's usual case), and the others get eigenvectors and residual bounds. On a GPU (Jacobi, no such a-priori bound) every cluster
 gets eigenvectors and residuals.
 
 The same numbers as `analyze(subscene, metric=...)` on the dense path, up to round-off, for the stability verdict
@@ -237,21 +239,15 @@ def _solve_group(sub, blocks, parts, pairs, part, positions, starts, n, factor, 
     device = options.get("device", "cpu")
     st = _stack(sub, blocks, parts, pairs, part, positions, starts, n, factor, n_sliding, options, lay)
     G, dofs, Ms = len(part), st["base"].shape[1], st["Ms"]
-    inside = None
-    if lay["focus"]:               # vᵀ W v: the squared norm on the cluster's dofs, W = diag(inner) (or QᵀWQ off rigid)
-        mark = np.repeat(st["inner"], sub.dof_per_particle, axis=1).astype(float)
-        Q = st["Q"]
-        inside = (np.einsum("gij,gi,gik->gjk", Q, mark, Q) if Q is not None
-                  else mark[:, :, None] * np.eye(dofs)[None])
-    values_only = (n_sliding[part] == 0) & (device == "cpu") & (inside is None)
-    values, vectors = np.flatnonzero(values_only), np.flatnonzero(~values_only)
-    solved = [(values, _values(st["base"][values], st["formation"][values], dofs))] if values.size else []
+    values_only = (n_sliding[part] == 0) & (device == "cpu")
+    solved = _values_first(st, values_only, dofs, lay["focus"])
+    vectors = np.flatnonzero(~values_only)
     if vectors.size:
         PA, PS = (np.ascontiguousarray(st[k][vectors][:, :, :Ms]) for k in ("PA", "PS"))   # the branches' columns
         solved.append((vectors, _vectors(st["base"][vectors], PA, PS, st["update"][vectors],
                                          n_sliding[part][vectors], st["formation"][vectors], st["s_tol"][vectors],
                                          st["s_floor"][vectors], dofs, device,
-                                         None if inside is None else inside[vectors])))
+                                         _inside(st, vectors, sub.dof_per_particle) if lay["focus"] else None)))
     owner = np.concatenate([which[got["owner"]] for which, got in solved])
     lam, bounds, codes, hinges, special, error = (np.concatenate([got[key] for _, got in solved])
                                                   for key in ("lam", "bounds", "codes", "hinges", "special", "error"))
@@ -327,8 +323,8 @@ def _stack(sub, blocks, parts, pairs, part, positions, starts, n, factor, n_slid
     scales = (abs_norm(parts["rows_m"]) + abs_norm(parts["rows_g"])
               + _column_sum(np.linalg.norm(A, axis=1) * np.linalg.norm(S, axis=1)))
     s_tol, s_floor = s_limits(S, sub.tol)                  # branches.Problem.s_tol, s_floor
-    entries = np.concatenate([np.arange(starts[c], starts[c] + len_) for c, len_ in
-                              zip(part, np.diff(np.r_[starts, len(lay["free"])])[part])])
+    lengths = np.diff(np.r_[starts, len(lay["free"])])[part]
+    entries = np.repeat(starts[part] - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
     free_entries = entries[lay["free"][entries]]                                      # (G·n,) in cluster order
     out = {"g": g, "m": m, "idx": idx, "Dp": Dp, "slide": slide, "col": col, "Ms": Ms, "L": L, "nd": nd,
            "inner": lay["inner"][free_entries].reshape(G, n), "rim": lay["rim"][free_entries].reshape(G, n),
@@ -344,6 +340,15 @@ def _stack(sub, blocks, parts, pairs, part, positions, starts, n, factor, n_slid
                    PA=A, PS=S)
     out["update"] = _update_norm(out["PA"], out["PS"])
     return out
+
+
+def _inside(st: dict, which: np.ndarray, per: int) -> np.ndarray:
+    """W (G', n, n) of the clusters `which` of a stack (embedded): vᵀ W v is the squared metric norm of v on the
+    cluster's own dofs, W = diag(inner), or QᵀWQ off the rigid motions."""
+    mark = np.repeat(st["inner"][which], per, axis=1).astype(float)
+    Q = st["Q"]
+    return (np.einsum("gij,gi,gik->gjk", Q[which], mark, Q[which]) if Q is not None
+            else mark[:, :, None] * np.eye(mark.shape[1])[None])
 
 
 def _modes(st: dict, solved: list) -> dict:
@@ -412,6 +417,24 @@ def _reduced(H_el, A, S, x, L, scales):
                                     + np.linalg.norm(S, axis=1) * np.linalg.norm(np.swapaxes(A, 1, 2) @ PR, axis=2)))
     formation = (8 * EPS + 2 * gamma(nd) * nd + centre_error(C, centred(x, defect=True)[1])) * scales + coupling
     return formation, leakage, Q, *on_complement(Q, H_el, A, S)
+
+
+def _values_first(st: dict, values_only: np.ndarray, nd: int, focus: bool) -> list:
+    """The clusters `values_only` (no sliding contact, CPU) of a stack solved for eigenvalues only (`_values`), as
+    [(their positions, _values)], or []. focus (embedded): a mode is left out when it lies mostly outside the
+    cluster, which takes its vector; so only clusters whose eigenvalues are all proven positive (no mode can be
+    left out, no search needed) keep the values; the others are taken out of `values_only` (in place) for the
+    eigenvectors."""
+    values = np.flatnonzero(values_only)
+    if not values.size:
+        return []
+    got = _values(st["base"][values], st["formation"][values], nd)
+    if focus:
+        kept = (got["lam"][:, 0] > got["bounds"][:, 0]) & ~got["special"]
+        values_only[values[~kept]] = False
+        values = values[kept]
+        got = {key: np.arange(kept.sum()) if key == "owner" else value[kept] for key, value in got.items()}
+    return [(values, got)] if values.size else []
 
 
 def _values(Hsym, formation, nd: int) -> dict:

@@ -53,6 +53,27 @@ def _distinct(indices: np.ndarray, n: int) -> np.ndarray:
     return np.flatnonzero(mark)
 
 
+MORTON_BITS = 16    # bits per axis of the Z-order curve: 65,536 cells an axis, far finer than a packing's grains
+
+
+def spatial_order(x: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """`indices` in the order of a Z-order (Morton) curve through their positions x[indices]: consecutive ones are
+    near in space, so that a scan chunk of consecutive centres shares most of its clusters' particles (its scene, its
+    contact blocks and the task Dask ships are then about the chunk's size, not clusters × cluster size). Ties keep
+    their order; the rows do not depend on it (each is the same bits however the scan is chunked)."""
+    indices = np.asarray(indices, dtype=np.int64)
+    if indices.size < 2:
+        return indices
+    pos = x[indices]
+    lo, span = pos.min(axis=0), np.ptp(pos, axis=0)
+    cells = np.floor((pos - lo) / np.where(span > 0, span, 1.0) * (2 ** MORTON_BITS - 1)).astype(np.int64)
+    key = np.zeros(len(indices), dtype=np.int64)
+    for bit in range(MORTON_BITS):          # interleave the axes' bits, the lowest first
+        for axis in range(x.shape[1]):
+            key |= ((cells[:, axis] >> bit) & 1) << (bit * x.shape[1] + axis)
+    return indices[np.argsort(key, kind="stable")]
+
+
 def particle_shares(flat: np.ndarray, sizes: np.ndarray, n: int, *flags: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per particle of `n`, from clusters given by their members (`flat`: every cluster's member indices in turn,
     `sizes`: how many each has): the number of clusters containing it, then for each (G,) bool `flags` over the

@@ -18,6 +18,8 @@ from .output import read_map
 
 WHITE, RED, GREY = (250 / 255, 250 / 255, 250 / 255), (176 / 255, 20 / 255, 20 / 255), (150 / 255,) * 3
 RASTER_ABOVE = 2000     # particles: above, the disks are drawn as an image inside the SVG
+PIXELS_ABOVE = 200_000  # particles: above, a disk is under a pixel of the map, which is drawn as pixels (_pixels)
+PIXELS = 1000           # pixels along the map's longer side then (the figure's axes are ~600 px wide at 110 dpi)
 HATCH = "////"          # particles whose containing clusters are unstable only by the cut (mechanism boundary)
 
 
@@ -26,10 +28,12 @@ def particle_radii(scene: Scene) -> np.ndarray:
     from q's copy across a periodic seam, Scene.r_qp); particles without contacts get the median of the others."""
     d = np.linalg.norm(np.r_[scene.r_pq, scene.r_qp], axis=1)
     owner = np.r_[scene.p, scene.q]
-    order = np.argsort(owner, kind="stable")
+    order = np.lexsort((d, owner))                       # by particle, then by distance: each group sorted
     counts = np.bincount(owner, minlength=scene.n_particles)
-    groups = np.split(d[order], np.cumsum(counts)[:-1])
-    r = np.array([np.median(g) if g.size else np.nan for g in groups])
+    start = np.cumsum(counts) - counts
+    low = d[order][np.minimum(start + (counts - 1) // 2, max(len(d) - 1, 0))] if len(d) else np.zeros(len(counts))
+    high = d[order][np.minimum(start + counts // 2, max(len(d) - 1, 0))] if len(d) else low
+    r = np.where(counts > 0, np.where(counts % 2 == 1, low, (low + high) / 2), np.nan)   # np.median's middle(s)
     return np.where(np.isfinite(r), r, np.nanmedian(r) if np.isfinite(r).any() else 1.0)
 
 
@@ -65,7 +69,8 @@ def write_figures(scene: Scene, out_dir) -> list[Path]:
         views.append(np.abs(z - np.median(z)) <= np.median(r))
     fig, axes = plt.subplots(1, len(views), figsize=(6.5 * len(views), 7.4), squeeze=False)
     for ax, keep, title in zip(axes[0], views, ("projection on x-y", "slice |z - median z| <= r")):
-        pc = _disks(ax, scene.x[keep, :2], r[keep], packing[keep], by_cut[keep] > 0)
+        draw = _pixels if keep.sum() > PIXELS_ABOVE else _disks
+        pc = draw(ax, scene.x[keep, :2], r[keep], packing[keep], by_cut[keep] > 0)
         ax.set_title(title if scene.dim == 3 else "local stability map")
         fig.colorbar(pc, ax=ax, shrink=0.7, label="share of its clusters unstable by the packing")
         _depends(ax, scene, data["clusters"], keep, r)
@@ -101,6 +106,39 @@ def _disks(ax, centres, radii, value, hatched):
     ax.set_ylim(centres[:, 1].min() - pad, centres[:, 1].max() + pad)
     ax.set_aspect("equal")
     return pc
+
+
+def _pixels(ax, centres, radii, value, hatched):
+    """The map as an image of at most PIXELS × PIXELS pixels (above PIXELS_ABOVE particles, where a disk is smaller
+    than a pixel and 10⁶ disks took minutes to draw): each pixel coloured by the largest `value` of the particles
+    whose centres fall in it (an unstable one is never averaged away), grey where they are all in no cluster, clear
+    where there is none; hatched HATCH where one is unstable only by the cut and none by the packing."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    pad = radii.max(initial=0.0)
+    lo, hi = centres.min(axis=0) - pad, centres.max(axis=0) + pad
+    span = np.maximum(hi - lo, 1e-300)
+    shape = np.maximum(np.round(PIXELS * span / span.max()).astype(int), 1)            # (nx, ny)
+    cell = np.minimum(((centres - lo) / span * shape).astype(np.int64), shape - 1)
+    flat = cell[:, 1] * shape[0] + cell[:, 0]
+    best = np.full(shape.prod(), -np.inf)
+    np.maximum.at(best, flat, np.where(np.isnan(value), -1.0, value))                # -1: in no cluster
+    cut = np.zeros(shape.prod(), dtype=bool)
+    cut[flat[hatched & ~(value > 0)]] = True
+    cmap = colormap()
+    rgba = cmap(np.clip(best, 0.0, 1.0))
+    rgba[best == -1.0] = (*GREY, 1.0)
+    rgba[np.isneginf(best), 3] = 0.0
+    extent = (lo[0], hi[0], lo[1], hi[1])
+    ax.imshow(rgba.reshape(shape[1], shape[0], 4), origin="lower", extent=extent, interpolation="nearest")
+    only_cut = (cut & (best <= 0.0)).reshape(shape[1], shape[0])
+    if only_cut.any():
+        ax.contourf(np.linspace(lo[0], hi[0], shape[0]), np.linspace(lo[1], hi[1], shape[1]), only_cut.astype(float),
+                    levels=[0.5, 1.5], colors="none", hatches=[HATCH])
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    return ScalarMappable(norm=Normalize(0, 1), cmap=cmap)
 
 
 DEPENDS_HATCH = "xxxx"

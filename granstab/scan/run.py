@@ -34,6 +34,7 @@ from .clusters import (
     members,
     particle_index,
     piece,
+    spatial_order,
     union,
 )
 from .output import ScanOutput
@@ -53,8 +54,10 @@ from .workers import (
 ROBUST = ("robust_stable", "robust_unstable", "robust_open")   # the batch's margins (scan/uncertain.py)
 CHUNK = 4096          # most clusters a task (and the serial loop's chunk): the stacks inside stay small
                       # (batch.STACK_BYTES)
-TASK_SECONDS = (0.05, 0.3)  # a Dask task's measured compute, least and most: Dask's per-task cost (~10 ms of a
-                      # worker and ~10 ms of the client and scheduler, measured) stays a few per cent of it
+TASK_SECONDS = (0.25, 1.0)  # a Dask task's measured compute, least and most: Dask's per-task cost (~10 ms of a
+                      # worker and ~10 ms of the client and scheduler, measured) stays a few per cent of it, and so
+                      # does the border of a chunk's scene (the rings around its near centres, spatial_order: 3.4
+                      # particles a centre at 64 clusters, 1.7 at 512; 0.96 and 0.69 ms of CPU a cluster, embedded:1)
 FIRST_TASK = 64       # clusters of the first Dask tasks (and of the first serial chunk), before a cluster's cost
                       # is measured
 SERIAL_SECONDS = 1.0  # a serial chunk's compute by the measured cost of a cluster: a part file about every second,
@@ -348,7 +351,7 @@ def scan(scene: Scene, out_dir, *, rings: int = 1, centers="all", metric: str = 
     out = ScanOutput(out_dir, fmt, options, scene, inputs=inputs, overwrite=overwrite, shapes=shapes)
     chunk = chunk or (GPU_CHUNK if device == "gpu" else None)
     chosen = select_centers(scene, centers)
-    todo = chosen[~np.isin(chosen, out.done_centers())]
+    todo = spatial_order(scene.x, chosen[~np.isin(chosen, out.done_centers())])   # chunks of near centres
     bar = _progress(len(todo)) if progress else None
     start = time.perf_counter()
     try:

@@ -159,7 +159,7 @@ def test_embedded_rows_batched_equal_analyze_of_the_embedded_cluster(boundary):
     centers = np.arange(0, scene.n_particles, 4)
     options = {**SLIDING, "boundary": boundary}
     batched = scan_chunk(scene, centers, options).to_pylist()
-    assert sum(r["path"] == "batched" for r in batched) >= 0.8 * len(batched)
+    assert sum(r["path"].startswith("batched") for r in batched) >= 0.8 * len(batched)     # -values: no sliding
     for row, c, keep in zip(batched, centers, members(scene, centers, 1)):
         ref = cluster_row(scene, c, keep, options)
         assert (row["verdict"], row["consistent_negative"], row["n_sliding"]) == \

@@ -270,7 +270,8 @@ def test_guide_with_a_fixed_chunk_keeps_it_and_shrinks_the_tail():
                                                                                 512, 512, 512, 350]
 
 
-@pytest.mark.parametrize("dim, n, boundary", [(2, 300, "loads"), (3, 60, "loads"), (2, 300, "fixed")])
+@pytest.mark.parametrize("dim, n, boundary", [(2, 300, "loads"), (3, 60, "loads"), (2, 300, "fixed"),
+                                            (2, 300, "embedded:1")])
 def test_rows_are_the_same_bits_however_the_scan_is_chunked(dim, n, boundary):
     """A cluster's row does not depend on which clusters share its task or stack (serial, Dask, resumed scans chunk
     differently): chunks of 7 and of 41 clusters against one chunk, every number bit for bit, on packings with
