@@ -35,7 +35,7 @@ def _interrupted_while_starting(kind, value, tb, _previous=sys.excepthook):
     _previous(kind, value, tb)
 
 
-sys.excepthook = _interrupted_while_starting
+sys.excepthook = _interrupted_while_starting     # only while granstab's modules load: restored below
 from .analysis import Analysis, analyze  # noqa: E402 (the hook first)
 from .io import Loaded, load, load_scene  # noqa: E402 (the hook first)
 from .io.scenes import save_scene, scene_from_dict, scene_to_dict  # noqa: E402 (the hook first)
@@ -44,6 +44,8 @@ from .mechanics.verdicts import load_response, second_order_work  # noqa: E402 (
 from .model.scene import Scene, SceneError, build_scene  # noqa: E402 (the hook first)
 from .model.tolerances import Tolerances  # noqa: E402 (the hook first)
 from .moduli import CellBranch, Moduli, moduli  # noqa: E402 (the hook first)
+
+sys.excepthook = _interrupted_while_starting.__defaults__[-1]   # loaded: the program's own hook again
 
 __all__ = ["Analysis", "CellBranch", "Loaded", "Moduli", "Scene", "SceneError", "Stiffness", "Tolerances", "analyze", "build_scene", "load",
            "load_response", "load_scene", "moduli", "save_scene", "scene_from_dict", "scene_to_dict", "second_order_work", "stiffness"]

@@ -208,15 +208,20 @@ def ritz_fits(n_dof: int, n_sliding: int, kk: int) -> bool:
     return 8 * n_sliding * float(ritz_width(n_dof, n_sliding, kk)) ** 2 <= RITZ_BYTES
 
 
-RITZ_MIN_BRANCHES = 3       # SparseRitz from 3 branches on: for 2 (track's whole stage: all-loading, all-unloading) its
-                            # shared basis costs more than it saves (a sheared 2,000-disk frame, 5,937 dofs, 60 sliding,
-                            # kk = 61: 12.7 s of CPU as Ritz, 5.9 s by shift-invert, the same eigenvalues; issue 39)
+RITZ_MIN_BRANCHES = 3       # SparseRitz from 3 branches on; for 2 (track's whole stage: all-loading, all-unloading;
+                            # a periodic packing with one contact at yield) only where its basis is narrow (`use_ritz`)
 
 
 def use_ritz(n_branches: int, n_dof: int, n_sliding: int, kk: int) -> bool:
-    """Whether methods.SparseMethod._modes solves the branches as Ritz updates of one elastic solve
-    (RITZ_MIN_BRANCHES, `ritz_fits`); else each by shift-invert. The run and the estimate ask the same."""
-    return n_branches >= RITZ_MIN_BRANCHES and ritz_fits(n_dof, n_sliding, kk)
+    """Whether methods.SparseMethod._modes solves the branches as Ritz updates of one elastic solve (`ritz_fits`);
+    else each by shift-invert. From RITZ_MIN_BRANCHES branches on, always; for two, only when the sliding contacts'
+    Taylor columns are no more than the elastic Krylov columns (RITZ_COLUMNS_PER_SLIDING·Ms ≤ kk + RITZ_KRYLOV),
+    i.e. the basis costs at most about one more elastic solve. Measured (CPU time, issues 39 and 41): a sheared
+    2,000-disk frame (5,937 dofs, Ms 60, kk 61: 510 columns against 109) 12.7 s as Ritz, 5.9 s by shift-invert;
+    the periodic packing of 2·10⁵ disks (Ms 1, kk 7) 50 s and 3.8 GB as Ritz, 74 s and 5.9 GB by shift-invert
+    (a factor a branch). The run and the estimate ask the same."""
+    narrow = RITZ_COLUMNS_PER_SLIDING * n_sliding <= kk + RITZ_KRYLOV
+    return (n_branches >= RITZ_MIN_BRANCHES or (n_branches == 2 and narrow)) and ritz_fits(n_dof, n_sliding, kk)
 
 
 def sparse_parts(n_dof: int, n_branches: int, metric: str = "L", n_sliding: int = 0, k: int = 6,

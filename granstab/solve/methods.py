@@ -340,7 +340,8 @@ class SparseMethod:
         return branches, notes
 
     def _modes(self, spb, masks, kk: int):
-        """Modes of every branch: budget.RITZ_MIN_BRANCHES or more as low-rank updates of one elastic solve (ritz.SparseRitz,
+        """Modes of every branch: by budget.use_ritz (RITZ_MIN_BRANCHES or more, or two with a narrow basis) as low-rank
+        updates of one elastic solve (ritz.SparseRitz,
         verified per branch, shift-invert ARPACK where that fails), a single one, or branches whose Ritz problem
         would not fit budget.RITZ_BYTES (many sliding contacts: its basis grows by about 8.5 columns and its updates by
         one width² matrix a contact: ritz_fits), by shift-invert directly, one after the other."""

@@ -312,6 +312,15 @@ def test_ctrl_c_while_granstab_loads_is_one_line():
     assert proc.returncode == 130
 
 
+def test_importing_granstab_leaves_the_programs_excepthook_alone():
+    """The start-up hook above answers a Ctrl-C only while granstab's modules load; once loaded, a program that
+    imports granstab keeps its own sys.excepthook (a library must not take it over)."""
+    code = ("import sys; mine = lambda *a: None; sys.excepthook = mine; import granstab; "
+            "print(sys.excepthook is mine)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV, timeout=120)
+    assert out.stdout.strip() == "True", out.stderr[-2000:]
+
+
 @pytest.mark.serial                     # Ctrl-C sent while the work runs: timing
 def test_ctrl_c_in_analyze_is_one_line(tmp_path):
     """analyze of 4,096 branches (--timeout: above the 10 s a run takes without it), Ctrl-C once its progress bar
