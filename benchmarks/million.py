@@ -503,9 +503,8 @@ def markdown(results: dict) -> str:
         "",
         f"**The whole packing** (goal ≤ {results['goal_whole_s'] / 60:g} min and ≤ {results['goal_memory_gb']:g} "
         "GB): `granstab.analyze(scene, k=6, metric=\"L\")` of the periodic benchmark's packing with one contact at "
-        "yield (the elastic and the all-loading branch), in a fresh process (nice 10, under the benchmark lock); "
-        "*peak*: its resident peak (wait4); *estimated*: solve/memory.py's estimate by the model re-fitted to the 10⁶ "
-        "run's phases (that run itself was planned with 18.1 GB, the model before the re-fit); *residual*: the largest "
+        "yield (the elastic and the all-loading branch), in a fresh process (alone, under /work/wt/quiet); "
+        "*peak*: its resident peak (wait4); *estimated*: solve/memory.py's estimate when it ran; *residual*: the largest "
         "‖Bv − λv‖/‖Hs‖; "
         "*bound*: the largest reported error bound of an eigenvalue (residual and formation error, "
         "accuracy.vector_bounds); *counts*: the number of eigenvalues below σ by inertia (multifrontal.py).",
@@ -537,16 +536,19 @@ def markdown(results: dict) -> str:
 
 
 WHERE_TIME = (
-    "In words (10⁶ disks, CPU time, one thread: the fronts and block solves run under blas_threads(1)): 354 s in all "
-    "(the packing's generation, 64 s, not counted) — the elastic solve 269 s (the multifrontal factorisation 87 s, "
-    "the block shift-invert Krylov iteration 150 s, the Ritz basis's Taylor solves and Rayleigh quotient 32 s), the "
-    "contact blocks and assembly 50 s, the metric's congruences and norms 17.5 s, both branches' Ritz updates 5.4 s, "
-    "their bounds and consistency tests 2 s, the identity checks 3.8 s. The wall time, 1255 s, is that CPU time at "
-    "27% of a core (nice 10 beside other work at nice 0 and -8, load 8-11); at rest the same CPU time is ~6 min of "
-    "wall time. A rerun at rest (session 10, 20:38 UTC, alone under /work/wt/quiet, load 2.5 → 1.0, main's code "
-    "with this session's moduli work) was stopped by its own memory guard (memtrace's 18.5 GB, exit 3) after 6.4 min, "
-    "so its wall time and peak at rest are not shown, and the peak is now above the 15.8 GB measured here (not "
-    "diagnosed this session). Memory: the parts 4.8 GB, the factor 6.8 GB (float64 only: no float32 copy "
+    "In words (10⁶ disks, at rest: session 10, 21:32 UTC, alone under /work/wt/quiet, load 0.5 → 1.2; one "
+    "thread: the fronts and block solves run under blas_threads(1)): 335 s of wall time and 340 s of CPU in all "
+    "(the packing's generation not counted) — the elastic solve 238 s (the multifrontal factorisation 78 s, the "
+    "block shift-invert Krylov iteration 155 s, the Ritz basis's Taylor solves and Rayleigh quotient ~5 s), the "
+    "contact blocks and assembly 41 s, the metric's congruences and norms 14 s, both branches' Ritz updates 6.4 s, "
+    "their bounds and consistency tests 1.8 s, the identity checks 2.6 s. Peak 15.9 GB, as estimated (15.9 GB). "
+    "An earlier run at load 8-11 (session 9, nice 10) took 354 s of CPU over 1,255 s of wall time. **A regression "
+    "found and fixed on the way:** after session 9's merge, two branches went to shift-invert whatever their size "
+    "(issue 39's rule for track's sheared frames, where the Ritz basis is wide), so this packing's two branches "
+    "each built a factor: at 2·10⁵ disks 74 s of CPU and 5.9 GB against 50 s and 3.8 GB as Ritz updates, and the "
+    "10⁶ run stopped at its own 18.5 GB memory guard (session 10, 20:38 UTC). budget.use_ritz now keeps two "
+    "branches as Ritz updates when the sliding contacts' Taylor columns are no more than the elastic Krylov "
+    "columns (tests/solve/test_large.py). Memory: the parts 4.8 GB, the factor 6.8 GB (float64 only: no float32 copy "
     "above multifrontal.SINGLE_MAX), the Krylov basis 4.2 GB (restarted in place); the transient peaks of the "
     "assembly (7.2 GB) and of the metric's problem (8.9 GB) fall before the factor. Before the cuts (no release of "
     "the physical H and Hm, a float32 factor copy, restart copies) the same 2·10⁵-disk case peaked at 4.37 GB and "
@@ -573,6 +575,54 @@ NOT_DONE = (
     "(solve/blockiter.py) gives the lowest modes with residual bounds but no inertia counts).")
 
 
+SCANS = ("100000", "1000000")     # the scans end to end whose measured cases (MILLION_MEASURED/scan_N.json) are shown
+SCAN_WHERE = (                   # where the 10⁶ scan's time goes, in words (its phases and the profiles below)
+    "Where the 10⁶ scan's time goes (by the times its files were written; quiet: nothing else ran, the load "
+    "average still falling from the jobs before): reading the dumps and keeping the packing 17 s, the two workers "
+    "started and the first part on disk at 20 s, the loop 224.7 s (435 tasks; the workers at ~91% of a core each, "
+    "the command at ~26%: cutting the chunks, Dask's client and scheduler, the parts written), the tables 2.3 s, "
+    "the figures 10.8 s (the map drawn as pixels above 2·10⁵ particles: figure._pixels; one disk at a time it was "
+    "16 s of CPU at 10⁵, most of it the radii's per-particle median loop and the 10⁵ ellipses). The workers' "
+    "409 s of CPU are 0.41 ms a cluster: in one chunk's profile (10⁵ packing, 1,024 clusters) the eigenvalues "
+    "(LAPACK syevd, 57-75 dofs a cluster) ~40%, the stacked matrices (scattering the contact blocks, the formation "
+    "bounds) ~35%, the chunk's contact blocks, layout and tallies the rest. **Before** (main e6619d2; last "
+    "session's smoke run: 516 s for the 99,856 clusters at load 9-11, 194 a second): (1) centres taken in the "
+    "file's order, which in the benchmark's dumps (as in a DEM's insertion order) is not spatial, so a task of "
+    "500 clusters carried a scene of 16,727 particles (10 MB shipped, its contact blocks built for all): 1.69 ms "
+    "of CPU a cluster in one process at load 0.5, 0.84 ms with the centres in Z-order (`clusters.spatial_order`: "
+    "955 particles, 0.65 MB); (2) tasks of 0.05-0.3 s (~86 clusters at that load, 3.4 particles a centre in "
+    "Z-order): now 0.25-1 s (1.3-1.7 a centre); (3) every embedded:1 cluster solved with eigenvectors to tell its "
+    "negative modes' place: now a cluster without sliding contacts gets its eigenvalues first (`eigvalsh`) and "
+    "keeps them when they are all proven positive (`batch._values_first`; the verdicts, counts and λ_min within "
+    "the bounds, tested against `analyze`), ~0.55 ms a cluster in one process at load ~6; (4) the map's per-disk "
+    "drawing. The 10⁵ row above ran under the heavy queue beside other engineers' jobs (load 6-9): its wall time is "
+    "stretched, its CPU time is what the work costs.")
+
+
+def scan_text(scans: list | None) -> str:
+    """The scans end to end (`scan_case`: `python -m granstab_bench.million scan DUMPS OUT`), one line each."""
+    rows = [s for s in scans or [] if s and not s.get("failed") and s.get("summary")]
+    if not rows:
+        return "**The scan end to end**: not measured in this run (MILLION_MEASURED/scan_N.json)."
+    head = ("**The scan end to end** (goal: 10⁶ particles ≤ 10 min with 2 workers): `granstab scan DUMPS --out OUT "
+            "--workers 2 --json` of the LAMMPS dumps (atoms.dump, contacts.dump, in.bench: benchmarks/converting.py's "
+            "layout) in a fresh process — reading, the packing kept (packing.npz), chunks cut in Z-order, the "
+            "clusters on 2 local Dask workers, parts streamed to disk, the tables and the map (map.png/.svg, "
+            "lambda_min.png/.svg) written; default options (rings 1, metric L, boundary embedded:1, attribution). "
+            "*wall*: the command; *CPU*: the command's process (reading, the client, Dask's scheduler and nannies, "
+            "the tables and figures) and its workers' (psutil, sampled every 0.5 s); *memory*: each process's "
+            "resident peak; *loop*: the scan's own seconds (summary.json) and clusters a second in it.")
+    table_rows = [[f"{r['summary']['n_particles']:,}", f"{r['summary']['clusters']:,}", f"{r['wall']:.0f} s",
+                   f"{r['cpu_main']:.0f} s + {r['cpu_children']:.0f} s",
+                   f"{r['main_mb'] / 1024:.2f} GB; " + ", ".join(f"{w:.0f} MB" for w in r["worker_mb"]),
+                   f"{r['summary']['seconds']:.0f} s, {r['summary']['clusters_per_second']:.0f}/s",
+                   ", ".join(f"{n:,} {v}" for v, n in r["summary"]["verdicts"].items()),
+                   "{:.1f} → {:.1f}".format(*r["load"]) + (f" ({r['at']})" if "at" in r else "")] for r in rows]
+    return "\n".join([head, "", table(["particles", "clusters", "wall", "CPU: command + workers",
+                                       "memory: command; workers", "loop", "verdicts", "load"], table_rows),
+                      *(["", SCAN_WHERE] if SCAN_WHERE else [])])
+
+
 def map_text(m: dict | None, b: dict | None = None) -> str:
     """The explorer's scan map drawn without a browser (`map_child`) and in one (`browser_child`, `b`), or why there
     is no such line."""
@@ -595,12 +645,15 @@ def browser_text(b: dict | None) -> str:
     if not b or b.get("failed"):
         return " The page in a browser: not measured in this run." if not b else " The page in a browser: failed."
     return (" In headless Chromium (`python -m granstab_bench.million browser FOLDER [SHOTS]`, software WebGL, "
-            "one run, load {:.1f} → {:.1f}, not under the lock): ".format(*b["load"]) +
+            "one run, load {:.1f} → {:.1f}".format(*b["load"]) + (f", {b['at']}" if "at" in b else "") + "): " +
             f"the page loaded to the SCAN MAP badge in {b['map_s']:.1f} s, a particle's name typed into *Open "
             f"cluster of* answered by its cluster's verdict in {b['cluster_s']:.1f} s (the cluster cut and analysed), "
             f"*Back to the map* in {b['back_s']:.1f} s (the server's process peaked at {b['peak_mb']:.0f} MB). The screenshot of "
             "the map shows the packing as one pale square: every one of its clusters is stable, so every disk is "
-            "drawn white (the legend's 0), as the map says.")
+            "drawn white (the legend's 0), as the map says. How the page stays responsive at this size: the map is one "
+            "point cloud (one point sprite a particle, app/views.py), its positions, sizes and colours arrays built "
+            "once when the folder opens and sent once; a recolouring sends only the colour array, and an opened "
+            "cluster draws only its own grains; the controls answered while the map was shown.")
 
 
 if __name__ == "__main__":
