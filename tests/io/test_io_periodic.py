@@ -332,7 +332,11 @@ def test_lammps_shear_run_moduli_and_lowest_modes(sheared):
     assert m.C.shape == (2, 2, 2, 2) and np.all(np.isfinite(m.C))
     # error estimates: the non-affine solve to round-off; the others are the snapshot's (a DEM frame under shear is
     # not static: load residual; frictional contacts with tangential forces: C and σ not symmetric)
-    assert m.bulk > 0 and m.errors["residual"] <= 1e-12 and all(np.isfinite(list(m.errors.values())))
+    stated = {key: v for key, v in m.errors.items() if v is not None}
+    assert m.bulk > 0 and m.errors["residual"] <= 1e-12 and all(np.isfinite(list(stated.values())))
+    # the moduli's bound is null only where no τ > 0 is proven for ‖H⁻¹‖ (docs/periodic.md): SuperLU's solve
+    assert set(m.errors) - set(stated) <= {"moduli_bound"}
+    assert m.errors["moduli_bound"] is not None or m.solve["method"].startswith("SuperLU"), m.solve
     assert len(m.branches) == 2 and {b.name for b in m.branches} >= {"elastic"}
     r = granstab.analyze(s, method="sparse", k=6, metric="L", max_sliding=0, sample_branches=1)
     elastic = r.branches[0]
