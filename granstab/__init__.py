@@ -18,8 +18,10 @@ The notation and the paper's equations: docs/equations.md.
 """
 import sys
 
+_program_hook = sys.excepthook
 
-def _interrupted_while_starting(kind, value, tb, _previous=sys.excepthook):
+
+def _interrupted_while_starting(kind, value, tb):
     """A Ctrl-C that ends the program while granstab's modules load (a command's first second, before cli.main can
     answer it): one line and exit 130, as cli.main says it later, not a traceback of imports. Any other uncaught
     exception goes to the hook that was there."""
@@ -32,7 +34,7 @@ def _interrupted_while_starting(kind, value, tb, _previous=sys.excepthook):
         print("granstab: interrupted (Ctrl-C) while starting; nothing was done", file=sys.stderr, flush=True)
         import os
         os._exit(130)
-    _previous(kind, value, tb)
+    _program_hook(kind, value, tb)
 
 
 sys.excepthook = _interrupted_while_starting     # only while granstab's modules load: restored below
@@ -45,7 +47,7 @@ from .model.scene import Scene, SceneError, build_scene  # noqa: E402 (the hook 
 from .model.tolerances import Tolerances  # noqa: E402 (the hook first)
 from .moduli import CellBranch, Moduli, moduli  # noqa: E402 (the hook first)
 
-sys.excepthook = _interrupted_while_starting.__defaults__[-1]   # loaded: the program's own hook again
+sys.excepthook = _program_hook     # loaded: the program's own hook again
 
 __all__ = ["Analysis", "CellBranch", "Loaded", "Moduli", "Scene", "SceneError", "Stiffness", "Tolerances", "analyze", "build_scene", "load",
            "load_response", "load_scene", "moduli", "save_scene", "scene_from_dict", "scene_to_dict", "second_order_work", "stiffness"]
