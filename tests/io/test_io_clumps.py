@@ -175,7 +175,9 @@ def check_yade(folder, tmp_path, capsys):
     assert imb["particles"] == touching >= 55 and imb["force"]["max"] <= 1e-7 and imb["moment"]["max"] <= 1e-7
     assert report["geometry"]["engine_point_offset_over_radius"]["max"] <= 1e-12   # ScGeom: the same point
     assert report["bodies"]["kind"] == "clump" and report["masses"].startswith("the file's masses and inertia")
-    check_commands(out, tmp_path, capsys)
+    # a fresh YADE run leaves a varying number of contacts at yield (22 once: above --max-sliding 16, refused):
+    # a sample of branches, whatever the count
+    check_commands(out, tmp_path, capsys, analyze=("--sample-branches", "8"))
 
 
 @pytest.mark.yade
